@@ -1,0 +1,140 @@
+"""Every registered splitting scheme: coefficients, layout, measured order,
+reversibility, symplecticity of its tangent map, and the tangent map being
+the exact derivative of the numerical map."""
+
+import math
+
+import numpy as np
+import pytest
+
+import varint
+from varint.schemes import DRIFT, KICK, SplittingScheme, stage_arrays
+from varint.tangent_map import tangent_map_steps
+
+from tests.helpers import fitted_slope
+
+NAMES = [s.name for s in varint.SCHEMES.values()]
+
+
+def test_registry_has_the_literature_schemes():
+    expected = {f"{f}{n}{c}" for f in ("SABA", "SBAB") for n in range(1, 5) for c in ("", "C")}
+    expected |= {"ABA864", "ABAH864", "FR4", "s9odr6", "s11odr6", "SRKN14a"}
+    assert expected <= set(NAMES)
+
+
+def test_lookup_is_case_insensitive_and_errors_list_names():
+    assert varint.get_scheme("sbab2c") is varint.get_scheme("SBAB2C")
+    with pytest.raises(ValueError, match="unknown scheme 'RK4'.*SABA1.*SRKN14a"):
+        varint.get_scheme("RK4")
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_coefficients_sum_to_one_and_layout_is_palindromic(name):
+    s = varint.get_scheme(name)
+    stages = s.stages()
+    assert math.isclose(math.fsum(c for k, c in stages if k == DRIFT), 1.0, abs_tol=1e-15)
+    assert math.isclose(math.fsum(c for k, c in stages if k == KICK), 1.0, abs_tol=1e-15)
+    assert list(stages) == list(stages)[::-1]
+    kinds = [k for k, _ in stages]
+    assert all(a != b for a, b in zip(kinds, kinds[1:])), "drifts and kicks alternate"
+    assert kinds[0] == (DRIFT if s.drift_first else KICK)
+
+
+def test_paper_scheme_is_sbab2c_as_published():
+    s = varint.get_scheme("SBAB2C")
+    assert s.stages() == ((KICK, 1 / 6), (DRIFT, 0.5), (KICK, 2 / 3), (DRIFT, 0.5), (KICK, 1 / 6))
+    assert s.corrector == 1 / 72 and s.order == 4
+    kinds, h, hc = stage_arrays(s, 0.1)
+    # Corrector fused into the outer kicks with length −gτ³/2 (paper eq. 24).
+    assert hc[0] == hc[-1] == pytest.approx(-(1 / 72) * 0.1 ** 3 / 2)
+    assert s.force_evaluations == 2  # first and last kick share q across steps
+
+
+def test_invalid_schemes_are_refused():
+    with pytest.raises(ValueError, match="sum to"):
+        SplittingScheme("bad", True, (0.5,), (0.9,), order=2)
+    with pytest.raises(ValueError, match="palindromic"):
+        SplittingScheme("bad", True, (0.5,), (0.5, 0.2, 0.3), order=2)
+
+
+def _max_energy_error(model, x0, tau, scheme, t_end=20.0):
+    n = int(round(t_end / tau))
+    r = varint.integrate(model, x0, n * tau, tau=tau, scheme=scheme, t_out=n)
+    return float(np.max(r.energy_error))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_measured_order_of_energy_error(name, c1):
+    """Slope of max |ΔH/H| over t ≤ 20 against τ on Hénon–Heiles (C1,
+    H = 1/8) equals the documented order ± 0.3."""
+    s = varint.get_scheme(name)
+    # Sixth-order schemes reach round-off at τ = 0.05; measure them earlier.
+    taus = (0.4, 0.2, 0.1) if s.order >= 6 else (0.2, 0.1, 0.05)
+    errs = [_max_energy_error(*c1, tau, name) for tau in taus]
+    assert abs(fitted_slope(taus, errs) - s.order) < 0.3, errs
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_reversibility(name, c1):
+    """S(−τ)ⁿ S(τ)ⁿ returns the start (orbit and tangent map) to round-off."""
+    model, x0 = c1
+    W0 = np.eye(4)
+    x, W = tangent_map_steps(model, x0, W0, tau=0.1, n_steps=200, scheme=name)
+    xb, Wb = tangent_map_steps(model, x, W, tau=-0.1, n_steps=200, scheme=name)
+    assert np.max(np.abs(xb - x0)) < 1e-12
+    assert np.max(np.abs(Wb - W0)) < 1e-10
+
+
+def test_momentum_flip_reversibility(c1):
+    """Flipping p after n steps and stepping n more returns the flipped start."""
+    model, x0 = c1
+    flip = np.array([1.0, 1.0, -1.0, -1.0])
+    x, _ = tangent_map_steps(model, x0, tau=0.1, n_steps=300, scheme="SABA3C")
+    xb, _ = tangent_map_steps(model, x * flip, tau=0.1, n_steps=300, scheme="SABA3C")
+    assert np.max(np.abs(xb * flip - x0)) < 1e-12
+
+
+J4 = np.block([[np.zeros((2, 2)), np.eye(2)], [-np.eye(2), np.zeros((2, 2))]])
+
+
+def _J(n):
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_tangent_map_is_symplectic(name, c1):
+    model, x0 = c1
+    _, M = tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=50, scheme=name)
+    assert np.max(np.abs(M.T @ J4 @ M - J4)) < 1e-13
+
+
+@pytest.mark.parametrize("model", [varint.models.ThreeDof(), varint.models.FPUBeta(5, 1.5)],
+                         ids=["ThreeDof", "FPU5"])
+@pytest.mark.parametrize("name", ["SBAB2C", "SABA3C", "ABA864"])
+def test_tangent_map_is_symplectic_with_masses_and_bands(model, name):
+    n = model.n_dof
+    x0 = np.linspace(-0.2, 0.3, 2 * n)
+    _, M = tangent_map_steps(model, x0, np.eye(2 * n), tau=0.05, n_steps=50, scheme=name)
+    J = _J(n)
+    assert np.max(np.abs(M.T @ J @ M - J)) < 1e-13
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_tangent_map_is_the_derivative_of_the_map(name, c1):
+    """TS equals the central finite difference of Sⁿ, with error ∝ h²."""
+    model, x0 = c1
+    n = 40
+    _, M = tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=n, scheme=name)
+    hs = (4e-3, 2e-3, 1e-3)
+    errs = []
+    for h in hs:
+        fd = np.empty((4, 4))
+        for i in range(4):
+            e = np.zeros(4)
+            e[i] = h
+            xp, _ = tangent_map_steps(model, x0 + e, tau=0.1, n_steps=n, scheme=name)
+            xm, _ = tangent_map_steps(model, x0 - e, tau=0.1, n_steps=n, scheme=name)
+            fd[:, i] = (xp - xm) / (2 * h)
+        errs.append(np.max(np.abs(fd - M)) / np.max(np.abs(M)))
+    assert errs[-1] < 1e-4
+    assert abs(fitted_slope(hs, errs) - 2.0) < 0.3, errs

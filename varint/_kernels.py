@@ -1,0 +1,254 @@
+"""Compiled tangent-map stepper: one generic kernel for every splitting scheme.
+
+The TM method (Skokos & Gerlach 2010, Sect. V.C) extends each flow of a
+splitting scheme to the deviation vectors w = (δq, δp):
+
+* drift  e^{h L_AV} (eq. 44):  q += h M⁻¹p,        δq += h M⁻¹δp
+* kick   e^{h L_BV} (eq. 45):  p −= h ∇V(q),        δp −= h D²V(q) δq
+* corrector e^{h L_CV} (eq. 50): p −= h ∇C(q),      δp −= h D²C(q) δq
+
+A scheme arrives as stage tables (:func:`varint.schemes.stage_arrays`); a
+kick stage carries a kick length and a corrector length, since both act on
+p at the same q. Forces and Hessians are reused while q is unchanged (the
+last kick of a BAB step and the first of the next), which is exact: the
+same inputs give the same bits.
+
+After every step the deviation vectors are renormalised in place:
+``RENORM_QR`` (modified Gram–Schmidt, for Lyapunov spectra: paper eq. 10),
+``RENORM_NORMALIZE`` (unit columns, for GALI/SALI: paper eq. 16) or
+``RENORM_NONE`` (the raw tangent map). The logarithms of the removed
+stretching factors are needed only at output times, so the factors are
+multiplied into a mantissa ``acc_m`` whose binary exponent is moved into the
+integer ``acc_e`` with ``frexp`` (exact) whenever it leaves [2⁻⁵⁰⁰, 2⁵⁰⁰]:
+no ``log`` in the hot loop, no overflow, and log(acc_m) + acc_e·ln 2 is the
+sum of the logs to round-off.
+
+Speed comes from two choices, both measured (studies/bench_tm.py):
+
+* the model's kernels are numba dispatchers passed as arguments, so numba
+  compiles them into the stepper (inlined, not called through a pointer);
+* for small systems the sizes N, k and the bandwidth are compile-time
+  constants of a stepper built by :func:`tm_batch`, so the many short loops
+  unroll; this halves the time per step of Hénon–Heiles compared with
+  run-time sizes. Each (N, k, bandwidth) costs one compilation of about a
+  second or two per process; large systems share one run-time-sized stepper.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numba import njit, prange
+
+from ._banded import band_kick_block, band_matvec, band_square_add
+
+RENORM_NONE, RENORM_NORMALIZE, RENORM_QR = 0, 1, 2
+
+# Status codes returned per orbit (0 = fine).
+OK, ORBIT_NONFINITE, ESCAPED, TANGENT_DEGENERATE, TANGENT_OVERFLOW = 0, 1, 2, 3, 4
+
+#: Counters kept per orbit: ∇V evaluations, D²V evaluations, third-derivative
+#: contractions, kick products on the deviation vectors (D²V·W or D²C·W).
+COUNTERS = ("gradient", "hessian", "third", "tangent_products")
+
+_BIG = 2.0 ** 500
+_SMALL = 2.0 ** -500
+#: Unrenormalised deviation vectors larger than this are reported as overflow.
+TANGENT_LIMIT = 1e300
+#: Steps between the (cheap but not free) overflow checks of raw deviations.
+_CHECK_EVERY = 16
+#: Largest N and k for which the stepper is specialised to constant sizes.
+SPECIALISE_N, SPECIALISE_K = 16, 32
+
+
+@njit(inline="always")
+def _renormalize(W, mode, acc_m, acc_e, d, k):
+    for j in range(k):
+        if mode == RENORM_QR:
+            for a in range(j):
+                r = 0.0
+                for i in range(d):
+                    r += W[i, a] * W[i, j]
+                for i in range(d):
+                    W[i, j] -= r * W[i, a]
+        r = 0.0
+        for i in range(d):
+            r += W[i, j] * W[i, j]
+        r = math.sqrt(r)
+        if not (r > 0.0 and r < np.inf):
+            return False
+        a = acc_m[j] * r
+        if a > _BIG or a < _SMALL:
+            m, e = math.frexp(a)
+            a = m
+            acc_e[j] += e
+        acc_m[j] = a
+        inv = 1.0 / r
+        for i in range(d):
+            W[i, j] *= inv
+    return True
+
+
+@njit(cache=True)
+def renormalize(W, mode, acc_m, acc_e):
+    """Renormalise the columns of ``W`` (2N, k) in place, as the TM stepper
+    does after every step; for the other methods, which renormalise between
+    calls of their integrator.
+
+    ``mode`` is ``RENORM_QR`` (modified Gram–Schmidt; the positive diagonal
+    of R is multiplied into the accumulators ``acc_m``/``acc_e``) or
+    ``RENORM_NORMALIZE`` (each column to unit length, its norm multiplied
+    in). Returns False if a column is zero or non-finite.
+    """
+    return _renormalize(W, mode, acc_m, acc_e, W.shape[0], W.shape[1])
+
+
+@njit(cache=True)
+def _tangent_overflow(W):
+    # Deliberately not inlined: a compact call site keeps the hot loop small
+    # (inlining this check cost ~15% per step in the Hénon–Heiles benchmark).
+    for i in range(W.shape[0]):
+        for j in range(W.shape[1]):
+            if not (abs(W[i, j]) < TANGENT_LIMIT):
+                return True
+    return False
+
+
+def _make_orbit_kernel(N_C, K_C, BW_C):
+    """The one-orbit stepper; sizes are constants when ≥ 0, else read from
+    the arrays."""
+
+    @njit
+    def tm_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
+                 grad, hess, third, renorm, escape_r2, counters):
+        n = N_C if N_C >= 0 else x.shape[0] // 2
+        k = K_C if K_C >= 0 else W.shape[1]
+        bw = BW_C if BW_C >= 0 else bw_rt
+        d = 2 * n
+        bwc = min(2 * bw, n - 1)
+        q = np.empty(n)      # contiguous copy of the positions for the model
+        g = np.empty(n)      # ∇V
+        gc = np.empty(n)     # ∇C
+        mg = np.empty(n)     # M⁻¹∇V
+        H = np.zeros((bw + 1, n))
+        T = np.zeros((bw + 1, n))
+        HC = np.zeros((bwc + 1, n))
+        Kb = np.zeros((bwc + 1, n))
+        tangent = k > 0
+        have_g = have_h = have_c = have_hc = False
+        for s in range(n_steps):
+            for st in range(kinds.shape[0]):
+                hs = h[st]
+                if kinds[st] == 0:
+                    # Drift e^{h L_AV}.
+                    for i in range(n):
+                        a = hs * minv[i]
+                        x[i] += a * x[n + i]
+                        for j in range(k):
+                            W[i, j] += a * W[n + i, j]
+                    have_g = have_h = have_c = have_hc = False
+                    continue
+                # Kick e^{h L_BV}, fused with a corrector e^{hc L_CV} at the same q.
+                hcs = hc[st]
+                if not have_g:
+                    for i in range(n):
+                        q[i] = x[i]
+                    grad(q, par, g)
+                    counters[0] += 1
+                    have_g = True
+                if (tangent or hcs != 0.0) and not have_h:
+                    hess(q, par, H)
+                    counters[1] += 1
+                    have_h = True
+                if hcs != 0.0:
+                    if not have_c:
+                        for i in range(n):
+                            mg[i] = minv[i] * g[i]
+                        band_matvec(H, mg, gc, n, bw)
+                        for i in range(n):
+                            gc[i] *= 2.0  # ∇C = 2 D²V M⁻¹∇V
+                        have_c = True
+                    for i in range(n):
+                        x[n + i] -= hs * g[i] + hcs * gc[i]
+                else:
+                    for i in range(n):
+                        x[n + i] -= hs * g[i]
+                if not tangent:
+                    continue
+                counters[3] += 1
+                if hcs == 0.0:
+                    for b in range(bw + 1):
+                        for i in range(n):
+                            Kb[b, i] = hs * H[b, i]
+                    band_kick_block(Kb, W, n, k, bw)
+                    continue
+                if not have_hc:
+                    third(q, par, mg, T)
+                    counters[2] += 1
+                    band_square_add(H, minv, T, HC, n, bw, bwc)
+                    have_hc = True
+                for b in range(bwc + 1):
+                    for i in range(n):
+                        Kb[b, i] = hcs * HC[b, i]
+                for b in range(bw + 1):
+                    for i in range(n):
+                        Kb[b, i] += hs * H[b, i]
+                band_kick_block(Kb, W, n, k, bwc)
+            rq = 0.0
+            rp = 0.0
+            for i in range(n):
+                rq += x[i] * x[i]
+                rp += x[n + i] * x[n + i]
+            if rq > escape_r2:
+                return ESCAPED, s
+            if not (rq + rp < np.inf):
+                return ORBIT_NONFINITE, s
+            if renorm != RENORM_NONE:
+                if not _renormalize(W, renorm, acc_m, acc_e, d, k):
+                    return TANGENT_DEGENERATE, s
+            elif tangent and s % _CHECK_EVERY == _CHECK_EVERY - 1:
+                if _tangent_overflow(W):
+                    return TANGENT_OVERFLOW, s
+        if renorm == RENORM_NONE and tangent and _tangent_overflow(W):
+            return TANGENT_OVERFLOW, n_steps - 1
+        return OK, n_steps
+
+    return tm_orbit
+
+
+@lru_cache(maxsize=None)
+def tm_batch(n, k, bw, parallel):
+    """The batch stepper for N = ``n``, ``k`` vectors and bandwidth ``bw``
+    (pass −1 for all three to get the run-time-sized one).
+
+    The returned function advances every orbit of ``X`` (M, 2N) whose
+    ``status`` is OK by ``n_steps`` steps, in parallel over orbits if
+    ``parallel``; ``done[m]`` receives the steps orbit m completed and
+    ``status[m]`` its status. A failed step leaves the state as it was at
+    the end of that step.
+    """
+    tm_orbit = _make_orbit_kernel(n, k, bw)
+
+    @njit(parallel=parallel)
+    def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
+              grad, hess, third, renorm, escape_r2, counters, status, done):
+        for m in prange(X.shape[0]):
+            if status[m] != OK:
+                done[m] = 0
+                continue
+            st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                 minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
+                                 counters[m])
+            status[m] = st
+            done[m] = steps
+
+    return batch
+
+
+def batch_kernel(n, k, bw, parallel):
+    """:func:`tm_batch` specialised to the sizes when they are small."""
+    if n <= SPECIALISE_N and k <= SPECIALISE_K:
+        return tm_batch(n, k, bw, parallel)
+    return tm_batch(-1, -1, -1, parallel)

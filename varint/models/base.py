@@ -1,0 +1,183 @@
+"""The model protocol: H = ½ pᵀM⁻¹p + V(q) with a diagonal inverse mass.
+
+A model is a small object that carries three numba kernels and the data
+they need; the integrators call the kernels, never Python methods:
+
+``grad(q, par, g)``
+    ``g[:] = ∇V(q)``.
+``hess(q, par, B)``
+    ``B`` = D²V(q) in symmetric band storage (:mod:`varint._banded`),
+    shape ``(bandwidth + 1, N)``.
+``third(q, par, v, B)``
+    ``B = Σ_k v_k D²(∂_k V)(q)``, the third-derivative tensor contracted
+    with ``v``, in the same band storage (its sparsity is that of D²V).
+
+From these the integrators build the corrector terms of
+C = {B,{B,A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 25 with a mass):
+∇C = 2 D²V M⁻¹ ∇V and D²C = 2 (D²V M⁻¹ D²V + Σ_k (M⁻¹∇V)_k D²(∂_kV)).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._banded import band_kick_block, band_matvec, band_square_add, band_to_dense
+
+__all__ = ["Model"]
+
+
+class Model:
+    """A Hamiltonian H = ½ pᵀM⁻¹p + V(q) with compiled derivative kernels.
+
+    Subclasses pass their potential and kernels; everything else is
+    generic. State vectors are ``x = (q, p)`` of length 2N (paper eq. 2).
+
+    Parameters
+    ----------
+    n_dof : int
+        Number of degrees of freedom N.
+    potential : callable
+        V(q) for ``q`` of shape (..., N), vectorised over leading axes
+        (NumPy; used for energies at output times, not in the hot loop).
+    grad, hess, third : numba dispatchers
+        The kernels described in the module docstring.
+    bandwidth : int
+        Bandwidth of D²V (``N − 1`` for a dense Hessian).
+    params : array_like of float
+        Parameters passed to the kernels as ``par``.
+    inverse_mass : array_like of float, shape (N,), optional
+        Diagonal of M⁻¹; all ones by default. Must be positive and finite.
+    name : str
+        Name used in results and messages.
+    escape_radius : float, optional
+        Runs stop with an error when |q| exceeds this (the orbit escaped).
+    """
+
+    def __init__(self, n_dof, potential, grad, hess, third, bandwidth, params=(), inverse_mass=None,
+                 name="model", escape_radius=None):
+        n_dof = int(n_dof)
+        if n_dof < 1:
+            raise ValueError(f"n_dof must be a positive integer, got {n_dof}")
+        self.n_dof = n_dof
+        self.name = name
+        self._potential = potential
+        self.grad_kernel, self.hess_kernel, self.third_kernel = grad, hess, third
+        self.bandwidth = min(int(bandwidth), n_dof - 1)
+        self.params = np.ascontiguousarray(params, dtype=np.float64).reshape(-1)
+        if inverse_mass is None:
+            inverse_mass = np.ones(n_dof)
+        minv = np.array(inverse_mass, dtype=np.float64)
+        if minv.ndim == 0:
+            minv = np.full(n_dof, float(minv))
+        if minv.shape != (n_dof,):
+            raise ValueError(
+                f"inverse_mass must have shape ({n_dof},) (the diagonal of M⁻¹), got {minv.shape}")
+        bad = ~np.isfinite(minv) | (minv <= 0)
+        if bad.any():
+            raise ValueError(
+                f"inverse_mass must be positive and finite; got {minv[bad][0]!r} "
+                f"at index {int(np.flatnonzero(bad)[0])}")
+        self.inverse_mass = minv
+        if escape_radius is not None and not (np.isfinite(escape_radius) and escape_radius > 0):
+            raise ValueError(f"escape_radius must be positive and finite, got {escape_radius!r}")
+        self.escape_radius = escape_radius
+
+    def potential(self, q):
+        """V(q) for ``q`` of shape (..., N), vectorised over leading axes."""
+        return self._potential(np.asarray(q, dtype=float))
+
+    def describe(self) -> dict:
+        """JSON-serialisable description: enough to rebuild the model."""
+        return {"name": self.name, "class": type(self).__name__, "n_dof": self.n_dof,
+                "params": self.params.tolist(), "inverse_mass": self.inverse_mass.tolist()}
+
+    # -- generic -------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        """Phase-space dimension 2N."""
+        return 2 * self.n_dof
+
+    @property
+    def corrector_bandwidth(self) -> int:
+        """Bandwidth of D²C: twice that of D²V, at most N − 1."""
+        return min(2 * self.bandwidth, self.n_dof - 1)
+
+    def kinetic(self, p):
+        """½ pᵀM⁻¹p for ``p`` of shape (..., N)."""
+        p = np.asarray(p, dtype=float)
+        return 0.5 * np.sum(self.inverse_mass * p * p, axis=-1)
+
+    def energy(self, x):
+        """H(x) for states ``x`` of shape (..., 2N)."""
+        x = np.asarray(x, dtype=float)
+        n = self.n_dof
+        return self.kinetic(x[..., n:]) + self.potential(x[..., :n])
+
+    def _q(self, q):
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        if q.shape != (self.n_dof,):
+            raise ValueError(f"q must have shape ({self.n_dof},), got {q.shape}")
+        return q
+
+    def gradient(self, q):
+        """∇V(q), shape (N,)."""
+        q = self._q(q)
+        g = np.empty(self.n_dof)
+        self.grad_kernel(q, self.params, g)
+        return g
+
+    def hessian_band(self, q):
+        """D²V(q) in band storage, shape (bandwidth + 1, N)."""
+        q = self._q(q)
+        B = np.zeros((self.bandwidth + 1, self.n_dof))
+        self.hess_kernel(q, self.params, B)
+        return B
+
+    def hessian(self, q):
+        """Dense D²V(q), shape (N, N); for small N and tests."""
+        return band_to_dense(self.hessian_band(q))
+
+    def hvp(self, q, W):
+        """D²V(q) · W for a block ``W`` of shape (N, k), matrix-free."""
+        W = np.asarray(W, dtype=np.float64)
+        X = W.reshape(self.n_dof, -1)
+        # The stepper's own kick on (δq; δp) = (W; 0) leaves δp = −D²V W.
+        stacked = np.concatenate([X, np.zeros_like(X)])
+        band_kick_block(self.hessian_band(q), stacked, self.n_dof, X.shape[1], self.bandwidth)
+        return -stacked[self.n_dof:].reshape(W.shape)
+
+    def third_band(self, q, v):
+        """Σ_k v_k D²(∂_k V)(q) in band storage."""
+        q = self._q(q)
+        v = np.ascontiguousarray(v, dtype=np.float64)
+        B = np.zeros((self.bandwidth + 1, self.n_dof))
+        self.third_kernel(q, self.params, v, B)
+        return B
+
+    def corrector(self, q):
+        """C(q) = ∇Vᵀ M⁻¹ ∇V (paper eq. 25)."""
+        g = self.gradient(q)
+        return float(np.sum(self.inverse_mass * g * g))
+
+    def corrector_gradient(self, q):
+        """∇C = 2 D²V M⁻¹ ∇V, shape (N,)."""
+        g = self.gradient(q)
+        out = np.empty(self.n_dof)
+        band_matvec(self.hessian_band(q), self.inverse_mass * g, out, self.n_dof, self.bandwidth)
+        return 2.0 * out
+
+    def corrector_hessian_band(self, q):
+        """D²C = 2 (D²V M⁻¹ D²V + Σ_k (M⁻¹∇V)_k D²(∂_kV)) in band storage."""
+        H = self.hessian_band(q)
+        T = self.third_band(q, self.inverse_mass * self.gradient(q))
+        S = np.zeros((self.corrector_bandwidth + 1, self.n_dof))
+        band_square_add(H, self.inverse_mass, T, S, self.n_dof, self.bandwidth,
+                        self.corrector_bandwidth)
+        return S
+
+    def corrector_hessian(self, q):
+        """Dense D²C(q), shape (N, N); for small N and tests."""
+        return band_to_dense(self.corrector_hessian_band(q))
+
+    def __repr__(self):
+        return f"<{type(self).__name__} {self.name!r}, N={self.n_dof}>"

@@ -1,0 +1,77 @@
+"""The Hénon–Heiles system (Skokos & Gerlach 2010, eq. 30 and Appendix A).
+
+    H₂ = ½(px² + py²) + ½(x² + y²) + x²y − y³/3
+
+Bounded motion below the escape energy 1/6.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .base import Model
+
+__all__ = ["HenonHeiles"]
+
+#: Energy above which orbits can leave the potential well through its saddles.
+ESCAPE_ENERGY = 1.0 / 6.0
+
+
+@njit(cache=True)
+def _grad(q, par, g):
+    x, y = q[0], q[1]
+    g[0] = x + 2.0 * x * y
+    g[1] = y + x * x - y * y
+
+
+@njit(cache=True)
+def _hess(q, par, B):
+    # Paper eq. (A.9): D²V = [[1 + 2y, 2x], [2x, 1 − 2y]].
+    x, y = q[0], q[1]
+    B[0, 0] = 1.0 + 2.0 * y
+    B[0, 1] = 1.0 - 2.0 * y
+    B[1, 0] = 2.0 * x
+    B[1, 1] = 0.0
+
+
+@njit(cache=True)
+def _third(q, par, v, B):
+    # The only non-zero third derivatives: V_xxy = 2, V_yyy = −2.
+    B[0, 0] = 2.0 * v[1]
+    B[0, 1] = -2.0 * v[1]
+    B[1, 0] = 2.0 * v[0]
+    B[1, 1] = 0.0
+
+
+def _potential(q):
+    x, y = q[..., 0], q[..., 1]
+    return 0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0
+
+
+class HenonHeiles(Model):
+    """The 2-degree-of-freedom Hénon–Heiles Hamiltonian.
+
+    Parameters
+    ----------
+    escape_radius : float, optional
+        Stop runs whose |q| exceeds this (orbits above the escape energy 1/6
+        leave to infinity). None by default: such runs end with an overflow
+        error instead.
+
+    References
+    ----------
+    M. Hénon & C. Heiles, Astron. J. 69, 73 (1964); Skokos & Gerlach,
+    Phys. Rev. E 82, 036704 (2010), eq. (30).
+    """
+
+    escape_energy = ESCAPE_ENERGY
+
+    def __init__(self, escape_radius=None):
+        super().__init__(2, _potential, _grad, _hess, _third, bandwidth=1,
+                         name="HenonHeiles", escape_radius=escape_radius)
+
+    def describe(self):
+        d = super().describe()
+        d["escape_radius"] = self.escape_radius
+        return d

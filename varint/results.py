@@ -1,0 +1,232 @@
+"""Results: plain dataclasses of NumPy arrays that carry their provenance.
+
+Every result records what determines it (model, initial states, method,
+scheme, τ, seed, options) and what produced it (package versions, wall
+time, evaluation counts), and saves to / loads from a single ``.npz`` file.
+Single-orbit calls give arrays without the leading orbit axis; batch calls
+(``x0`` of shape (M, 2N)) keep it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import datetime
+import json
+import platform
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+
+__all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult",
+           "load_result", "package_versions"]
+
+
+@functools.lru_cache(maxsize=None)
+def package_versions(*extra):
+    """Versions of Python, varint and the numerical packages a run used
+    (cached: reading package metadata takes milliseconds)."""
+    names = ("varint", "numpy", "scipy", "numba") + tuple(extra)
+    out = {"python": platform.python_version()}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+@dataclass
+class Provenance:
+    """What determines a result and what produced it.
+
+    Attributes
+    ----------
+    kind : str
+        "integrate", "lyapunov_spectrum", "gali", "sali", ...
+    model : dict
+        :meth:`Model.describe` of the model.
+    x0 : list
+        The initial state(s).
+    method : str
+        The ``method=`` used.
+    method_options : dict
+        The propagator's settings (scheme, tolerances, ...).
+    tau : float
+        Step / renormalisation interval.
+    t_end : float
+    seed : int or None
+        Seed of the random initial deviation vectors (None if given).
+    options : dict
+        Other arguments of the call.
+    versions : dict
+    counts : dict
+        Work done (steps; force, Hessian or right-hand-side evaluations).
+    wall_time : float
+        Seconds.
+    created : str
+        ISO 8601 time at which the run finished.
+    """
+
+    kind: str
+    model: dict
+    x0: list
+    method: str
+    method_options: dict
+    tau: float
+    t_end: float
+    seed: int | None
+    options: dict
+    versions: dict
+    counts: dict
+    wall_time: float
+    created: str = field(default_factory=lambda: datetime.datetime.now(
+        datetime.timezone.utc).isoformat(timespec="seconds"))
+
+    def to_dict(self):
+        return _jsonable(dataclasses.asdict(self))
+
+
+@dataclass
+class _Result:
+    """Fields every result has; subclasses add their indicator arrays."""
+
+    t: np.ndarray
+    energy_error: np.ndarray
+    state: np.ndarray
+    provenance: Provenance
+    status: np.ndarray
+    interrupted: bool
+
+    def save(self, path):
+        """Write the result to ``path`` (``.npz``): arrays plus provenance JSON."""
+        arrays, meta = {}, {"class": type(self).__name__}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name == "provenance":
+                meta["provenance"] = value.to_dict()
+            elif isinstance(value, dict):
+                meta.setdefault("dict_fields", {})[f.name] = [str(k) for k in value]
+                for key, arr in value.items():
+                    arrays[f"{f.name}__{key}"] = np.asarray(arr)
+            elif isinstance(value, np.ndarray):
+                arrays[f.name] = value
+            else:
+                meta[f.name] = _jsonable(value)
+        np.savez(path, __meta__=np.array(json.dumps(meta)), **arrays)
+
+    def summary(self):
+        """One-line description for logs and the command line."""
+        p = self.provenance
+        return (f"{p.kind} of {p.model.get('name')} by {p.method} "
+                f"({p.method_options.get('scheme', {}).get('name', '')}) tau={p.tau:g} "
+                f"to t={float(np.max(self.t)):g} in {p.wall_time:.3g} s")
+
+
+@dataclass
+class IntegrationResult(_Result):
+    """Result of :func:`varint.integrate`.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_out,)
+    states : ndarray, shape ([M,] n_out, 2N)
+        The orbit at the output times.
+    deviations : ndarray, shape ([M,] 2N, k)
+        Final deviation vectors, never renormalised: the tangent map of the
+        whole run applied to the initial vectors.
+    state : ndarray, shape ([M,] 2N)
+        Final state.
+    energy_error : ndarray, shape ([M,] n_out)
+        |H(t) − H(0)| / |H(0)| (absolute where H(0) = 0).
+    """
+
+    states: np.ndarray = None
+    deviations: np.ndarray = None
+
+
+@dataclass
+class LyapunovResult(_Result):
+    """Result of :func:`varint.lyapunov_spectrum`.
+
+    Attributes
+    ----------
+    exponents : ndarray, shape ([M,] n_out, k)
+        Finite-time Lyapunov exponents X_i(t) (paper eq. 10), column i in QR
+        column order: X_1 ≥ X_2 ≥ … once the vectors have aligned.
+    deviations : ndarray, shape ([M,] 2N, k)
+        Final orthonormal deviation vectors (the Q factor).
+    """
+
+    exponents: np.ndarray = None
+    deviations: np.ndarray = None
+
+    def pair_sums(self):
+        """|X_i + X_{2N−i+1}|, i = 1..N, shape ([M,] n_out, N); zero in theory
+        for autonomous Hamiltonians (paper eq. 13). Needs the full spectrum."""
+        k = self.exponents.shape[-1]
+        if k % 2:
+            raise ValueError(f"pair sums need the full spectrum (2N exponents), have {k}")
+        return np.abs(self.exponents[..., : k // 2] + self.exponents[..., ::-1][..., : k // 2])
+
+
+@dataclass
+class GALIResult(_Result):
+    """Result of :func:`varint.gali`.
+
+    Attributes
+    ----------
+    gali : dict of int -> ndarray, shape ([M,] n_out)
+        GALI_k(t) for each requested k: the product of the singular values
+        of the first k unit deviation vectors (paper eq. 17).
+    deviations : ndarray, shape ([M,] 2N, max k)
+        Final unit deviation vectors.
+    """
+
+    gali: dict = None
+    deviations: np.ndarray = None
+
+
+@dataclass
+class SALIResult(_Result):
+    """Result of :func:`varint.sali`.
+
+    Attributes
+    ----------
+    sali : ndarray, shape ([M,] n_out)
+        SALI(t) = min(‖ŵ₁ + ŵ₂‖, ‖ŵ₁ − ŵ₂‖).
+    deviations : ndarray, shape ([M,] 2N, 2)
+    """
+
+    sali: np.ndarray = None
+    deviations: np.ndarray = None
+
+
+_CLASSES = {c.__name__: c for c in (IntegrationResult, LyapunovResult, GALIResult, SALIResult)}
+
+
+def load_result(path):
+    """Read a result written by ``save``."""
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["__meta__"]))
+        arrays = {k: data[k] for k in data.files if k != "__meta__"}
+    cls = _CLASSES[meta.pop("class")]
+    kwargs = {"provenance": Provenance(**meta.pop("provenance"))}
+    for name, keys in meta.pop("dict_fields", {}).items():
+        kwargs[name] = {int(k) if k.isdigit() else k: arrays.pop(f"{name}__{k}") for k in keys}
+    kwargs.update(arrays)
+    kwargs.update(meta)
+    return cls(**kwargs)

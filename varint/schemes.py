@@ -1,0 +1,322 @@
+"""Symplectic splitting schemes for H = A(p) + B(q), as data.
+
+A scheme is a palindromic product of the exact flows of the drift
+A = ½ pᵀM⁻¹p and the kick B = V(q), optionally wrapped in the corrector
+flow of C = {B, {B, A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 23–24):
+
+    S^c(τ) = e^{−gτ³/2 L_C} S(τ) e^{−gτ³/2 L_C}.
+
+Every scheme is stored as the independent half of its palindrome (centre
+last), exactly as published, and expanded by :meth:`SplittingScheme.stages`.
+One generic stepper (:mod:`varint._kernels`) runs them all; nothing here is
+scheme-specific code.
+
+References
+----------
+.. [LR01] J. Laskar & P. Robutel, Celest. Mech. Dyn. Astron. 80, 39 (2001).
+.. [BCF13] S. Blanes, F. Casas, A. Farrés, J. Laskar, J. Makazaga & A. Murua,
+   Appl. Numer. Math. 68, 58 (2013).
+.. [BM02] S. Blanes & P. C. Moan, J. Comput. Appl. Math. 142, 313 (2002).
+.. [FR90] E. Forest & R. D. Ruth, Physica D 43, 105 (1990); H. Yoshida,
+   Phys. Lett. A 150, 262 (1990).
+.. [KL97] W. Kahan & R.-C. Li, Math. Comp. 66, 1089 (1997).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme"]
+
+#: Stage kinds used by :meth:`SplittingScheme.stages`.
+DRIFT, KICK = 0, 1
+
+
+@dataclass(frozen=True)
+class SplittingScheme:
+    """A palindromic splitting scheme ``e^{a1 τ L_A} e^{b1 τ L_B} …``.
+
+    Parameters
+    ----------
+    name : str
+        Literature name, e.g. ``"SBAB2C"``; the registry key.
+    drift_first : bool
+        ``True`` for ABA layouts (SABA_n, ABA864, compositions of leapfrog),
+        ``False`` for BAB layouts (SBAB_n).
+    drifts, kicks : tuple of float
+        Independent halves of the drift and kick coefficients, centre last.
+        The centre belongs to whichever list is one longer for its layout
+        (see :meth:`stages`).
+    order : int
+        Order of the energy error for H = ½pᵀM⁻¹p + V(q), where the
+        perturbation parameter ε of [LR01]_ is 1: the smaller of the nominal
+        orders.
+    corrector : float or None
+        The constant g of the corrector ``e^{−gτ³/2 L_C}`` on each side, or
+        ``None`` for an uncorrected scheme.
+    reference : str
+        Where the coefficients come from.
+    nominal_order : str
+        The order as published, e.g. ``"(4,2)"`` for SBAB2: O(τ⁴ε + τ²ε²).
+
+    Raises
+    ------
+    ValueError
+        If the drift or kick coefficients do not sum to 1, or the two halves
+        have lengths that fit no palindromic layout.
+    """
+
+    name: str
+    drift_first: bool
+    drifts: tuple[float, ...]
+    kicks: tuple[float, ...]
+    order: int
+    corrector: float | None = None
+    reference: str = ""
+    nominal_order: str = ""
+    _stages: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        first, second = (self.drifts, self.kicks) if self.drift_first else (self.kicks, self.drifts)
+        if len(first) not in (len(second), len(second) + 1) or not second:
+            raise ValueError(
+                f"scheme {self.name!r}: {len(self.drifts)} drift and {len(self.kicks)} kick "
+                "coefficients fit no palindromic layout (the outer kind needs as many "
+                "coefficients as the inner one, or one more)"
+            )
+        seq = []
+        for i in range(len(first)):
+            seq.append(first[i])
+            if i < len(second):
+                seq.append(second[i])
+        # Mirror everything but the centre stage.
+        full = seq + seq[-2::-1]
+        kinds = []
+        outer, inner = (DRIFT, KICK) if self.drift_first else (KICK, DRIFT)
+        for i in range(len(seq)):
+            kinds.append(outer if i % 2 == 0 else inner)
+        kinds = kinds + kinds[-2::-1]
+        for kind, label in ((DRIFT, "drift"), (KICK, "kick")):
+            total = math.fsum(c for c, k in zip(full, kinds) if k == kind)
+            if abs(total - 1.0) > 1e-14:
+                raise ValueError(
+                    f"scheme {self.name!r}: the {label} coefficients sum to {total!r}, expected 1"
+                )
+        if self.order < 1:
+            raise ValueError(f"scheme {self.name!r}: order must be >= 1, got {self.order}")
+        object.__setattr__(self, "_stages", tuple(zip(kinds, full)))
+
+    def stages(self) -> tuple[tuple[int, float], ...]:
+        """The full palindrome as ``(kind, coefficient)`` pairs, in order of
+        application (kind is ``DRIFT`` = 0 or ``KICK`` = 1); correctors not
+        included."""
+        return self._stages
+
+    @property
+    def n_kicks(self) -> int:
+        """Kick stages in one step (force evaluations without reuse)."""
+        return sum(1 for k, _ in self._stages if k == KICK)
+
+    @property
+    def force_evaluations(self) -> int:
+        """∇V evaluations per step in a long run.
+
+        A kick at the end of a step and one at the start of the next act at
+        the same q, so BAB layouts reuse that force; a corrector needs ∇V
+        (and D²V) at the step boundary, which costs one more evaluation in
+        ABA layouts.
+        """
+        n = self.n_kicks
+        if not self.drift_first:
+            n -= 1
+        elif self.corrector is not None:
+            n += 1
+        return n
+
+    def describe(self) -> dict:
+        """JSON-serialisable description (for result provenance)."""
+        return {
+            "name": self.name,
+            "order": self.order,
+            "nominal_order": self.nominal_order,
+            "corrector": self.corrector,
+            "force_evaluations": self.force_evaluations,
+            "reference": self.reference,
+        }
+
+    def corrected(self, g: float, name: str | None = None) -> "SplittingScheme":
+        """This scheme wrapped in the corrector of constant ``g`` (order 4 for
+        H = T(p) + V(q) when the uncorrected scheme is O(τ^{2n}ε + τ²ε²))."""
+        order = min(4, int(self.nominal_order.strip("()").split(",")[0])) if self.nominal_order else 4
+        return SplittingScheme(
+            name=name or self.name + "C",
+            drift_first=self.drift_first,
+            drifts=self.drifts,
+            kicks=self.kicks,
+            order=order,
+            corrector=g,
+            reference=self.reference,
+            nominal_order=self.nominal_order.replace(",2)", ",4)") if self.nominal_order else "",
+        )
+
+    @classmethod
+    def from_composition(cls, name, gammas, order, reference=""):
+        """A symmetric composition Π_i S2(γ_i τ) of the leapfrog
+        S2(h) = e^{h/2 L_A} e^{h L_B} e^{h/2 L_A}, adjacent drifts merged.
+
+        ``gammas`` is the independent half, centre last.
+        """
+        g = list(gammas)
+        drifts = [g[0] / 2] + [(g[i] + g[i + 1]) / 2 for i in range(len(g) - 1)]
+        return cls(name=name, drift_first=True, drifts=tuple(drifts), kicks=tuple(g),
+                   order=order, reference=reference, nominal_order=f"({order})")
+
+
+SCHEMES: dict[str, SplittingScheme] = {}
+
+
+def register_scheme(scheme: SplittingScheme) -> SplittingScheme:
+    """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name."""
+    key = scheme.name.upper()
+    if key in SCHEMES:
+        raise ValueError(f"a scheme named {scheme.name!r} is already registered")
+    SCHEMES[key] = scheme
+    return scheme
+
+
+def get_scheme(scheme: str | SplittingScheme) -> SplittingScheme:
+    """Resolve a scheme name (case-insensitive) or pass a scheme through.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name; the message lists the valid names.
+    """
+    if isinstance(scheme, SplittingScheme):
+        return scheme
+    if isinstance(scheme, str) and scheme.upper() in SCHEMES:
+        return SCHEMES[scheme.upper()]
+    raise ValueError(
+        f"unknown scheme {scheme!r}; expected one of: {', '.join(s.name for s in SCHEMES.values())}"
+    )
+
+
+# --------------------------------------------------------------------------
+# Laskar & Robutel (2001): SABA_n (drift first) and SBAB_n (kick first).
+# Halves centre last; g is the corrector constant of each scheme.
+_LR = "Laskar & Robutel, Celest. Mech. Dyn. Astron. 80, 39 (2001)"
+_s3, _s5, _s15, _s21, _s30 = (math.sqrt(v) for v in (3, 5, 15, 21, 30))
+_saba4_p, _saba4_m = math.sqrt(525 + 70 * _s30), math.sqrt(525 - 70 * _s30)
+
+_LASKAR_ROBUTEL = [
+    # name, drift_first, drifts, kicks, n, g
+    ("SABA1", True, (0.5,), (1.0,), 1, 1 / 12),
+    ("SABA2", True, (0.5 - _s3 / 6, _s3 / 3), (0.5,), 2, (2 - _s3) / 24),
+    ("SABA3", True, (0.5 - _s15 / 10, _s15 / 10), (5 / 18, 4 / 9), 3, (54 - 13 * _s15) / 648),
+    ("SABA4", True,
+     (0.5 - _saba4_p / 70, (_saba4_p - _saba4_m) / 70, _saba4_m / 35),
+     (0.25 - _s30 / 72, 0.25 + _s30 / 72), 4, 0.0033967750482086013315321577834921),
+    ("SBAB1", False, (1.0,), (0.5,), 1, -1 / 24),
+    ("SBAB2", False, (0.5,), (1 / 6, 2 / 3), 2, 1 / 72),
+    ("SBAB3", False, (0.5 - _s5 / 10, 1 / _s5), (1 / 12, 5 / 12), 3, (13 - 5 * _s5) / 288),
+    ("SBAB4", False, (0.5 - _s21 / 14, _s21 / 14), (1 / 20, 49 / 180, 16 / 45), 4,
+     0.0036447936001532493022971399654498),
+]
+
+for _name, _df, _d, _k, _n, _g in _LASKAR_ROBUTEL:
+    _base = register_scheme(SplittingScheme(
+        _name, _df, _d, _k, order=2, reference=_LR, nominal_order=f"({2 * _n},2)"))
+    register_scheme(_base.corrected(_g))
+
+# Blanes, Casas, Farrés, Laskar, Makazaga & Murua (2013).
+_BCF = "Blanes, Casas, Farrés, Laskar, Makazaga & Murua, Appl. Numer. Math. 68, 58 (2013)"
+_aba864_b = (0.183083687472197221961703757166430291072,
+             0.310782859898574869507522291054262796375,
+             -0.0265646185119588006972121379164987592663)
+register_scheme(SplittingScheme(
+    "ABA864", True,
+    drifts=(0.0711334264982231177779387300061549964174,
+            0.241153427956640098736487795326289649618,
+            0.521411761772814789212136078067994229991,
+            -0.333698616227678005726562603400438876027),
+    # Centre kick from the sum rule: one public table drops a digit.
+    kicks=_aba864_b + (1 - 2 * math.fsum(_aba864_b),),
+    order=4, reference=_BCF, nominal_order="(8,6,4)"))
+register_scheme(SplittingScheme(
+    "ABAH864", True,
+    drifts=(0.06810235651658372084723976682061164571212,
+            0.2511360387221033233072829580455350680082,
+            -0.07507264957216562516006821767601620052338,
+            -0.009544719701745007811488218957217113269121,
+            0.5307579480704471776340674235341732001443),
+    kicks=(0.1684432593618954534310382697756917558148,
+           0.4243177173742677224300351657407231801453,
+           -0.5858109694681756812309015355404036521923,
+           0.4930499927320125053698281000239887162321),
+    order=4, reference=_BCF, nominal_order="(8,6,4)"))
+
+# Compositions of the leapfrog.
+_x1 = 1 / (2 - 2 ** (1 / 3))
+register_scheme(SplittingScheme.from_composition(
+    "FR4", (_x1, -(2 ** (1 / 3)) * _x1), order=4,
+    reference="Forest & Ruth, Physica D 43, 105 (1990); Yoshida, Phys. Lett. A 150, 262 (1990)"))
+_KL = "Kahan & Li, Math. Comp. 66, 1089 (1997)"
+register_scheme(SplittingScheme.from_composition(
+    "s9odr6", (0.39216144400731413927925056, 0.33259913678935943859974864,
+               -0.70624617255763935980996482, 0.08221359629355080023149045,
+               0.79854399093482996339895035), order=6, reference=_KL))
+register_scheme(SplittingScheme.from_composition(
+    "s11odr6", (0.21375583945878254555518066964857, 0.18329381407425713911385974425217,
+                0.17692819473098943794898811709929, -0.44329082681170215849622829626258,
+                0.11728560432865935385403585669136, 0.50405474843802736404832781714239),
+    order=6, reference=_KL))
+
+# Blanes & Moan (2002), SRKN_14^a (order 6).
+_srkn_a = (0.037859319840611600, 0.10263563310243500, -0.025867888266558700,
+           0.31424140307144700, -0.13014445951741500, 0.10641770036954300,
+           -0.0087942431285105800)
+_srkn_b = (0.091719152624461650, 0.18398317000500600, -0.056534365832888270,
+           0.0049146887747128540, 0.14376112716835800, 0.32856769374680400,
+           -0.19641146648645423)
+register_scheme(SplittingScheme(
+    "SRKN14a", True,
+    # Centre drift from the sum rule (published as 0.2073050690568954).
+    drifts=_srkn_a + (1 - 2 * math.fsum(_srkn_a),),
+    kicks=_srkn_b, order=6,
+    reference="Blanes & Moan, J. Comput. Appl. Math. 142, 313 (2002)", nominal_order="(6)"))
+
+
+def stage_arrays(scheme: SplittingScheme, tau: float):
+    """Stage tables for the compiled stepper, already scaled by τ.
+
+    Returns
+    -------
+    kinds : ndarray of int64, shape (n_stages,)
+        ``DRIFT`` (0) or ``KICK`` (1).
+    h : ndarray of float64, shape (n_stages,)
+        Drift length ``a_i τ`` or kick length ``b_i τ``.
+    hc : ndarray of float64, shape (n_stages,)
+        Corrector length on kick stages: ``−gτ³/2`` on the first and last
+        stage, 0 elsewhere. Correctors act on p only, like kicks, so a
+        corrector next to a kick at the same q is fused with it; for ABA
+        layouts a kick stage of zero length carries it.
+    """
+    st = list(scheme.stages())
+    h_c = 0.0 if scheme.corrector is None else -scheme.corrector * tau ** 3 / 2
+    kinds, h, hc = [], [], []
+    for kind, c in st:
+        kinds.append(kind)
+        h.append(c * tau)
+        hc.append(0.0)
+    if h_c != 0.0:
+        if scheme.drift_first:
+            kinds = [KICK] + kinds + [KICK]
+            h = [0.0] + h + [0.0]
+            hc = [h_c] + hc + [h_c]
+        else:
+            hc[0] = hc[-1] = h_c
+    return (np.array(kinds, dtype=np.int64), np.array(h, dtype=np.float64),
+            np.array(hc, dtype=np.float64))

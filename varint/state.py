@@ -1,0 +1,131 @@
+"""The state every integration method advances: orbits, deviation vectors and
+the accumulated logarithms of their stretching."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["RunState", "initial_deviations", "output_steps"]
+
+
+@dataclass
+class RunState:
+    """Orbits and deviation vectors part-way through a run.
+
+    Attributes
+    ----------
+    x : ndarray, shape (M, 2N)
+        The orbits.
+    W : ndarray, shape (M, 2N, k)
+        Their deviation vectors (renormalised, or raw for ``renorm="none"``).
+    acc_m, acc_e : ndarray, shape (M, k)
+        Σ log(stretching) of each vector = log(acc_m) + acc_e · ln 2
+        (mantissa and binary exponent kept apart so no log is taken per step).
+    step : int
+        Renormalisation intervals τ completed.
+    status : ndarray of int, shape (M,)
+        0 while an orbit is fine; a failure code (see
+        :mod:`varint._kernels`) once it failed, after which it is frozen.
+    fail_step : ndarray of int, shape (M,)
+        The interval (1-based) in which an orbit failed, or −1.
+    counts : dict
+        Work done so far, summed over orbits (force and Hessian evaluations
+        for TM; right-hand-side evaluations for the baselines; ...).
+    """
+
+    x: np.ndarray
+    W: np.ndarray
+    acc_m: np.ndarray
+    acc_e: np.ndarray
+    step: int = 0
+    status: np.ndarray = None
+    fail_step: np.ndarray = None
+    counts: dict = field(default_factory=dict)
+
+    @classmethod
+    def start(cls, x0, W0):
+        """A state at t = 0 from orbits (M, 2N) and vectors (M, 2N, k)."""
+        x = np.array(x0, dtype=np.float64, order="C")
+        W = np.array(W0, dtype=np.float64, order="C")
+        m, k = W.shape[0], W.shape[2]
+        return cls(x=x, W=W, acc_m=np.ones((m, k)), acc_e=np.zeros((m, k), dtype=np.int64),
+                   status=np.zeros(m, dtype=np.int64), fail_step=np.full(m, -1, dtype=np.int64))
+
+    @property
+    def n_orbits(self):
+        return self.x.shape[0]
+
+    @property
+    def k(self):
+        return self.W.shape[2]
+
+    def log_growth(self):
+        """Σ log of the stretching of each vector so far, shape (M, k)."""
+        return np.log(self.acc_m) + self.acc_e * math.log(2.0)
+
+    def add_counts(self, **counts):
+        for key, value in counts.items():
+            self.counts[key] = self.counts.get(key, 0) + int(value)
+
+
+def initial_deviations(dim, k, n_orbits, seed):
+    """Seeded random orthonormal deviation vectors, shape (M, 2N, k).
+
+    Orbit m draws from ``numpy.random.default_rng([seed, m])``, so its
+    vectors do not depend on how many orbits share the call or how a map is
+    split into chunks.
+    """
+    W = np.empty((n_orbits, dim, k))
+    for m in range(n_orbits):
+        A = np.random.default_rng([seed, m]).standard_normal((dim, k))
+        Q, R = np.linalg.qr(A)
+        W[m] = Q * np.sign(np.diag(R))
+    return W
+
+
+def output_steps(t_end, tau, t_out=None, per_decade=10):
+    """Step indices (multiples of τ) at which results are recorded.
+
+    Parameters
+    ----------
+    t_end, tau : float
+    t_out : None, int or array_like
+        ``None``: log-spaced, ``per_decade`` per decade from τ to t_end (the
+        paper's log-log plots). An int n: n evenly spaced times ending at
+        t_end. An array: those times, each rounded to the nearest multiple of
+        τ (the renormalisation grid); results report the times used.
+
+    Returns
+    -------
+    ndarray of int64, strictly increasing, last = round(t_end / τ).
+    """
+    n_end = max(1, int(round(t_end / tau)))
+    if t_out is None:
+        decades = max(math.log10(n_end), 0.0)
+        steps = np.logspace(0, decades, max(2, int(math.ceil(decades * per_decade)) + 1))
+        steps = np.unique(np.round(steps).astype(np.int64))
+    elif np.ndim(t_out) == 0:
+        n = int(t_out)
+        if n != t_out or n < 1:
+            raise ValueError(f"t_out as a count must be a positive integer, got {t_out!r}")
+        steps = np.unique(np.round(np.linspace(n_end / n, n_end, n)).astype(np.int64))
+    else:
+        t = np.asarray(t_out, dtype=float).reshape(-1)
+        if t.size == 0 or not np.isfinite(t).all():
+            raise ValueError("t_out must be a non-empty array of finite times")
+        if (np.diff(t) <= 0).any():
+            raise ValueError("t_out must be strictly increasing")
+        if t[0] < tau * (1 - 1e-12) or t[-1] > t_end * (1 + 1e-12):
+            raise ValueError(
+                f"t_out must lie in [tau, t_end] = [{tau!r}, {t_end!r}], got {t[0]!r}..{t[-1]!r}")
+        steps = np.round(t / tau).astype(np.int64)
+        if (np.diff(steps) <= 0).any():
+            raise ValueError(f"t_out has two times within one step tau = {tau!r} of each other")
+        return steps
+    steps = steps[(steps >= 1) & (steps <= n_end)]
+    if steps.size == 0 or steps[-1] != n_end:
+        steps = np.append(steps, n_end)
+    return steps
