@@ -27,6 +27,11 @@ Rules a propagator must follow
    result (scheme, tolerances, …) for the result's provenance, and
    ``versions()`` the packages the method ran on.
 7. ``k = 0`` deviation vectors must cost no tangent work.
+8. Everything that determines how a run continues lives in the RunState
+   (method-specific arrays, such as an adaptive step size, in
+   ``state.extra``); the propagator object holds only its settings. So a
+   saved RunState is a complete checkpoint, and resuming from it is bitwise
+   identical to not stopping.
 """
 
 from __future__ import annotations

@@ -34,6 +34,11 @@ class RunState:
     counts : dict
         Work done so far, summed over orbits (force and Hessian evaluations
         for TM; right-hand-side evaluations for the baselines; ...).
+    extra : dict of str -> ndarray
+        Method-specific arrays that determine how a run continues (e.g. the
+        last step size of an adaptive integrator, per orbit). Propagators
+        keep such state here, never on themselves, so that a checkpoint of
+        the RunState is a checkpoint of the run.
     """
 
     x: np.ndarray
@@ -44,6 +49,7 @@ class RunState:
     status: np.ndarray = None
     fail_step: np.ndarray = None
     counts: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
 
     @classmethod
     def start(cls, x0, W0):
