@@ -6,3 +6,58 @@ import numpy as np
 def fitted_slope(x, y):
     """Least-squares slope of log|y| against log x."""
     return float(np.polyfit(np.log(np.asarray(x, float)), np.log(np.abs(np.asarray(y, float))), 1)[0])
+
+
+def assert_bitwise_equal(a, b):
+    """Two results hold the same bits in every array (NaNs included) and
+    the same provenance apart from wall time, creation date and evaluation
+    counts (a propagator may re-evaluate a force at the start of each chunk
+    of work, so those depend on the chunking; the steps done do not)."""
+    import dataclasses
+
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if f.name == "provenance":
+            px, py = x.to_dict(), y.to_dict()
+            for key in ("wall_time", "created", "counts"):
+                px.pop(key), py.pop(key)
+            assert px == py
+            assert x.counts.get("steps") == y.counts.get("steps")
+        elif isinstance(x, dict):
+            assert x.keys() == y.keys()
+            for key in x:
+                _assert_same_bits(x[key], y[key], f"{f.name}[{key}]")
+        elif isinstance(x, np.ndarray):
+            _assert_same_bits(x, y, f.name)
+        else:
+            assert x == y, f.name
+
+
+def _assert_same_bits(x, y, name):
+    x, y = np.asarray(x), np.asarray(y)
+    assert (x.dtype, x.shape) == (y.dtype, y.shape), name
+    assert x.tobytes() == y.tobytes(), f"{name} differs"
+
+
+def hook_advance(monkeypatch, method, at, action):
+    """Call ``action()`` just after the ``at``-th ``advance`` of the
+    propagator class registered under ``method`` (1-based), or after the
+    first one whose state satisfies ``at(state)``; returns the list of
+    calls so far, for counting."""
+    import importlib
+
+    import varint
+
+    module, _, name = varint.METHODS[method].partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    original = cls.advance
+    calls = []
+
+    def advance(self, state, n):
+        original(self, state, n)
+        calls.append(n)
+        if (at(state) if callable(at) else len(calls) == at):
+            action()
+
+    monkeypatch.setattr(cls, "advance", advance)
+    return calls

@@ -31,13 +31,72 @@ def horizon(t_end, tau):
     return t_end, tau
 
 
+def real_array(value, name):
+    """``value`` as a new float64 array.
+
+    NumPy would silently drop imaginary parts, turn ``None`` into NaN and
+    parse strings; here complex, boolean, text and non-numeric entries are
+    refused, naming ``name``.
+    """
+    try:
+        a = np.asarray(value)
+    except ValueError as exc:  # ragged nested sequences
+        raise ValueError(f"{name} must be a rectangular array of real numbers, got {value!r}"
+                         ) from exc
+    kind = a.dtype.kind
+    if kind == "O":  # e.g. SymPy numbers, Decimals, or a None among floats
+        for v in a.flat:
+            if not _real_number(v):
+                raise ValueError(f"{name} must hold real numbers, got {v!r} "
+                                 f"({type(v).__name__})")
+        kind = "f"
+    if kind == "c":
+        raise ValueError(f"{name} must be real, got complex values (dtype {a.dtype})")
+    if kind not in "iuf":
+        raise ValueError(f"{name} must be an array of real numbers, got dtype {a.dtype} "
+                         f"({value!r})")
+    return np.array(a, dtype=np.float64)
+
+
+def _real_number(v):
+    if isinstance(v, (bool, np.bool_, str, bytes, complex, np.complexfloating)):
+        return False
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def flag(value, name):
+    """``value`` if it is True, False or None."""
+    if value is not None and not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True, False or None, got {value!r}")
+    return None if value is None else bool(value)
+
+
+def output_times(t_out, name="t_out"):
+    """``t_out`` as None, a positive integer count, or a 1-D float array of
+    times (see :func:`varint.state.output_steps` for their meaning)."""
+    if t_out is None:
+        return None
+    if isinstance(t_out, np.ndarray) and t_out.ndim == 0:
+        t_out = t_out.item()
+    if np.isscalar(t_out):
+        if (isinstance(t_out, (bool, np.bool_)) or not isinstance(t_out, numbers.Real)
+                or not float(t_out).is_integer() or t_out < 1):
+            raise ValueError(f"{name} as a count must be a positive integer, got {t_out!r}")
+        return int(t_out)
+    t = real_array(t_out, name)
+    if t.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array of times, got shape {t.shape}")
+    return t
+
+
 def states(model, x0, name="x0"):
     """Initial states as a float64 array of shape (M, 2N), and whether the
     caller passed a single state (so results are squeezed)."""
-    try:
-        x = np.array(x0, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of numbers, got {x0!r}") from exc
+    x = real_array(x0, name)
     dim = model.dim
     single = x.ndim == 1
     if single:
@@ -52,7 +111,7 @@ def states(model, x0, name="x0"):
     if bad.any():
         m, i = np.argwhere(bad)[0]
         where = f"component {i}" if single else f"orbit {m}, component {i}"
-        raise ValueError(f"{name} must be finite; {where} is {x[m, i]!r}")
+        raise ValueError(f"{name} must be finite; {where} is {float(x[m, i])!r}")
     return np.ascontiguousarray(x), single
 
 
@@ -71,10 +130,7 @@ def deviations(W, dim, m_orbits, name="deviations"):
 
     Accepts (2N,), (2N, k) (shared by all orbits) or (M, 2N, k).
     """
-    try:
-        W = np.array(W, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of numbers") from exc
+    W = real_array(W, name)
     if W.ndim == 1:
         W = W[:, None]
     if W.ndim == 2:

@@ -1,10 +1,11 @@
 """The loop every run shares: advance to each output time in chunks, record,
-show progress, stop cleanly on Ctrl-C, and turn orbit failures into errors
-that say when and why.
+show progress, save checkpoints, stop cleanly on Ctrl-C, and turn orbit
+failures into errors that say when and why.
 
 Chunks are sized to take about 0.2 s of wall time, which keeps progress and
 Ctrl-C responsive; since propagators are chunk-invariant (rule 3 of
-:mod:`varint.methods`) the chunking never changes a result.
+:mod:`varint.methods`) the chunking never changes a result, and neither does
+stopping between chunks and resuming from a checkpoint.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ _REASONS = {
 }
 
 _CHUNK_SECONDS = 0.2
+#: A progress bar appears only once a run has lasted this many seconds.
+_PROGRESS_DELAY = 1.0
 
 
 class IntegrationError(RuntimeError):
@@ -54,18 +57,21 @@ class IntegrationError(RuntimeError):
         self.t, self.step, self.orbit, self.reason, self.partial = t, step, orbit, reason, partial
 
 
-def failure_message(state, tau, single):
-    """The first failure in ``state`` as (message, details) or None."""
+def failure_message(state, tau, single, reasons=None):
+    """The first failure in ``state`` as (message, details) or None.
+
+    ``reasons`` maps a propagator's own status codes (beyond those of
+    :mod:`varint._kernels`) to their explanations.
+    """
     failed = np.flatnonzero(state.status != K.OK)
     if failed.size == 0:
         return None
     m = failed[np.argmin(state.fail_step[failed])]
     step = int(state.fail_step[m])
-    reason = _REASONS.get(int(state.status[m]), f"status {int(state.status[m])}")
+    code = int(state.status[m])
+    reason = _REASONS.get(code) or (reasons or {}).get(code) or f"status {code}"
     who = "the orbit" if single else f"orbit {m}"
     msg = f"{who} failed at t = {step * tau:.10g} (step {step} of tau = {tau:g}): {reason}"
-    if failed.size > 1:
-        msg += f" ({failed.size} orbits failed; pass errors='flag' to keep the others)"
     return msg, {"t": step * tau, "step": step, "orbit": int(m), "reason": reason}
 
 
@@ -92,19 +98,20 @@ def _sigint_to_flag():
         signal.signal(signal.SIGINT, previous)
 
 
-def _progress_bar(progress, total, desc):
+def _progress_bar(progress, done, total, desc):
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         return contextlib.nullcontext(None)
     from tqdm.auto import tqdm
 
-    # Shown only for runs longer than a second; unit is steps of τ.
-    return tqdm(total=int(total), desc=desc, unit="step", unit_scale=True, delay=1.0,
-                leave=False, dynamic_ncols=True)
+    # Counts steps of τ over the whole run, so a resumed run starts part-way.
+    return tqdm(initial=int(done), total=int(total), desc=desc, unit="step", unit_scale=True,
+                delay=_PROGRESS_DELAY, leave=False, dynamic_ncols=True)
 
 
-def drive(prop, state, out_steps, record, *, progress=None, desc="varint", errors="raise"):
+def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="varint",
+          errors="raise", checkpoint=None):
     """Advance ``state`` to each step of ``out_steps`` and record there.
 
     Parameters
@@ -112,15 +119,24 @@ def drive(prop, state, out_steps, record, *, progress=None, desc="varint", error
     prop : propagator (see :mod:`varint.methods`)
     state : RunState
     out_steps : ndarray of int
-        Increasing output steps; those already reached are skipped.
+        Increasing output steps.
     record : callable
         ``record(state) -> dict`` of arrays with leading orbit axis, called
         at each output step.
+    records : list of dict, optional
+        Records of the first ``len(records)`` output steps, made before
+        (when resuming); the list is extended in place.
     progress : bool or None
-        Progress bar on stderr; by default only when it is a terminal.
+        Progress bar on stderr; by default only when it is a terminal;
+        ``False``: nothing is printed.
     errors : {"raise", "flag"}
         Whether the first failing orbit ends the run; with "flag" it is
         frozen and its later records are NaN.
+    checkpoint : varint.checkpoint.Checkpoint, optional
+        Saved whenever it is due (between chunks) and when the run stops:
+        finished, failed or interrupted by Ctrl-C. Not on any other
+        exception (a second Ctrl-C, an error in a propagator), when the
+        state may be half-updated; the last checkpoint written is then kept.
 
     Returns
     -------
@@ -130,12 +146,17 @@ def drive(prop, state, out_steps, record, *, progress=None, desc="varint", error
     wall : float
         Seconds spent.
     """
-    records, stop = [], None
+    records = [] if records is None else records
+    stop = None
     start = time.perf_counter()
     chunk = 64
-    todo = [int(s) for s in out_steps if s > state.step]
+    # Outputs are recorded in order, so the records say which remain; a
+    # checkpoint may hold a state at an output step not yet recorded.
+    todo = [int(s) for s in out_steps[len(records):]]
+    if errors == "raise" and (state.status != K.OK).any():
+        stop, todo = "failed", []  # resumed from a checkpoint written at a failure
     with _sigint_to_flag() as interrupted, \
-            _progress_bar(progress, todo[-1] - state.step if todo else 0, desc) as bar:
+            _progress_bar(progress, state.step, out_steps[-1], desc) as bar:
         for target in todo:
             while state.step < target:
                 n = min(chunk, target - state.step)
@@ -153,6 +174,8 @@ def drive(prop, state, out_steps, record, *, progress=None, desc="varint", error
                 if interrupted.is_set():
                     stop = "interrupted"
                     break
+                if checkpoint is not None and checkpoint.due():
+                    checkpoint.save(state, records)
             if stop is not None:
                 break
             rec = record(state)
@@ -162,9 +185,14 @@ def drive(prop, state, out_steps, record, *, progress=None, desc="varint", error
                     if np.issubdtype(arr.dtype, np.floating):
                         arr[dead] = np.nan
             records.append(rec)
+        # Inside the Ctrl-C guard: a Ctrl-C now only sets the flag.
+        saved = checkpoint is not None and checkpoint.save(state, records)
     if stop == "interrupted":
+        where = (f"; saved to {checkpoint.path}, run the same call again to resume"
+                 if saved else "")
         warnings.warn(f"interrupted at t = {state.step * prop.tau:g}: returning the "
-                      f"{len(records)} outputs recorded so far", RuntimeWarning, stacklevel=3)
+                      f"{len(records)} outputs recorded so far{where}", RuntimeWarning,
+                      stacklevel=4)
     stacked = {key: np.stack([r[key] for r in records]) if records else None
                for key in (records[0] if records else {})}
     return stacked, stop, time.perf_counter() - start

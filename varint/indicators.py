@@ -39,7 +39,8 @@ def _with_scheme(scheme, options):
 
 def lyapunov_spectrum(model, x0, t_end, tau=0.05, method="tm", scheme=None,
                       n_exponents=None, seed=0, deviations=None, t_out=None, progress=None,
-                      errors="raise", **method_options):
+                      errors="raise", escape_radius=None, checkpoint=None,
+                      checkpoint_interval=60.0, **method_options):
     """Finite-time Lyapunov exponents X_1(t), …, X_k(t) of one or many orbits.
 
     Every τ the deviation vectors are re-orthonormalised by QR
@@ -65,17 +66,34 @@ def lyapunov_spectrum(model, x0, t_end, tau=0.05, method="tm", scheme=None,
     n_exponents : int, optional
         How many exponents (k ≤ 2N deviation vectors); all 2N by default.
     seed : int or None, default 0
-        Seed of the random orthonormal initial deviation vectors.
+        Seed of the random orthonormal initial deviation vectors; None draws
+        one (recorded in the provenance, and reused when resuming).
     deviations : array_like, shape ([M,] 2N, k), optional
         Orthonormal initial deviation vectors instead of random ones.
     t_out : None, int or array_like
         Output times (see :func:`varint.state.output_steps`); log-spaced by
         default.
     progress : bool, optional
-        Progress bar; by default when stderr is a terminal.
+        Progress bar on stderr; by default only when stderr is a terminal;
+        False: never.
     errors : {"raise", "flag"}
-        A failing orbit raises :class:`IntegrationError` (with the partial
-        result attached), or, with "flag", is frozen and gets NaN exponents.
+        A failing orbit (non-finite, escaped, degenerate vectors) raises
+        :class:`IntegrationError`, whose message gives the time and step and
+        which carries the partial result; with "flag" it is frozen, its
+        ``status`` is non-zero and its later exponents are NaN (a warning
+        says how many failed).
+    escape_radius : float, optional
+        Stop an orbit as escaped once |q| exceeds this (overrides the
+        model's ``escape_radius`` for this call).
+    checkpoint : str or os.PathLike, optional
+        Save the run to this file every ``checkpoint_interval`` seconds and
+        when it stops (finished, failed or interrupted by Ctrl-C). If the
+        file exists, the run resumes from it; the result is then bitwise
+        identical to an uninterrupted run. A checkpoint written with other
+        arguments is refused with a :class:`CheckpointError` naming them
+        (see :mod:`varint.checkpoint`).
+    checkpoint_interval : float, default 60
+        Seconds of wall time between checkpoint writes.
     **method_options
         Passed to the method (e.g. ``rtol`` for the reference integrators).
 
@@ -83,15 +101,22 @@ def lyapunov_spectrum(model, x0, t_end, tau=0.05, method="tm", scheme=None,
     -------
     LyapunovResult
         ``t`` (n_out,), ``exponents`` ([M,] n_out, k), ``energy_error``.
+        After Ctrl-C: the outputs recorded so far, with ``interrupted=True``
+        (and a warning); a second Ctrl-C stops at once.
     """
     dim = model.dim
-    k = dim if n_exponents is None else check.n_vectors(n_exponents, dim, "n_exponents")
-    if deviations is not None and n_exponents is None:
-        k = np.shape(deviations)[-1] if np.ndim(deviations) > 1 else 1
+    if n_exponents is not None:
+        k = check.n_vectors(n_exponents, dim, "n_exponents")
+    elif deviations is not None:
+        W = check.real_array(deviations, "deviations")
+        k = W.shape[-1] if W.ndim > 1 else 1
+    else:
+        k = dim
     run = Run("lyapunov_spectrum", model, x0, t_end, tau, method=method, k=k, renorm="qr",
               deviations=deviations, seed=seed, t_out=t_out, progress=progress, errors=errors,
               require="orthonormal", method_options=_with_scheme(scheme, method_options),
-              options={"n_exponents": k})
+              options={"n_exponents": k}, escape_radius=escape_radius, checkpoint=checkpoint,
+              checkpoint_interval=checkpoint_interval)
     if run.W0.shape[2] != k:
         raise ValueError(f"n_exponents = {k} but {run.W0.shape[2]} deviation vectors were given")
 
@@ -126,7 +151,8 @@ def gali_from_vectors(W, orders):
 
 
 def gali(model, x0, t_end, tau=0.05, k=(2, 3, 4), method="tm", scheme=None, seed=0,
-         deviations=None, t_out=None, progress=None, errors="raise", **method_options):
+         deviations=None, t_out=None, progress=None, errors="raise", escape_radius=None,
+         checkpoint=None, checkpoint_interval=60.0, **method_options):
     """Generalised alignment indices GALI_k(t) (paper Sect. IV, eqs. 14–17).
 
     max(k) deviation vectors are evolved and normalised to unit length every
@@ -154,7 +180,8 @@ def gali(model, x0, t_end, tau=0.05, k=(2, 3, 4), method="tm", scheme=None, seed
     run = Run("gali", model, x0, t_end, tau, method=method, k=orders[-1], renorm="normalize",
               deviations=deviations, seed=seed, t_out=t_out, progress=progress, errors=errors,
               require="unit", method_options=_with_scheme(scheme, method_options),
-              options={"k": list(orders)})
+              options={"k": list(orders)}, escape_radius=escape_radius, checkpoint=checkpoint,
+              checkpoint_interval=checkpoint_interval)
     if run.W0.shape[2] < orders[-1]:
         raise ValueError(f"GALI_{orders[-1]} needs {orders[-1]} deviation vectors, "
                          f"{run.W0.shape[2]} were given")
@@ -170,7 +197,8 @@ def gali(model, x0, t_end, tau=0.05, k=(2, 3, 4), method="tm", scheme=None, seed
 
 
 def sali(model, x0, t_end, tau=0.05, method="tm", scheme=None, seed=0, deviations=None,
-         t_out=None, progress=None, errors="raise", **method_options):
+         t_out=None, progress=None, errors="raise", escape_radius=None, checkpoint=None,
+         checkpoint_interval=60.0, **method_options):
     """Smaller alignment index SALI(t) = min(‖ŵ₁ + ŵ₂‖, ‖ŵ₁ − ŵ₂‖).
 
     Two deviation vectors normalised every τ. SALI → 0 exponentially for
@@ -183,7 +211,9 @@ def sali(model, x0, t_end, tau=0.05, method="tm", scheme=None, seed=0, deviation
     """
     run = Run("sali", model, x0, t_end, tau, method=method, k=2, renorm="normalize",
               deviations=deviations, seed=seed, t_out=t_out, progress=progress, errors=errors,
-              require="unit", method_options=_with_scheme(scheme, method_options))
+              require="unit", method_options=_with_scheme(scheme, method_options),
+              escape_radius=escape_radius, checkpoint=checkpoint,
+              checkpoint_interval=checkpoint_interval)
     if run.W0.shape[2] != 2:
         raise ValueError(f"SALI needs exactly 2 deviation vectors, {run.W0.shape[2]} were given")
 

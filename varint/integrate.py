@@ -12,7 +12,8 @@ __all__ = ["integrate"]
 
 
 def integrate(model, x0, t_end, tau=0.05, method="tm", scheme=None, deviations=None,
-              t_out=None, progress=None, errors="raise", **method_options):
+              t_out=None, progress=None, errors="raise", escape_radius=None, checkpoint=None,
+              checkpoint_interval=60.0, **method_options):
     """Integrate orbits, and deviation vectors if given, from 0 to ``t_end``.
 
     The deviation vectors are never renormalised: ``deviations`` of the
@@ -34,6 +35,10 @@ def integrate(model, x0, t_end, tau=0.05, method="tm", scheme=None, deviations=N
         Initial deviation vectors to carry along.
     t_out : None, int or array_like
         Times at which to store the orbit; only t_end by default.
+    progress, errors, escape_radius, checkpoint, checkpoint_interval
+        As in :func:`varint.lyapunov_spectrum`: progress bar, failure
+        handling, escape radius, and the checkpoint file to save to and
+        resume from (bitwise).
 
     Returns
     -------
@@ -46,12 +51,13 @@ def integrate(model, x0, t_end, tau=0.05, method="tm", scheme=None, deviations=N
     IntegrationError
         If an orbit becomes non-finite or escapes, or the deviation vectors
         overflow (it says at what time; the partial result is attached).
+        The raw deviation vectors are checked for overflow every 16 steps.
     """
     run = Run("integrate", model, x0, t_end, tau, method=method, k=0, renorm="none",
               deviations=np.zeros((model.dim, 0)) if deviations is None else deviations,
               t_out=1 if t_out is None else t_out, progress=progress, errors=errors,
-              method_options=_with_scheme(scheme, method_options))
-    run.seed = None
+              method_options=_with_scheme(scheme, method_options), escape_radius=escape_radius,
+              checkpoint=checkpoint, checkpoint_interval=checkpoint_interval)
 
     def record(state):
         return {"states": state.x.copy()}

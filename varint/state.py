@@ -126,7 +126,8 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
             raise ValueError("t_out must be strictly increasing")
         if t[0] < tau * (1 - 1e-12) or t[-1] > t_end * (1 + 1e-12):
             raise ValueError(
-                f"t_out must lie in [tau, t_end] = [{tau!r}, {t_end!r}], got {t[0]!r}..{t[-1]!r}")
+                f"t_out must lie in [tau, t_end] = [{tau!r}, {t_end!r}], "
+                f"got {float(t[0])!r}..{float(t[-1])!r}")
         steps = np.round(t / tau).astype(np.int64)
         if (np.diff(steps) <= 0).any():
             raise ValueError(f"t_out has two times within one step tau = {tau!r} of each other")

@@ -20,8 +20,10 @@ C = {B,{B,A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 25 with a mass):
 from __future__ import annotations
 
 import numpy as np
+from numba.core.dispatcher import Dispatcher
 
 from .._banded import band_kick_block, band_matvec, band_square_add, band_to_dense
+from .._validate import real_array
 
 __all__ = ["Model"]
 
@@ -61,9 +63,17 @@ class Model:
         self.n_dof = n_dof
         self.name = name
         self._potential = potential
+        for label, kernel in (("grad", grad), ("hess", hess), ("third", third)):
+            # A plain Python function would fail deep inside numba at the
+            # first run; refuse it here with the remedy.
+            if not isinstance(kernel, Dispatcher):
+                raise ValueError(f"the {label} kernel must be a numba-compiled function "
+                                 f"(decorate it with numba.njit), got {kernel!r}")
         self.grad_kernel, self.hess_kernel, self.third_kernel = grad, hess, third
         self.bandwidth = min(int(bandwidth), n_dof - 1)
-        self.params = np.ascontiguousarray(params, dtype=np.float64).reshape(-1)
+        self.params = real_array(params, "params").reshape(-1)
+        if not np.isfinite(self.params).all():
+            raise ValueError(f"params must be finite, got {self.params.tolist()}")
         if inverse_mass is None:
             inverse_mass = np.ones(n_dof)
         minv = np.array(inverse_mass, dtype=np.float64)
@@ -75,7 +85,7 @@ class Model:
         bad = ~np.isfinite(minv) | (minv <= 0)
         if bad.any():
             raise ValueError(
-                f"inverse_mass must be positive and finite; got {minv[bad][0]!r} "
+                f"inverse_mass must be positive and finite; got {float(minv[bad][0])!r} "
                 f"at index {int(np.flatnonzero(bad)[0])}")
         self.inverse_mass = minv
         if escape_radius is not None and not (np.isfinite(escape_radius) and escape_radius > 0):

@@ -1,0 +1,126 @@
+"""Ctrl-C and progress: the first Ctrl-C ends the run at the next chunk
+boundary, returns the outputs so far (``interrupted=True``, with a warning)
+and saves the checkpoint; a second one stops at once. Progress bars appear
+only on a terminal, or when asked."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import varint
+from varint import checkpoint as ckpt
+from varint import driver
+from tests.helpers import assert_bitwise_equal, hook_advance
+
+T_END = 200.0
+
+
+def ctrl_c():
+    os.kill(os.getpid(), signal.SIGINT)
+
+
+def lyapunov(c1, **kw):
+    return varint.lyapunov_spectrum(*c1, T_END, **kw)
+
+
+def test_ctrl_c_returns_the_outputs_so_far_and_saves_them(c1, tmp_path, monkeypatch):
+    path = tmp_path / "run.ckpt"
+    reference = lyapunov(c1)
+    handler = signal.getsignal(signal.SIGINT)
+    with monkeypatch.context() as patch:
+        hook_advance(patch, "tm", 8, ctrl_c)
+        with pytest.warns(RuntimeWarning, match=f"interrupted at t = .*saved to {path}"):
+            partial = lyapunov(c1, checkpoint=path)
+    assert signal.getsignal(signal.SIGINT) is handler  # restored
+    assert partial.interrupted
+    n = len(partial.t)
+    assert 0 < n < len(reference.t)
+    # What was recorded is exactly what the full run records there.
+    assert partial.exponents.tobytes() == reference.exponents[:n].tobytes()
+    saved = ckpt.read(path)
+    assert len(saved.records) == n and saved.state.x.tobytes() == partial.state.tobytes()
+    resumed = lyapunov(c1, checkpoint=path)
+    assert not resumed.interrupted
+    assert_bitwise_equal(resumed, reference)
+
+
+def test_ctrl_c_without_a_checkpoint_still_returns_the_partial_result(c1, monkeypatch):
+    hook_advance(monkeypatch, "tm", 8, ctrl_c)
+    with pytest.warns(RuntimeWarning, match="returning the [0-9]+ outputs recorded so far$"):
+        partial = varint.gali(*c1, T_END)
+    assert partial.interrupted and len(partial.t) > 0
+    assert np.isfinite(partial.gali[4]).all()
+
+
+def test_a_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(c1, tmp_path, monkeypatch):
+    """The second KeyboardInterrupt may land anywhere, so nothing is saved
+    then; the checkpoint written after the previous chunk resumes."""
+    path = tmp_path / "run.ckpt"
+    with monkeypatch.context() as patch:
+        hook_advance(patch, "tm", 8, lambda: (ctrl_c(), ctrl_c()))
+        with pytest.raises(KeyboardInterrupt):
+            lyapunov(c1, checkpoint=path, checkpoint_interval=0)
+    assert ckpt.read(path).state.step > 0
+    assert_bitwise_equal(lyapunov(c1, checkpoint=path), lyapunov(c1))
+
+
+def test_ctrl_c_on_a_running_process(tmp_path):
+    """SIGINT from outside (as a terminal sends it): the script gets the
+    partial result, the process exits normally, no traceback; the
+    checkpoint holds exactly what the partial result holds."""
+    path = tmp_path / "run.ckpt"
+    code = f"""
+import json, varint
+model, x0 = varint.paper_orbit("C1")
+r = varint.lyapunov_spectrum(model, x0, 1e7, checkpoint={str(path)!r}, checkpoint_interval=0)
+print(json.dumps({{"interrupted": r.interrupted, "n": len(r.t), "x": r.state.tolist()}}))
+"""
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while True:  # until the run is under way (past the initial checkpoint)
+        assert child.poll() is None and time.monotonic() < deadline
+        try:
+            if ckpt.read(path).state.step > 0:
+                break
+        except (FileNotFoundError, varint.CheckpointError):
+            pass
+        time.sleep(0.02)
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=60)
+    assert child.returncode == 0, err
+    assert "Traceback" not in err and "interrupted at t =" in err
+    got = json.loads(out)
+    assert got["interrupted"]
+    saved = ckpt.read(path)
+    assert len(saved.records) == got["n"] and saved.state.x[0].tolist() == got["x"]
+
+
+@pytest.fixture
+def instant_bar(monkeypatch):
+    # Bars normally wait a second before appearing; show them at once so
+    # that a short run shows whether one would appear.
+    monkeypatch.setattr(driver, "_PROGRESS_DELAY", 0.0)
+
+
+@pytest.mark.parametrize("progress, terminal, shown", [
+    (None, False, False),   # default, output to a file or pipe: silent
+    (None, True, True),     # default on a terminal: a bar
+    (False, True, False),   # asked for silence: silent even on a terminal
+    (True, False, True),    # asked for a bar: shown anywhere
+])
+def test_progress_bar_only_on_a_terminal_or_when_asked(progress, terminal, shown, c1, capfd,
+                                                       monkeypatch, instant_bar):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    varint.sali(*c1, T_END, progress=progress)
+    out, err = capfd.readouterr()
+    assert out == ""
+    assert ("step" in err) == shown
+    if not shown:
+        assert err == ""
