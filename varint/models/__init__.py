@@ -7,4 +7,15 @@ from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
 __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "paper_orbit", "solve_momentum",
-           "PAPER_ORBITS"]
+           "PAPER_ORBITS", "from_potential", "SymbolicModel", "SymbolicPotential"]
+
+_SYMBOLIC = ("from_potential", "SymbolicModel", "SymbolicPotential")
+
+
+def __getattr__(name):
+    # SymPy takes as long to import as the rest of varint: load it on first use.
+    if name in _SYMBOLIC:
+        from . import symbolic
+
+        return getattr(symbolic, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

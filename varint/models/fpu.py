@@ -111,3 +111,18 @@ class FPUBeta(Model):
         d = super().describe()
         d.update(n=self.n_dof, beta=self.beta)
         return d
+
+    def symbolic(self):
+        """The potential in SymPy, bond by bond; β enters as the exact
+        binary value of the float."""
+        import sympy as sp
+
+        from .symbolic import SymbolicPotential
+
+        n = self.n_dof
+        q = sp.symbols(f"q1:{n + 1}")
+        beta = sp.Rational(self.beta)
+        walls = (sp.Integer(0),) + q + (sp.Integer(0),)
+        r = [walls[b + 1] - walls[b] for b in range(n + 1)]
+        V = sp.Add(*[ri**2 / 2 + beta * ri**4 / 4 for ri in r])
+        return SymbolicPotential(V, q, (sp.Integer(1),) * n)

@@ -75,3 +75,14 @@ class HenonHeiles(Model):
         d = super().describe()
         d["escape_radius"] = self.escape_radius
         return d
+
+    def symbolic(self):
+        """The potential in SymPy: the one definition the Taylor reference
+        integrates, and the twin the kernels above are tested against."""
+        import sympy as sp
+
+        from .symbolic import SymbolicPotential
+
+        x, y = sp.symbols("x y")
+        V = (x**2 + y**2) / 2 + x**2 * y - y**3 / 3
+        return SymbolicPotential(V, (x, y), (sp.Integer(1),) * 2)

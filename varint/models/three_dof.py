@@ -71,3 +71,14 @@ class ThreeDof(Model):
     def __init__(self):
         super().__init__(3, _potential, _grad, _hess, _third, bandwidth=2,
                          inverse_mass=(1.0, _S2, _S3), name="ThreeDof")
+
+    def symbolic(self):
+        """The potential and inverse mass in SymPy, with √2 and √3 exact."""
+        import sympy as sp
+
+        from .symbolic import SymbolicPotential
+
+        x, y, z = sp.symbols("x y z")
+        s2, s3 = sp.sqrt(2), sp.sqrt(3)
+        V = x**2 / 2 + s2 / 2 * y**2 + s3 / 2 * z**2 + x**2 * y + x**2 * z
+        return SymbolicPotential(V, (x, y, z), (sp.Integer(1), s2, s3))

@@ -1,0 +1,283 @@
+"""What the baselines share: restart an ODE integrator from the run state,
+renormalise every τ, and keep all continuation state in the RunState.
+
+Each baseline integrates the orbit together with its deviation vectors
+(:mod:`baselines.rhs`) from the current state over a *block* of B intervals
+of length τ, asking its integrator for the state at every multiple of τ.
+The outputs are then taken one interval at a time, exactly as the TM method
+steps: the orbit is checked (escape, non-finite), and the deviation vectors
+are renormalised with :func:`varint._kernels.renormalize` — QR for Lyapunov
+spectra (paper eq. 10), unit length for GALI/SALI (eq. 16), or not at all.
+
+Why blocks: the variational equations are linear, so the vectors
+renormalised after interval j of a block are the raw vectors integrated from
+the block start times a k×k matrix C_j (upper triangular), with
+C_j = C_{j−1} R_j⁻¹ from the QR factor R_j. Renormalising *virtually* like
+this lets an integrator take its natural steps through a block instead of
+restarting every τ; the state is written back (and the integrator restarted
+from it) only at the block end. With B = 1 this is the paper's scheme,
+restarting every τ (DOP853). On R1 with τ = 0.05 (``studies/bench_baselines.py``)
+blocks make CVODE 15–20× cheaper and 7–13× more accurate (every restart of a
+multistep method costs low-order starting steps), and double-precision heyoka
+20–80× cheaper at the same round-off-level error.
+
+Rules 3 and 8 of :mod:`varint.methods` hold because a block is always
+integrated whole from the state at its start, and its outputs, the matrix C
+and the position in the block live in ``state.extra``: how a run is chunked
+into ``advance`` calls, or resumed from a checkpoint, cannot change a bit.
+A block also ends early, deterministically, once C has become so
+ill-conditioned (condition > :data:`COND_LIMIT`) that the virtual
+renormalisation would lose accuracy in the weakest directions; the rest of
+it is discarded and a new block starts from the renormalised state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from varint import _kernels as K
+
+from .rhs import pack
+
+__all__ = ["BlockPropagator", "consume", "COND_LIMIT", "INTEGRATOR_FAILED"]
+
+_RENORM = {"none": K.RENORM_NONE, "normalize": K.RENORM_NORMALIZE, "qr": K.RENORM_QR}
+
+#: Status of an orbit whose integrator gave up with a finite state (e.g.
+#: CVODE's step-count or error-test failures); see :mod:`varint._kernels`
+#: for the others.
+INTEGRATOR_FAILED = 5
+#: Returned by :func:`consume` when the block should end early.
+END_BLOCK = -1
+#: Largest condition number (ratio of the extreme diagonal entries) of the
+#: virtual QR matrix C before a block ends early: a larger one amplifies the
+#: integrator's error in the weakest directions by as much.
+COND_LIMIT = 100.0
+#: Largest block, in float64 numbers stored per orbit (16 MiB).
+MAX_BLOCK_VALUES = 1 << 21
+
+
+@njit(cache=True)
+def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit):
+    """Take the outputs ``start … stop−1`` of a block for one orbit.
+
+    Parameters
+    ----------
+    ys : ndarray, shape (B, 2N(1 + k))
+        Flat states (:func:`baselines.rhs.pack`) at τ, 2τ, … integrated from
+        the block start.
+    C : ndarray, shape (k, k)
+        Virtual renormalisation so far (identity at the block start);
+        updated in place.
+    x, W : ndarray, shapes (2N,) and (2N, k)
+        Receive the orbit and the renormalised vectors of each output.
+    mode : int
+        ``RENORM_QR``, ``RENORM_NORMALIZE`` or ``RENORM_NONE``.
+    acc_m, acc_e : ndarray, shape (k,)
+        Stretching accumulators (see :func:`varint._kernels.renormalize`).
+    escape_r2 : float
+        Squared escape radius of |q|.
+    cond_limit : float
+        See :data:`COND_LIMIT`.
+
+    Returns
+    -------
+    status : int
+        ``OK``; a failure code of :mod:`varint._kernels` (output ``j``
+        failed, its state is in x, W); or ``END_BLOCK`` (outputs up to
+        ``j − 1`` were taken and the rest of the block must be discarded).
+    j : int
+        See ``status``; ``stop`` when all were taken.
+    """
+    d, k = W.shape
+    n = d // 2
+    V = np.empty((d, k))
+    R = np.empty((k, k))
+    for j in range(start, stop):
+        rq = 0.0
+        rp = 0.0
+        for i in range(d):
+            x[i] = ys[j, i]
+        for i in range(n):
+            rq += x[i] * x[i]
+            rp += x[n + i] * x[n + i]
+        for i in range(d):
+            for a in range(k):
+                s = 0.0
+                for b in range(a + 1):  # C is upper triangular
+                    s += ys[j, d + i * k + b] * C[b, a]
+                W[i, a] = s
+        if rq > escape_r2:
+            return K.ESCAPED, j
+        if not (rq + rp < np.inf):
+            return K.ORBIT_NONFINITE, j
+        if mode == K.RENORM_NONE:
+            for i in range(d):
+                for a in range(k):
+                    if not (abs(W[i, a]) < K.TANGENT_LIMIT):
+                        return K.TANGENT_OVERFLOW, j
+            continue
+        for i in range(d):
+            for a in range(k):
+                V[i, a] = W[i, a]
+        if not K.renormalize(W, mode, acc_m, acc_e):
+            return K.TANGENT_DEGENERATE, j
+        # W = V R⁻¹ with R = WᵀV (upper triangular for QR, diagonal when
+        # only normalising), so the next raw output needs C R⁻¹.
+        for b in range(k):
+            for a in range(k):
+                s = 0.0
+                if a == b or (mode == K.RENORM_QR and b < a):
+                    for i in range(d):
+                        s += W[i, b] * V[i, a]
+                R[b, a] = s
+        for r in range(k):
+            for a in range(k):
+                s = C[r, a]
+                for b in range(a):
+                    s -= C[r, b] * R[b, a]
+                C[r, a] = s / R[a, a]
+        # Only QR mixes columns (normalising just scales them, exactly).
+        # Checked after every output, whatever ``stop`` is, so where a block
+        # ends never depends on how the run is chunked.
+        if mode == K.RENORM_QR:
+            cmax = 0.0
+            cmin = np.inf
+            for a in range(k):
+                c = abs(C[a, a])
+                cmax = max(cmax, c)
+                cmin = min(cmin, c)
+            if cmax > cond_limit * cmin:
+                return END_BLOCK, j + 1
+    return K.OK, stop
+
+
+class BlockPropagator:
+    """Base of the baseline propagators (the protocol of
+    :mod:`varint.methods`).
+
+    Subclasses set :attr:`method` and :attr:`OPTIONS` (name → default),
+    call :meth:`_setup` from ``__init__``, and implement
+    ``_integrate(state, m, y0, n_out) -> (ys, status, counts)``: integrate
+    the flat state ``y0`` of orbit ``m`` from t = 0 and return the flat
+    states at τ, 2τ, …, n_out·τ (fewer rows if it failed, with ``status``
+    saying why; ``K.OK`` otherwise) and a dict of work counts.
+    """
+
+    method = None
+    OPTIONS = {}
+    #: Time spanned by a block when the ``block`` option is not given.
+    BLOCK_SPAN = 0.0
+    #: Explanations of the status codes of our own, for error messages.
+    failure_reasons = {INTEGRATOR_FAILED: "the integrator gave up with a finite state (too many "
+                                          "steps or repeated error-test failures in one interval)"}
+
+    def _setup(self, model, tau, renorm, options):
+        self.model = model
+        self.tau = float(tau)
+        self.renorm = renorm
+        self._mode = _RENORM[renorm]
+        block = options.get("block")
+        integer = isinstance(block, (int, np.integer)) and not isinstance(block, bool)
+        if block is not None and not (integer and block >= 1):
+            raise ValueError(f"block must be a positive integer (intervals of tau), got {block!r}")
+        self.options = options
+        r = model.escape_radius
+        self._escape_r2 = np.inf if r is None else float(r) ** 2
+
+    @classmethod
+    def _options(cls, given):
+        """The options with defaults filled in; rejects unknown ones."""
+        if "scheme" in given:
+            raise ValueError(
+                f"method {cls.method!r} takes no scheme: it integrates the variational "
+                "equations directly; scheme= selects the splitting scheme of 'tm' and the TDH "
+                "methods")
+        unknown = sorted(set(given) - set(cls.OPTIONS))
+        if unknown:
+            raise TypeError(f"unknown option {unknown[0]!r} for method {cls.method!r}; valid "
+                            f"options: {', '.join(cls.OPTIONS)}")
+        return {**cls.OPTIONS, **given}
+
+    def block_size(self, dim, k):
+        """Intervals per block for states of dimension ``dim`` with ``k``
+        vectors: the ``block`` option if given, else enough for
+        :attr:`BLOCK_SPAN` time units; at most :data:`MAX_BLOCK_VALUES`
+        stored numbers per orbit."""
+        block = self.options.get("block")
+        if block is None:
+            block = max(1, int(round(self.BLOCK_SPAN / self.tau)))
+        return int(max(1, min(block, MAX_BLOCK_VALUES // (dim * (1 + k)))))
+
+    def describe(self):
+        return dict(self.options)
+
+    # -- the protocol --------------------------------------------------------
+    def advance(self, state, n):
+        """Advance every active orbit of ``state`` by ``n`` intervals τ."""
+        self._prepare(state)
+        steps = 0
+        for m in np.flatnonzero(state.status == K.OK):
+            done, status = self._advance_orbit(state, m, int(n))
+            steps += done
+            if status != K.OK:
+                state.status[m] = status
+                state.fail_step[m] = state.step + done + 1
+                steps += 1
+        state.step += int(n)
+        state.add_counts(steps=steps)
+
+    def _key(self, name):
+        return f"{self.method}_{name}"
+
+    def _prepare(self, state):
+        """Create the block storage in ``state.extra`` on first use."""
+        if self._key("next") in state.extra:
+            return
+        m, d, k = state.W.shape
+        b = self.block_size(d, k)
+        state.extra.update({
+            self._key("y"): np.zeros((m, b, d * (1 + k))),
+            self._key("C"): np.zeros((m, k, k)),
+            # Outputs taken / outputs held / why a short block stopped.
+            self._key("next"): np.zeros(m, dtype=np.int64),
+            self._key("filled"): np.zeros(m, dtype=np.int64),
+            self._key("failed"): np.zeros(m, dtype=np.int64),
+        })
+
+    def _advance_orbit(self, state, m, n):
+        ex = state.extra
+        ys, C = ex[self._key("y")], ex[self._key("C")]
+        nxt, filled = ex[self._key("next")], ex[self._key("filled")]
+        failed = ex[self._key("failed")]
+        done = 0
+        while done < n:
+            if nxt[m] == filled[m]:
+                if failed[m] != K.OK:
+                    return done, int(failed[m])
+                self._new_block(state, m)
+            start = nxt[m]
+            status, j = consume(ys[m], C[m], start, min(filled[m], start + n - done), state.x[m],
+                                state.W[m], self._mode, state.acc_m[m], state.acc_e[m],
+                                self._escape_r2, COND_LIMIT)
+            done += j - start
+            nxt[m] = j
+            if status == END_BLOCK:
+                # A failure of the integrator beyond this point is moot now.
+                filled[m], failed[m] = j, K.OK
+            elif status != K.OK:
+                return done, int(status)
+        return done, K.OK
+
+    def _new_block(self, state, m):
+        ex = state.extra
+        b = ex[self._key("y")].shape[1]
+        ys, status, counts = self._integrate(state, m, pack(state.x[m], state.W[m]), b)
+        filled = len(ys)
+        ex[self._key("y")][m, :filled] = ys
+        ex[self._key("filled")][m] = filled
+        ex[self._key("next")][m] = 0
+        ex[self._key("failed")][m] = K.OK if filled == b else (status or INTEGRATOR_FAILED)
+        ex[self._key("C")][m] = np.eye(state.k)
+        state.add_counts(blocks=1, **counts)

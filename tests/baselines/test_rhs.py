@@ -1,0 +1,38 @@
+"""The compiled right-hand side of orbit + deviation vectors against the
+equations written out with the model's dense gradient and Hessian."""
+
+import numpy as np
+import pytest
+
+from baselines.rhs import pack, tangent_rhs, unpack
+from varint.models import FPUBeta, HenonHeiles, ThreeDof
+
+
+@pytest.mark.parametrize("model", [HenonHeiles(), ThreeDof(), FPUBeta(6, 1.5)],
+                         ids=["HenonHeiles", "ThreeDof", "FPU6"])
+@pytest.mark.parametrize("k", [0, 1, 3])
+def test_rhs_is_hamiltons_equations_and_their_linearisation(model, k):
+    """q̇ = M⁻¹p, ṗ = −∇V, δq̇ = M⁻¹δp, δṗ = −D²V δq (paper eqs. 2, 4)."""
+    rhs, fun = tangent_rhs(model)
+    n, d = model.n_dof, model.dim
+    rng = np.random.default_rng(k)
+    x = rng.uniform(-0.5, 0.5, d)
+    W = rng.standard_normal((d, k))
+    y = pack(x, W)
+    y.flags.writeable = False  # as SUNDIALS passes it
+    yp = np.empty_like(y)
+    rhs(0.0, y, yp)
+    q, p = x[:n], x[n:]
+    H = model.hessian(q)
+    minv = model.inverse_mass
+    expected_x = np.concatenate([minv * p, -model.gradient(q)])
+    expected_W = np.concatenate([minv[:, None] * W[n:], -H @ W[:n]])
+    xdot, Wdot = unpack(yp, d)
+    assert np.allclose(xdot, expected_x, rtol=1e-14, atol=1e-15)
+    assert np.allclose(Wdot, expected_W, rtol=1e-13, atol=1e-14)
+    assert np.array_equal(fun(0.0, y), yp)
+
+
+def test_rhs_is_shared_by_models_with_the_same_kernels():
+    assert tangent_rhs(HenonHeiles())[0] is tangent_rhs(HenonHeiles())[0]
+    assert tangent_rhs(FPUBeta(6, 1.5))[0] is not tangent_rhs(FPUBeta(6, 1.0))[0]
