@@ -48,6 +48,11 @@ RENORM_NONE, RENORM_NORMALIZE, RENORM_QR = 0, 1, 2
 
 # Status codes returned per orbit (0 = fine).
 OK, ORBIT_NONFINITE, ESCAPED, TANGENT_DEGENERATE, TANGENT_OVERFLOW = 0, 1, 2, 3, 4
+#: Negative codes stop an orbit on purpose, not as a failure: DECIDED marks
+#: an orbit frozen by early stopping once its indicator settled its nature
+#: (:func:`varint.driver.drive`'s ``decide``). Every stepper skips any
+#: non-zero status; only positive codes are failures.
+DECIDED = -1
 
 #: Counters kept per orbit: ∇V evaluations, D²V evaluations, third-derivative
 #: contractions, kick products on the deviation vectors (D²V·W or D²C·W).
@@ -116,13 +121,20 @@ def _tangent_overflow(W):
     return False
 
 
-def _make_orbit_kernel(N_C, K_C, BW_C):
+def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False):
     """The one-orbit stepper; sizes are constants when ≥ 0, else read from
-    the arrays."""
+    the arrays.
+
+    With ``RECORD`` (a compile-time constant, so the TM method's stepper
+    has no such code) the orbit after every step is written to
+    ``record[step]``, of shape (≥ n_steps, 2N): the TDH methods
+    (:mod:`varint.tdh`) integrate their orbit with this stepper (k = 0) and
+    read D²V at the grid points from the record.
+    """
 
     @njit
     def tm_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
-                 grad, hess, third, renorm, escape_r2, counters):
+                 grad, hess, third, renorm, escape_r2, counters, record):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -205,6 +217,9 @@ def _make_orbit_kernel(N_C, K_C, BW_C):
                 return ESCAPED, s
             if not (rq + rp < np.inf):
                 return ORBIT_NONFINITE, s
+            if RECORD:
+                for i in range(d):
+                    record[s, i] = x[i]
             if renorm != RENORM_NONE:
                 if not _renormalize(W, renorm, acc_m, acc_e, d, k):
                     return TANGENT_DEGENERATE, s
@@ -216,6 +231,15 @@ def _make_orbit_kernel(N_C, K_C, BW_C):
         return OK, n_steps
 
     return tm_orbit
+
+
+@lru_cache(maxsize=None)
+def orbit_kernel(n, bw):
+    """The one-orbit stepper without deviation vectors (k = 0) for N = ``n``
+    and bandwidth ``bw`` (−1 for both: sizes read at run time), with the
+    ``record`` of :func:`_make_orbit_kernel` written: how the TDH methods
+    integrate their orbit by the same machinery as the TM method."""
+    return _make_orbit_kernel(n, 0, bw, RECORD=True)
 
 
 @lru_cache(maxsize=None)
@@ -240,7 +264,7 @@ def tm_batch(n, k, bw, parallel):
                 continue
             st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
                                  minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
-                                 counters[m])
+                                 counters[m], np.empty((0, 0)))
             status[m] = st
             done[m] = steps
 

@@ -46,6 +46,12 @@ __all__ = ["METHODS", "make_propagator", "RENORM_MODES"]
 #: SUNDIALS load only when asked for).
 METHODS = {
     "tm": "varint.tangent_map:TangentMapPropagator",
+    "tdhcc": "varint.tdh.propagators:TDHccPropagator",
+    "tdhes": "varint.tdh.propagators:TDHesPropagator",
+    "tdheps": "varint.tdh.propagators:TDHepsPropagator",
+    "taylor": "baselines.taylor:TaylorPropagator",
+    "cvode": "baselines.cvode:CVODEPropagator",
+    "dop853": "baselines.dop853:DOP853Propagator",
 }
 
 RENORM_MODES = ("qr", "normalize", "none")

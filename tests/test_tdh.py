@@ -1,0 +1,357 @@
+"""The TDH methods (varint.tdh): against the paper's explicit Hénon–Heiles
+maps and an exact matrix exponential, their derived orders, the propagator
+rules, and the paper's Fig. 2 verdict on the regular orbit R1."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from numba import njit
+
+import varint
+from varint import _kernels as K
+from varint.methods import make_propagator
+from varint.models import Model
+from varint.state import RunState
+from varint.tdh import eps_grid, henon_heiles_transform, oscillator
+from tests.helpers import fitted_slope
+from tests.naive_tdh import (hh_tdhcc_interval, hh_tdheps_interval, hh_tdhes_interval,
+                             paper_transform)
+
+TDH = ("tdhcc", "tdhes", "tdheps")
+
+
+# -- a linear system: V = ½ qᵀAq, so D²V is truly constant ---------------------
+
+@njit
+def _lin_grad(q, par, g):
+    n = q.shape[0]
+    for i in range(n):
+        g[i] = 0.0
+        for j in range(n):
+            g[i] += par[i * n + j] * q[j]
+
+
+@njit
+def _lin_hess(q, par, B):
+    n = q.shape[0]
+    for b in range(n):
+        for i in range(n - b):
+            B[b, i] = par[i * n + i + b]
+
+
+@njit
+def _lin_third(q, par, v, B):
+    B[:, :] = 0.0
+
+
+def linear_model(A, inverse_mass):
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    return Model(n, lambda q: 0.5 * np.einsum("...i,ij,...j->...", q, A, q), _lin_grad,
+                 _lin_hess, _lin_third, bandwidth=n - 1, params=A.ravel(),
+                 inverse_mass=inverse_mass, name="linear")
+
+
+def exact_tangent_map(A, inverse_mass, t):
+    """exp(t [[0, M⁻¹], [−A, 0]]) by SciPy's Padé approximant."""
+    n = len(inverse_mass)
+    G = np.block([[np.zeros((n, n)), np.diag(inverse_mass)], [-np.asarray(A), np.zeros((n, n))]])
+    return scipy.linalg.expm(t * G)
+
+
+def rotation(n, seed):
+    Q, _ = np.linalg.qr(np.random.default_rng(seed).standard_normal((n, n)))
+    return Q
+
+
+@pytest.mark.parametrize("A, minv", [
+    # K = M^{-1/2} A M^{-1/2} = diag(2, 0, −0.25): an exactly free mode.
+    (np.diag([2.0, 0.0, -0.5]), [1.0, 2.0, 0.5]),
+    # Coupled, with the paper's 3D masses: oscillating, (nearly) free and
+    # hyperbolic modes mixed by a rotation.
+    (rotation(3, 1) @ np.diag([1.5, 0.0, -0.3]) @ rotation(3, 1).T,
+     [1.0, math.sqrt(2), math.sqrt(3)]),
+])
+def test_tdhes_is_exact_for_a_linear_system(A, minv):
+    model = linear_model(A, minv)
+    x0 = np.array([0.3, -0.2, 0.1, 0.0, 0.2, -0.1])
+    r = varint.integrate(model, x0, 5.0, tau=0.1, method="tdhes", deviations=np.eye(6))
+    ref = exact_tangent_map(A, minv, 5.0)
+    assert np.max(np.abs(r.deviations - ref)) < 1e-13 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("lam", [-3.0, -1e-7, -1e-12, 0.0, 1e-12, 1e-7, 2.5])
+def test_oscillator_flow_for_every_sign_of_lambda(lam):
+    """The 1-dof flow of ½(P² + λQ²) is exp(h [[0, 1], [−λ, 0]]), smoothly
+    through λ = 0 (where the closed forms would divide 0 by 0)."""
+    h = 0.3
+    c, s = oscillator(lam, h)
+    ref = scipy.linalg.expm(h * np.array([[0.0, 1.0], [-lam, 0.0]]))
+    assert np.allclose([[c, s], [-lam * s, c]], ref, rtol=1e-15, atol=1e-16)
+
+
+def test_oscillator_series_and_closed_forms_meet():
+    """Either side of the switch at |λ|h² = 1e-6 the two expressions agree."""
+    for sign in (1.0, -1.0):
+        below = oscillator(sign * 0.999999e-6, 1.0)
+        above = oscillator(sign * 1.000001e-6, 1.0)
+        assert np.allclose(below, above, rtol=1e-12, atol=0)
+
+
+# -- the paper's Hénon–Heiles transformation (A.10) --------------------------
+
+@pytest.mark.parametrize("q", [(0.1, 0.3), (-0.2, 0.45), (0.17, -0.25), (-0.3, -0.1),
+                               (1e-9, -0.4), (0.0, -0.4), (-1e-12, -0.2), (0.0, 0.3),
+                               (0.0, 0.0), (0.25, 0.0)])
+def test_henon_heiles_transform_diagonalises_the_hessian(q):
+    model = varint.models.HenonHeiles()
+    T, lam = henon_heiles_transform(*q)
+    assert np.allclose(T.T @ T, np.eye(2), rtol=0, atol=1e-15)
+    assert np.allclose(T @ np.diag(lam) @ T.T, model.hessian(np.array(q)), rtol=0, atol=2e-15)
+
+
+@pytest.mark.parametrize("q", [(0.1, 0.3), (-0.2, 0.45), (0.17, -0.25), (-0.3, -0.1)])
+def test_henon_heiles_transform_is_the_papers_formula(q):
+    """Where the printed formula is well conditioned, it is what we compute."""
+    T, _ = henon_heiles_transform(*q)
+    assert np.allclose(T, paper_transform(*q), rtol=0, atol=1e-14)
+
+
+def test_analytic_and_lapack_eigensolvers_give_the_same_tdhes(r1):
+    model, x0 = r1
+    w0 = np.array([[0.5], [-0.5], [0.5], [0.5]])
+    runs = [varint.integrate(model, x0, 200.0, tau=0.05, method="tdhes", deviations=w0,
+                             eigensolver=e) for e in ("analytic", "lapack")]
+    a, b = (r.deviations for r in runs)
+    assert np.array_equal(runs[0].state, runs[1].state)
+    assert np.max(np.abs(a - b)) < 1e-12 * np.max(np.abs(a))
+
+
+# -- against the paper's explicit maps ---------------------------------------
+
+@pytest.mark.parametrize("method, naive", [("tdhcc", hh_tdhcc_interval),
+                                           ("tdhes", hh_tdhes_interval),
+                                           ("tdheps", hh_tdheps_interval)])
+def test_kernels_equal_the_papers_hh_maps(c1, method, naive):
+    """200 intervals of the compiled method against Appendix A written out:
+    SBAB2C on the frozen TDH (A.15, A.16, A.18 at t_i), the diagonal form
+    (A.9–A.11), and the extended-phase-space SBAB2C with τ = 2Δt."""
+    model, x0 = c1
+    # Start off the axis x = 0, where the printed (A.10) is 0/0.
+    x0 = varint.integrate(model, x0, 1.0, tau=0.1).state
+    x, W = x0.copy(), np.eye(4)
+    for _ in range(200):
+        x, W = naive(x, W, 0.1)
+    r = varint.integrate(model, x0, 20.0, tau=0.1, method=method, deviations=np.eye(4))
+    assert np.max(np.abs(r.state - x)) < 1e-13
+    assert np.max(np.abs(r.deviations - W)) < 1e-11 * np.max(np.abs(W))
+
+
+# -- convergence --------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def tight_reference():
+    """A tight TM run (ABA864, τ = 1.25e-3; its own error ~1e-13 at T = 10)."""
+    cache = {}
+
+    def get(name, T):
+        if (name, T) not in cache:
+            model, x0 = varint.paper_orbit(name)
+            cache[name, T] = varint.integrate(model, x0, T, tau=T / 8000, scheme="ABA864",
+                                              deviations=np.eye(model.dim)).deviations
+        return cache[name, T]
+
+    return get
+
+
+@pytest.mark.parametrize("orbit, method, options, order", [
+    ("R1", "tdhcc", {}, 1), ("R1", "tdhes", {}, 1), ("R1", "tdheps", {}, 4),
+    ("R1", "tdheps", {"tangent_scheme": "SBAB1"}, 2),
+    # M⁻¹ = diag(1, √2, √3): the modal transform and the drifts respect it.
+    ("R2", "tdhes", {}, 1), ("R2", "tdheps", {}, 4)])
+def test_tangent_error_has_the_derived_order(tight_reference, orbit, method, options, order):
+    """‖W(T) − W_ref(T)‖ ∝ τ^p with p the order each class derives:
+    1 for TDHcc and TDHes, 4 for TDHeps with SBAB2C, 2 for its leapfrog
+    variant."""
+    model, x0 = varint.paper_orbit(orbit)
+    T = 10.0
+    ref = tight_reference(orbit, T)
+    taus = [0.1, 0.05, 0.025, 0.0125]
+    errors = [np.max(np.abs(varint.integrate(model, x0, T, tau=tau, method=method,
+                                             deviations=np.eye(model.dim),
+                                             **options).deviations - ref))
+              for tau in taus]
+    assert make_propagator(method, model, 0.1, "none", **options).tangent_order == order
+    assert abs(fitted_slope(taus, errors) - order) < 0.3
+
+
+@pytest.mark.parametrize("tangent_scheme, order", [("SBAB2C", 4), ("SBAB2", 2)])
+def test_tdhcc_tends_to_tdhes_as_substeps_grow(r1, tangent_scheme, order):
+    """Same orbit, same frozen D²V: the difference is the inner scheme's
+    error on the frozen quadratic Hamiltonian, O((τ/substeps)^order)."""
+    model, x0 = r1
+    kw = dict(tau=0.1, deviations=np.eye(4))
+    exact = varint.integrate(model, x0, 10.0, method="tdhes", **kw).deviations
+    subs = [1, 2, 4, 8]
+    diff = [np.max(np.abs(varint.integrate(model, x0, 10.0, method="tdhcc", substeps=s,
+                                           tangent_scheme=tangent_scheme, **kw).deviations
+                          - exact)) for s in subs]
+    assert abs(fitted_slope(subs, diff) + order) < 0.3
+
+
+# -- which schemes TDHeps can use ---------------------------------------------
+
+def test_eps_grid_of_the_schemes_the_paper_names():
+    assert eps_grid("SBAB1")[0] == 1        # S_B1 with τ = Δt (eq. 38)
+    assert eps_grid("SABA1")[0] == 2        # S_A1 with τ = 2Δt (eq. 39)
+    m, index = eps_grid("SBAB2C")           # S_B2 with τ = 2Δt (eq. 40)
+    assert m == 2 and index.tolist() == [0, 0, 1, 0, 2]
+    for name in ("SABA2", "SBAB3", "ABA864", "FR4"):
+        assert eps_grid(name)[0] is None
+
+
+def test_tdheps_refuses_a_scheme_that_needs_the_orbit_off_the_grid(r1):
+    model, _ = r1
+    with pytest.raises(ValueError, match="SBAB3.*SBAB1, SBAB1C, SBAB2, SBAB2C"):
+        make_propagator("tdheps", model, 0.05, "qr", tangent_scheme="SBAB3")
+    # The orbit's scheme is free (only the TDH's kicks must be on the grid).
+    prop = make_propagator("tdheps", model, 0.05, "qr", scheme="ABA864",
+                           tangent_scheme="SBAB2C")
+    assert prop.orbit_step == 0.025
+
+
+# -- the propagator rules ----------------------------------------------------
+
+def test_options_are_checked(r1):
+    model, _ = r1
+    with pytest.raises(TypeError):
+        make_propagator("tdhes", model, 0.05, "qr", substeps=2)
+    with pytest.raises(ValueError, match="substeps"):
+        make_propagator("tdhcc", model, 0.05, "qr", substeps=0)
+    with pytest.raises(ValueError, match="eigensolver"):
+        make_propagator("tdhes", model, 0.05, "qr", eigensolver="jacobi")
+    with pytest.raises(ValueError, match="Hénon–Heiles"):
+        make_propagator("tdhes", varint.models.FPUBeta(4, 1.0), 0.05, "qr",
+                        eigensolver="analytic")
+
+
+@pytest.mark.parametrize("method", TDH)
+@pytest.mark.parametrize("renorm", ["qr", "none"])
+def test_advance_is_chunk_invariant(c1, method, renorm):
+    """Chunks that split the orbit's blocks anywhere give the same bits."""
+    model, x0 = c1
+    prop = make_propagator(method, model, 0.05, renorm)
+    a = RunState.start(x0[None], np.eye(4)[None])
+    b = RunState.start(x0[None], np.eye(4)[None])
+    prop.advance(a, 5000)
+    for n in (1, 7, 255, 256, 257, 4224):
+        prop.advance(b, n)
+    for field in ("x", "W", "acc_m", "acc_e"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+@pytest.mark.parametrize("method, steps_per_interval", [("tdhcc", 1), ("tdhes", 1),
+                                                        ("tdheps", 2)])
+def test_the_orbit_is_the_tm_methods_orbit(c1, method, steps_per_interval):
+    """The same scheme machinery: bit for bit the TM orbit at Δt."""
+    model, x0 = c1
+    tau = 0.1
+    tdh = varint.integrate(model, x0, 50.0, tau=tau, method=method, deviations=np.eye(4))
+    tm = varint.integrate(model, x0, 50.0, tau=tau / steps_per_interval)
+    assert np.array_equal(tdh.state, tm.state)
+
+
+def test_no_tangent_work_without_vectors(c1):
+    model, x0 = c1
+    plain = varint.integrate(model, x0, 10.0, method="tdheps", scheme="SBAB2")
+    counts = plain.provenance.counts
+    assert counts["hessian"] == counts["tangent_products"] == counts["third"] == 0
+    # Two SBAB2 orbit steps per interval, two forces each (plus one per call).
+    assert counts["steps"] == 200 and 800 <= counts["gradient"] <= 820
+
+
+def test_work_is_counted(c1):
+    """TDHcc/TDHes need D²V once per interval, TDHeps at two new grid points
+    (q(t_i) was the last interval's end), and no third derivatives."""
+    model, x0 = c1
+    n = 1000
+    for method, hessians in (("tdhcc", 1), ("tdhes", 1), ("tdheps", 2)):
+        prop = make_propagator(method, model, 0.05, "qr", scheme="SBAB2")
+        state = RunState.start(x0[None], np.eye(4)[None])
+        prop.advance(state, n)
+        assert hessians * n <= state.counts["hessian"] <= hessians * n + 1
+        assert state.counts["third"] == 0
+        assert state.counts["steps"] == n
+    assert state.counts["tangent_products"] == 3 * n  # SBAB2: three kicks
+
+
+def test_batch_equals_single_orbits_bitwise():
+    """Orbits of a batch run in parallel threads, LAPACK calls included, and
+    each gives the bits it gives alone (the batch loop is the same for all
+    three methods)."""
+    model = varint.models.HenonHeiles()
+    X = np.array([varint.paper_orbit(n)[1] for n in ("R1", "C1", "C2")])
+    W0 = varint.state.initial_deviations(4, 4, 3, 7)
+    many = varint.lyapunov_spectrum(model, X, 100.0, method="tdhes", seed=7, parallel=True)
+    for m in range(3):
+        one = varint.lyapunov_spectrum(model, X[m], 100.0, method="tdhes", deviations=W0[m])
+        assert np.array_equal(one.exponents, many.exponents[m])
+
+
+@pytest.mark.parametrize("method, steps_per_interval", [("tdhcc", 1), ("tdhes", 1),
+                                                        ("tdheps", 2)])
+def test_an_escaping_orbit_fails_in_the_right_interval(method, steps_per_interval):
+    """Above the escape energy the orbit leaves; the failure is reported in
+    the interval where the TM orbit at Δt passes the escape radius."""
+    model = varint.models.HenonHeiles(escape_radius=3.0)
+    x0 = varint.solve_momentum(model, [0.0, -0.2], [0.0, 0.0], 0.3)
+    tau = 0.05
+    with pytest.warns(RuntimeWarning, match="escaped"):
+        ref = varint.integrate(model, x0, 1e3, tau=tau / steps_per_interval, errors="flag")
+    with pytest.warns(RuntimeWarning, match="escaped"):
+        r = varint.integrate(model, x0, 1e3, tau=tau, method=method, errors="flag",
+                             deviations=np.eye(4))
+    assert r.status == ref.status == K.ESCAPED
+    # "steps" counts the intervals done, the failed one included.
+    assert r.provenance.counts["steps"] == -(-ref.provenance.counts["steps"]
+                                             // steps_per_interval)
+
+
+@njit
+def _inf_hess(q, par, B):
+    B[:, :] = np.inf
+
+
+def test_a_non_finite_hessian_fails_the_orbit_instead_of_raising():
+    """LAPACK refuses a non-finite matrix; TDHes must report, not raise."""
+    model = Model(2, lambda q: 0.5 * np.sum(q * q, axis=-1), _lin_grad, _inf_hess, _lin_third,
+                  bandwidth=1, params=np.eye(2).ravel(), name="bad hessian")
+    with pytest.warns(RuntimeWarning, match="deviation vector"):
+        r = varint.lyapunov_spectrum(model, [0.1, 0.0, 0.0, 0.1], 1.0, tau=0.1, method="tdhes",
+                                     scheme="SBAB2", errors="flag")
+    assert r.status == K.TANGENT_DEGENERATE
+    assert r.provenance.counts["steps"] == 1
+
+
+# -- the paper's Fig. 2 -------------------------------------------------------
+
+def test_r1_x1_levels_off_for_tdh_as_in_fig2(r1):
+    """R1, τ = 0.05, to t = 1e5: X1 of TM falls as 1/t; TDHcc and TDHes level
+    off about ten times higher, at the paper's 9.4e-4 (Table I), the wrong
+    verdict "chaotic"; TDHeps lies between."""
+    model, x0 = r1
+    x1 = {}
+    for method, options in (("tm", {}), ("tdhcc", {}), ("tdhes", {"eigensolver": "analytic"}),
+                            ("tdheps", {})):
+        r = varint.lyapunov_spectrum(model, x0, 1e5, tau=0.05, method=method, n_exponents=1,
+                                     t_out=[1e3, 1e4, 1e5], **options)
+        x1[method] = r.exponents[:, 0]
+    tm, cc, es, eps = x1["tm"], x1["tdhcc"], x1["tdhes"], x1["tdheps"]
+    assert tm[2] / tm[1] < 0.2                      # ∝ 1/t (measured 0.14)
+    assert cc[2] / cc[1] > 0.7 and es[2] / es[1] > 0.7  # levelled (0.81)
+    assert abs(cc[2] / es[2] - 1) < 0.01            # "practically the same" (0.05%)
+    assert abs(es[2] / 9.4e-4 - 1) < 0.1            # the paper's level (measured 9.46e-4)
+    assert cc[2] > 5 * tm[2]                        # measured 12×
+    assert 1.3 * tm[2] < eps[2] < cc[2] / 3         # measured 1.65× TM, cc/7
