@@ -117,7 +117,8 @@ def test_specialised_and_run_time_sized_kernels_agree_bitwise(c1):
         kernel(X, W, acc_m, acc_e, 500, kinds, h, hc, model.inverse_mass, model.params,
                model.bandwidth, model.grad_kernel, model.hess_kernel, model.third_kernel,
                K.RENORM_QR, np.inf, np.zeros((1, 4), dtype=np.int64),
-               np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64))
+               np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.empty((1, 0, 0)),
+               0.0, 0.05)
         results.append((X, W, acc_m))
     for a, b in zip(*results):
         assert np.array_equal(a, b)

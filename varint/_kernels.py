@@ -64,8 +64,9 @@ _SMALL = 2.0 ** -500
 TANGENT_LIMIT = 1e300
 #: Steps between the (cheap but not free) overflow checks of raw deviations.
 _CHECK_EVERY = 16
-#: Largest N and k for which the stepper is specialised to constant sizes.
-SPECIALISE_N, SPECIALISE_K = 16, 32
+#: Largest N and k for which the stepper is specialised to constant sizes,
+#: and largest k specialised when N is too large to be a constant.
+SPECIALISE_N, SPECIALISE_K, SPECIALISE_K_LARGE_N = 16, 32, 8
 
 
 @njit(inline="always")
@@ -121,7 +122,49 @@ def _tangent_overflow(W):
     return False
 
 
-def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False):
+#: Columns of the per-vector accumulators of :func:`_fast_indicators`.
+AUX_LOG, AUX_WEIGHTED, AUX_MEGNO_SUM, AUX_FLI, AUX_OFLI = range(5)
+N_AUX = 5
+
+
+@njit(inline="always")
+def _fast_indicators(x, W, aux, g, minv, t, n, k):
+    """Accumulate MEGNO, FLI and OFLI of each vector after a step ending at
+    time ``t``, before the vectors are renormalised (so ‖w_j‖ is the
+    stretching r of this step).
+
+    With ln r_i the log-stretching of step i (time t_i), S = Σ ln r_i is
+    ln‖w(t)‖ of the never-renormalised vector; the accumulators are
+    S, Σ t_i ln r_i, Σ_i Y(t_i) with the MEGNO Y(t) = (2/t) Σ t_i ln r_i
+    (the discrete form of (2/t) ∫ s δ̇/δ ds), FLI = max S and
+    OFLI = max ln‖w_⊥‖, w_⊥ the part of w orthogonal to the flow
+    f = (M⁻¹p, −∇V); ``g`` is ∇V at the current q.
+    """
+    ff = 0.0
+    for i in range(n):
+        v = minv[i] * x[n + i]
+        ff += v * v + g[i] * g[i]
+    for j in range(k):
+        ww = 0.0
+        wf = 0.0
+        for i in range(n):
+            ww += W[i, j] * W[i, j] + W[n + i, j] * W[n + i, j]
+            wf += W[i, j] * minv[i] * x[n + i] - W[n + i, j] * g[i]
+        lr = 0.5 * math.log(ww)
+        s = aux[j, AUX_LOG] + lr
+        aux[j, AUX_LOG] = s
+        aux[j, AUX_WEIGHTED] += t * lr
+        aux[j, AUX_MEGNO_SUM] += 2.0 * aux[j, AUX_WEIGHTED] / t
+        if s > aux[j, AUX_FLI]:
+            aux[j, AUX_FLI] = s
+        perp = ww - wf * wf / ff if ff > 0.0 else ww
+        if perp > 0.0:
+            o = s - lr + 0.5 * math.log(perp)
+            if o > aux[j, AUX_OFLI]:
+                aux[j, AUX_OFLI] = o
+
+
+def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, AUX=False):
     """The one-orbit stepper; sizes are constants when ≥ 0, else read from
     the arrays.
 
@@ -130,11 +173,16 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False):
     ``record[step]``, of shape (≥ n_steps, 2N): the TDH methods
     (:mod:`varint.tdh`) integrate their orbit with this stepper (k = 0) and
     read D²V at the grid points from the record.
+
+    With ``AUX`` (likewise a compile-time constant) MEGNO, FLI and OFLI are
+    accumulated into ``aux`` (k, N_AUX) after every step
+    (:func:`_fast_indicators`); ``t0`` is the time at the start of the call
+    and ``tau`` the step.
     """
 
     @njit
     def tm_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
-                 grad, hess, third, renorm, escape_r2, counters, record):
+                 grad, hess, third, renorm, escape_r2, counters, record, aux, t0, tau):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -220,6 +268,14 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False):
             if RECORD:
                 for i in range(d):
                     record[s, i] = x[i]
+            if AUX:
+                if not have_g:  # the flow at the current q needs ∇V
+                    for i in range(n):
+                        q[i] = x[i]
+                    grad(q, par, g)
+                    counters[0] += 1
+                    have_g = True
+                _fast_indicators(x, W, aux, g, minv, t0 + (s + 1) * tau, n, k)
             if renorm != RENORM_NONE:
                 if not _renormalize(W, renorm, acc_m, acc_e, d, k):
                     return TANGENT_DEGENERATE, s
@@ -243,7 +299,7 @@ def orbit_kernel(n, bw):
 
 
 @lru_cache(maxsize=None)
-def tm_batch(n, k, bw, parallel):
+def tm_batch(n, k, bw, parallel, fast_indicators=False):
     """The batch stepper for N = ``n``, ``k`` vectors and bandwidth ``bw``
     (pass −1 for all three to get the run-time-sized one).
 
@@ -251,28 +307,44 @@ def tm_batch(n, k, bw, parallel):
     ``status`` is OK by ``n_steps`` steps, in parallel over orbits if
     ``parallel``; ``done[m]`` receives the steps orbit m completed and
     ``status[m]`` its status. A failed step leaves the state as it was at
-    the end of that step.
+    the end of that step. With ``fast_indicators``, MEGNO, FLI and OFLI are
+    accumulated into ``aux`` (M, k, N_AUX) (``t0``: time at the start,
+    ``tau``: step); otherwise those three arguments are ignored.
     """
-    tm_orbit = _make_orbit_kernel(n, k, bw)
+    tm_orbit = _make_orbit_kernel(n, k, bw, AUX=fast_indicators)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
-              grad, hess, third, renorm, escape_r2, counters, status, done):
+              grad, hess, third, renorm, escape_r2, counters, status, done, aux, t0, tau):
         for m in prange(X.shape[0]):
             if status[m] != OK:
                 done[m] = 0
                 continue
             st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
                                  minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
-                                 counters[m], np.empty((0, 0)))
+                                 counters[m], np.empty((0, 0)), aux[m], t0, tau)
             status[m] = st
             done[m] = steps
 
     return batch
 
 
-def batch_kernel(n, k, bw, parallel):
-    """:func:`tm_batch` specialised to the sizes when they are small."""
+def specialised_sizes(n, k, bw):
+    """The compile-time sizes (N, k, bandwidth) of the stepper for a system,
+    −1 where a size is read at run time.
+
+    Small systems fix all three. Large systems keep N at run time but still
+    fix a small k and the bandwidth: for FPU-β with n = 512 and one vector
+    that halves the time per step (the k-loop of every row update
+    disappears).
+    """
     if n <= SPECIALISE_N and k <= SPECIALISE_K:
-        return tm_batch(n, k, bw, parallel)
-    return tm_batch(-1, -1, -1, parallel)
+        return n, k, bw
+    if k <= SPECIALISE_K_LARGE_N:
+        return -1, k, bw
+    return -1, -1, -1
+
+
+def batch_kernel(n, k, bw, parallel, fast_indicators=False):
+    """:func:`tm_batch` for the sizes of :func:`specialised_sizes`."""
+    return tm_batch(*specialised_sizes(n, k, bw), parallel, fast_indicators)

@@ -33,22 +33,40 @@ class TangentMapPropagator:
     parallel : bool, optional
         Run the orbits of a batch on all cores (numba ``prange``). By
         default, when there is more than one orbit and more than one thread.
+    fast_indicators : bool, default False
+        Also accumulate MEGNO, FLI and OFLI of every vector after every step
+        into ``state.extra["fast_indicators"]`` (shape (M, k, 5), columns as
+        :data:`varint._kernels.AUX_LOG` …); needs ``renorm="normalize"``.
     """
 
     method = "tm"
 
-    def __init__(self, model, tau, renorm, scheme="SBAB2C", parallel=None):
+    def __init__(self, model, tau, renorm, scheme="SBAB2C", parallel=None,
+                 fast_indicators=False):
         self.model = model
         self.tau = float(tau)
         self.scheme = get_scheme(scheme)
         self.renorm = renorm
         self.parallel = parallel
+        self.fast_indicators = bool(fast_indicators)
+        if self.fast_indicators and renorm != "normalize":
+            raise ValueError(f"fast_indicators need renorm='normalize', got {renorm!r}")
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
 
     def describe(self):
         return {"scheme": self.scheme.describe()}
+
+    def _aux(self, state):
+        if not self.fast_indicators:
+            return np.empty((state.n_orbits, 0, 0))
+        if "fast_indicators" not in state.extra:
+            # At t = 0: S = 0, so FLI = 0; OFLI is a maximum over steps ≥ 1.
+            aux = np.zeros((state.n_orbits, state.k, K.N_AUX))
+            aux[:, :, K.AUX_OFLI] = -np.inf
+            state.extra["fast_indicators"] = aux
+        return state.extra["fast_indicators"]
 
     def versions(self):
         return {"numba": numba.__version__}
@@ -60,14 +78,16 @@ class TangentMapPropagator:
         if parallel is None:
             parallel = m > 1 and numba.get_num_threads() > 1
         model = self.model
-        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth, bool(parallel))
+        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth, bool(parallel),
+                                self.fast_indicators)
         counters = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == K.OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel,
-               _RENORM[self.renorm], self._escape_r2, counters, state.status, done)
+               _RENORM[self.renorm], self._escape_r2, counters, state.status, done,
+               self._aux(state), state.step * self.tau, self.tau)
         failed = was_active & (state.status != K.OK)
         state.fail_step[failed] = state.step + done[failed] + 1
         state.step += int(n)
@@ -114,7 +134,8 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
            hc, model.inverse_mass, model.params, model.bandwidth, model.grad_kernel,
            model.hess_kernel, model.third_kernel, K.RENORM_NONE,
            np.inf if r is None else float(r) ** 2,
-           np.zeros((1, len(K.COUNTERS)), dtype=np.int64), status, done)
+           np.zeros((1, len(K.COUNTERS)), dtype=np.int64), status, done,
+           np.empty((1, 0, 0)), 0.0, float(tau))
     if status[0] != K.OK:
         raise FloatingPointError(f"the map failed after {done[0]} steps (status {status[0]})")
     return x[0], W[0]

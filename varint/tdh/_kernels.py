@@ -70,6 +70,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
         rec = np.empty((block * n_sub, d))
         x0 = np.empty(n)                        # q at the start of the block
         no_W, no_m, no_e = np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64)
+        no_aux = np.empty((0, 0))
         q = np.empty(n)
         H = np.zeros((bw + 1, n))
         n_grid = n_sub + 1
@@ -98,7 +99,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
                 x0[i] = x[i]
             status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
                                   bw_rt, grad, hess, third, K.RENORM_NONE, escape_r2, counters,
-                                  rec)
+                                  rec, no_aux, 0.0, 0.0)
             complete = steps // n_sub if status != K.OK else nb
             for s in range(complete):
                 if tangent:
@@ -260,6 +261,4 @@ def tdh_batch(n, k, bw, mode, parallel):
 def batch_kernel(n, k, bw, mode, parallel):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
     TM stepper's rule, :func:`varint._kernels.batch_kernel`)."""
-    if n <= K.SPECIALISE_N and k <= K.SPECIALISE_K:
-        return tdh_batch(n, k, bw, mode, parallel)
-    return tdh_batch(-1, -1, -1, mode, parallel)
+    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel)
