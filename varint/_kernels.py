@@ -40,6 +40,7 @@ import math
 from functools import lru_cache
 
 import numpy as np
+import numba
 from numba import njit, prange
 
 from ._banded import band_kick_block, band_matvec, band_square_add
@@ -343,6 +344,14 @@ def specialised_sizes(n, k, bw):
     if k <= SPECIALISE_K_LARGE_N:
         return -1, k, bw
     return -1, -1, -1
+
+
+def use_parallel(parallel, n_orbits):
+    """Whether a batch runs its orbits on all cores: as asked, or by default
+    when there is more than one orbit and more than one numba thread."""
+    if parallel is None:
+        return n_orbits > 1 and numba.get_num_threads() > 1
+    return bool(parallel)
 
 
 def batch_kernel(n, k, bw, parallel, fast_indicators=False):

@@ -76,20 +76,36 @@ class RunState:
         for key, value in counts.items():
             self.counts[key] = self.counts.get(key, 0) + int(value)
 
+    def after_kernel(self, n, was_active, done, counters, names):
+        """Bookkeeping after a compiled batch kernel advanced the orbits that
+        were ``was_active`` by up to ``n`` intervals: mark new failures with
+        the interval they failed in (``done[m]`` intervals completed before
+        it), move the clock on by ``n``, and add the per-orbit ``counters``
+        (M, len(names)) to :attr:`counts`."""
+        failed = was_active & (self.status != 0)
+        self.fail_step[failed] = self.step + done[failed] + 1
+        self.step += int(n)
+        self.add_counts(steps=done[was_active].sum() + failed.sum(),
+                        **dict(zip(names, counters.sum(axis=0))))
 
-def initial_deviations(dim, k, n_orbits, seed):
+
+def initial_deviations(dim, k, n_orbits, seed, indices=None):
     """Seeded random orthonormal deviation vectors, shape (M, 2N, k).
 
-    Orbit m draws from ``numpy.random.default_rng([seed, m])``, so its
-    vectors do not depend on how many orbits share the call or how a map is
-    split into chunks.
+    Orbit m draws from ``numpy.random.default_rng([seed, indices[m]])``
+    (``indices`` = 0 … M−1 by default), so its vectors do not depend on how
+    many orbits share the call; a chunk of a chaos map passes the orbits'
+    indices in the whole map, so the map does not depend on its chunking.
     """
-    W = np.empty((n_orbits, dim, k))
-    for m in range(n_orbits):
-        A = np.random.default_rng([seed, m]).standard_normal((dim, k))
-        Q, R = np.linalg.qr(A)
-        W[m] = Q * np.sign(np.diag(R))
-    return W
+    indices = range(n_orbits) if indices is None else indices
+    A = np.empty((n_orbits, dim, k))
+    for m, index in enumerate(indices):
+        A[m] = np.random.default_rng([seed, int(index)]).standard_normal((dim, k))
+    if n_orbits == 0 or k == 0:
+        return A
+    # One stacked QR (LAPACK per matrix, as a loop of single QRs would be).
+    Q, R = np.linalg.qr(A)
+    return Q * np.sign(np.diagonal(R, axis1=1, axis2=2))[:, None, :]
 
 
 def output_steps(t_end, tau, t_out=None, per_decade=10):

@@ -74,11 +74,9 @@ class TangentMapPropagator:
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` steps."""
         m = state.n_orbits
-        parallel = self.parallel
-        if parallel is None:
-            parallel = m > 1 and numba.get_num_threads() > 1
+        parallel = K.use_parallel(self.parallel, m)
         model = self.model
-        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth, bool(parallel),
+        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth, parallel,
                                 self.fast_indicators)
         counters = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
@@ -88,12 +86,7 @@ class TangentMapPropagator:
                model.grad_kernel, model.hess_kernel, model.third_kernel,
                _RENORM[self.renorm], self._escape_r2, counters, state.status, done,
                self._aux(state), state.step * self.tau, self.tau)
-        failed = was_active & (state.status != K.OK)
-        state.fail_step[failed] = state.step + done[failed] + 1
-        state.step += int(n)
-        total = counters.sum(axis=0)
-        state.add_counts(steps=done[was_active].sum() + failed.sum(),
-                         **dict(zip(K.COUNTERS, total)))
+        state.after_kernel(n, was_active, done, counters, K.COUNTERS)
 
 
 def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):

@@ -125,12 +125,10 @@ class _TDHPropagator:
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` intervals τ."""
         m = state.n_orbits
-        parallel = self.parallel
-        if parallel is None:
-            parallel = m > 1 and numba.get_num_threads() > 1
+        parallel = K.use_parallel(self.parallel, m)
         model = self.model
         kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode,
-                                 bool(parallel))
+                                 parallel)
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == K.OK
@@ -139,13 +137,8 @@ class _TDHPropagator:
                self._need, self.tau, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, self._eig,
                _RENORM[self.renorm], self._escape_r2, counters, state.status, done)
-        failed = was_active & (state.status != K.OK)
-        state.fail_step[failed] = state.step + done[failed] + 1
-        state.step += int(n)
-        total = counters.sum(axis=0)
-        names = TK.COUNTERS if self._mode == TK.ES else K.COUNTERS
-        state.add_counts(steps=done[was_active].sum() + failed.sum(),
-                         **dict(zip(names, total)))
+        state.after_kernel(n, was_active, done, counters,
+                           TK.COUNTERS if self._mode == TK.ES else K.COUNTERS)
 
 
 class TDHccPropagator(_TDHPropagator):
