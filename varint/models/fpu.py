@@ -41,6 +41,18 @@ def _grad(q, par, g):
             g[b - 1] -= f
 
 
+@njit(inline="always")
+def _add_bond(B, b, k, n):
+    # A bond b with stiffness k joins particles b − 1 and b: it adds
+    # k e_b e_bᵀ to a symmetric tridiagonal matrix in band storage.
+    if b < n:
+        B[0, b] += k
+    if b >= 1:
+        B[0, b - 1] += k
+    if 1 <= b < n:
+        B[1, b - 1] = -k
+
+
 @njit(cache=True)
 def _hess(q, par, B):
     beta = par[0]
@@ -50,13 +62,7 @@ def _hess(q, par, B):
         B[1, i] = 0.0
     for b in range(n + 1):
         r = _bond(q, b)
-        k = 1.0 + 3.0 * beta * r * r  # φ''(r)
-        if b < n:
-            B[0, b] += k
-        if b >= 1:
-            B[0, b - 1] += k
-        if 1 <= b < n:
-            B[1, b - 1] = -k
+        _add_bond(B, b, 1.0 + 3.0 * beta * r * r, n)  # φ''(r)
 
 
 @njit(cache=True)
@@ -69,13 +75,7 @@ def _third(q, par, v, B):
     for b in range(n + 1):
         r = _bond(q, b)
         dv = (v[b] if b < n else 0.0) - (v[b - 1] if b >= 1 else 0.0)
-        k = 6.0 * beta * r * dv  # φ'''(r) · (e_b · v)
-        if b < n:
-            B[0, b] += k
-        if b >= 1:
-            B[0, b - 1] += k
-        if 1 <= b < n:
-            B[1, b - 1] = -k
+        _add_bond(B, b, 6.0 * beta * r * dv, n)  # φ'''(r) · (e_b · v)
 
 
 class FPUBeta(Model):
