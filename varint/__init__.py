@@ -13,18 +13,28 @@ integrator of the orbit and its deviation vectors.
 """
 
 from . import models
+from .checkpoint import CheckpointError
+from .departure import Departure, departure
 from .driver import IntegrationError
 from .indicators import gali, lyapunov_spectrum, sali
 from .integrate import integrate
+from .maps import MAP_INDICATORS, chaos_map
+from .megno import megno
 from .methods import METHODS
 from .models import paper_orbit, solve_momentum
-from .results import GALIResult, IntegrationResult, LyapunovResult, SALIResult, load_result
+from .results import (ChaosMapResult, GALIResult, IntegrationResult, LyapunovResult,
+                      MEGNOResult, SALIResult, SectionResult, load_result)
 from .schemes import SCHEMES, SplittingScheme, get_scheme, register_scheme
+from .sections import section_grid, surface_of_section
+from .selection import select_scheme
 
 __all__ = [
     "models", "paper_orbit", "solve_momentum",
     "SCHEMES", "SplittingScheme", "get_scheme", "register_scheme", "METHODS",
-    "integrate", "lyapunov_spectrum", "gali", "sali",
-    "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "load_result",
-    "IntegrationError",
+    "integrate", "lyapunov_spectrum", "gali", "sali", "megno",
+    "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "MEGNOResult",
+    "load_result",
+    "IntegrationError", "CheckpointError", "departure", "Departure",
+    "chaos_map", "MAP_INDICATORS", "ChaosMapResult", "surface_of_section", "section_grid",
+    "SectionResult", "select_scheme",
 ]

@@ -63,13 +63,18 @@ def run(t_end=1e5, tau=0.05, scheme="SBAB2C", out="varint_demo.png", progress=No
     return results
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m varint", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser):
+    """The demo's options, shared by ``python -m varint`` and ``varint demo``."""
     parser.add_argument("--t-end", type=float, default=1e5, help="final time (default 1e5)")
     parser.add_argument("--tau", type=float, default=0.05, help="step (default 0.05)")
     parser.add_argument("--scheme", default="SBAB2C", help="splitting scheme (default SBAB2C)")
     parser.add_argument("--out", default="varint_demo.png", help="plot file ('' for none)")
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m varint", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(parser)
     args = parser.parse_args(argv)
     try:
         run(args.t_end, args.tau, args.scheme, args.out)

@@ -63,7 +63,7 @@ def failure_message(state, tau, single, reasons=None):
     ``reasons`` maps a propagator's own status codes (beyond those of
     :mod:`varint._kernels`) to their explanations.
     """
-    failed = np.flatnonzero(state.status != K.OK)
+    failed = np.flatnonzero(state.status > K.OK)
     if failed.size == 0:
         return None
     m = failed[np.argmin(state.fail_step[failed])]
@@ -111,7 +111,7 @@ def _progress_bar(progress, done, total, desc):
 
 
 def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="varint",
-          errors="raise", checkpoint=None):
+          errors="raise", checkpoint=None, decide=None):
     """Advance ``state`` to each step of ``out_steps`` and record there.
 
     Parameters
@@ -137,6 +137,11 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         finished, failed or interrupted by Ctrl-C. Not on any other
         exception (a second Ctrl-C, an error in a propagator), when the
         state may be half-updated; the last checkpoint written is then kept.
+    decide : callable, optional
+        Early stopping: ``decide(rec) -> bool array (M,)`` on each output's
+        record; orbits it marks get status ``DECIDED`` (``fail_step`` = the
+        step) and are not advanced again. Not a failure. Applied at output
+        steps only, so where an orbit stops does not depend on chunking.
 
     Returns
     -------
@@ -153,7 +158,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     # Outputs are recorded in order, so the records say which remain; a
     # checkpoint may hold a state at an output step not yet recorded.
     todo = [int(s) for s in out_steps[len(records):]]
-    if errors == "raise" and (state.status != K.OK).any():
+    if errors == "raise" and (state.status > K.OK).any():
         stop, todo = "failed", []  # resumed from a checkpoint written at a failure
     with _sigint_to_flag() as interrupted, \
             _progress_bar(progress, state.step, out_steps[-1], desc) as bar:
@@ -168,7 +173,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                     chunk = max(chunk, 1)
                 if bar is not None:
                     bar.update(n)
-                if errors == "raise" and (state.status != K.OK).any():
+                if errors == "raise" and (state.status > K.OK).any():
                     stop = "failed"
                     break
                 if interrupted.is_set():
@@ -179,12 +184,16 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
             if stop is not None:
                 break
             rec = record(state)
-            dead = state.status != K.OK
+            dead = state.status > K.OK
             if dead.any():
                 for arr in rec.values():
                     if np.issubdtype(arr.dtype, np.floating):
                         arr[dead] = np.nan
             records.append(rec)
+            if decide is not None:
+                settled = np.asarray(decide(rec), dtype=bool) & (state.status == K.OK)
+                state.status[settled] = K.DECIDED
+                state.fail_step[settled] = state.step
         # Inside the Ctrl-C guard: a Ctrl-C now only sets the flag.
         saved = checkpoint is not None and checkpoint.save(state, records)
     if stop == "interrupted":

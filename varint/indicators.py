@@ -150,6 +150,13 @@ def gali_from_vectors(W, orders):
     return {k: np.prod(np.linalg.svd(W[:, :, :k], compute_uv=False), axis=-1) for k in orders}
 
 
+def sali_from_vectors(W):
+    """SALI = min(‖ŵ₁ + ŵ₂‖, ‖ŵ₁ − ŵ₂‖) of the first two columns of unit
+    vectors ``W`` (M, 2N, K), shape (M,)."""
+    w1, w2 = W[:, :, 0], W[:, :, 1]
+    return np.minimum(np.linalg.norm(w1 + w2, axis=1), np.linalg.norm(w1 - w2, axis=1))
+
+
 def gali(model, x0, t_end, tau=0.05, k=(2, 3, 4), method="tm", scheme=None, seed=0,
          deviations=None, t_out=None, progress=None, errors="raise", escape_radius=None,
          checkpoint=None, checkpoint_interval=60.0, **method_options):
@@ -218,9 +225,7 @@ def sali(model, x0, t_end, tau=0.05, method="tm", scheme=None, seed=0, deviation
         raise ValueError(f"SALI needs exactly 2 deviation vectors, {run.W0.shape[2]} were given")
 
     def record(state):
-        w1, w2 = state.W[:, :, 0], state.W[:, :, 1]
-        return {"sali": np.minimum(np.linalg.norm(w1 + w2, axis=1),
-                                   np.linalg.norm(w1 - w2, axis=1))}
+        return {"sali": sali_from_vectors(state.W)}
 
     def build(t, fields, common):
         return SALIResult(**common, sali=fields.get("sali"), deviations=run._squeeze(run.state.W))

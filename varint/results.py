@@ -20,6 +20,7 @@ from importlib import metadata
 import numpy as np
 
 __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult",
+           "SectionResult", "ChaosMapResult",
            "load_result", "package_versions"]
 
 
@@ -128,6 +129,20 @@ class _Result:
                 meta[f.name] = _jsonable(value)
         np.savez(path, __meta__=np.array(json.dumps(meta)), **arrays)
 
+    def to_dataframe(self):
+        """The result as a pandas DataFrame, one row per orbit and time (or
+        per crossing, per map point); the provenance is in ``df.attrs``.
+        Needs pandas (``pip install varint[pandas]``)."""
+        from .tables import to_dataframe
+
+        return to_dataframe(self)
+
+    def plot(self, ax=None, **kwargs):
+        """Plot in the paper's style (see :mod:`varint.plotting`)."""
+        from .plotting import plot
+
+        return plot(self, ax=ax, **kwargs)
+
     def summary(self):
         """One-line description for logs and the command line."""
         p = self.provenance
@@ -215,7 +230,116 @@ class SALIResult(_Result):
     deviations: np.ndarray = None
 
 
-_CLASSES = {c.__name__: c for c in (IntegrationResult, LyapunovResult, GALIResult, SALIResult)}
+@dataclass
+class MEGNOResult(_Result):
+    """Result of :func:`varint.megno`.
+
+    Attributes
+    ----------
+    megno : ndarray, shape ([M,] n_out)
+        MEGNO Y(t) = (2/t) ∫₀ᵗ s δ̇(s)/δ(s) ds of one deviation vector,
+        in its discrete form (2/t) Σ t_i ln r_i over the steps.
+    mean_megno : ndarray, shape ([M,] n_out)
+        Its running average Ȳ(t) over the steps: → 2 on quasi-periodic
+        orbits, ≈ χ₁ t / 2 on chaotic ones.
+    fli, ofli : ndarray, shape ([M,] n_out)
+        Fast Lyapunov indicator sup_{s≤t} ln‖w(s)‖ and its orthogonal
+        variant sup ln‖w_⊥(s)‖ (w_⊥: the part of w orthogonal to the flow),
+        for a unit initial vector.
+    deviations : ndarray, shape ([M,] 2N, 1)
+    """
+
+    megno: np.ndarray = None
+    mean_megno: np.ndarray = None
+    fli: np.ndarray = None
+    ofli: np.ndarray = None
+    deviations: np.ndarray = None
+
+
+@dataclass
+class SectionResult(_Result):
+    """Result of :func:`varint.surface_of_section`.
+
+    Attributes
+    ----------
+    points : ndarray, shape ([M,] n, 2N)
+        States at the crossings of the section, NaN-padded after each
+        orbit's ``n_points``.
+    times : ndarray, shape ([M,] n)
+        Crossing times (NaN-padded).
+    n_points : ndarray of int, shape ([M,])
+    energy_error : ndarray, shape ([M,] n)
+        Relative energy error of each crossing.
+    t : ndarray, shape (M,) or (1,)
+        Time each orbit was integrated to.
+    plane, value :
+        The section q_plane = value.
+    """
+
+    points: np.ndarray = None
+    times: np.ndarray = None
+    n_points: np.ndarray = None
+    plane: int = 0
+    value: float = 0.0
+
+
+@dataclass
+class ChaosMapResult(_Result):
+    """Result of :func:`varint.chaos_map`: one indicator value per initial
+    condition.
+
+    Attributes
+    ----------
+    indicator : str
+        Its name ("sali", "gali_3", "x1", …).
+    values : ndarray, shape (M,)
+        The indicator at ``t_stop`` (NaN for failed orbits).
+    t_stop : ndarray, shape (M,)
+        When it was read: t_end, the check time at which early stopping
+        decided the orbit, or the failure time.
+    threshold : float or None
+        Early-stopping threshold (None: every orbit ran to t_end).
+    x0 : ndarray, shape (M, 2N)
+    status : ndarray of int, shape (M,)
+        0: ran to t_end; −1 (``DECIDED``): stopped early; > 0: failed.
+    energy_error : ndarray, shape (M,)
+        Relative energy error at ``t_stop``.
+    t : ndarray
+        The check times at which early stopping was decided.
+    axes, u, v, mask :
+        For a map of a :class:`~varint.sections.SectionGrid`: the state
+        indices of the grid axes, their values and which grid points are
+        allowed (``values`` holds the allowed ones in row-major order);
+        None and empty arrays otherwise.
+    """
+
+    indicator: str = ""
+    values: np.ndarray = None
+    t_stop: np.ndarray = None
+    threshold: float | None = None
+    x0: np.ndarray = None
+    axes: list | None = None
+    u: np.ndarray = None
+    v: np.ndarray = None
+    mask: np.ndarray = None
+
+    def image(self):
+        """``values`` on the grid, shape (len(v), len(u)), NaN where no
+        orbit was started (a grid map only)."""
+        if self.axes is None:
+            raise ValueError("this map was not made on a grid; its values are per orbit")
+        out = np.full(self.mask.shape, np.nan)
+        out[self.mask] = self.values
+        return out
+
+    @property
+    def decided(self):
+        """Which orbits early stopping froze (bool, shape (M,))."""
+        return self.status == -1
+
+
+_CLASSES = {c.__name__: c for c in (IntegrationResult, LyapunovResult, GALIResult, SALIResult,
+                                    MEGNOResult, SectionResult, ChaosMapResult)}
 
 
 def load_result(path):

@@ -140,12 +140,13 @@ class Run:
         with np.errstate(over="ignore", invalid="ignore"):
             return np.abs(self.model.energy(x) - h0) / scale
 
-    def execute(self, record, build):
+    def execute(self, record, build, decide=None):
         """Drive the run and return ``build(t, fields)`` as the result.
 
         ``record(state)`` returns a dict of per-orbit arrays at an output
         time (the energy error is added here); ``build(t, fields, common)``
-        makes the result from the stacked, orbit-first arrays.
+        makes the result from the stacked, orbit-first arrays; ``decide``
+        stops orbits early (see :func:`varint.driver.drive`).
         """
         def full_record(state):
             rec = record(state)
@@ -163,7 +164,7 @@ class Run:
             records, stop, wall = drive(self.propagator, self.state, self.steps, full_record,
                                         records=self.records, progress=self.progress,
                                         desc=self.kind, errors=self.errors,
-                                        checkpoint=self.checkpoint)
+                                        checkpoint=self.checkpoint, decide=decide)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.
@@ -184,7 +185,7 @@ class Run:
                       provenance=self._provenance(self.wall_before + wall),
                       status=self._squeeze(self.state.status), interrupted=stop == "interrupted")
         result = build(t, fields, common)
-        failed = self.state.status != 0
+        failed = self.state.status > 0  # negative: stopped early on purpose
         if failed.any():
             msg, info = failure_message(self.state, self.tau, self.single,
                                         getattr(self.propagator, "failure_reasons", None))

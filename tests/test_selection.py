@@ -1,0 +1,69 @@
+"""select_scheme: the choice meets its target in a real run to t_end, the
+error laws it extrapolates with are the theory's, and it says when nothing
+meets the target."""
+
+import pytest
+
+import varint
+
+CANDIDATES = [("tm", "SABA2", 0.1), ("tm", "ABA864", 0.1), ("tm", "ABA864", 0.05)]
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache"))
+
+
+def test_energy_choice_meets_the_target_to_t_end(r1):
+    model, x0 = r1
+    choice = varint.select_scheme(model, x0, 1e-7, metric="energy", t_end=2e3,
+                                  candidates=CANDIDATES)
+    rows = {(r["scheme"], r["tau"]): r for r in choice.table}
+    assert not rows[("SABA2", 0.1)]["meets"]
+    assert rows[("ABA864", 0.1)]["meets"] and rows[("ABA864", 0.05)]["meets"]
+    assert choice.scheme == "ABA864" and choice.tau in (0.1, 0.05)
+    # Symplectic: the energy error does not grow (a ≈ 0).
+    assert all(r["growth"] < 0.2 for r in choice.table)
+    run = varint.integrate(model, x0, 2e3, t_out=500, **choice.options())
+    assert run.energy_error.max() <= 1e-7
+    assert run.energy_error.max() == pytest.approx(choice.error, rel=0.5)
+    assert "*yes" in str(choice)
+
+
+def test_tangent_error_grows_linearly_on_a_regular_orbit(r1):
+    model, x0 = r1
+    choice = varint.select_scheme(model, x0, 1e-3, metric="tangent", t_end=1e3,
+                                  candidates=[("tm", "ABA864", 0.1)])
+    (row,) = choice.table
+    assert row["growth"] == pytest.approx(1.0, abs=0.2)
+    assert row["error"] == pytest.approx(row["error_pilot"] * (1e3 / 100.0) ** row["growth"])
+
+
+def test_x1_metric_against_the_reference(r1):
+    model, x0 = r1
+    choice = varint.select_scheme(model, x0, 1e-6, metric="X1", t_end=1e3,
+                                  candidates=[("tm", "SABA2", 0.1), ("tm", "SRKN14a", 0.1)])
+    rows = {r["scheme"]: r for r in choice.table}
+    assert rows["SRKN14a"]["error_pilot"] < 1e-3 * rows["SABA2"]["error_pilot"]
+    assert choice.table[0]["meets"]
+
+
+def test_nothing_meets_the_target(r1):
+    model, x0 = r1
+    with pytest.raises(ValueError, match=r"no candidate meets energy error <= 1e-15.*best "
+                                         r"predicted is .* ABA864"):
+        varint.select_scheme(model, x0, 1e-15, t_end=1e3, candidates=CANDIDATES[:2])
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"metric": "speed"}, "unknown metric 'speed'; expected one of: energy, tangent, X1"),
+    ({"target_error": -1.0}, "target_error must be a positive finite number"),
+    ({"candidates": [("tm", "ABA864", 0.03)]}, "pilot_t / 4 = 25 must be a multiple"),
+    ({"candidates": [("tm", "ABA864")]}, "each candidate must be"),
+])
+def test_bad_arguments(r1, kwargs, match):
+    model, x0 = r1
+    args = {"target_error": 1e-6, "t_end": 1e3}
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        varint.select_scheme(model, x0, **args)

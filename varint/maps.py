@@ -1,0 +1,613 @@
+"""Chaos maps: one indicator for many initial conditions, on this machine or
+on a Dask cluster.
+
+A map evaluates an indicator (SALI, GALI_k, X1, MEGNO, FLI, OFLI, see
+:data:`MAP_INDICATORS`) for an (M, 2N) array of initial conditions or a grid
+on a surface of section (:func:`varint.section_grid`). The orbits are split
+into chunks; a chunk is one batch run of the compiled integrator, parallel
+over its orbits (numba ``prange``), so nothing per orbit passes through
+Python. With a ``dask.distributed.Client`` the chunks run on the cluster, one
+task each, and come back as they finish.
+
+Deterministic by construction: orbit m's deviation vectors are drawn from
+``default_rng([seed, m])`` with m its index in the whole map
+(:func:`varint.state.initial_deviations`), every stepper advances each orbit
+on its own, and early stopping is decided at fixed check times, never at the
+wall-clock chunk boundaries of the run loop. So a value does not depend on
+the chunk size, the worker, the number of threads or on resuming.
+
+Early stopping: once an orbit's indicator has settled (SALI or GALI_k below
+the threshold: chaotic) the orbit is frozen (status ``DECIDED``) and costs
+nothing more; its value is the one at the check time that decided it, and
+``t_stop`` says when.
+
+Resuming: with ``checkpoint=DIR`` each finished chunk is written to ``DIR``
+(atomically) as soon as it arrives; the same call again loads the finished
+chunks and computes only the others, so a map interrupted at 90 % resumes at
+90 %. A directory written by a map with other parameters is refused with a
+:class:`~varint.CheckpointError` naming them; an unreadable chunk file is
+reported and recomputed (a chunk is a deterministic, cheap-to-redo piece of
+the map, unlike a run checkpoint that may stand for days).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import numbers
+import os
+import re
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import _kernels as K
+from . import _validate as check
+from .checkpoint import CheckpointError, canonical, differences, digest
+from .indicators import gali_from_vectors, sali_from_vectors
+from .methods import METHODS
+from .results import ChaosMapResult, Provenance, _jsonable, package_versions
+from .runs import Run
+from .sections import SectionGrid
+from .state import initial_deviations, output_steps
+
+__all__ = ["chaos_map", "MapIndicator", "MAP_INDICATORS", "register_map_indicator"]
+
+
+@dataclass(frozen=True)
+class MapIndicator:
+    """How a chaos map runs one indicator on a batch and what it reads off.
+
+    Attributes
+    ----------
+    name : str
+        As reported in the result ("sali", "gali_3", "x1").
+    k : int
+        Deviation vectors per orbit.
+    renorm : {"qr", "normalize"}
+        How they are renormalised every τ.
+    require : {"orthonormal", "unit"}
+        What the initial vectors must satisfy (see :class:`varint.runs.Run`).
+    read : callable
+        ``read(state, t) -> ndarray (M,)``: the indicator at time t from the
+        run state (module-level, so it pickles for Dask by reference).
+    threshold : float or None
+        Default early-stopping threshold; None: no early stopping.
+    below : bool
+        Whether values below the threshold decide the orbit (SALI, GALI) or
+        values above it (an indicator that grows for chaotic orbits).
+    log : bool
+        Whether values spread over decades (plots use a log colour scale).
+    """
+
+    name: str
+    k: int
+    renorm: str
+    require: str
+    read: object
+    threshold: float | None = None
+    below: bool = True
+    log: bool = True
+    method_options: dict = field(default_factory=dict)
+
+    def settled(self, values, threshold):
+        """Which orbits the value decides (NaN decides nothing)."""
+        with np.errstate(invalid="ignore"):
+            return values < threshold if self.below else values > threshold
+
+
+def _read_sali(state, t):
+    return sali_from_vectors(state.W)
+
+
+def _read_x1(state, t):
+    return state.log_growth()[:, 0] / t
+
+
+@dataclass(frozen=True)
+class _ReadGALI:
+    order: int
+
+    def __call__(self, state, t):
+        return gali_from_vectors(state.W, (self.order,))[self.order]
+
+
+def _sali(model):
+    """SALI → 0 exponentially for chaotic orbits, stays away from 0 for
+    regular ones (2 dof); decided chaotic below 1e-8 (Skokos 2001)."""
+    return MapIndicator("sali", 2, "normalize", "unit", _read_sali, threshold=1e-8)
+
+
+def _gali(model, k=None):
+    """GALI_k (default k = N): constant on an N-torus for k ≤ N, decaying
+    as a power law for k > N (so no default threshold there), exponentially
+    for chaotic orbits (paper eqs. 14–15)."""
+    k = model.n_dof if k is None else check.n_vectors(k, model.dim, "GALI order k", minimum=2)
+    k = max(k, 2)
+    return MapIndicator(f"gali_{k}", k, "normalize", "unit", _ReadGALI(k),
+                        threshold=1e-8 if k <= model.n_dof else None)
+
+
+def _x1(model):
+    """X1(t_end), the finite-time maximal Lyapunov exponent (paper eq. 10);
+    ∝ 1/t for regular orbits. No early stopping by default."""
+    return MapIndicator("x1", 1, "qr", "orthonormal", _read_x1, threshold=None)
+
+
+@dataclass(frozen=True)
+class _ReadFast:
+    """A column of the MEGNO/FLI accumulators of the TM stepper
+    (:mod:`varint.megno`) for the one vector."""
+
+    column: int
+    per_step: bool = False
+
+    def __call__(self, state, t):
+        aux = state.extra["fast_indicators"][:, 0, self.column]
+        return aux / state.step if self.per_step else aux.copy()
+
+
+def _fast(name, column, per_step=False):
+    def factory(model):
+        # Chaotic orbits grow without bound (Ȳ ≈ χ₁t/2, FLI ≈ χ₁t) while
+        # regular ones stay near 2 or grow like ln t: a threshold above
+        # which an orbit is decided is the user's (threshold=...).
+        return MapIndicator(name, 1, "normalize", "unit", _ReadFast(column, per_step),
+                            threshold=None, below=False, log=False,
+                            method_options={"fast_indicators": True})
+
+    factory.__doc__ = f"{name} of one vector, from the TM stepper (method='tm' only)."
+    return factory
+
+
+#: Indicator name → factory ``(model, k=None) -> MapIndicator`` (``k`` only
+#: for GALI); "gali_3" or "gali3" asks for GALI_3. "megno" is the running
+#: mean Ȳ of MEGNO (→ 2 on regular orbits).
+MAP_INDICATORS = {"sali": _sali, "gali": _gali, "x1": _x1,
+                  "megno": _fast("megno", K.AUX_MEGNO_SUM, per_step=True),
+                  "fli": _fast("fli", K.AUX_FLI), "ofli": _fast("ofli", K.AUX_OFLI)}
+
+
+def register_map_indicator(name, factory):
+    """Make ``indicator=name`` available to :func:`chaos_map`;
+    ``factory(model)`` returns a :class:`MapIndicator`."""
+    key = str(name).lower()
+    if key in MAP_INDICATORS:
+        raise ValueError(f"a map indicator named {name!r} is already registered")
+    MAP_INDICATORS[key] = factory
+    return factory
+
+
+def resolve_indicator(indicator, model):
+    """The :class:`MapIndicator` for a name ("sali", "gali", "gali_3",
+    "x1", …) or pass one through."""
+    if isinstance(indicator, MapIndicator):
+        return indicator
+    key = indicator.lower() if isinstance(indicator, str) else indicator
+    match = re.fullmatch(r"gali_?(\d+)", key) if isinstance(key, str) else None
+    if match:
+        return _gali(model, int(match.group(1)))
+    if key not in MAP_INDICATORS:
+        raise ValueError(f"unknown indicator {indicator!r}; expected one of: "
+                         f"{', '.join(MAP_INDICATORS)} (or gali_k)")
+    return MAP_INDICATORS[key](model)
+
+
+@dataclass
+class _Spec:
+    """What every chunk of one map shares (sent to the workers)."""
+
+    t_end: float
+    tau: float
+    method: str
+    method_options: dict
+    steps: np.ndarray
+    seed: int
+    threshold: float | None
+    escape_radius: float | None
+
+
+@dataclass
+class _Chunk:
+    """The per-orbit outcome of one chunk, in the chunk's orbit order."""
+
+    values: np.ndarray
+    t_stop: np.ndarray
+    status: np.ndarray
+    energy_error: np.ndarray
+    state: np.ndarray
+    counts: dict = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+    interrupted: bool = False
+
+
+@contextlib.contextmanager
+def _worker_threads():
+    """On a Dask worker, run numba on as many threads as the worker has
+    (numba's setting is per calling thread), so workers sharing a machine
+    do not oversubscribe it."""
+    try:
+        from distributed import get_worker
+
+        n = get_worker().state.nthreads
+    except (ImportError, ValueError, AttributeError):
+        yield
+        return
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+def run_chunk(model, ind, x0, indices, spec):
+    """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
+    map) as one batch run, stopping early at the check times ``spec.steps``.
+    """
+    with _worker_threads(), warnings.catch_warnings():
+        # Failed orbits are counted by the map, which warns once.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        W0 = initial_deviations(model.dim, ind.k, len(x0), spec.seed, indices)
+        run = Run("chaos_map", model, x0, spec.t_end, spec.tau, method=spec.method, k=ind.k,
+                  renorm=ind.renorm, deviations=W0, t_out=spec.steps * spec.tau,
+                  progress=False, errors="flag", require=ind.require,
+                  method_options=spec.method_options, escape_radius=spec.escape_radius)
+
+        def record(state):
+            return {"value": ind.read(state, state.step * spec.tau)}
+
+        def decide(rec):
+            return ind.settled(rec["value"], spec.threshold)
+
+        fields, common = run.execute(record, lambda t, f, c: (f, c),
+                                     None if spec.threshold is None else decide)
+    state = run.state
+    n_done = len(common["t"])
+    # Read each orbit at the last output it was active at: where it was
+    # decided, else the last one reached.
+    at = np.full(len(x0), n_done - 1)
+    stopped = state.status == K.DECIDED
+    at[stopped] = np.searchsorted(run.steps[:n_done], state.fail_step[stopped])
+    rows = np.arange(len(x0))
+    values = fields["value"][rows, at] if n_done else np.full(len(x0), np.nan)
+    energy = common["energy_error"][rows, at] if n_done else np.full(len(x0), np.nan)
+    t_stop = np.where(state.status != K.OK, state.fail_step, state.step) * spec.tau
+    prov = common["provenance"]
+    return _Chunk(values=values, t_stop=t_stop, status=state.status.copy(), energy_error=energy,
+                  state=state.x.copy(), counts=dict(state.counts),
+                  provenance={"method_options": prov.method_options, "versions": prov.versions},
+                  interrupted=common["interrupted"])
+
+
+class _ChunkStore:
+    """Finished chunks of one map in a directory: ``map.json`` (the map's
+    parameters) and ``chunk_<c>.npz`` per chunk, each written atomically."""
+
+    def __init__(self, path, parameters):
+        self.path = Path(path)
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CheckpointError(f"cannot use {self.path} as a chaos map checkpoint "
+                                  f"directory: {exc}") from exc
+        meta = self.path / "map.json"
+        if meta.exists():
+            try:
+                stored = json.loads(meta.read_text())
+            except (OSError, ValueError) as exc:
+                raise CheckpointError(f"{meta} is not readable ({exc}); delete the directory "
+                                      "to start the map over") from exc
+            diff = differences(stored, parameters)
+            if diff:
+                raise CheckpointError(
+                    f"{self.path} holds a chaos map with other parameters: " + "; ".join(diff)
+                    + ". Use another directory, or delete this one to start over")
+        else:
+            self._write(meta, json.dumps(canonical(parameters), indent=1).encode())
+
+    def _write(self, target, data):
+        fd, tmp = tempfile.mkstemp(dir=self.path, suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, target)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    def _file(self, c):
+        return self.path / f"chunk_{c:06d}.npz"
+
+    def load(self, c):
+        """Chunk ``c`` if finished and readable, else None."""
+        path = self._file(c)
+        if not path.exists():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                meta = json.loads(str(data["__meta__"]))
+                arrays = {k: data[k] for k in ("values", "t_stop", "status", "energy_error",
+                                               "state")}
+            return _Chunk(**arrays, counts=meta["counts"], provenance=meta["provenance"])
+        except Exception as exc:  # a damaged chunk must never be used
+            warnings.warn(f"chaos map chunk file {path} is unreadable ({exc}); recomputing it",
+                          RuntimeWarning, stacklevel=3)
+            return None
+
+    def save(self, c, chunk):
+        buf = io.BytesIO()
+        meta = json.dumps(_jsonable({"counts": chunk.counts, "provenance": chunk.provenance}))
+        np.savez(buf, __meta__=np.array(meta), values=chunk.values, t_stop=chunk.t_stop,
+                 status=chunk.status, energy_error=chunk.energy_error, state=chunk.state)
+        self._write(self._file(c), buf.getvalue())
+
+
+def _default_chunk_size(m, workers):
+    # At least 20 chunks (an interrupted map loses at most 5 % of its work)
+    # and two per worker thread, but no chunk under 256 orbits, where the
+    # fixed cost of a run would show.
+    return int(min(m, max(256, math.ceil(m / max(20, 2 * workers)))))
+
+
+def _cluster_threads(client):
+    info = client.scheduler_info()
+    return max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
+
+
+def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, method="tm",
+              scheme=None, threshold="default", seed=0, t_check=None, chunk_size=None,
+              client=None, checkpoint=None, progress=None, escape_radius=None,
+              **method_options):
+    """An indicator for many initial conditions: final SALI, GALI_k, X1,
+    MEGNO, FLI or OFLI, with early stopping once an orbit is decided.
+
+    Parameters
+    ----------
+    model : Model
+    initial_conditions : array_like, shape (M, 2N), or SectionGrid
+        The orbits, or a grid on a surface of section
+        (:func:`varint.section_grid`, e.g. Hénon–Heiles x = 0, p_x ≥ 0).
+    indicator : str or MapIndicator, default "sali"
+        "sali", "gali" (GALI_N), "gali_k" for GALI_k, "x1", "megno" (the
+        running mean Ȳ), "fli", "ofli" (these three for ``method="tm"``),
+        or any name registered with :func:`register_map_indicator`.
+    t_end : float
+        Final time of every orbit not stopped early.
+    tau : float, default 0.05
+        Step (renormalisation interval).
+    method, scheme, **method_options
+        As in :func:`varint.lyapunov_spectrum` (default "tm" with SBAB2C).
+    threshold : float, None or "default"
+        Early stopping: an orbit whose value falls below it (SALI, GALI) or
+        rises above it (MEGNO, FLI, OFLI) at a check time is frozen.
+        "default": the indicator's (1e-8 for SALI and GALI_k with k ≤ N;
+        none for X1, MEGNO, FLI, OFLI and GALI_k with k > N, whose regular
+        values fall as power laws); None: no early stopping.
+    seed : int, default 0
+        Orbit m's random initial deviation vectors come from
+        ``default_rng([seed, m])``.
+    t_check : None, int or array_like
+        Times at which early stopping is decided (see ``t_out`` of
+        :func:`varint.lyapunov_spectrum`); log-spaced, 10 per decade, by
+        default. The same for every chunk, which keeps the map
+        deterministic.
+    chunk_size : int, optional
+        Orbits per chunk; by default M/20 (at least 256), and at least two
+        chunks per worker thread of a cluster.
+    client : dask.distributed.Client, optional
+        Run the chunks on this cluster. Values are bitwise the same as
+        without it.
+    checkpoint : str or os.PathLike, optional
+        Directory that keeps the finished chunks; calling again with the
+        same arguments resumes (see the module docstring).
+    progress : bool, optional
+        A progress bar over orbits on stderr (by default when stderr is a
+        terminal).
+    escape_radius : float, optional
+        Stop orbits whose |q| exceeds this (they count as failed).
+
+    Returns
+    -------
+    ChaosMapResult
+        ``values`` (M,), ``t_stop``, ``status`` (0: ran to t_end, −1:
+        decided early, > 0: failed, value NaN), ``x0``; for a grid also
+        ``image()``. After Ctrl-C: the chunks finished so far (the others
+        NaN) with ``interrupted=True``.
+
+    Examples
+    --------
+    >>> import numpy as np, varint
+    >>> model = varint.models.HenonHeiles()
+    >>> grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.7, 100),
+    ...                            np.linspace(-0.45, 0.45, 100))
+    >>> r = varint.chaos_map(model, grid, "sali", t_end=1e3)      # doctest: +SKIP
+    >>> plt.imshow(np.log10(r.image()), origin="lower")           # doctest: +SKIP
+
+    On a cluster (each worker needs varint installed)::
+
+        from dask.distributed import Client
+        client = Client("tcp://scheduler:8786")
+        r = varint.chaos_map(model, grid, "sali", t_end=1e4, client=client,
+                             checkpoint="hh_sali_map")
+    """
+    start = time.perf_counter()
+    grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
+    if grid is not None:
+        X = np.ascontiguousarray(grid.states, dtype=float)
+        if X.size == 0:
+            raise ValueError("the section grid holds no allowed point at this energy")
+    else:
+        X, single = check.states(model, initial_conditions, "initial_conditions")
+        if single:
+            raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
+                             f"got shape {np.shape(initial_conditions)}")
+    t_end, tau = check.horizon(t_end, tau)
+    ind = resolve_indicator(indicator, model)
+    if isinstance(threshold, str) and threshold == "default":
+        threshold = ind.threshold
+    elif threshold is not None:
+        if (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
+                or not np.isfinite(threshold)):
+            raise ValueError(f"threshold must be a finite number, None or 'default', "
+                             f"got {threshold!r}")
+        threshold = float(threshold)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    m = len(X)
+    workers = 1 if client is None else _cluster_threads(client)
+    if chunk_size is None:
+        chunk_size = _default_chunk_size(m, workers)
+    elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
+            or chunk_size < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    options = dict(method_options, **ind.method_options)
+    if scheme is not None:
+        options["scheme"] = scheme
+    if ind.method_options and str(method).lower() != "tm":
+        raise ValueError(f"indicator {ind.name!r} is computed by method='tm' only (inside the "
+                         f"compiled stepper), got method={method!r}")
+    steps = output_steps(t_end, tau, check.output_times(t_check, "t_check"))
+    if escape_radius is not None:
+        escape_radius = check.positive_float(escape_radius, "escape_radius")
+    spec = _Spec(t_end=t_end, tau=tau, method=check.choice(method, METHODS, "method"),
+                 method_options=options, steps=steps, seed=int(seed), threshold=threshold,
+                 escape_radius=escape_radius)
+    # A fixed shuffle spreads islands and chaotic seas evenly over chunks
+    # and over the threads within a chunk, whose orbits stop at different
+    # times; values do not depend on it (see the module docstring).
+    order = np.random.default_rng(20100927).permutation(m)
+    chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
+    parameters = {"kind": "chaos_map", "model": model.describe(), "x0": digest(X),
+                  "indicator": ind.name, "threshold": threshold, "t_end": t_end, "tau": tau,
+                  "t_check": digest(steps), "method": spec.method,
+                  "method_options": _describe_options(options), "seed": int(seed),
+                  "chunk_size": int(chunk_size), "escape_radius": escape_radius,
+                  "versions": package_versions()}
+    store = None if checkpoint is None else _ChunkStore(checkpoint, parameters)
+
+    done = {}
+    if store is not None:
+        for c in range(len(chunks)):
+            chunk = store.load(c)
+            if chunk is not None:
+                done[c] = chunk
+    resumed = len(done)
+    todo = [c for c in range(len(chunks)) if c not in done]
+    runner = _run_local if client is None else _run_dask
+    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
+        interrupted = runner(client, model, ind, X, chunks, todo, spec, done, store, bar)
+    return _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
+                     interrupted, store is not None, time.perf_counter() - start, client)
+
+
+def _describe_options(options):
+    return {k: (v.describe() if callable(getattr(v, "describe", None)) else v)
+            for k, v in options.items()}
+
+
+def _bar(progress, total, initial):
+    progress = check.flag(progress, "progress")
+    if progress is None:
+        import sys
+
+        progress = sys.stderr.isatty()
+    if not progress:
+        return contextlib.nullcontext(None)
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc="chaos_map", unit="orbit", leave=False)
+
+
+def _run_local(client, model, ind, X, chunks, todo, spec, done, store, bar):
+    """Chunks one after the other in this process; each is parallel over its
+    orbits. Returns whether Ctrl-C stopped the map (inside a chunk, its run
+    stops at once; between chunks, the finished ones are kept)."""
+    try:
+        for c in todo:
+            idx = chunks[c]
+            chunk = run_chunk(model, ind, X[idx], idx, spec)
+            if chunk.interrupted:
+                return True
+            _finish(c, chunk, done, store, bar)
+    except KeyboardInterrupt:
+        return True
+    return False
+
+
+def _run_dask(client, model, ind, X, chunks, todo, spec, done, store, bar):
+    """Chunks as tasks on a Dask cluster, taken as they finish."""
+    from distributed import as_completed
+
+    futures = {client.submit(run_chunk, model, ind, X[chunks[c]], chunks[c], spec,
+                             pure=False): c for c in todo}
+    try:
+        for future in as_completed(futures):
+            _finish(futures[future], future.result(), done, store, bar)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        return True
+    return False
+
+
+def _finish(c, chunk, done, store, bar):
+    done[c] = chunk
+    if store is not None:
+        store.save(c, chunk)
+    if bar is not None:
+        bar.update(len(chunk.values))
+
+
+def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, interrupted, kept,
+              wall, client):
+    m, dim = X.shape
+    values, t_stop = np.full(m, np.nan), np.full(m, np.nan)
+    energy = np.full(m, np.nan)
+    status = np.zeros(m, dtype=np.int64)
+    state = np.full((m, dim), np.nan)
+    counts = {}
+    for c, chunk in done.items():
+        idx = chunks[c]
+        values[idx], t_stop[idx], energy[idx] = chunk.values, chunk.t_stop, chunk.energy_error
+        status[idx], state[idx] = chunk.status, chunk.state
+        for key, n in chunk.counts.items():
+            counts[key] = counts.get(key, 0) + int(n)
+    failed = status > 0
+    if failed.any():
+        codes = ", ".join(f"{int(n)} with status {int(s)}"
+                          for s, n in zip(*np.unique(status[failed], return_counts=True)))
+        warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}; see "
+                      "varint._kernels for the codes); their values are NaN", RuntimeWarning,
+                      stacklevel=3)
+    if interrupted:
+        warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
+                      + ("; they are kept in the checkpoint directory, call again to resume"
+                         if kept else ""), RuntimeWarning, stacklevel=3)
+    first = next(iter(done.values())).provenance if done else {}
+    options = {"indicator": ind.name, "threshold": spec.threshold, "x0": parameters["x0"],
+               "chunk_size": parameters["chunk_size"], "chunks": len(chunks),
+               "chunks_resumed": resumed,
+               "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}
+    prov = Provenance(kind="chaos_map", model=model.describe(), x0=[], method=spec.method,
+                      method_options=first.get("method_options", {}), tau=spec.tau,
+                      t_end=spec.t_end, seed=spec.seed, options=options,
+                      versions=first.get("versions", package_versions()), counts=counts,
+                      wall_time=wall)
+    empty = np.empty(0)
+    return ChaosMapResult(
+        t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,
+        status=status, interrupted=interrupted, indicator=ind.name, values=values,
+        t_stop=t_stop, threshold=spec.threshold, x0=X,
+        axes=None if grid is None else list(grid.axes),
+        u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
+        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask)

@@ -1,0 +1,285 @@
+"""Choosing a method, scheme and step for a target accuracy, by measuring.
+
+:func:`select_scheme` runs short pilot integrations of each candidate
+(method, scheme, τ) from the user's own initial state, measures their error
+against the cached extended-precision Taylor reference
+(:func:`varint.cache.reference`) and their speed, predicts both at t_end,
+and returns the cheapest candidate that meets the target, with the whole
+table.
+
+How the pilot horizon relates to t_end
+--------------------------------------
+Errors are measured at two pilot times, T/4 and T (T = ``pilot_t``, by
+default min(t_end, 100)), and extrapolated to t_end with the power law
+through them, error ∝ t^a (a ≥ 0). That law is what theory gives where a
+choice is meaningful:
+
+* energy, symplectic schemes: bounded (a ≈ 0), so the pilot value holds for
+  exponentially long times; non-symplectic methods drift (a ≈ 1);
+* tangent vectors and X1 on regular orbits: the error grows linearly
+  (a ≈ 1; phase error along the torus).
+
+When the choice can be wrong:
+
+* chaotic orbits: tangent and orbit errors grow exponentially, so any
+  extrapolation beyond a few Lyapunov times is meaningless (the measured a
+  is large and the row is marked ``unreliable``; a warning names the
+  choice). For chaotic orbits ask for the energy or X1 metric, or shorten
+  t_end to the predictability horizon.
+* sticky or weakly chaotic orbits (the paper's C2) look regular over the
+  pilot and are not;
+* τ near a scheme's stability limit: an error that is fine over the pilot
+  can blow up later (resonances); prefer candidates well inside the table.
+* cost is measured as wall time per unit time on this machine, so it
+  depends on the load and on k (the number of deviation vectors carried,
+  ``k``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _validate as check
+from .driver import IntegrationError
+from .methods import make_propagator
+from .state import RunState, initial_deviations
+
+__all__ = ["select_scheme", "SchemeChoice", "DEFAULT_SCHEMES", "DEFAULT_TAUS"]
+
+#: Schemes tried by default: 2nd order without and 4th order with corrector
+#: (the paper's SBAB2C), the optimised 4th-order ABA864, two 6th-order ones.
+DEFAULT_SCHEMES = ("SABA2", "SBAB2C", "SABA3C", "ABA864", "s11odr6", "SRKN14a")
+DEFAULT_TAUS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005)
+METRICS = ("energy", "tangent", "X1")
+#: Growth exponent a above which an extrapolation is flagged (an error that
+#: grows faster than t³ over the pilot is exponential, not a power law).
+_UNRELIABLE = 3.0
+#: Wall time a speed measurement lasts at least.
+_TIMING_SECONDS = 0.05
+
+
+@dataclass
+class SchemeChoice:
+    """What :func:`select_scheme` chose, and the table it chose from.
+
+    Attributes
+    ----------
+    method, scheme, tau :
+        The choice (``scheme`` None for methods without one).
+    error : float
+        Its error predicted at t_end (``metric``).
+    seconds : float
+        Its predicted wall time to t_end on this machine.
+    table : list of dict
+        Every candidate: method, scheme, tau, error at T/4 and T, growth
+        exponent a, predicted error and seconds, meets (bool), unreliable
+        (bool); cheapest first.
+    """
+
+    method: str
+    scheme: str | None
+    tau: float
+    error: float
+    seconds: float
+    metric: str
+    target_error: float
+    pilot_t: float
+    t_end: float
+    table: list = field(default_factory=list)
+
+    def options(self):
+        """Keyword arguments for the run functions: ``method``, ``tau`` and
+        ``scheme`` (when the method takes one)."""
+        out = {"method": self.method, "tau": self.tau}
+        if self.scheme is not None:
+            out["scheme"] = self.scheme
+        return out
+
+    def to_dataframe(self):
+        """The table as a pandas DataFrame."""
+        from .tables import _pandas
+
+        return _pandas().DataFrame(self.table)
+
+    def __str__(self):
+        head = (f"{'method':7} {'scheme':9} {'tau':>7} {'err(T/4)':>9} {'err(T)':>9} {'a':>5} "
+                f"{'err(t_end)':>10} {'sec(t_end)':>10}  ok")
+        lines = [f"select_scheme: {self.metric} error <= {self.target_error:g} at t_end = "
+                 f"{self.t_end:g} (pilot to {self.pilot_t:g})", head, "-" * len(head)]
+        for r in self.table:
+            mark = "*" if (r["method"], r["scheme"], r["tau"]) == (
+                self.method, self.scheme, self.tau) else " "
+            verdict = ("yes" if r["meets"] else "no") + (" (unreliable)" if r["unreliable"] else "")
+            lines.append(f"{r['method']:7} {r['scheme'] or '-':9} {r['tau']:7.3g} "
+                         f"{r['error_quarter']:9.2e} {r['error_pilot']:9.2e} {r['growth']:5.2f} "
+                         f"{r['error']:10.2e} {r['seconds']:10.3g} {mark}{verdict}")
+        return "\n".join(lines)
+
+
+def _candidates(candidates):
+    if candidates is None:
+        return [("tm", s, tau) for s in DEFAULT_SCHEMES for tau in DEFAULT_TAUS]
+    out = []
+    for c in candidates:
+        if not (isinstance(c, (tuple, list)) and len(c) == 3):
+            raise ValueError(f"each candidate must be (method, scheme or None, tau), got {c!r}")
+        method, scheme, tau = c
+        out.append((str(method).lower(), scheme, check.positive_float(tau, "candidate tau")))
+    if not out:
+        raise ValueError("candidates must name at least one (method, scheme, tau)")
+    return out
+
+
+def _time_unit_cost(model, x0, method, scheme, tau, k):
+    """Wall seconds per unit of time of a candidate carrying k vectors:
+    the propagator alone (no run overhead), after one warm-up step (which
+    also compiles), doubling the steps until it lasts long enough."""
+    options = {} if scheme is None else {"scheme": scheme}
+    prop = make_propagator(method, model, tau, "qr" if k else "none", **options)
+    W0 = initial_deviations(model.dim, k, 1, 0)
+    state = RunState.start(np.asarray(x0, dtype=float)[None], W0)
+    prop.advance(state, 1)
+    n = 64
+    while True:
+        t0 = time.perf_counter()
+        prop.advance(state, n)
+        wall = time.perf_counter() - t0
+        if wall >= _TIMING_SECONDS or (state.status != 0).any():
+            return wall / (n * tau)
+        n *= 2
+
+
+def select_scheme(model, x0, target_error, metric="energy", t_end=1e4, pilot_t=None,
+                  candidates=None, k=None):
+    """The cheapest (method, scheme, τ) whose error at t_end meets a target.
+
+    Parameters
+    ----------
+    model : Model
+    x0 : array_like, shape (2N,)
+        The initial state of the job (errors depend on the orbit).
+    target_error : float
+        Largest acceptable error at t_end, in the metric's units.
+    metric : {"energy", "tangent", "X1"}
+        "energy": max relative energy error up to t; "tangent": relative
+        error (Frobenius) of the tangent map applied to the 2N unit
+        vectors; "X1": absolute error of the finite-time mLCE X1(t).
+    t_end : float, default 1e4
+        Horizon of the production run.
+    pilot_t : float, optional
+        Pilot horizon T; min(t_end, 100) by default. T/4 must be a multiple
+        of every candidate τ.
+    candidates : list of (method, scheme, tau), optional
+        By default the TM method with :data:`DEFAULT_SCHEMES` ×
+        :data:`DEFAULT_TAUS`. ``scheme`` is None for methods without one
+        (e.g. ``("taylor", None, 0.05)``).
+    k : int, optional
+        Deviation vectors the production run carries, for the cost (0 for
+        "energy", 1 for "X1", 2N for "tangent" by default).
+
+    Returns
+    -------
+    SchemeChoice
+
+    Raises
+    ------
+    ValueError
+        For bad arguments, or when no candidate meets the target (the
+        message gives the best error reached).
+
+    Notes
+    -----
+    See the module docstring for how the pilot relates to t_end and when
+    the choice can be wrong. References are computed once and cached.
+    """
+    from .cache import reference
+    from .indicators import lyapunov_spectrum
+    from .integrate import integrate
+
+    x0, single = check.states(model, x0)
+    if not single:
+        raise ValueError(f"x0 must be one state of shape ({model.dim},), got {x0.shape}")
+    x0 = x0[0]
+    target = check.positive_float(target_error, "target_error")
+    name, metric = metric, {m.lower(): m for m in METRICS}.get(str(metric).lower())
+    if metric is None:
+        raise ValueError(f"unknown metric {name!r}; expected one of: "
+                         f"{', '.join(METRICS)}")
+    t_end = check.positive_float(t_end, "t_end")
+    pilot = min(t_end, 100.0) if pilot_t is None else check.positive_float(pilot_t, "pilot_t")
+    pilot = min(pilot, t_end)
+    cands = _candidates(candidates)
+    quarter = pilot / 4
+    for method, scheme, tau in cands:
+        if abs(quarter / tau - round(quarter / tau)) > 1e-9 * quarter / tau or quarter < tau:
+            raise ValueError(f"pilot_t / 4 = {quarter:g} must be a multiple of every candidate "
+                             f"tau; {method} {scheme or ''} has tau = {tau:g}")
+    dim = model.dim
+    if k is None:
+        k = {"energy": 0, "X1": 1, "tangent": dim}[metric]
+    else:
+        k = check.n_vectors(k, dim, "k", minimum=0)
+    checks = np.array([quarter, pilot])
+    w1 = np.ones((dim, 1)) / math.sqrt(dim)
+
+    if metric == "X1":
+        ref = reference(model, x0, pilot, tau=quarter, kind="lyapunov_spectrum",
+                        deviations=w1, t_out=checks).exponents[:, 0]
+    elif metric == "tangent":
+        ref = [reference(model, x0, t, tau=quarter, kind="integrate",
+                         deviations=np.eye(dim)).deviations for t in checks]
+
+    def errors(method, scheme, tau):
+        opts = {"method": method, "tau": tau, "progress": False}
+        if scheme is not None:
+            opts["scheme"] = scheme
+        if metric == "energy":
+            n = int(round(pilot / tau))
+            r = integrate(model, x0, pilot, t_out=min(n, 400), **opts)
+            return np.array([np.max(r.energy_error[r.t <= t * (1 + 1e-12)]) for t in checks])
+        if metric == "X1":
+            r = lyapunov_spectrum(model, x0, pilot, deviations=w1, t_out=checks, **opts)
+            return np.abs(r.exponents[:, 0] - ref)
+        return np.array([np.linalg.norm(integrate(model, x0, t, deviations=np.eye(dim), **opts)
+                                        .deviations - W) / np.linalg.norm(W)
+                         for t, W in zip(checks, ref)])
+
+    table = []
+    for method, scheme, tau in cands:
+        try:
+            e = errors(method, scheme, tau)
+        except IntegrationError:
+            e = np.array([np.inf, np.inf])  # unstable at this τ
+        tiny = np.finfo(float).tiny
+        growth = max(0.0, math.log(max(e[1], tiny) / max(e[0], tiny)) / math.log(4.0)) \
+            if np.isfinite(e).all() else math.inf
+        predicted = e[1] * (t_end / pilot) ** growth if np.isfinite(growth) else math.inf
+        seconds = (_time_unit_cost(model, x0, method, scheme, tau, k) * t_end
+                   if np.isfinite(predicted) else math.inf)
+        name = None if scheme is None else getattr(scheme, "name", scheme)
+        table.append({"method": method, "scheme": name, "tau": tau,
+                      "error_quarter": float(e[0]), "error_pilot": float(e[1]),
+                      "growth": float(growth), "error": float(predicted),
+                      "seconds": float(seconds), "meets": bool(predicted <= target),
+                      "unreliable": bool(growth > _UNRELIABLE)})
+    table.sort(key=lambda r: (not r["meets"], r["seconds"], r["error"]))
+    best = table[0]
+    if not best["meets"]:
+        closest = min(table, key=lambda r: r["error"])
+        raise ValueError(
+            f"no candidate meets {metric} error <= {target:g} at t_end = {t_end:g}; the best "
+            f"predicted is {closest['error']:.3g} ({closest['method']} {closest['scheme'] or ''} "
+            f"tau = {closest['tau']:g}); allow a larger error or add candidates with smaller "
+            "tau or higher order")
+    if best["unreliable"]:
+        warnings.warn(f"the {metric} error of the choice grows like t^{best['growth']:.1f} over "
+                      "the pilot (chaotic orbit?): its extrapolation to t_end is not reliable",
+                      RuntimeWarning, stacklevel=2)
+    return SchemeChoice(method=best["method"], scheme=best["scheme"], tau=best["tau"],
+                        error=best["error"], seconds=best["seconds"], metric=metric,
+                        target_error=target, pilot_t=pilot, t_end=t_end, table=table)
