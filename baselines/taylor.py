@@ -60,7 +60,8 @@ def _number(value, fp):
     """A SymPy number as a heyoka constant of type ``fp``, correctly rounded."""
     if isinstance(value, sp.Integer):
         return hy.expression(fp(int(value)))
-    digits = 40 if fp is np.longdouble else 20
+    # Enough digits for any wider type (long double, or heyoka.real128).
+    digits = 20 if fp is np.float64 else 40
     return hy.expression(fp(str(sp.N(value, digits))))
 
 
