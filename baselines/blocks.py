@@ -7,7 +7,7 @@ of length τ, asking its integrator for the state at every multiple of τ.
 The outputs are then taken one interval at a time, exactly as the TM method
 steps: the orbit is checked (escape, non-finite), and the deviation vectors
 are renormalised with :func:`varint._kernels.renormalize` — QR for Lyapunov
-spectra (paper eq. 10), unit length for GALI/SALI (eq. 16), or not at all.
+spectra (paper eq. 10), unit length for GALI/SALI (eq. 15), or not at all.
 
 Why blocks: the variational equations are linear, so the vectors
 renormalised after interval j of a block are the raw vectors integrated from

@@ -2,7 +2,7 @@
 model's own kernels.
 
 For H = ½ pᵀM⁻¹p + V(q) the equations of motion and the variational
-equations (Skokos & Gerlach 2010, eqs. 2 and 4) are
+equations (Skokos & Gerlach 2010, eqs. 6 and 7) are
 
     q̇ = M⁻¹p,   ṗ = −∇V(q),   δq̇ = M⁻¹δp,   δṗ = −D²V(q) δq,
 
@@ -46,7 +46,7 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes):
 
     @njit
     def rhs(t, y, yp):
-        # Orbit (eq. 2).
+        # Orbit (eq. 6).
         q = y[:n].copy()
         g = np.empty(n)
         grad(q, par, g)
@@ -56,7 +56,7 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes):
         k = (y.shape[0] - d) // d
         if k == 0:
             return
-        # Variational equations (eq. 4), D²V in band storage.
+        # Variational equations (eq. 7), D²V in band storage.
         B = np.zeros((bw + 1, n))
         hess(q, par, B)
         for i in range(n):

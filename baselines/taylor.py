@@ -3,8 +3,8 @@
 heyoka's adaptive Taylor integrator (Biscani & Izzo 2021) on the orbit and
 its variational equations, built from the model's potential written in SymPy
 (``model.symbolic()``): heyoka differentiates V itself, for the equations of
-motion (paper eq. 2) and, through ``var_ode_sys``, for the variational
-equations (eq. 4). Nothing is hand-copied.
+motion (paper eq. 6) and, through ``var_ode_sys``, for the variational
+equations (eq. 7). Nothing is hand-copied.
 
 Two precisions:
 

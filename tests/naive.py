@@ -6,8 +6,8 @@ import numpy as np
 
 def hh_tm_sbab2c_step(x, W, tau):
     """One SBAB2C step of the TM method for Hénon–Heiles, from the explicit
-    maps of the paper's Appendix A: e^{τL_AV} (A.12), e^{τL_BV} (A.13) and
-    e^{τL_CV} (A.14), with S = C(−gτ³/2) B(τ/6) A(τ/2) B(2τ/3) A(τ/2)
+    maps of the paper's Appendix A: e^{τL_AV} (A.21), e^{τL_BV} (A.22) and
+    e^{τL_CV} (A.23), with S = C(−gτ³/2) B(τ/6) A(τ/2) B(2τ/3) A(τ/2)
     B(τ/6) C(−gτ³/2), g = 1/72."""
     x = np.array(x, dtype=float)
     W = np.array(W, dtype=float)

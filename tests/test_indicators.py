@@ -15,7 +15,7 @@ def r1_spectrum(r1):
 
 
 def test_regular_orbit_exponents_decay_like_one_over_t(r1_spectrum):
-    """X1, X2 ∝ 1/t up to a log factor on R1 (paper eq. 11, Fig. 2(e)):
+    """X1, X2 ∝ 1/t up to a log factor on R1 (paper eq. 12, Fig. 2(e)):
     ln t / t has local slope 1/ln t − 1 ≈ −0.9, so the fitted slope over
     [1e3, 1e5] lies in [−1.1, −0.75] (measured −0.84 … −0.87 for X1 over
     seeds 0–3)."""
@@ -46,7 +46,7 @@ def test_chaotic_orbit_largest_exponent(c1):
 
 def test_regular_orbit_gali_power_laws(r1):
     """On the 2-torus of R1: GALI2 ≈ const, GALI3 ∝ t⁻², GALI4 ∝ t⁻⁴
-    (paper eq. 15, Fig. 4(e)); fitted over [1e3, 1e5]."""
+    (paper eq. 17, Fig. 4(e)); fitted over [1e3, 1e5]."""
     g = varint.gali(*r1, 1e5, tau=0.05, k=(2, 3, 4))
     late = g.t >= 1e3
     for k, law in ((2, 0.0), (3, -2.0), (4, -4.0)):
@@ -55,7 +55,7 @@ def test_regular_orbit_gali_power_laws(r1):
 
 
 def test_chaotic_orbit_galis_decay_at_the_predicted_rates(c1):
-    """On C1, GALI_k ∝ exp(−Σ_{i=2..k}(σ1 − σi) t) (paper eq. 14), with σi
+    """On C1, GALI_k ∝ exp(−Σ_{i=2..k}(σ1 − σi) t) (paper eq. 16), with σi
     the exponents of the same orbit over the same time window (the TM orbit
     does not depend on the deviation vectors). Measured rate/prediction:
     0.83–1.14 over seeds 0–3."""

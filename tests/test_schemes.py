@@ -45,7 +45,7 @@ def test_paper_scheme_is_sbab2c_as_published():
     assert s.stages() == ((KICK, 1 / 6), (DRIFT, 0.5), (KICK, 2 / 3), (DRIFT, 0.5), (KICK, 1 / 6))
     assert s.corrector == 1 / 72 and s.order == 4
     kinds, h, hc = stage_arrays(s, 0.1)
-    # Corrector fused into the outer kicks with length −gτ³/2 (paper eq. 24).
+    # Corrector fused into the outer kicks with length −gτ³/2 (paper eq. 22).
     assert hc[0] == hc[-1] == pytest.approx(-(1 / 72) * 0.1 ** 3 / 2)
     assert s.force_evaluations == 2  # first and last kick share q across steps
 

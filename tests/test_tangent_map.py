@@ -14,7 +14,7 @@ from tests.naive import hh_tm_sbab2c_step, qr_positive
 
 
 def test_sbab2c_equals_the_papers_explicit_maps(c1):
-    """The generic stepper reproduces Appendix A's SBAB2C TM map (A.12–A.14)."""
+    """The generic stepper reproduces Appendix A's SBAB2C TM map (A.21–A.23)."""
     model, x0 = c1
     x, W = x0.copy(), np.eye(4)
     for _ in range(100):

@@ -3,9 +3,9 @@
 The TM method (Skokos & Gerlach 2010, Sect. V.C) extends each flow of a
 splitting scheme to the deviation vectors w = (δq, δp):
 
-* drift  e^{h L_AV} (eq. 44):  q += h M⁻¹p,        δq += h M⁻¹δp
-* kick   e^{h L_BV} (eq. 45):  p −= h ∇V(q),        δp −= h D²V(q) δq
-* corrector e^{h L_CV} (eq. 50): p −= h ∇C(q),      δp −= h D²C(q) δq
+* drift  e^{h L_AV} (eq. 46):  q += h M⁻¹p,        δq += h M⁻¹δp
+* kick   e^{h L_BV} (eq. 47):  p −= h ∇V(q),        δp −= h D²V(q) δq
+* corrector e^{h L_CV} (eq. 53): p −= h ∇C(q),      δp −= h D²C(q) δq
 
 A scheme arrives as stage tables (:func:`varint.schemes.stage_arrays`); a
 kick stage carries a kick length and a corrector length, since both act on
@@ -15,7 +15,7 @@ same inputs give the same bits.
 
 After every step the deviation vectors are renormalised in place:
 ``RENORM_QR`` (modified Gram–Schmidt, for Lyapunov spectra: paper eq. 10),
-``RENORM_NORMALIZE`` (unit columns, for GALI/SALI: paper eq. 16) or
+``RENORM_NORMALIZE`` (unit columns, for GALI/SALI: paper eq. 15) or
 ``RENORM_NONE`` (the raw tangent map). The logarithms of the removed
 stretching factors are needed only at output times, so the factors are
 multiplied into a mantissa ``acc_m`` whose binary exponent is moved into the

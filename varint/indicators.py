@@ -46,7 +46,7 @@ def lyapunov_spectrum(model, x0, t_end, tau=0.05, method="tm", scheme=None,
     Every τ the deviation vectors are re-orthonormalised by QR
     decomposition and the logarithms of the diagonal of R are accumulated:
     X_i(t) = (1/t) Σ log R_ii (the discrete QR technique; paper Sect. III,
-    eq. 10). For regular orbits X_1 ∝ 1/t (eq. 11); for autonomous
+    eq. 10). For regular orbits X_1 ∝ 1/t (eq. 12); for autonomous
     Hamiltonians X_i + X_{2N−i+1} → 0 (eq. 13).
 
     Parameters
@@ -143,7 +143,7 @@ def _gali_orders(k, dim):
 
 def gali_from_vectors(W, orders):
     """GALI_k of the first k columns of unit vectors ``W`` (M, 2N, K), for
-    each k in ``orders``: the product of the singular values (paper eq. 17).
+    each k in ``orders``: the product of the singular values (paper eq. 18).
 
     Returns a dict k -> ndarray of shape (M,).
     """
@@ -160,13 +160,13 @@ def sali_from_vectors(W):
 def gali(model, x0, t_end, tau=0.05, k=(2, 3, 4), method="tm", scheme=None, seed=0,
          deviations=None, t_out=None, progress=None, errors="raise", escape_radius=None,
          checkpoint=None, checkpoint_interval=60.0, **method_options):
-    """Generalised alignment indices GALI_k(t) (paper Sect. IV, eqs. 14–17).
+    """Generalised alignment indices GALI_k(t) (paper Sect. IV, eqs. 15–18).
 
     max(k) deviation vectors are evolved and normalised to unit length every
     τ; GALI_k is the volume spanned by the first k of them, computed at the
     output times from the singular values. Regular motion on an N-torus:
-    GALI_k ≈ const for k ≤ N and ∝ t^{−2(k−N)} for k > N (eq. 15); chaotic
-    motion: exponential decay (eq. 14).
+    GALI_k ≈ const for k ≤ N and ∝ t^{−2(k−N)} for k > N (eq. 17); chaotic
+    motion: exponential decay (eq. 16).
 
     Parameters
     ----------

@@ -127,7 +127,7 @@ def _sali(model):
 def _gali(model, k=None):
     """GALI_k (default k = N): constant on an N-torus for k ≤ N, decaying
     as a power law for k > N (so no default threshold there), exponentially
-    for chaotic orbits (paper eqs. 14–15)."""
+    for chaotic orbits (paper eqs. 16–17)."""
     k = model.n_dof if k is None else check.n_vectors(k, model.dim, "GALI order k", minimum=2)
     k = max(k, 2)
     return MapIndicator(f"gali_{k}", k, "normalize", "unit", _ReadGALI(k),

@@ -32,7 +32,7 @@ def _guide(ax, t, y_end, power, label=None, color="k", decades=3.0):
 
 def plot_lyapunov(result, ax=None, which=None, guide=True):
     """log-log X_i(t) for the exponents ``which`` (default: the positive
-    half, X_1 … X_N), with a 1/t line (paper eq. 11).
+    half, X_1 … X_N), with a 1/t line (paper eq. 12).
 
     Parameters
     ----------
@@ -61,7 +61,7 @@ def plot_lyapunov(result, ax=None, which=None, guide=True):
 
 def plot_gali(result, ax=None, n_dof=None, guide=True):
     """GALI_k(t) on log-log axes, with the regular-orbit laws
-    GALI_k ∝ t^{−2(k−N)} for k > N (paper eq. 15) when ``guide``.
+    GALI_k ∝ t^{−2(k−N)} for k > N (paper eq. 17) when ``guide``.
 
     ``n_dof`` (torus dimension N) defaults to half the phase-space
     dimension of the model in the result's provenance.

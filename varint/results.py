@@ -206,7 +206,7 @@ class GALIResult(_Result):
     ----------
     gali : dict of int -> ndarray, shape ([M,] n_out)
         GALI_k(t) for each requested k: the product of the singular values
-        of the first k unit deviation vectors (paper eq. 17).
+        of the first k unit deviation vectors (paper eq. 18).
     deviations : ndarray, shape ([M,] 2N, max k)
         Final unit deviation vectors.
     """

@@ -2,7 +2,7 @@
 
 A scheme is a palindromic product of the exact flows of the drift
 A = ½ pᵀM⁻¹p and the kick B = V(q), optionally wrapped in the corrector
-flow of C = {B, {B, A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 23–24):
+flow of C = {B, {B, A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eqs. 22 and 26):
 
     S^c(τ) = e^{−gτ³/2 L_C} S(τ) e^{−gτ³/2 L_C}.
 

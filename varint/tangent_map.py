@@ -2,7 +2,7 @@
 
 Any registered splitting scheme integrates the orbit and, through the tangent
 maps of its drift, kick and corrector flows, the deviation vectors (Skokos &
-Gerlach 2010, Sect. V.C, eqs. 44–45 and 50). One step of length τ is one
+Gerlach 2010, Sect. V.C, eqs. 46–47 and 53). One step of length τ is one
 renormalisation interval.
 """
 

@@ -12,7 +12,7 @@ from varint.models import FPUBeta, HenonHeiles, ThreeDof
                          ids=["HenonHeiles", "ThreeDof", "FPU6"])
 @pytest.mark.parametrize("k", [0, 1, 3])
 def test_rhs_is_hamiltons_equations_and_their_linearisation(model, k):
-    """q̇ = M⁻¹p, ṗ = −∇V, δq̇ = M⁻¹δp, δṗ = −D²V δq (paper eqs. 2, 4)."""
+    """q̇ = M⁻¹p, ṗ = −∇V, δq̇ = M⁻¹δp, δṗ = −D²V δq (paper eqs. 6, 7)."""
     rhs, fun = tangent_rhs(model)
     n, d = model.n_dof, model.dim
     rng = np.random.default_rng(k)

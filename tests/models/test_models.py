@@ -33,7 +33,7 @@ def test_gradient_hessian_third_match_finite_differences(model):
 
 @pytest.mark.parametrize("model", MODELS, ids=IDS)
 def test_corrector_terms_match_finite_differences(model):
-    """∇C and D²C of C = ∇Vᵀ M⁻¹ ∇V (paper eq. 25, with the mass)."""
+    """∇C and D²C of C = ∇Vᵀ M⁻¹ ∇V (paper eq. 26, with the mass)."""
     for q in _points(model):
         gc = model.corrector_gradient(q)
         assert np.allclose(gc, fd_gradient(model.corrector, q), atol=1e-7 * (1 + np.abs(gc).max()))
@@ -43,7 +43,7 @@ def test_corrector_terms_match_finite_differences(model):
 
 
 def test_henon_heiles_corrector_equals_paper_appendix():
-    """C, ∇C and D²C of Hénon–Heiles are the paper's eqs. (A.7), (A.8), (A.14)."""
+    """C, ∇C and D²C of Hénon–Heiles are the paper's eqs. (A.7), (A.8), (A.23)."""
     m = HenonHeiles()
     for x, y in _points(m):
         q = np.array([x, y])
@@ -88,7 +88,7 @@ def test_three_dof_uses_the_paper_inverse_mass():
     q, p = x[:3], x[3:]
     H3 = (0.5 * (q[0] ** 2 + p[0] ** 2) + np.sqrt(2) / 2 * (q[1] ** 2 + p[1] ** 2)
           + np.sqrt(3) / 2 * (q[2] ** 2 + p[2] ** 2) + q[0] ** 2 * q[1] + q[0] ** 2 * q[2])
-    assert np.isclose(m.energy(x), H3)  # paper eq. (31)
+    assert np.isclose(m.energy(x), H3)  # paper eq. (55)
 
 
 @pytest.mark.parametrize("name,px", [("R1", 0.2334), ("C1", 0.4208), ("C2", 0.11879)])

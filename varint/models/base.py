@@ -13,7 +13,7 @@ they need; the integrators call the kernels, never Python methods:
     with ``v``, in the same band storage (its sparsity is that of D²V).
 
 From these the integrators build the corrector terms of
-C = {B,{B,A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 25 with a mass):
+C = {B,{B,A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 26 with a mass):
 ∇C = 2 D²V M⁻¹ ∇V and D²C = 2 (D²V M⁻¹ D²V + Σ_k (M⁻¹∇V)_k D²(∂_kV)).
 """
 
@@ -165,7 +165,7 @@ class Model:
         return B
 
     def corrector(self, q):
-        """C(q) = ∇Vᵀ M⁻¹ ∇V (paper eq. 25)."""
+        """C(q) = ∇Vᵀ M⁻¹ ∇V (paper eq. 26)."""
         g = self.gradient(q)
         return float(np.sum(self.inverse_mass * g * g))
 

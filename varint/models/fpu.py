@@ -1,4 +1,4 @@
-"""The FPU-β chain with fixed ends (Skokos & Gerlach 2010, eq. 32).
+"""The FPU-β chain with fixed ends (Skokos & Gerlach 2010, eq. 56).
 
     H = Σ_{i=1}^{n} p_i²/2 + Σ_{i=0}^{n} [ r_i²/2 + β r_i⁴/4 ],
     r_i = q_{i+1} − q_i,  q_0 = q_{n+1} = 0.
@@ -90,7 +90,7 @@ class FPUBeta(Model):
 
     References
     ----------
-    Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (32).
+    Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (56).
     """
 
     def __init__(self, n=8, beta=1.5):

@@ -1,4 +1,4 @@
-"""The Hénon–Heiles system (Skokos & Gerlach 2010, eq. 30 and Appendix A).
+"""The Hénon–Heiles system (Skokos & Gerlach 2010, eq. 54 and Appendix A).
 
     H₂ = ½(px² + py²) + ½(x² + y²) + x²y − y³/3
 
@@ -27,7 +27,7 @@ def _grad(q, par, g):
 
 @njit(cache=True)
 def _hess(q, par, B):
-    # Paper eq. (A.9): D²V = [[1 + 2y, 2x], [2x, 1 − 2y]].
+    # Paper eq. (A.12): D²V = [[1 + 2y, 2x], [2x, 1 − 2y]].
     x, y = q[0], q[1]
     B[0, 0] = 1.0 + 2.0 * y
     B[0, 1] = 1.0 - 2.0 * y
@@ -62,7 +62,7 @@ class HenonHeiles(Model):
     References
     ----------
     M. Hénon & C. Heiles, Astron. J. 69, 73 (1964); Skokos & Gerlach,
-    Phys. Rev. E 82, 036704 (2010), eq. (30).
+    Phys. Rev. E 82, 036704 (2010), eq. (54).
     """
 
     escape_energy = ESCAPE_ENERGY

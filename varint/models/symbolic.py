@@ -1,7 +1,7 @@
 """Models from a potential written in SymPy: one definition for every method.
 
 :func:`from_potential` takes V(q) as a SymPy expression and derives what the
-integrators need (paper eqs. 2–3 and, for the correctors, eq. 25):
+integrators need (paper eqs. 6–7 and, for the correctors, eq. 26):
 
 * ∇V, D²V in symmetric band storage (:mod:`varint._banded`), and the third
   derivatives contracted with a vector, Σ_k v_k D²(∂_kV), as numba kernels
@@ -272,7 +272,7 @@ def from_potential(V, q, inverse_mass=None, name=None, escape_radius=None):
 
     Everything every method needs is derived from ``V``: compiled ∇V, band
     D²V and third-derivative kernels for the TM stepper (hence the corrector
-    C = ∇Vᵀ M⁻¹ ∇V of paper eq. 25 and its derivatives), the right-hand
+    C = ∇Vᵀ M⁻¹ ∇V of paper eq. 26 and its derivatives), the right-hand
     sides of the CVODE and DOP853 baselines (built from those kernels), and
     the Taylor reference's variational equations (built by heyoka from ``V``).
 

@@ -1,4 +1,4 @@
-"""The paper's 3-degree-of-freedom system (Skokos & Gerlach 2010, eq. 31).
+"""The paper's 3-degree-of-freedom system (Skokos & Gerlach 2010, eq. 55).
 
     H₃ = ½(x² + px²) + (√2/2)(y² + py²) + (√3/2)(z² + pz²) + x²y + x²z
 
@@ -65,7 +65,7 @@ class ThreeDof(Model):
 
     References
     ----------
-    Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (31).
+    Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (55).
     """
 
     def __init__(self):
