@@ -31,7 +31,11 @@ Speed comes from two choices, both measured (studies/bench_tm.py):
   constants of a stepper built by :func:`tm_batch`, so the many short loops
   unroll; this halves the time per step of Hénon–Heiles compared with
   run-time sizes. Each (N, k, bandwidth) costs one compilation of about a
-  second or two per process; large systems share one run-time-sized stepper.
+  second or two per process; large systems fix only k (≤ 8) and the
+  bandwidth (:func:`specialised_sizes`).
+
+With ``fast_indicators`` the stepper also accumulates MEGNO, FLI and OFLI
+after every step (:func:`_fast_indicators`, used by :func:`varint.megno`).
 """
 
 from __future__ import annotations
