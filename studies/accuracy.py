@@ -498,6 +498,11 @@ DEPARTURES_FULL = ([("tm", 0.05, 1e6)]
 #: approximates.
 PAPER_X1_1E8 = {("tdhcc", 0.05): 9.4e-4, ("tdhes", 0.05): 9.4e-4, ("tdheps", 0.05): 2.3e-5,
                 ("tdheps", 0.1): 8.9e-5, ("tdheps", 0.2): 3.5e-4, ("tdheps", 0.5): 1.8e-3}
+# How the level X1 settles at grows with τ: ∝ τ for the frozen-Hessian
+# methods, ∝ τ² for TDHeps (Table I: slope 1.9 over τ = 0.05 … 0.5; the full
+# run here: 0.91, 0.88 and 2.02). Used in quick mode, which runs no τ of the
+# paper's.
+LEVEL_EXPONENT = {"tdhcc": 1, "tdhes": 1, "tdheps": 2}
 DEPARTURE_REFERENCE = {"method": "taylor"}
 
 
@@ -703,10 +708,18 @@ def main(argv=None):
             paper_text += f": ∝ τ^{log_slope(list(paper), list(paper.values())):.2f}"
         # The report's rules: power laws within 15 %, numbers within a factor 3.
         levels = {r["tau"]: r["level"] for r in rows}
+        note = ""
         if len(paper) > 1:
             agrees = abs(q / log_slope(list(paper), list(paper.values())) - 1) <= 0.15
+        elif any(tau in levels for tau in paper):
+            agrees = all(1 / 3 <= levels[tau] / v <= 3 for tau, v in paper.items()
+                         if tau in levels)
         else:
-            agrees = all(1 / 3 <= levels.get(tau, np.nan) / v <= 3 for tau, v in paper.items())
+            # No τ of the paper was run (quick mode): test the exponent
+            # against the one the method's order predicts instead.
+            agrees = abs(q - LEVEL_EXPONENT[method]) <= 0.3
+            note = (f"no τ of the paper run here; checked q against {LEVEL_EXPONENT[method]} "
+                    "± 0.3 instead")
         off = [f"τ = {tau:g}: {levels[tau]:.2g} vs {v:.2g}" for tau, v in paper.items()
                if tau in levels and not 1 / 3 <= levels[tau] / v <= 3]
         claims.add(f"R1: {method} levels off; the level grows like τ^q and the departure time "
@@ -716,8 +729,8 @@ def main(argv=None):
                                f"{r['t_x1']:.3g}" for r in rows),
                    all(r["t_x1"] is not None for r in rows) and agrees,
                    figure="accuracy_departure.png",
-                   note=("levels more than 3× the paper's X1(1e8): " + "; ".join(off))
-                   if off else "")
+                   note="; ".join(filter(None, [
+                       note, off and "levels more than 3× the paper's X1(1e8): " + "; ".join(off)])))
     # Paper Fig. 4: at τ = 0.05 the TDH GALIs follow the regular laws to
     # t ≈ 1e4 (TDHcc, TDHes) or 1e5 (TDHeps), read off a log plot.
     for method, paper_t in (("tdhcc", 1e4), ("tdhes", 1e4), ("tdheps", 1e5)):
