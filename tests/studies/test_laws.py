@@ -1,0 +1,111 @@
+"""The helpers that read the paper's laws off time series, on series whose
+law is known in closed form."""
+
+import math
+
+import numpy as np
+import pytest
+
+from studies import laws
+
+
+def test_slope_of_a_power_law():
+    t = np.geomspace(1.0, 1e6, 61)
+    assert laws.slope(t, 3.0 * t ** -2.5, 10.0, 1e5) == pytest.approx(-2.5, abs=1e-12)
+    # Negative values count by their size (X2 may change sign).
+    assert laws.late_slope(t, -t ** -1.0, decades=2) == pytest.approx(-1.0, abs=1e-12)
+
+
+def test_decay_rate_stops_at_the_round_off_floor():
+    t = np.linspace(0.0, 2000.0, 401)
+    g = np.maximum(np.exp(-0.045 * t), 1e-16)  # saturates as GALIs do
+    rate, (a, b) = laws.decay_rate(t, g)
+    assert rate == pytest.approx(0.045, rel=1e-10)
+    assert np.exp(-0.045 * a) < 1e-2 and np.exp(-0.045 * b) > 1e-12
+
+
+def test_roundoff_time_finds_where_a_gali_meets_its_floor():
+    # GALI_4 of an orbit on a 2-torus: two vanishing singular values, each
+    # ∝ 1/t², each floored at √(t/τ)·ε (R1 with TM: GALI_4 ≈ 1e-24 at 1e8).
+    tau, eps = 0.05, np.finfo(float).eps
+    t = np.geomspace(1.0, 1e8, 161)
+    floor = (np.sqrt(t / tau) * eps) ** 2
+    g = np.maximum(1e-2 * t ** -4.0, floor)
+    hit = laws.roundoff_time(t, g, 2, tau)
+    assert hit == t[np.flatnonzero(1e-2 * t ** -4.0 <= 10 * floor)[0]]
+    assert 1e5 < hit < 1e6
+    assert laws.roundoff_time(t, 1e-2 * t ** -4.0, 2, tau, margin=1e-30) is None
+    assert laws.roundoff_time(t, np.ones_like(t), 0, tau) is None  # nothing vanishes
+
+
+def test_local_exponents_and_the_gali_law():
+    # Λ_i = σ_i t exactly: the local rates are the σ_i over any window.
+    t = np.linspace(1.0, 1000.0, 500)
+    sigma = np.array([0.05, 0.01, -0.01, -0.05])
+    assert laws.local_exponents(t, np.tile(sigma, (t.size, 1)), (100.0, 600.0)) == \
+        pytest.approx(sigma)
+
+
+def test_x1_law_departure():
+    # Regular (Λ = ln t + 1) until 1e6, then exponential growth at 1e-5.
+    t = np.geomspace(1.0, 1e8, 161)
+    lam = np.log(t) + 1.0 + 1e-5 * np.maximum(t - 1e6, 0.0)
+    expected = 1e6 + math.log(10) / 1e-5
+    assert laws.x1_law_departure(t, lam / t) == pytest.approx(expected, rel=0.13)
+    assert laws.x1_law_departure(t, (np.log(t) + 1.0) / t) is None
+
+
+def test_stretch_departure_finds_time_and_level():
+    # Reference: regular, Λ = ln t. Method: Λ = ln t + L·t, L = 1e-3: it is
+    # a decade (ln 10) ahead from t = ln(10)/L and grows at rate L after.
+    t = np.geomspace(1.0, 1e6, 121)
+    ref = np.log(t) / t
+    x1 = ref + 1e-3
+    t_d, level = laws.stretch_departure(t, x1, t, ref)
+    assert t_d == pytest.approx(math.log(10) / 1e-3, rel=0.13)  # grid: 20 per decade
+    assert level == pytest.approx(1e-3, rel=0.01)  # + (ln t_end − ln t_d)/(t_end − t_d)
+    assert laws.stretch_departure(t, ref, t, ref) == (None, None)
+
+
+def test_gali_and_law_departures():
+    t = np.geomspace(1.0, 1e7, 141)
+    law = t ** -2.0
+    g = law * np.exp(-np.maximum(t - 1e5, 0.0) * 1e-4)  # leaves the law after 1e5
+    # ln g falls a decade below the law at t = 1e5 + ln(10)/1e-4.
+    expected = 1e5 + math.log(10) / 1e-4
+    assert laws.gali_departure(t, g, t, law) == pytest.approx(expected, rel=0.13)
+    assert laws.law_departure(t, g, -2.0) == pytest.approx(expected, rel=0.13)
+    assert laws.law_departure(t, law, -2.0) is None
+
+
+def test_regular_gali_powers():
+    # Eq. 15 of the paper for an N-torus of an N-dof system.
+    assert laws.regular_gali_powers(2) == {2: 0, 3: -2, 4: -4}
+    assert laws.regular_gali_powers(3) == {2: 0, 3: 0, 4: -2, 5: -4, 6: -6}
+    # Skokos, Bountis & Antonopoulos (2008), s-torus in N dof: the FPU orbit R3.
+    p = laws.regular_gali_powers(8, 4)
+    assert [p[k] for k in (2, 3, 4, 5, 8, 9, 12, 13, 14, 16)] == \
+        [0, 0, 0, -1, -4, -5, -8, -10, -12, -16]
+
+
+def test_agree():
+    assert laws.agree(2.0e-5, 2.3e-5)
+    assert not laws.agree(1e-4, 2.3e-5)
+    assert not laws.agree(-7.7e-8, 7.7e-8)
+    assert laws.agree(None, 1.0) is None
+
+
+def test_log_growth_of_linearly_growing_vectors():
+    t = np.geomspace(1.0, 1e8, 161)
+    assert laws.log_growth(t, (np.log(t) + 3.0) / t) == pytest.approx(1.0, abs=1e-9)
+    assert laws.log_growth(t, -(np.log(t) - 2.0) / t) == pytest.approx(-1.0, abs=1e-9)
+    assert laws.log_growth(t, (np.log(t) + 1e-4 * t) / t) > 100  # exponential growth
+
+
+def test_law_extent_stops_at_the_first_broken_decade():
+    t = np.geomspace(1.0, 1e8, 161)
+    g = np.maximum(t ** -2.0, 1e-12)  # a round-off floor from t = 1e6
+    end, slopes = laws.law_extent(t, g, -2.0, 0.3)
+    assert end == pytest.approx(1e6) and len(slopes) == 5
+    assert slopes[:3] == pytest.approx([-2.0] * 3) and slopes[-1] == pytest.approx(0.0)
+    assert laws.law_extent(t, g, -4.0, 0.3)[0] is None
