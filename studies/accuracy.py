@@ -729,8 +729,8 @@ def main(argv=None):
                                f"{r['t_x1']:.3g}" for r in rows),
                    all(r["t_x1"] is not None for r in rows) and agrees,
                    figure="accuracy_departure.png",
-                   note="; ".join(filter(None, [
-                       note, off and "levels more than 3× the paper's X1(1e8): " + "; ".join(off)])))
+                   note="; ".join(filter(None, [note, off and "levels more than 3× the "
+                                                 "paper's X1(1e8): " + "; ".join(off)])))
     # Paper Fig. 4: at τ = 0.05 the TDH GALIs follow the regular laws to
     # t ≈ 1e4 (TDHcc, TDHes) or 1e5 (TDHeps), read off a log plot.
     for method, paper_t in (("tdhcc", 1e4), ("tdhes", 1e4), ("tdheps", 1e5)):

@@ -153,8 +153,8 @@ def runs_section(out):
              "| run | CPU s | wall s |", "|---|---|---|"]
     for p in metas:
         m = json.loads(p.read_text())
-        lines.append(f"| `{p.stem}` | {m['cpu']:.4g} | {m['wall']:.4g} |"
-                     + (" (resumed)" if m.get("resumed") else ""))
+        resumed = " (resumed)" if m.get("resumed") else ""
+        lines.append(f"| `{p.stem}` | {m['cpu']:.4g}{resumed} | {m['wall']:.4g} |")
     return lines + [""]
 
 
