@@ -79,10 +79,10 @@ PLOT_FACTOR = math.sqrt(10.0)
 GALI_TOLERANCE = 0.15
 
 #: What we know about our TDHeps against the paper's.
-TDHEPS_NOTE = ("our TDHeps (eqs. 11–15 with the corrector, τ = 2Δt) has the order 4 "
-               "tangent error it should (accuracy study) and lands 3.2–3.4× above the "
-               "paper's X1 on R1 (Table I) and 4.3× on C2, but below it on R2 and R3; we "
-               "have not found the cause")
+TDHEPS_NOTE = ("our TDHeps has the order-4 tangent error it should (accuracy study); "
+               "studies/tdheps_variants.py reproduces the paper's levels with an orbit "
+               "stepped at Δt = τ on R1 (1.25–1.6× instead of 3.4–4.3×) and with its eq. 36 "
+               "taken for unit masses on R2 (1.33e-3 against 1.3e-3); C2 and R3 unexplained")
 
 GRAYS = ("black", "0.5", "0.75", "0.3", "0.6")
 

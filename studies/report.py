@@ -37,6 +37,8 @@ KNOWN = {
     "paper_fig09": "Fig. 9 — R2 (3D system): exponents and pair sums",
     "paper_fig10": "Fig. 10 — R2: GALIs",
     "paper_fig11": "Fig. 11 — R3 (FPU-β, N = 8): GALIs",
+    "tdheps_variants": "TDHeps: which reading of the paper gives its numbers "
+                       "(studies/tdheps_variants.py)",
     "accuracy": "Accuracy against the Taylor reference",
     "work_precision": "Run time against error",
     "stress": "Stress",

@@ -224,7 +224,8 @@ def add_claims(claims, rows, quick):
                all(agree(v, 1.0) for v in ratios.values()), figure="table1_energy.png",
                note="TDHeps integrates the orbit with Δt = τ/2 (the paper's text says so too), "
                     "so SBAB2C's O(τ⁴) energy error is 16× smaller than TM's at τ; the "
-                    "paper's table lists TM's")
+                    "paper's values are those of an orbit at Δt = τ "
+                    "(studies/tdheps_variants.py)")
     eps = [by["TDHeps", tau, None] for tau in (0.05, 0.1, 0.2)]
     growth = [(b["X1"] / a["X1"], b["X1_paper"] / a["X1_paper"]) for a, b in zip(eps, eps[1:])]
     claims.add("TDHeps: X1 at t = 1e8 grows like τ² (its level-off value; ratio per doubling "
