@@ -144,8 +144,8 @@ def make_tdheps(model, orbit_step="half", unit_mass_corrector=False):
 
 
 def levels(model, x0, tau, t_end, n_out=25, **variant):
-    """X1 of the variant at log-spaced times to ``t_end`` (one vector along
-    (1, …, 1)/√(2N)), and varint's TDHeps X1 at the same times."""
+    """Times and X1 of the variant at ``n_out`` log-spaced steps to
+    ``t_end``, from one vector along (1, …, 1)/√(2N)."""
     n_steps = int(round(t_end / tau))
     marks = np.unique(np.geomspace(1, n_steps, n_out).round().astype(np.int64))
     w0 = np.ones(model.dim) / math.sqrt(model.dim)
@@ -154,6 +154,7 @@ def levels(model, x0, tau, t_end, n_out=25, **variant):
 
 
 def library_x1(model, x0, tau, t):
+    """varint's TDHeps X1 at the times ``t``, from the vector of :func:`levels`."""
     w0 = np.ones((model.dim, 1)) / math.sqrt(model.dim)
     r = varint.lyapunov_spectrum(model, x0, t[-1], tau=tau, method="tdheps", deviations=w0,
                                  t_out=t, progress=False)
