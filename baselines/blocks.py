@@ -2,11 +2,11 @@
 renormalise every τ, and keep all continuation state in the RunState.
 
 Each baseline integrates the orbit together with its deviation vectors
-(:mod:`baselines.rhs`) from the current state over a *block* of B intervals
+(:mod:`varint.baselines.rhs`) from the current state over a *block* of B intervals
 of length τ, asking its integrator for the state at every multiple of τ.
 The outputs are then taken one interval at a time, exactly as the TM method
 steps: the orbit is checked (escape, non-finite), and the deviation vectors
-are renormalised with :func:`varint._kernels.renormalize` — QR for Lyapunov
+are renormalised with :func:`varint.kernels.checks.renormalize` — QR for Lyapunov
 spectra (paper eq. 10), unit length for GALI/SALI (eq. 15), or not at all.
 
 Why blocks: the variational equations are linear, so the vectors
@@ -21,7 +21,7 @@ blocks make CVODE 15–20× cheaper and 7–13× more accurate (every restart of
 multistep method costs low-order starting steps), and double-precision heyoka
 20–80× cheaper at the same round-off-level error.
 
-Rules 3 and 8 of :mod:`varint.methods` hold because a block is always
+Rules 3 and 8 of :class:`varint.protocol.Propagator` hold because a block is always
 integrated whole from the state at its start, and its outputs, the matrix C
 and the position in the block live in ``state.extra``: how a run is chunked
 into ``advance`` calls, or resumed from a checkpoint, cannot change a bit.
@@ -36,18 +36,19 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from varint import _kernels as K
+from varint.kernels.checks import orbit_status, renormalize, tangent_overflow
+from varint.kernels.tm import no_accumulator
+from varint.methods import method_options
+from varint.protocol import Renorm, Status
 
 from .rhs import pack
 
-__all__ = ["BlockPropagator", "consume", "COND_LIMIT", "INTEGRATOR_FAILED"]
+__all__ = ["BlockPropagator", "consume", "COND_LIMIT"]
 
-_RENORM = {"none": K.RENORM_NONE, "normalize": K.RENORM_NORMALIZE, "qr": K.RENORM_QR}
-
-#: Status of an orbit whose integrator gave up with a finite state (e.g.
-#: CVODE's step-count or error-test failures); see :mod:`varint._kernels`
-#: for the others.
-INTEGRATOR_FAILED = 5
+_OK = int(Status.OK)
+_OVERFLOW = int(Status.TANGENT_OVERFLOW)
+_QR = int(Renorm.QR)
+_NONE = int(Renorm.NONE)
 #: Returned by :func:`consume` when the block should end early.
 END_BLOCK = -1
 #: Largest condition number (ratio of the extreme diagonal entries) of the
@@ -58,33 +59,46 @@ COND_LIMIT = 100.0
 MAX_BLOCK_VALUES = 1 << 21
 
 
-@njit(cache=True)
-def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit):
+@njit
+def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit,
+            accumulate, aux, grad, par, minv, flow, step_first, tau):
     """Take the outputs ``start … stop−1`` of a block for one orbit.
 
     Parameters
     ----------
     ys : ndarray, shape (B, 2N(1 + k))
-        Flat states (:func:`baselines.rhs.pack`) at τ, 2τ, … integrated from
-        the block start.
+        Flat states (:func:`varint.baselines.rhs.pack`) at τ, 2τ, … integrated
+        from the block start.
     C : ndarray, shape (k, k)
         Virtual renormalisation so far (identity at the block start);
         updated in place.
     x, W : ndarray, shapes (2N,) and (2N, k)
         Receive the orbit and the renormalised vectors of each output.
     mode : int
-        ``RENORM_QR``, ``RENORM_NORMALIZE`` or ``RENORM_NONE``.
+        A :class:`~varint.protocol.Renorm`.
     acc_m, acc_e : ndarray, shape (k,)
-        Stretching accumulators (see :func:`varint._kernels.renormalize`).
+        Stretching accumulators (see :mod:`varint.kernels.checks`).
     escape_r2 : float
         Squared escape radius of |q|.
     cond_limit : float
         See :data:`COND_LIMIT`.
+    accumulate, aux :
+        The indicator's accumulator and its array (k, columns), updated
+        after each renormalisation (an empty ``aux`` for none).
+    grad, par, minv :
+        The model's gradient kernel, parameters and inverse mass, for the
+        phase-space velocity ``flow`` (2N,) the accumulator may read (empty
+        when it does not).
+    step_first : int
+        The run's interval count at output ``start`` (its time is
+        ``step_first · tau``: from an integer, so it does not depend on how
+        the run is chunked).
+    tau : float
 
     Returns
     -------
     status : int
-        ``OK``; a failure code of :mod:`varint._kernels` (output ``j``
+        ``OK``; a failure :class:`~varint.protocol.Status` (output ``j``
         failed, its state is in x, W); or ``END_BLOCK`` (outputs up to
         ``j − 1`` were taken and the rest of the block must be discarded).
     j : int
@@ -94,54 +108,59 @@ def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit)
     n = d // 2
     V = np.empty((d, k))
     R = np.empty((k, k))
+    r = np.empty(k if aux.shape[0] > 0 else 0)
+    q = np.empty(n)
+    g = np.empty(n)
     for j in range(start, stop):
-        rq = 0.0
-        rp = 0.0
         for i in range(d):
             x[i] = ys[j, i]
-        for i in range(n):
-            rq += x[i] * x[i]
-            rp += x[n + i] * x[n + i]
         for i in range(d):
             for a in range(k):
                 s = 0.0
                 for b in range(a + 1):  # C is upper triangular
                     s += ys[j, d + i * k + b] * C[b, a]
                 W[i, a] = s
-        if rq > escape_r2:
-            return K.ESCAPED, j
-        if not (rq + rp < np.inf):
-            return K.ORBIT_NONFINITE, j
-        if mode == K.RENORM_NONE:
-            for i in range(d):
-                for a in range(k):
-                    if not (abs(W[i, a]) < K.TANGENT_LIMIT):
-                        return K.TANGENT_OVERFLOW, j
+        status = orbit_status(x, n, escape_r2)
+        if status != _OK:
+            return status, j
+        if mode == _NONE:
+            if tangent_overflow(W):
+                return _OVERFLOW, j
             continue
         for i in range(d):
             for a in range(k):
                 V[i, a] = W[i, a]
-        if not K.renormalize(W, mode, acc_m, acc_e):
-            return K.TANGENT_DEGENERATE, j
+        status = renormalize(W, mode, acc_m, acc_e, r, d, k)
+        if status != _OK:
+            return status, j
+        if aux.shape[0] > 0:
+            if flow.shape[0] > 0:
+                for i in range(n):
+                    q[i] = x[i]
+                grad(q, par, g)
+                for i in range(n):
+                    flow[i] = minv[i] * x[n + i]
+                    flow[n + i] = -g[i]
+            accumulate(aux, r, x, W, flow, (step_first + j - start) * tau)
         # W = V R⁻¹ with R = WᵀV (upper triangular for QR, diagonal when
         # only normalising), so the next raw output needs C R⁻¹.
         for b in range(k):
             for a in range(k):
                 s = 0.0
-                if a == b or (mode == K.RENORM_QR and b < a):
+                if a == b or (mode == _QR and b < a):
                     for i in range(d):
                         s += W[i, b] * V[i, a]
                 R[b, a] = s
-        for r in range(k):
+        for rr in range(k):
             for a in range(k):
-                s = C[r, a]
+                s = C[rr, a]
                 for b in range(a):
-                    s -= C[r, b] * R[b, a]
-                C[r, a] = s / R[a, a]
+                    s -= C[rr, b] * R[b, a]
+                C[rr, a] = s / R[a, a]
         # Only QR mixes columns (normalising just scales them, exactly).
         # Checked after every output, whatever ``stop`` is, so where a block
         # ends never depends on how the run is chunked.
-        if mode == K.RENORM_QR:
+        if mode == _QR:
             cmax = 0.0
             cmin = np.inf
             for a in range(k):
@@ -150,7 +169,7 @@ def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit)
                 cmin = min(cmin, c)
             if cmax > cond_limit * cmin:
                 return END_BLOCK, j + 1
-    return K.OK, stop
+    return _OK, stop
 
 
 class BlockPropagator:
@@ -162,22 +181,20 @@ class BlockPropagator:
     ``_integrate(state, m, y0, n_out) -> (ys, status, counts)``: integrate
     the flat state ``y0`` of orbit ``m`` from t = 0 and return the flat
     states at τ, 2τ, …, n_out·τ (fewer rows if it failed, with ``status``
-    saying why; ``K.OK`` otherwise) and a dict of work counts.
+    saying why; ``Status.OK`` otherwise) and a dict of work counts.
     """
 
     method = None
     OPTIONS = {}
     #: Time spanned by a block when the ``block`` option is not given.
     BLOCK_SPAN = 0.0
-    #: Explanations of the status codes of our own, for error messages.
-    failure_reasons = {INTEGRATOR_FAILED: "the integrator gave up with a finite state (too many "
-                                          "steps or repeated error-test failures in one interval)"}
 
-    def _setup(self, model, tau, renorm, options):
+    def _setup(self, model, tau, renorm, options, accumulator=None):
         self.model = model
         self.tau = float(tau)
-        self.renorm = renorm
-        self._mode = _RENORM[renorm]
+        self.renorm = Renorm.parse(renorm)
+        self._mode = int(self.renorm)
+        self.accumulator = accumulator
         block = options.get("block")
         integer = isinstance(block, (int, np.integer)) and not isinstance(block, bool)
         if block is not None and not (integer and block >= 1):
@@ -194,11 +211,7 @@ class BlockPropagator:
                 f"method {cls.method!r} takes no scheme: it integrates the variational "
                 "equations directly; scheme= selects the splitting scheme of 'tm' and the TDH "
                 "methods")
-        unknown = sorted(set(given) - set(cls.OPTIONS))
-        if unknown:
-            raise TypeError(f"unknown option {unknown[0]!r} for method {cls.method!r}; valid "
-                            f"options: {', '.join(cls.OPTIONS)}")
-        return {**cls.OPTIONS, **given}
+        return {**cls.OPTIONS, **method_options(cls.method, given, tuple(cls.OPTIONS))}
 
     def block_size(self, dim, k):
         """Intervals per block for states of dimension ``dim`` with ``k``
@@ -218,10 +231,10 @@ class BlockPropagator:
         """Advance every active orbit of ``state`` by ``n`` intervals τ."""
         self._prepare(state)
         steps = 0
-        for m in np.flatnonzero(state.status == K.OK):
+        for m in np.flatnonzero(state.status == Status.OK):
             done, status = self._advance_orbit(state, m, int(n))
             steps += done
-            if status != K.OK:
+            if status != Status.OK:
                 state.status[m] = status
                 state.fail_step[m] = state.step + done + 1
                 steps += 1
@@ -251,24 +264,37 @@ class BlockPropagator:
         ys, C = ex[self._key("y")], ex[self._key("C")]
         nxt, filled = ex[self._key("next")], ex[self._key("filled")]
         failed = ex[self._key("failed")]
+        accumulate, aux, flow = self._accumulator(state, m)
+        model = self.model
         done = 0
         while done < n:
             if nxt[m] == filled[m]:
-                if failed[m] != K.OK:
+                if failed[m] != Status.OK:
                     return done, int(failed[m])
                 self._new_block(state, m)
             start = nxt[m]
             status, j = consume(ys[m], C[m], start, min(filled[m], start + n - done), state.x[m],
                                 state.W[m], self._mode, state.acc_m[m], state.acc_e[m],
-                                self._escape_r2, COND_LIMIT)
+                                self._escape_r2, COND_LIMIT, accumulate, aux, model.grad_kernel,
+                                model.params, model.inverse_mass, flow,
+                                state.step + done + 1, self.tau)
             done += j - start
             nxt[m] = j
             if status == END_BLOCK:
                 # A failure of the integrator beyond this point is moot now.
-                filled[m], failed[m] = j, K.OK
-            elif status != K.OK:
+                filled[m], failed[m] = j, Status.OK
+            elif status != Status.OK:
                 return done, int(status)
-        return done, K.OK
+        return done, Status.OK
+
+    def _accumulator(self, state, m):
+        """The accumulator's update, its array for orbit ``m`` and a buffer
+        for the flow (empty when it reads none)."""
+        acc = self.accumulator
+        if acc is None:
+            return no_accumulator, np.empty((0, 0)), np.empty(0)
+        return acc.update, state.extra[acc.key][m], np.empty(
+            self.model.dim if acc.needs_flow else 0)
 
     def _new_block(self, state, m):
         ex = state.extra
@@ -278,6 +304,7 @@ class BlockPropagator:
         ex[self._key("y")][m, :filled] = ys
         ex[self._key("filled")][m] = filled
         ex[self._key("next")][m] = 0
-        ex[self._key("failed")][m] = K.OK if filled == b else (status or INTEGRATOR_FAILED)
+        ex[self._key("failed")][m] = (Status.OK if filled == b
+                                      else (status or Status.INTEGRATOR_FAILED))
         ex[self._key("C")][m] = np.eye(state.k)
         state.add_counts(blocks=1, **counts)

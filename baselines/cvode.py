@@ -3,14 +3,14 @@
 CVODE's variable-order Adams–Moulton method (orders 1–12, the right family
 for this non-stiff problem) on the orbit and its variational equations, with
 the right-hand side compiled from the model's kernels
-(:mod:`baselines.rhs`).
+(:mod:`varint.baselines.rhs`).
 
 A multistep method loses its history at every restart (scikit-sundae can
 change the state only through ``CVodeReInit``): restarting every τ measured
 5× slower and 10–100× *less* accurate than taking the τ outputs from CVODE's
 own interpolant and renormalising virtually, so this baseline integrates
 blocks of ``block`` intervals (10 time units by default) and restarts only at
-block ends (:mod:`baselines.blocks`). The nonlinear solver is scikit-sundae's
+block ends (:mod:`varint.baselines.blocks`). The nonlinear solver is scikit-sundae's
 Newton iteration (it offers no fixed-point iteration) with a finite-difference
 Jacobian.
 
@@ -26,10 +26,10 @@ import numpy as np
 from importlib import metadata
 from sksundae.cvode import CVODE
 
-from varint import _kernels as K
+from varint.protocol import Status
 from varint._validate import choice, positive_float
 
-from .blocks import INTEGRATOR_FAILED, BlockPropagator
+from .blocks import BlockPropagator
 from .rhs import tangent_rhs
 
 __all__ = ["CVODEPropagator"]
@@ -45,7 +45,9 @@ class CVODEPropagator(BlockPropagator):
     model : Model
     tau : float
         Renormalisation interval (CVODE chooses its own steps).
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     rtol, atol : float, default 1e-10
         CVODE's relative and absolute tolerances (local error per step,
         weighted per component by rtol·|y_i| + atol).
@@ -65,13 +67,13 @@ class CVODEPropagator(BlockPropagator):
     BLOCK_SPAN = 10.0
     DENSE_MAX = 100
 
-    def __init__(self, model, tau, renorm, **options):
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = self._options(options)
         opts["rtol"] = positive_float(opts["rtol"], "rtol")
         opts["atol"] = positive_float(opts["atol"], "atol")
         if opts["linsolver"] is not None:
             opts["linsolver"] = choice(opts["linsolver"], _LINSOLVERS, "linsolver")
-        self._setup(model, tau, renorm, opts)
+        self._setup(model, tau, renorm, opts, accumulator)
         self._rhs, _ = tangent_rhs(model)
         self._solvers = {}
 
@@ -100,13 +102,13 @@ class CVODEPropagator(BlockPropagator):
             res = solver.solve(self.tau * np.arange(n_out + 1), y0)
             ys = res.y[1:]
         counts = {"rhs_evaluations": res.nfev, "jacobians": res.njev}
-        status = K.OK
+        status = Status.OK
         if not res.success:
             # The last row is where CVODE stopped, not a grid point.
             stopped, ys = ys[-1], ys[:-1]
-            status = INTEGRATOR_FAILED if np.isfinite(stopped).all() else K.ORBIT_NONFINITE
+            status = Status.INTEGRATOR_FAILED if np.isfinite(stopped).all() else Status.ORBIT_NONFINITE
         finite = np.isfinite(ys).all(axis=1)
         if not finite.all():
             ys = ys[: np.argmin(finite)]
-            status = K.ORBIT_NONFINITE
+            status = Status.ORBIT_NONFINITE
         return ys, status, counts

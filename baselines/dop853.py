@@ -2,7 +2,7 @@
 
 SciPy's DOP853 (the explicit 8(5,3) pair of Dormand & Prince in Hairer's
 formulation) on the orbit and its variational equations, with the
-right-hand side compiled from the model's kernels (:mod:`baselines.rhs`).
+right-hand side compiled from the model's kernels (:mod:`varint.baselines.rhs`).
 As in the paper, the integrator is restarted every τ from the renormalised
 state (blocks of one interval, :mod:`baselines.blocks`).
 
@@ -22,10 +22,10 @@ import numpy as np
 import scipy
 from scipy.integrate import DOP853
 
-from varint import _kernels as K
+from varint.protocol import Status
 from varint._validate import positive_float
 
-from .blocks import INTEGRATOR_FAILED, BlockPropagator
+from .blocks import BlockPropagator
 from .rhs import tangent_rhs
 
 __all__ = ["DOP853Propagator"]
@@ -40,7 +40,9 @@ class DOP853Propagator(BlockPropagator):
     tau : float
         Renormalisation interval: every interval is one call of the
         integrator, starting from the state renormalised at its start.
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     delta : float, optional
         The paper's local error threshold: ``rtol = atol = delta``. 1e-5 by
         default, the paper's value.
@@ -59,7 +61,7 @@ class DOP853Propagator(BlockPropagator):
     OPTIONS = {"delta": None, "rtol": None, "atol": None}
     PAPER_DELTA = 1e-5
 
-    def __init__(self, model, tau, renorm, **options):
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = self._options(options)
         if opts["delta"] is not None and (opts["rtol"] is not None or opts["atol"] is not None):
             raise ValueError("give either delta (rtol = atol = delta) or rtol/atol, not both")
@@ -71,7 +73,7 @@ class DOP853Propagator(BlockPropagator):
             atol = opts["atol"] if opts["atol"] is not None else opts["rtol"]
             opts.update(rtol=positive_float(rtol, "rtol"), atol=positive_float(atol, "atol"))
         opts["block"] = 1
-        self._setup(model, tau, renorm, opts)
+        self._setup(model, tau, renorm, opts, accumulator)
         _, self._fun = tangent_rhs(model)
 
     def versions(self):
@@ -92,8 +94,8 @@ class DOP853Propagator(BlockPropagator):
             steps += 1
         counts = {"rhs_evaluations": solver.nfev, "dop853_steps": steps}
         if solver.status != "finished" or not np.isfinite(solver.y).all():
-            status = K.ORBIT_NONFINITE if not np.isfinite(solver.y).all() else INTEGRATOR_FAILED
+            status = Status.ORBIT_NONFINITE if not np.isfinite(solver.y).all() else Status.INTEGRATOR_FAILED
             return np.empty((0, y0.size)), status, counts
         # The step DOP853 proposes next (SciPy keeps it in h_abs).
         h[m] = solver.h_abs
-        return solver.y[None, :], K.OK, counts
+        return solver.y[None, :], Status.OK, counts

@@ -10,7 +10,7 @@ Two precisions:
 
 * ``"double"`` — a fast baseline. Blocks of outputs on the τ grid come from
   heyoka's dense output (``propagate_grid``), so the integrator keeps its
-  natural step through a block (:mod:`baselines.blocks`).
+  natural step through a block (:mod:`varint.baselines.blocks`).
 * ``"extended"`` — the reference: ``numpy.longdouble`` throughout (orbit,
   vectors, QR), restarting every τ. On x86-64 Linux this is the 80-bit x87
   format, 64-bit significand, ε = 2⁻⁶³ ≈ 1.08e-19, 1.6e4 times finer than
@@ -38,10 +38,11 @@ import numba
 import numpy as np
 import sympy as sp
 
-from varint import _kernels as K
+from varint.kernels.checks import ACC_BIG, ACC_SMALL, orbit_status, tangent_overflow
+from varint.protocol import Renorm, Status
 from varint._validate import choice, positive_float
 
-from .blocks import INTEGRATOR_FAILED, BlockPropagator
+from .blocks import BlockPropagator
 from .rhs import pack, unpack
 
 __all__ = ["TaylorPropagator", "heyoka_system"]
@@ -156,23 +157,25 @@ def _integrator(symbolic, precision, tol, compact, k, thread):
     return hy.taylor_adaptive(system, np.zeros(len(variables) * (1 + k), dtype=fp), **kwargs)
 
 
-def _renormalize_extended(W, mode, acc_m, acc_e):
-    """:func:`varint._kernels.renormalize` in long double (numba has no
+def _renormalize_extended(W, mode, acc_m, acc_e, r):
+    """:func:`varint.kernels.checks.renormalize` in long double (numba has no
     long double): modified Gram–Schmidt or normalisation of the columns, the
-    same mantissa/exponent bookkeeping of the stretching factors."""
+    same mantissa/exponent bookkeeping of the stretching factors, which are
+    written to ``r``. Returns False if a column is zero or not finite."""
     for j in range(W.shape[1]):
-        if mode == K.RENORM_QR:
+        if mode == Renorm.QR:
             for a in range(j):
                 W[:, j] -= (W[:, a] @ W[:, j]) * W[:, a]
-        r = np.sqrt(W[:, j] @ W[:, j])
-        if not (0 < r < np.inf):
+        norm = np.sqrt(W[:, j] @ W[:, j])
+        if not (0 < norm < np.inf):
             return False
-        a = acc_m[j] * float(r)
-        if a > K._BIG or a < K._SMALL:
+        r[j] = float(norm)
+        a = acc_m[j] * r[j]
+        if a > ACC_BIG or a < ACC_SMALL:
             a, e = math.frexp(a)
             acc_e[j] += e
         acc_m[j] = a
-        W[:, j] /= r
+        W[:, j] /= norm
     return True
 
 
@@ -186,7 +189,9 @@ class TaylorPropagator(BlockPropagator):
         model from :func:`varint.models.from_potential`).
     tau : float
         Renormalisation interval (the integrator chooses its own steps).
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     precision : {"double", "extended"}, default "double"
         Floating-point type of the integration (see the module docstring).
     tol : float, optional
@@ -207,7 +212,7 @@ class TaylorPropagator(BlockPropagator):
     OPTIONS = {"precision": "double", "tol": None, "compact_mode": None, "block": None}
     BLOCK_SPAN = 5.0
 
-    def __init__(self, model, tau, renorm, **options):
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = self._options(options)
         opts["precision"] = choice(opts["precision"], tuple(_FP), "precision")
         if opts["precision"] == "extended":
@@ -231,7 +236,7 @@ class TaylorPropagator(BlockPropagator):
         self._symbolic = model.symbolic()
         # Shared integrators (see _integrator), looked up once per k.
         self._integrators = {}
-        self._setup(model, tau, renorm, opts)
+        self._setup(model, tau, renorm, opts, accumulator)
 
     def describe(self):
         d = super().describe()
@@ -257,10 +262,10 @@ class TaylorPropagator(BlockPropagator):
         ta.state[:] = y0
         grid = np.arange(n_out + 1, dtype=self._fp) * self._fp(self.tau)
         outcome, _, _, steps, _, states = ta.propagate_grid(grid)
-        status = K.OK
+        status = Status.OK
         if outcome != hy.taylor_outcome.time_limit:
-            status = (K.ORBIT_NONFINITE if outcome == hy.taylor_outcome.err_nf_state
-                      else INTEGRATOR_FAILED)
+            status = (Status.ORBIT_NONFINITE if outcome == hy.taylor_outcome.err_nf_state
+                      else Status.INTEGRATOR_FAILED)
         return states[1:], status, {"taylor_steps": steps}
 
     # -- extended precision: restart every τ from the long-double state -------
@@ -276,27 +281,37 @@ class TaylorPropagator(BlockPropagator):
             return super()._advance_orbit(state, m, n)
         d = state.x.shape[1]
         x, W = state.extra["taylor_x"][m], state.extra["taylor_W"][m]
+        accumulate, aux, flow = self._accumulator(state, m)
         for done in range(n):
             ys, status, counts = self._integrate(state, m, pack(x, W), 1)
             state.add_counts(**counts)
             if len(ys):
                 x1, W1 = unpack(ys[0], d)
                 x[:], W[:] = x1, W1
-                status = self._check(x, W, state.acc_m[m], state.acc_e[m])
+                status = self._check(x, W, state.acc_m[m], state.acc_e[m], accumulate, aux, flow,
+                                     (state.step + done + 1) * self.tau)
             state.x[m], state.W[m] = x, W
-            if status != K.OK:
+            if status != Status.OK:
                 return done, status
-        return n, K.OK
+        return n, Status.OK
 
-    def _check(self, x, W, acc_m, acc_e):
-        """The TM stepper's end-of-step checks and renormalisation, in long
-        double."""
-        n = x.shape[0] // 2
-        rq = float(x[:n] @ x[:n])
-        if rq > self._escape_r2:
-            return K.ESCAPED
-        if not np.isfinite(rq + float(x[n:] @ x[n:])):
-            return K.ORBIT_NONFINITE
-        if self._mode == K.RENORM_NONE:
-            return K.TANGENT_OVERFLOW if not (np.abs(W) < K.TANGENT_LIMIT).all() else K.OK
-        return K.OK if _renormalize_extended(W, self._mode, acc_m, acc_e) else K.TANGENT_DEGENERATE
+    def _check(self, x, W, acc_m, acc_e, accumulate, aux, flow, t):
+        """The end-of-interval checks every stepper shares
+        (:mod:`varint.kernels.checks`, on the state rounded to double), the
+        renormalisation in long double, and the accumulator's update."""
+        xd = x.astype(np.float64)
+        status = orbit_status(xd, xd.shape[0] // 2, self._escape_r2)
+        if status != Status.OK:
+            return status
+        if self._mode == Renorm.NONE:
+            return Status.TANGENT_OVERFLOW if tangent_overflow(W.astype(np.float64)) else Status.OK
+        r = np.empty(W.shape[1])
+        if not _renormalize_extended(W, self._mode, acc_m, acc_e, r):
+            return Status.TANGENT_DEGENERATE
+        if aux.shape[0]:
+            n = self.model.n_dof
+            if flow.shape[0]:
+                g = self.model.gradient(xd[:n])
+                flow[:n], flow[n:] = self.model.inverse_mass * xd[n:], -g
+            accumulate(aux, r, xd, W.astype(np.float64), flow, t)
+        return Status.OK

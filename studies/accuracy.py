@@ -162,7 +162,7 @@ def quad_reference(model, x0, W0, times):
     references reach; about 4 s per 1000 time units on Hénon–Heiles."""
     import heyoka as hy
 
-    from baselines.taylor import heyoka_system
+    from varint.baselines.taylor import heyoka_system
 
     q128 = hy.real128
     system, variables = heyoka_system(model.symbolic(), q128)

@@ -88,7 +88,7 @@ def kvec_table(t_end, ks):
     same blocks of τ outputs the Taylor baseline uses (integration only)."""
     import heyoka as hy
 
-    from baselines.taylor import heyoka_system
+    from varint.baselines.taylor import heyoka_system
 
     model, x0 = varint.paper_orbit("R1")
     system, variables = heyoka_system(model.symbolic())

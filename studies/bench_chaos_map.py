@@ -46,7 +46,7 @@ def heyoka_loop(model, X, t_end, steps, indices, seed=0):
     (values, seconds without the one-off compilation)."""
     import heyoka as hy
 
-    from baselines.taylor import heyoka_system
+    from varint.baselines.taylor import heyoka_system
 
     system, variables = heyoka_system(model.symbolic())
     ta = hy.taylor_adaptive(hy.var_ode_sys(system, variables[:2], order=1),

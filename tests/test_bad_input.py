@@ -157,7 +157,7 @@ CASES = [
     ("checkpoint truncated", truncated_checkpoint, varint.CheckpointError,
      "is truncated or corrupt"),
     ("checkpoint of another run", written_by_another_run, varint.CheckpointError,
-     "kind .checkpoint: 'sali', this call: 'lyapunov_spectrum'"),
+     "kind .checkpoint: 'sali', this call: 'lyapunov'"),
     # -- models: masses, parameters, kernels, symbolic potentials
     ("inverse mass zero", lambda p: Model(2, _potential, _grad, _hess, _third, 1,
                                           inverse_mass=[1.0, 0.0]), ValueError,

@@ -10,7 +10,7 @@ def test_provenance_records_what_determines_the_run(c1):
     r = varint.lyapunov_spectrum(model, x0, 20.0, tau=0.1, scheme="ABA864", seed=11,
                                  n_exponents=2)
     p = r.provenance
-    assert p.kind == "lyapunov_spectrum" and p.method == "tm"
+    assert p.kind == "lyapunov" and p.method == "tm"
     assert p.model["name"] == "HenonHeiles" and np.allclose(p.x0, x0)
     assert p.method_options["scheme"]["name"] == "ABA864"
     assert (p.tau, p.t_end, p.seed) == (0.1, 20.0, 11)

@@ -9,7 +9,7 @@ import pytest
 
 import varint
 from varint.schemes import DRIFT, KICK, SplittingScheme, stage_arrays
-from varint.tangent_map import tangent_map_steps
+from varint.methods.tm import tangent_map_steps
 
 from tests.helpers import fitted_slope
 

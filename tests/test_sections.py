@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import varint
-from varint import _kernels as K
+from varint.protocol import Status
 from tests.helpers import fitted_slope
 
 N_CROSS = 12
@@ -23,7 +23,7 @@ def heyoka_crossings(hh):
     """The first crossings of R1 with x = 0 (x increasing) by heyoka's
     Taylor integrator at machine precision, with its event detection."""
     hy = pytest.importorskip("heyoka")
-    from baselines.taylor import heyoka_system
+    from varint.baselines.taylor import heyoka_system
 
     system, variables = heyoka_system(hh.symbolic())
     event = hy.t_event(variables[0], direction=hy.event_direction.positive)
@@ -105,7 +105,7 @@ def test_many_crossings_overflow_the_buffer_without_loss(hh):
 def test_escaping_orbit_stops_with_its_crossings(hh):
     x0 = varint.solve_momentum(hh, [0.0, 0.0], [0.0, 0.0], 0.3)
     r = varint.surface_of_section(hh, x0, 1e3, escape_radius=5.0)
-    assert r.status == K.ESCAPED and r.t[0] < 1e3
+    assert r.status == Status.ESCAPED and r.t[0] < 1e3
 
 
 def test_section_grid(hh):

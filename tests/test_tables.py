@@ -36,7 +36,7 @@ def test_time_series_tables(results):
     df = r.to_dataframe()
     assert list(df.columns) == ["t", "energy_error", "X1", "X2", "X3", "X4"]
     assert np.array_equal(df["X3"], r.exponents[:, 2]) and np.array_equal(df["t"], r.t)
-    assert df.attrs["provenance"]["kind"] == "lyapunov_spectrum"
+    assert df.attrs["provenance"]["kind"] == "lyapunov"
     b = results["lyapunov_batch"]
     df = b.to_dataframe()
     assert len(df) == 2 * len(b.t) and list(df["orbit"]) == [0] * 4 + [1] * 4

@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 import varint
-from varint import _kernels as K
+from varint.kernels import tm as K
+from varint.kernels.checks import renormalize_block
+from varint.protocol import Renorm, Status
 from varint.methods import make_propagator
 from varint.state import RunState
-from varint.tangent_map import tangent_map_steps
+from varint.methods.tm import tangent_map_steps
 from tests.naive import hh_tm_sbab2c_step, qr_positive
 
 
@@ -30,9 +32,11 @@ def test_renormalize_qr_matches_lapack():
     Q, R = qr_positive(W)
     acc_m, acc_e = np.ones(4), np.zeros(4, dtype=np.int64)
     V = W.copy()
-    assert K.renormalize(V, K.RENORM_QR, acc_m, acc_e)
+    r = np.empty(4)
+    assert renormalize_block(V, Renorm.QR, acc_m, acc_e, r) == Status.OK
     assert np.allclose(V, Q, atol=1e-14)
     assert np.allclose(np.log(acc_m) + acc_e * np.log(2), np.log(np.diag(R)), atol=1e-14)
+    assert np.allclose(r, np.diag(R), rtol=1e-14)  # the stretching the accumulators see
 
 
 def test_log_accumulator_is_exact_over_huge_growth():
@@ -42,7 +46,7 @@ def test_log_accumulator_is_exact_over_huge_growth():
     total = 0.0
     for r in np.geomspace(1e5, 1e10, 400):
         W = np.array([[r], [0.0]])
-        K.renormalize(W, K.RENORM_NORMALIZE, acc_m, acc_e)
+        renormalize_block(W, Renorm.NORMALIZE, acc_m, acc_e, np.empty(0))
         total += np.log(r)
     assert np.isclose(np.log(acc_m[0]) + acc_e[0] * np.log(2), total, rtol=1e-14)
 
@@ -116,9 +120,9 @@ def test_specialised_and_run_time_sized_kernels_agree_bitwise(c1):
         acc_m, acc_e = np.ones((1, 4)), np.zeros((1, 4), dtype=np.int64)
         kernel(X, W, acc_m, acc_e, 500, kinds, h, hc, model.inverse_mass, model.params,
                model.bandwidth, model.grad_kernel, model.hess_kernel, model.third_kernel,
-               K.RENORM_QR, np.inf, np.zeros((1, 4), dtype=np.int64),
-               np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.empty((1, 0, 0)),
-               0.0, 0.05)
+               int(Renorm.QR), np.inf, np.zeros((1, 4), dtype=np.int64),
+               np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), K.no_accumulator,
+               np.empty((1, 0, 0)), 0, 0.05)
         results.append((X, W, acc_m))
     for a, b in zip(*results):
         assert np.array_equal(a, b)

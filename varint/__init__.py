@@ -12,29 +12,58 @@ integrator of the orbit and its deviation vectors.
 4
 """
 
-from . import models
-from .checkpoint import CheckpointError
-from .departure import Departure, departure
-from .driver import IntegrationError
-from .indicators import gali, lyapunov_spectrum, sali
-from .integrate import integrate
-from .maps import MAP_INDICATORS, chaos_map
-from .megno import megno
-from .methods import METHODS
-from .models import paper_orbit, solve_momentum
-from .results import (ChaosMapResult, GALIResult, IntegrationResult, LyapunovResult,
-                      MEGNOResult, SALIResult, SectionResult, load_result)
-from .schemes import SCHEMES, SplittingScheme, get_scheme, register_scheme
-from .sections import section_grid, surface_of_section
-from .selection import select_scheme
+import importlib.util as _util
+import sys as _sys
+from pathlib import Path as _Path
+
+
+def _source_checkout_baselines():
+    # The reference integrators live in the repository's top-level
+    # baselines/ folder (the layout is fixed) and are installed as
+    # varint.baselines (pyproject's package-dir). Run from a source
+    # checkout, the same name must find that folder.
+    installed = _Path(__file__).with_name("baselines")
+    folder = _Path(__file__).resolve().parent.parent / "baselines"
+    name = __name__ + ".baselines"
+    if installed.is_dir() or name in _sys.modules or not (folder / "__init__.py").is_file():
+        return
+    spec = _util.spec_from_file_location(name, folder / "__init__.py",
+                                         submodule_search_locations=[str(folder)])
+    module = _util.module_from_spec(spec)
+    _sys.modules[name] = module
+    spec.loader.exec_module(module)
+    globals()["baselines"] = module
+
+
+_source_checkout_baselines()
+
+from . import models  # noqa: E402
+from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
+from .checkpoint import CheckpointError  # noqa: E402
+from .departure import Departure, departure  # noqa: E402
+from .driver import IntegrationError  # noqa: E402
+from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
+from .maps import chaos_map  # noqa: E402
+from .methods import METHODS, register_method  # noqa: E402
+from .models import paper_orbit, solve_momentum  # noqa: E402
+from .protocol import Renorm, Status  # noqa: E402
+from .results import (ChaosMapResult, GALIResult, IndicatorResult,  # noqa: E402
+                      IntegrationResult, LyapunovResult, MEGNOResult, SALIResult, SectionResult,
+                      load_result)
+from .run import run  # noqa: E402
+from .schemes import SCHEMES, SplittingScheme, get_scheme, register_scheme  # noqa: E402
+from .sections import section_grid, surface_of_section  # noqa: E402
+from .selection import select_scheme  # noqa: E402
 
 __all__ = [
     "models", "paper_orbit", "solve_momentum",
-    "SCHEMES", "SplittingScheme", "get_scheme", "register_scheme", "METHODS",
-    "integrate", "lyapunov_spectrum", "gali", "sali", "megno",
+    "SCHEMES", "SplittingScheme", "get_scheme", "register_scheme",
+    "METHODS", "register_method",
+    "INDICATORS", "Indicator", "Option", "get_indicator", "register_indicator",
+    "run", "integrate", "lyapunov_spectrum", "gali", "sali", "megno",
     "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "MEGNOResult",
-    "load_result",
+    "IndicatorResult", "load_result", "Status", "Renorm",
     "IntegrationError", "CheckpointError", "departure", "Departure",
-    "chaos_map", "MAP_INDICATORS", "ChaosMapResult", "surface_of_section", "section_grid",
+    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid",
     "SectionResult", "select_scheme",
 ]

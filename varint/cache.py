@@ -5,7 +5,7 @@ kind of run, the model's description, the initial state, the times, the
 method with its options, every other argument, and the versions of the
 packages and of varint's own source. Change any of them and the key changes.
 
-Entries are written atomically (a temporary file, then ``os.replace``), so a
+Entries are written atomically (:func:`varint.files.atomic_file`), so a
 reader never sees half a file. Each entry carries the SHA-256 of its payload;
 an entry that is truncated or corrupt fails that check, is reported with a
 warning naming the file, deleted and recomputed — never used.
@@ -20,14 +20,13 @@ import contextlib
 import functools
 import hashlib
 import io
-import json
 import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from .files import atomic_write, canonical_json
 from .results import load_result, package_versions
 
 __all__ = ["cache_dir", "cache_key", "cached", "reference", "CacheWarning"]
@@ -53,11 +52,15 @@ def cache_dir() -> Path:
 def _source_digest():
     # Results depend on varint's code as well as on its version number, which
     # does not change with every edit: hash the sources themselves.
-    root = Path(__file__).resolve().parent.parent
+    from . import baselines
+
     h = hashlib.sha256()
-    for folder in ("varint", "baselines"):
-        for path in sorted((root / folder).rglob("*.py")):
-            h.update(str(path.relative_to(root)).encode())
+    for name, folder in (("varint", Path(__file__).resolve().parent),
+                         ("varint.baselines", Path(baselines.__file__).resolve().parent)):
+        for path in sorted(folder.rglob("*.py")):
+            if name == "varint" and "baselines" in path.relative_to(folder).parts:
+                continue  # an installed copy, hashed as varint.baselines
+            h.update(f"{name}/{path.relative_to(folder)}".encode())
             h.update(path.read_bytes())
     return h.hexdigest()
 
@@ -94,7 +97,7 @@ def cache_key(parts) -> str:
     """
     versions = package_versions("heyoka", "scikit-sundae")
     payload = {"parts": _canonical(parts), "versions": versions, "source": _source_digest()}
-    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+    return hashlib.sha256(canonical_json(payload).encode()).hexdigest()
 
 
 def _entry(key):
@@ -122,14 +125,7 @@ def _write(path, result):
     result.save(buf)
     payload = buf.getvalue()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(_MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, _MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
 
 
 def cached(parts, compute):

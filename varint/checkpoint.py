@@ -34,7 +34,6 @@ import io
 import json
 import os
 import re
-import tempfile
 import time
 import warnings
 import zipfile
@@ -42,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .results import _jsonable
+from .files import atomic_file, canonical as _canonical
 from .state import RunState
 
 __all__ = ["CheckpointError", "Checkpoint", "Snapshot", "read", "write"]
@@ -68,7 +67,7 @@ class Snapshot:
     ----------
     parameters : dict
         JSON description of everything that determines the result (see
-        :meth:`varint.runs.Run.parameters`).
+        :meth:`varint.run.Run.parameters`).
     state : RunState
     records : list of dict
         One dict of per-orbit arrays per output time reached.
@@ -87,12 +86,10 @@ def canonical(parameters):
     NumPy scalars Python numbers), so a fresh dict compares equal to a
     stored one."""
     try:
-        text = json.dumps(_jsonable(parameters), sort_keys=True)
+        return _canonical(parameters)
     except TypeError as exc:
-        raise TypeError(f"cannot checkpoint this run: its parameters are not JSON data ({exc}); "
-                        "a model's describe() must return numbers, strings, lists and "
-                        "dicts") from exc
-    return json.loads(text)
+        raise TypeError(f"cannot checkpoint this run: its parameters are {exc}; a model's "
+                        "describe() must return numbers, strings, lists and dicts") from exc
 
 
 def _differing(a, b, prefix=""):
@@ -180,26 +177,13 @@ def write(path, snapshot):
     OSError
         If the file cannot be written; ``path`` is then left as it was.
     """
-    path = os.fspath(path)
     arrays, meta = _arrays_and_meta(snapshot)
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
-                               dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            h = hashlib.sha256(MAGIC)
-            f.write(MAGIC)
-            payload = _HashingWriter(f, h)
-            _write_npz(payload, dict(arrays, __meta__=np.array(json.dumps(meta))))
-            f.write(b"size=%020d sha256=%s\n" % (payload.n, h.hexdigest().encode()))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_directory(directory)
+    with atomic_file(path) as f:
+        h = hashlib.sha256(MAGIC)
+        f.write(MAGIC)
+        payload = _HashingWriter(f, h)
+        _write_npz(payload, dict(arrays, __meta__=np.array(json.dumps(meta))))
+        f.write(b"size=%020d sha256=%s\n" % (payload.n, h.hexdigest().encode()))
 
 
 def _write_npz(stream, arrays):
@@ -209,16 +193,6 @@ def _write_npz(stream, arrays):
         for name, a in arrays.items():
             with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array(member, np.asanyarray(a), allow_pickle=False)
-
-
-def _fsync_directory(directory):
-    # Makes the rename itself durable (POSIX); not possible on every platform.
-    with contextlib.suppress(OSError, AttributeError):
-        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 def read(path):

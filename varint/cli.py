@@ -212,26 +212,24 @@ def _method_options(args):
 
 
 def _cmd_run(args):
-    from . import indicators, integrate
+    from . import api
 
     model, x0 = _model(args)
     x0 = _state(args, model, x0)
     opts = dict(_method_options(args), t_out=args.t_out, progress=None)
     if args.indicator == "lyapunov":
         k = None if args.k is None else int(_floats(args.k, "--k", 1)[0])
-        r = indicators.lyapunov_spectrum(model, x0, args.t_end, n_exponents=k, seed=args.seed,
+        r = api.lyapunov_spectrum(model, x0, args.t_end, n_exponents=k, seed=args.seed,
                                          **opts)
     elif args.indicator == "gali":
         orders = tuple(int(v) for v in _floats(args.k, "--k")) if args.k else (2, model.dim)
-        r = indicators.gali(model, x0, args.t_end, k=orders, seed=args.seed, **opts)
+        r = api.gali(model, x0, args.t_end, k=orders, seed=args.seed, **opts)
     elif args.indicator == "sali":
-        r = indicators.sali(model, x0, args.t_end, seed=args.seed, **opts)
+        r = api.sali(model, x0, args.t_end, seed=args.seed, **opts)
     elif args.indicator == "megno":
-        from .megno import megno
-
-        r = megno(model, x0, args.t_end, seed=args.seed, **opts)
+        r = api.megno(model, x0, args.t_end, seed=args.seed, **opts)
     else:
-        r = integrate.integrate(model, x0, args.t_end, **opts)
+        r = api.integrate(model, x0, args.t_end, **opts)
     print(r.summary())
     _outputs(r, args)
 

@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from .indicators import gali, lyapunov_spectrum
+from .api import gali, lyapunov_spectrum
 from .models import paper_orbit
 
 

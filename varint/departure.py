@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _validate as check
-from .indicators import gali, lyapunov_spectrum
+from .api import gali, lyapunov_spectrum
 from .state import output_steps
 
 __all__ = ["Departure", "departure", "departure_time", "DEFAULT_REFERENCE"]

@@ -4,7 +4,7 @@ failures into errors that say when and why.
 
 Chunks are sized to take about 0.2 s of wall time, which keeps progress and
 Ctrl-C responsive; since propagators are chunk-invariant (rule 3 of
-:mod:`varint.methods`) the chunking never changes a result, and neither does
+:class:`varint.protocol.Propagator`) the chunking never changes a result, and neither does
 stopping between chunks and resuming from a checkpoint.
 """
 
@@ -19,17 +19,9 @@ import warnings
 
 import numpy as np
 
-from . import _kernels as K
+from .protocol import REASONS, Status, is_failure
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
-
-_REASONS = {
-    K.ORBIT_NONFINITE: "the orbit became non-finite (overflow or NaN)",
-    K.ESCAPED: "the orbit escaped: |q| exceeded the model's escape_radius",
-    K.TANGENT_DEGENERATE: "a deviation vector became zero or non-finite",
-    K.TANGENT_OVERFLOW: (f"the unrenormalised deviation vectors exceeded {K.TANGENT_LIMIT:g}; "
-                         "renormalise them (lyapunov_spectrum, gali) or shorten the run"),
-}
 
 _CHUNK_SECONDS = 0.2
 #: A progress bar appears only once a run has lasted this many seconds.
@@ -57,19 +49,15 @@ class IntegrationError(RuntimeError):
         self.t, self.step, self.orbit, self.reason, self.partial = t, step, orbit, reason, partial
 
 
-def failure_message(state, tau, single, reasons=None):
-    """The first failure in ``state`` as (message, details) or None.
-
-    ``reasons`` maps a propagator's own status codes (beyond those of
-    :mod:`varint._kernels`) to their explanations.
-    """
-    failed = np.flatnonzero(state.status > K.OK)
+def failure_message(state, tau, single):
+    """The first failure in ``state`` as (message, details) or None."""
+    failed = np.flatnonzero(is_failure(state.status))
     if failed.size == 0:
         return None
     m = failed[np.argmin(state.fail_step[failed])]
     step = int(state.fail_step[m])
     code = int(state.status[m])
-    reason = _REASONS.get(code) or (reasons or {}).get(code) or f"status {code}"
+    reason = REASONS.get(code) or f"status {code}"
     who = "the orbit" if single else f"orbit {m}"
     msg = f"{who} failed at t = {step * tau:.10g} (step {step} of tau = {tau:g}): {reason}"
     return msg, {"t": step * tau, "step": step, "orbit": int(m), "reason": reason}
@@ -158,7 +146,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     # Outputs are recorded in order, so the records say which remain; a
     # checkpoint may hold a state at an output step not yet recorded.
     todo = [int(s) for s in out_steps[len(records):]]
-    if errors == "raise" and (state.status > K.OK).any():
+    if errors == "raise" and is_failure(state.status).any():
         stop, todo = "failed", []  # resumed from a checkpoint written at a failure
     with _sigint_to_flag() as interrupted, \
             _progress_bar(progress, state.step, out_steps[-1], desc) as bar:
@@ -173,7 +161,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                     chunk = max(chunk, 1)
                 if bar is not None:
                     bar.update(n)
-                if errors == "raise" and (state.status > K.OK).any():
+                if errors == "raise" and is_failure(state.status).any():
                     stop = "failed"
                     break
                 if interrupted.is_set():
@@ -184,15 +172,15 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
             if stop is not None:
                 break
             rec = record(state)
-            dead = state.status > K.OK
+            dead = is_failure(state.status)
             if dead.any():
                 for arr in rec.values():
                     if np.issubdtype(arr.dtype, np.floating):
                         arr[dead] = np.nan
             records.append(rec)
             if decide is not None:
-                settled = np.asarray(decide(rec), dtype=bool) & (state.status == K.OK)
-                state.status[settled] = K.DECIDED
+                settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)
+                state.status[settled] = Status.DECIDED
                 state.fail_step[settled] = state.step
         # Inside the Ctrl-C guard: a Ctrl-C now only sets the flag.
         saved = checkpoint is not None and checkpoint.save(state, records)

@@ -1,9 +1,12 @@
 """Chaos maps: one indicator for many initial conditions, on this machine or
 on a Dask cluster.
 
-A map evaluates an indicator (SALI, GALI_k, X1, MEGNO, FLI, OFLI, see
-:data:`MAP_INDICATORS`) for an (M, 2N) array of initial conditions or a grid
-on a surface of section (:func:`varint.section_grid`). The orbits are split
+A map evaluates an indicator — any of :data:`varint.INDICATORS` that has a
+map value (SALI, GALI_k, X1, MEGNO, FLI, OFLI, local exponents, or one a
+user registered) — for an (M, 2N) array of initial conditions or a grid on
+a surface of section (:func:`varint.section_grid`). It uses the same
+:class:`~varint.indicators.Indicator` objects and the same run
+(:func:`varint.run.prepare`) as single runs. The orbits are split
 into chunks; a chunk is one batch run of the compiled integrator, parallel
 over its orbits (numba ``prange``), so nothing per orbit passes through
 Python. With a ``dask.distributed.Client`` the chunks run on the cluster, one
@@ -37,9 +40,6 @@ import io
 import json
 import math
 import numbers
-import os
-import re
-import tempfile
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -47,162 +47,27 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _kernels as K
 from . import _validate as check
 from .checkpoint import CheckpointError, canonical, differences, digest
-from .indicators import gali_from_vectors, sali_from_vectors
+from .files import atomic_write, jsonable
+from .indicators import INDICATORS, resolve
 from .methods import METHODS
-from .results import ChaosMapResult, Provenance, _jsonable, package_versions
-from .runs import Run
+from .protocol import REASONS, Status, is_failure
+from .results import ChaosMapResult, Provenance, package_versions
+from .run import DEFAULT_TAU, prepare
 from .sections import SectionGrid
 from .state import initial_deviations, output_steps
 
-__all__ = ["chaos_map", "MapIndicator", "MAP_INDICATORS", "register_map_indicator"]
-
-
-@dataclass(frozen=True)
-class MapIndicator:
-    """How a chaos map runs one indicator on a batch and what it reads off.
-
-    Attributes
-    ----------
-    name : str
-        As reported in the result ("sali", "gali_3", "x1").
-    k : int
-        Deviation vectors per orbit.
-    renorm : {"qr", "normalize"}
-        How they are renormalised every τ.
-    require : {"orthonormal", "unit"}
-        What the initial vectors must satisfy (see :class:`varint.runs.Run`).
-    read : callable
-        ``read(state, t) -> ndarray (M,)``: the indicator at time t from the
-        run state (module-level, so it pickles for Dask by reference).
-    threshold : float or None
-        Default early-stopping threshold; None: no early stopping.
-    below : bool
-        Whether values below the threshold decide the orbit (SALI, GALI) or
-        values above it (an indicator that grows for chaotic orbits).
-    log : bool
-        Whether values spread over decades (plots use a log colour scale).
-    """
-
-    name: str
-    k: int
-    renorm: str
-    require: str
-    read: object
-    threshold: float | None = None
-    below: bool = True
-    log: bool = True
-    method_options: dict = field(default_factory=dict)
-
-    def settled(self, values, threshold):
-        """Which orbits the value decides (NaN decides nothing)."""
-        with np.errstate(invalid="ignore"):
-            return values < threshold if self.below else values > threshold
-
-
-def _read_sali(state, t):
-    return sali_from_vectors(state.W)
-
-
-def _read_x1(state, t):
-    return state.log_growth()[:, 0] / t
-
-
-@dataclass(frozen=True)
-class _ReadGALI:
-    order: int
-
-    def __call__(self, state, t):
-        return gali_from_vectors(state.W, (self.order,))[self.order]
-
-
-def _sali(model):
-    """SALI → 0 exponentially for chaotic orbits, stays away from 0 for
-    regular ones (2 dof); decided chaotic below 1e-8 (Skokos 2001)."""
-    return MapIndicator("sali", 2, "normalize", "unit", _read_sali, threshold=1e-8)
-
-
-def _gali(model, k=None):
-    """GALI_k (default k = N): constant on an N-torus for k ≤ N, decaying
-    as a power law for k > N (so no default threshold there), exponentially
-    for chaotic orbits (paper eqs. 16–17)."""
-    k = model.n_dof if k is None else check.n_vectors(k, model.dim, "GALI order k", minimum=2)
-    k = max(k, 2)
-    return MapIndicator(f"gali_{k}", k, "normalize", "unit", _ReadGALI(k),
-                        threshold=1e-8 if k <= model.n_dof else None)
-
-
-def _x1(model):
-    """X1(t_end), the finite-time maximal Lyapunov exponent (paper eq. 10);
-    ∝ 1/t for regular orbits. No early stopping by default."""
-    return MapIndicator("x1", 1, "qr", "orthonormal", _read_x1, threshold=None)
-
-
-@dataclass(frozen=True)
-class _ReadFast:
-    """A column of the MEGNO/FLI accumulators of the TM stepper
-    (:mod:`varint.megno`) for the one vector."""
-
-    column: int
-    per_step: bool = False
-
-    def __call__(self, state, t):
-        aux = state.extra["fast_indicators"][:, 0, self.column]
-        return aux / state.step if self.per_step else aux.copy()
-
-
-def _fast(name, column, per_step=False):
-    def factory(model):
-        # Chaotic orbits grow without bound (Ȳ ≈ χ₁t/2, FLI ≈ χ₁t) while
-        # regular ones stay near 2 or grow like ln t: a threshold above
-        # which an orbit is decided is the user's (threshold=...).
-        return MapIndicator(name, 1, "normalize", "unit", _ReadFast(column, per_step),
-                            threshold=None, below=False, log=False,
-                            method_options={"fast_indicators": True})
-
-    factory.__doc__ = f"{name} of one vector, from the TM stepper (method='tm' only)."
-    return factory
-
-
-#: Indicator name → factory ``(model, k=None) -> MapIndicator`` (``k`` only
-#: for GALI); "gali_3" or "gali3" asks for GALI_3. "megno" is the running
-#: mean Ȳ of MEGNO (→ 2 on regular orbits).
-MAP_INDICATORS = {"sali": _sali, "gali": _gali, "x1": _x1,
-                  "megno": _fast("megno", K.AUX_MEGNO_SUM, per_step=True),
-                  "fli": _fast("fli", K.AUX_FLI), "ofli": _fast("ofli", K.AUX_OFLI)}
-
-
-def register_map_indicator(name, factory):
-    """Make ``indicator=name`` available to :func:`chaos_map`;
-    ``factory(model)`` returns a :class:`MapIndicator`."""
-    key = str(name).lower()
-    if key in MAP_INDICATORS:
-        raise ValueError(f"a map indicator named {name!r} is already registered")
-    MAP_INDICATORS[key] = factory
-    return factory
-
-
-def resolve_indicator(indicator, model):
-    """The :class:`MapIndicator` for a name ("sali", "gali", "gali_3",
-    "x1", …) or pass one through."""
-    if isinstance(indicator, MapIndicator):
-        return indicator
-    key = indicator.lower() if isinstance(indicator, str) else indicator
-    match = re.fullmatch(r"gali_?(\d+)", key) if isinstance(key, str) else None
-    if match:
-        return _gali(model, int(match.group(1)))
-    if key not in MAP_INDICATORS:
-        raise ValueError(f"unknown indicator {indicator!r}; expected one of: "
-                         f"{', '.join(MAP_INDICATORS)} (or gali_k)")
-    return MAP_INDICATORS[key](model)
+__all__ = ["chaos_map"]
 
 
 @dataclass
 class _Spec:
     """What every chunk of one map shares (sent to the workers)."""
 
+    indicator: object
+    indicator_options: dict
+    k: int
     t_end: float
     tau: float
     method: str
@@ -249,43 +114,45 @@ def _worker_threads():
         numba.set_num_threads(before)
 
 
-def run_chunk(model, ind, x0, indices, spec):
+def run_chunk(model, x0, indices, spec):
     """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
     map) as one batch run, stopping early at the check times ``spec.steps``.
     """
+    ind = spec.indicator
     with _worker_threads(), warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
-        W0 = initial_deviations(model.dim, ind.k, len(x0), spec.seed, indices)
-        run = Run("chaos_map", model, x0, spec.t_end, spec.tau, method=spec.method, k=ind.k,
-                  renorm=ind.renorm, deviations=W0, t_out=spec.steps * spec.tau,
-                  progress=False, errors="flag", require=ind.require,
-                  method_options=spec.method_options, escape_radius=spec.escape_radius)
+        W0 = initial_deviations(model.dim, spec.k, len(x0), spec.seed, indices)
+        job = prepare(model, x0, ind, spec.t_end, spec.tau, method=spec.method, deviations=W0,
+                      t_out=spec.steps * spec.tau, progress=False, errors="flag",
+                      escape_radius=spec.escape_radius, **spec.indicator_options,
+                      **spec.method_options)
 
         def record(state):
-            return {"value": ind.read(state, state.step * spec.tau)}
+            rec = job.record(state)
+            return {"value": ind.scalar(rec, model, job.options),
+                    "energy_error": rec["energy_error"]}
 
         def decide(rec):
             return ind.settled(rec["value"], spec.threshold)
 
-        fields, common = run.execute(record, lambda t, f, c: (f, c),
-                                     None if spec.threshold is None else decide)
-    state = run.state
-    n_done = len(common["t"])
+        records, stop, _ = job.drive(record, None if spec.threshold is None else decide)
+    state = job.state
+    n_done = 0 if records is None or not records else len(records["value"])
     # Read each orbit at the last output it was active at: where it was
     # decided, else the last one reached.
     at = np.full(len(x0), n_done - 1)
-    stopped = state.status == K.DECIDED
-    at[stopped] = np.searchsorted(run.steps[:n_done], state.fail_step[stopped])
+    stopped = state.status == Status.DECIDED
+    at[stopped] = np.searchsorted(job.steps[:n_done], state.fail_step[stopped])
     rows = np.arange(len(x0))
-    values = fields["value"][rows, at] if n_done else np.full(len(x0), np.nan)
-    energy = common["energy_error"][rows, at] if n_done else np.full(len(x0), np.nan)
-    t_stop = np.where(state.status != K.OK, state.fail_step, state.step) * spec.tau
-    prov = common["provenance"]
+    values = records["value"][at, rows] if n_done else np.full(len(x0), np.nan)
+    energy = records["energy_error"][at, rows] if n_done else np.full(len(x0), np.nan)
+    t_stop = np.where(state.status != Status.OK, state.fail_step, state.step) * spec.tau
     return _Chunk(values=values, t_stop=t_stop, status=state.status.copy(), energy_error=energy,
                   state=state.x.copy(), counts=dict(state.counts),
-                  provenance={"method_options": prov.method_options, "versions": prov.versions},
-                  interrupted=common["interrupted"])
+                  provenance={"method_options": job.propagator.describe(),
+                              "versions": job.versions()},
+                  interrupted=stop == "interrupted")
 
 
 class _ChunkStore:
@@ -312,19 +179,7 @@ class _ChunkStore:
                     f"{self.path} holds a chaos map with other parameters: " + "; ".join(diff)
                     + ". Use another directory, or delete this one to start over")
         else:
-            self._write(meta, json.dumps(canonical(parameters), indent=1).encode())
-
-    def _write(self, target, data):
-        fd, tmp = tempfile.mkstemp(dir=self.path, suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+            atomic_write(meta, json.dumps(canonical(parameters), indent=1))
 
     def _file(self, c):
         return self.path / f"chunk_{c:06d}.npz"
@@ -347,10 +202,10 @@ class _ChunkStore:
 
     def save(self, c, chunk):
         buf = io.BytesIO()
-        meta = json.dumps(_jsonable({"counts": chunk.counts, "provenance": chunk.provenance}))
+        meta = json.dumps(jsonable({"counts": chunk.counts, "provenance": chunk.provenance}))
         np.savez(buf, __meta__=np.array(meta), values=chunk.values, t_stop=chunk.t_stop,
                  status=chunk.status, energy_error=chunk.energy_error, state=chunk.state)
-        self._write(self._file(c), buf.getvalue())
+        atomic_write(self._file(c), buf.getvalue())
 
 
 def _default_chunk_size(m, workers):
@@ -365,12 +220,12 @@ def _cluster_threads(client):
     return max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
 
 
-def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, method="tm",
-              scheme=None, threshold="default", seed=0, t_check=None, chunk_size=None,
-              client=None, checkpoint=None, progress=None, escape_radius=None,
-              **method_options):
-    """An indicator for many initial conditions: final SALI, GALI_k, X1,
-    MEGNO, FLI or OFLI, with early stopping once an orbit is decided.
+def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=None, method="tm",
+              threshold="default", seed=0, t_check=None, chunk_size=None, client=None,
+              checkpoint=None, progress=None, escape_radius=None, **options):
+    """An indicator for many initial conditions (final SALI, GALI_k, X1,
+    MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
+    map value), with early stopping once an orbit is decided.
 
     Parameters
     ----------
@@ -378,16 +233,22 @@ def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, m
     initial_conditions : array_like, shape (M, 2N), or SectionGrid
         The orbits, or a grid on a surface of section
         (:func:`varint.section_grid`, e.g. Hénon–Heiles x = 0, p_x ≥ 0).
-    indicator : str or MapIndicator, default "sali"
-        "sali", "gali" (GALI_N), "gali_k" for GALI_k, "x1", "megno" (the
-        running mean Ȳ), "fli", "ofli" (these three for ``method="tm"``),
-        or any name registered with :func:`register_map_indicator`.
+    indicator : str or Indicator, default "sali"
+        A name of :data:`varint.INDICATORS` with a map value: "sali",
+        "gali" (the map shows GALI_k with the largest k ≤ N of its orders),
+        "gali_k", "x1", "megno" (the running mean Ȳ), "fli", "ofli",
+        "local_exponents", or any indicator registered with
+        :func:`varint.register_indicator`.
     t_end : float
         Final time of every orbit not stopped early.
-    tau : float, default 0.05
-        Step (renormalisation interval).
-    method, scheme, **method_options
-        As in :func:`varint.lyapunov_spectrum` (default "tm" with SBAB2C).
+    tau : float, optional
+        Step (renormalisation interval); 0.05 by default.
+    method : str, default "tm"
+        As in :func:`varint.run`; every method computes every indicator.
+    **options
+        The indicator's options (e.g. ``k`` for GALI, ``window`` for local
+        exponents) and the method's (e.g. ``scheme``), as for
+        :func:`varint.run`.
     threshold : float, None or "default"
         Early stopping: an orbit whose value falls below it (SALI, GALI) or
         rises above it (MEGNO, FLI, OFLI) at a check time is frozen.
@@ -452,10 +313,20 @@ def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, m
         if single:
             raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
                              f"got shape {np.shape(initial_conditions)}")
-    t_end, tau = check.horizon(t_end, tau)
-    ind = resolve_indicator(indicator, model)
+    t_end, tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+    ind, fixed = resolve(indicator)
+    if ind.scalar is None:
+        raise ValueError(f"indicator {ind.name!r} has no map value (one number per orbit); "
+                         "maps take: " + ", ".join(n for n, i in INDICATORS.items()
+                                                  if i.scalar is not None))
+    ind_options = {**fixed, **{k: v for k, v in options.items() if k in ind.options}}
+    method_options = {k: v for k, v in options.items()
+                      if k not in ind.options and not (k == "scheme" and v is None)}
+    # Checked here, before any chunk runs, with the chunks' own rules.
+    configured = ind.configure(model, ind_options)
+    k = ind.vectors(model, configured, None)
     if isinstance(threshold, str) and threshold == "default":
-        threshold = ind.threshold
+        threshold = ind.default_threshold(model, configured)
     elif threshold is not None:
         if (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
                 or not np.isfinite(threshold)):
@@ -471,27 +342,23 @@ def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, m
     elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
             or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    options = dict(method_options, **ind.method_options)
-    if scheme is not None:
-        options["scheme"] = scheme
-    if ind.method_options and str(method).lower() != "tm":
-        raise ValueError(f"indicator {ind.name!r} is computed by method='tm' only (inside the "
-                         f"compiled stepper), got method={method!r}")
     steps = output_steps(t_end, tau, check.output_times(t_check, "t_check"))
     if escape_radius is not None:
         escape_radius = check.positive_float(escape_radius, "escape_radius")
-    spec = _Spec(t_end=t_end, tau=tau, method=check.choice(method, METHODS, "method"),
-                 method_options=options, steps=steps, seed=int(seed), threshold=threshold,
-                 escape_radius=escape_radius)
+    spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=tau,
+                 method=check.choice(method, METHODS, "method"),
+                 method_options=method_options, steps=steps, seed=int(seed),
+                 threshold=threshold, escape_radius=escape_radius)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
     # times; values do not depend on it (see the module docstring).
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     parameters = {"kind": "chaos_map", "model": model.describe(), "x0": digest(X),
-                  "indicator": ind.name, "threshold": threshold, "t_end": t_end, "tau": tau,
+                  "indicator": ind.name, "indicator_options": configured,
+                  "threshold": threshold, "t_end": t_end, "tau": tau,
                   "t_check": digest(steps), "method": spec.method,
-                  "method_options": _describe_options(options), "seed": int(seed),
+                  "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,
                   "versions": package_versions()}
     store = None if checkpoint is None else _ChunkStore(checkpoint, parameters)
@@ -506,7 +373,7 @@ def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=0.05, m
     todo = [c for c in range(len(chunks)) if c not in done]
     runner = _run_local if client is None else _run_dask
     with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
-        interrupted = runner(client, model, ind, X, chunks, todo, spec, done, store, bar)
+        interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
     return _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
                      interrupted, store is not None, time.perf_counter() - start, client)
 
@@ -529,14 +396,14 @@ def _bar(progress, total, initial):
     return tqdm(total=total, initial=initial, desc="chaos_map", unit="orbit", leave=False)
 
 
-def _run_local(client, model, ind, X, chunks, todo, spec, done, store, bar):
+def _run_local(client, model, X, chunks, todo, spec, done, store, bar):
     """Chunks one after the other in this process; each is parallel over its
     orbits. Returns whether Ctrl-C stopped the map (inside a chunk, its run
     stops at once; between chunks, the finished ones are kept)."""
     try:
         for c in todo:
             idx = chunks[c]
-            chunk = run_chunk(model, ind, X[idx], idx, spec)
+            chunk = run_chunk(model, X[idx], idx, spec)
             if chunk.interrupted:
                 return True
             _finish(c, chunk, done, store, bar)
@@ -545,11 +412,11 @@ def _run_local(client, model, ind, X, chunks, todo, spec, done, store, bar):
     return False
 
 
-def _run_dask(client, model, ind, X, chunks, todo, spec, done, store, bar):
+def _run_dask(client, model, X, chunks, todo, spec, done, store, bar):
     """Chunks as tasks on a Dask cluster, taken as they finish."""
     from distributed import as_completed
 
-    futures = {client.submit(run_chunk, model, ind, X[chunks[c]], chunks[c], spec,
+    futures = {client.submit(run_chunk, model, X[chunks[c]], chunks[c], spec,
                              pure=False): c for c in todo}
     try:
         for future in as_completed(futures):
@@ -582,19 +449,19 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         status[idx], state[idx] = chunk.status, chunk.state
         for key, n in chunk.counts.items():
             counts[key] = counts.get(key, 0) + int(n)
-    failed = status > 0
+    failed = is_failure(status)
     if failed.any():
-        codes = ", ".join(f"{int(n)} with status {int(s)}"
+        codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
                           for s, n in zip(*np.unique(status[failed], return_counts=True)))
-        warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}; see "
-                      "varint._kernels for the codes); their values are NaN", RuntimeWarning,
-                      stacklevel=3)
+        warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
+                      "NaN", RuntimeWarning, stacklevel=3)
     if interrupted:
         warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
                       + ("; they are kept in the checkpoint directory, call again to resume"
                          if kept else ""), RuntimeWarning, stacklevel=3)
     first = next(iter(done.values())).provenance if done else {}
-    options = {"indicator": ind.name, "threshold": spec.threshold, "x0": parameters["x0"],
+    options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
+               "threshold": spec.threshold, "x0": parameters["x0"],
                "chunk_size": parameters["chunk_size"], "chunks": len(chunks),
                "chunks_resumed": resumed,
                "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}

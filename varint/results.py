@@ -16,12 +16,19 @@ import json
 import platform
 from dataclasses import dataclass, field
 from importlib import metadata
+from typing import ClassVar
 
 import numpy as np
 
+from .files import jsonable
+
 __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult",
-           "SectionResult", "ChaosMapResult",
+           "MEGNOResult", "IndicatorResult", "SectionResult", "ChaosMapResult",
            "load_result", "package_versions"]
+
+#: Result classes by name, for :func:`load_result` (every subclass of
+#: ``_Result`` is added when it is defined, wherever that is).
+_CLASSES = {}
 
 
 @functools.lru_cache(maxsize=None)
@@ -36,18 +43,6 @@ def package_versions(*extra):
         except metadata.PackageNotFoundError:
             out[name] = None
     return out
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return obj
 
 
 @dataclass
@@ -98,12 +93,25 @@ class Provenance:
         datetime.timezone.utc).isoformat(timespec="seconds"))
 
     def to_dict(self):
-        return _jsonable(dataclasses.asdict(self))
+        return jsonable(dataclasses.asdict(self))
 
 
 @dataclass
 class _Result:
-    """Fields every result has; subclasses add their indicator arrays."""
+    """Fields every result has; subclasses add their indicator arrays.
+
+    ``layout`` says how the arrays are laid out (``"series"``: ([M,] n_out,
+    ...) over the output times; ``"map"``: one value per initial
+    condition; ``"section"``: crossings), and ``plot_kind`` which plot of
+    :mod:`varint.plotting` shows it.
+    """
+
+    layout: ClassVar[str] = "series"
+    plot_kind: ClassVar[str] = "energy_error"
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        _CLASSES[cls.__name__] = cls
 
     t: np.ndarray
     energy_error: np.ndarray
@@ -126,7 +134,7 @@ class _Result:
             elif isinstance(value, np.ndarray):
                 arrays[f.name] = value
             else:
-                meta[f.name] = _jsonable(value)
+                meta[f.name] = jsonable(value)
         np.savez(path, __meta__=np.array(json.dumps(meta)), **arrays)
 
     def to_dataframe(self):
@@ -175,6 +183,7 @@ class IntegrationResult(_Result):
 
 @dataclass
 class LyapunovResult(_Result):
+    plot_kind: ClassVar[str] = "lyapunov"
     """Result of :func:`varint.lyapunov_spectrum`.
 
     Attributes
@@ -200,6 +209,7 @@ class LyapunovResult(_Result):
 
 @dataclass
 class GALIResult(_Result):
+    plot_kind: ClassVar[str] = "gali"
     """Result of :func:`varint.gali`.
 
     Attributes
@@ -217,6 +227,7 @@ class GALIResult(_Result):
 
 @dataclass
 class SALIResult(_Result):
+    plot_kind: ClassVar[str] = "sali"
     """Result of :func:`varint.sali`.
 
     Attributes
@@ -232,6 +243,7 @@ class SALIResult(_Result):
 
 @dataclass
 class MEGNOResult(_Result):
+    plot_kind: ClassVar[str] = "megno"
     """Result of :func:`varint.megno`.
 
     Attributes
@@ -257,7 +269,35 @@ class MEGNOResult(_Result):
 
 
 @dataclass
+class IndicatorResult(_Result):
+    """Result of an indicator that has no result class of its own (FLI,
+    OFLI, indicators registered by users): its series by name.
+
+    Attributes
+    ----------
+    values : dict of str -> ndarray, shape ([M,] n_out, ...)
+        Each quantity the indicator reads at the output times; also
+        reachable as ``result[name]``.
+    deviations : ndarray, shape ([M,] 2N, k)
+        Final deviation vectors.
+    """
+
+    plot_kind: ClassVar[str] = "series"
+
+    values: dict = None
+    deviations: np.ndarray = None
+
+    def __getitem__(self, name):
+        try:
+            return self.values[name]
+        except KeyError:
+            raise KeyError(f"this result holds {', '.join(self.values)}; not {name!r}") from None
+
+
+@dataclass
 class SectionResult(_Result):
+    layout: ClassVar[str] = "section"
+    plot_kind: ClassVar[str] = "section"
     """Result of :func:`varint.surface_of_section`.
 
     Attributes
@@ -285,6 +325,8 @@ class SectionResult(_Result):
 
 @dataclass
 class ChaosMapResult(_Result):
+    layout: ClassVar[str] = "map"
+    plot_kind: ClassVar[str] = "chaos_map"
     """Result of :func:`varint.chaos_map`: one indicator value per initial
     condition.
 
@@ -336,10 +378,6 @@ class ChaosMapResult(_Result):
     def decided(self):
         """Which orbits early stopping froze (bool, shape (M,))."""
         return self.status == -1
-
-
-_CLASSES = {c.__name__: c for c in (IntegrationResult, LyapunovResult, GALIResult, SALIResult,
-                                    MEGNOResult, SectionResult, ChaosMapResult)}
 
 
 def load_result(path):

@@ -8,7 +8,7 @@ flow of C = {B, {B, A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eqs. 22 an
 
 Every scheme is stored as the independent half of its palindrome (centre
 last), exactly as published, and expanded by :meth:`SplittingScheme.stages`.
-One generic stepper (:mod:`varint._kernels`) runs them all; nothing here is
+One generic stepper (:mod:`varint.kernels.tm`) runs them all; nothing here is
 scheme-specific code.
 
 References

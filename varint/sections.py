@@ -30,13 +30,16 @@ import numpy as np
 import numba
 from numba import njit, prange
 
-from . import _kernels as K
+from .kernels import tm as K
+from .protocol import COUNTERS, Renorm, Status
 from . import _validate as check
 from .results import Provenance, SectionResult, package_versions
 from .schemes import get_scheme, stage_arrays
 
 __all__ = ["surface_of_section", "section_grid", "SectionGrid"]
 
+_OK = int(Status.OK)
+_NONE = int(Renorm.NONE)
 #: Newton iterations at most per crossing (it converges in 3–5).
 _MAX_NEWTON = 60
 #: Crossings stored per orbit and kernel call; an orbit with more pauses
@@ -54,7 +57,7 @@ def _scaled_step(y, frac, kinds, h, hc, hs, hcs, minv, par, bw, grad, hess, thir
         hs[i] = h[i] * frac
         hcs[i] = hc[i] * frac ** 3
     return orbit(y, W, am, ae, 1, kinds, hs, hcs, minv, par, bw, grad, hess, third,
-                 K.RENORM_NONE, np.inf, ctr, rec, aux, 0.0, 0.0)
+                 _NONE, np.inf, ctr, rec, K.no_accumulator, aux, 0, 0.0)
 
 
 @lru_cache(maxsize=None)
@@ -76,7 +79,7 @@ def _section_kernel(n, bw):
         block = 256
         for m in prange(X.shape[0]):
             points[m, :, d] = np.nan
-            if status[m] != K.OK:
+            if status[m] != _OK:
                 continue
             x = X[m]
             start = np.empty(d)
@@ -97,7 +100,8 @@ def _section_kernel(n, bw):
                 for i in range(d):
                     start[i] = x[i]
                 st, ok = orbit(x, W, am, ae, nb, kinds, h, hc, minv, par, bw_rt, grad, hess,
-                               third, K.RENORM_NONE, escape_r2, ctr, rec, no_aux, 0.0, 0.0)
+                               third, _NONE, escape_r2, ctr, rec, K.no_accumulator, no_aux,
+                               0, 0.0)
                 for j in range(ok):
                     prev = start if j == 0 else rec[j - 1]
                     f0 = prev[plane] - value
@@ -137,7 +141,7 @@ def _section_kernel(n, bw):
                     found += 1
                     n_found[m] += 1
                 done[m] += ok
-                if st != K.OK:
+                if st != _OK:
                     status[m] = st
                     break
         return 0
@@ -207,7 +211,7 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
     done = np.zeros(m, dtype=np.int64)
     n_found = np.zeros(m, dtype=np.int64)
     status = np.zeros(m, dtype=np.int64)
-    counts = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
+    counts = np.zeros((m, len(COUNTERS)), dtype=np.int64)
     buf = np.empty((m, _BUFFER, d + 1))
     found = [[] for _ in range(m)]
     start = time.perf_counter()
@@ -220,7 +224,7 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
             rows = buf[j][~np.isnan(buf[j, :, d])]
             if len(rows):
                 found[j].append(rows.copy())
-        active = (status == K.OK) & (done < n_steps) & (n_found < limit)
+        active = (status == Status.OK) & (done < n_steps) & (n_found < limit)
         if not active.any():
             break
     n_max = max(1, int(n_found.max()))
@@ -242,7 +246,7 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         options={"plane": int(plane), "value": float(value), "direction": int(direction),
                  "max_points": max_points, "escape_radius": radius},
         versions=dict(package_versions(), numba=numba.__version__),
-        counts=dict(steps=int(done.sum()), **dict(zip(K.COUNTERS, map(int, total)))),
+        counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total)))),
         wall_time=time.perf_counter() - start)
     sq = (lambda a: a[0]) if single else (lambda a: a)
     return SectionResult(t=done * tau if not single else np.array([done[0] * tau]),

@@ -198,8 +198,7 @@ def select_scheme(model, x0, target_error, metric="energy", t_end=1e4, pilot_t=N
     the choice can be wrong. References are computed once and cached.
     """
     from .cache import reference
-    from .indicators import lyapunov_spectrum
-    from .integrate import integrate
+    from .api import integrate, lyapunov_spectrum
 
     x0, single = check.states(model, x0)
     if not single:

@@ -27,8 +27,9 @@ class RunState:
     step : int
         Renormalisation intervals τ completed.
     status : ndarray of int, shape (M,)
-        0 while an orbit is fine; a failure code (see
-        :mod:`varint._kernels`) once it failed, after which it is frozen.
+        A :class:`~varint.protocol.Status`: 0 while an orbit is fine, a
+        failure code once it failed (it is then frozen), −1 once early
+        stopping decided it.
     fail_step : ndarray of int, shape (M,)
         The interval (1-based) in which an orbit failed, or −1.
     counts : dict

@@ -4,7 +4,7 @@ equations written out with the model's dense gradient and Hessian."""
 import numpy as np
 import pytest
 
-from baselines.rhs import pack, tangent_rhs, unpack
+from varint.baselines.rhs import pack, tangent_rhs, unpack
 from varint.models import FPUBeta, HenonHeiles, ThreeDof
 
 

@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 import varint
-from baselines.taylor import heyoka_system
+from varint.baselines.taylor import heyoka_system
 from varint.models import from_potential
 
 q = sp.Symbol("q")

@@ -26,7 +26,7 @@ def test_gradient_hessian_third_match_finite_differences(model):
         assert np.allclose(H, fd_jacobian(model.gradient, q), atol=1e-8 * (1 + np.abs(H).max()))
         # Σ_k v_k D²(∂_k V) is the derivative of D²V along v.
         v = np.random.default_rng(2).standard_normal(model.n_dof)
-        T = varint._banded.band_to_dense(model.third_band(q, v))
+        T = varint.kernels.banded.band_to_dense(model.third_band(q, v))
         fd = (model.hessian(q + 1e-5 * v) - model.hessian(q - 1e-5 * v)) / 2e-5
         assert np.allclose(T, fd, atol=1e-7 * (1 + np.abs(T).max()))
 

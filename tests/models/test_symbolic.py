@@ -7,7 +7,7 @@ import pytest
 import sympy as sp
 
 import varint
-from varint._banded import band_to_dense
+from varint.kernels.banded import band_to_dense
 from varint.models import FPUBeta, HenonHeiles, ThreeDof, from_potential
 from varint.models.symbolic import SymbolicModel
 from tests.naive import fd_gradient, fd_jacobian

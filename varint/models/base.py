@@ -6,7 +6,7 @@ they need; the integrators call the kernels, never Python methods:
 ``grad(q, par, g)``
     ``g[:] = ∇V(q)``.
 ``hess(q, par, B)``
-    ``B`` = D²V(q) in symmetric band storage (:mod:`varint._banded`),
+    ``B`` = D²V(q) in symmetric band storage (:mod:`varint.kernels.banded`),
     shape ``(bandwidth + 1, N)``.
 ``third(q, par, v, B)``
     ``B = Σ_k v_k D²(∂_k V)(q)``, the third-derivative tensor contracted
@@ -15,6 +15,13 @@ they need; the integrators call the kernels, never Python methods:
 From these the integrators build the corrector terms of
 C = {B,{B,A}} = ∇Vᵀ M⁻¹ ∇V (Skokos & Gerlach 2010, eq. 26 with a mass):
 ∇C = 2 D²V M⁻¹ ∇V and D²C = 2 (D²V M⁻¹ D²V + Σ_k (M⁻¹∇V)_k D²(∂_kV)).
+
+Kernels run with NumPy's floating-point error model: a division by zero
+gives an infinity, not a ``ZeroDivisionError`` raised from inside a
+compiled loop, and the steppers' checks turn the non-finite value into a
+failure with its time and step (:class:`varint.protocol.Status`). A user's
+kernel compiled with numba's default (Python) error model is recompiled
+from its Python source with NumPy's when the model is built.
 """
 
 from __future__ import annotations
@@ -22,10 +29,24 @@ from __future__ import annotations
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
-from .._banded import band_kick_block, band_matvec, band_square_add, band_to_dense
+import numba
+
+from ..kernels.banded import band_kick_block, band_matvec, band_square_add, band_to_dense
 from .._validate import real_array
 
 __all__ = ["Model"]
+
+
+def _numpy_errors(kernel):
+    """``kernel`` compiled with NumPy's error model (see the module
+    docstring); itself if it already is."""
+    options = dict(kernel.targetoptions)
+    if options.get("error_model") == "numpy":
+        return kernel
+    options.pop("nopython", None)
+    options["error_model"] = "numpy"
+    # Not cached on disk: numba's cache does not tell error models apart.
+    return numba.njit(**options)(kernel.py_func)
 
 
 class Model:
@@ -69,7 +90,8 @@ class Model:
             if not isinstance(kernel, Dispatcher):
                 raise ValueError(f"the {label} kernel must be a numba-compiled function "
                                  f"(decorate it with numba.njit), got {kernel!r}")
-        self.grad_kernel, self.hess_kernel, self.third_kernel = grad, hess, third
+        self.grad_kernel, self.hess_kernel, self.third_kernel = (
+            _numpy_errors(k) for k in (grad, hess, third))
         self.bandwidth = min(int(bandwidth), n_dof - 1)
         self.params = real_array(params, "params").reshape(-1)
         if not np.isfinite(self.params).all():

@@ -17,7 +17,7 @@ from .base import Model
 __all__ = ["FPUBeta"]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bond(q, b):
     # Bond b joins particles b − 1 and b (0-based, walls at −1 and n).
     n = q.shape[0]
@@ -26,7 +26,7 @@ def _bond(q, b):
     return right - left
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grad(q, par, g):
     beta = par[0]
     n = q.shape[0]
@@ -41,7 +41,7 @@ def _grad(q, par, g):
             g[b - 1] -= f
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _add_bond(B, b, k, n):
     # A bond b with stiffness k joins particles b − 1 and b: it adds
     # k e_b e_bᵀ to a symmetric tridiagonal matrix in band storage.
@@ -53,7 +53,7 @@ def _add_bond(B, b, k, n):
         B[1, b - 1] = -k
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hess(q, par, B):
     beta = par[0]
     n = q.shape[0]
@@ -65,7 +65,7 @@ def _hess(q, par, B):
         _add_bond(B, b, 1.0 + 3.0 * beta * r * r, n)  # φ''(r)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _third(q, par, v, B):
     beta = par[0]
     n = q.shape[0]

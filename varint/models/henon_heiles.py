@@ -7,7 +7,6 @@ Bounded motion below the escape energy 1/6.
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from .base import Model
@@ -18,14 +17,14 @@ __all__ = ["HenonHeiles"]
 ESCAPE_ENERGY = 1.0 / 6.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grad(q, par, g):
     x, y = q[0], q[1]
     g[0] = x + 2.0 * x * y
     g[1] = y + x * x - y * y
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hess(q, par, B):
     # Paper eq. (A.12): D²V = [[1 + 2y, 2x], [2x, 1 − 2y]].
     x, y = q[0], q[1]
@@ -35,7 +34,7 @@ def _hess(q, par, B):
     B[1, 1] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _third(q, par, v, B):
     # The only non-zero third derivatives: V_xxy = 2, V_yyy = −2.
     B[0, 0] = 2.0 * v[1]

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from .base import Model
@@ -21,7 +20,7 @@ __all__ = ["ThreeDof"]
 _S2, _S3 = math.sqrt(2.0), math.sqrt(3.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grad(q, par, g):
     x, y, z = q[0], q[1], q[2]
     g[0] = x + 2.0 * x * (y + z)
@@ -29,7 +28,7 @@ def _grad(q, par, g):
     g[2] = _S3 * z + x * x
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hess(q, par, B):
     x, y, z = q[0], q[1], q[2]
     B[0, 0] = 1.0 + 2.0 * (y + z)
@@ -43,7 +42,7 @@ def _hess(q, par, B):
     B[2, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _third(q, par, v, B):
     # Non-zero third derivatives: V_xxy = V_xxz = 2.
     for b in range(3):

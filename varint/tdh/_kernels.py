@@ -6,7 +6,7 @@ Every renormalisation interval [t_i, t_i + τ) the orbit is advanced by
 w = (δq, δp) by an approximation of the tangent dynamics Hamiltonian (TDH,
 eq. 9 of the paper's LaTeX source) built from D²V at the grid times
 t_i + jΔt only. The orbit is integrated a block of intervals at a time by
-the TM method's own stepper (:func:`varint._kernels.orbit_kernel`, k = 0),
+the TM method's own stepper (:func:`varint.kernels.tm.orbit_kernel`, k = 0),
 which records it after every step: the orbit is the TM method's, bit for
 bit, and the stepper is called once per block, not once per step (a call
 per step cost more than the step: numba reference-counts the arrays passed).
@@ -33,30 +33,39 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from .. import _kernels as K
-from .._banded import band_kick_block, band_square_add
+from ..kernels import tm as K
+from ..kernels.banded import band_kick_block, band_square_add
+from ..kernels.checks import CHECK_EVERY, all_finite, renormalize, tangent_overflow
+from ..protocol import COUNTERS as TM_COUNTERS, Renorm, Status
 from .frozen import _oscillator
 
 #: The three methods (compile-time constants of the kernel).
 CC, ES, EPS = 0, 1, 2
 
 #: Counters kept per orbit: those of the TM stepper, and eigen-decompositions.
-COUNTERS = K.COUNTERS + ("eigendecompositions",)
+COUNTERS = TM_COUNTERS + ("eigendecompositions",)
+
+_OK = int(Status.OK)
+_DEGENERATE = int(Status.TANGENT_DEGENERATE)
+_OVERFLOW = int(Status.TANGENT_OVERFLOW)
+_HESS = int(Status.HESSIAN_NONFINITE)
+_NONE = int(Renorm.NONE)
 
 #: Size (in float64 values) of the record of the orbit kept per block of
 #: intervals: 512 kB.
 _BLOCK_VALUES = 1 << 16
 
 
-def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
+def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
     """The one-orbit TDH stepper for method ``MODE``; sizes are constants
-    when ≥ 0, else read from the arrays."""
+    when ≥ 0, else read from the arrays. ``FLOW``: the accumulator reads the
+    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`)."""
     orbit = K.orbit_kernel(N_C, BW_C)
 
     @njit
     def tdh_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx,
                   need, tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2,
-                  counters):
+                  counters, accumulate, aux, step0):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -71,6 +80,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
         x0 = np.empty(n)                        # q at the start of the block
         no_W, no_m, no_e = np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64)
         no_aux = np.empty((0, 0))
+        r_acc = np.empty(k if aux.shape[0] > 0 else 0)    # stretching, for the accumulator
+        flow = np.empty(d if FLOW else 0)
+        gq = np.empty(n)                        # ∇V, for the accumulator's flow
         q = np.empty(n)
         H = np.zeros((bw + 1, n))
         n_grid = n_sub + 1
@@ -98,9 +110,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
             for i in range(n):
                 x0[i] = x[i]
             status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
-                                  bw_rt, grad, hess, third, K.RENORM_NONE, escape_r2, counters,
-                                  rec, no_aux, 0.0, 0.0)
-            complete = steps // n_sub if status != K.OK else nb
+                                  bw_rt, grad, hess, third, _NONE, escape_r2, counters,
+                                  rec, K.no_accumulator, no_aux, 0, 0.0)
+            complete = steps // n_sub if status != _OK else nb
             for s in range(complete):
                 if tangent:
                     # D²V at the grid points t_i + jΔt the method uses.
@@ -118,6 +130,10 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
                             q[i] = x0[i] if r < 0 else rec[r, i]
                         hess(q, par, H)
                         counters[1] += 1
+                        if not all_finite(H.ravel(), (bw + 1) * n):
+                            for i in range(d):
+                                x[i] = rec[(s + 1) * n_sub - 1, i]
+                            return _HESS, done + s
                         for b in range(bw + 1):
                             for i in range(n):
                                 Hs[jg, b, i] = H[b, i]
@@ -141,7 +157,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
                         # LAPACK would raise: fail the interval like a bad vector.
                         for i in range(d):
                             x[i] = rec[(s + 1) * n_sub - 1, i]
-                        return K.TANGENT_DEGENERATE, done + s
+                        return _DEGENERATE, done + s
                     eig(q0, Kd, lam, Qm)
                     counters[4] += 1
                     for r in range(n):
@@ -199,34 +215,40 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE):
                             for i in range(n):
                                 Kb[b, i] += hs * Hs[g, b, i]
                         band_kick_block(Kb, W, n, k, bwc)
-                failed = False
-                if renorm != K.RENORM_NONE:
-                    failed = not K._renormalize(W, renorm, acc_m, acc_e, d, k)
-                if failed:
-                    # Leave the orbit where the vectors are: the end of interval s.
-                    r = (s + 1) * n_sub - 1
+                # The vectors are at the end of interval s, and so is the orbit.
+                r = (s + 1) * n_sub - 1
+                if renorm != _NONE:
+                    if renormalize(W, renorm, acc_m, acc_e, r_acc, d, k) != _OK:
+                        for i in range(d):
+                            x[i] = rec[r, i]
+                        return _DEGENERATE, done + s
+                    if aux.shape[0] > 0:
+                        if FLOW:
+                            for i in range(n):
+                                q[i] = rec[r, i]
+                            grad(q, par, gq)
+                            counters[0] += 1
+                            for i in range(n):
+                                flow[i] = minv[i] * rec[r, n + i]
+                                flow[n + i] = -gq[i]
+                        accumulate(aux, r_acc, rec[r], W, flow, (step0 + done + s + 1) * tau)
+                elif tangent and (done + s) % CHECK_EVERY == CHECK_EVERY - 1 and \
+                        tangent_overflow(W):
                     for i in range(d):
                         x[i] = rec[r, i]
-                    return K.TANGENT_DEGENERATE, done + s
-                if renorm == K.RENORM_NONE and tangent and \
-                        (done + s) % K._CHECK_EVERY == K._CHECK_EVERY - 1 and \
-                        K._tangent_overflow(W):
-                    r = (s + 1) * n_sub - 1
-                    for i in range(d):
-                        x[i] = rec[r, i]
-                    return K.TANGENT_OVERFLOW, done + s
-            if status != K.OK:
+                    return _OVERFLOW, done + s
+            if status != _OK:
                 return status, done + complete
             done += nb
-        if renorm == K.RENORM_NONE and tangent and K._tangent_overflow(W):
-            return K.TANGENT_OVERFLOW, n_steps - 1
-        return K.OK, n_steps
+        if renorm == _NONE and tangent and tangent_overflow(W):
+            return _OVERFLOW, n_steps - 1
+        return _OK, n_steps
 
     return tdh_orbit
 
 
 @lru_cache(maxsize=None)
-def tdh_batch(n, k, bw, mode, parallel):
+def tdh_batch(n, k, bw, mode, parallel, flow=False):
     """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
     read at run time).
@@ -234,31 +256,32 @@ def tdh_batch(n, k, bw, mode, parallel):
     The returned function advances every orbit of ``X`` (M, 2N) whose
     ``status`` is OK by ``n_steps`` renormalisation intervals, in parallel
     over orbits if ``parallel``; ``done[m]`` receives the intervals orbit m
-    completed and ``status[m]`` its status (codes of :mod:`varint._kernels`).
+    completed and ``status[m]`` its status (codes of :class:`varint.protocol.Status`).
     An orbit that fails is frozen as it was at the failure: the orbit at the
     end of the failed orbit step and the vectors at the start of that
     interval, or, if their renormalisation failed, both at its end.
     """
-    tdh_orbit = _make_tdh_orbit(n, k, bw, mode)
+    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx, need,
               tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2, counters,
-              status, done):
+              status, done, accumulate, aux, step0):
         for m in prange(X.shape[0]):
-            if status[m] != K.OK:
+            if status[m] != _OK:
                 done[m] = 0
                 continue
             st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc, n_sub,
                                   tkinds, th, thc, tidx, need, tau, minv, par, bw_rt, grad,
-                                  hess, third, eig, renorm, escape_r2, counters[m])
+                                  hess, third, eig, renorm, escape_r2, counters[m],
+                                  accumulate, aux[m], step0)
             status[m] = st
             done[m] = steps
 
     return batch
 
 
-def batch_kernel(n, k, bw, mode, parallel):
+def batch_kernel(n, k, bw, mode, parallel, flow=False):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
-    TM stepper's rule, :func:`varint._kernels.batch_kernel`)."""
-    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel)
+    TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`)."""
+    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel, flow)

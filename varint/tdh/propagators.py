@@ -1,5 +1,5 @@
 """The TDH methods as propagators: ``method="tdhcc"``, ``"tdhes"``,
-``"tdheps"`` (rules of :mod:`varint.methods`).
+``"tdheps"`` (rules of :class:`varint.protocol.Propagator`).
 
 All three integrate the orbit with a splitting scheme (``scheme=``, the
 paper's SBAB2C by default) and the deviation vectors with an approximation
@@ -30,11 +30,12 @@ import numba
 import numpy as np
 import scipy
 
-from .. import _kernels as K
 from .._validate import choice
+from ..kernels import tm as K
+from ..methods import method_options
 from ..models.henon_heiles import HenonHeiles
+from ..protocol import COUNTERS, Renorm, Status
 from ..schemes import DRIFT, SCHEMES, get_scheme, stage_arrays
-from ..tangent_map import _RENORM
 from . import _kernels as TK
 from .frozen import henon_heiles_eig, lapack_eig
 
@@ -92,13 +93,16 @@ class _TDHPropagator:
 
     method = ""
     _mode = None
+    #: Options every TDH method takes; subclasses add their own.
+    OPTIONS = ("scheme", "parallel")
 
-    def __init__(self, model, tau, renorm, scheme, parallel, n_sub):
+    def __init__(self, model, tau, renorm, accumulator, options, n_sub):
         self.model = model
         self.tau = float(tau)
-        self.renorm = renorm
-        self.parallel = parallel
-        self.scheme = get_scheme(scheme)
+        self.renorm = Renorm.parse(renorm)
+        self.accumulator = accumulator
+        self.parallel = options.get("parallel")
+        self.scheme = get_scheme(options.get("scheme", "SBAB2C"))
         self.n_sub = int(n_sub)
         #: The orbit's integration step Δt (τ, or τ/m for TDHeps).
         self.orbit_step = self.tau / self.n_sub
@@ -127,18 +131,22 @@ class _TDHPropagator:
         m = state.n_orbits
         parallel = K.use_parallel(self.parallel, m)
         model = self.model
+        acc = self.accumulator
+        update, aux, flow = ((K.no_accumulator, np.empty((m, 0, 0)), False) if acc is None
+                             else (acc.update, state.extra[acc.key], acc.needs_flow))
         kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode,
-                                 parallel)
+                                 parallel, flow)
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == K.OK
+        was_active = state.status == Status.OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, self.n_sub, self._tkinds, self._th, self._thc, self._tidx,
                self._need, self.tau, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, self._eig,
-               _RENORM[self.renorm], self._escape_r2, counters, state.status, done)
+               int(self.renorm), self._escape_r2, counters, state.status, done, update, aux,
+               state.step)
         state.after_kernel(n, was_active, done, counters,
-                           TK.COUNTERS if self._mode == TK.ES else K.COUNTERS)
+                           TK.COUNTERS if self._mode == TK.ES else COUNTERS)
 
 
 class TDHccPropagator(_TDHPropagator):
@@ -164,7 +172,9 @@ class TDHccPropagator(_TDHPropagator):
     model : Model
     tau : float
         Renormalisation interval, equal to the orbit's step Δt.
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     scheme : str or SplittingScheme, default "SBAB2C"
         Scheme of the orbit.
     tangent_scheme : str or SplittingScheme, optional
@@ -178,9 +188,13 @@ class TDHccPropagator(_TDHPropagator):
     method = "tdhcc"
     _mode = TK.CC
 
-    def __init__(self, model, tau, renorm, scheme="SBAB2C", tangent_scheme=None, substeps=1,
-                 parallel=None):
-        super().__init__(model, tau, renorm, scheme, parallel, n_sub=1)
+    OPTIONS = _TDHPropagator.OPTIONS + ("tangent_scheme", "substeps")
+
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        options = method_options(self.method, options, self.OPTIONS)
+        super().__init__(model, tau, renorm, accumulator, options, n_sub=1)
+        substeps = options.get("substeps", 1)
+        tangent_scheme = options.get("tangent_scheme")
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
                 or substeps < 1:
             raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
@@ -218,7 +232,9 @@ class TDHesPropagator(_TDHPropagator):
     model : Model
     tau : float
         Renormalisation interval, equal to the orbit's step Δt.
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     scheme : str or SplittingScheme, default "SBAB2C"
         Scheme of the orbit.
     eigensolver : {"lapack", "analytic"}, default "lapack"
@@ -231,10 +247,13 @@ class TDHesPropagator(_TDHPropagator):
     method = "tdhes"
     _mode = TK.ES
 
-    def __init__(self, model, tau, renorm, scheme="SBAB2C", eigensolver="lapack",
-                 parallel=None):
-        super().__init__(model, tau, renorm, scheme, parallel, n_sub=1)
-        self.eigensolver = choice(eigensolver, ("lapack", "analytic"), "eigensolver")
+    OPTIONS = _TDHPropagator.OPTIONS + ("eigensolver",)
+
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        options = method_options(self.method, options, self.OPTIONS)
+        super().__init__(model, tau, renorm, accumulator, options, n_sub=1)
+        self.eigensolver = choice(options.get("eigensolver", "lapack"), ("lapack", "analytic"),
+                                  "eigensolver")
         if self.eigensolver == "analytic":
             if not isinstance(model, HenonHeiles) or not np.all(model.inverse_mass == 1.0):
                 raise ValueError(
@@ -286,7 +305,9 @@ class TDHepsPropagator(_TDHPropagator):
     model : Model
     tau : float
         Renormalisation interval, the step of ``tangent_scheme``.
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every interval (:class:`varint.protocol.Accumulator`).
     scheme : str or SplittingScheme, default "SBAB2C"
         Scheme of the orbit.
     tangent_scheme : str or SplittingScheme, optional
@@ -304,8 +325,12 @@ class TDHepsPropagator(_TDHPropagator):
     method = "tdheps"
     _mode = TK.EPS
 
-    def __init__(self, model, tau, renorm, scheme="SBAB2C", tangent_scheme=None,
-                 parallel=None):
+    OPTIONS = _TDHPropagator.OPTIONS + ("tangent_scheme",)
+
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        options = method_options(self.method, options, self.OPTIONS)
+        scheme = options.get("scheme", "SBAB2C")
+        tangent_scheme = options.get("tangent_scheme")
         tangent = get_scheme(scheme if tangent_scheme is None else tangent_scheme)
         m, index = eps_grid(tangent)
         if m is None:
@@ -313,7 +338,7 @@ class TDHepsPropagator(_TDHPropagator):
                 f"TDHeps cannot integrate the tangent dynamics with {tangent.name}: its kicks "
                 f"need the orbit between the grid points t_i + jτ/m (m ≤ {MAX_GRID}); "
                 f"pass tangent_scheme= one of: {', '.join(_eps_schemes())}")
-        super().__init__(model, tau, renorm, scheme, parallel, n_sub=m)
+        super().__init__(model, tau, renorm, accumulator, options, n_sub=m)
         self.tangent_scheme = tangent
         self._tkinds, self._th, self._thc = stage_arrays(tangent, self.tau)
         self._tidx = index

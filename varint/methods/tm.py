@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import numba
 
-from . import _kernels as K
-from .schemes import get_scheme, stage_arrays
+from ..kernels import tm as K
+from ..protocol import COUNTERS, Renorm, Status
+from ..schemes import get_scheme, stage_arrays
+from . import method_options
 
 __all__ = ["TangentMapPropagator", "tangent_map_steps"]
-
-_RENORM = {"none": K.RENORM_NONE, "normalize": K.RENORM_NORMALIZE, "qr": K.RENORM_QR}
 
 
 class TangentMapPropagator:
@@ -27,30 +27,27 @@ class TangentMapPropagator:
     model : Model
     tau : float
         Integration step, which is also the renormalisation interval.
-    renorm : {"qr", "normalize", "none"}
+    renorm : Renorm
+    accumulator : Accumulator, optional
+        Updated after every step (see :class:`varint.protocol.Accumulator`).
     scheme : str or SplittingScheme, default "SBAB2C"
         The paper's S_B2^c by default.
     parallel : bool, optional
         Run the orbits of a batch on all cores (numba ``prange``). By
         default, when there is more than one orbit and more than one thread.
-    fast_indicators : bool, default False
-        Also accumulate MEGNO, FLI and OFLI of every vector after every step
-        into ``state.extra["fast_indicators"]`` (shape (M, k, 5), columns as
-        :data:`varint._kernels.AUX_LOG` …); needs ``renorm="normalize"``.
     """
 
     method = "tm"
+    OPTIONS = ("scheme", "parallel")
 
-    def __init__(self, model, tau, renorm, scheme="SBAB2C", parallel=None,
-                 fast_indicators=False):
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        opts = method_options(self.method, options, self.OPTIONS)
         self.model = model
         self.tau = float(tau)
-        self.scheme = get_scheme(scheme)
-        self.renorm = renorm
-        self.parallel = parallel
-        self.fast_indicators = bool(fast_indicators)
-        if self.fast_indicators and renorm != "normalize":
-            raise ValueError(f"fast_indicators need renorm='normalize', got {renorm!r}")
+        self.scheme = get_scheme(opts.get("scheme", "SBAB2C"))
+        self.renorm = Renorm.parse(renorm)
+        self.parallel = opts.get("parallel")
+        self.accumulator = accumulator
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
@@ -58,35 +55,31 @@ class TangentMapPropagator:
     def describe(self):
         return {"scheme": self.scheme.describe()}
 
-    def _aux(self, state):
-        if not self.fast_indicators:
-            return np.empty((state.n_orbits, 0, 0))
-        if "fast_indicators" not in state.extra:
-            # At t = 0: S = 0, so FLI = 0; OFLI is a maximum over steps ≥ 1.
-            aux = np.zeros((state.n_orbits, state.k, K.N_AUX))
-            aux[:, :, K.AUX_OFLI] = -np.inf
-            state.extra["fast_indicators"] = aux
-        return state.extra["fast_indicators"]
-
     def versions(self):
         return {"numba": numba.__version__}
+
+    def _accumulator(self, state):
+        acc = self.accumulator
+        if acc is None:
+            return K.no_accumulator, np.empty((state.n_orbits, 0, 0)), False
+        return acc.update, state.extra[acc.key], acc.needs_flow
 
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` steps."""
         m = state.n_orbits
-        parallel = K.use_parallel(self.parallel, m)
         model = self.model
-        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth, parallel,
-                                self.fast_indicators)
-        counters = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
+        update, aux, flow = self._accumulator(state)
+        kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth,
+                                K.use_parallel(self.parallel, m), flow)
+        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == K.OK
+        was_active = state.status == Status.OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, model.inverse_mass, model.params, model.bandwidth,
-               model.grad_kernel, model.hess_kernel, model.third_kernel,
-               _RENORM[self.renorm], self._escape_r2, counters, state.status, done,
-               self._aux(state), state.step * self.tau, self.tau)
-        state.after_kernel(n, was_active, done, counters, K.COUNTERS)
+               model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
+               self._escape_r2, counters, state.status, done, update, aux,
+               state.step, self.tau)
+        state.after_kernel(n, was_active, done, counters, COUNTERS)
 
 
 def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
@@ -109,7 +102,14 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     -------
     x : ndarray, shape (2N,)
     W : ndarray, shape (2N, k)
+
+    Raises
+    ------
+    FloatingPointError
+        If the map fails (the message gives the step and the reason).
     """
+    from ..protocol import REASONS
+
     x = np.array(x, dtype=np.float64).reshape(1, -1)
     if x.shape[1] != model.dim or not np.isfinite(x).all():
         raise ValueError(f"x must be a finite state of length {model.dim}")
@@ -125,10 +125,11 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False)
     kernel(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), int(n_steps), kinds, h,
            hc, model.inverse_mass, model.params, model.bandwidth, model.grad_kernel,
-           model.hess_kernel, model.third_kernel, K.RENORM_NONE,
+           model.hess_kernel, model.third_kernel, int(Renorm.NONE),
            np.inf if r is None else float(r) ** 2,
-           np.zeros((1, len(K.COUNTERS)), dtype=np.int64), status, done,
-           np.empty((1, 0, 0)), 0.0, float(tau))
-    if status[0] != K.OK:
-        raise FloatingPointError(f"the map failed after {done[0]} steps (status {status[0]})")
+           np.zeros((1, len(COUNTERS)), dtype=np.int64), status, done,
+           K.no_accumulator, np.empty((1, 0, 0)), 0, float(tau))
+    if status[0] != Status.OK:
+        raise FloatingPointError(f"the map failed after {done[0]} steps: "
+                                 f"{REASONS.get(Status(status[0]), status[0])}")
     return x[0], W[0]

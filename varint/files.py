@@ -1,0 +1,105 @@
+"""Files written safely, and JSON written canonically: the two helpers every
+writer in varint uses (checkpoints, chaos-map chunks, the reference cache,
+generated kernels, the studies' results).
+
+:func:`atomic_file` writes to a temporary file in the target's directory,
+flushes it to disk (``fsync``), moves it over the target with
+:func:`os.replace` and syncs the directory, so at every instant the path
+holds either the old complete file or the new one — never half of one,
+even if the process is killed or the machine loses power.
+
+:func:`canonical` is the one JSON form of parameters (sorted keys; NumPy
+arrays and scalars as lists and numbers): two descriptions of the same run
+compare equal, and hash equal, whichever way they were built.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+
+import numpy as np
+
+__all__ = ["atomic_file", "atomic_write", "canonical", "canonical_json", "jsonable"]
+
+
+def jsonable(obj):
+    """``obj`` with NumPy arrays and scalars, tuples and non-string keys
+    turned into what JSON holds (non-finite floats stay floats)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def canonical_json(obj, indent=None):
+    """``obj`` as JSON text with sorted keys (see :func:`jsonable`).
+
+    Raises
+    ------
+    TypeError
+        If ``obj`` holds something JSON cannot (the message says what).
+    """
+    try:
+        return json.dumps(jsonable(obj), sort_keys=True, indent=indent)
+    except TypeError as exc:
+        raise TypeError(f"not JSON data ({exc}); descriptions must be numbers, strings, lists "
+                        "and dicts") from exc
+
+
+def canonical(obj):
+    """``obj`` as it reads back from :func:`canonical_json` (tuples become
+    lists, NumPy scalars Python numbers), so a fresh description compares
+    equal to a stored one."""
+    return json.loads(canonical_json(obj))
+
+
+@contextlib.contextmanager
+def atomic_file(path, mode="wb"):
+    """Open a temporary file that replaces ``path`` when the block ends
+    without an exception (see the module docstring); on an exception the
+    temporary file is removed and ``path`` is left as it was.
+
+    Raises
+    ------
+    OSError
+        If the directory cannot be written.
+    """
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
+                               dir=directory)
+    try:
+        with os.fdopen(fd, mode) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    _fsync_directory(directory)
+
+
+def atomic_write(path, data):
+    """Write ``data`` (bytes or str) to ``path`` atomically."""
+    with atomic_file(path, "wb" if isinstance(data, bytes) else "w") as f:
+        f.write(data)
+
+
+def _fsync_directory(directory):
+    # Makes the rename itself durable (POSIX); not possible on every platform.
+    with contextlib.suppress(OSError, AttributeError):
+        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)

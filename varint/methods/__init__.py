@@ -1,0 +1,109 @@
+"""Integration methods behind the single ``method=`` switch.
+
+A method is a *propagator*: an object that advances a
+:class:`~varint.state.RunState` by whole intervals τ, following the rules of
+:class:`varint.protocol.Propagator`. Every indicator is written once against
+that protocol, so every method feeds the same indicator code.
+
+A method is registered by name with the "module:class" that implements it
+(imported on first use, so heyoka and SUNDIALS load only when asked for); a
+new method is one file plus one call of :func:`register_method`.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from ..protocol import Renorm
+
+__all__ = ["METHODS", "make_propagator", "register_method", "method_options", "propagator_class"]
+
+#: ``method=`` name → "module:class".
+METHODS = {
+    "tm": "varint.methods.tm:TangentMapPropagator",
+    "tdhcc": "varint.tdh.propagators:TDHccPropagator",
+    "tdhes": "varint.tdh.propagators:TDHesPropagator",
+    "tdheps": "varint.tdh.propagators:TDHepsPropagator",
+    "taylor": "varint.baselines.taylor:TaylorPropagator",
+    "cvode": "varint.baselines.cvode:CVODEPropagator",
+    "dop853": "varint.baselines.dop853:DOP853Propagator",
+}
+
+
+def register_method(name, target):
+    """Make ``method=name`` available everywhere; ``target`` is
+    "module:Class" of a class following :class:`varint.protocol.Propagator`.
+
+    Raises
+    ------
+    ValueError
+        If the name is taken or ``target`` is not of the form "module:Class".
+    """
+    key = str(name).lower()
+    if key in METHODS:
+        raise ValueError(f"a method named {name!r} is already registered")
+    if not (isinstance(target, str) and target.count(":") == 1 and all(target.split(":"))):
+        raise ValueError(f"target must be 'module:Class', got {target!r}")
+    METHODS[key] = target
+
+
+def _key(method):
+    key = method.lower() if isinstance(method, str) else method
+    if key not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of: {', '.join(METHODS)}")
+    return key
+
+
+def propagator_class(method):
+    """The class registered under ``method`` (case-insensitive).
+
+    Raises
+    ------
+    ValueError
+        For an unknown method; the message lists the valid ones.
+    """
+    module, _, cls = METHODS[_key(method)].partition(":")
+    return getattr(importlib.import_module(module), cls)
+
+
+def method_options(method, given, valid):
+    """``given`` options checked against the ``valid`` names of ``method``.
+
+    Raises
+    ------
+    TypeError
+        Naming the unknown option and the valid ones (rule 1 of the
+        protocol: a misspelt tolerance must not pass silently).
+    """
+    unknown = sorted(set(given) - set(valid))
+    if unknown:
+        listed = ", ".join(valid) if valid else "none"
+        raise TypeError(f"unknown option {unknown[0]!r} for method {method!r}; valid options: "
+                        f"{listed} (see varint.METHODS for the other methods)")
+    return dict(given)
+
+
+def make_propagator(method, model, tau, renorm, accumulator=None, **options):
+    """Build the propagator registered under ``method``.
+
+    Parameters
+    ----------
+    method : str
+    model : Model
+    tau : float
+    renorm : Renorm or {"qr", "normalize", "none"}
+    accumulator : Accumulator, optional
+        Updated after every interval (rule 9 of the protocol).
+    **options
+        The method's own options.
+
+    Raises
+    ------
+    ValueError
+        For an unknown method (the message lists the valid ones) or renorm.
+    TypeError
+        For an option the method does not take (the message lists its
+        options).
+    """
+    cls = propagator_class(method)
+    return cls(model, tau, Renorm.parse(renorm), accumulator=accumulator, **options)

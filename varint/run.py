@@ -1,0 +1,409 @@
+"""One generic run: (model, indicator, method, times) → result.
+
+:func:`run` computes any registered indicator (:data:`varint.INDICATORS`)
+with any method (:data:`varint.METHODS`) for one orbit or a batch; the
+public functions :func:`~varint.lyapunov_spectrum`, :func:`~varint.gali`,
+:func:`~varint.sali`, :func:`~varint.megno` and :func:`~varint.integrate`
+are thin wrappers over it, and :func:`~varint.chaos_map` runs it chunk by
+chunk. What it shares with every indicator and method: checking the inputs
+before any work, drawing seeded initial deviation vectors, building the
+propagator, resuming from a checkpoint, driving to the output times
+(:mod:`varint.driver`), and packaging the records into a result with its
+provenance and its accuracy.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+
+import numpy as np
+from numba.core.errors import NumbaError
+
+from . import _validate as check
+from .checkpoint import Checkpoint, digest
+from .driver import IntegrationError, drive, failure_message
+from .files import canonical
+from .indicators import resolve
+from .methods import make_propagator
+from .models.base import Model
+from .protocol import Renorm, is_failure
+from .results import Provenance, package_versions
+from .state import RunState, initial_deviations, output_steps
+
+__all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
+
+#: Initial states of at most this many numbers are stored in a checkpoint's
+#: parameters as values (so a mismatch shows them), larger ones as a digest.
+_SHOWN_X0 = 32
+#: The step when none is given (see :func:`prepare`).
+DEFAULT_TAU = 0.05
+
+
+def run(model, x0, indicator, t_end, tau=None, **options):
+    """Compute an indicator along one or many orbits.
+
+    Parameters
+    ----------
+    model : Model
+        The system (:mod:`varint.models`, or :func:`~varint.models.from_potential`).
+    x0 : array_like, shape (2N,) or (M, 2N)
+        Initial state(s) (q, p); several orbits run in one call.
+    indicator : str or Indicator
+        A name of :data:`varint.INDICATORS` ("lyapunov", "gali", "sali",
+        "megno", "fli", "ofli", "local_exponents", "integrate", …, or the
+        shorthands "x1" and "gali_3"), or an
+        :class:`~varint.indicators.Indicator`.
+    t_end : float
+        Final time (rounded to a multiple of τ).
+    tau : float, optional
+        Renormalisation interval, which is also the step of the splitting
+        methods ("tm" and the TDH methods). Default 0.05.
+
+    Other Parameters
+    ----------------
+    method : str, default "tm"
+        Integration method (see :data:`varint.METHODS`).
+    scheme : str or SplittingScheme, optional
+        Splitting scheme of "tm" and the TDH methods; the paper's SBAB2C by
+        default.
+    t_out : None, int or array_like
+        Output times (see :func:`varint.state.output_steps`); by default
+        log-spaced, 10 per decade (or the indicator's own default, e.g.
+        only t_end for "integrate").
+    seed : int or None, default 0
+        Seed of the random orthonormal initial deviation vectors (orbit m of
+        a batch draws from ``numpy.random.default_rng([seed, m])``); None
+        draws one (recorded in the provenance, and reused when resuming).
+    deviations : array_like, shape ([M,] 2N, k), optional
+        Initial deviation vectors instead of random ones; they must satisfy
+        what the indicator requires (orthonormal for Lyapunov exponents,
+        independent for GALI and SALI, which normalise them).
+    progress : bool, optional
+        Progress bar on stderr; by default only when stderr is a terminal.
+    errors : {"raise", "flag"}
+        A failing orbit (non-finite, escaped, degenerate vectors, a
+        potential singular on the orbit) raises :class:`IntegrationError`,
+        whose message gives the time and step and which carries the partial
+        result; with "flag" it is frozen, its ``status`` is non-zero and its
+        later values are NaN (a warning says how many failed).
+    escape_radius : float, optional
+        Stop an orbit as escaped once |q| exceeds this (overrides the
+        model's ``escape_radius`` for this call).
+    checkpoint : str or os.PathLike, optional
+        Save the run to this file every ``checkpoint_interval`` seconds and
+        when it stops (finished, failed or interrupted by Ctrl-C). If the
+        file exists, the run resumes from it, and the result is bitwise
+        identical to an uninterrupted run. A checkpoint written with other
+        arguments is refused with a :class:`CheckpointError` naming them.
+    checkpoint_interval : float, default 60
+        Seconds of wall time between checkpoint writes.
+    **options
+        The indicator's options (e.g. ``k`` for GALI, ``n_exponents`` for
+        the spectrum, ``window`` for local exponents; see
+        ``varint.INDICATORS[name].options``) and the method's (e.g.
+        ``rtol`` for CVODE). An option neither takes raises ``TypeError``
+        listing the valid ones.
+
+    Returns
+    -------
+    result
+        The indicator's result class (e.g. :class:`~varint.LyapunovResult`):
+        ``t`` (n_out,), its series ([M,] n_out, ...), ``energy_error``,
+        ``status``, the final ``state`` and ``deviations``, and
+        ``provenance``. After Ctrl-C: the outputs recorded so far, with
+        ``interrupted=True`` (and a warning); a second Ctrl-C stops at once.
+
+    Raises
+    ------
+    ValueError
+        For bad input, before any work is done (the message names the value
+        and what was expected).
+    IntegrationError
+        When an orbit fails and ``errors="raise"``.
+
+    Examples
+    --------
+    >>> import varint
+    >>> model, x0 = varint.paper_orbit("C1")
+    >>> r = varint.run(model, x0, "local_exponents", 200.0, window=50.0)
+    >>> r.local.shape
+    (4, 1)
+    """
+    return prepare(model, x0, indicator, t_end, tau, **options).execute()
+
+
+def prepare(model, x0, indicator, t_end, tau=None, *, method="tm", t_out=None, seed=0,
+            deviations=None, progress=None, errors="raise", escape_radius=None,
+            checkpoint=None, checkpoint_interval=60.0, **options):
+    """The :class:`Run` of :func:`run` (same arguments), every input checked
+    and the state started or resumed, not yet executed."""
+    return Run(model, x0, indicator, t_end, tau, method, t_out, seed, deviations, progress,
+               errors, escape_radius, checkpoint, checkpoint_interval, options)
+
+
+def _model(model):
+    if isinstance(model, Model):
+        return model
+    hint = (" (varint.paper_orbit(name) returns a model and its initial state)"
+            if isinstance(model, str) else "")
+    raise ValueError(f"model must be a varint model (varint.models.HenonHeiles(), "
+                     f"from_potential(...), ...), got {type(model).__name__} {model!r}{hint}")
+
+
+def energy_scale(model, x):
+    """The energy scale against which energy errors are relative, per orbit:
+    |T(x)| + |V(x)|, which is |H| for an orbit in a well (T, V ≥ 0) and stays
+    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0.
+    """
+    n = model.n_dof
+    scale = np.abs(model.kinetic(x[..., n:])) + np.abs(model.potential(x[..., :n]))
+    return np.where(scale > 0, scale, 1.0)
+
+
+class Run:
+    """One run, prepared by :func:`prepare`: its inputs checked, its
+    propagator built, its state started or resumed from a checkpoint.
+
+    Attributes
+    ----------
+    model, indicator, options
+        The model, the :class:`~varint.indicators.Indicator` and its
+        checked options.
+    x0 : ndarray, shape (M, 2N)
+    single : bool
+        Whether the caller passed one state (results drop the orbit axis).
+    t_end, tau : float
+    steps : ndarray of int
+        Output steps (multiples of τ).
+    propagator
+        The method (:class:`varint.protocol.Propagator`).
+    seed : int or None
+        None when the deviation vectors were given.
+    state : RunState
+    records : list of dict
+        The outputs recorded so far (after a resume, those of earlier
+        sessions).
+    """
+
+    def __init__(self, model, x0, indicator, t_end, tau, method, t_out, seed, deviations,
+                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options):
+        model = _model(model)
+        self.indicator, fixed = resolve(indicator)
+        ind = self.indicator
+        given = {k: v for k, v in options.items() if k in ind.options}
+        clash = sorted(set(given) & set(fixed))
+        if clash:
+            raise ValueError(f"indicator {indicator!r} fixes {clash[0]} = {fixed[clash[0]]!r}; "
+                             f"do not pass {clash[0]}= with it")
+        method_options = {k: v for k, v in options.items()
+                          if k not in ind.options and not (k == "scheme" and v is None)}
+        self.run_options = {}
+        if escape_radius is not None:
+            # A copy, so the caller's model keeps its own radius.
+            model = copy.copy(model)
+            model.escape_radius = check.positive_float(escape_radius, "escape_radius")
+            self.run_options["escape_radius"] = model.escape_radius
+        self.model = model
+        self.x0, self.single = check.states(model, x0)
+        self.t_end, self.tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+        self.errors = check.choice(errors, ("raise", "flag"), "errors")
+        self.progress = check.flag(progress, "progress")
+        self.options = ind.configure(model, {**fixed, **given})
+        self.checkpoint = (None if checkpoint is None
+                           else Checkpoint(checkpoint, checkpoint_interval))
+        saved = None if self.checkpoint is None else self.checkpoint.read()
+        self.W0, self.seed = self._initial_vectors(deviations, seed, saved)
+        if ind.count_option is not None:
+            self.options[ind.count_option] = self.W0.shape[2]
+        t_out = check.output_times(t_out)
+        if t_out is None and ind.output_times is not None:
+            t_out = ind.output_times(self.t_end, self.tau, self.options)
+        self.steps = output_steps(self.t_end, self.tau, t_out)
+        self.accumulator = ind.accumulator_for(self.options)
+        self.propagator = make_propagator(method, model, self.tau, ind.renorm, self.accumulator,
+                                          **method_options)
+        self.method = method.lower()
+        if saved is None:
+            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), [], 0.0
+        else:
+            self.checkpoint.require(saved, self.parameters())
+            self.state, self.records, self.wall_before = (saved.state, saved.records,
+                                                          saved.wall_time)
+        self.resumed = saved is not None
+        acc = self.accumulator
+        if acc is not None and acc.key not in self.state.extra:
+            self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
+                                                (self.state.n_orbits, self.state.k, 1))
+        self.energy0 = model.energy(self.x0)
+        self.energy_scale = energy_scale(model, self.x0)
+
+    def _initial_vectors(self, deviations, seed, saved):
+        """(W0 (M, 2N, k), seed): the given vectors, checked as the
+        indicator requires, or seeded random orthonormal ones."""
+        ind, model = self.indicator, self.model
+        m, dim = self.x0.shape
+        if deviations is None:
+            k = ind.vectors(model, self.options, None)
+            seed = self._seed(seed, saved)
+            return initial_deviations(dim, k, m, seed), seed
+        W0 = check.deviations(deviations, dim, m)
+        if ind.renorm != Renorm.NONE:
+            check.n_vectors(W0.shape[2], dim, "the number of deviation vectors "
+                            "(columns of deviations)")
+        ind.vectors(model, self.options, W0.shape[2])
+        if ind.require == "orthonormal":
+            check.orthonormal(W0)
+        elif ind.require == "unit":
+            check.full_rank(W0)
+            W0 = W0 / np.linalg.norm(W0, axis=1, keepdims=True)
+        return W0, None
+
+    @staticmethod
+    def _seed(seed, saved):
+        if seed is None:
+            # A random seed, unless a checkpoint already drew one: resuming
+            # must continue with the same vectors.
+            stored = None if saved is None else saved.parameters.get("seed")
+            return stored if isinstance(stored, int) else int(np.random.SeedSequence().entropy)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
+        return int(seed)
+
+    def parameters(self):
+        """Everything that determines the result, as JSON: what a checkpoint
+        must match to be resumed (package versions included, since a
+        different NumPy or numba may change the last bits)."""
+        x0 = self.x0.tolist() if self.x0.size <= _SHOWN_X0 else digest(self.x0)
+        return {"kind": self.indicator.name, "model": self.model.describe(), "x0": x0,
+                "t_end": self.t_end, "tau": self.tau, "t_out": digest(self.steps),
+                "method": self.method, "method_options": self.propagator.describe(),
+                "seed": self.seed,
+                "deviations": None if self.seed is not None else digest(self.W0),
+                "options": {**self.options, **self.run_options}, "versions": self.versions()}
+
+    def versions(self):
+        """Versions of the packages the run depends on."""
+        versions = dict(package_versions())
+        versions.update(self.propagator.versions())
+        return versions
+
+    def energy_error(self, x):
+        """Energy error of states ``x`` (M, 2N) relative to the orbits'
+        energy scale (:func:`energy_scale`)."""
+        # A failed orbit's frozen state may overflow here; its records are
+        # replaced by NaN anyway, so NumPy's warnings would be noise.
+        with np.errstate(over="ignore", invalid="ignore"):
+            return np.abs(self.model.energy(x) - self.energy0) / self.energy_scale
+
+    def record(self, state):
+        """The indicator's values at the current output time, and the
+        energy error."""
+        t = state.step * self.tau
+        rec = self.indicator.read(state, self.model, t, self.options)
+        rec["energy_error"] = self.energy_error(state.x)
+        return rec
+
+    def execute(self):
+        """Drive the run to its last output time and return its result."""
+        records, stop, wall = self.drive()
+        result = self._result(records, stop == "interrupted", wall)
+        self._report_failures(result)
+        return result
+
+    def drive(self, record=None, decide=None):
+        """Advance to every output time, recording there.
+
+        Parameters
+        ----------
+        record : callable, optional
+            ``record(state) -> dict`` of per-orbit arrays; :meth:`record` by
+            default (chaos maps record only their one value).
+        decide : callable, optional
+            ``decide(record) -> bool array (M,)``: orbits to stop early (see
+            :func:`varint.driver.drive`).
+
+        Returns
+        -------
+        records, stop, wall
+            As :func:`varint.driver.drive`.
+        """
+        self._begin_checkpoint()
+        try:
+            return drive(self.propagator, self.state, self.steps, record or self.record,
+                         records=self.records, progress=self.progress,
+                         desc=self.indicator.name, errors=self.errors,
+                         checkpoint=self.checkpoint, decide=decide)
+        except NumbaError as exc:
+            # A model kernel that does not fit the protocol fails to compile
+            # into the stepper; say so instead of showing numba's internals.
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise TypeError(
+                f"the kernels of model {self.model.name!r} could not be compiled into the "
+                f"{self.method!r} integrator ({first}); they must be numba functions "
+                "grad(q, par, g), hess(q, par, B), third(q, par, v, B) writing float64 arrays "
+                "in place, see varint.models.base") from exc
+
+    def _begin_checkpoint(self):
+        if self.checkpoint is None:
+            return
+        self.checkpoint.begin(self.parameters(), self.wall_before)
+        if self.resumed:
+            self.checkpoint.mark_saved(self.state, self.records)
+        else:
+            # Before any work: an unusable path fails now, not hours later.
+            self.checkpoint.save(self.state, self.records, strict=True)
+
+    def _result(self, records, interrupted, wall):
+        if not records:
+            # Nothing recorded yet: empty series of the right shapes.
+            records = {key: np.asarray(v)[None][:0] for key, v in self.record(self.state).items()}
+        n_done = len(next(iter(records.values())))
+        fields = {key: self.squeeze(np.moveaxis(arr, 0, 1)) for key, arr in records.items()}
+        energy_error = fields.pop("energy_error")
+        fields = self.indicator.finish(fields, self.options)
+        cls = self.indicator.result
+        if "deviations" in getattr(cls, "__dataclass_fields__", {}):
+            fields["deviations"] = self.squeeze(self.state.W)
+        return cls(t=self.steps[:n_done] * self.tau, energy_error=energy_error,
+                   state=self.squeeze(self.state.x), provenance=self.provenance(wall),
+                   status=self.squeeze(self.state.status), interrupted=interrupted, **fields)
+
+    def _report_failures(self, result):
+        failed = is_failure(self.state.status)
+        if not failed.any():
+            return
+        msg, info = failure_message(self.state, self.tau, self.single)
+        msg += self._escape_hint(info["orbit"])
+        if self.errors == "raise":
+            if failed.sum() > 1:
+                msg += f" ({failed.sum()} orbits failed; pass errors='flag' to keep the others)"
+            raise IntegrationError(msg, partial=result, **info)
+        warnings.warn(f"{int(failed.sum())} of {failed.size} orbits failed and were frozen "
+                      f"(their status is non-zero, their later outputs NaN); first: {msg}",
+                      RuntimeWarning, stacklevel=4)
+
+    def _escape_hint(self, orbit):
+        # Hénon–Heiles above 1/6 (any model with an escape energy): say why.
+        e_esc = getattr(self.model, "escape_energy", None)
+        e0 = float(self.energy0[orbit])
+        if e_esc is None or not e0 > e_esc:
+            return ""
+        return (f"; its energy {e0:.6g} is above the escape energy {e_esc:.6g} of "
+                f"{self.model.name}, so it can leave the potential well (escape_radius= stops "
+                "such orbits as soon as |q| exceeds it)")
+
+    def squeeze(self, arr):
+        """``arr`` without its orbit axis when the caller passed one state."""
+        return arr[0] if self.single else arr
+
+    def provenance(self, wall):
+        """The :class:`~varint.results.Provenance` of the run after ``wall``
+        seconds of this session."""
+        return Provenance(
+            kind=self.indicator.name, model=self.model.describe(),
+            x0=self.squeeze(self.x0).tolist(), method=self.method,
+            method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
+            seed=self.seed, options=canonical({**self.options, **self.run_options}),
+            versions=self.versions(), counts=dict(self.state.counts),
+            wall_time=self.wall_before + wall)
