@@ -17,8 +17,8 @@ from varint.state import RunState, initial_deviations
 #: Every baseline configuration with its own code path; CVODE with a short
 #: block so that block ends fall inside the chunks below.
 CONFIGS = [("taylor", {}), ("taylor", {"precision": "extended"}), ("cvode", {"block": 7}),
-           ("dop853", {})]
-CONFIG_IDS = ["taylor", "taylor-extended", "cvode", "dop853"]
+           ("dop853", {}), ("dop853", {"engine": "scipy"})]
+CONFIG_IDS = ["taylor", "taylor-extended", "cvode", "dop853", "dop853-scipy"]
 
 
 def start(c1, r1, k=3):
@@ -143,6 +143,7 @@ def test_options_are_checked_and_scheme_is_refused(method, r1):
     ("cvode", {"linsolver": "lu"}, "unknown linsolver 'lu'; expected one of: dense, gmres"),
     ("dop853", {"delta": 1e-8, "rtol": 1e-8}, "either delta"),
     ("dop853", {"delta": -1e-8}, "delta must be a positive finite number"),
+    ("dop853", {"engine": "numba"}, "unknown engine 'numba'; expected one of: compiled, scipy"),
 ])
 def test_bad_option_values_raise_value_errors_naming_them(method, options, message, r1):
     with pytest.raises(ValueError, match=message):
