@@ -46,6 +46,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import varint  # noqa: E402
+from studies import claims as rules  # noqa: E402
 from studies.common import (Claims, Stopwatch, figure, parse_args, save_csv,  # noqa: E402
                             save_json)
 from varint.cache import reference  # noqa: E402
@@ -535,6 +536,76 @@ def log_slope(x, y):
     return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0]) if ok.sum() >= 2 else np.nan
 
 
+def departure_claims(claims, table):
+    """The claims of part 4, from the departure table: where the TDH methods
+    lose R1 against the paper's Table I and Fig. 4, judged by the rules of
+    :mod:`studies.claims` (levels by :func:`claims.power_law` against the
+    paper's τ law, or :func:`claims.agrees`; times by
+    :func:`claims.same_time`). Returns the fitted laws, method -> (q of
+    the level, q of the departure time, rows)."""
+    fits = {}
+    for method in ("tdhcc", "tdhes", "tdheps"):
+        rows = [r for r in table if r["method"] == method and r["level"] is not None]
+        if len(rows) >= 2:
+            taus = [r["tau"] for r in rows]
+            fits[method] = (log_slope(taus, [r["level"] for r in rows]),
+                            log_slope(taus, [r["t_x1"] for r in rows]), rows)
+    for method, (q, qt, rows) in fits.items():
+        paper = {tau: v for (m, tau), v in PAPER_X1_1E8.items() if m == method}
+        paper_text = "X1(t = 1e8), Table I: " + ", ".join(
+            f"{v:.2g} (τ = {tau:g})" for tau, v in sorted(paper.items()))
+        if len(paper) > 1:
+            paper_text += f": ∝ τ^{log_slope(list(paper), list(paper.values())):.2f}"
+        levels = {r["tau"]: r["level"] for r in rows}
+        taus = sorted(levels)
+        note = ""
+        if len(paper) > 1:
+            js = [rules.power_law(taus, [levels[t] for t in taus],
+                                  log_slope(list(paper), list(paper.values())),
+                                  window=(taus[0], taus[-1]))]
+        elif any(tau in levels for tau in paper):
+            js = [rules.agrees(levels[tau], v) for tau, v in paper.items() if tau in levels]
+        else:
+            # No τ of the paper was run (quick mode): test the exponent
+            # against the one the method's order predicts instead.
+            js = [rules.power_law(taus, [levels[t] for t in taus], LEVEL_EXPONENT[method],
+                                  window=(taus[0], taus[-1]))]
+            note = (f"no τ of the paper run here; checked q against {LEVEL_EXPONENT[method]} "
+                    "instead")
+        off = [f"τ = {tau:g}: {levels[tau]:.2g} vs {v:.2g}" for tau, v in paper.items()
+               if tau in levels and rules.agrees(levels[tau], v).holds is False]
+        holds = rules.verdict(js)
+        claims.add(f"R1: {method} levels off; the level grows like τ^q and the departure time "
+                   "falls like τ^-q", paper_text,
+                   f"q = {q:.2f} (level), departure time ∝ τ^{qt:.2f}; "
+                   + ", ".join(f"τ = {r['tau']:g}: level {r['level']:.2g} from t = "
+                               f"{r['t_x1']:.3g}" for r in rows),
+                   holds and all(r["t_x1"] is not None for r in rows),
+                   figure="accuracy_departure.png", rules=js,
+                   note="; ".join(filter(None, [note, off and "levels more than 3× the "
+                                                 "paper's X1(1e8): " + "; ".join(off)])))
+    # Paper Fig. 4: at τ = 0.05 the TDH GALIs follow the regular laws to
+    # t ≈ 1e4 (TDHcc, TDHes) or 1e5 (TDHeps), read off a log plot.
+    for method, paper_t in (("tdhcc", 1e4), ("tdhes", 1e4), ("tdheps", 1e5)):
+        r = next((r for r in table if (r["method"], r["tau"]) == (method, 0.05)), None)
+        if r is None:
+            continue
+        times = [r[f"t_gali{k}"] for k in (2, 3, 4) if r[f"t_gali{k}"] is not None]
+        when = rules.same_time(times, paper_t, r["t_end"])
+        claims.add(f"R1, τ = 0.05: the GALIs of {method} leave the regular laws (a decade "
+                   "below the reference)", f"t ≈ {paper_t:.0e} (Fig. 4)",
+                   "GALI_2, 3, 4 from t = " + ", ".join(f"{v:.2g}" for v in times),
+                   len(times) == 3 and when.holds, figure="accuracy_departure.png",
+                   rules=[when])
+    for r in table:
+        if r["method"] == "tm":
+            claims.add(f"R1: TM (SBAB2C, τ = {r['tau']:g}) never departs from the Taylor "
+                       "reference", "X1 ∝ 1/t to 1e8 (Fig. 2)",
+                       f"no departure of X1 or GALIs to t = {r['t_end']:g}",
+                       r["t_x1"] is None and all(r[f"t_gali{k}"] is None for k in (2, 3, 4)))
+    return fits
+
+
 # -- the study ----------------------------------------------------------------
 
 def main(argv=None):
@@ -693,62 +764,7 @@ def main(argv=None):
     claims.add("The departure reference (double-precision Taylor) matches the extended one",
                "—", f"max |t·ΔX1| = {check:.1e} up to t = {1e3 if quick else 1e4:g}, against "
                     "the departure threshold ln 10", check < 1e-3)
-    fits = {}
-    for method in ("tdhcc", "tdhes", "tdheps"):
-        rows = [r for r in table if r["method"] == method and r["level"] is not None]
-        if len(rows) >= 2:
-            taus = [r["tau"] for r in rows]
-            fits[method] = (log_slope(taus, [r["level"] for r in rows]),
-                            log_slope(taus, [r["t_x1"] for r in rows]), rows)
-    for method, (q, qt, rows) in fits.items():
-        paper = {tau: v for (m, tau), v in PAPER_X1_1E8.items() if m == method}
-        paper_text = "X1(t = 1e8), Table I: " + ", ".join(
-            f"{v:.2g} (τ = {tau:g})" for tau, v in sorted(paper.items()))
-        if len(paper) > 1:
-            paper_text += f": ∝ τ^{log_slope(list(paper), list(paper.values())):.2f}"
-        # The report's rules: power laws within 15 %, numbers within a factor 3.
-        levels = {r["tau"]: r["level"] for r in rows}
-        note = ""
-        if len(paper) > 1:
-            agrees = abs(q / log_slope(list(paper), list(paper.values())) - 1) <= 0.15
-        elif any(tau in levels for tau in paper):
-            agrees = all(1 / 3 <= levels[tau] / v <= 3 for tau, v in paper.items()
-                         if tau in levels)
-        else:
-            # No τ of the paper was run (quick mode): test the exponent
-            # against the one the method's order predicts instead.
-            agrees = abs(q - LEVEL_EXPONENT[method]) <= 0.3
-            note = (f"no τ of the paper run here; checked q against {LEVEL_EXPONENT[method]} "
-                    "± 0.3 instead")
-        off = [f"τ = {tau:g}: {levels[tau]:.2g} vs {v:.2g}" for tau, v in paper.items()
-               if tau in levels and not 1 / 3 <= levels[tau] / v <= 3]
-        claims.add(f"R1: {method} levels off; the level grows like τ^q and the departure time "
-                   "falls like τ^-q", paper_text,
-                   f"q = {q:.2f} (level), departure time ∝ τ^{qt:.2f}; "
-                   + ", ".join(f"τ = {r['tau']:g}: level {r['level']:.2g} from t = "
-                               f"{r['t_x1']:.3g}" for r in rows),
-                   all(r["t_x1"] is not None for r in rows) and agrees,
-                   figure="accuracy_departure.png",
-                   note="; ".join(filter(None, [note, off and "levels more than 3× the "
-                                                 "paper's X1(1e8): " + "; ".join(off)])))
-    # Paper Fig. 4: at τ = 0.05 the TDH GALIs follow the regular laws to
-    # t ≈ 1e4 (TDHcc, TDHes) or 1e5 (TDHeps), read off a log plot.
-    for method, paper_t in (("tdhcc", 1e4), ("tdhes", 1e4), ("tdheps", 1e5)):
-        r = next((r for r in table if (r["method"], r["tau"]) == (method, 0.05)), None)
-        if r is None:
-            continue
-        times = [r[f"t_gali{k}"] for k in (2, 3, 4) if r[f"t_gali{k}"] is not None]
-        claims.add(f"R1, τ = 0.05: the GALIs of {method} leave the regular laws (a decade "
-                   "below the reference)", f"t ≈ {paper_t:.0e} (Fig. 4)",
-                   "GALI_2, 3, 4 from t = " + ", ".join(f"{v:.2g}" for v in times),
-                   len(times) == 3 and min(times) / 3 <= paper_t <= 3 * max(times),
-                   figure="accuracy_departure.png")
-    for r in table:
-        if r["method"] == "tm":
-            claims.add(f"R1: TM (SBAB2C, τ = {r['tau']:g}) never departs from the Taylor "
-                       "reference", "X1 ∝ 1/t to 1e8 (Fig. 2)",
-                       f"no departure of X1 or GALIs to t = {r['t_end']:g}",
-                       r["t_x1"] is None and all(r[f"t_gali{k}"] is None for k in (2, 3, 4)))
+    fits = departure_claims(claims, table)
 
     plot(out, orbits, val, conv, timed, deps, horizons)
     claims.save()

@@ -7,9 +7,10 @@ dict of its results. Full runs write into ``studies/results/`` (committed);
 not committed) and are what the test suite runs.
 
 A *claim* is one line of the paper's (paper-targets.md) or of our own
-questions, with the paper's figure, ours, and whether it holds. Each study
-saves its claims as ``<name>.claims.json``; ``studies/report.py`` assembles
-them into ``REPORT.md``.
+questions, with the paper's figure, ours, whether it holds, and the rules
+of :mod:`studies.claims` that decided it. Each study saves its claims as
+``<name>.claims.json``; ``studies/report.py`` assembles them into
+``REPORT.md``.
 """
 
 from __future__ import annotations
@@ -84,12 +85,24 @@ def _fmt(v):
 
 
 class Claims:
-    """Collects claims of one study and saves them for REPORT.md."""
+    """Collects claims of one study and saves them for REPORT.md.
 
-    def __init__(self, study, out):
-        self.study, self.out, self.items = study, Path(out), []
+    Parameters
+    ----------
+    study : str
+        Name of the claims file, ``<study>.claims.json``.
+    out : path
+    source : {"paper", "own"}, optional
+        Whose claims they are by default: the paper's (its text, tables and
+        figures) or varint's own checks; without it, the report decides by
+        the study (``report.PAPER``).
+    """
 
-    def add(self, claim, paper, ours, holds, figure=None, note=""):
+    def __init__(self, study, out, source=None):
+        self.study, self.out, self.source, self.items = study, Path(out), source, []
+
+    def add(self, claim, paper, ours, holds, figure=None, note="", rules=(), source=None,
+            checked_to=None, horizon=None):
         """Record one claim.
 
         Parameters
@@ -99,13 +112,32 @@ class Claims:
         paper, ours : str
             The paper's figure and ours, as text with numbers.
         holds : bool or None
-            None when there is nothing to compare (a measurement only).
+            None when there is nothing to compare (a measurement only, or a
+            horizon too short to tell).
         figure : str, optional
             File name of the figure that shows it.
+        note : str
+            Why it differs, or context. A claim that differs without a
+            note is recorded with the note "unexplained".
+        rules : sequence of studies.claims.Judgement
+            The rules applied, with their windows and tolerances.
+        source : {"paper", "own"}, optional
+            Overrides the study's default.
+        checked_to, horizon : float, optional
+            The time up to which our runs checked the claim, and the
+            paper's horizon for it; a verdict reached before the paper's
+            horizon is marked as checked only that far.
         """
-        self.items.append({"claim": claim, "paper": paper, "ours": ours,
-                           "holds": None if holds is None else bool(holds),
-                           "figure": figure, "note": note})
+        if holds is False and not note:
+            note = "unexplained"
+        item = {"claim": claim, "paper": paper, "ours": ours,
+                "holds": None if holds is None else bool(holds), "figure": figure,
+                "note": note, "rules": [j.record() for j in rules]}
+        if source or self.source:
+            item["source"] = source or self.source
+        if checked_to is not None and horizon is not None:
+            item["checked_to"], item["horizon"] = float(checked_to), float(horizon)
+        self.items.append(item)
         return holds
 
     def save(self):

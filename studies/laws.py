@@ -1,39 +1,20 @@
 """Reading the paper's laws off time series: power-law slopes, exponential
-rates, departures from a reference or from a law, level-off values.
+rates, and how far a run is from a reference run or from a law.
 
 The paper states its results as laws (X1 ∝ 1/t, GALI_k ∝ t^{−p},
 exponential decay) and as times read off log-log plots ("levels off at
-t ≈ 1e4"). These helpers turn a run's output into those numbers, so each
-claim compares a fitted number with the paper's.
+t ≈ 1e4"). These helpers turn a run's output into those numbers; whether a
+number agrees with the paper's is decided by the rules of
+:mod:`studies.claims`, which hold every tolerance.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from varint.departure import departure_time
-
-__all__ = ["slope", "late_slope", "law_extent", "log_growth", "decay_rate", "local_exponents",
-           "x1_law_departure", "stretch_departure", "law_departure",
-           "gali_departure", "agree", "FACTOR", "DECADE", "regular_gali_powers",
-           "roundoff_time"]
-
-#: Numbers "agree" within this factor: single runs of finite-time indicators
-#: from random initial vectors, and times read off log-log plots.
-FACTOR = 3.0
-#: Departure threshold: a decade (natural logarithm), as in
-#: :func:`varint.departure`.
-DECADE = math.log(10.0)
-
-
-def agree(ours, paper, factor=FACTOR):
-    """Same sign and within ``factor`` of each other (None when either is
-    missing)."""
-    if ours is None or paper is None or not np.isfinite(ours):
-        return None
-    return bool(ours * paper > 0 and abs(math.log(ours / paper)) < math.log(factor))
+__all__ = ["slope", "late_slope", "decade_slopes", "log_growth", "decay_rate",
+           "local_exponents", "x1_law_excess", "stretch_excess", "growth_after", "law_deficit",
+           "gali_deficit", "regular_gali_powers", "roundoff_time"]
 
 
 def slope(t, y, t_lo, t_hi=np.inf):
@@ -46,40 +27,27 @@ def slope(t, y, t_lo, t_hi=np.inf):
     return float(np.polyfit(np.log(t[use]), np.log(y[use]), 1)[0])
 
 
-def law_extent(t, y, power, tolerance, start=1e3):
-    """How far y follows the power law t^power: the slope of each decade
-    [10^j, 10^(j+1)] from ``start`` on, and the end of the last decade of
-    the unbroken run of decades whose slope is within ``tolerance`` of
-    ``power`` (None if the first is not).
-
-    Returns
-    -------
-    end : float or None
-    slopes : list of float
-        One per whole decade within the horizon.
-    """
-    slopes, end, broken = [], None, False
-    lo = float(start)
+def decade_slopes(t, y, start):
+    """The log-log slope of |y| over each whole decade [start·10^j,
+    start·10^(j+1)] within the run, as (first time, last time, slope)."""
+    out, lo = [], float(start)
     while lo * 10 <= t[-1] * (1 + 1e-9):
-        s = slope(t, y, lo, lo * 10)
-        slopes.append(s)
-        if not broken and abs(s - power) <= tolerance:
-            end = lo * 10
-        else:
-            broken = True
+        out.append((lo, lo * 10, slope(t, y, lo, lo * 10)))
         lo *= 10
-    return end, slopes
+    return out
 
 
-def roundoff_time(t, gali, vanishing, tau, margin=10.0):
-    """The first output time at which GALI_k comes within ``margin`` of its
-    round-off floor in double precision (None if it never does).
+def roundoff_time(t, gali, vanishing, tau, margin):
+    """The first output time at which GALI_k comes within a factor
+    ``margin`` of its round-off floor in double precision (None if it
+    never does).
 
     Each of the ``vanishing`` singular values that go to zero on a torus
     cannot fall below the rounding the unit vectors accumulate over t/τ
     renormalisations, ≈ √(t/τ)·ε; GALI_k, their product with the others
     (≈ 1), then floors at (√(t/τ)·ε)^vanishing and a power law fitted
-    beyond that time measures rounding, not dynamics.
+    beyond that time measures rounding, not dynamics. That the floor is
+    rounding, and of this size, is measured by :mod:`studies.roundoff_floor`.
     """
     if vanishing <= 0:
         return None
@@ -146,65 +114,72 @@ def local_exponents(t, exponents, window):
                      for i in range(lam.shape[1])])
 
 
-def x1_law_departure(t, x1, fit=(1e2, 1e4), threshold=DECADE):
-    """The earliest time from which the vector of X1 stays ``threshold``
-    e-folds (a factor 10) longer than linear growth predicts: Λ = t·X1
-    against A ln t + B fitted over ``fit`` (None if it never does). When a
-    sticky chaotic orbit leaves the regular law X1 ∝ 1/t."""
+def x1_law_excess(t, x1, fit=(1e2, 1e4)):
+    """How much longer the vector of X1 is than linear growth predicts:
+    Λ − (A ln t + B), with Λ = t·X1 and A, B fitted over ``fit`` (natural
+    logarithm of the length ratio). A sticky chaotic orbit leaves the
+    regular law X1 ∝ 1/t when this grows."""
     t, x1 = np.asarray(t, dtype=float), np.asarray(x1, dtype=float)
     lam = x1 * t
     w = (t >= fit[0]) & (t <= fit[1])
     a, b = np.polyfit(np.log(t[w]), lam[w], 1)
-    return departure_time(t, lam - (a * np.log(t) + b), threshold)
+    return lam - (a * np.log(t) + b)
 
 
-def stretch_departure(t, x1, t_ref, x1_ref, threshold=DECADE):
-    """When X1 of a method leaves a reference run of the same orbit and
-    initial vector, and the rate at which it levels off.
-
-    The criterion of :func:`varint.departure`: Λ = t·X1 is the accumulated
-    log-stretching of the vector; X1 departs at the earliest output time
-    from which on Λ − Λ_ref > ``threshold``; the level is the mean growth
-    rate of Λ after departure (None if the horizon is shorter than twice
-    the departure time). The reference is interpolated in log t, so it may
-    have another τ.
+def stretch_excess(t, x1, t_ref, x1_ref):
+    """How much more a method has stretched its vector than a reference run
+    of the same orbit and initial vector: Λ − Λ_ref with Λ = t·X1 (the
+    accumulated log-stretching, the criterion of :func:`varint.departure`).
+    The reference is interpolated in log t, so it may have another τ.
 
     Returns
     -------
-    t_departure : float or None
-    level : float or None
+    t : ndarray
+        The times of the method within the reference's horizon.
+    excess : ndarray
     """
     t, x1 = np.asarray(t, dtype=float), np.asarray(x1, dtype=float)
     lam_ref = np.interp(np.log(t), np.log(t_ref), np.asarray(x1_ref) * np.asarray(t_ref))
     inside = t <= t_ref[-1] * (1 + 1e-12)
-    t, x1, lam_ref = t[inside], x1[inside], lam_ref[inside]
-    t_d = departure_time(t, x1 * t - lam_ref, threshold)
+    return t[inside], (x1 * t - lam_ref)[inside]
+
+
+def growth_after(t, x1, t_d):
+    """The mean growth rate of Λ = t·X1 after ``t_d``: where X1 levels off
+    once its vector grows exponentially. None if ``t_d`` is None or the run
+    ends before 2·t_d."""
+    t, x1 = np.asarray(t, dtype=float), np.asarray(x1, dtype=float)
     if t_d is None or t[-1] < 2 * t_d:
-        return t_d, None
+        return None
     j = int(np.searchsorted(t, t_d))
-    return t_d, float((x1[-1] * t[-1] - x1[j] * t[j]) / (t[-1] - t[j]))
+    return float((x1[-1] * t[-1] - x1[j] * t[j]) / (t[-1] - t[j]))
 
 
-def gali_departure(t, g, t_ref, g_ref, threshold=DECADE):
-    """The earliest time from which GALI ``g`` stays more than
-    ``threshold`` e-folds (a decade) below the reference ``g_ref``
-    (interpolated in log t / log g); None if it never does."""
+def gali_deficit(t, g, t_ref, g_ref):
+    """How far GALI ``g`` is below a reference run's ``g_ref``
+    (interpolated in log t, log g): ln g_ref − ln g.
+
+    Returns
+    -------
+    t : ndarray
+        The times within the reference's horizon.
+    deficit : ndarray
+    """
     tiny = np.finfo(float).tiny
     t = np.asarray(t, dtype=float)
     inside = t <= t_ref[-1] * (1 + 1e-12)
     log_ref = np.interp(np.log(t[inside]), np.log(t_ref), np.log(np.maximum(g_ref, tiny)))
-    return departure_time(t[inside], log_ref - np.log(np.maximum(g[inside], tiny)), threshold)
+    return t[inside], log_ref - np.log(np.maximum(np.asarray(g)[inside], tiny))
 
 
-def law_departure(t, g, power, fit=(1e2, 1e3), threshold=DECADE):
-    """The earliest time from which g stays a decade below the power law
-    c·t^power, with c fitted over the window ``fit`` (None if it never
-    does)."""
+def law_deficit(t, g, power, fit=(1e2, 1e3)):
+    """How far g is below the power law c·t^power, c fitted over the window
+    ``fit``: ln(c·t^power) − ln g."""
     t, g = np.asarray(t, dtype=float), np.asarray(g, dtype=float)
     tiny = np.finfo(float).tiny
     w = (t >= fit[0]) & (t <= fit[1])
     log_c = float(np.mean(np.log(np.maximum(g[w], tiny)) - power * np.log(t[w])))
-    return departure_time(t, log_c + power * np.log(t) - np.log(np.maximum(g, tiny)), threshold)
+    return log_c + power * np.log(t) - np.log(np.maximum(g, tiny))
 
 
 def regular_gali_powers(n_dof, torus_dim=None):

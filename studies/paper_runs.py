@@ -32,7 +32,7 @@ from varint.checkpoint import read as read_checkpoint
 from varint.state import output_steps
 
 __all__ = ["PAPER_TAU", "PAPER_DELTA", "SEED", "Stored", "run", "run_key", "method_options",
-           "METHOD_LABELS"]
+           "METHOD_LABELS", "longest_stored", "horizon"]
 
 #: The paper's renormalisation interval τ and DOP853 threshold δ (Sect. VI).
 PAPER_TAU = 0.05
@@ -94,6 +94,37 @@ def run_key(kind, orbit, method, tau, t_end, options):
     return f"{kind}-{orbit}-{method}{opts}-tau{tau:g}-t{t_end:g}"
 
 
+def _key_options(kind, model, method, orbit, delta, orders):
+    options = method_options(method, orbit, delta)
+    if kind == "gali":
+        orders = tuple(range(2, model.dim + 1)) if orders is None else tuple(orders)
+        return options, orders, dict(options, k="_".join(map(str, orders)))
+    return options, orders, options
+
+
+def longest_stored(out, kind, orbit, method, tau, *, orders=None, delta=None):
+    """The horizon of the longest stored run of this kind, orbit, method, τ
+    (and orders, δ), or None: a study asks for its default horizon or the
+    longest run already stored, whichever is longer, so that a longer run
+    (e.g. DOP853 to the paper's 1e8, once it is fast enough) replaces the
+    shorter one in every claim without a change of code."""
+    model, _ = varint.paper_orbit(orbit)
+    _, _, key_options = _key_options(kind, model, method, orbit, delta, orders)
+    stem = run_key(kind, orbit, method, tau, 1.0, key_options).rsplit("-t", 1)[0]
+    ends = [float(p.stem.rsplit("-t", 1)[1]) for p in (Path(out) / "runs").glob(f"{stem}-t*.npz")
+            if (p.with_suffix(".json")).exists()]
+    return max(ends, default=None)
+
+
+def horizon(out, kind, orbit, method, tau, default, *, requested=None, orders=None,
+            delta=None):
+    """The horizon a study uses for a run: the longest of its ``default``,
+    a ``requested`` one (computed if not stored) and the longest stored run
+    (:func:`longest_stored`)."""
+    stored = longest_stored(out, kind, orbit, method, tau, orders=orders, delta=delta)
+    return max(default, requested or 0.0, stored or 0.0)
+
+
 def _call(kind, model, x0, t_end, tau, method, orders, t_out, progress, checkpoint, options):
     common = dict(tau=tau, method=method, seed=SEED, t_out=t_out, progress=progress,
                   checkpoint=checkpoint, **options)
@@ -135,11 +166,8 @@ def run(out, kind, orbit, method, tau, t_end, *, orders=None, delta=None, fresh=
     if kind not in ("lyapunov", "gali"):
         raise ValueError(f"kind must be 'lyapunov' or 'gali', got {kind!r}")
     model, x0 = varint.paper_orbit(orbit)
-    options = method_options(method, orbit, delta)
-    if kind == "gali":
-        orders = tuple(range(2, model.dim + 1)) if orders is None else tuple(orders)
-    key = run_key(kind, orbit, method, tau, t_end,
-                  dict(options, **({"k": "_".join(map(str, orders))} if kind == "gali" else {})))
+    options, orders, key_options = _key_options(kind, model, method, orbit, delta, orders)
+    key = run_key(kind, orbit, method, tau, t_end, key_options)
     store = Path(out) / "runs"
     path, meta_path = store / f"{key}.npz", store / f"{key}.json"
     if not fresh and path.exists() and meta_path.exists():

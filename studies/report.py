@@ -3,10 +3,11 @@ studies' result files.
 
 Reads, from the results directory, ``table1.csv`` (Table I, row by row),
 every ``*.claims.json`` (one line per claim: the paper's number, ours,
-holds / differs, with the figure shown beside its claims) and the stored
-runs of :mod:`paper_runs` (their CPU times), and writes ``REPORT.md``
-there. It computes nothing: run the studies first, then this (any time
-again; missing studies are listed as missing).
+holds / differs, the rules that decided it, with the figure shown beside
+its claims) and the stored runs of :mod:`paper_runs` (their CPU times),
+and writes ``REPORT.md`` there. The paper's claims and varint's own checks
+are counted apart. It computes nothing: run the studies first, then this
+(any time again; missing studies are listed as missing).
 
 Usage: ``python studies/report.py [--quick] [--out DIR]``
 """
@@ -21,6 +22,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from studies.claims import RULES  # noqa: E402
 from studies.common import parse_args  # noqa: E402
 
 #: Sections in this order first (the paper's), then any other claims file
@@ -30,6 +32,7 @@ KNOWN = {
     "paper_fig02": "Fig. 2 — R1: finite-time Lyapunov exponents, five methods",
     "paper_fig03": "Fig. 3 — R1: step-size dependence (DOP853, TDHeps)",
     "paper_fig04": "Fig. 4 — R1: GALIs, five methods",
+    "roundoff_floor": "Fig. 4's round-off floor, measured (studies/roundoff_floor.py)",
     "paper_fig05": "Fig. 5 — C1: exponents, pair sums, GALIs",
     "sections": "Figs. 1 and 6 — surfaces of section (studies/sections.py)",
     "paper_fig07": "Fig. 7 — C2: finite-time Lyapunov exponents, five methods",
@@ -46,7 +49,8 @@ KNOWN = {
     "bench_chaos_map": "Benchmark: chaos maps (studies/bench_chaos_map.py)",
 }
 VERDICT = {True: "holds", False: "**differs**", None: "—"}
-#: Studies whose claims the paper makes (the rest are our own questions).
+#: Studies whose claims the paper makes (the rest are our own questions);
+#: a claim's own ``source`` field overrides its study's.
 PAPER = [k for k in KNOWN if k in ("table1", "sections") or k.startswith("paper_fig")]
 
 
@@ -93,8 +97,8 @@ def table1_section(out):
     rows = list(csv.DictReader(path.open()))
     lines = ["| integrator | method | τ | δ | t_end | rel. energy error: paper | ours | "
              "verdict | X1: paper | ours (at t_end) | verdict | CPU: paper | ratio to TM | "
-             "ours (to 1e8) | ratio to TM |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "ours (to 1e8) | ratio to TM | note |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         projected = r["cpu_projected"] == "True"
         e_ours = _num(r["energy_error"])
@@ -111,10 +115,11 @@ def table1_section(out):
             _num(r["energy_error_paper"]), e_ours, _verdict(r["energy_verdict"]),
             _num(r["X1_paper"]), _num(r["X1"]), _verdict(r["X1_verdict"]), r["cpu_paper"],
             _num(r["cpu_ratio_paper"], 3), cpu,
-            _num(r["cpu_ratio"], 3) + ("†" if projected else ""))) + " |")
-    lines += ["", "Verdicts: X1 within a factor of 3 of the paper's; the paper's energy error "
-              "within the band ours fills over the last decade (median/3 to 3 × max: the "
-              "error of a symplectic scheme oscillates, so one value at t = 1e8 is a sample). "
+            _num(r["cpu_ratio"], 3) + ("†" if projected else ""), r.get("note", ""))) + " |")
+    lines += ["", "Verdicts: X1 by the rule `agrees` (within a factor of 3 of the paper's); "
+              "the paper's energy error by `in_band` (within the band ours fills over the last "
+              "decade, median/3 to 3 × max: the error of a symplectic scheme oscillates, so one "
+              "value at t = 1e8 is a sample). "
               "† projection from the run to t_end: CPU time scaled by 1e8/t_end; energy "
               "error extrapolated with its growth law E ∝ t^a fitted over the last two "
               "decades. CPU: `time.process_time()` on 2 cores shared with other jobs; compare "
@@ -122,6 +127,35 @@ def table1_section(out):
     if (Path(out) / "table1_energy.png").exists():
         lines += ["![Table I: energy error against time](table1_energy.png)", ""]
     return lines
+
+
+def source(name, item):
+    """"paper" or "own": whose claim it is."""
+    return item.get("source") or ("paper" if name in PAPER else "own")
+
+
+def short_horizon(item):
+    """True when the claim was checked only to a horizon shorter than the
+    paper's."""
+    return "checked_to" in item and item["checked_to"] < item["horizon"] * (1 - 1e-9)
+
+
+def verdict_cell(item):
+    word = VERDICT[item.get("holds")]
+    if item.get("holds") is not None and short_horizon(item):
+        word += f" (to {item['checked_to']:.0e}; paper {item['horizon']:.0e})"
+    return word
+
+
+def rules_cell(item):
+    """The rules that decided a claim, each with its window."""
+    parts = []
+    for r in item.get("rules", []):
+        w = r.get("window")
+        text = r["rule"] + (f" [{w[0]:.2g}–{w[1]:.2g}]" if w else "")
+        if text not in parts:
+            parts.append(text)
+    return "; ".join(parts) if parts else "—"
 
 
 def claims_section(name, items, out):
@@ -135,13 +169,30 @@ def claims_section(name, items, out):
             lines += [f"![{fig}]({fig})", ""]
         elif fig:
             lines += [f"*figure {fig} is missing*", ""]
-        lines += ["| claim | paper | ours | verdict | note |", "|---|---|---|---|---|"]
+        lines += ["| claim | paper | ours | verdict | rules [window] | note |",
+                  "|---|---|---|---|---|---|"]
         for item in group:
-            lines.append("| " + " | ".join(_cell(item.get(k)) for k in ("claim", "paper",
-                                                                          "ours"))
-                         + f" | {VERDICT[item.get('holds')]} | {_cell(item.get('note'))} |")
+            own = " *(own check)*" if source(name, item) == "own" and name in PAPER else ""
+            lines.append("| " + _cell(item.get("claim")) + own + " | "
+                         + " | ".join(_cell(item.get(k)) for k in ("paper", "ours"))
+                         + f" | {verdict_cell(item)} | {_cell(rules_cell(item))} | "
+                         f"{_cell(item.get('note'))} |")
         lines.append("")
     return lines
+
+
+def rules_section():
+    """The rules of :mod:`studies.claims`, with their tolerances."""
+    lines = ["## How claims are judged", "",
+             "One rule per kind of claim (`studies/claims.py`), the same for every figure and "
+             "study; each claim below names the rules it was judged by and the window of "
+             "times they looked at. A verdict reached with a run shorter than the paper's "
+             "says how far it was checked. A claim that differs carries its explanation, or "
+             "the word *unexplained*.", "",
+             "| rule | tolerance | why |", "|---|---|---|"]
+    for name, (_, tolerance, why) in RULES.items():
+        lines.append(f"| `{name}` | {_cell(tolerance)} | {_cell(why)} |")
+    return lines + [""]
 
 
 def runs_section(out):
@@ -160,16 +211,41 @@ def runs_section(out):
     return lines + [""]
 
 
+def _counts(items):
+    verdicts = [i.get("holds") for i in items]
+    return (len(items), verdicts.count(True), sum(i.get("holds") is True and short_horizon(i)
+                                                  for i in items),
+            verdicts.count(False), verdicts.count(None))
+
+
 def summary(claims, out):
-    lines = ["| study | claims | hold | differ | not compared |", "|---|---|---|---|---|"]
+    """Two tables: the paper's claims, and varint's own checks."""
+    head = ["| study | claims | hold | of which checked to a shorter horizon | differ | "
+            "not compared |", "|---|---|---|---|---|---|"]
+    lines = ["### The paper's claims", ""] + head
+    total = []
+    for name, items in claims.items():
+        mine = [i for i in items if source(name, i) == "paper"]
+        if mine:
+            total += mine
+            lines.append(f"| {KNOWN.get(name, name)} | " + " | ".join(map(str, _counts(mine)))
+                         + " |")
+    lines.append("| **all the paper's claims (text, figures)** | "
+                 + " | ".join(f"**{v}**" for v in _counts(total)) + " |")
     counts = table1_verdicts(out)
     if counts:
-        lines.append("| Table I — rows (X1 and energy error of each) | {} | {} | {} | {} |"
-                     .format(*counts))
+        lines += ["", "Table I cell by cell (X1 and energy error of each row, not in the total "
+                  "above): {} cells, {} hold, {} differ, {} not compared.".format(*counts)]
+    lines += ["", "### varint's own checks", ""] + head
+    total = []
     for name, items in claims.items():
-        verdicts = [i.get("holds") for i in items]
-        lines.append(f"| {KNOWN.get(name, name)} | {len(items)} | {verdicts.count(True)} | "
-                     f"{verdicts.count(False)} | {verdicts.count(None)} |")
+        mine = [i for i in items if source(name, i) == "own"]
+        if mine:
+            total += mine
+            lines.append(f"| {KNOWN.get(name, name)} | " + " | ".join(map(str, _counts(mine)))
+                         + " |")
+    lines.append("| **all own checks** | " + " | ".join(f"**{v}**" for v in _counts(total))
+                 + " |")
     return lines + [""]
 
 
@@ -181,12 +257,12 @@ def build(out):
              "directory; do not edit by hand. The paper: Ch. Skokos & E. Gerlach, "
              "*Numerical integration of variational equations*, Phys. Rev. E 82, 036704 "
              "(2010). Its setups and claims: `shared/reference/paper-targets.md`.", "",
-             "Verdicts: *holds* — our number or fitted law agrees with the paper's (numbers "
-             "within a factor of 3, times read off log-log plots within √10, power laws "
-             "within 15 %); ***differs*** — it does not (the note says why where we know); "
-             "*—* — nothing to compare (a horizon we do not reach, or a measurement of "
-             "ours only).", "", "## Summary", ""]
+             "Verdicts: *holds* — our number or fitted law agrees with the paper's by the rule "
+             "of its kind (below); ***differs*** — it does not (the note says why, or "
+             "*unexplained*); *—* — nothing to compare (a horizon we do not reach, or a "
+             "measurement of ours only).", "", "## Summary", ""]
     lines += summary(claims, out)
+    lines += rules_section()
     missing = [k for k in PAPER if k not in claims]
     if missing:
         lines += ["Missing: " + ", ".join(f"`{k}.claims.json`" for k in missing), ""]

@@ -32,27 +32,54 @@ def test_every_figure_with_its_claims(quick, paper_quick_dir):
         saved = json.loads((paper_quick_dir / f"paper_fig{n:02d}.claims.json").read_text())
         assert saved, n
         for c in saved:
-            assert set(c) >= {"claim", "paper", "ours", "holds", "figure"}
+            assert set(c) >= {"claim", "paper", "ours", "holds", "figure", "rules"}
             assert (paper_quick_dir / c["figure"]).exists(), c["claim"]
+            # Every verdict names its rules; every difference its reason.
+            assert c["holds"] is None or c["rules"], c["claim"]
+            assert c["holds"] is not False or c["note"], c["claim"]
     assert sum(len(v) for v in claims.values()) >= 30
+
+
+def test_dop853_claims_say_how_far_they_were_checked(quick):
+    claims, _ = quick
+    c = claim(claims, "fig2", "R1, DOP853: X1, X2 ∝ 1/t")
+    assert c["checked_to"] == paper_figures.DOP853_T_END["R1"][1] and c["horizon"] == 1e8
+    assert claim(claims, "fig10", "R2, DOP853: GALI_k")["checked_to"] < 1e6
 
 
 def test_claims_that_hold_at_the_quick_horizon(quick):
     claims, _ = quick
-    assert claim(claims, "fig2", "R1: TDHeps is the best")["holds"]
+    assert claim(claims, "fig3", "R1, DOP853: the X1 curves for τ = 0.05 and 0.1")["holds"]
     assert claim(claims, "fig4", "R1, TM: GALI_k follow the regular laws")["holds"]
+    assert claim(claims, "fig4", "R1, TDHcc: GALIs follow the laws to t ≈ 1e+04")["holds"]
     assert claim(claims, "fig5", "C1, TM: GALIs decay exponentially")["holds"]
     # Claims about t = 1e8 are not judged at t = 1e4.
     assert claim(claims, "fig7", "C2, TM: χ1 ≈ 4e-6")["holds"] is None
+    assert claim(claims, "fig2", "R1: TDHeps is the best")["holds"] is None
 
 
 def test_tdh_methods_leave_the_regular_law_on_r1(quick):
     _, ctx = quick
     tm = ctx.lyap("R1", "tm")
     for m in ("tdhcc", "tdhes"):
-        r = ctx.lyap("R1", m)
-        t_d, _ = laws.stretch_departure(r.t, r.exponents[:, 0], tm.t, tm.exponents[:, 0])
-        assert t_d is not None and t_d < 1e4, m
+        dep, _ = paper_figures.stretch_departure(ctx.lyap("R1", m), tm)
+        assert dep.holds and dep.value < 1e4, m
+
+
+def test_a_longer_stored_dop853_run_replaces_the_default(quick, tmp_path):
+    # A stored run longer than the default horizon is used (e.g. DOP853 to
+    # 1e8 once it is fast enough); in quick mode the default stays.
+    _, ctx = quick
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    key = "lyapunov-R1-dop853-delta1e-05-tau0.05-t"
+    for t_end in ("100000", "1e+08"):
+        for ext in ("npz", "json"):
+            (runs / f"{key}{t_end}.{ext}").write_text("")
+    full = paper_figures.Context(tmp_path, quick=False, fresh=False)
+    assert full.horizon("lyapunov", "R1", "dop853", delta=1e-5) == 1e8
+    assert full.horizon("gali", "R1", "dop853") == paper_figures.DOP853_T_END["R1"][0]
+    assert ctx.horizon("lyapunov", "R1", "dop853") == paper_figures.DOP853_T_END["R1"][1]
 
 
 @pytest.mark.parametrize("orbit", ["R1", "C1"])

@@ -22,6 +22,31 @@ def test_report_assembles_everything(table1_quick, figures_quick, paper_quick_di
     assert "a \\| claim" in text and "**differs**" in text
     # The sections study (Figs. 1 and 6) is another script's: named as missing.
     assert "Missing: `sections.claims.json`" in text
+    # The paper's claims and our own checks are counted apart, and the rules
+    # are listed with their tolerances.
+    paper, own = text.split("### The paper's claims")[1].split("### varint's own checks")
+    assert "Fig. 2 — R1" in paper and "| other_study |" in own.split("## How")[0]
+    assert "| `levels_off` |" in text and "| `above` | ratio > 3 |" in text
+
+
+def test_report_counts_by_source_and_marks_short_horizons(tmp_path):
+    items = [
+        {"claim": "a", "paper": "", "ours": "", "holds": True, "figure": None, "note": "",
+         "rules": [{"rule": "inverse_t", "window": [1e3, 1e5]}], "checked_to": 1e5,
+         "horizon": 1e8},
+        {"claim": "b", "paper": "", "ours": "", "holds": False, "figure": None,
+         "note": "unexplained", "rules": []},
+        {"claim": "c", "paper": "", "ours": "", "holds": True, "figure": None, "note": "",
+         "source": "own"},
+    ]
+    (tmp_path / "paper_fig02.claims.json").write_text(json.dumps(items))
+    text = report.build(tmp_path)
+    paper, own = text.split("### The paper's claims")[1].split("### varint's own checks")
+    total = "| **all the paper's claims (text, figures)** | **2** | **1** | **1** | **1** | **0** |"
+    assert total in paper
+    assert "| **all own checks** | **1** | **1** | **0** | **0** | **0** |" in own
+    assert "holds (to 1e+05; paper 1e+08) | inverse_t [1e+03–1e+05]" in text
+    assert "c *(own check)*" in text
 
 
 def test_report_names_missing_studies(tmp_path):
