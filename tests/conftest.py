@@ -1,6 +1,5 @@
 """Shared fixtures: the paper's orbits, built once per session."""
 
-import numpy as np
 import pytest
 
 import varint

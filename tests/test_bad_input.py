@@ -4,11 +4,15 @@ any compiled kernel runs (so no numba typing error, segfault or traceback
 from inside a kernel can reach the user). Damaged checkpoint and cache
 files are tried at more length in test_faults.py."""
 
+import os
+
 import numpy as np
 import pytest
 import sympy as sp
 
 import varint
+from varint import _validate as check
+from varint.formula import parse_formula
 from varint.models import FPUBeta, HenonHeiles, Model, paper_orbit, solve_momentum
 from varint.models.henon_heiles import _grad, _hess, _potential, _third
 from tests.helpers import hook_advance
@@ -23,6 +27,17 @@ def run(fn=varint.lyapunov_spectrum, **kw):
     args = dict(model=HH, x0=X0, t_end=10.0)
     args.update(kw)
     return fn(**args)
+
+
+def scheme(**kw):
+    """SplittingScheme with one field changed from a valid leapfrog."""
+    args = dict(name="LF", drift_first=True, drifts=(0.5,), kicks=(1.0,), order=2)
+    args.update(kw)
+    return varint.SplittingScheme(**args)
+
+
+def formula(text, coords=("x", "y")):
+    return parse_formula(text, coords, "--potential")
 
 
 def written_by_another_run(path):
@@ -184,6 +199,148 @@ CASES = [
      "V must be real"),
     ("energy out of reach", lambda p: solve_momentum(HH, [0.0, 0.9], [0.0, 0.0], 0.125),
      ValueError, "no real momentum p\\[0\\] gives energy 0.125"),
+    ("FPU beta as text", lambda p: FPUBeta(4, beta="1"), ValueError,
+     "beta must be a finite real number, got str '1'"),
+    ("FPU beta complex", lambda p: FPUBeta(4, beta=1j), ValueError,
+     "beta must be a finite real number, got complex 1j"),
+    ("FPU beta infinite", lambda p: FPUBeta(4, beta=np.inf), ValueError,
+     "beta must be a finite real number, got float inf"),
+    ("FPU size fractional", lambda p: FPUBeta(3.7), ValueError,
+     "n must be an integer >= 2 .* got 3.7"),
+    ("FPU size NaN", lambda p: FPUBeta(np.nan), ValueError, "n must be an integer >= 2 .* got nan"),
+    ("FPU size as text", lambda p: FPUBeta("8"), ValueError,
+     "n must be an integer >= 2 .* got '8'"),
+    ("FPU size beyond memory", lambda p: FPUBeta(10 ** 12), ValueError,
+     r"model FPUBeta\(n=1000000000000, beta=1.5\) \(1000000000000 degrees of freedom\) needs "
+     r"about 43.7 TiB of memory, but .* is available"),
+    ("model n_dof fractional", lambda p: Model(2.5, _potential, _grad, _hess, _third, 1),
+     ValueError, "n_dof must be a positive integer, got 2.5"),
+    ("model n_dof as text", lambda p: Model("2", _potential, _grad, _hess, _third, 1),
+     ValueError, "n_dof must be a positive integer, got '2'"),
+    ("model bandwidth negative", lambda p: Model(2, _potential, _grad, _hess, _third, -1),
+     ValueError, "bandwidth must be an integer >= 0, got -1"),
+    # -- splitting schemes
+    ("register a name, not a scheme", lambda p: varint.register_scheme("SBAB9"), ValueError,
+     "register_scheme needs a SplittingScheme, got str 'SBAB9'; build one with"),
+    ("register a registered name", lambda p: varint.register_scheme("sbab2c"), ValueError,
+     "'sbab2c' is already registered, get it with get_scheme"),
+    ("register None", lambda p: varint.register_scheme(None), ValueError,
+     "register_scheme needs a SplittingScheme, got NoneType None"),
+    ("scheme coefficient NaN", lambda p: scheme(drifts=(np.nan,)), ValueError,
+     r"scheme 'LF': drifts\[0\] must be a finite real number, got nan"),
+    ("scheme coefficients NaN summing to NaN",
+     lambda p: scheme(drifts=(0.5, np.nan, -np.nan), kicks=(0.5, 0.0)), ValueError,
+     r"scheme 'LF': drifts\[1\] must be a finite real number, got nan"),
+    ("scheme coefficient infinite", lambda p: scheme(kicks=(np.inf,)), ValueError,
+     r"scheme 'LF': kicks\[0\] must be a finite real number, got inf"),
+    ("scheme coefficient as text", lambda p: scheme(kicks=("1",)), ValueError,
+     r"scheme 'LF': kicks\[0\] must be a finite real number, got '1'"),
+    ("scheme coefficients not a sequence", lambda p: scheme(kicks=1.0), ValueError,
+     "scheme 'LF': kicks must be a sequence of numbers, got 1.0"),
+    ("scheme order NaN", lambda p: scheme(order=np.nan), ValueError,
+     "scheme 'LF': order must be a positive integer, got nan"),
+    ("scheme order fractional", lambda p: scheme(order=2.5), ValueError,
+     "scheme 'LF': order must be a positive integer, got 2.5"),
+    ("scheme order zero", lambda p: scheme(order=0), ValueError,
+     "scheme 'LF': order must be a positive integer, got 0"),
+    ("scheme corrector as text", lambda p: scheme(corrector="abc"), ValueError,
+     "scheme 'LF': corrector must be a finite number .* got 'abc'"),
+    ("scheme corrector NaN", lambda p: scheme(corrector=np.nan), ValueError,
+     "scheme 'LF': corrector must be a finite number .* got nan"),
+    ("scheme layout flag as text", lambda p: scheme(drift_first="yes"), ValueError,
+     "scheme 'LF': drift_first must be True .* got 'yes'"),
+    ("scheme without a name", lambda p: scheme(name=""), ValueError,
+     "a scheme's name must be a non-empty string, got ''"),
+    # -- formulas (the command line's --potential): hostile and malformed text
+    ("formula calling __import__", lambda p: formula("__import__('os').system('touch x')"),
+     ValueError, "--potential: .*__import__\\('os'\\).system. is attribute access"),
+    ("formula with a dunder name", lambda p: formula("__builtins__"), ValueError,
+     "'__builtins__' is not a coordinate, constant or function"),
+    ("formula with attribute access", lambda p: formula("x.real"), ValueError,
+     "'x.real' is attribute access, which is not allowed; allowed: numbers, x, y"),
+    ("formula with a lambda", lambda p: formula("(lambda: 0)()"), ValueError,
+     "'lambda: 0' is a lambda"),
+    ("formula with a comprehension", lambda p: formula("[x for x in (1,)]"), ValueError,
+     "is a comprehension"),
+    ("formula with a generator", lambda p: formula("sum(x for x in (1,))"), ValueError,
+     "'sum' is not an allowed function"),
+    ("formula calling a non-whitelisted name", lambda p: formula("eval('1')"), ValueError,
+     "'eval' is not an allowed function"),
+    ("formula with a keyword argument", lambda p: formula("sin(x=1)"), ValueError,
+     "'sin\\(x=1\\)' passes keyword arguments"),
+    ("formula with the wrong arity", lambda p: formula("atan2(x)"), ValueError,
+     "gives atan2 1 argument; it takes 2"),
+    ("formula with a subscript", lambda p: formula("x[0]"), ValueError, "'x\\[0\\]' is indexing"),
+    ("formula with text", lambda p: formula("'abc'"), ValueError, "is text, not a real number"),
+    ("formula with a comparison", lambda p: formula("x < y"), ValueError, "is a comparison"),
+    ("formula with floor division", lambda p: formula("x // 2"), ValueError, "uses '//'"),
+    ("formula with a huge tower of powers", lambda p: formula("9**9**9**9"), ValueError,
+     "'9\\*\\*9\\*\\*9' has an exponent of magnitude above 1000"),
+    ("formula with a huge exponent", lambda p: formula("x**100000"), ValueError,
+     "exponent of magnitude above 1000"),
+    ("formula with a power beyond a double", lambda p: formula("10**309"), ValueError,
+     "'10\\*\\*309' is a number beyond the range of a double"),
+    ("formula with an infinite literal", lambda p: formula("1e999*x"), ValueError,
+     "'1e999' is not a finite number"),
+    ("formula with a huge integer", lambda p: formula("1" + "0" * 400), ValueError,
+     "is a number beyond the range of a double"),
+    ("formula dividing by zero", lambda p: formula("x/(y-y)"), ValueError,
+     "'y-y' is a divisor that is zero"),
+    ("formula that is not finite", lambda p: formula("x + 0**-1"), ValueError,
+     "is not finite"),
+    ("formula very long", lambda p: formula("x+" * 6000 + "x"), ValueError,
+     "--potential is 12001 characters long; at most 10000 are read"),
+    ("formula nested too deeply", lambda p: formula("sin(" * 110 + "x" + ")" * 110), ValueError,
+     "is nested more than 100 levels deep"),
+    ("formula with too many nested parentheses", lambda p: formula("(" * 250 + "x" + ")" * 250),
+     ValueError, "too many nested parentheses"),
+    ("formula with a chain too long to parse", lambda p: formula("x-" * 3000 + "x"), ValueError,
+     "too deeply nested or has too many operators in one chain"),
+    ("formula with a unicode minus", lambda p: formula("x \u2212 y"), ValueError,
+     "invalid character '\u2212' \\(U\\+2212\\)"),
+    ("formula with a NUL byte", lambda p: formula("x\0"), ValueError, "null bytes"),
+    ("formula empty", lambda p: formula("  "), ValueError, "--potential is empty"),
+    ("formula not a string", lambda p: formula(3), ValueError,
+     "--potential must be a string, got int 3"),
+    ("formula with a near-miss name", lambda p: formula("e**x"), ValueError,
+     "'e' is not a coordinate, constant or function \\(did you mean 'E'\\?\\)"),
+    ("formula coordinate a keyword", lambda p: formula("x", ("x", "lambda")), ValueError,
+     "'lambda' is reserved"),
+    ("formula coordinate twice", lambda p: formula("x", ("x", "x")), ValueError,
+     "names 'x' twice"),
+    ("formula coordinates as one string", lambda p: formula("x", "xy"), ValueError,
+     "must be a sequence of names, got the string 'xy'"),
+    # -- output files, sizes and the arguments of runs (validators for the run loop)
+    ("output file in a missing directory", lambda p: check.output_file(p / "no" / "x.csv", "--csv"),
+     ValueError, "--csv .*x.csv: directory .*no does not exist"),
+    ("output file a directory", lambda p: check.output_file(p, "--csv"), ValueError,
+     "is a directory; expected a file path"),
+    ("output file under a file", lambda p: check.output_file("/etc/passwd/x.csv", "--csv"),
+     ValueError, "/etc/passwd is not a directory"),
+    ("output file in /proc", lambda p: check.output_file("/proc/version", "--csv"), ValueError,
+     "cannot write --csv /proc/version: it is a file of a virtual file system"),
+    ("output file empty", lambda p: check.output_file("", "--csv"), ValueError,
+     "--csv must name a file, got ''"),
+    ("output file with a NUL", lambda p: check.output_file("a\0b", "--csv"), ValueError,
+     "contains a NUL byte"),
+    ("output file as bytes", lambda p: check.output_file(b"x.csv", "--csv"), ValueError,
+     "--csv must be a file path, got bytes"),
+    ("output file named too long", lambda p: check.output_file(p / ("x" * 300), "--csv"),
+     ValueError, "cannot write --csv .*: File name too long"),
+    ("memory beyond the machine", lambda p: check.check_memory(2 ** 80, "a grid of 2**40 points"),
+     ValueError, "a grid of 2\\*\\*40 points needs about .* PiB of memory, but .* is available"),
+    ("steps beyond the counter", lambda p: check.step_count(1e300, 0.05), ValueError,
+     "t_end / tau = 1e\\+300 / 0.05 = 2e\\+301 steps, more than"),
+    ("a name as the model", lambda p: check.model("henon-heiles"), ValueError,
+     "model must be a varint model \\(e.g. varint.models.HenonHeiles\\(\\), .* got str "
+     "'henon-heiles'"),
+    ("a name as the Dask client", lambda p: check.dask_client("local"), ValueError,
+     "client must be a dask.distributed.Client or None, got str 'local'"),
+    ("an option of another method", lambda p: check.method_options(
+        "tm", {"rtol": 1e-9}, ("scheme", "parallel", "fast_indicators"),
+        {"cvode": ("rtol", "atol"), "dop853": ("delta", "rtol", "atol")}), TypeError,
+     "unknown option 'rtol' for method 'tm'; valid options: scheme, parallel, fast_indicators "
+     "\\('rtol' is an option of cvode, dop853\\)"),
 ]
 
 
@@ -202,3 +359,28 @@ def test_bad_input_is_refused_before_any_kernel_runs(call, exception, message, t
     assert type(err.value).__module__.split(".")[0] in ("builtins", "varint")
     if calls and not isinstance(err.value, varint.CheckpointError):
         pytest.fail(f"a kernel ran before the input was refused ({len(calls)} calls)")
+
+
+def test_available_memory_reads_meminfo_else_sysconf(monkeypatch):
+    with open("/proc/meminfo") as f:
+        total = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemTotal:"))
+    free = check.available_memory()
+    assert isinstance(free, int) and 0 < free <= total
+
+    def unreadable(*args, **kwargs):
+        raise OSError("no /proc here")
+
+    # Without /proc/meminfo (nor cgroup files): the free physical pages.
+    monkeypatch.setattr(check, "open", unreadable, raising=False)
+    pages = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    assert abs(check.available_memory() - pages) < 2 ** 30
+
+
+def test_check_memory_names_what_and_how_much(monkeypatch):
+    monkeypatch.setattr(check, "available_memory", lambda: 3 * 2 ** 30)
+    check.check_memory(2 ** 30, "a small run")
+    with pytest.raises(ValueError, match=r"^a big run needs about 7.28 TiB of memory, but 3 GiB "
+                                         r"is available$"):
+        check.check_memory(check.array_bytes((10 ** 12,)), "a big run")
+    monkeypatch.setattr(check, "available_memory", lambda: None)
+    check.check_memory(2 ** 80, "anything, when the memory is unknown")

@@ -1,24 +1,33 @@
-"""The ``varint`` command line: complete help, one-line errors, and each
-job writing its table and plot."""
+"""The ``varint`` command line: complete help, the installed console script,
+every command run once (quickly), and every failure ending in one line:
+a table of bad arguments (each refused before any integration step), each
+kind of exception a command can raise, Ctrl-C, and hostile potentials."""
 
 import argparse
 import csv
+import importlib.metadata
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import sysconfig
+from pathlib import Path
 
 import numpy as np
 import pytest
+from numba.core.errors import TypingError
 
 import varint
 from varint import cli
+from varint.driver import IntegrationError
+from tests.helpers import hook_advance
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run(capsys, argv):
-    try:
-        code = cli.main(argv)
-    except SystemExit as exc:  # argparse
-        code = exc.code
+    code = cli.main(argv)
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -26,6 +35,19 @@ def _run(capsys, argv):
 def _rows(path):
     with open(path) as f:
         return list(csv.reader(f))
+
+
+def _one_line(err):
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _env():
+    """The environment of a subprocess that imports this tree's varint."""
+    path = os.environ.get("PYTHONPATH")
+    return dict(os.environ, PYTHONPATH=str(ROOT) + (os.pathsep + path if path else ""))
 
 
 def test_help_is_complete():
@@ -43,42 +65,297 @@ def test_help_is_complete():
         assert name in parser.format_help()
 
 
-def test_console_script_and_module_entry_points():
-    exe = shutil.which("varint")
-    if exe is not None:
-        out = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=60)
-        assert out.returncode == 0 and "varint map" in out.stdout
+def test_console_script_is_installed_and_runs_this_main():
+    """The installed package declares the ``varint`` script as
+    varint.cli:main, the script exists and runs (importing this tree), and
+    ``python -m varint.cli`` works from the source tree."""
+    scripts = [ep for ep in importlib.metadata.entry_points(group="console_scripts")
+               if ep.name == "varint"]
+    assert scripts, "no 'varint' console script is installed: pip install -e ."
+    assert scripts[0].value == "varint.cli:main"
+    assert scripts[0].load() is cli.main
+    exe = Path(sysconfig.get_path("scripts")) / "varint"
+    exe = str(exe) if exe.exists() else shutil.which("varint")
+    assert exe, "the 'varint' script is declared but missing from the scripts directory"
+    out = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=120,
+                         env=_env(), cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert "varint map" in out.stdout and "--traceback" in out.stdout
+    out = subprocess.run([sys.executable, "-m", "varint.cli", "schemes"], capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
+    assert out.returncode == 0 and "SBAB2C" in out.stdout, out.stderr
     # python -m varint stays the demo (the README's first command).
     out = subprocess.run([sys.executable, "-m", "varint", "--help"], capture_output=True,
-                         text=True, timeout=60)
+                         text=True, timeout=120, cwd=ROOT)
     assert out.returncode == 0 and "--t-end" in out.stdout and "R1" in out.stdout
 
 
-@pytest.mark.parametrize("argv, status, match", [
+HH = ["--model", "henon-heiles"]
+R1 = ["--orbit", "R1"]
+POT = ["--coords", "x,y", "--x0", "0,0.1,0.1,0"]
+MAP = ["map", *HH, "--energy", "0.125"]
+
+# (argv, exit status, text the one line must contain). Every row with
+# status 2 is refused before the first integration step.
+BAD_ARGUMENTS = [
     (["run", "bogus"], 2, "invalid choice: 'bogus'"),
     (["run", "sali", "--orbit", "R9"], 2, "unknown paper orbit 'R9'"),
-    (["run", "sali", "--orbit", "R1", "--tau", "-1"], 2, "tau must be a positive"),
-    (["run", "sali", "--orbit", "R1", "--model", "three-dof"], 2, "give exactly one of"),
-    (["run", "sali", "--model", "henon-heiles"], 2, "give the initial state"),
-    (["run", "sali", "--model", "henon-heiles", "--x0", "1,2"], 2, "--x0 needs 4 numbers"),
-    (["run", "sali", "--potential", "x**2/2 +", "--coords", "x"], 2, "cannot read --potential"),
-    (["map", "--model", "henon-heiles"], 2, "--energy is required"),
-    (["map", "--model", "henon-heiles", "--energy", "0.125", "--u", "1:0:3"], 2,
-     "--u must be START:STOP:NUM"),
-    (["map", "--model", "henon-heiles", "--energy", "0.125", "--indicator", "nope"], 2,
-     "unknown indicator 'nope'"),
+    (["run", "sali", *R1, "--tau", "-1"], 2, "--tau: expected a positive finite number, got '-1'"),
+    (["run", "sali", *R1, "--model", "three-dof"], 2, "give exactly one of"),
+    (["run", "sali", *HH], 2, "give the initial state"),
+    (["run", "sali", *HH, "--x0", "1,2"], 2, "--x0 needs 4 numbers"),
+    (["run", "sali", "--potential", "x**2/2 +", "--coords", "x", "--x0", "0,0"], 2,
+     "--potential: cannot read 'x**2/2 +'"),
+    (["map", *HH], 2, "--energy is required"),
+    ([*MAP, "--u", "1:0:3"], 2, "--u must be START:STOP:NUM with STOP > START"),
+    ([*MAP, "--indicator", "nope"], 2, "unknown indicator 'nope'"),
     (["select", "--orbit", "R1"], 2, "required: --target"),
     (["study", "nosuch"], 2, "unknown study 'nosuch'"),
-    (["run", "sali", "--model", "henon-heiles", "--energy", "0.3", "--t-end", "300"], 1,
+    (["run", "sali", *HH, "--energy", "0.3", "--t-end", "300"], 1,
      "run failed: the orbit failed"),
-])
-def test_bad_arguments_give_one_line(capsys, argv, status, match):
+    # -- the issues' cases: a singular potential, absurd grids, output paths, counts
+    (["run", "sali", "--potential", "1/x + y**2/2", "--coords", "x,y", "--x0", "0,0.1,0.1,0"],
+     2, "are not finite at the initial state, q = [0.0, 0.1]"),
+    ([*MAP, "--u=0:1:1000000000"], 2, "needs about"),
+    ([*MAP, "--u=0:1:100000", "--v=0:1:100000"], 2, "= 10000000000 points (--u, --v) needs about"),
+    (["run", "lyapunov", *R1, "--csv", "/nonexistent/dir/x.csv"], 2,
+     "--csv /nonexistent/dir/x.csv: directory /nonexistent/dir does not exist"),
+    (["run", "lyapunov", *R1, "--png", "/nonexistent/dir/x.png"], 2, "does not exist"),
+    (["run", "lyapunov", *R1, "--csv", "/proc/version"], 2,
+     "cannot write --csv /proc/version: it is a file of a virtual file system"),
+    (["run", "lyapunov", *R1, "--png", "/tmp"], 2, "--png /tmp is a directory"),
+    (["run", "lyapunov", *R1, "--csv", "/etc/passwd/x.csv"], 2, "/etc/passwd is not a directory"),
+    (["run", "lyapunov", *R1, "--csv", ""], 2, "--csv must name a file, got ''"),
+    (["run", "lyapunov", *R1, "--png", "plot.xyz"], 2, "matplotlib cannot write .xyz files"),
+    (["run", "lyapunov", *R1, "--csv", "same.png", "--png", "same.png"], 2,
+     "--csv and --png name the same file"),
+    (["run", "lyapunov", *R1, "--csv", "x" * 300], 2, "File name too long"),
+    (["schemes", "--csv", "/nonexistent/s.csv"], 2, "directory /nonexistent does not exist"),
+    (["demo", "--out", "/nonexistent/d.png"], 2, "--out /nonexistent/d.png: directory"),
+    (["run", "lyapunov", *R1, "--k", "2.5"], 2, "--k must be an integer in 1..4, got '2.5'"),
+    (["run", "lyapunov", *R1, "--k", "0"], 2, "--k must be an integer in 1..4, got '0'"),
+    (["run", "lyapunov", *R1, "--k", ""], 2, "--k is empty"),
+    (["run", "gali", *R1, "--k", "2,3.5"], 2, "--k must be integers in 2..4, got '3.5'"),
+    (["run", "gali", *R1, "--k", "1,2"], 2, "--k must be integers in 2..4, got '1'"),
+    (["run", "sali", *R1, "--k", "2"], 2, "--k applies to lyapunov and gali, not sali"),
+    (["run", "sali", *R1, "--t-out", "2.5"], 2, "--t-out: expected a positive integer, got '2.5'"),
+    (["run", "sali", *R1, "--t-out", "0"], 2, "--t-out: expected a positive integer, got '0'"),
+    (["run", "sali", *R1, "--t-end", "1", "--t-out", "1000"], 2,
+     "--t-out 1000 asks for more output times than the run has steps"),
+    (["run", "sali", *R1, "--seed", "1.5"], 2, "--seed: expected an integer >= 0, got '1.5'"),
+    (["run", "sali", *R1, "--seed", "-1"], 2, "--seed: expected an integer >= 0, got '-1'"),
+    (["run", "sali", "--model", "fpu-beta", "--fpu-n", "3.7"], 2,
+     "--fpu-n: expected an integer >= 2 (moving particles), got '3.7'"),
+    (["run", "sali", "--model", "fpu-beta", "--fpu-n", "1000000000000", "--x0", "0"], 2,
+     "model FPUBeta(n=1000000000000, beta=1.5) (1000000000000 degrees of freedom) needs about"),
+    (["run", "lyapunov", "--model", "fpu-beta", "--fpu-n", "100000", "--energy", "1"], 2,
+     "a run of 200000 vectors of FPUBeta(n=100000, beta=1.5) with 70 outputs needs about"),
+    ([*MAP, "--u=-0.4:0.6:5.5"], 2, "--u: NUM must be a positive integer (the number of points)"),
+    ([*MAP, "--v=-0.4:0.6:1e3.5"], 2, "--v: NUM must be a positive integer"),
+    ([*MAP, "--u=-0.4:nan:5"], 2, "--u: START and STOP must be finite"),
+    ([*MAP, "--u=-0.4:0.6"], 2, "--u must be START:STOP:NUM (e.g. --u=-0.45:0.7:200)"),
+    ([*MAP, "--u=a:b:3"], 2, "--u must be START:STOP:NUM with numbers START and STOP"),
+    ([*MAP, "--u", "-0.4:0.6:0"], 2, "NUM must be a positive integer"),
+    # -- non-finite, tiny and huge numbers
+    (["run", "sali", *R1, "--tau", "nan"], 2,
+     "--tau: expected a positive finite number, got 'nan'"),
+    (["run", "sali", *R1, "--tau", "0"], 2, "--tau: expected a positive finite number, got '0'"),
+    (["run", "sali", *R1, "--t-end", "inf"], 2, "--t-end: expected a positive finite number"),
+    (["run", "sali", *R1, "--t-end", "-inf"], 2, "--t-end: expected a positive finite number"),
+    (["run", "sali", *R1, "--tau", "1e-300"], 2,
+     "--t-end 10000 / --tau 1e-300 is 1e+304 steps, more than the 1e+11 a command runs"),
+    (["run", "sali", *R1, "--t-end", "1e300"], 2, "is 2e+301 steps, more than the 1e+11"),
+    (["run", "sali", *R1, "--tau", "1", "--t-end", "0.5"], 2,
+     "t_end = 0.5 is shorter than one step tau = 1.0"),
+    (["run", "sali", *R1, "--tau", "0.05abc"], 2, "--tau: expected a positive finite number"),
+    (["run", "sali", *HH, "--energy", "nan"], 2, "--energy: expected a finite number, got 'nan'"),
+    (["run", "sali", *HH, "--energy", "inf"], 2, "--energy: expected a finite number, got 'inf'"),
+    (["run", "sali", *HH, "--x0", "0,0,nan,0"], 2, "--x0 must hold finite numbers, got 'nan'"),
+    (["run", "sali", *HH, "--x0", "0,0,1e999,0"], 2, "--x0 must hold finite numbers"),
+    (["run", "sali", *HH, "--x0", "0,0,1,0,0"], 2, "--x0 needs 4 numbers, got 5"),
+    (["run", "sali", *HH, "--x0", "a,b,c,d"], 2, "--x0 must be comma-separated numbers, got 'a'"),
+    (["run", "sali", *HH, "--x0", ""], 2, "--x0 is empty"),
+    (["run", "sali", *HH, "--energy", "-0.5", "--q", "-0.1,0.1"], 2,
+     "no real momentum p[0] gives energy -0.5 at q = [-0.1, 0.1]"),
+    (["run", "sali", *HH, "--energy", "0.125", "--q", "0,0.1,3"], 2, "--q needs 2 numbers, got 3"),
+    (["run", "sali", *HH, "--x0", "0,0,0.1,0", "--energy", "0.1"], 2,
+     "give either --x0 or --energy"),
+    (["run", "sali", *R1, "--q", "-1,0.1"], 2, "--q goes with --energy"),
+    (["run", "sali", "--model", "fpu-beta", "--beta", "nan", "--x0", "0"], 2,
+     "--beta: expected a finite number, got 'nan'"),
+    (["run", "sali", *HH, "--fpu-n", "4", "--x0", "0,0,0,0"], 2,
+     "--fpu-n applies to --model fpu-beta only"),
+    (["run", "sali", *R1, "--inverse-mass", "1,1"], 2, "--inverse-mass applies to --potential"),
+    (["run", "sali", *R1, "--coords", "x,y"], 2, "--coords applies to --potential only"),
+    # -- names: empty, unknown, unicode
+    (["run", "sali", "--orbit", ""], 2, "unknown paper orbit ''"),
+    (["run", "sali", *R1, "--scheme", ""], 2, "unknown scheme ''; expected one of: SABA1"),
+    (["run", "sali", *R1, "--scheme", "SBAB2C\u200b"], 2, "unknown scheme"),
+    (["run", "sali", *R1, "--method", ""], 2, "unknown method ''; expected one of: tm"),
+    (["run", "sali", *R1, "--method", "taylor", "--scheme", "ABA864"], 2,
+     "method 'taylor' takes no scheme"),
+    (["run", "sali", "--orbit", "R\u00b9"], 2, "unknown paper orbit"),
+    # -- --potential and --coords
+    (["run", "sali", "--potential", "", *POT], 2, "--potential is empty"),
+    (["run", "sali", "--potential", "x**2", "--x0", "0,0"], 2, "--potential needs --coords"),
+    (["run", "sali", "--potential", "x**2", "--coords", "", "--x0", "0,0"], 2,
+     "--coords: coordinate 1 must be a name"),
+    (["run", "sali", "--potential", "x**2", "--coords", "x,,y", "--x0", "0,0"], 2,
+     "--coords: coordinate 2 must be a name"),
+    (["run", "sali", "--potential", "x**2", "--coords", "x,x", "--x0", "0,0"], 2,
+     "--coords names 'x' twice"),
+    (["run", "sali", "--potential", "x**2", "--coords", "sin", "--x0", "0,0"], 2,
+     "--coords: 'sin' is reserved"),
+    (["run", "sali", "--potential", "x**2", "--coords", "lambda", "--x0", "0,0"], 2,
+     "--coords: 'lambda' is reserved"),
+    (["run", "sali", "--potential", "x**2", "--coords", ",".join(f"q{i}" for i in range(101)),
+      "--x0", "0"], 2, "--coords names 101 coordinates; at most 100"),
+    (["run", "sali", "--potential", "x**2+y**2", *POT[:2], "--inverse-mass", "1,-1",
+      "--x0", "0,0,0,0"], 2, "--inverse-mass must be positive, got -1"),
+    (["run", "sali", "--potential", "x**2+y**2", *POT[:2], "--inverse-mass", "1,nan",
+      "--x0", "0,0,0,0"], 2, "--inverse-mass must hold finite numbers, got 'nan'"),
+    (["run", "sali", "--potential", "x**2 + z", *POT], 2,
+     "--potential: 'z' is not a coordinate, constant or function"),
+    (["run", "sali", "--potential", "x \u2212 y", *POT], 2,
+     "invalid character '\u2212' (U+2212)"),
+    (["run", "sali", "--potential", "9**9**9**9", *POT], 2, "exponent of magnitude above 1000"),
+    (["run", "sali", "--potential", "x/0", *POT], 2, "'0' is a divisor that is zero"),
+    (["run", "sali", "--potential", "x**2 + abs(y)", *POT], 2,
+     "'abs' is not an allowed function"),
+    (["run", "sali", "--potential", "x**2 + 1e400", *POT], 2, "'1e400' is not a finite number"),
+    (["run", "sali", "--potential", "(2*x)**100 + y**2", *POT], 2,
+     "cannot be compiled: Int value is too large"),
+    (["run", "sali", "--potential", "x**2/2 + y**2/2 + sqrt(x)", "--coords", "x,y", "--x0",
+      "-1,0,0,0"], 2, "are not finite at the initial state"),
+    (["run", "sali", "--potential", "x**2 + 1j*y", *POT], 2, "'1j' is an imaginary number"),
+    # -- map options
+    ([*MAP, "--axes", "1,9"], 2, "--axes must be integers in 0..3, got '9'"),
+    ([*MAP, "--axes", "1.5,3"], 2, "--axes must be integers in 0..3, got '1.5'"),
+    ([*MAP, "--axes", "1"], 2, "--axes needs 2 integers, got 1"),
+    ([*MAP, "--plane", "5"], 2, "plane must be a coordinate index in 0..1, got 5"),
+    ([*MAP, "--plane", "-1"], 2, "--plane: expected an integer >= 0, got '-1'"),
+    ([*MAP, "--threshold", "nan"], 2, "--threshold must hold finite numbers"),
+    ([*MAP, "--threshold", "abc"], 2, "--threshold must be comma-separated numbers"),
+    ([*MAP, "--checkpoint", ""], 2, "--checkpoint must name a directory, got ''"),
+    ([*MAP, "--checkpoint", "/etc/passwd"], 2, "--checkpoint /etc/passwd is a file"),
+    ([*MAP, "--checkpoint", "/nonexistent/ck"], 2, "directory /nonexistent does not exist"),
+    ([*MAP, "--chunk-size", "0"], 2, "--chunk-size: expected a positive integer, got '0'"),
+    ([*MAP, "--scheduler", ""], 2, "--scheduler must be an address"),
+    ([*MAP, "--energy", "-1", "--u=0:0.1:2", "--v=0:0.1:2"], 2,
+     "the section grid holds no allowed point"),
+    ([*MAP, "--t-end", "1e300"], 2, "steps, more than the 1e+11"),
+    # -- select, demo, study
+    (["select", *R1, "--target", "0"], 2, "--target: expected a positive finite number"),
+    (["select", *R1, "--target", "-1e-8"], 2, "--target: expected a positive finite number"),
+    (["select", *R1, "--target", "1e-8", "--pilot-t", "nan"], 2,
+     "--pilot-t: expected a positive finite number"),
+    (["select", *R1, "--target", "1e-8", "--t-end", "0.5"], 2,
+     "--t-end 0.5 is shorter than the shortest pilot, 0.8"),
+    (["select", *R1, "--target", "1e-8", "--metric", "nope"], 2, "invalid choice: 'nope'"),
+    (["demo", "--t-end", "nan"], 2, "t_end must be a finite number, got nan"),
+    (["demo", "--t-end", "1e300"], 2, "is 2e+301 steps, more than the 1e+11"),
+    (["demo", "--out", "d.xyz"], 2, "--out d.xyz: matplotlib cannot write .xyz files"),
+    (["study", "../../etc/passwd"], 2, "unknown study '../../etc/passwd'"),
+    # -- more found by trying
+    (["run", "sali", *R1, "--t-end", "1", "--csv", "/dev/full"], 1,
+     "error: cannot write --csv /dev/full: No space left on device"),
+    (["run", "sali", *R1, "--csv", "/tmp/no such dir/x.csv"], 2,
+     "directory /tmp/no such dir does not exist"),
+    (["run", "lyapunov", *R1, "--k", "-1"], 2, "--k must be an integer in 1..4, got '-1'"),
+    (["run", "lyapunov", *R1, "--t-end", "1", "--t-out", "99999999999999999999"], 2,
+     "asks for more output times than the run has steps (--t-end / --tau = 20)"),
+    (["run", "sali", *R1, "--t-end", "0.0499999"], 2, "is shorter than one step tau = 0.05"),
+    (["run", "sali", *HH, "--energy", "1e308"], 2,
+     "--energy 1e+308 gives a momentum p[0] = inf beyond the range of a double"),
+    (["run", "sali", *HH, "--x0", "1e200,0,0,0"], 2,
+     "are not finite at the initial state, q = [1e+200, 0.0]"),
+    (["run", "sali", "--potential", "exp(1000*x)", "--coords", "x", "--x0", "1,0"], 2,
+     "are not finite at the initial state"),
+    (["run", "sali", "--potential", "x**2", "--coords", "x", "--x0", "0,0", "--inverse-mass",
+      "0"], 2, "--inverse-mass must be positive, got 0"),
+    (["run", "sali", "--potential", "x**2", "--coords", "x", "--x0", "0,0", "--inverse-mass",
+      "1e400"], 2, "--inverse-mass must hold finite numbers, got '1e400'"),
+    (["run", "sali", "--potential", "x**2", "--coords", "x y", "--x0", "0,0"], 2,
+     "--coords: coordinate 1 must be a name"),
+    (["run", "sali", "--orbit", "\uff321"], 2, "unknown paper orbit '\uff321'"),
+    (["run", "sali", *R1, "--scheme", "SBAB2C "], 2, "unknown scheme 'SBAB2C '"),
+    (["run"], 2, "the following arguments are required: indicator"),
+    ([*MAP, "--u=-1e308:1e308:3"], 2, "--u: STOP - START must be finite"),
+    ([*MAP, "--u=1e308:1.7e308:3"], 2, "the section grid holds no allowed point"),
+    ([*MAP, "--scheduler", "nonsense"], 2, "cannot connect to --scheduler nonsense"),
+    ([*MAP, "--indicator", "gali_9"], 2, "GALI order k must be in 2..4"),
+    ([*MAP, "--threshold", "1,2"], 2, "--threshold needs 1 numbers, got 2"),
+    (["--traceback"], 0, None),
+    (["run", "sali", *R1, "--nosuch"], 2, "unrecognized arguments: --nosuch"),
+]
+
+
+@pytest.mark.parametrize("argv, status, match", BAD_ARGUMENTS,
+                         ids=[" ".join(row[0])[:60] for row in BAD_ARGUMENTS])
+def test_bad_arguments_give_one_line(capsys, monkeypatch, tmp_path, argv, status, match):
+    monkeypatch.chdir(tmp_path)
+    steps = hook_advance(monkeypatch, "tm", 10 ** 9, lambda: None)
     code, out, err = _run(capsys, argv)
-    assert code == status
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and match in lines[0]
+    assert code == status, err
+    if match is None:
+        assert not err
+        return
+    assert match in _one_line(err)
+    if status == 2:
+        assert not steps, "an integration ran before the argument was refused"
+        assert not list(tmp_path.iterdir())
 
 
+def test_the_bad_argument_table_has_distinct_rows():
+    keys = [tuple(argv) for argv, *_ in BAD_ARGUMENTS]
+    assert len(set(keys)) == len(keys) >= 120
+
+
+HOSTILE_POTENTIALS = [
+    "__import__('os').system('touch PWNED')",
+    "().__class__.__bases__[0].__subclasses__()",
+    "x.__class__",
+    "__builtins__",
+    "eval('1')",
+    "exec('import os')",
+    "open('PWNED', 'w')",
+    "(lambda: 1)()",
+    "[x for x in (1, 2)]",
+    "{x: 1}",
+    "x if y else 1",
+    "sin.__globals__",
+    "x[0]",
+    "x; import os",
+    "import os",
+    "f'{x}'",
+    "'PWNED'",
+    "sin(x)(y)",
+    "x := 1",
+    "sympy.sin(x)",
+    "Symbol('z')",
+    "9**9**9**9",
+    "(x**2)**9999999",
+    "2**10**100",
+    "x" + "+x" * 5000,
+    "-(" * 120 + "x" + ")" * 120,
+    "x**(" * 110 + "2" + ")" * 110,
+    "-" * 120 + "x",
+    "sin(" * 110 + "x" + ")" * 110,
+    "x\0",
+    "",
+]
+
+
+@pytest.mark.parametrize("formula", HOSTILE_POTENTIALS, ids=range(len(HOSTILE_POTENTIALS)))
+def test_hostile_potentials_are_refused_without_running(capsys, monkeypatch, tmp_path, formula):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, ["run", "sali", "--potential", formula, *POT])
+    assert code == 2
+    assert "--potential" in _one_line(err)
+    assert not list(tmp_path.iterdir())
+
+
+# -- every command, quickly ------------------------------------------------------------
 def test_schemes(capsys, tmp_path):
     code, out, err = _run(capsys, ["schemes", "--csv", str(tmp_path / "s.csv")])
     assert code == 0
@@ -90,7 +367,7 @@ def test_schemes(capsys, tmp_path):
 
 
 def test_run_an_indicator_of_a_potential(capsys, tmp_path):
-    argv = ["run", "sali", "--potential", "(x**2+y**2)/2 + x**2*y - y**3/3", "--coords", "x,y",
+    argv = ["run", "sali", "--potential", "(x**2+y**2)/2 + x^2*y - y**3/3", "--coords", "x,y",
             "--energy", "0.125", "--q", "0,0.558", "--t-end", "5", "--csv",
             str(tmp_path / "r.csv"), "--png", str(tmp_path / "r.png")]
     code, out, err = _run(capsys, argv)
@@ -111,8 +388,28 @@ def test_run_lyapunov_of_a_paper_orbit(capsys):
     assert "X1" in out and "X2" in out and "X3" not in out and "ABA864" in out
 
 
+@pytest.mark.parametrize("indicator, column", [("gali", "gali_4"), ("megno", "megno"),
+                                               ("integrate", "q0")])
+def test_run_every_other_indicator(capsys, tmp_path, indicator, column):
+    """Negative numbers as values (--x0 -0.1,..., --q, --p) parse too."""
+    state = (["--x0", "-0.1,0.2,-0.05,0.1"] if indicator != "megno" else
+             ["--energy", "0.1", "--q", "0,-0.1", "--p", "0,-0.05"])
+    argv = ["run", indicator, *HH, *state, "--t-end", "2", "--t-out", "4", "--csv",
+            str(tmp_path / "r.csv")]
+    if indicator == "gali":
+        argv += ["--k", "2,3,4"]
+    code, out, err = _run(capsys, argv)
+    assert code == 0, err
+    rows = _rows(tmp_path / "r.csv")
+    assert column in rows[0] and len(rows) == 5
+    if indicator == "integrate":
+        ref = varint.integrate(varint.models.HenonHeiles(), [-0.1, 0.2, -0.05, 0.1], 2.0,
+                               t_out=4)
+        assert np.allclose([float(v) for v in rows[-1][2:6]], ref.states[-1], rtol=1e-14)
+
+
 def test_map(capsys, tmp_path):
-    argv = ["map", "--model", "henon-heiles", "--energy", "0.125", "--u=-0.4:0.6:5",
+    argv = ["map", "--model", "henon-heiles", "--energy", "0.125", "--u", "-0.4:0.6:5",
             "--v=-0.3:0.3:4", "--t-end", "5", "--csv", str(tmp_path / "m.csv"),
             "--png", str(tmp_path / "m.png"), "--checkpoint", str(tmp_path / "ck")]
     code, out, err = _run(capsys, argv)
@@ -123,7 +420,160 @@ def test_map(capsys, tmp_path):
     assert (tmp_path / "m.png").exists() and (tmp_path / "ck" / "map.json").exists()
 
 
+def test_select(capsys, tmp_path):
+    code, out, err = _run(capsys, ["select", "--orbit", "R1", "--target", "1e-6", "--t-end",
+                                   "1", "--csv", str(tmp_path / "s.csv")])
+    assert code == 0, err
+    assert "chosen: method=tm" in out and len(_rows(tmp_path / "s.csv")) > 10
+
+
+def test_demo(capsys, tmp_path):
+    code, out, err = _run(capsys, ["demo", "--t-end", "1", "--out", str(tmp_path / "d.png")])
+    assert code == 0, err
+    assert "R1" in out and "C1" in out and (tmp_path / "d.png").stat().st_size > 1000
+
+
 def test_study_list(capsys):
     code, out, err = _run(capsys, ["study", "--list"])
     assert code == 0
     assert "sections" in out and "bench_chaos_map" in out
+
+
+def _checkout(folder):
+    (folder / "studies").mkdir(parents=True)
+    (folder / "pyproject.toml").write_text('[project]\nname = "varint"\nversion = "0"\n')
+    (folder / "studies" / "__init__.py").write_text("")
+    (folder / "studies" / "hello.py").write_text(
+        '"""Says hello."""\n\n\ndef main(argv=None):\n    import varint\n'
+        '    print("hello", argv, varint.__file__)\n')
+    return folder
+
+
+def test_study_runs_from_the_checkout_above_the_current_directory(tmp_path):
+    root = _checkout(tmp_path / "repo")
+    (root / "deep" / "er").mkdir(parents=True)
+    out = subprocess.run([sys.executable, "-m", "varint.cli", "study", "hello", "--quick"],
+                         capture_output=True, text=True, timeout=120, env=_env(),
+                         cwd=root / "deep" / "er")
+    assert out.returncode == 0, out.stderr
+    assert f"hello ['--quick'] {ROOT / 'varint' / '__init__.py'}" in out.stdout
+    listed = subprocess.run([sys.executable, "-m", "varint.cli", "study", "--list"],
+                            capture_output=True, text=True, timeout=120, env=_env(), cwd=root)
+    assert listed.stdout.split() == ["hello", "Says", "hello."]
+
+
+def test_study_without_a_checkout_says_how_to_get_one(capsys, monkeypatch, tmp_path):
+    # A non-editable install: the package is not inside a checkout either.
+    installed = tmp_path / "site-packages" / "varint" / "cli.py"
+    monkeypatch.setattr(cli, "__file__", str(installed))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "other"\n')
+    (tmp_path / "studies").mkdir()
+    code, out, err = _run(capsys, ["study", "sections"])
+    assert code == 2
+    line = _one_line(err)
+    assert "no varint source checkout here" in line and "clone the varint repository" in line
+    assert "run 'varint study' from inside it" in line
+
+
+# -- every kind of failure ends in one line -------------------------------------------------
+def _numba_error():
+    return TypingError("Failed in nopython mode pipeline (step: nopython frontend)\n"
+                       "No implementation of function abs(array)\n\nDuring: typing")
+
+
+def _wrapped_numba_error():
+    try:
+        raise _numba_error()
+    except TypingError as exc:
+        try:
+            raise TypeError("the kernels of model 'm' could not be compiled") from exc
+        except TypeError as wrapped:
+            return wrapped
+
+
+FAILURES = [
+    (ZeroDivisionError("division by zero"), 1,
+     "run failed: ZeroDivisionError in the model's kernels or the indicator (division by zero)"),
+    (FloatingPointError("overflow encountered in multiply"), 1,
+     "run failed: FloatingPointError"),
+    (OverflowError("math range error"), 1, "run failed: OverflowError"),
+    (MemoryError("Unable to allocate 74.5 GiB for an array"), 1,
+     "run failed: out of memory (Unable to allocate 74.5 GiB for an array)"),
+    (_numba_error(), 1, "numba could not compile the integrator: No implementation of function"),
+    (_wrapped_numba_error(), 1, "numba could not compile the integrator: the kernels of model"),
+    (IntegrationError("the orbit failed at t = 3", t=3.0, step=60, orbit=0, reason="nan"), 1,
+     "run failed: the orbit failed at t = 3"),
+    (KeyboardInterrupt(), 130, "varint run: interrupted"),
+    (ModuleNotFoundError("No module named 'heyoka'", name="heyoka"), 2,
+     "error: this needs the package heyoka, which is not installed"),
+    (ImportError("--scheduler needs dask.distributed"), 2, "error: --scheduler needs dask"),
+    (OSError(28, "No space left on device"), 1, "error: [Errno 28] No space left on device"),
+    (ValueError("two\nlines"), 2, "varint run: error: two lines"),
+    (varint.CheckpointError("c.ckpt is truncated"), 2, "error: c.ckpt is truncated"),
+    (TypeError("unsupported operand type(s)"), 1,
+     "internal error: TypeError: unsupported operand type(s); rerun with 'varint --traceback"),
+    (RuntimeError("boom"), 1, "internal error: RuntimeError: boom"),
+    (RecursionError("maximum recursion depth exceeded"), 1, "internal error: RecursionError"),
+    (AttributeError("'function' object has no attribute 'integrate'"), 1,
+     "internal error: AttributeError"),
+]
+
+
+@pytest.mark.parametrize("exc, status, match", FAILURES,
+                         ids=[type(f[0]).__name__ + str(i) for i, f in enumerate(FAILURES)])
+def test_every_failure_ends_in_one_line(capsys, monkeypatch, exc, status, match):
+    def fail(args):
+        raise exc
+
+    monkeypatch.setattr(cli, "_cmd_run", fail)
+    code, out, err = _run(capsys, ["run", "sali", "--orbit", "R1"])
+    assert code == status
+    assert match in _one_line(err)
+
+
+def test_traceback_flag_shows_the_traceback_then_the_line(capsys, monkeypatch):
+    def fail(args):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(cli, "_cmd_run", fail)
+    for argv in (["--traceback", "run", "sali"], ["run", "sali", "--traceback"]):
+        code, out, err = _run(capsys, argv)
+        lines = err.strip().splitlines()
+        assert code == 1 and lines[0] == "Traceback (most recent call last):"
+        assert "in fail" in err and lines[-1].startswith("varint run: internal error:")
+
+
+def test_a_broken_pipe_and_a_study_exit_status_are_not_errors(capsys, monkeypatch):
+    def pipe(args):
+        raise BrokenPipeError
+
+    def study(args):
+        raise SystemExit(3)
+
+    monkeypatch.setattr(cli, "_cmd_run", pipe)
+    assert _run(capsys, ["run", "sali"]) == (0, "", "")
+    monkeypatch.setattr(cli, "_cmd_study", study)
+    assert _run(capsys, ["study", "x"])[0] == 3
+
+
+def test_warnings_are_one_line_each(capsys, monkeypatch):
+    import warnings
+
+    def warn(args):
+        warnings.warn("three\nline\nwarning", RuntimeWarning)
+
+    monkeypatch.setattr(cli, "_cmd_run", warn)
+    code, out, err = _run(capsys, ["run", "sali"])
+    assert code == 0 and err == "varint run: warning: three line warning\n"
+
+
+def test_ctrl_c_prints_the_outputs_so_far_then_one_line(capsys, monkeypatch, tmp_path):
+    hook_advance(monkeypatch, "tm", 8, lambda: os.kill(os.getpid(), signal.SIGINT))
+    code, out, err = _run(capsys, ["run", "lyapunov", "--orbit", "C1", "--t-end", "200",
+                                   "--csv", str(tmp_path / "r.csv")])
+    assert code == 130
+    line = _one_line(err)
+    assert line.startswith("varint run: interrupted at t = ") and "shown and written" in line
+    rows = _rows(tmp_path / "r.csv")
+    assert 1 < len(rows) and float(rows[-1][0]) < 200

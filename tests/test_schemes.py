@@ -138,3 +138,27 @@ def test_tangent_map_is_the_derivative_of_the_map(name, c1):
         errs.append(np.max(np.abs(fd - M)) / np.max(np.abs(M)))
     assert errs[-1] < 1e-4
     assert abs(fitted_slope(hs, errs) - 2.0) < 0.3, errs
+
+
+def test_scheme_fields_are_normalised_and_checked():
+    s = SplittingScheme("LF-array", True, np.array([0.5]), [1.0], order=np.int64(2),
+                        corrector=np.float32(0.5))
+    assert s.drifts == (0.5,) and s.kicks == (1.0,) and type(s.order) is int
+    assert type(s.corrector) is float and hash(s)
+    for bad, match in [(dict(order=2.5), "order must be a positive integer, got 2.5"),
+                       (dict(order=float("nan")), "order must be a positive integer"),
+                       (dict(corrector="abc"), "corrector must be a finite number"),
+                       (dict(drifts=(float("nan"),)), r"drifts\[0\] must be a finite real"),
+                       (dict(kicks=(float("inf"),)), r"kicks\[0\] must be a finite real"),
+                       (dict(kicks=("1",)), r"kicks\[0\] must be a finite real number, got '1'")]:
+        args = dict(name="LF", drift_first=True, drifts=(0.5,), kicks=(1.0,), order=2)
+        args.update(bad)
+        with pytest.raises(ValueError, match="scheme 'LF': " + match):
+            SplittingScheme(**args)
+
+
+def test_register_scheme_refuses_what_is_not_a_scheme():
+    before = dict(varint.SCHEMES)
+    with pytest.raises(ValueError, match="register_scheme needs a SplittingScheme, got str"):
+        varint.register_scheme("SBAB9")
+    assert varint.SCHEMES == before

@@ -3,7 +3,11 @@ was expected, before anything reaches a compiled kernel."""
 
 from __future__ import annotations
 
+import errno
 import numbers
+import os
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -176,3 +180,222 @@ def choice(value, options, name):
     if key not in options:
         raise ValueError(f"unknown {name} {value!r}; expected one of: {', '.join(map(str, options))}")
     return key
+
+
+# -- sizes against the memory of the machine -----------------------------------
+def available_memory():
+    """Bytes that new allocations can use, or None if unknown.
+
+    ``MemAvailable`` of ``/proc/meminfo`` (free memory plus caches the kernel
+    can drop), else the free physical pages (``os.sysconf``); lowered to what
+    a cgroup memory limit (containers, batch jobs) still allows.
+    """
+    free = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    free = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    if free is None:
+        try:
+            free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (AttributeError, ValueError, OSError):
+            return None
+    limit = _cgroup_headroom()
+    return free if limit is None else min(free, limit)
+
+
+def _cgroup_headroom():
+    """Limit minus usage of this process's cgroup (v2, else v1), or None."""
+    for limit_file, usage_file in (("memory.max", "memory.current"),
+                                   ("memory.limit_in_bytes", "memory.usage_in_bytes")):
+        for folder in ("/sys/fs/cgroup", "/sys/fs/cgroup/memory"):
+            try:
+                with open(os.path.join(folder, limit_file)) as f:
+                    limit = f.read().strip()
+                with open(os.path.join(folder, usage_file)) as f:
+                    usage = int(f.read().strip())
+            except (OSError, ValueError):
+                continue
+            # "max" (v2) or a huge number (v1) mean no limit.
+            if limit.isdigit() and int(limit) < 2 ** 60:
+                return max(0, int(limit) - usage)
+            return None
+    return None
+
+
+def array_bytes(*shapes, itemsize=8):
+    """Bytes of arrays of these shapes (exact Python integers: no overflow)."""
+    total = 0
+    for shape in shapes:
+        n = 1
+        for d in (shape if isinstance(shape, (tuple, list)) else (shape,)):
+            n *= int(d)
+        total += n
+    return total * itemsize
+
+
+def format_bytes(n):
+    """``n`` bytes as a short text, e.g. ``"7.3 TiB"``."""
+    value = float(n)
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if value < 1024 or unit == "PiB":
+            return f"{value:.3g} {unit}" if unit != "B" else f"{int(value)} B"
+        value /= 1024
+    return f"{value:.3g} PiB"
+
+
+def check_memory(nbytes, what):
+    """Refuse work whose arrays would not fit in the available memory.
+
+    Call it with an estimate of the bytes a computation will allocate
+    before allocating any of them, so an absurd size fails at once with the
+    size named instead of swapping the machine or failing deep inside NumPy.
+
+    Parameters
+    ----------
+    nbytes : int
+        Bytes needed (:func:`array_bytes` helps).
+    what : str
+        The computation and the size that decides it, for the message, e.g.
+        ``"FPUBeta(n=1000000000000)"``.
+
+    Raises
+    ------
+    ValueError
+        ``"<what> needs about 7.3 TiB of memory, but 21.4 GiB is available"``.
+        Nothing is raised when the available memory is unknown.
+    """
+    free = available_memory()
+    if free is not None and nbytes > free:
+        raise ValueError(f"{what} needs about {format_bytes(nbytes)} of memory, but "
+                         f"{format_bytes(free)} is available")
+
+
+#: Most steps (t_end / tau) a run may take: the step counter is an int64
+#: and outputs are stored at step indices.
+MAX_STEPS = 2 ** 62
+
+
+def step_count(t_end, tau, limit=MAX_STEPS):
+    """``round(t_end / tau)``, refused above ``limit`` (e.g. ``tau=1e-300``
+    or ``t_end=1e300``, which would overflow the step counter or run for
+    ever); call after :func:`horizon`."""
+    n = t_end / tau
+    if not n <= limit:
+        raise ValueError(f"t_end / tau = {t_end:g} / {tau:g} = {n:.3g} steps, more than the "
+                         f"{limit:.3g} a run can take; use a larger tau or a shorter t_end")
+    return max(1, round(n))
+
+
+# -- arguments of the public runs ----------------------------------------------
+def model(value, name="model"):
+    """``value`` if it is a :class:`varint.models.Model`; a name (e.g.
+    ``"henon-heiles"``) or anything else is refused with the remedy."""
+    from .models.base import Model
+
+    if not isinstance(value, Model):
+        raise ValueError(
+            f"{name} must be a varint model (e.g. varint.models.HenonHeiles(), or "
+            f"varint.models.from_potential(V, q)), got {type(value).__name__} {value!r}")
+    return value
+
+
+def dask_client(client, name="client"):
+    """``client`` if it is None or looks like a ``dask.distributed.Client``
+    (it has ``submit``, ``gather`` and ``scheduler_info``)."""
+    if client is None or all(callable(getattr(client, a, None))
+                             for a in ("submit", "gather", "scheduler_info")):
+        return client
+    raise ValueError(
+        f"{name} must be a dask.distributed.Client or None, got {type(client).__name__} "
+        f"{client!r}; e.g. Client('tcp://host:8786'), or Client(LocalCluster()) on this "
+        "machine")
+
+
+def method_options(method, given, valid, others=None):
+    """Refuse options a method does not take, listing the ones it does.
+
+    Parameters
+    ----------
+    method : str
+        The ``method=`` name, e.g. ``"tm"``.
+    given : mapping or iterable of str
+        The options passed.
+    valid : iterable of str
+        The options ``method`` takes.
+    others : mapping of str to iterable of str, optional
+        Every method's options, to say which methods take a misplaced one.
+
+    Raises
+    ------
+    TypeError
+        ``"unknown option 'rtol' for method 'tm'; valid options: scheme,
+        parallel, fast_indicators ('rtol' is an option of cvode, dop853)"``.
+    """
+    valid = list(valid)
+    unknown = sorted(set(given) - set(valid))
+    if not unknown:
+        return
+    bad = unknown[0]
+    where = sorted(m for m, opts in (others or {}).items() if bad in opts and m != method)
+    also = f" ({bad!r} is an option of {', '.join(where)})" if where else ""
+    raise TypeError(f"unknown option {bad!r} for method {method!r}; valid options: "
+                    f"{', '.join(valid) if valid else 'none'}{also}")
+
+
+# -- files written at the end of a run ---------------------------------------------
+def output_file(path, name="output file"):
+    """Check, before any work, that ``path`` can be written at the end.
+
+    The directory must exist, and the file must either be creatable there
+    or exist and open for writing (without being changed). Files of virtual
+    file systems such as ``/proc`` and ``/sys`` are kernel interfaces that
+    refuse data or act on it, even for root: they are refused. Devices and
+    pipes (``/dev/null``, ``/dev/stdout``) are accepted.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the path and what is wrong with it.
+    """
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"{name} must be a file path, got {type(path).__name__} {path!r}")
+    text = os.fspath(path)
+    if not text.strip():
+        raise ValueError(f"{name} must name a file, got {text!r}")
+    if "\0" in text:
+        raise ValueError(f"{name} must be a file path, got {text!r} (it contains a NUL byte)")
+    p = Path(text)
+    try:
+        if p.is_dir():
+            raise ValueError(f"{name} {text} is a directory; expected a file path")
+        parent = p.parent
+        if not parent.exists():
+            raise ValueError(f"{name} {text}: directory {parent} does not exist")
+        if not parent.is_dir():
+            raise ValueError(f"{name} {text}: {parent} is not a directory")
+        if p.exists():
+            # A virtual file system holds no blocks of storage.
+            if p.is_file() and os.statvfs(p).f_blocks == 0:
+                raise ValueError(f"cannot write {name} {text}: it is a file of a virtual file "
+                                 "system (such as /proc or /sys), not a place for output")
+            # O_NONBLOCK: a named pipe without a reader fails instead of
+            # blocking; no O_TRUNC: the file is left as it is.
+            os.close(os.open(p, os.O_WRONLY | os.O_APPEND | os.O_NONBLOCK))
+        else:
+            fd, probe = tempfile.mkstemp(dir=parent, prefix=".varint-", suffix=".probe")
+            os.close(fd)
+            os.unlink(probe)
+    except OSError as exc:
+        why = ("it is a named pipe that nothing reads" if exc.errno == errno.ENXIO
+               else exc.strerror or str(exc))
+        raise ValueError(f"cannot write {name} {text}: {why}") from None
+    return p

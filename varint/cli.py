@@ -5,12 +5,13 @@
     varint run sali --potential "..."       a model given as a potential
     varint map --energy 0.125 ...           a chaos map of a surface of section
     varint select --orbit R1 --target 1e-8  the cheapest scheme and step
-    varint study stress --quick             a study of studies/ (source tree)
+    varint study stress --quick             a study of studies/ (source checkout)
     varint demo                             R1 and C1, as ``python -m varint``
 
 Results are printed as a table; ``--csv`` and ``--png`` write them to files.
 Bad arguments and failed runs end with a one-line error (exit status 2 for
-arguments, 1 for a failed run).
+arguments, 1 for a failed run or an internal error, 130 after Ctrl-C);
+``varint --traceback COMMAND ...`` also prints the traceback.
 """
 
 from __future__ import annotations
@@ -18,46 +19,182 @@ from __future__ import annotations
 import argparse
 import csv
 import importlib
+import math
+import os
+import re
 import sys
+import traceback
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main"]
+from . import _validate as check
+
+__all__ = ["main", "build_parser"]
 
 INDICATORS = ("lyapunov", "gali", "sali", "megno", "integrate")
 MODELS = ("henon-heiles", "three-dof", "fpu-beta")
+#: Most steps (t_end / tau) one orbit of a command may take: 50 times the
+#: paper's longest run (2e9 steps), about three hours at 100 ns a step.
+MAX_STEPS = 10 ** 11
+#: Most coordinates of --potential: its generated kernels grow as N² to N³
+#: (a dense quartic in 32 coordinates takes 20 s to generate).
+MAX_COORDS = 100
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (instead of usage + error)."""
+    """argparse with one-line errors (instead of usage + error), reading
+    values that start with "-" as values."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse takes "-1,0.1", "-0.4:0.6:50", "-1e-3" or "-x**2" for an
+        # unknown option ("expected one argument") unless they match this.
+        # The only single-dash option is -h, matched before this is asked.
+        self._negative_number_matcher = re.compile(r"^-[^-]")
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
 
-def _floats(text, name, count=None):
+# -- option values ---------------------------------------------------------------
+def _finite(text):
+    """argparse type: a finite number."""
     try:
-        values = [float(v) for v in text.replace(",", " ").split()]
+        value = float(text)
     except ValueError:
-        raise ValueError(f"{name} must be comma-separated numbers, got {text!r}") from None
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {_shown(text)}")
+    return value
+
+
+def _positive(text):
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got "
+                                         f"{_shown(text)}")
+    return value
+
+
+def _shown(text, limit=60):
+    """``repr(text)``, shortened: values are quoted in one-line messages."""
+    return repr(text if len(text) <= limit else text[:limit - 3] + "...")
+
+
+def _integer(text, minimum, what):
+    """``text`` as an integer >= ``minimum``, or ArgumentTypeError."""
+    try:
+        value = int(text)
+    except ValueError:
+        # "1e3" is a count too; "2.5" is not.
+        try:
+            number = float(text)
+        except ValueError:
+            number = math.nan
+        value = int(number) if math.isfinite(number) and number.is_integer() else None
+    if value is None or value < minimum:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {_shown(text)}")
+    return value
+
+
+def _count(text):
+    """argparse type: an integer >= 1."""
+    return _integer(text, 1, "a positive integer")
+
+
+def _natural(text):
+    """argparse type: an integer >= 0."""
+    return _integer(text, 0, "an integer >= 0")
+
+
+def _fpu_size(text):
+    """argparse type: an integer >= 2."""
+    return _integer(text, 2, "an integer >= 2 (moving particles)")
+
+
+def _items(text, name):
+    items = text.replace(",", " ").split()
+    if not items:
+        raise ValueError(f"{name} is empty; expected comma-separated numbers")
+    return items
+
+
+def _floats(text, name, count=None):
+    """Comma-separated finite numbers (exactly ``count`` if given)."""
+    values = []
+    for item in _items(text, name):
+        try:
+            value = float(item)
+        except ValueError:
+            raise ValueError(f"{name} must be comma-separated numbers, got {_shown(item)} in "
+                             f"{_shown(text)}") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{name} must hold finite numbers, got {_shown(item)} in "
+                             f"{_shown(text)}")
+        values.append(value)
     if count is not None and len(values) != count:
-        raise ValueError(f"{name} needs {count} numbers, got {len(values)} ({text!r})")
+        raise ValueError(f"{name} needs {count} numbers, got {len(values)} ({_shown(text)})")
     return values
 
 
-def _grid(text, name):
-    """START:STOP:NUM as a linspace."""
+def _ints(text, name, count, lo, hi):
+    """Comma-separated integers in lo..hi (exactly ``count`` unless None)."""
+    items = _items(text, name)
+    expected = ("an integer" if count == 1 else "integers") + f" in {lo}..{hi}"
+    values = []
+    for item in items:
+        try:
+            values.append(_integer(item, lo, ""))
+        except argparse.ArgumentTypeError:
+            values.append(None)
+        if values[-1] is None or values[-1] > hi:
+            where = f" in {_shown(text)}" if len(items) > 1 else ""
+            raise ValueError(f"{name} must be {expected}, got {_shown(item)}{where}")
+    if count is not None and len(values) != count:
+        raise ValueError(f"{name} needs {count} integers, got {len(values)} ({_shown(text)})")
+    return values
+
+
+def _grid_spec(text, name):
+    """START:STOP:NUM as (start, stop, num), checked but not yet allocated."""
     parts = text.split(":")
+    example = f"e.g. {name}=-0.45:0.7:200"
+    if len(parts) != 3:
+        raise ValueError(f"{name} must be START:STOP:NUM ({example}), got {text!r}")
     try:
-        start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
-    except (ValueError, IndexError):
-        raise ValueError(f"{name} must be START:STOP:NUM, e.g. -0.5:0.7:200, got {text!r}") \
-            from None
-    if len(parts) != 3 or num < 1 or not stop > start:
-        raise ValueError(f"{name} must be START:STOP:NUM with STOP > START and NUM >= 1, "
-                         f"got {text!r}")
-    return np.linspace(start, stop, num)
+        start, stop = (float(v) for v in parts[:2])
+    except ValueError:
+        raise ValueError(f"{name} must be START:STOP:NUM with numbers START and STOP "
+                         f"({example}), got {text!r}") from None
+    try:
+        num = _count(parts[2])
+    except argparse.ArgumentTypeError:
+        raise ValueError(f"{name}: NUM must be a positive integer (the number of points), got "
+                         f"{parts[2]!r} in {text!r}") from None
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        raise ValueError(f"{name}: START and STOP must be finite, got {text!r}")
+    if not stop > start:
+        raise ValueError(f"{name} must be START:STOP:NUM with STOP > START, got {text!r}")
+    if not math.isfinite(stop - start):
+        raise ValueError(f"{name}: STOP - START must be finite (a double), got {text!r}")
+    return start, stop, num
+
+
+def _horizon(t_end, tau, t_name="--t-end", tau_name="--tau"):
+    """(t_end, tau, steps) checked: positive, finite, at most MAX_STEPS steps."""
+    t_end, tau = check.horizon(t_end, tau)
+    steps = t_end / tau
+    if steps > MAX_STEPS:
+        raise ValueError(f"{t_name} {t_end:g} / {tau_name} {tau:g} is {steps:.3g} steps, more "
+                         f"than the {MAX_STEPS:.0e} a command runs; use a larger {tau_name} or "
+                         f"a shorter {t_name}")
+    return t_end, tau, max(1, round(steps))
 
 
 # -- models and initial states -------------------------------------------------
@@ -68,70 +205,173 @@ def _add_model_arguments(p, orbit=True):
     group.add_argument("--model", choices=MODELS,
                        help="a built-in model (fpu-beta: with --fpu-n and --beta)")
     group.add_argument("--potential", metavar="EXPR",
-                       help="V(q) as a SymPy expression, e.g. '(x**2+y**2)/2 + x**2*y - y**3/3'")
+                       help="V(q) as a formula in the --coords, e.g. "
+                       "'(x**2+y**2)/2 + x**2*y - y**3/3': numbers, + - * / ** ^, parentheses, "
+                       "pi, E and sin, cos, tan, exp, log, sqrt, sinh, ..., atan2")
     group.add_argument("--coords", metavar="NAMES",
                        help="the coordinates of --potential in order, e.g. x,y")
-    group.add_argument("--inverse-mass", metavar="M", help="diagonal of M^-1 (default all 1)")
-    group.add_argument("--fpu-n", type=int, default=8, help="FPU particles (default 8)")
-    group.add_argument("--beta", type=float, default=1.5, help="FPU beta (default 1.5)")
+    group.add_argument("--inverse-mass", metavar="M", help="diagonal of M^-1 for --potential "
+                       "(default all 1)")
+    group.add_argument("--fpu-n", type=_fpu_size, help="FPU particles (default 8)")
+    group.add_argument("--beta", type=_finite, help="FPU beta (default 1.5)")
 
 
 def _add_state_arguments(p):
     group = p.add_argument_group("initial state (with --model or --potential)")
     group.add_argument("--x0", metavar="Q,P", help="the full state q then p, comma-separated")
-    group.add_argument("--energy", type=float, help="solve p[0] >= 0 from this energy, "
+    group.add_argument("--energy", type=_finite, help="solve p[0] >= 0 from this energy, "
                        "with --q and --p giving the rest")
     group.add_argument("--q", metavar="Q", help="positions for --energy")
     group.add_argument("--p", metavar="P", help="momenta for --energy (p[0] is solved)")
 
 
+def _given(args, *names):
+    return [n for n in names if getattr(args, n, None) is not None]
+
+
+def _refuse_unused(args, names, why):
+    unused = _given(args, *names)
+    if unused:
+        raise ValueError(f"--{unused[0].replace('_', '-')} {why}")
+
+
 def _model(args):
     from . import models
 
-    given = [a for a in ("orbit", "model", "potential") if getattr(args, a, None)]
+    sources = [a for a in ("orbit", "model", "potential") if hasattr(args, a)]
+    given = _given(args, *sources)
     if len(given) != 1:
-        raise ValueError("give exactly one of " + ", ".join(
-            f"--{a}" for a in ("orbit", "model", "potential") if hasattr(args, a))
+        raise ValueError("give exactly one of " + ", ".join(f"--{a}" for a in sources)
                          + (f" (got {', '.join('--' + g for g in given)})" if given else ""))
+    if args.model != "fpu-beta":
+        _refuse_unused(args, ("fpu_n", "beta"), "applies to --model fpu-beta only")
+    if given[0] != "potential":
+        _refuse_unused(args, ("coords", "inverse_mass"), "applies to --potential only")
     if given[0] == "orbit":
         return models.paper_orbit(args.orbit)
-    if args.model:
-        model = {"henon-heiles": lambda: models.HenonHeiles(),
-                 "three-dof": lambda: models.ThreeDof(),
-                 "fpu-beta": lambda: models.FPUBeta(args.fpu_n, args.beta)}[args.model]()
-        return model, None
-    import sympy as sp
+    if given[0] == "model":
+        if args.model == "fpu-beta":
+            n = 8 if args.fpu_n is None else args.fpu_n
+            return models.FPUBeta(n, 1.5 if args.beta is None else args.beta), None
+        built_in = {"henon-heiles": models.HenonHeiles, "three-dof": models.ThreeDof}
+        return built_in[args.model](), None
+    return _potential_model(args), None
 
-    if not args.coords:
+
+def _potential_model(args):
+    from .formula import coordinate_symbols, parse_formula
+    from .models import from_potential
+
+    if args.coords is None:
         raise ValueError("--potential needs --coords naming its coordinates, e.g. --coords x,y")
-    names = [c.strip() for c in args.coords.split(",") if c.strip()]
-    symbols = sp.symbols(names)
-    try:
-        V = sp.sympify(args.potential, locals=dict(zip(names, symbols)))
-    except (sp.SympifyError, SyntaxError, TypeError) as exc:
-        raise ValueError(f"cannot read --potential {args.potential!r}: {exc}") from None
-    minv = None if args.inverse_mass is None else _floats(args.inverse_mass, "--inverse-mass",
-                                                          len(names))
-    return models.from_potential(V, symbols, inverse_mass=minv, name=args.potential), None
+    names = [c.strip() for c in args.coords.split(",")]
+    if len(names) > MAX_COORDS:
+        raise ValueError(f"--coords names {len(names)} coordinates; at most {MAX_COORDS} (the "
+                         "generated kernels grow as N^2 to N^3): write a Model with hand-written "
+                         "kernels for larger systems, as varint.models.FPUBeta does")
+    symbols = coordinate_symbols(names, "--coords")
+    V = parse_formula(args.potential, [s.name for s in symbols], "--potential")
+    minv = None
+    if args.inverse_mass is not None:
+        minv = _floats(args.inverse_mass, "--inverse-mass", len(names))
+        bad = [m for m in minv if not m > 0]
+        if bad:
+            raise ValueError(f"--inverse-mass must be positive, got {bad[0]:g}")
+    return from_potential(V, symbols, inverse_mass=minv, name=" ".join(args.potential.split()))
 
 
 def _state(args, model, x0):
     from .models import solve_momentum
 
+    if args.x0 is not None and args.energy is not None:
+        raise ValueError("give either --x0 or --energy (with --q/--p), not both")
+    if args.energy is None:
+        _refuse_unused(args, ("q", "p"), "goes with --energy (the energy fixes p[0])")
     if args.x0 is not None:
         return np.array(_floats(args.x0, "--x0", model.dim))
     if args.energy is not None:
         n = model.n_dof
-        q = _floats(args.q, "--q", n) if args.q else [0.0] * n
-        p = _floats(args.p, "--p", n) if args.p else [0.0] * n
-        return solve_momentum(model, q, p, args.energy)
+        q = _floats(args.q, "--q", n) if args.q is not None else [0.0] * n
+        p = _floats(args.p, "--p", n) if args.p is not None else [0.0] * n
+        with np.errstate(over="ignore"):
+            x = solve_momentum(model, q, p, args.energy)
+        if not np.isfinite(x).all():
+            raise ValueError(f"--energy {args.energy:g} gives a momentum p[0] = {x[n]:g} beyond "
+                             "the range of a double")
+        return x
     if x0 is None:
         raise ValueError("give the initial state: --x0, or --energy with --q/--p "
                          "(or use --orbit)")
     return x0
 
 
-# -- output ----------------------------------------------------------------------
+def _check_kernels(model, x, what="the initial state"):
+    """Compile and evaluate the model's kernels at ``x`` before any long work:
+    a potential numba cannot compile, or one singular at the start, is a bad
+    argument, not a failed run."""
+    from numba.core.errors import NumbaError
+
+    q = np.ascontiguousarray(np.asarray(x, dtype=float)[:model.n_dof])
+    try:
+        values = (model.gradient(q), model.hessian_band(q), model.third_band(q, np.ones_like(q)))
+    except NumbaError as exc:
+        reason = _first_line(exc)
+        if reason.startswith("Int value is too large"):
+            reason += ("; an integer beyond 64 bits, e.g. from (2*x)**100: write its numbers "
+                       "with a decimal point, (2.0*x)**100")
+        raise ValueError(f"the kernels of {model.name} cannot be compiled: {reason}") from None
+    except ArithmeticError as exc:
+        raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
+                         f"{what}, q = {_short(q)}: {type(exc).__name__}: {exc}") from None
+    if not all(np.isfinite(v).all() for v in values):
+        raise ValueError(f"the derivatives of V ({model.name}) are not finite at {what}, "
+                         f"q = {_short(q)}: V is singular, not real or too large there")
+
+
+def _short(q, limit=8):
+    """A coordinate vector for a one-line message (a long one elided)."""
+    if len(q) <= limit:
+        return str(q.tolist())
+    return f"[{', '.join(f'{v:g}' for v in q[:3])}, ... ({len(q)} values)]"
+
+
+def _check_run_size(model, k, n_out, what):
+    """Refuse a run whose vectors and stored outputs would not fit in memory."""
+    dim = model.dim
+    # Deviation vectors and their QR workspace, the state, and per output
+    # the state-sized and vector-sized records.
+    needed = check.array_bytes((3, dim, k), (4, dim), (n_out, dim + k + 4))
+    check.check_memory(needed, what)
+
+
+# -- outputs ---------------------------------------------------------------------
+def _check_outputs(args):
+    """Every file a command writes, checked before its run starts."""
+    paths = {}
+    for attr, flag in (("csv", "--csv"), ("png", "--png")):
+        value = getattr(args, attr, None)
+        if value is None:
+            continue
+        path = check.output_file(value, flag)
+        if attr == "png":
+            _check_plot_format(path, flag)
+        key = os.path.realpath(path)
+        # Two outputs to one device (/dev/null) are fine; to one file, not.
+        if key in paths and not (path.exists() and not path.is_file()):
+            raise ValueError(f"{paths[key]} and {flag} name the same file {value}")
+        paths[key] = flag
+
+
+def _check_plot_format(path, flag):
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    suffix = path.suffix[1:].lower()
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if suffix and suffix not in formats:
+        raise ValueError(f"{flag} {path}: matplotlib cannot write .{suffix} files; use one of "
+                         f"{', '.join('.' + f for f in sorted(formats))}")
+
+
 def _print_table(cols, rows=12):
     names = list(cols)
     n = len(cols[names[0]]) if names else 0
@@ -149,11 +389,14 @@ def _cell(v):
     return f"{float(v):>12.5g}"
 
 
-def _write_csv(path, cols):
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(list(cols))
-        w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
+def _write_csv(path, cols, flag="--csv"):
+    try:
+        with open(path, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(list(cols))
+            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
+    except OSError as exc:
+        raise OSError(f"cannot write {flag} {path}: {exc.strerror or exc}") from exc
     print(f"table written to {path}")
 
 
@@ -166,9 +409,13 @@ def _save_plot(result, path, **kwargs):
     from .plotting import plot
 
     fig, ax = plt.subplots(figsize=(6, 4.5), layout="constrained")
-    plot(result, ax, **kwargs)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    try:
+        plot(result, ax, **kwargs)
+        fig.savefig(path, dpi=130)
+    except OSError as exc:
+        raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
+    finally:
+        plt.close(fig)
     print(f"plot written to {path}")
 
 
@@ -177,16 +424,21 @@ def _outputs(result, args, **plot_kwargs):
 
     cols = columns(result)
     _print_table(cols)
-    if args.csv:
+    if args.csv is not None:
         _write_csv(args.csv, cols)
-    if args.png:
+    if args.png is not None:
         _save_plot(result, args.png, **plot_kwargs)
+
+
+class _Interrupted(Exception):
+    """Ctrl-C ended a run that returned its outputs so far (exit 130)."""
 
 
 # -- subcommands -------------------------------------------------------------------
 def _cmd_schemes(args):
     from .schemes import SCHEMES
 
+    _check_outputs(args)
     cols = {"name": [], "order": [], "nominal": [], "forces/step": [], "corrector": [],
             "reference": []}
     for s in SCHEMES.values():
@@ -200,112 +452,215 @@ def _cmd_schemes(args):
         print(f"{row[0]:10} {row[1]:>5} {row[2]:>9} {row[3]:>11} {row[4]:>9}  {row[5]}")
     print("order: of the energy error for H = p^2/2 + V(q); forces/step: gradient "
           "evaluations per step in a long run (the cost)")
-    if args.csv:
+    if args.csv is not None:
         _write_csv(args.csv, cols)
 
 
 def _method_options(args):
-    out = {"method": args.method, "tau": args.tau}
-    if args.scheme:
+    out = {"method": args.method}
+    # Only options every method documents are passed (a scheme for "tm" and
+    # the TDH methods); the method refuses a scheme it does not take.
+    if args.scheme is not None:
         out["scheme"] = args.scheme
     return out
 
 
-def _cmd_run(args):
-    from . import api
+def _vectors(args, model):
+    """k of each run kind: the number of deviation vectors it carries and
+    what it is passed as."""
+    dim = model.dim
+    if args.indicator == "lyapunov":
+        k = dim if args.k is None else _ints(args.k, "--k", 1, 1, dim)[0]
+        return k, {"n_exponents": None if args.k is None else k}
+    if args.indicator == "gali":
+        orders = (2, dim) if args.k is None else tuple(_ints(args.k, "--k", None, 2, dim))
+        return max(orders), {"k": orders}
+    if args.k is not None:
+        raise ValueError(f"--k applies to lyapunov and gali, not {args.indicator}")
+    return (0 if args.indicator == "integrate" else 2), {}
 
+
+def _cmd_run(args):
+    from .api import gali, integrate, lyapunov_spectrum, megno, sali
+
+    _check_outputs(args)
+    t_end, tau, steps = _horizon(args.t_end, args.tau)
+    if args.t_out is not None and args.t_out > steps:
+        raise ValueError(f"--t-out {args.t_out} asks for more output times than the run has "
+                         f"steps (--t-end / --tau = {steps})")
     model, x0 = _model(args)
     x0 = _state(args, model, x0)
-    opts = dict(_method_options(args), t_out=args.t_out, progress=None)
-    if args.indicator == "lyapunov":
-        k = None if args.k is None else int(_floats(args.k, "--k", 1)[0])
-        r = api.lyapunov_spectrum(model, x0, args.t_end, n_exponents=k, seed=args.seed,
-                                         **opts)
-    elif args.indicator == "gali":
-        orders = tuple(int(v) for v in _floats(args.k, "--k")) if args.k else (2, model.dim)
-        r = api.gali(model, x0, args.t_end, k=orders, seed=args.seed, **opts)
-    elif args.indicator == "sali":
-        r = api.sali(model, x0, args.t_end, seed=args.seed, **opts)
-    elif args.indicator == "megno":
-        r = api.megno(model, x0, args.t_end, seed=args.seed, **opts)
-    else:
-        r = api.integrate(model, x0, args.t_end, **opts)
+    _check_kernels(model, x0)
+    k, kind_options = _vectors(args, model)
+    n_out = args.t_out or 10 * math.ceil(math.log10(steps) + 1)
+    _check_run_size(model, k, n_out, f"a run of {k} vectors of {model.name} with {n_out} "
+                    "outputs")
+    opts = dict(_method_options(args), tau=tau, t_out=args.t_out, progress=None)
+    if args.indicator != "integrate":
+        opts["seed"] = args.seed
+    run = {"lyapunov": lyapunov_spectrum, "gali": gali, "sali": sali, "megno": megno,
+           "integrate": integrate}[args.indicator]
+    r = run(model, x0, t_end, **kind_options, **opts)
+    if r.interrupted and len(r.t) == 0:
+        raise KeyboardInterrupt
     print(r.summary())
     _outputs(r, args)
+    if r.interrupted:
+        raise _Interrupted(f"interrupted at t = {float(r.t[-1]):g}: the {len(r.t)} outputs "
+                           "computed so far are shown" + (" and written" if args.csv or args.png
+                                                         else ""))
 
 
 def _cmd_map(args):
     from .maps import chaos_map
     from .sections import section_grid
 
+    _check_outputs(args)
+    if args.checkpoint is not None:
+        _check_directory(args.checkpoint, "--checkpoint")
     if args.energy is None:
         raise ValueError("--energy is required: the map is a grid on the section at that energy")
+    t_end, tau, _ = _horizon(args.t_end, args.tau)
     model, _ = _model(args)
-    axes = None if args.axes is None else tuple(int(v) for v in _floats(args.axes, "--axes", 2))
-    grid = section_grid(model, args.energy, _grid(args.u, "--u"), _grid(args.v, "--v"),
-                        axes=axes, plane=args.plane)
-    threshold = "default" if args.threshold is None else (
-        None if args.threshold.lower() == "none" else _floats(args.threshold, "--threshold", 1)[0])
-    client = None
-    if args.scheduler:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise ImportError("--scheduler needs dask.distributed: pip install "
-                              "'varint[dask]'") from None
-        client = Client(args.scheduler)
+    n = model.n_dof
+    axes = None if args.axes is None else tuple(_ints(args.axes, "--axes", 2, 0, 2 * n - 1))
+    (u0, u1, nu), (v0, v1, nv) = _grid_spec(args.u, "--u"), _grid_spec(args.v, "--v")
+    # The grid's states, the potential's temporaries and the map's results:
+    # about 8 (6 + 8 N) bytes per point.
+    check.check_memory(check.array_bytes((nu, nv, 6 + 8 * n)),
+                       f"a grid of {nu} x {nv} = {nu * nv} points (--u, --v)")
+    # Points where V overflows are outside the energy surface; no warning.
+    with np.errstate(over="ignore", invalid="ignore"):
+        grid = section_grid(model, args.energy, np.linspace(u0, u1, nu),
+                            np.linspace(v0, v1, nv), axes=axes, plane=args.plane)
+    if grid.states.size:
+        _check_kernels(model, grid.states[0], "the first grid point")
+    threshold = "default"
+    if args.threshold is not None:
+        threshold = None if args.threshold.strip().lower() == "none" else _floats(
+            args.threshold, "--threshold", 1)[0]
+    client = _client(args.scheduler) if args.scheduler is not None else None
     try:
-        r = chaos_map(model, grid, args.indicator, t_end=args.t_end, tau=args.tau,
-                      method=args.method, scheme=args.scheme, threshold=threshold,
-                      seed=args.seed, chunk_size=args.chunk_size, client=client,
-                      checkpoint=args.checkpoint, progress=None)
+        r = chaos_map(model, grid, args.indicator, t_end=t_end, tau=tau,
+                      **_method_options(args), threshold=threshold, seed=args.seed,
+                      chunk_size=args.chunk_size, client=client, checkpoint=args.checkpoint,
+                      progress=None)
     finally:
         if client is not None:
             client.close()
     with np.errstate(invalid="ignore"):
         finite = r.values[np.isfinite(r.values)]
     print(f"{r.indicator} map of {model.name} on q{grid.plane} = 0 at H = {args.energy:g}: "
-          f"{len(r.values)} orbits ({grid.mask.size} grid points), t_end = {args.t_end:g}, "
+          f"{len(r.values)} orbits ({grid.mask.size} grid points), t_end = {t_end:g}, "
           f"{r.provenance.wall_time:.3g} s")
     print(f"decided early: {int(r.decided.sum())}, failed: {int((r.status > 0).sum())}"
           + (f", below {r.threshold:g}: {int((finite < r.threshold).sum())}"
              if r.threshold is not None else "")
           + (f"; value quartiles {np.percentile(finite, [25, 50, 75]).round(6).tolist()}"
              if finite.size else ""))
-    if args.csv:
+    if args.csv is not None:
         from .tables import columns
 
         _write_csv(args.csv, columns(r))
-    if args.png:
+    if args.png is not None:
         _save_plot(r, args.png)
+    if r.interrupted:
+        raise _Interrupted("interrupted: the chunks finished so far are shown"
+                           + (f"; run the same command again to resume from {args.checkpoint}"
+                              if args.checkpoint else ""))
+
+
+def _check_directory(value, flag):
+    """A directory the command may create (its parent must exist)."""
+    if not value.strip():
+        raise ValueError(f"{flag} must name a directory, got {value!r}")
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{flag} {value} is a file; expected a directory")
+    if not path.exists() and not path.parent.is_dir():
+        raise ValueError(f"{flag} {value}: directory {path.parent} does not exist")
+
+
+def _client(address):
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ImportError("--scheduler needs dask.distributed: pip install "
+                          "'varint[dask]'") from None
+    if not address.strip():
+        raise ValueError("--scheduler must be an address such as tcp://host:8786, got ''")
+    try:
+        return Client(address, timeout=30)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ValueError(f"cannot connect to --scheduler {address}: {_first_line(exc)}") from None
 
 
 def _cmd_select(args):
     from .selection import select_scheme
 
+    _check_outputs(args)
     model, x0 = _model(args)
     x0 = _state(args, model, x0)
+    _check_kernels(model, x0)
     choice = select_scheme(model, x0, args.target, metric=args.metric, t_end=args.t_end,
-                           pilot_t=args.pilot_t)
+                           pilot_t=_pilot_t(args))
     print(choice)
     print(f"chosen: method={choice.method} scheme={choice.scheme} tau={choice.tau:g}")
-    if args.csv:
+    if args.csv is not None:
         _write_csv(args.csv, {key: [row[key] for row in choice.table] for key in choice.table[0]})
 
 
-def _studies_dir():
-    return Path(__file__).resolve().parent.parent / "studies"
+def _pilot_t(args):
+    """--pilot-t, or select_scheme's default min(t_end, 100) rounded down to
+    4 times a multiple of every candidate tau, as the pilots need (the
+    unrounded default fails for e.g. --t-end 10)."""
+    from .selection import DEFAULT_TAUS
+
+    if args.pilot_t is not None:
+        return args.pilot_t
+    unit = 4 * max(DEFAULT_TAUS)
+    pilot = math.floor(min(args.t_end, 100.0) / unit + 1e-9) * unit
+    if pilot == 0:
+        raise ValueError(f"--t-end {args.t_end:g} is shorter than the shortest pilot, {unit:g} "
+                         "(4 steps of the largest candidate tau)")
+    return pilot
 
 
-def _study_names():
-    folder = _studies_dir()
-    if not folder.is_dir():
-        return {}
+# -- studies (from a source checkout) ------------------------------------------------
+#: Where to get a checkout with the studies, for the message when none is found.
+REPOSITORY_HINT = ("get a source checkout (clone the varint repository with git) and run "
+                   "'varint study' from inside it")
+
+
+def _is_checkout(folder):
+    """Whether ``folder`` is a varint source tree: studies/ beside a
+    pyproject.toml whose project is varint."""
+    try:
+        text = (folder / "pyproject.toml").read_text(errors="replace")
+    except OSError:
+        return False
+    return (folder / "studies").is_dir() and re.search(
+        r"""(?m)^\s*name\s*=\s*["']varint["']""", text) is not None
+
+
+def find_checkout(start=None):
+    """The varint source checkout holding ``start`` (the current directory
+    by default) or, failing that, the one this package was imported from
+    (an editable install); None if there is none."""
+    start = Path.cwd() if start is None else Path(start)
+    for folder in (start.resolve(), *start.resolve().parents):
+        if _is_checkout(folder):
+            return folder
+    own = Path(__file__).resolve().parent.parent
+    return own if _is_checkout(own) else None
+
+
+def _study_names(root):
     out = {}
-    for path in sorted(folder.glob("*.py")):
+    for path in sorted((root / "studies").glob("*.py")):
         if path.stem in ("__init__", "common"):
             continue
-        text = path.read_text()
+        text = path.read_text(errors="replace")
         if "def main(" not in text:
             continue
         doc = text.split('"""')[1].strip().splitlines()[0] if text.startswith('"""') else ""
@@ -314,44 +669,54 @@ def _study_names():
 
 
 def _cmd_study(args):
-    names = _study_names()
+    root = find_checkout()
+    if root is None:
+        raise ValueError(f"no varint source checkout here ({Path.cwd()}) or above: the studies "
+                         f"are not installed with the package; {REPOSITORY_HINT}")
+    names = _study_names(root)
     if not names:
-        raise ValueError(f"no studies found: they live in the source tree ({_studies_dir()}); "
-                         "run varint from a checkout of the repository")
+        raise ValueError(f"no studies in {root / 'studies'}")
     if args.name is None or args.list:
         for name, doc in names.items():
             print(f"{name:18} {doc}")
-        return 0
+        return
     if args.name not in names:
         raise ValueError(f"unknown study {args.name!r}; expected one of: {', '.join(names)}")
-    root = str(_studies_dir().parent)
-    if root not in sys.path:
-        sys.path.insert(0, root)
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
     module = importlib.import_module(f"studies.{args.name}")
-    module.main(args.study_args)
-    return 0
+    status = module.main(args.study_args)
+    if status:
+        raise SystemExit(status)
 
 
 def _cmd_demo(args):
     from .demo import run
 
-    run(args.t_end, args.tau, args.scheme, args.out)
+    if args.out:  # '' means no plot
+        _check_plot_format(check.output_file(args.out, "--out"), "--out")
+    t_end, tau, _ = _horizon(args.t_end, args.tau)
+    run(t_end, tau, args.scheme, args.out)
 
 
 def _add_run_options(p, t_end=1e4):
-    p.add_argument("--t-end", type=float, default=t_end, help=f"final time (default {t_end:g})")
-    p.add_argument("--tau", type=float, default=0.05, help="step / renormalisation interval "
+    p.add_argument("--t-end", type=_positive, default=t_end,
+                   help=f"final time (default {t_end:g})")
+    p.add_argument("--tau", type=_positive, default=0.05, help="step / renormalisation interval "
                    "(default 0.05)")
     p.add_argument("--method", default="tm", help="integration method: tm (default), taylor, "
                    "cvode, dop853, tdhcc, tdhes, tdheps")
     p.add_argument("--scheme", help="splitting scheme (default SBAB2C); see 'varint schemes'")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random deviation vectors")
+    p.add_argument("--seed", type=_natural, default=0,
+                   help="seed of the random deviation vectors (an integer >= 0)")
 
 
 def build_parser():
     """The argument parser of the ``varint`` command."""
     parser = _Parser(prog="varint", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--traceback", action="store_true",
+                        help="on an error, also print the traceback (for bug reports)")
     sub = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND")
 
     p = sub.add_parser("schemes", help="list the splitting schemes with their order and cost",
@@ -369,8 +734,8 @@ def build_parser():
     _add_state_arguments(p)
     _add_run_options(p)
     p.add_argument("--k", help="lyapunov: number of exponents; gali: orders, e.g. 2,3,4")
-    p.add_argument("--t-out", type=int, default=None, help="number of output times (default: "
-                   "log-spaced, 10 per decade)")
+    p.add_argument("--t-out", type=_count, default=None, help="number of output times "
+                   "(default: log-spaced, 10 per decade)")
     p.add_argument("--csv", metavar="FILE", help="write every output to FILE")
     p.add_argument("--png", metavar="FILE", help="plot to FILE")
     p.set_defaults(handler=_cmd_run)
@@ -381,13 +746,13 @@ def build_parser():
                        "of a surface of section q[plane] = 0 at fixed energy, with p[plane] >= "
                        "0 solved from it, locally on all cores or on a Dask cluster.")
     _add_model_arguments(p, orbit=False)
-    p.add_argument("--energy", type=float, help="energy of the section (required)")
-    p.add_argument("--plane", type=int, default=0, help="coordinate index of the section "
+    p.add_argument("--energy", type=_finite, help="energy of the section (required)")
+    p.add_argument("--plane", type=_natural, default=0, help="coordinate index of the section "
                    "(default 0: x = 0)")
     p.add_argument("--axes", help="state indices of the grid axes (default: the next coordinate "
                    "and its momentum, 1,3 = y,py for 2 dof)")
     p.add_argument("--u", default="-0.45:0.7:100", help="first axis START:STOP:NUM "
-                   "(default -0.45:0.7:100; write --u=-0.4:0.6:50 when START is negative)")
+                   "(default -0.45:0.7:100)")
     p.add_argument("--v", default="-0.45:0.45:100", help="second axis START:STOP:NUM "
                    "(default -0.45:0.45:100)")
     p.add_argument("--indicator", default="sali", help="sali (default), gali, gali_K, x1, "
@@ -395,7 +760,7 @@ def build_parser():
     _add_run_options(p, t_end=1e3)
     p.add_argument("--threshold", help="early-stopping threshold, or 'none' (default: the "
                    "indicator's, 1e-8 for SALI)")
-    p.add_argument("--chunk-size", type=int, default=None, help="orbits per chunk")
+    p.add_argument("--chunk-size", type=_count, default=None, help="orbits per chunk")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler, e.g. "
                    "tcp://host:8786")
     p.add_argument("--checkpoint", metavar="DIR", help="keep finished chunks in DIR and resume "
@@ -410,18 +775,21 @@ def build_parser():
                        "the cheapest choice that meets the target at t_end.")
     _add_model_arguments(p)
     _add_state_arguments(p)
-    p.add_argument("--target", type=float, required=True, help="largest acceptable error")
+    p.add_argument("--target", type=_positive, required=True, help="largest acceptable error")
     p.add_argument("--metric", default="energy", choices=("energy", "tangent", "X1"),
                    help="what the error measures (default energy)")
-    p.add_argument("--t-end", type=float, default=1e4, help="horizon of the job (default 1e4)")
-    p.add_argument("--pilot-t", type=float, default=None, help="pilot horizon (default "
+    p.add_argument("--t-end", type=_positive, default=1e4, help="horizon of the job "
+                   "(default 1e4)")
+    p.add_argument("--pilot-t", type=_positive, default=None, help="pilot horizon (default "
                    "min(t_end, 100))")
     p.add_argument("--csv", metavar="FILE", help="write the table to FILE")
     p.set_defaults(handler=_cmd_select)
 
     p = sub.add_parser("study", help="run a study of studies/ (paper reproduction, "
-                       "benchmarks)", description="Run studies/NAME.py from the source tree; "
-                       "arguments after NAME go to the study (e.g. --quick).")
+                       "benchmarks)", description="Run studies/NAME.py of the varint source "
+                       "checkout that holds the current directory (the studies are not "
+                       "installed with the package); arguments after NAME go to the study "
+                       "(e.g. --quick).")
     p.add_argument("name", nargs="?", help="the study; omit (or --list) to list them")
     p.add_argument("--list", action="store_true", help="list the studies")
     p.add_argument("study_args", nargs=argparse.REMAINDER, help="arguments of the study")
@@ -434,34 +802,112 @@ def build_parser():
                        "printed and plotted; the same as 'python -m varint'.")
     add_arguments(p)
     p.set_defaults(handler=_cmd_demo)
+    for p in sub.choices.values():
+        # Also after the command (varint run ... --traceback); SUPPRESS keeps
+        # the value given before it when this one is absent.
+        p.add_argument("--traceback", action="store_true", default=argparse.SUPPRESS,
+                       help="on an error, also print the traceback")
     return parser
 
 
+# -- errors ----------------------------------------------------------------------------
 def main(argv=None):
-    """Entry point of the ``varint`` console script; returns the exit status."""
-    from .driver import IntegrationError
+    """Entry point of the ``varint`` console script; returns the exit status.
 
+    Every failure ends in one line on stderr: 2 for bad arguments, 1 for a
+    failed run or an internal error, 130 after Ctrl-C. With ``--traceback``
+    the traceback is printed before that line.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a one-line argument error already printed
+        return exc.code
     if args.command is None:
         parser.print_help()
         return 0
-    try:
-        args.handler(args)
-    except BrokenPipeError:  # e.g. piped into head: not an error of the command
-        sys.stderr.close()
-        return 0
-    except IntegrationError as exc:
-        print(f"varint {args.command}: run failed: {_one_line(exc)}", file=sys.stderr)
-        return 1
-    except (ValueError, ImportError, OSError) as exc:
-        print(f"varint {args.command}: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
+    prog = f"varint {args.command}"
+    with warnings.catch_warnings():
+        warnings.showwarning = _warning_printer(prog)
+        # A run stopped by Ctrl-C says so in the command's own last line.
+        warnings.filterwarnings("ignore", message="interrupted at", category=RuntimeWarning)
+        try:
+            args.handler(args)
+        except SystemExit as exc:  # a study's own exit status (its message is printed)
+            return exc.code
+        except BaseException as exc:  # noqa: BLE001 - every failure becomes one line
+            if isinstance(exc, BrokenPipeError):
+                _silence_stdout()
+                return 0
+            status, message = _failure(exc)
+            if args.traceback:
+                traceback.print_exception(exc)
+            print(f"{prog}: {message}", file=sys.stderr)
+            return status
     return 0
+
+
+def _failure(exc):
+    """(exit status, one-line message) for an exception out of a command."""
+    from numba.core.errors import NumbaError
+
+    from .driver import IntegrationError
+
+    text = _one_line(exc)
+    if isinstance(exc, _Interrupted):
+        return 130, text
+    if isinstance(exc, KeyboardInterrupt):
+        return 130, "interrupted"
+    if isinstance(exc, IntegrationError):
+        return 1, f"run failed: {text}"
+    if isinstance(exc, ValueError):
+        return 2, f"error: {text}"
+    if isinstance(exc, ModuleNotFoundError) and exc.name:
+        return 2, f"error: this needs the package {exc.name}, which is not installed ({text})"
+    if isinstance(exc, ImportError):
+        return 2, f"error: {text}"
+    if isinstance(exc, MemoryError):
+        return 1, f"run failed: out of memory ({text or 'MemoryError'})"
+    if isinstance(exc, ArithmeticError):
+        return 1, (f"run failed: {type(exc).__name__} in the model's kernels or the "
+                   f"indicator ({text}); the orbit may have reached a singular point of the "
+                   "potential")
+    if isinstance(exc, NumbaError) or isinstance(exc.__cause__, NumbaError):
+        return 1, (f"run failed: numba could not compile the integrator: {_first_line(exc)}; "
+                   "rerun with 'varint --traceback ...' for the details")
+    if isinstance(exc, OSError):
+        return 1, f"error: {text}"
+    return 1, (f"internal error: {type(exc).__name__}: {text}; rerun with "
+               "'varint --traceback ...' to see where, and please report it")
+
+
+def _warning_printer(prog):
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prog}: warning: {_one_line(message)}", file=file or sys.stderr)
+    return show
+
+
+def _silence_stdout():
+    # Piped into e.g. head: the reader has gone. Point stdout at /dev/null so
+    # the interpreter's final flush does not report the broken pipe again.
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 def _one_line(exc):
     return " ".join(str(exc).split())
+
+
+def _first_line(exc):
+    """The first line of ``exc``'s message that says something: numba's
+    begin with "Failed in nopython mode pipeline" and may be coloured."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
+    lines = [line.strip() for line in text.splitlines()
+             if line.strip() and not line.strip().startswith("Failed in ")]
+    return lines[0] if lines else type(exc).__name__
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ References
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -65,8 +66,12 @@ class SplittingScheme:
     Raises
     ------
     ValueError
-        If the drift or kick coefficients do not sum to 1, or the two halves
-        have lengths that fit no palindromic layout.
+        If a field has the wrong type (e.g. a coefficient that is not a
+        finite real number, an order that is not a positive integer, a
+        corrector that is not a finite number or None), the drift or kick
+        coefficients do not sum to 1, or the two halves have lengths that
+        fit no palindromic layout. The message names the scheme and the
+        field.
     """
 
     name: str
@@ -80,6 +85,7 @@ class SplittingScheme:
     _stages: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
+        self._check_fields()
         first, second = (self.drifts, self.kicks) if self.drift_first else (self.kicks, self.drifts)
         if len(first) not in (len(second), len(second) + 1) or not second:
             raise ValueError(
@@ -101,13 +107,48 @@ class SplittingScheme:
         kinds = kinds + kinds[-2::-1]
         for kind, label in ((DRIFT, "drift"), (KICK, "kick")):
             total = math.fsum(c for c, k in zip(full, kinds) if k == kind)
-            if abs(total - 1.0) > 1e-14:
+            if not abs(total - 1.0) <= 1e-14:
                 raise ValueError(
                     f"scheme {self.name!r}: the {label} coefficients sum to {total!r}, expected 1"
                 )
-        if self.order < 1:
-            raise ValueError(f"scheme {self.name!r}: order must be >= 1, got {self.order}")
         object.__setattr__(self, "_stages", tuple(zip(kinds, full)))
+
+    def _check_fields(self):
+        """Check every field's type and value, and store the coefficients
+        as tuples of floats (a list or array would make the frozen scheme
+        unhashable)."""
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"a scheme's name must be a non-empty string, got {self.name!r}")
+        where = f"scheme {self.name!r}"
+        if not isinstance(self.drift_first, (bool, np.bool_)):
+            raise ValueError(f"{where}: drift_first must be True (ABA layout) or False (BAB), "
+                             f"got {self.drift_first!r}")
+        for label in ("drifts", "kicks"):
+            values = getattr(self, label)
+            if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
+                raise ValueError(f"{where}: {label} must be a sequence of numbers, got "
+                                 f"{values!r}")
+            for i, c in enumerate(values):
+                if (isinstance(c, (bool, np.bool_)) or not isinstance(c, numbers.Real)
+                        or not math.isfinite(c)):
+                    raise ValueError(f"{where}: {label}[{i}] must be a finite real number, "
+                                     f"got {c!r}")
+            object.__setattr__(self, label, tuple(float(c) for c in values))
+        if (isinstance(self.order, (bool, np.bool_)) or not isinstance(self.order, numbers.Integral)
+                or self.order < 1):
+            raise ValueError(f"{where}: order must be a positive integer, got {self.order!r}")
+        object.__setattr__(self, "order", int(self.order))
+        if self.corrector is not None:
+            g = self.corrector
+            if isinstance(g, (bool, np.bool_)) or not isinstance(g, numbers.Real) \
+                    or not math.isfinite(g):
+                raise ValueError(f"{where}: corrector must be a finite number (the constant g) "
+                                 f"or None, got {g!r}")
+            object.__setattr__(self, "corrector", float(g))
+        for label in ("reference", "nominal_order"):
+            if not isinstance(getattr(self, label), str):
+                raise ValueError(f"{where}: {label} must be a string, got "
+                                 f"{getattr(self, label)!r}")
 
     def stages(self) -> tuple[tuple[int, float], ...]:
         """The full palindrome as ``(kind, coefficient)`` pairs, in order of
@@ -179,7 +220,20 @@ SCHEMES: dict[str, SplittingScheme] = {}
 
 
 def register_scheme(scheme: SplittingScheme) -> SplittingScheme:
-    """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name."""
+    """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name.
+
+    Raises
+    ------
+    ValueError
+        If ``scheme`` is not a :class:`SplittingScheme` (a name is not
+        enough: the registry holds coefficients) or its name is taken.
+    """
+    if not isinstance(scheme, SplittingScheme):
+        known = (f"; {scheme!r} is already registered, get it with get_scheme({scheme!r})"
+                 if isinstance(scheme, str) and scheme.upper() in SCHEMES else "")
+        raise ValueError(
+            f"register_scheme needs a SplittingScheme, got {type(scheme).__name__} {scheme!r}; "
+            "build one with SplittingScheme(name, drift_first, drifts, kicks, order)" + known)
     key = scheme.name.upper()
     if key in SCHEMES:
         raise ValueError(f"a scheme named {scheme.name!r} is already registered")

@@ -163,3 +163,49 @@ a, b = sp.symbols("a b")
 def test_bad_potentials_are_refused_with_a_message_naming_the_problem(V, q, kwargs, message):
     with pytest.raises(ValueError, match=message):
         from_potential(V, q, **kwargs)
+
+
+# -- potentials typed as text (varint run --potential): read, never evaluated ------------
+@pytest.mark.parametrize("text", [
+    "(x**2+y**2)/2 + x**2*y - y**3/3", "x^2/2 + y^3", "-x**2 + +y", "1/3*x - 2/7", "x/y/2",
+    "0.1*x**4 - 1.5e-3*y", "x**-2 + x**(1/3) + 2**(x+y)", "sqrt(x**2 + y**2) + exp(-x) * pi",
+    "log(1 + x**2) + atan2(y, x) + E**y", "sinh(x) + cosh(y)**2 - tanh(x*y)",
+    "sin(x)*cos(y) + tan(x) + asin(x/2) + acos(y/2) + atan(x)", "x - y - (x - y) - 1 + 2",
+])
+def test_formulas_read_as_sympy_reads_trusted_text(text):
+    from varint.formula import parse_formula
+
+    expected = sp.sympify(text, locals={"x": x, "y": y})  # trusted text, in a test only
+    got = parse_formula(text, ["x", "y"])
+    assert sp.simplify(got - expected) == 0
+    assert got.free_symbols <= {x, y}
+
+
+def test_formula_numbers_stay_exact():
+    from varint.formula import parse_formula
+
+    V = parse_formula("x**2/3 + 1/10", ["x"])
+    assert V == x**2 / 3 + sp.Rational(1, 10)
+
+
+def test_every_formula_function_compiles_into_the_kernels():
+    """One potential using every allowed function: the generated kernels'
+    gradient equals SymPy's derivative at a point."""
+    from varint.formula import FUNCTIONS, parse_formula
+
+    args = {"acosh": "(2 + x**2)", "atan2": "(y + 3, 2 + x)"}
+    text = " + ".join(f"{f}{args.get(f, '(0.3 + x/10 + y/20)')}" for f in FUNCTIONS) + " + x**2"
+    V = parse_formula(text, ["x", "y"])
+    model = from_potential(V, [x, y])
+    q = np.array([0.1, -0.2])
+    grad = [float(sp.diff(V, s).subs({x: q[0], y: q[1]})) for s in (x, y)]
+    assert np.allclose(model.gradient(q), grad, rtol=1e-13)
+
+
+def test_formula_coordinates_may_be_unicode_names():
+    from varint.formula import parse_formula
+
+    theta = sp.Symbol("θ")
+    assert parse_formula("θ**2/2 + cos(θ)", ["θ"]) == theta**2 / 2 + sp.cos(theta)
+    # Python reads identifiers in NFKC form: a fullwidth ｘ is x.
+    assert parse_formula("ｘ**2", ["x"]) == x**2

@@ -26,13 +26,15 @@ from its Python source with NumPy's when the model is built.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 import numba
 
 from ..kernels.banded import band_kick_block, band_matvec, band_square_add, band_to_dense
-from .._validate import real_array
+from .._validate import array_bytes, check_memory, real_array
 
 __all__ = ["Model"]
 
@@ -78,9 +80,17 @@ class Model:
 
     def __init__(self, n_dof, potential, grad, hess, third, bandwidth, params=(), inverse_mass=None,
                  name="model", escape_radius=None):
+        if (isinstance(n_dof, (bool, np.bool_)) or not isinstance(n_dof, numbers.Real)
+                or not float(n_dof).is_integer() or n_dof < 1):
+            raise ValueError(f"n_dof must be a positive integer, got {n_dof!r}")
         n_dof = int(n_dof)
-        if n_dof < 1:
-            raise ValueError(f"n_dof must be a positive integer, got {n_dof}")
+        if not isinstance(bandwidth, numbers.Integral) or isinstance(bandwidth, bool) \
+                or bandwidth < 0:
+            raise ValueError(f"bandwidth must be an integer >= 0, got {bandwidth!r}")
+        # Before the first array of size N: the model's inverse mass, then
+        # one orbit's state, gradient and Hessian band, at the least.
+        check_memory(array_bytes(n_dof, 2 * n_dof, n_dof, (min(bandwidth, n_dof - 1) + 1, n_dof)),
+                     f"model {name} ({n_dof} degrees of freedom)")
         self.n_dof = n_dof
         self.name = name
         self._potential = potential

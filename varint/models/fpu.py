@@ -9,6 +9,8 @@ formed as an n×n matrix: the kernels cost O(n) and work at n = 4096.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from numba import njit
 
@@ -94,10 +96,13 @@ class FPUBeta(Model):
     """
 
     def __init__(self, n=8, beta=1.5):
-        if int(n) != n or n < 2:
+        if (isinstance(n, (bool, np.bool_)) or not isinstance(n, numbers.Real)
+                or not float(n).is_integer() or n < 2):
             raise ValueError(f"n must be an integer >= 2 (number of moving particles), got {n!r}")
-        if not np.isfinite(beta):
-            raise ValueError(f"beta must be finite, got {beta!r}")
+        if (isinstance(beta, (bool, np.bool_)) or not isinstance(beta, numbers.Real)
+                or not np.isfinite(beta)):
+            raise ValueError(f"beta must be a finite real number, got {type(beta).__name__} "
+                             f"{beta!r}")
         self.beta = float(beta)
         super().__init__(int(n), self._V, _grad, _hess, _third, bandwidth=1,
                          params=(self.beta,), name=f"FPUBeta(n={int(n)}, beta={self.beta:g})")
