@@ -53,11 +53,12 @@ def hook_advance(monkeypatch, method, at, action):
     original = cls.advance
     calls = []
 
-    def advance(self, state, n):
-        original(self, state, n)
+    def advance(self, state, n, **kwargs):
+        result = original(self, state, n, **kwargs)
         calls.append(n)
         if (at(state) if callable(at) else len(calls) == at):
             action()
+        return result
 
     monkeypatch.setattr(cls, "advance", advance)
     return calls

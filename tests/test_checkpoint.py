@@ -34,7 +34,7 @@ RUNS = {
 }
 
 
-def crash_then_resume(monkeypatch, path, run, at=5, method="tm"):
+def crash_then_resume(monkeypatch, path, run, at=2, method="tm"):
     """Run with a checkpoint after every chunk, crash after the ``at``-th
     chunk, then resume with the same call; returns the resumed result and
     the checkpoint's step at the crash."""
@@ -76,7 +76,7 @@ def test_resume_is_bitwise_identical_for_every_method(method, c1, tmp_path, monk
         return varint.lyapunov_spectrum(*c1, 20.0, method=method, **kw)
 
     reference = run()
-    resumed, step = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", run, at=3,
+    resumed, step = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", run, at=2,
                                       method=method)
     assert step > 0
     assert_bitwise_equal(resumed, reference)

@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 
 from .protocol import REASONS, Status, is_failure
+from .state import Rows
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
 
@@ -99,18 +100,25 @@ def _progress_bar(progress, done, total, desc):
 
 
 def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="varint",
-          errors="raise", checkpoint=None, decide=None):
+          errors="raise", checkpoint=None, decide=None, renorm=0):
     """Advance ``state`` to each step of ``out_steps`` and record there.
+
+    A propagator that takes snapshots (``prop.snapshots`` true: it copies
+    the state at given output steps inside its compiled loop) is advanced in
+    chunks that span many outputs, and all their records are read at once,
+    so outputs cost no more than the steps between them. Other propagators,
+    and runs that stop orbits early (``decide``), stop at every output.
 
     Parameters
     ----------
-    prop : propagator (see :mod:`varint.methods`)
+    prop : propagator (see :class:`varint.protocol.Propagator`)
     state : RunState
     out_steps : ndarray of int
         Increasing output steps.
     record : callable
-        ``record(state) -> dict`` of arrays with leading orbit axis, called
-        at each output step.
+        ``record(rows) -> dict`` of arrays with one row per row of the
+        :class:`~varint.state.Rows` it is given (the orbits at one output,
+        or at several outputs, output-major).
     records : list of dict, optional
         Records of the first ``len(records)`` output steps, made before
         (when resuming); the list is extended in place.
@@ -130,6 +138,9 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         record; orbits it marks get status ``DECIDED`` (``fail_step`` = the
         step) and are not advanced again. Not a failure. Applied at output
         steps only, so where an orbit stops does not depend on chunking.
+    renorm : Renorm
+        How snapshots taken between renormalisations are renormalised
+        before they are read.
 
     Returns
     -------
@@ -140,48 +151,46 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         Seconds spent.
     """
     records = [] if records is None else records
-    stop = None
     start = time.perf_counter()
-    chunk = 64
     # Outputs are recorded in order, so the records say which remain; a
     # checkpoint may hold a state at an output step not yet recorded.
-    todo = [int(s) for s in out_steps[len(records):]]
+    todo = np.asarray(out_steps[len(records):], dtype=np.int64)
+    stop = None
     if errors == "raise" and is_failure(state.status).any():
-        stop, todo = "failed", []  # resumed from a checkpoint written at a failure
+        stop, todo = "failed", todo[:0]  # resumed from a checkpoint written at a failure
+    batched = decide is None and getattr(prop, "snapshots", False)
+    pace = _Pace()
     with _sigint_to_flag() as interrupted, \
             _progress_bar(progress, state.step, out_steps[-1], desc) as bar:
-        for target in todo:
-            while state.step < target:
-                n = min(chunk, target - state.step)
+        while stop is None and todo.size:
+            if batched:
+                n, outs = _batch(state, todo, pace.chunk)
                 t0 = time.perf_counter()
-                prop.advance(state, n)
-                dt = time.perf_counter() - t0
-                if n == chunk:
-                    chunk = int(np.clip(n * _CHUNK_SECONDS / max(dt, 1e-6), n / 8, n * 8))
-                    chunk = max(chunk, 1)
-                if bar is not None:
-                    bar.update(n)
+                snaps = prop.advance(state, n, outputs=outs)
+                pace.took(n, time.perf_counter() - t0)
+                # Every output of the chunk is recorded, also after a failure
+                # (the failed orbit's values NaN): the state has passed them.
+                records.extend(_read_snapshots(snaps, state, record, renorm))
+                todo = todo[len(outs):]
                 if errors == "raise" and is_failure(state.status).any():
                     stop = "failed"
-                    break
-                if interrupted.is_set():
-                    stop = "interrupted"
-                    break
-                if checkpoint is not None and checkpoint.due():
-                    checkpoint.save(state, records)
-            if stop is not None:
-                break
-            rec = record(state)
-            dead = is_failure(state.status)
-            if dead.any():
-                for arr in rec.values():
-                    if np.issubdtype(arr.dtype, np.floating):
-                        arr[dead] = np.nan
-            records.append(rec)
-            if decide is not None:
-                settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)
-                state.status[settled] = Status.DECIDED
-                state.fail_step[settled] = state.step
+            else:
+                target = int(todo[0])
+                n = min(pace.chunk, target - state.step)
+                t0 = time.perf_counter()
+                prop.advance(state, n)
+                pace.took(n, time.perf_counter() - t0)
+                if errors == "raise" and is_failure(state.status).any():
+                    stop = "failed"
+                elif state.step == target:
+                    records.append(_record_now(state, record, decide))
+                    todo = todo[1:]
+            if bar is not None:
+                bar.update(n)
+            if stop is None and interrupted.is_set():
+                stop = "interrupted"
+            if stop is None and checkpoint is not None and checkpoint.due():
+                checkpoint.save(state, records)
         # Inside the Ctrl-C guard: a Ctrl-C now only sets the flag.
         saved = checkpoint is not None and checkpoint.save(state, records)
     if stop == "interrupted":
@@ -193,3 +202,80 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     stacked = {key: np.stack([r[key] for r in records]) if records else None
                for key in (records[0] if records else {})}
     return stacked, stop, time.perf_counter() - start
+
+
+class _Pace:
+    """Chunks of steps sized to take about ``_CHUNK_SECONDS``: progress and
+    Ctrl-C stay responsive, and the chunking never changes a result
+    (rule 3 of the propagator protocol)."""
+
+    def __init__(self):
+        self.chunk = 64
+
+    def took(self, n, seconds):
+        if n >= self.chunk:
+            grown = n * _CHUNK_SECONDS / max(seconds, 1e-6)
+            self.chunk = max(1, int(np.clip(grown, n / 8, n * 8)))
+
+
+#: Most bytes of snapshots taken in one chunk of a batched run.
+_SNAPSHOT_BYTES = 1 << 26
+
+
+def _batch(state, todo, chunk):
+    """Steps of the next chunk and the output steps inside it."""
+    m, d, k = state.W.shape
+    per_output = 8 * m * (d * (k + 1) + 2 * k) + sum(
+        a[0].nbytes * m for a in state.extra.values() if a.ndim and a.shape[0] == m)
+    most = max(1, _SNAPSHOT_BYTES // max(per_output, 1))
+    end = min(state.step + chunk, int(todo[-1]))
+    inside = todo[:int(np.searchsorted(todo, end, side="right"))][:most]
+    if inside.size and len(inside) == most:
+        end = int(inside[-1])
+    return end - state.step, inside
+
+
+def _record_now(state, record, decide):
+    """The record of every orbit at the current step (frozen ones NaN)."""
+    rec = record(Rows.of(state))
+    _blank(rec, is_failure(state.status))
+    if decide is not None:
+        settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)
+        state.status[settled] = Status.DECIDED
+        state.fail_step[settled] = state.step
+    return rec
+
+
+def _read_snapshots(snaps, state, record, renorm):
+    """One record per snapshot step, read in one call of ``record``."""
+    s = len(snaps.steps)
+    if s == 0:
+        return []
+    m = state.n_orbits
+    failed = is_failure(state.status)
+    # Rows of orbits that had failed by an output were never written: show
+    # them the frozen state (then blank their values), so no reader sees NaN.
+    dead = failed[None, :] & (state.fail_step[None, :] <= snaps.steps[:, None])
+    if dead.any():
+        out, orb = np.nonzero(dead)
+        snaps.x[out, orb] = state.x[orb]
+        snaps.W[out, orb] = state.W[orb]
+        snaps.acc_m[out, orb] = state.acc_m[orb]
+        snaps.acc_e[out, orb] = state.acc_e[orb]
+        for key, arr in snaps.extra.items():
+            arr[out, orb] = state.extra[key][orb]
+    flat = record(snaps.rows(renorm))
+    recs = []
+    for j in range(s):
+        rec = {key: np.array(arr[j * m:(j + 1) * m]) for key, arr in flat.items()}
+        _blank(rec, dead[j])
+        recs.append(rec)
+    return recs
+
+
+def _blank(rec, dead):
+    """NaN for the floating-point values of ``dead`` orbits."""
+    if dead.any():
+        for arr in rec.values():
+            if np.issubdtype(arr.dtype, np.floating):
+                arr[dead] = np.nan

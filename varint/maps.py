@@ -128,8 +128,8 @@ def run_chunk(model, x0, indices, spec):
                       escape_radius=spec.escape_radius, **spec.indicator_options,
                       **spec.method_options)
 
-        def record(state):
-            rec = job.record(state)
+        def record(rows):
+            rec = job.record(rows)
             return {"value": ind.scalar(rec, model, job.options),
                     "energy_error": rec["energy_error"]}
 

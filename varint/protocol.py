@@ -63,9 +63,9 @@ REASONS = {
     Status.INTEGRATOR_FAILED: ("the integrator gave up with a finite state (too many steps or "
                                "repeated error-test failures in one interval)"),
     Status.GRADIENT_NONFINITE: ("the gradient of the potential is not finite at the orbit's "
-                                "position: the potential is singular there"),
+                                "position: the potential is singular (or overflows) there"),
     Status.HESSIAN_NONFINITE: ("the Hessian of the potential is not finite at the orbit's "
-                               "position: the potential is singular there"),
+                               "position: the potential is singular (or overflows) there"),
     Status.THIRD_NONFINITE: ("the third derivatives of the potential (needed by the "
                              "corrector) are not finite at the orbit's position"),
 }

@@ -29,7 +29,7 @@ from .methods import make_propagator
 from .models.base import Model
 from .protocol import Renorm, is_failure
 from .results import Provenance, package_versions
-from .state import RunState, initial_deviations, output_steps
+from .state import Rows, RunState, initial_deviations, output_steps, renormalized_copy
 
 __all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
 
@@ -288,25 +288,29 @@ class Run:
         versions.update(self.propagator.versions())
         return versions
 
-    def energy_error(self, x):
-        """Energy error of states ``x`` (M, 2N) relative to the orbits'
-        energy scale (:func:`energy_scale`)."""
+    def record(self, rows):
+        """The indicator's values and the energy error at every row (a
+        :class:`~varint.state.Rows`: one per orbit, and per output time when
+        several outputs are read at once)."""
+        t = rows.step * self.tau
+        rec = self.indicator.read(rows, self.model, t, self.options)
+        reps = len(t) // self.state.n_orbits
         # A failed orbit's frozen state may overflow here; its records are
         # replaced by NaN anyway, so NumPy's warnings would be noise.
         with np.errstate(over="ignore", invalid="ignore"):
-            return np.abs(self.model.energy(x) - self.energy0) / self.energy_scale
-
-    def record(self, state):
-        """The indicator's values at the current output time, and the
-        energy error."""
-        t = state.step * self.tau
-        rec = self.indicator.read(state, self.model, t, self.options)
-        rec["energy_error"] = self.energy_error(state.x)
+            rec["energy_error"] = (np.abs(self.model.energy(rows.x) - np.tile(self.energy0, reps))
+                                   / np.tile(self.energy_scale, reps))
         return rec
 
     def execute(self):
         """Drive the run to its last output time and return its result."""
         records, stop, wall = self.drive()
+        if stop == "failed" and records:
+            # The partial result of a run that raises ends before the failure
+            # (a checkpoint keeps every output reached, for errors="flag").
+            first = self.state.fail_step[is_failure(self.state.status)].min()
+            keep = int(np.searchsorted(self.steps, first))
+            records = {key: arr[:keep] for key, arr in records.items()}
         result = self._result(records, stop == "interrupted", wall)
         self._report_failures(result)
         return result
@@ -317,8 +321,9 @@ class Run:
         Parameters
         ----------
         record : callable, optional
-            ``record(state) -> dict`` of per-orbit arrays; :meth:`record` by
-            default (chaos maps record only their one value).
+            ``record(rows) -> dict`` of arrays, one row per row of the
+            :class:`~varint.state.Rows`; :meth:`record` by default (chaos maps
+            record only their one value).
         decide : callable, optional
             ``decide(record) -> bool array (M,)``: orbits to stop early (see
             :func:`varint.driver.drive`).
@@ -333,7 +338,8 @@ class Run:
             return drive(self.propagator, self.state, self.steps, record or self.record,
                          records=self.records, progress=self.progress,
                          desc=self.indicator.name, errors=self.errors,
-                         checkpoint=self.checkpoint, decide=decide)
+                         checkpoint=self.checkpoint, decide=decide,
+                         renorm=self.indicator.renorm)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.
@@ -357,17 +363,28 @@ class Run:
     def _result(self, records, interrupted, wall):
         if not records:
             # Nothing recorded yet: empty series of the right shapes.
-            records = {key: np.asarray(v)[None][:0] for key, v in self.record(self.state).items()}
+            now = self.record(Rows.of(self.state))
+            records = {key: np.asarray(v)[None][:0] for key, v in now.items()}
         n_done = len(next(iter(records.values())))
         fields = {key: self.squeeze(np.moveaxis(arr, 0, 1)) for key, arr in records.items()}
         energy_error = fields.pop("energy_error")
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
-            fields["deviations"] = self.squeeze(self.state.W)
+            fields["deviations"] = self.squeeze(self.final_vectors())
         return cls(t=self.steps[:n_done] * self.tau, energy_error=energy_error,
                    state=self.squeeze(self.state.x), provenance=self.provenance(wall),
                    status=self.squeeze(self.state.status), interrupted=interrupted, **fields)
+
+    def final_vectors(self):
+        """The deviation vectors at the end, renormalised as the indicator
+        renormalises them (a propagator that renormalises sparsely may have
+        left them raw)."""
+        W = self.state.W
+        if getattr(self.propagator, "sparse", 0) and W.shape[-1]:
+            W, _, _ = renormalized_copy(W, self.state.acc_m, self.state.acc_e,
+                                        self.indicator.renorm)
+        return W
 
     def _report_failures(self, result):
         failed = is_failure(self.state.status)

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RunState", "initial_deviations", "output_steps"]
+__all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
+           "renormalized_copy"]
 
 
 @dataclass
@@ -88,6 +89,95 @@ class RunState:
         self.step += int(n)
         self.add_counts(steps=done[was_active].sum() + failed.sum(),
                         **dict(zip(names, counters.sum(axis=0))))
+
+
+@dataclass
+class Rows:
+    """What an indicator reads at output times: one row per orbit and output
+    time (the rows of a :class:`RunState` at one time, or of several
+    :class:`Snapshots` at once, so reading many outputs costs one call).
+
+    Attributes
+    ----------
+    x : ndarray, shape (R, 2N)
+    W : ndarray, shape (R, 2N, k)
+        Renormalised deviation vectors (orthonormal after QR, unit columns
+        after normalisation), or the raw ones for ``renorm="none"``.
+    acc_m, acc_e : ndarray, shape (R, k)
+        Σ log(stretching) = log(acc_m) + acc_e · ln 2, up to this time.
+    step : ndarray of int, shape (R,)
+        Intervals τ completed at each row's time.
+    extra : dict of str -> ndarray
+        Accumulator arrays, rows first (e.g. ``extra["acc_megno"]`` (R, k, c)).
+    """
+
+    x: np.ndarray
+    W: np.ndarray
+    acc_m: np.ndarray
+    acc_e: np.ndarray
+    step: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, state):
+        """The rows of ``state`` at its current time."""
+        return cls(x=state.x, W=state.W, acc_m=state.acc_m, acc_e=state.acc_e,
+                   step=np.full(state.n_orbits, state.step, dtype=np.int64),
+                   extra=state.extra)
+
+    def log_growth(self):
+        """Σ log of the stretching of each vector so far, shape (R, k)."""
+        return np.log(self.acc_m) + self.acc_e * math.log(2.0)
+
+
+@dataclass
+class Snapshots:
+    """Copies of a run's state taken inside a compiled stepper at output
+    steps, axes (output, orbit, ...).
+
+    ``renormalized`` is False when the vectors were copied between two
+    renormalisations (sparse renormalisation): :meth:`rows` then renormalises
+    the copies, so indicators read the same values as if the vectors had
+    been renormalised at that step.
+    """
+
+    steps: np.ndarray
+    x: np.ndarray
+    W: np.ndarray
+    acc_m: np.ndarray
+    acc_e: np.ndarray
+    extra: dict
+    renormalized: bool = True
+
+    def rows(self, renorm):
+        """All snapshots as :class:`Rows` (output-major), with the vectors
+        renormalised by ``renorm`` (a :class:`~varint.protocol.Renorm`) if
+        they were copied between renormalisations."""
+        s, m = self.x.shape[:2]
+        W = self.W.reshape((s * m,) + self.W.shape[2:])
+        acc_m = self.acc_m.reshape(s * m, -1)
+        acc_e = self.acc_e.reshape(s * m, -1)
+        if not self.renormalized and W.shape[-1] and renorm:
+            W, acc_m, acc_e = renormalized_copy(W, acc_m, acc_e, renorm)
+        return Rows(x=self.x.reshape(s * m, -1), W=W, acc_m=acc_m, acc_e=acc_e,
+                    step=np.repeat(self.steps, m),
+                    extra={k: v.reshape((s * m,) + v.shape[2:]) for k, v in self.extra.items()})
+
+
+def renormalized_copy(W, acc_m, acc_e, renorm):
+    """Copies of vectors ``W`` (R, 2N, k) renormalised (QR with a positive
+    diagonal for ``Renorm.QR``, unit columns for ``Renorm.NORMALIZE``), the
+    stretching folded into new accumulators (mantissa, exponent)."""
+    if renorm == 2:
+        Q, R = np.linalg.qr(W)
+        d = np.diagonal(R, axis1=1, axis2=2)
+        sign = np.where(d < 0, -1.0, 1.0)
+        W, r = Q * sign[:, None, :], np.abs(d)
+    else:
+        r = np.linalg.norm(W, axis=1)
+        W = W / r[:, None, :]
+    m, e = np.frexp(acc_m * r)
+    return W, m, acc_e + e
 
 
 def initial_deviations(dim, k, n_orbits, seed, indices=None):

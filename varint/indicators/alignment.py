@@ -70,8 +70,8 @@ def _gali_vectors(model, options, given):
     return k
 
 
-def _read_gali(state, model, t, options):
-    return {f"gali_{o}": v for o, v in gali_from_vectors(state.W, options["k"]).items()}
+def _read_gali(rows, model, t, options):
+    return {f"gali_{o}": v for o, v in gali_from_vectors(rows.W, options["k"]).items()}
 
 
 def _finish_gali(fields, options):
@@ -122,8 +122,8 @@ def _sali_vectors(model, options, given):
     return 2
 
 
-def _read_sali(state, model, t, options):
-    return {"sali": sali_from_vectors(state.W)}
+def _read_sali(rows, model, t, options):
+    return {"sali": sali_from_vectors(rows.W)}
 
 
 SALI = register_indicator(Indicator(

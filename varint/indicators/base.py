@@ -97,8 +97,11 @@ class Indicator:
         user-supplied initial vectors (None if drawn at random); raises
         ``ValueError`` if they do not fit.
     read : callable
-        ``read(state, model, t, options) -> dict`` of per-orbit arrays
-        (leading axis M) at an output time ``t``.
+        ``read(rows, model, t, options) -> dict`` of arrays with a leading
+        axis of rows: ``rows`` is a :class:`~varint.state.Rows` (state of
+        each orbit at an output time, possibly of several output times at
+        once: R rows), ``t`` (R,) the time of each row; renormalised
+        vectors, accumulators in ``rows.extra``, ``rows.step`` (R,).
     result : type
         Result class built as ``result(**common, **finish(fields))``; its
         fields are the stacked records, shape ([M,] n_out, ...).

@@ -105,8 +105,8 @@ def _vectors(model, options, given):
     return k
 
 
-def _read(state, model, t, options):
-    aux = state.extra["acc_local_exponents"]
+def _read(rows, model, t, options):
+    aux = rows.extra["acc_local_exponents"]
     count = aux[:, :, COUNT]
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = aux[:, :, SUM] / count

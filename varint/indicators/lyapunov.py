@@ -33,8 +33,8 @@ def _vectors(model, options, given):
     return k
 
 
-def _read(state, model, t, options):
-    return {"exponents": state.log_growth() / t}
+def _read(rows, model, t, options):
+    return {"exponents": rows.log_growth() / t[:, None]}
 
 
 def _x1(record, model, options):

@@ -100,18 +100,18 @@ def _one_vector(model, options, given):
     return 1
 
 
-def _read_megno(state, model, t, options):
-    aux = state.extra[MEGNO_ACCUMULATOR.key][:, 0]  # (M, columns) of the one vector
-    return {"megno": 2.0 * aux[:, WEIGHTED] / t, "mean_megno": aux[:, MEGNO_SUM] / state.step,
+def _read_megno(rows, model, t, options):
+    aux = rows.extra[MEGNO_ACCUMULATOR.key][:, 0]  # (M, columns) of the one vector
+    return {"megno": 2.0 * aux[:, WEIGHTED] / t, "mean_megno": aux[:, MEGNO_SUM] / rows.step,
             "fli": aux[:, FLI_MAX].copy(), "ofli": aux[:, OFLI_MAX].copy()}
 
 
-def _read_fli(state, model, t, options):
-    return {"fli": state.extra[FLI_ACCUMULATOR.key][:, 0, 1].copy()}
+def _read_fli(rows, model, t, options):
+    return {"fli": rows.extra[FLI_ACCUMULATOR.key][:, 0, 1].copy()}
 
 
-def _read_ofli(state, model, t, options):
-    return {"ofli": state.extra[MEGNO_ACCUMULATOR.key][:, 0, OFLI_MAX].copy()}
+def _read_ofli(rows, model, t, options):
+    return {"ofli": rows.extra[MEGNO_ACCUMULATOR.key][:, 0, OFLI_MAX].copy()}
 
 
 _REFERENCES_MEGNO = ("Cincotta & Simó, Astron. Astrophys. Suppl. 147, 205 (2000)",

@@ -19,8 +19,8 @@ def _vectors(model, options, given):
     return 0 if given is None else given
 
 
-def _read(state, model, t, options):
-    return {"states": state.x.copy()}
+def _read(rows, model, t, options):
+    return {"states": rows.x.copy()}
 
 
 def _only_the_end(t_end, tau, options):

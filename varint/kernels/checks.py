@@ -9,8 +9,8 @@ for the same reasons, with the same status codes (:class:`~varint.protocol.Statu
 whatever method advanced it.
 
 The stretching factors are needed as logarithms only at output times, so
-they are multiplied into a mantissa ``acc_m`` whose binary exponent is moved
-into the integer ``acc_e`` with ``frexp`` (exact) whenever it leaves
+they are multiplied into a mantissa ``acc_m`` that is rescaled by 2^∓500
+(exactly) into the integer exponent ``acc_e`` whenever it leaves
 [2⁻⁵⁰⁰, 2⁵⁰⁰]: no ``log`` in the hot loop, no overflow, and
 log(acc_m) + acc_e·ln 2 is the sum of the logarithms to round-off.
 """
@@ -25,7 +25,7 @@ from numba import njit
 from ..protocol import Renorm, Status, TANGENT_LIMIT
 
 __all__ = ["orbit_status", "renormalize", "renormalize_block", "tangent_overflow",
-           "all_finite", "ACC_BIG", "ACC_SMALL", "CHECK_EVERY"]
+           "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL", "CHECK_EVERY", "HUGE_Q2"]
 
 # Plain integers in the compiled loops (numba folds them to constants).
 _OK = int(Status.OK)
@@ -39,6 +39,10 @@ ACC_BIG = 2.0 ** 500
 ACC_SMALL = 2.0 ** -500
 #: Steps between the (cheap but not free) overflow checks of raw deviations.
 CHECK_EVERY = 16
+#: A derivative kernel that is not finite where |q|² exceeds this reports
+#: the orbit as running away (ORBIT_NONFINITE), not the potential as
+#: singular: there the derivatives overflow before the state does.
+HUGE_Q2 = 1e100
 
 
 @njit(inline="always")
@@ -65,6 +69,16 @@ def all_finite(a, n):
     for i in range(n):
         s += a[i]
     return s - s == 0.0
+
+
+@njit(inline="always")
+def derivative_status(q, n, status):
+    """``status`` (a derivative kernel was not finite at q), or
+    ``ORBIT_NONFINITE`` if |q|² > :data:`HUGE_Q2`."""
+    rq = 0.0
+    for i in range(n):
+        rq += q[i] * q[i]
+    return status if rq < HUGE_Q2 else _NONFINITE
 
 
 @njit(inline="always")
@@ -97,10 +111,13 @@ def renormalize(W, mode, acc_m, acc_e, r, d, k):
         if keep:
             r[j] = s
         a = acc_m[j] * s
-        if a > ACC_BIG or a < ACC_SMALL:
-            m, e = math.frexp(a)
-            a = m
-            acc_e[j] += e
+        # Exact powers of two keep the mantissa in range (no call: cheap).
+        if a > ACC_BIG:
+            a *= ACC_SMALL
+            acc_e[j] += 500
+        elif a < ACC_SMALL:
+            a *= ACC_BIG
+            acc_e[j] -= 500
         acc_m[j] = a
         inv = 1.0 / s
         for i in range(d):

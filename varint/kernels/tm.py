@@ -41,7 +41,8 @@ from numba import njit, prange
 
 from ..protocol import Renorm, Status
 from .banded import band_kick_block, band_matvec, band_square_add
-from .checks import CHECK_EVERY, all_finite, orbit_status, renormalize, tangent_overflow
+from .checks import (CHECK_EVERY, all_finite, derivative_status, orbit_status, renormalize,
+                     tangent_overflow)
 
 __all__ = ["tm_batch", "orbit_kernel", "batch_kernel", "specialised_sizes", "use_parallel",
            "no_accumulator", "SPECIALISE_N"]
@@ -118,13 +119,13 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                     grad(q, par, g)
                     counters[0] += 1
                     if not all_finite(g, n):
-                        return _GRAD, s
+                        return derivative_status(q, n, _GRAD), s
                     have_g = True
                 if (tangent or hcs != 0.0) and not have_h:
                     hess(q, par, H)
                     counters[1] += 1
                     if not all_finite(H.ravel(), (bw + 1) * n):
-                        return _HESS, s
+                        return derivative_status(q, n, _HESS), s
                     have_h = True
                 if hcs != 0.0:
                     if not have_c:
@@ -152,7 +153,7 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                     third(q, par, mg, T)
                     counters[2] += 1
                     if not all_finite(T.ravel(), (bw + 1) * n):
-                        return _THIRD, s
+                        return derivative_status(q, n, _THIRD), s
                     band_square_add(H, minv, T, HC, n, bw, bwc)
                     have_hc = True
                 for b in range(bwc + 1):

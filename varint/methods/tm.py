@@ -3,17 +3,28 @@
 Any registered splitting scheme integrates the orbit and, through the tangent
 maps of its drift, kick and corrector flows, the deviation vectors (Skokos &
 Gerlach 2010, Sect. V.C, eqs. 46–47 and 53). One step of length τ is one
-renormalisation interval.
+renormalisation interval (or, with sparse renormalisation, the grid on which
+the vectors may be renormalised).
+
+Models that know their potential symbolically and are small get a stepper
+generated for them and for the scheme (:mod:`varint.kernels.generate`):
+stages unrolled, straight-line derivatives, state in registers, outputs
+copied inside the compiled loop, cached on disk. Others use the generic
+stepper (:mod:`varint.kernels.tm`).
 """
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 import numba
 
+from ..kernels import generate as G
 from ..kernels import tm as K
 from ..protocol import COUNTERS, Renorm, Status
-from ..schemes import get_scheme, stage_arrays
+from ..schemes import DRIFT, get_scheme, stage_arrays
+from ..state import Snapshots
 from . import method_options
 
 __all__ = ["TangentMapPropagator", "tangent_map_steps"]
@@ -26,7 +37,7 @@ class TangentMapPropagator:
     ----------
     model : Model
     tau : float
-        Integration step, which is also the renormalisation interval.
+        Integration step.
     renorm : Renorm
     accumulator : Accumulator, optional
         Updated after every step (see :class:`varint.protocol.Accumulator`).
@@ -35,10 +46,22 @@ class TangentMapPropagator:
     parallel : bool, optional
         Run the orbits of a batch on all cores (numba ``prange``). By
         default, when there is more than one orbit and more than one thread.
+    renormalize_every : None, int or float, optional
+        How often the vectors are renormalised. ``None`` (default): as often
+        as needed — every step when an accumulator needs the stretching of
+        every step, otherwise on an adaptive schedule that keeps every
+        vector's growth below 1e50 and, for QR, the spread of the
+        stretchings below 1e3 between two renormalisations
+        (:func:`varint.kernels.generate.next_interval`); the exponents,
+        GALIs and SALI are those of renormalising every step, to round-off.
+        An int n: every n steps; a float: every that much time (rounded to
+        steps). Vectors that grow beyond 1e100 are renormalised at once
+        whatever the schedule. Only generated steppers renormalise sparsely;
+        the generic one renormalises every step.
     """
 
     method = "tm"
-    OPTIONS = ("scheme", "parallel")
+    OPTIONS = ("scheme", "parallel", "renormalize_every")
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = method_options(self.method, options, self.OPTIONS)
@@ -48,27 +71,230 @@ class TangentMapPropagator:
         self.renorm = Renorm.parse(renorm)
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
+        self.every = self._every(opts.get("renormalize_every"))
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
+        self._generated = {}
+
+    def _every(self, every):
+        if every is None:
+            return None
+        if isinstance(every, bool) or not isinstance(every, numbers.Real) \
+                or not (np.isfinite(every) and every > 0):
+            raise ValueError(f"renormalize_every must be None, a positive number of steps "
+                             f"(int) or a positive time (float), got {every!r}")
+        steps = every if isinstance(every, numbers.Integral) else round(every / self.tau)
+        steps = max(1, int(steps))
+        if steps > 1 and self.accumulator is not None:
+            raise ValueError(f"renormalize_every = {every!r}: this indicator accumulates the "
+                             "stretching of every step, so its vectors are renormalised every "
+                             "step")
+        return steps
+
+    @property
+    def sparse(self):
+        """Whether the vectors are renormalised on a schedule (0: every step;
+        -1: adaptive; n > 1: every n steps)."""
+        if self.renorm == Renorm.NONE or self.accumulator is not None:
+            return 0
+        if self.every is None:
+            return -1
+        return 0 if self.every == 1 else self.every
 
     def describe(self):
-        return {"scheme": self.scheme.describe()}
+        d = {"scheme": self.scheme.describe()}
+        if self.every is not None:
+            d["renormalize_every"] = self.every
+        return d
 
     def versions(self):
         return {"numba": numba.__version__}
 
+    # -- which stepper ----------------------------------------------------------------
+    def _stepper(self, k):
+        """The generated stepper module for k vectors, or None (generic)."""
+        if k not in self._generated:
+            module = None
+            if G.symbolic_fits(self.model, k):
+                corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
+                module = G.symbolic_stepper(self.model, self._kinds, corrected, k,
+                                            self.accumulator)
+            self._generated[k] = module
+        return self._generated[k]
+
+    @property
+    def snapshots(self):
+        """Whether :meth:`advance` copies the state at output steps (for a
+        model with a generated stepper)."""
+        return G.symbolic_fits(self.model, 0)
+
+    #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
+    #: vector width (8 doubles with AVX-512), small enough that a block's
+    #: state stays in the L1 cache.
+    LANES = 64
+    #: Fewer orbits than one vector's width run one at a time: lanes would
+    #: compute padding.
+    MIN_LANES = 8
+
+    def advance(self, state, n, outputs=None):
+        """Advance every active orbit of ``state`` by ``n`` steps.
+
+        Parameters
+        ----------
+        state : RunState
+        n : int
+        outputs : ndarray of int, optional
+            Steps in (state.step, state.step + n] at which to copy the state
+            (only with :attr:`snapshots`).
+
+        Returns
+        -------
+        Snapshots or None
+        """
+        module = self._stepper(state.k)
+        if module is None:
+            if outputs is not None and len(outputs):
+                raise ValueError("this model has no generated stepper: no snapshots")
+            self._advance_generic(state, n)
+            return None
+        snaps = self._snapshots(state, outputs)
+        active = np.flatnonzero(state.status == Status.OK)
+        # Many orbits run as SIMD lanes; the lanes give bitwise the results
+        # of the one-orbit stepper, so this choice never changes a result.
+        if len(active) >= self.MIN_LANES:
+            self._advance_lanes(module, state, n, snaps, active)
+        else:
+            self._advance_generated(module, state, n, snaps)
+        return snaps
+
     def _accumulator(self, state):
         acc = self.accumulator
         if acc is None:
-            return K.no_accumulator, np.empty((state.n_orbits, 0, 0)), False
-        return acc.update, state.extra[acc.key], acc.needs_flow
+            return np.empty((state.n_orbits, 0, 0))
+        return state.extra[acc.key]
 
-    def advance(self, state, n):
-        """Advance every active orbit of ``state`` by ``n`` steps."""
+    def _schedule(self, state):
+        """Per orbit: the next renormalisation step and the current interval
+        (continuation state, so it lives in the run state)."""
+        if "tm_schedule" not in state.extra:
+            every = self.sparse
+            first = 1 if every <= 0 else every
+            state.extra["tm_schedule"] = np.tile(np.array([state.step + first, first],
+                                                          dtype=np.int64), (state.n_orbits, 1))
+        return state.extra["tm_schedule"]
+
+    def _snapshots(self, state, outputs):
+        """Empty snapshot arrays (NaN) for the output steps of this call."""
+        m, d, k = state.W.shape
+        outs = np.zeros(0, dtype=np.int64) if outputs is None else np.asarray(outputs, np.int64)
+        s = len(outs)
+        aux = self._accumulator(state)
+        return Snapshots(
+            steps=outs, x=np.full((s, m, d), np.nan), W=np.full((s, m, d, k), np.nan),
+            acc_m=np.ones((s, m, k)), acc_e=np.zeros((s, m, k), dtype=np.int64),
+            extra={} if self.accumulator is None else {
+                self.accumulator.key: np.full((s,) + aux.shape, np.nan)},
+            renormalized=self.sparse == 0)
+
+    def _snap_aux(self, snaps, s, m):
+        if self.accumulator is None:
+            return np.empty((s, m, 0, 0))
+        return snaps.extra[self.accumulator.key]
+
+    def _advance_generated(self, module, state, n, snaps, orbits=None):
+        """One orbit at a time (all of them, or those of ``orbits``), by the
+        one-orbit stepper."""
+        m, d, k = state.W.shape
+        sched = self._schedule(state)
+        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
+        done = np.zeros(m, dtype=np.int64)
+        was_active = state.status == Status.OK
+        if orbits is not None:
+            was_active &= np.isin(np.arange(m), orbits)
+        status = np.where(was_active, state.status, -1)   # others are skipped
+        parallel = K.use_parallel(self.parallel, int(was_active.sum()))
+        kernel = module.batch_parallel if parallel else module.batch_serial
+        kernel(state.x, state.W, state.acc_m, state.acc_e, status, done, int(n),
+               int(state.step), self.tau, self._h, self._hc, self._escape_r2, counters,
+               self._accumulator(state), sched, snaps.steps, snaps.x, snaps.W, snaps.acc_m,
+               snaps.acc_e, self._snap_aux(snaps, len(snaps.steps), m), int(self.renorm),
+               self.sparse)
+        state.status[was_active] = status[was_active]
+        if orbits is None:
+            state.after_kernel(n, was_active, done, counters, COUNTERS)
+        return done, counters
+
+    def _advance_lanes(self, module, state, n, snaps, active):
+        """The ``active`` orbits as blocks of SIMD lanes (``lanes`` of
+        :mod:`varint.kernels.generate`). An orbit that fails is rerun alone
+        by the one-orbit stepper from the call's start: it fails at the same
+        step with the same bits, and is left exactly as that stepper leaves
+        it."""
+        m, d, k = state.W.shape
+        # Blocks of equal width, a multiple of MIN_LANES: little padding.
+        blocks = -(-len(active) // self.LANES)
+        width = -(-len(active) // (blocks * self.MIN_LANES)) * self.MIN_LANES
+        lanes = _Lanes(active, width)
+        start = {"x": state.x[active], "W": state.W[active], "acc_m": state.acc_m[active],
+                 "acc_e": state.acc_e[active]}
+        extra_start = {key: arr[active] for key, arr in state.extra.items()}
+        sched = self._schedule(state)
+        aux = self._accumulator(state)
+        X, W = lanes.soa(state.x), lanes.soa(state.W)
+        am, ae = lanes.soa(state.acc_m), lanes.soa(state.acc_e)
+        nxt, itv = lanes.soa(sched[:, 0]), lanes.soa(sched[:, 1])
+        st = np.zeros((lanes.blocks, lanes.width), dtype=np.int64)
+        fs = np.zeros_like(st)
+        lane_aux = lanes.rows_by_lane(aux)
+        s = len(snaps.steps)
+        shape = (lanes.blocks, s)
+        sx = np.full(shape + (d, lanes.width), np.nan)
+        sW = np.full(shape + (d, k, lanes.width), np.nan)
+        sm = np.ones(shape + (k, lanes.width))
+        se = np.zeros(shape + (k, lanes.width), dtype=np.int64)
+        saux = np.full(shape + (lanes.width,) + aux.shape[1:], np.nan)
+        parallel = K.use_parallel(self.parallel, lanes.blocks)
+        kernel = module.blocks_parallel if parallel else module.blocks_serial
+        kernel(X, W, am, ae, st, fs, nxt, itv, int(n), int(state.step), self.tau, self._h,
+               self._hc, self._escape_r2, int(self.renorm), self.sparse, lane_aux, snaps.steps,
+               sx, sW, sm, se, saux)
+        state.x[active], state.W[active] = lanes.aos(X), lanes.aos(W)
+        state.acc_m[active], state.acc_e[active] = lanes.aos(am), lanes.aos(ae)
+        sched[active, 0], sched[active, 1] = lanes.aos(nxt), lanes.aos(itv)
+        if aux.size:
+            aux[active] = lanes.from_rows_by_lane(lane_aux)
+        if s:
+            snaps.x[:, active] = lanes.snapshot_rows(sx)
+            snaps.W[:, active] = lanes.snapshot_rows(sW)
+            snaps.acc_m[:, active] = lanes.snapshot_rows(sm)
+            snaps.acc_e[:, active] = lanes.snapshot_rows(se)
+            if aux.size:
+                snaps.extra[self.accumulator.key][:, active] = lanes.snapshot_rows_by_lane(saux)
+        per, first = G.step_counts(self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
+                                   self.accumulator is not None and self.accumulator.needs_flow)
+        done = np.zeros(m, dtype=np.int64)
+        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
+        done[active], counters[active] = n, per * int(n) + first
+        failed = active[lanes.aos(st) != 0]
+        if failed.size:
+            rows = np.searchsorted(active, failed)
+            for name, arr in start.items():
+                getattr(state, name)[failed] = arr[rows]
+            for key, arr in extra_start.items():
+                state.extra[key][failed] = arr[rows]
+            snaps.x[:, failed] = snaps.W[:, failed] = np.nan
+            f_done, f_counters = self._advance_generated(module, state, n, snaps, failed)
+            done[failed], counters[failed] = f_done[failed], f_counters[failed]
+        was_active = np.zeros(m, dtype=bool)
+        was_active[active] = True
+        state.after_kernel(n, was_active, done, counters, COUNTERS)
+
+    def _advance_generic(self, state, n):
         m = state.n_orbits
         model = self.model
-        update, aux, flow = self._accumulator(state)
+        acc = self.accumulator
+        update, flow = (K.no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
         kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth,
                                 K.use_parallel(self.parallel, m), flow)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
@@ -77,7 +303,7 @@ class TangentMapPropagator:
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
-               self._escape_r2, counters, state.status, done, update, aux,
+               self._escape_r2, counters, state.status, done, update, self._accumulator(state),
                state.step, self.tau)
         state.after_kernel(n, was_active, done, counters, COUNTERS)
 
@@ -109,6 +335,7 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
         If the map fails (the message gives the step and the reason).
     """
     from ..protocol import REASONS
+    from ..state import RunState
 
     x = np.array(x, dtype=np.float64).reshape(1, -1)
     if x.shape[1] != model.dim or not np.isfinite(x).all():
@@ -116,20 +343,55 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     if not (np.isfinite(tau) and tau != 0):
         raise ValueError(f"tau must be finite and non-zero, got {tau!r}")
     W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
-    W = W.reshape(model.dim, -1)[None].copy()
-    k = W.shape[2]
-    kinds, h, hc = stage_arrays(get_scheme(scheme), float(tau))
-    status = np.zeros(1, dtype=np.int64)
-    done = np.zeros(1, dtype=np.int64)
-    r = model.escape_radius
-    kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False)
-    kernel(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), int(n_steps), kinds, h,
-           hc, model.inverse_mass, model.params, model.bandwidth, model.grad_kernel,
-           model.hess_kernel, model.third_kernel, int(Renorm.NONE),
-           np.inf if r is None else float(r) ** 2,
-           np.zeros((1, len(COUNTERS)), dtype=np.int64), status, done,
-           K.no_accumulator, np.empty((1, 0, 0)), 0, float(tau))
-    if status[0] != Status.OK:
-        raise FloatingPointError(f"the map failed after {done[0]} steps: "
-                                 f"{REASONS.get(Status(status[0]), status[0])}")
-    return x[0], W[0]
+    state = RunState.start(x, W.reshape(model.dim, -1)[None])
+    TangentMapPropagator(model, float(tau), Renorm.NONE, scheme=scheme, parallel=False).advance(
+        state, int(n_steps))
+    if state.status[0] != Status.OK:
+        raise FloatingPointError(f"the map failed in step {state.fail_step[0]}: "
+                                 f"{REASONS.get(Status(state.status[0]), state.status[0])}")
+    return state.x[0], state.W[0]
+
+
+class _Lanes:
+    """The layout of orbits as blocks of SIMD lanes: arrays (M, ...) of the
+    run state become (blocks, ..., lanes) and back; the last block is
+    padded with copies of the last orbit (computed, never read)."""
+
+    def __init__(self, active, width):
+        self.n = len(active)
+        self.width = width
+        self.blocks = -(-self.n // width)
+        self.index = np.concatenate([active, np.full(self.blocks * width - self.n, active[-1])])
+
+    def soa(self, a):
+        """Rows of ``a`` (M, ...) -> (blocks, ..., lanes)."""
+        b = a[self.index].reshape((self.blocks, self.width) + a.shape[1:])
+        return np.ascontiguousarray(np.moveaxis(b, 1, -1))
+
+    def aos(self, a):
+        """(blocks, ..., lanes) -> the active orbits' rows (n, ...)."""
+        rows = np.moveaxis(a, -1, 1).reshape((self.blocks * self.width,) + a.shape[1:-1])
+        return rows[:self.n]
+
+    def rows_by_lane(self, a):
+        """Rows of ``a`` (M, ...) -> (blocks, lanes, ...): per-lane arrays
+        (an indicator's accumulators, read by its own code one lane at a
+        time)."""
+        return np.ascontiguousarray(a[self.index].reshape((self.blocks, self.width)
+                                                          + a.shape[1:]))
+
+    def from_rows_by_lane(self, a):
+        return a.reshape((self.blocks * self.width,) + a.shape[2:])[:self.n]
+
+    def snapshot_rows(self, a):
+        """(blocks, S, ..., lanes) -> (S, n, ...)."""
+        b = np.moveaxis(a, -1, 2)   # (blocks, S, lanes, ...)
+        s = a.shape[1]
+        return np.swapaxes(b, 0, 1).reshape((s, self.blocks * self.width)
+                                            + a.shape[2:-1])[:, :self.n]
+
+    def snapshot_rows_by_lane(self, a):
+        """(blocks, S, lanes, ...) -> (S, n, ...)."""
+        s = a.shape[1]
+        return np.swapaxes(a, 0, 1).reshape((s, self.blocks * self.width)
+                                            + a.shape[3:])[:, :self.n]

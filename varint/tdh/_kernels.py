@@ -35,7 +35,8 @@ from numba import njit, prange
 
 from ..kernels import tm as K
 from ..kernels.banded import band_kick_block, band_square_add
-from ..kernels.checks import CHECK_EVERY, all_finite, renormalize, tangent_overflow
+from ..kernels.checks import (CHECK_EVERY, all_finite, derivative_status, renormalize,
+                              tangent_overflow)
 from ..protocol import COUNTERS as TM_COUNTERS, Renorm, Status
 from .frozen import _oscillator
 
@@ -56,11 +57,50 @@ _NONE = int(Renorm.NONE)
 _BLOCK_VALUES = 1 << 16
 
 
-def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
+@lru_cache(maxsize=None)
+def generic_orbit(n, bw):
+    """``run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess,
+    third, escape_r2, counters, rec) -> (status, steps)``: the orbit alone
+    by the generic TM stepper (sizes N = ``n``, bandwidth ``bw``; −1: read
+    at run time), the state after every step written to ``rec``."""
+    orbit = K.orbit_kernel(n, bw)
+
+    @njit
+    def run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third, escape_r2,
+                  counters, rec):
+        d = x.shape[0]
+        return orbit(x, np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64), n_steps,
+                     kinds, h, hc, minv, par, bw_rt, grad, hess, third, _NONE, escape_r2,
+                     counters, rec, K.no_accumulator, np.empty((0, 0)), 0, 0.0)
+
+    return run_orbit
+
+
+@lru_cache(maxsize=None)
+def generated_orbit(module):
+    """The same as :func:`generic_orbit` by a generated stepper
+    (:mod:`varint.kernels.generate`, k = 0), whose snapshots at every step
+    are the record: the orbit is the TM method's, bit for bit."""
+    orbit = module.orbit
+
+    @njit
+    def run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third, escape_r2,
+                  counters, rec):
+        d = x.shape[0]
+        return orbit(x, np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64), n_steps,
+                     0, 0.0, h, hc, escape_r2, counters, np.empty((0, 0)),
+                     np.zeros(2, dtype=np.int64), np.arange(1, n_steps + 1), rec,
+                     np.empty((n_steps, d, 0)), np.ones((n_steps, 0)),
+                     np.zeros((n_steps, 0), dtype=np.int64), np.empty((n_steps, 0, 0)), _NONE, 0)
+
+    return run_orbit
+
+
+def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
     """The one-orbit TDH stepper for method ``MODE``; sizes are constants
     when ≥ 0, else read from the arrays. ``FLOW``: the accumulator reads the
-    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`)."""
-    orbit = K.orbit_kernel(N_C, BW_C)
+    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`).
+    ``run_orbit``: :func:`generic_orbit` or :func:`generated_orbit`."""
 
     @njit
     def tdh_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx,
@@ -78,8 +118,6 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
         block = max(1, min(n_steps, _BLOCK_VALUES // (n_sub * d)))
         rec = np.empty((block * n_sub, d))
         x0 = np.empty(n)                        # q at the start of the block
-        no_W, no_m, no_e = np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64)
-        no_aux = np.empty((0, 0))
         r_acc = np.empty(k if aux.shape[0] > 0 else 0)    # stretching, for the accumulator
         flow = np.empty(d if FLOW else 0)
         gq = np.empty(n)                        # ∇V, for the accumulator's flow
@@ -109,9 +147,8 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
             nb = min(block, n_steps - done)
             for i in range(n):
                 x0[i] = x[i]
-            status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
-                                  bw_rt, grad, hess, third, _NONE, escape_r2, counters,
-                                  rec, K.no_accumulator, no_aux, 0, 0.0)
+            status, steps = run_orbit(x, nb * n_sub, kinds, h, hc, minv, par, bw_rt, grad, hess,
+                                      third, escape_r2, counters, rec)
             complete = steps // n_sub if status != _OK else nb
             for s in range(complete):
                 if tangent:
@@ -133,7 +170,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
                         if not all_finite(H.ravel(), (bw + 1) * n):
                             for i in range(d):
                                 x[i] = rec[(s + 1) * n_sub - 1, i]
-                            return _HESS, done + s
+                            return derivative_status(q, n, _HESS), done + s
                         for b in range(bw + 1):
                             for i in range(n):
                                 Hs[jg, b, i] = H[b, i]
@@ -248,7 +285,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
 
 
 @lru_cache(maxsize=None)
-def tdh_batch(n, k, bw, mode, parallel, flow=False):
+def tdh_batch(n, k, bw, mode, parallel, flow, run_orbit):
     """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
     read at run time).
@@ -260,8 +297,10 @@ def tdh_batch(n, k, bw, mode, parallel, flow=False):
     An orbit that fails is frozen as it was at the failure: the orbit at the
     end of the failed orbit step and the vectors at the start of that
     interval, or, if their renormalisation failed, both at its end.
+    ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
+    :func:`generated_orbit`).
     """
-    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow)
+    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow, run_orbit)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx, need,
@@ -281,7 +320,10 @@ def tdh_batch(n, k, bw, mode, parallel, flow=False):
     return batch
 
 
-def batch_kernel(n, k, bw, mode, parallel, flow=False):
+def batch_kernel(n, k, bw, mode, parallel, flow=False, module=None):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
-    TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`)."""
-    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel, flow)
+    TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`), its orbit
+    by the generated stepper ``module`` if given, else the generic one."""
+    sizes = K.specialised_sizes(n, k, bw)
+    run_orbit = generic_orbit(sizes[0], sizes[2]) if module is None else generated_orbit(module)
+    return tdh_batch(*sizes, mode, parallel, flow, run_orbit)

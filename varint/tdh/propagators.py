@@ -31,6 +31,7 @@ import numpy as np
 import scipy
 
 from .._validate import choice
+from ..kernels import generate as G
 from ..kernels import tm as K
 from ..methods import method_options
 from ..models.henon_heiles import HenonHeiles
@@ -126,6 +127,16 @@ class _TDHPropagator:
     def versions(self):
         return {"numba": numba.__version__}
 
+    def _orbit_stepper(self):
+        """The generated TM stepper of the orbit (k = 0) when the model has
+        one, so the orbit is the TM method's own; None for the generic one."""
+        if not hasattr(self, "_generated"):
+            self._generated = None
+            if G.symbolic_fits(self.model, 0):
+                corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
+                self._generated = G.symbolic_stepper(self.model, self._kinds, corrected, 0)
+        return self._generated
+
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` intervals τ."""
         m = state.n_orbits
@@ -135,7 +146,7 @@ class _TDHPropagator:
         update, aux, flow = ((K.no_accumulator, np.empty((m, 0, 0)), False) if acc is None
                              else (acc.update, state.extra[acc.key], acc.needs_flow))
         kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode,
-                                 parallel, flow)
+                                 parallel, flow, self._orbit_stepper())
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == Status.OK

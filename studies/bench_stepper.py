@@ -1,0 +1,216 @@
+"""Speed of the generated TM stepper against plain compiled loops of the same
+algorithm, and the taxes around it (issue 12's targets).
+
+Printed, one run, interleaved, minimum of repeats (the machine is shared):
+
+1. orbit only, Hénon–Heiles, ABA864, τ = 0.05: varint against a C loop of
+   the same 15 stages (``gcc -O3 -march=native``);
+2. R1 full spectrum, SBAB2C, QR every step: varint against the C loop of
+   :mod:`bench_tm` (and varint with its adaptive sparse renormalisation);
+3. the same run with 1000 outputs against 2 outputs;
+4. the first run in a new process whose kernels an earlier process compiled;
+5. a FLI map of Hénon–Heiles orbits on the x = 0 section at E = 1/8 to
+   t = 1e3 (``chaos_map`` defaults, SIMD lanes): orbits per second on 1 and
+   2 threads.
+
+Usage: ``python studies/bench_stepper.py [--quick] [--csv FILE]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+
+import numba
+import numpy as np
+
+import varint
+from varint.methods import make_propagator
+from varint.schemes import DRIFT, stage_arrays
+from varint.state import RunState
+
+try:
+    from bench_tm import C_LOOP as C_SPECTRUM
+except ImportError:  # imported as studies.bench_stepper
+    from .bench_tm import C_LOOP as C_SPECTRUM
+
+TAU = 0.05
+
+
+def orbit_c_source(scheme, tau):
+    """A C loop of the scheme's stages for the Hénon–Heiles orbit alone, the
+    stage coefficients written in as constants (what a person would write)."""
+    kinds, h, _ = stage_arrays(varint.get_scheme(scheme), tau)
+    body = []
+    for kind, c in zip(kinds, h):
+        if kind == DRIFT:
+            body.append(f"q0 += {c!r}*p0; q1 += {c!r}*p1;")
+        else:
+            body.append(f"p0 -= {c!r}*(q0 + 2*q0*q1); p1 -= {c!r}*(q1 + q0*q0 - q1*q1);")
+    return textwrap.dedent("""\
+        #include <stdio.h>
+        #include <stdlib.h>
+        #include <time.h>
+        int main(int argc, char **argv) {
+            long n = atol(argv[1]);
+            double q0 = 0.0, q1 = 0.558, p0 = atof(argv[2]), p1 = 0.0;
+            struct timespec a, b;
+            clock_gettime(CLOCK_MONOTONIC, &a);
+            for (long s = 0; s < n; s++) {
+                %s
+            }
+            clock_gettime(CLOCK_MONOTONIC, &b);
+            double sec = (b.tv_sec - a.tv_sec) + 1e-9*(b.tv_nsec - a.tv_nsec);
+            printf("%%.6f %%.17e\\n", sec, q1);
+            return 0;
+        }
+        """) % "\n        ".join(body)
+
+
+class CLoop:
+    """A C program compiled once, timed by its own clock (best of calls)."""
+
+    def __init__(self, source, folder):
+        gcc = shutil.which("gcc")
+        self.exe = None
+        if gcc is None:
+            return
+        src = os.path.join(folder, f"loop{abs(hash(source))}.c")
+        with open(src, "w") as f:
+            f.write(source)
+        self.exe = src[:-2]
+        subprocess.run([gcc, "-O3", "-march=native", src, "-o", self.exe, "-lm"], check=True)
+
+    def ns_per_step(self, n_steps, px):
+        out = subprocess.run([self.exe, str(n_steps), repr(float(px))], check=True,
+                             capture_output=True, text=True).stdout.split()
+        return float(out[0]) / n_steps * 1e9, float(out[1])
+
+
+def varint_ns_per_step(prop, x0, k, n_steps):
+    """ns/step of one advance() of a compiled propagator."""
+    W0 = np.eye(x0.size)[:, :k][None]
+    state = RunState.start(x0[None], W0)
+    t0 = time.perf_counter()
+    prop.advance(state, n_steps)
+    return (time.perf_counter() - t0) / n_steps * 1e9, state
+
+
+def first_run_seconds(repeats=2):
+    """Seconds of an R1 spectrum to t = 100 in a fresh process (import
+    excluded), after an earlier process compiled and cached the kernels."""
+    code = ("import time, varint; m, x = varint.paper_orbit('R1'); t = time.perf_counter(); "
+            "varint.lyapunov_spectrum(m, x, t_end=100.0, tau=0.05); "
+            "print(time.perf_counter() - t)")
+    env = dict(os.environ)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+    times = [float(subprocess.run([sys.executable, "-c", code], check=True, env=env,
+                                  capture_output=True, text=True).stdout.split()[-1])
+             for _ in range(repeats + 1)]
+    return times[0], min(times[1:])
+
+
+def outputs_ratio(n_steps, repeats):
+    """Time of R1's spectrum with 1000 outputs over that with 2, same steps."""
+    model, x0 = varint.paper_orbit("R1")
+    t_end = n_steps * TAU
+    grids = {2: np.array([t_end / 2, t_end]), 1000: np.linspace(t_end / 1000, t_end, 1000)}
+    best = {n: np.inf for n in grids}
+    for _ in range(repeats + 1):          # the first round compiles
+        for n, grid in grids.items():
+            t0 = time.perf_counter()
+            varint.lyapunov_spectrum(model, x0, t_end=t_end, tau=TAU, t_out=grid)
+            best[n] = min(best[n], time.perf_counter() - t0)
+    return best[1000] / best[2], best
+
+
+def fli_map_rate(n_side, t_end, threads):
+    """Orbits per second of a FLI map of the x = 0 section at E = 1/8 on
+    ``threads`` threads (best of 2; the first call compiles)."""
+    model = varint.models.HenonHeiles()
+    grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.65, n_side),
+                               np.linspace(-0.45, 0.45, n_side))
+    old = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        varint.chaos_map(model, grid, "fli", t_end=1.0)
+        best, result = np.inf, None
+        for _ in range(2):
+            t0 = time.perf_counter()
+            result = varint.chaos_map(model, grid, "fli", t_end=t_end)
+            best = min(best, time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(old)
+    n = int(np.isfinite(np.asarray(result.values, dtype=float)).sum())
+    return n / best, n
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes")
+    parser.add_argument("--csv", help="also write the table to this CSV file")
+    args = parser.parse_args(argv)
+    n_steps = 100_000 if args.quick else 2_000_000
+    repeats = 2 if args.quick else 5
+    rows = []
+
+    model, x0 = varint.paper_orbit("R1")
+    with tempfile.TemporaryDirectory() as tmp:
+        c_orbit = CLoop(orbit_c_source("ABA864", TAU), tmp)
+        c_spec = CLoop(C_SPECTRUM, tmp)
+        orbit = make_propagator("tm", model, TAU, "none", scheme="ABA864")
+        every = make_propagator("tm", model, TAU, "qr", scheme="SBAB2C", renormalize_every=1)
+        sparse = make_propagator("tm", model, TAU, "qr", scheme="SBAB2C")
+        for p, k in ((orbit, 0), (every, 4), (sparse, 4)):
+            varint_ns_per_step(p, x0, k, 100)          # compile
+        best = {key: np.inf for key in ("orbit", "c_orbit", "every", "sparse", "c_spec")}
+        for _ in range(repeats):
+            best["orbit"] = min(best["orbit"], varint_ns_per_step(orbit, x0, 0, n_steps)[0])
+            best["every"] = min(best["every"], varint_ns_per_step(every, x0, 4, n_steps)[0])
+            best["sparse"] = min(best["sparse"], varint_ns_per_step(sparse, x0, 4, n_steps)[0])
+            if c_orbit.exe:
+                best["c_orbit"] = min(best["c_orbit"], c_orbit.ns_per_step(n_steps, x0[2])[0])
+                best["c_spec"] = min(best["c_spec"], c_spec.ns_per_step(n_steps, x0[2])[0])
+    print(f"# ns per step, best of {repeats} interleaved ({n_steps} steps)")
+    print(f"{'case':46}{'varint':>10}{'C loop':>10}{'ratio':>8}{'target':>8}")
+    for label, v, c, target in (
+            ("HH orbit only, ABA864", best["orbit"], best["c_orbit"], 1.15),
+            ("R1 spectrum SBAB2C, QR every step", best["every"], best["c_spec"], 0.9),
+            ("R1 spectrum SBAB2C, sparse renormalisation", best["sparse"], best["c_spec"], 0.9)):
+        print(f"{label:46}{v:10.1f}{c:10.1f}{v / c:8.2f}{target:8.2f}")
+        rows.append((label, v, c, v / c, target))
+
+    ratio, times = outputs_ratio(n_steps // 10, repeats)
+    print(f"\n1000 outputs / 2 outputs over {n_steps // 10} steps: {ratio:.2f} "
+          f"({times[1000]:.3f} s / {times[2]:.3f} s; target <= 1.2)")
+    rows.append(("1000 outputs / 2 outputs", times[1000], times[2], ratio, 1.2))
+
+    cold, warm = first_run_seconds()
+    print(f"first R1 spectrum (t = 100) in a new process, kernels cached: {warm:.2f} s "
+          f"(the process that filled the cache: {cold:.2f} s; target <= 0.5 s)")
+    rows.append(("first run in a new process (s)", warm, cold, warm, 0.5))
+
+    side = 12 if args.quick else 45                 # 45 x 45 grid: about 1990 orbits
+    t_map = 100.0 if args.quick else 1e3
+    r1, n = fli_map_rate(side, t_map, 1)
+    r2, _ = fli_map_rate(side, t_map, 2)
+    print(f"\nFLI map, {n} orbits of the x = 0 section, t = {t_map:g}: {r1:.0f} orbits/s "
+          f"on 1 thread, {r2:.0f} on 2 ({r2 / r1:.2f}x; target >= 1.0 under load)")
+    rows.append(("FLI map orbits/s, 1 thread", r1, r2, r2 / r1, 1.0))
+
+    if args.csv:
+        with open(args.csv, "w") as f:
+            f.write("case,varint,reference,ratio,target\n")
+            f.writelines(f"{a},{b:.4g},{c:.4g},{d:.3f},{e}\n" for a, b, c, d, e in rows)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

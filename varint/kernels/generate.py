@@ -1,0 +1,933 @@
+"""Tangent-map steppers generated per model and scheme, cached on disk.
+
+For a model that knows its potential symbolically (every built-in model and
+every :func:`~varint.models.from_potential` model) and has few degrees of
+freedom, the stepper is written out as Python source and compiled by numba:
+
+* the scheme's stages are unrolled; each kick evaluates ∇V, D²V and, for a
+  corrector, ∇C and D²C (C = ∇VᵀM⁻¹∇V, Skokos & Gerlach 2010 eq. 26) as
+  straight-line expressions of q with common subexpressions eliminated, and
+  applies the orbit kick and the tangent kick (eqs. 47, 53) in one go;
+* the orbit, the deviation vectors and the stretching accumulators live in
+  local variables (registers) for the whole loop — the code a person would
+  write in C for this model and scheme;
+* the end-of-step work is that of :mod:`varint.kernels.checks` (escape,
+  non-finite state, a singular derivative, degenerate or overflowing
+  vectors; the same status codes), unrolled;
+* an indicator's accumulator is called after every renormalisation, and the
+  state is copied at the requested output steps (*snapshots*), so a run with
+  many outputs costs no more than its steps (:mod:`varint.driver`);
+* with ``sparse`` renormalisation the vectors are renormalised only when
+  needed (:func:`next_interval`), which gives the same exponents as
+  renormalising every step, to round-off.
+
+The source goes to ``<cache dir>/kernels/`` under a name that hashes the
+source itself, and numba caches its compilation beside it, so a new process
+(or a new varint version, or another model) finds or builds exactly the
+kernel it needs; the first run in a new process loads it instead of
+compiling it.
+
+Models without a symbolic definition, or too large for straight-line code,
+use the generic stepper of :mod:`varint.kernels.tm`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+import tempfile
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from numba import njit
+
+from ..files import atomic_write
+from ..protocol import TANGENT_LIMIT, Renorm, Status
+from ..schemes import DRIFT
+from .checks import CHECK_EVERY, HUGE_Q2
+
+__all__ = ["symbolic_stepper", "generated_source", "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES",
+           "next_interval", "SPARSE_NORM_LOG", "SPARSE_COND_LOG", "SPARSE_MAX_STEPS"]
+
+#: Largest N and largest 2N·k (orbit and vectors held in local variables) for
+#: which straight-line code is generated; beyond, the generic stepper is used.
+SYMBOLIC_MAX_N = 16
+SYMBOLIC_MAX_VALUES = 160
+
+#: Sparse renormalisation keeps the growth of every vector between two
+#: renormalisations below e^SPARSE_NORM_LOG (1e50: far from overflow) and,
+#: for QR, the spread of the stretchings below e^SPARSE_COND_LOG (1e3: the
+#: ill-conditioning modified Gram–Schmidt then sees costs at most ~1e3 ε in
+#: the smallest exponent's R_kk), and renormalises at least every
+#: SPARSE_MAX_STEPS steps. The interval at most doubles from one
+#: renormalisation to the next, so a sudden stronger stretching cannot
+#: overflow before it is seen.
+SPARSE_NORM_LOG = 115.0
+SPARSE_COND_LOG = 6.9
+SPARSE_MAX_STEPS = 1 << 16
+#: Vectors beyond this size are renormalised at the next check, whatever the
+#: schedule (checked every CHECK_EVERY steps).
+_EARLY = 1e100
+# As plain floats for the compiled schedule.
+_NORM_LOG, _COND_LOG, _MAX_STEPS = SPARSE_NORM_LOG, SPARSE_COND_LOG, float(SPARSE_MAX_STEPS)
+
+
+@njit(cache=True)
+def next_interval(interval, growth, spread):
+    """The next renormalisation interval (steps) of the sparse schedule.
+
+    Parameters
+    ----------
+    interval : int
+        The interval just completed.
+    growth : float
+        max_j ln r_j over it (the largest log-stretching).
+    spread : float
+        max_j ln r_j − min_j ln r_j (0 unless QR with k ≥ 2).
+
+    Returns
+    -------
+    int
+        At most twice ``interval``, at least 1, and short enough that, at the
+        same rates, growth stays below ``SPARSE_NORM_LOG`` and spread below
+        ``SPARSE_COND_LOG``.
+    """
+    allowed = interval * 2.0
+    if growth > 0.0:
+        allowed = min(allowed, interval * _NORM_LOG / growth)
+    if spread > 0.0:
+        allowed = min(allowed, interval * _COND_LOG / spread)
+    return int(max(1.0, min(allowed, _MAX_STEPS)))
+
+
+# -- the model's expressions -----------------------------------------------------
+
+@dataclass(frozen=True)
+class _Expressions:
+    """∇V, D²V, ∇C and D²C of a symbolic model in the symbols q0 … q{N−1}."""
+
+    n: int
+    minv: tuple
+    g: tuple       # ∇V_i
+    H: dict        # (i, j), i ≤ j -> D²V_ij (non-zero entries only)
+    gc: tuple      # ∇C_i
+    HC: dict       # (i, j), i ≤ j -> D²C_ij (non-zero entries only)
+    q: tuple       # the symbols
+
+
+@lru_cache(maxsize=32)
+def _expressions(V_srepr, minv_srepr, n):
+    """The expressions of a potential given by its SymPy ``srepr`` (cached
+    by it: the symbolic work costs far more than the rest)."""
+    q = sp.symbols(f"q0:{n}")
+    V = sp.sympify(V_srepr)
+    minv = tuple(sp.sympify(m) for m in minv_srepr)
+    g = tuple(sp.diff(V, qi) for qi in q)
+    H = {}
+    for i in range(n):
+        for j in range(i, n):
+            e = sp.diff(g[i], q[j])
+            if e != 0:
+                H[i, j] = e
+
+    def h(i, j):
+        return H.get((min(i, j), max(i, j)), sp.Integer(0))
+
+    # C = Σ_k m_k g_k²: ∇C_i = 2 Σ_k m_k g_k H_ki and
+    # D²C_ij = 2 Σ_k m_k (H_ki H_kj + g_k ∂_j H_ki)  (paper eq. 26 with M⁻¹).
+    gc = tuple(2 * sp.Add(*[minv[k] * g[k] * h(k, i) for k in range(n)]) for i in range(n))
+    HC = {}
+    for i in range(n):
+        for j in range(i, n):
+            e = 2 * sp.Add(*[minv[k] * (h(k, i) * h(k, j) + g[k] * sp.diff(h(k, i), q[j]))
+                             for k in range(n)])
+            if e != 0:
+                HC[i, j] = e
+    return _Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q)
+
+
+def _model_expressions(model):
+    s = model.symbolic()
+    n = len(s.q)
+    V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"))))
+    return _expressions(sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n)
+
+
+def symbolic_fits(model, k):
+    """Whether ``model`` gets a generated straight-line stepper for ``k``
+    vectors (it knows its potential symbolically and is small)."""
+    if not callable(getattr(model, "symbolic", None)) or model.n_dof > SYMBOLIC_MAX_N:
+        return False
+    if 2 * model.n_dof * (1 + k) > SYMBOLIC_MAX_VALUES:
+        return False
+    try:
+        s = model.symbolic()
+    except (NotImplementedError, ValueError):
+        return False
+    return len(s.q) == model.n_dof and np.allclose([float(m) for m in s.inverse_mass],
+                                                    model.inverse_mass, rtol=1e-15, atol=0)
+
+
+# -- source emission ------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Plan:
+    """What one generated stepper is specialised to.
+
+    Attributes
+    ----------
+    kinds : tuple of int
+        Stage kinds (``DRIFT`` or kick), as :func:`varint.schemes.stage_arrays`.
+    corrected : tuple of bool
+        Which kick stages carry a corrector.
+    k : int
+        Deviation vectors.
+    accumulator : str
+        ``"module:name"`` of the indicator's accumulator update, or "".
+    flow : bool
+        Pass the accumulator the phase-space velocity.
+    """
+
+    kinds: tuple
+    corrected: tuple
+    k: int
+    accumulator: str
+    flow: bool
+
+
+_OK, _ESCAPED, _NONFINITE = int(Status.OK), int(Status.ESCAPED), int(Status.ORBIT_NONFINITE)
+_DEGENERATE, _OVERFLOW = int(Status.TANGENT_DEGENERATE), int(Status.TANGENT_OVERFLOW)
+_GRAD, _HESS, _THIRD = (int(Status.GRADIENT_NONFINITE), int(Status.HESSIAN_NONFINITE),
+                        int(Status.THIRD_NONFINITE))
+
+
+class _Emitter:
+    """Writes the source of one stepper: ``orbit`` (one orbit, state in
+    locals) and ``batch_serial``/``batch_parallel`` (over a batch)."""
+
+    def __init__(self, E, plan):
+        from ..models.symbolic import _KernelPrinter
+
+        self.E, self.plan = E, plan
+        self.n, self.k = E.n, plan.k
+        n, k = self.n, self.k
+        self.q = [f"q{i}" for i in range(n)]
+        self.p = [f"p{i}" for i in range(n)]
+        # δq_i and δp_i of vector j.
+        self.a = [[f"a{i}_{j}" for j in range(k)] for i in range(n)]
+        self.b = [[f"b{i}_{j}" for j in range(k)] for i in range(n)]
+        self.printer = _KernelPrinter()
+        self.lines = []
+        self.level = 0
+
+    # -- plumbing ------------------------------------------------------------------
+    def __call__(self, *lines):
+        for line in lines:
+            self.lines.append("    " * self.level + line if line else "")
+
+    def indent(self):
+        self.level += 1
+
+    def dedent(self):
+        self.level -= 1
+
+    def vectors(self):
+        """Every δq and δp local, vector by vector."""
+        return [v for i in range(self.n) for j in range(self.k)
+                for v in (self.a[i][j], self.b[i][j])]
+
+    def fail(self, status):
+        """Leave the loop with ``status``; the locals are stored after it, so
+        the state is left where the failure was seen."""
+        self.indent()
+        if status in (_GRAD, _HESS, _THIRD):
+            # At an enormous |q| the derivatives overflow before the state
+            # does: that is the orbit running away, not a singular potential.
+            rq = " + ".join(f"{v} * {v}" for v in self.q)
+            self(f"status = {status} if {rq} < HUGE else {_NONFINITE}")
+        else:
+            self(f"status = {status}")
+        self("break")
+        self.dedent()
+
+    def store(self):
+        n, k = self.n, self.k
+        for i in range(n):
+            self(f"x[{i}] = {self.q[i]}", f"x[{n + i}] = {self.p[i]}")
+        for i in range(n):
+            for j in range(k):
+                self(f"W[{i}, {j}] = {self.a[i][j]}", f"W[{n + i}, {j}] = {self.b[i][j]}")
+        for j in range(k):
+            self(f"acc_m[{j}] = am{j}", f"acc_e[{j}] = ae{j}")
+        self("counters[0] += c_grad", "counters[1] += c_hess", "counters[2] += c_third",
+             "counters[3] += c_tan", "rsched[0] = next_renorm", "rsched[1] = interval")
+
+    # -- the pieces of a step -----------------------------------------------------------
+    def derivatives(self, label, what):
+        """Evaluate ∇V and, as ``what`` asks, D²V, ∇C, D²C at the current q,
+        with a singular value caught before it is used.
+
+        The orbit's quantities (∇V, ∇C) and the tangent ones (D²V, D²C) are
+        simplified separately, so the orbit gets the same bits whether or
+        not deviation vectors are carried.
+        """
+        E = self.E
+        orbit = [("g", [f"g{i}" for i in range(self.n)], list(E.g), _GRAD, "c_grad")]
+        if "gc" in what:
+            orbit.append(("gc", [f"gc{i}" for i in range(self.n)], list(E.gc), _THIRD, None))
+        tangent = []
+        if "H" in what:
+            tangent.append(("H", [f"H{i}_{j}" for i, j in E.H], list(E.H.values()), _HESS,
+                            "c_hess"))
+        if "HC" in what:
+            tangent.append(("HC", [f"HC{i}_{j}" for i, j in E.HC], list(E.HC.values()), _THIRD,
+                            "c_third"))
+        for part, groups in (("o", orbit), ("w", tangent)):
+            if not groups:
+                continue
+            targets = [t for g in groups for t in g[1]]
+            exprs = [e for g in groups for e in g[2]]
+            temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"t{label}{part}_"))
+            for t, e in temps:
+                self(f"{t} = {self.printer.doprint(e)}")
+            for t, e in zip(targets, reduced):
+                self(f"{t} = {self.printer.doprint(e)}")
+            for _, names, _, status, counter in groups:
+                if counter:
+                    self(f"{counter} += 1")
+                if names:
+                    self(f"fin = {' + '.join(names)}", "if fin - fin != 0.0:")
+                    self.fail(status)
+
+    def drift(self, st):
+        for i in range(self.n):
+            m = self.E.minv[i]
+            h = f"h{st}" if m == 1.0 else f"(h{st} * {m!r})"
+            self(f"{self.q[i]} += {h} * {self.p[i]}")
+            for j in range(self.k):
+                self(f"{self.a[i][j]} += {h} * {self.b[i][j]}")
+
+    def kick(self, st, corrected):
+        """p −= h ∇V + hc ∇C and δp −= (h D²V + hc D²C) δq (paper eqs. 47, 53)."""
+        E, n, k = self.E, self.n, self.k
+        for i in range(n):
+            corr = f" + hc{st} * gc{i}" if corrected else ""
+            self(f"{self.p[i]} -= h{st} * g{i}{corr}")
+        if not k:
+            return
+        self("c_tan += 1")
+        entries = set(E.H) | (set(E.HC) if corrected else set())
+        for key in sorted(entries):
+            terms = ([f"h{st} * H{key[0]}_{key[1]}"] if key in E.H else [])
+            if corrected and key in E.HC:
+                terms.append(f"hc{st} * HC{key[0]}_{key[1]}")
+            self(f"K{key[0]}_{key[1]} = {' + '.join(terms)}")
+        for j in range(k):
+            for i in range(n):
+                terms = [f"K{min(i, l)}_{max(i, l)} * {self.a[l][j]}" for l in range(n)
+                         if (min(i, l), max(i, l)) in entries]
+                if terms:
+                    self(f"{self.b[i][j]} -= {' + '.join(terms)}")
+
+    def renormalize(self):
+        """Modified Gram–Schmidt (QR) or normalisation in the locals; the
+        stretching r{j} is multiplied into am{j}/ae{j} (mantissa, exponent;
+        :mod:`varint.kernels.checks`)."""
+        n, k, a, b = self.n, self.k, self.a, self.b
+        for j in range(k):
+            if j:
+                self("if mode == QR:")
+                self.indent()
+                for c in range(j):
+                    dot = " + ".join([f"{a[i][c]} * {a[i][j]}" for i in range(n)]
+                                     + [f"{b[i][c]} * {b[i][j]}" for i in range(n)])
+                    self(f"rr = {dot}")
+                    for i in range(n):
+                        self(f"{a[i][j]} -= rr * {a[i][c]}", f"{b[i][j]} -= rr * {b[i][c]}")
+                self.dedent()
+            sq = " + ".join([f"{a[i][j]} * {a[i][j]}" for i in range(n)]
+                            + [f"{b[i][j]} * {b[i][j]}" for i in range(n)])
+            self(f"r{j} = math.sqrt({sq})", f"if not (r{j} > 0.0 and r{j} < np.inf):")
+            self.fail(_DEGENERATE)
+            # The mantissa rescaled by exact powers of two (as in lanes).
+            self(f"aa = am{j} * r{j}",
+                 f"ae{j} += 500 if aa > ACC_BIG else (-500 if aa < ACC_SMALL else 0)",
+                 f"am{j} = aa * ACC_SMALL if aa > ACC_BIG else "
+                 "(aa * ACC_BIG if aa < ACC_SMALL else aa)",
+                 f"inv = 1.0 / r{j}")
+            for i in range(n):
+                self(f"{a[i][j]} *= inv", f"{b[i][j]} *= inv")
+
+    def schedule(self):
+        """The next renormalisation step of the sparse schedule."""
+        k = self.k
+        logs = [f"math.log(r{j})" for j in range(k)]
+        self("if every < 0:")
+        self.indent()
+        self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
+        if k > 1:
+            self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
+        else:
+            self("spread = 0.0")
+        self("interval = next_interval(max(step - (next_renorm - interval), 1), lmax, spread)")
+        self.dedent()
+        self("elif every > 0:", "    interval = every")
+        # Every-step renormalisation keeps no schedule (as the lanes do).
+        self("if every != 0:", "    next_renorm = step + interval")
+
+    def accumulate(self, kinds):
+        n, k = self.n, self.k
+        for j in range(k):
+            self(f"rbuf[{j}] = r{j}")
+        for i in range(n):
+            self(f"xbuf[{i}] = {self.q[i]}", f"xbuf[{n + i}] = {self.p[i]}")
+            for j in range(k):
+                self(f"Wbuf[{i}, {j}] = {self.a[i][j]}", f"Wbuf[{n + i}, {j}] = {self.b[i][j]}")
+        if self.plan.flow:
+            if kinds[-1] == DRIFT:
+                self.derivatives("f", {"g"})  # the flow needs ∇V at the end of the step
+            for i in range(n):
+                m = self.E.minv[i]
+                self(f"flowbuf[{i}] = {self.p[i]}" if m == 1.0
+                     else f"flowbuf[{i}] = {m!r} * {self.p[i]}", f"flowbuf[{n + i}] = -g{i}")
+        # The time from the integer step: it does not depend on chunking.
+        self("accumulate(aux, rbuf, xbuf, Wbuf, flowbuf, step * tau)")
+
+    def snapshot(self):
+        """Copy the state at an output step; check raw vectors there too."""
+        n, k = self.n, self.k
+        self("if jo < outs.shape[0] and step == outs[jo]:")
+        self.indent()
+        if k:
+            big = " or ".join(f"not (abs({v}) < TANGENT_LIMIT)" for v in self.vectors())
+            self(f"if mode == NONE and ({big}):")
+            self.fail(_OVERFLOW)
+        for i in range(n):
+            self(f"snap_x[jo, {i}] = {self.q[i]}", f"snap_x[jo, {n + i}] = {self.p[i]}")
+            for j in range(k):
+                self(f"snap_W[jo, {i}, {j}] = {self.a[i][j]}",
+                     f"snap_W[jo, {n + i}, {j}] = {self.b[i][j]}")
+        for j in range(k):
+            self(f"snap_m[jo, {j}] = am{j}", f"snap_e[jo, {j}] = ae{j}")
+        if self.plan.accumulator:
+            self("for jj in range(aux.shape[0]):",
+                 "    for cc in range(aux.shape[1]):",
+                 "        snap_aux[jo, jj, cc] = aux[jj, cc]")
+        self("jo += 1")
+        self.dedent()
+
+    # -- the whole source ------------------------------------------------------------------
+    def source(self):
+        E, plan, n, k = self.E, self.plan, self.n, self.k
+        kinds = plan.kinds
+        self('"""Generated by varint.kernels.generate; do not edit."""',
+             f"# accumulator: {plan.accumulator or 'none'}",
+             "import math", "import numpy as np",
+             "from numba import njit, prange, set_parallel_chunksize", "",
+             f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
+             f"TANGENT_LIMIT = {TANGENT_LIMIT!r}", f"EARLY = {_EARLY!r}", f"HUGE = {HUGE_Q2!r}",
+             f"CHECK_EVERY = {CHECK_EVERY}",
+             f"NONE, QR = {int(Renorm.NONE)}, {int(Renorm.QR)}", "", "",
+             "@njit(cache=True, error_model='numpy', nogil=True)",
+             "def orbit(x, W, acc_m, acc_e, n_steps, step0, tau, h, hc, escape_r2, counters, aux,"
+             " rsched, outs, snap_x, snap_W, snap_m, snap_e, snap_aux, mode, every):")
+        self.indent()
+        for st in range(len(kinds)):
+            self(f"h{st} = h[{st}]")
+            if plan.corrected[st]:
+                self(f"hc{st} = hc[{st}]")
+        for i in range(n):
+            self(f"q{i} = x[{i}]", f"p{i} = x[{n + i}]")
+            for j in range(k):
+                self(f"{self.a[i][j]} = W[{i}, {j}]", f"{self.b[i][j]} = W[{n + i}, {j}]")
+        for j in range(k):
+            self(f"am{j} = acc_m[{j}]", f"ae{j} = acc_e[{j}]", f"r{j} = 1.0")
+        self("c_grad = 0", "c_hess = 0", "c_third = 0", "c_tan = 0",
+             "next_renorm = rsched[0]", "interval = rsched[1]")
+        if plan.accumulator:
+            self(f"rbuf = np.empty({k})", f"xbuf = np.empty({2 * n})",
+                 f"Wbuf = np.empty(({2 * n}, {k}))", f"flowbuf = np.empty({2 * n if plan.flow else 0})")
+        # Everything a kick computes is defined before the loop: after s = 0
+        # the first kick of a step reuses the last kick's values (same q).
+        for i in range(n):
+            self(f"g{i} = 0.0", f"gc{i} = 0.0")
+        for i, j in E.H:
+            self(f"H{i}_{j} = 0.0")
+        for i, j in E.HC:
+            self(f"HC{i}_{j} = 0.0")
+        self("status = 0", "s = 0", "jo = 0",
+             "while jo < outs.shape[0] and outs[jo] <= step0:", "    jo += 1",
+             "for s in range(n_steps):")
+        self.indent()
+        self("step = step0 + s + 1")
+        reuse_first = kinds[0] != DRIFT and kinds[-1] != DRIFT
+        for st, kind in enumerate(kinds):
+            if kind == DRIFT:
+                self.drift(st)
+                continue
+            corrected = plan.corrected[st]
+            what = {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
+                | ({"HC"} if corrected and k else set())
+            if st == 0 and reuse_first:
+                self("if s == 0:")
+                self.indent()
+                self.derivatives(st, what)
+                self.dedent()
+            else:
+                self.derivatives(st, what)
+            self.kick(st, corrected)
+        # The end-of-step checks of varint.kernels.checks.orbit_status.
+        self("rq = " + " + ".join(f"{v} * {v}" for v in self.q),
+             "rp = " + " + ".join(f"{v} * {v}" for v in self.p),
+             "if rq > escape_r2:")
+        self.fail(_ESCAPED)
+        self("if not (rq + rp < np.inf):")
+        self.fail(_NONFINITE)
+        if k:
+            # Renormalise: every step (every == 0), or on the schedule (every
+            # < 0: adaptive; > 0: fixed), early if a vector grew huge.
+            early = " or ".join(f"abs({v}) > EARLY" for v in self.vectors())
+            self("if mode != NONE:")
+            self.indent()
+            self("due = every == 0 or step >= next_renorm",
+                 "if not due and step % CHECK_EVERY == 0:", f"    due = {early}", "if due:")
+            self.indent()
+            self.renormalize()
+            self.schedule()
+            if plan.accumulator:
+                self.accumulate(kinds)
+            self.dedent()
+            self.dedent()
+            big = " or ".join(f"not (abs({v}) < TANGENT_LIMIT)" for v in self.vectors())
+            self("elif step % CHECK_EVERY == 0:", f"    if {big}:")
+            self.indent()
+            self.fail(_OVERFLOW)
+            self.dedent()
+        self.snapshot()
+        self.dedent()
+        self.store()
+        self("if status != 0:", "    return status, s", f"return {_OK}, n_steps")
+        self.dedent()
+        for name, parallel in (("batch_serial", False), ("batch_parallel", True)):
+            self("", "",
+                 f"@njit(cache=True, error_model='numpy', parallel={parallel})",
+                 f"def {name}(X, W, acc_m, acc_e, status, done, n_steps, step0, tau, h, hc, "
+                 "escape_r2, counters, aux, rsched, outs, snap_x, snap_W, snap_m, snap_e, snap_aux,"
+                 " mode, every):",
+                 "    for m in prange(X.shape[0]):",
+                 "        if status[m] != 0:",
+                 "            done[m] = 0",
+                 "            continue",
+                 "        st, steps = orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, step0, tau, h,"
+                 " hc, escape_r2, counters[m], aux[m], rsched[m], outs, snap_x[:, m],"
+                 " snap_W[:, m], snap_m[:, m], snap_e[:, m], snap_aux[:, m], mode, every)",
+                 "        status[m] = st",
+                 "        done[m] = steps")
+        self.lanes()
+        return "\n".join(self.lines) + "\n"
+
+    # -- structure of arrays: many orbits at once -------------------------------------------
+    def lane_derivatives(self, label, what):
+        """As :meth:`derivatives`, for lane ``b`` (q read from ``X``), into
+        the per-lane scratch rows ``Dg``, ``Dgc``, ``DH``, ``DHC``; a value
+        that is not finite marks the lane as failed (with the status
+        :meth:`fail` gives it)."""
+        E, n = self.E, self.n
+        orbit = [("Dg", list(E.g), _GRAD)]
+        if "gc" in what:
+            orbit.append(("Dgc", list(E.gc), _THIRD))
+        tangent = []
+        if "H" in what:
+            tangent.append(("DH", list(E.H.values()), _HESS))
+        if "HC" in what:
+            tangent.append(("DHC", list(E.HC.values()), _THIRD))
+        for i in range(n):
+            self(f"q{i} = X[{i}, b]")
+        rq = " + ".join(f"q{i} * q{i}" for i in range(n))
+        for part, groups in (("o", orbit), ("w", tangent)):
+            if not groups:
+                continue
+            exprs = [e for g in groups for e in g[1]]
+            temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"t{label}{part}_"))
+            for t, e in temps:
+                self(f"{t} = {self.printer.doprint(e)}")
+            at = 0
+            for array, values, status in groups:
+                names = [f"v{array}{j}" for j in range(len(values))]
+                for name, e in zip(names, reduced[at:at + len(values)]):
+                    self(f"{name} = {self.printer.doprint(e)}")
+                at += len(values)
+                if names:
+                    self(f"fin = {' + '.join(names)}",
+                         "if fin - fin != 0.0 and st[b] == 0:",
+                         f"    st[b] = {status} if {rq} < HUGE else {_NONFINITE}",
+                         "    fs[b] = s")
+                for j, name in enumerate(names):
+                    self(f"{array}[{j}, b] = {name}")
+
+    def lane_kick(self, stage, corrected):
+        E, n, k = self.E, self.n, self.k
+        H_keys, HC_keys = list(E.H), list(E.HC)
+        for i in range(n):
+            corr = f" + hc{stage} * Dgc[{i}, b]" if corrected else ""
+            self(f"X[{n + i}, b] -= h{stage} * Dg[{i}, b]{corr}")
+        if not k:
+            return
+        entries = sorted(set(H_keys) | (set(HC_keys) if corrected else set()))
+        for key in entries:
+            terms = [f"h{stage} * DH[{H_keys.index(key)}, b]"] if key in E.H else []
+            if corrected and key in E.HC:
+                terms.append(f"hc{stage} * DHC[{HC_keys.index(key)}, b]")
+            self(f"K{key[0]}_{key[1]} = {' + '.join(terms)}")
+        for j in range(k):
+            for i in range(n):
+                terms = [f"K{min(i, l)}_{max(i, l)} * W[{l}, {j}, b]" for l in range(n)
+                         if (min(i, l), max(i, l)) in entries]
+                if terms:
+                    self(f"W[{n + i}, {j}, b] -= {' + '.join(terms)}")
+
+    def lane_renormalize(self):
+        """Renormalisation of lane ``b`` where due (every step, or on its own
+        adaptive schedule ``nxt``/``itv``), by exactly the arithmetic of
+        :meth:`renormalize`: the vectors are loaded into locals, renormalised
+        there, and stored only if due (a select, so the loop over lanes
+        still vectorises)."""
+        n, k, a, b = self.n, self.k, self.a, self.b
+        vec = [(i, j) for i in range(2 * n) for j in range(k)]
+        for i, j in vec:
+            self(f"{self._w(i, j)} = W[{i}, {j}, b]")
+        early = " or ".join(f"abs({self._w(i, j)}) > EARLY" for i, j in vec)
+        self("due = every == 0 or step >= nxt[b] or (step % CHECK_EVERY == 0 and "
+             f"({early}))")
+        for j in range(k):
+            if j:
+                self("if mode == QR:")
+                self.indent()
+                for c in range(j):
+                    dot = " + ".join([f"{a[i][c]} * {a[i][j]}" for i in range(n)]
+                                     + [f"{b[i][c]} * {b[i][j]}" for i in range(n)])
+                    self(f"rr = {dot}")
+                    for i in range(n):
+                        self(f"{a[i][j]} -= rr * {a[i][c]}", f"{b[i][j]} -= rr * {b[i][c]}")
+                self.dedent()
+            sq = " + ".join([f"{a[i][j]} * {a[i][j]}" for i in range(n)]
+                            + [f"{b[i][j]} * {b[i][j]}" for i in range(n)])
+            self(f"r{j} = math.sqrt({sq})",
+                 f"if due and not (r{j} > 0.0 and r{j} < np.inf) and st[b] == 0:",
+                 f"    st[b] = {_DEGENERATE}",
+                 "    fs[b] = s",
+                 f"aa = am[{j}, b] * r{j}",
+                 "ee = 500 if aa > ACC_BIG else (-500 if aa < ACC_SMALL else 0)",
+                 "aa = aa * ACC_SMALL if aa > ACC_BIG else (aa * ACC_BIG if aa < ACC_SMALL else aa)",
+                 f"am[{j}, b] = aa if due else am[{j}, b]",
+                 f"ae[{j}, b] += ee if due else 0",
+                 f"R[{j}, b] = r{j} if due else 0.0",
+                 f"inv = 1.0 / r{j}")
+            for i in range(n):
+                self(f"{a[i][j]} *= inv", f"{b[i][j]} *= inv")
+        for i, j in vec:
+            self(f"W[{i}, {j}, b] = {self._w(i, j)} if due else W[{i}, {j}, b]")
+
+    def _w(self, i, j):
+        """The local of component ``i`` (0 … 2N−1) of vector ``j``."""
+        return self.a[i][j] if i < self.n else self.b[i - self.n][j]
+
+    def lane_schedule(self):
+        """The adaptive schedule of every lane that was renormalised (a
+        scalar loop: it takes logarithms, rarely)."""
+        k = self.k
+        logs = [f"math.log(R[{j}, b])" for j in range(k)]
+        self("if every != 0:")
+        self.indent()
+        self("for b in range(nb):")
+        self.indent()
+        self("if R[0, b] == 0.0:", "    continue", "if every < 0:")
+        self.indent()
+        self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
+        if k > 1:
+            self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
+        else:
+            self("spread = 0.0")
+        self("itv[b] = next_interval(max(step - (nxt[b] - itv[b]), 1), lmax, spread)")
+        self.dedent()
+        self("else:", "    itv[b] = every", "nxt[b] = step + itv[b]")
+        self.dedent()
+        self.dedent()
+
+    def lanes(self):
+        """``lanes``: a block of orbits in structure-of-arrays layout (the
+        orbit index innermost, so every stage is a loop over orbits that
+        vectorises), each orbit with the arithmetic of ``orbit`` — bitwise
+        its results, with the same renormalisation schedule. A lane that
+        fails is marked (``st``, ``fs``) and goes on being computed; the
+        caller recomputes it exactly with ``orbit``."""
+        E, plan, n, k = self.E, self.plan, self.n, self.k
+        kinds = plan.kinds
+        self("", "",
+             "@njit(cache=True, error_model='numpy', nogil=True)",
+             "def lanes(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, escape_r2, mode,"
+             " every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
+        self.indent()
+        for stage in range(len(kinds)):
+            self(f"h{stage} = h[{stage}]")
+            if plan.corrected[stage]:
+                self(f"hc{stage} = hc[{stage}]")
+        self("nb = X.shape[1]",
+             f"Dg = np.zeros(({n}, nb))", f"Dgc = np.zeros(({n}, nb))",
+             f"DH = np.zeros(({max(len(E.H), 1)}, nb))",
+             f"DHC = np.zeros(({max(len(E.HC), 1)}, nb))",
+             f"R = np.ones(({max(k, 1)}, nb))")
+        if plan.accumulator:
+            self(f"rbuf = np.empty({k})", f"xbuf = np.empty({2 * n})",
+                 f"Wbuf = np.empty(({2 * n}, {k}))",
+                 f"flowbuf = np.empty({2 * n if plan.flow else 0})")
+        self("jo = 0", "while jo < outs.shape[0] and outs[jo] <= step0:", "    jo += 1",
+             "for s in range(n_steps):")
+        self.indent()
+        self("step = step0 + s + 1")
+        reuse_first = kinds[0] != DRIFT and kinds[-1] != DRIFT
+        for stage, kind in enumerate(kinds):
+            self("for b in range(nb):")
+            self.indent()
+            if kind == DRIFT:
+                for i in range(n):
+                    m = E.minv[i]
+                    hh = f"h{stage}" if m == 1.0 else f"(h{stage} * {m!r})"
+                    self(f"X[{i}, b] += {hh} * X[{n + i}, b]")
+                    for j in range(k):
+                        self(f"W[{i}, {j}, b] += {hh} * W[{n + i}, {j}, b]")
+                self.dedent()
+                continue
+            corrected = plan.corrected[stage]
+            what = {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
+                | ({"HC"} if corrected and k else set())
+            if stage == 0 and reuse_first:
+                # After s = 0 the last kick's values are those at this q.
+                self("if s == 0:")
+                self.indent()
+                self.lane_derivatives(stage, what)
+                self.dedent()
+            else:
+                self.lane_derivatives(stage, what)
+            self.lane_kick(stage, corrected)
+            self.dedent()
+        # End of the step: the checks of orbit_status.
+        self("for b in range(nb):")
+        self.indent()
+        self("rq = " + " + ".join(f"X[{i}, b] * X[{i}, b]" for i in range(n)),
+             "rp = " + " + ".join(f"X[{n + i}, b] * X[{n + i}, b]" for i in range(n)),
+             "if st[b] == 0:",
+             "    if rq > escape_r2:",
+             f"        st[b] = {_ESCAPED}",
+             "        fs[b] = s",
+             "    elif not (rq + rp < np.inf):",
+             f"        st[b] = {_NONFINITE}",
+             "        fs[b] = s")
+        self.dedent()
+        if k:
+            self("if mode != NONE:")
+            self.indent()
+            self("for b in range(nb):")
+            self.indent()
+            self.lane_renormalize()
+            self.dedent()
+            self.lane_schedule()
+            if plan.accumulator:
+                self.lane_accumulate(kinds)
+            self.dedent()
+            self("elif step % CHECK_EVERY == 0:")
+            self.indent()
+            self("for b in range(nb):")
+            self.indent()
+            big = " or ".join(f"not (abs(W[{i}, {j}, b]) < TANGENT_LIMIT)"
+                              for i in range(2 * n) for j in range(k))
+            self(f"if ({big}) and st[b] == 0:", f"    st[b] = {_OVERFLOW}", "    fs[b] = s")
+            self.dedent()
+            self.dedent()
+        # Output steps: copy every lane (raw vectors are checked there, as
+        # in orbit).
+        self("if jo < outs.shape[0] and step == outs[jo]:")
+        self.indent()
+        self("for b in range(nb):")
+        self.indent()
+        if k:
+            big = " or ".join(f"not (abs(W[{i}, {j}, b]) < TANGENT_LIMIT)"
+                              for i in range(2 * n) for j in range(k))
+            self(f"if mode == NONE and ({big}) and st[b] == 0:", f"    st[b] = {_OVERFLOW}",
+                 "    fs[b] = s")
+        for i in range(2 * n):
+            self(f"snap_x[jo, {i}, b] = X[{i}, b]")
+            for j in range(k):
+                self(f"snap_W[jo, {i}, {j}, b] = W[{i}, {j}, b]")
+        for j in range(k):
+            self(f"snap_m[jo, {j}, b] = am[{j}, b]", f"snap_e[jo, {j}, b] = ae[{j}, b]")
+        if plan.accumulator:
+            self("for jj in range(aux.shape[1]):",
+                 "    for cc in range(aux.shape[2]):",
+                 "        snap_aux[jo, b, jj, cc] = aux[b, jj, cc]")
+        self.dedent()
+        self("jo += 1")
+        self.dedent()
+        self.dedent()
+        self.dedent()
+        for name, parallel in (("blocks_serial", False), ("blocks_parallel", True)):
+            self("", "",
+                 f"@njit(cache=True, error_model='numpy', parallel={parallel})",
+                 f"def {name}(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, "
+                 "escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
+            self.indent()
+            if parallel:
+                # Blocks are handed out one at a time: a thread that is
+                # descheduled holds up one block, not a share of them.
+                self("old = set_parallel_chunksize(1)")
+            self("for c in prange(X.shape[0]):")
+            self("    lanes(X[c], W[c], am[c], ae[c], st[c], fs[c], nxt[c], itv[c], n_steps, "
+                 "step0, tau, h, hc, escape_r2, mode, every, aux[c], outs, snap_x[c], snap_W[c],"
+                 " snap_m[c], snap_e[c], snap_aux[c])")
+            if parallel:
+                self("set_parallel_chunksize(old)")
+            self.dedent()
+
+    def lane_accumulate(self, kinds):
+        """The accumulator, lane by lane (a scalar loop: it is the
+        indicator's own code)."""
+        n, k = self.n, self.k
+        self("for b in range(nb):")
+        self.indent()
+        self("if st[b] != 0:", "    continue")
+        for j in range(k):
+            self(f"rbuf[{j}] = R[{j}, b]")
+        for i in range(2 * n):
+            self(f"xbuf[{i}] = X[{i}, b]")
+            for j in range(k):
+                self(f"Wbuf[{i}, {j}] = W[{i}, {j}, b]")
+        if self.plan.flow:
+            if kinds[-1] == DRIFT:
+                self.lane_derivatives("f", {"g"})
+            for i in range(n):
+                m = self.E.minv[i]
+                self(f"flowbuf[{i}] = X[{n + i}, b]" if m == 1.0
+                     else f"flowbuf[{i}] = {m!r} * X[{n + i}, b]",
+                     f"flowbuf[{n + i}] = -Dg[{i}, b]")
+        self("accumulate(aux[b], rbuf, xbuf, Wbuf, flowbuf, step * tau)")
+        self.dedent()
+
+
+def generated_source(E, plan):
+    """The Python source of the stepper for expressions ``E`` and ``plan``."""
+    return _Emitter(E, plan).source()
+
+
+# -- loading --------------------------------------------------------------------------
+
+_LOADED = {}
+
+
+def _load(source, extra_globals):
+    """Import the generated module (written once, atomically, to the cache
+    directory under the hash of its source) with ``extra_globals`` set."""
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    if digest in _LOADED:
+        return _LOADED[digest]
+    from ..cache import cache_dir
+
+    name = f"varint_stepper_{digest}"
+    try:
+        folder = cache_dir() / "kernels"
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{name}.py"
+        if not path.exists() or path.read_text() != source:
+            atomic_write(path, source)
+    except OSError as exc:
+        # An unwritable cache costs the on-disk kernel cache, not the run.
+        warnings.warn(f"cannot write generated kernels to {cache_dir()} ({exc}); compiling "
+                      "them in a temporary directory", RuntimeWarning, stacklevel=4)
+        path = Path(tempfile.mkdtemp(prefix="varint-")) / f"{name}.py"
+        path.write_text(source)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    module.__dict__.update(extra_globals)
+    # numba's on-disk cache finds the kernels' globals by module name.
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    _LOADED[digest] = module
+    return module
+
+
+def _function_id(function):
+    """A name for a compiled function that changes when its code does
+    (``module:qualname:hash of its source``), for the generated file's name."""
+    import inspect
+
+    py = getattr(function, "py_func", function)
+    try:
+        code = inspect.getsource(py)
+    except (OSError, TypeError):
+        code = repr(py.__code__.co_code)
+    digest = hashlib.sha256(code.encode()).hexdigest()[:16]
+    return f"{py.__module__}:{py.__qualname__}:{digest}"
+
+
+def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
+    """The generated stepper module for a model that :func:`symbolic_fits`.
+
+    Parameters
+    ----------
+    model : Model
+    kinds : sequence of int
+        Stage kinds of the scheme (:func:`varint.schemes.stage_arrays`).
+    corrected : sequence of bool
+        Which kick stages carry a corrector.
+    k : int
+        Deviation vectors.
+    accumulator : Accumulator, optional
+
+    Returns
+    -------
+    module
+        With ``orbit``, ``batch_serial`` and ``batch_parallel`` (see the
+        module docstring); compiled on first call, or loaded from numba's
+        cache. Their last two arguments are run-time settings: ``mode``, a
+        :class:`~varint.protocol.Renorm`, and ``every``: renormalise every
+        step (0), on the adaptive schedule of :func:`next_interval` (−1), or
+        every ``every`` steps.
+    """
+    E = _model_expressions(model)
+    plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
+                k=int(k), accumulator="" if accumulator is None else _function_id(accumulator.update),
+                flow=bool(accumulator is not None and accumulator.needs_flow))
+    source = generated_source(E, plan)
+    extra = {"next_interval": next_interval}
+    if accumulator is not None:
+        extra["accumulate"] = accumulator.update
+    return _load(source, extra)
+
+
+def step_counts(kinds, corrected, k, flow=False):
+    """Derivative evaluations of one step of a generated stepper, as
+    ``(per_step, first)``: what every step costs (gradients, Hessians,
+    corrector Hessians, tangent kicks) and what the first step of a call
+    costs on top (the first kick of a BAB-type step reuses the last kick's
+    values, except right after a call starts)."""
+    kinds = list(kinds)
+    reuse_first = kinds[0] != DRIFT and kinds[-1] != DRIFT
+    per, first = np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64)
+    for stage, kind in enumerate(kinds):
+        if kind == DRIFT:
+            continue
+        c = np.array([1, 1 if k else 0, 1 if corrected[stage] and k else 0, 1 if k else 0])
+        tan = np.array([0, 0, 0, c[3]])
+        if stage == 0 and reuse_first:
+            per += tan
+            first += c - tan
+        else:
+            per += c
+    if flow and kinds[-1] == DRIFT:
+        per[0] += 1
+    return per, first
