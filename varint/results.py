@@ -13,10 +13,11 @@ import dataclasses
 import functools
 import datetime
 import json
+import os
 import platform
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import ClassVar
+from typing import IO, ClassVar
 
 import numpy as np
 
@@ -422,8 +423,21 @@ class ChaosMapResult(_Result):
         return self.status == -1
 
 
-def load_result(path):
-    """Read a result written by ``save``."""
+def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
+    """Read a result written by ``save``: the same class, arrays and
+    provenance.
+
+    Examples
+    --------
+    >>> import io, varint
+    >>> model, x0 = varint.paper_orbit("R1")
+    >>> r = varint.sali(model, x0, 10.0)
+    >>> buffer = io.BytesIO()         # or a path such as "r1.npz"
+    >>> r.save(buffer)
+    >>> back = varint.load_result(io.BytesIO(buffer.getvalue()))
+    >>> type(back).__name__, bool((back.sali == r.sali).all()), back.provenance == r.provenance
+    ('SALIResult', True, True)
+    """
     with np.load(path, allow_pickle=False) as data:
         meta = json.loads(str(data["__meta__"]))
         arrays = {k: data[k] for k in data.files if k != "__meta__"}

@@ -9,10 +9,11 @@ the command line's CSV files.
 
 Dimensions
 ----------
-Time series (Lyapunov exponents, GALIs, SALI, MEGNO, local exponents, the
-orbit, any registered indicator's result)
-    ``t`` (the output times), preceded by ``orbit`` for a batch, followed
-    by the components of a vector-valued series: ``exponent`` (1 … k, the
+Time series
+    (Lyapunov exponents, GALIs, SALI, MEGNO, local exponents, the orbit,
+    any registered indicator's result) ``t`` (the output times), preceded
+    by ``orbit`` for a batch, followed by the components of a
+    vector-valued series: ``exponent`` (1 … k, the
     i of X_i), ``k`` (the GALI orders), ``component`` (the state labels
     q0 … q{N−1}, p0 … p{N−1}). The final ``state`` is ([orbit,]
     component), the final ``deviations`` ([orbit,] component, vector)
