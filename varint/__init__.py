@@ -13,8 +13,41 @@ integrator of the orbit and its deviation vectors.
 """
 
 import importlib.util as _util
+import re as _re
 import sys as _sys
+from importlib import metadata as _metadata
 from pathlib import Path as _Path
+
+
+def _version():
+    """The version in pyproject.toml, the one place it is written.
+
+    Run from a source checkout (pyproject.toml of the project "varint" beside
+    the package) it is read from that file, so a checkout that sits beside an
+    older installed copy reports its own version; otherwise from the
+    installed distribution's metadata. "0+unknown" if neither is found.
+    """
+    pyproject = _Path(__file__).resolve().parent.parent / "pyproject.toml"
+    try:
+        text = pyproject.read_text(encoding="utf-8")
+    except OSError:
+        text = ""
+    # [project] holds name and version; no TOML parser is needed for two
+    # plain strings (tomllib is Python >= 3.11 only).
+    project = _re.search(r"^\[project\]\s*$(.*?)(?=^\[|\Z)", text, _re.M | _re.S)
+    if project and _re.search(r'^name\s*=\s*"varint"', project.group(1), _re.M):
+        found = _re.search(r'^version\s*=\s*"([^"]+)"', project.group(1), _re.M)
+        if found:
+            return found.group(1)
+    try:
+        return _metadata.version("varint")
+    except _metadata.PackageNotFoundError:
+        return "0+unknown"
+
+
+#: The version of varint (PEP 440), e.g. "0.1.0"; results record it in
+#: their provenance.
+__version__ = _version()
 
 
 def _source_checkout_baselines():

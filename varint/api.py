@@ -9,12 +9,20 @@ of :func:`varint.run`, documented there once.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
+from numpy.typing import ArrayLike
+
+from .models.base import Model
+from .results import GALIResult, IntegrationResult, LyapunovResult, MEGNOResult, SALIResult
 from .run import run
 
 __all__ = ["lyapunov_spectrum", "gali", "sali", "megno", "integrate"]
 
 
-def lyapunov_spectrum(model, x0, t_end, tau=None, n_exponents=None, **options):
+def lyapunov_spectrum(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
+                      n_exponents: int | None = None, **options: Any) -> LyapunovResult:
     """Finite-time Lyapunov exponents X_1(t), …, X_k(t) of one or many orbits.
 
     Every τ the deviation vectors are re-orthonormalised by QR
@@ -53,7 +61,8 @@ def lyapunov_spectrum(model, x0, t_end, tau=None, n_exponents=None, **options):
     return run(model, x0, "lyapunov", t_end, tau, n_exponents=n_exponents, **options)
 
 
-def gali(model, x0, t_end, tau=None, k=None, **options):
+def gali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
+         k: int | Sequence[int] | None = None, **options: Any) -> GALIResult:
     """Generalised alignment indices GALI_k(t) (paper Sect. IV, eqs. 15–18).
 
     max(k) deviation vectors are evolved and normalised to unit length every
@@ -88,7 +97,8 @@ def gali(model, x0, t_end, tau=None, k=None, **options):
     return run(model, x0, "gali", t_end, tau, k=k, **options)
 
 
-def sali(model, x0, t_end, tau=None, **options):
+def sali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
+         **options: Any) -> SALIResult:
     """Smaller alignment index SALI(t) = min(‖ŵ₁ + ŵ₂‖, ‖ŵ₁ − ŵ₂‖).
 
     Two deviation vectors normalised every τ. SALI → 0 exponentially for
@@ -109,7 +119,8 @@ def sali(model, x0, t_end, tau=None, **options):
     return run(model, x0, "sali", t_end, tau, **options)
 
 
-def megno(model, x0, t_end, tau=None, **options):
+def megno(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
+          **options: Any) -> MEGNOResult:
     """MEGNO Y(t), its mean Ȳ(t), FLI and OFLI of one or many orbits, with
     any method (the quadrature of MEGNO's integral is the same on every
     method's renormalisation grid; see :mod:`varint.indicators.megno`).
@@ -134,7 +145,8 @@ def megno(model, x0, t_end, tau=None, **options):
     return run(model, x0, "megno", t_end, tau, **options)
 
 
-def integrate(model, x0, t_end, tau=None, deviations=None, **options):
+def integrate(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
+              deviations: ArrayLike | None = None, **options: Any) -> IntegrationResult:
     """Integrate orbits, and deviation vectors if given, from 0 to ``t_end``.
 
     The deviation vectors are never renormalised: ``deviations`` of the

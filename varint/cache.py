@@ -10,8 +10,9 @@ reader never sees half a file. Each entry carries the SHA-256 of its payload;
 an entry that is truncated or corrupt fails that check, is reported with a
 warning naming the file, deleted and recomputed — never used.
 
-The cache lives in ``$VARINT_CACHE_DIR``, else ``$XDG_CACHE_HOME/varint``,
-else ``~/.cache/varint``. Deleting the directory is always safe.
+The cache lives in ``$VARINT_CACHE_DIR`` if set, else in the platform's
+per-user cache directory (:func:`cache_dir`). Deleting the directory is
+always safe.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import platformdirs
 
 from .files import atomic_write, canonical_json
 from .results import load_result, package_versions
@@ -40,12 +42,18 @@ class CacheWarning(UserWarning):
 
 
 def cache_dir() -> Path:
-    """The per-user cache directory (not created here)."""
+    """The per-user cache directory (not created here).
+
+    ``$VARINT_CACHE_DIR`` if set; otherwise the platform's convention, from
+    :func:`platformdirs.user_cache_dir`: ``$XDG_CACHE_HOME/varint`` or
+    ``~/.cache/varint`` on Linux, ``~/Library/Caches/varint`` on macOS,
+    ``%LOCALAPPDATA%\\varint\\Cache`` on Windows.
+    """
     path = os.environ.get("VARINT_CACHE_DIR")
     if path:
         return Path(path).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base).expanduser() / "varint"
+    # appauthor=False: no vendor folder above "varint" on Windows.
+    return Path(platformdirs.user_cache_dir("varint", appauthor=False))
 
 
 @functools.lru_cache(maxsize=None)

@@ -40,18 +40,22 @@ import io
 import json
 import math
 import numbers
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validate as check
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
-from .indicators import INDICATORS, resolve
+from .indicators import INDICATORS, Indicator, resolve
 from .methods import METHODS
+from .models.base import Model
 from .protocol import REASONS, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import DEFAULT_TAU, prepare
@@ -220,9 +224,13 @@ def _cluster_threads(client):
     return max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
 
 
-def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=None, method="tm",
-              threshold="default", seed=0, t_check=None, chunk_size=None, client=None,
-              checkpoint=None, progress=None, escape_radius=None, **options):
+def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
+              indicator: str | Indicator = "sali", *, t_end: float, tau: float | None = None,
+              method: str = "tm", threshold: float | str | None = "default", seed: int = 0,
+              t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
+              client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
+              progress: bool | None = None, escape_radius: float | None = None,
+              **options: Any) -> ChaosMapResult:
     """An indicator for many initial conditions (final SALI, GALI_k, X1,
     MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
     map value), with early stopping once an orbit is decided.

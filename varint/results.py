@@ -13,10 +13,11 @@ import dataclasses
 import functools
 import datetime
 import json
+import os
 import platform
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import ClassVar
+from typing import IO, ClassVar
 
 import numpy as np
 
@@ -35,8 +36,12 @@ _CLASSES = {}
 def package_versions(*extra):
     """Versions of Python, varint and the numerical packages a run used
     (cached: reading package metadata takes milliseconds)."""
-    names = ("varint", "numpy", "scipy", "numba") + tuple(extra)
-    out = {"python": platform.python_version()}
+    from . import __version__
+
+    names = ("numpy", "scipy", "numba") + tuple(extra)
+    # varint's own version as varint reports it (a source checkout's, not
+    # that of an older installed copy).
+    out = {"python": platform.python_version(), "varint": __version__}
     for name in names:
         try:
             out[name] = metadata.version(name)
@@ -108,6 +113,10 @@ class _Result:
 
     layout: ClassVar[str] = "series"
     plot_kind: ClassVar[str] = "energy_error"
+    #: Names of the trailing dimensions of fields, for :meth:`to_xarray`
+    #: (beyond those of :data:`varint.tables.DIMS`), e.g.
+    #: ``{"local": ("exponent",)}``; unnamed ones are ``{field}_dim{i}``.
+    dims: ClassVar[dict] = {}
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -137,10 +146,38 @@ class _Result:
                 meta[f.name] = jsonable(value)
         np.savez(path, __meta__=np.array(json.dumps(meta)), **arrays)
 
+    def to_xarray(self):
+        """The result as an :class:`xarray.Dataset`: every array with named
+        dimensions and coordinates (``orbit``, ``t``, ``exponent``,
+        ``component``, … ; a map of a section grid on the grid itself), the
+        provenance in ``ds.attrs`` (see :mod:`varint.tables`). Needs xarray
+        (``pip install "varint[xarray]"``).
+
+        Examples
+        --------
+        >>> import varint
+        >>> model, x0 = varint.paper_orbit("C1")
+        >>> ds = varint.lyapunov_spectrum(model, x0, 100.0, t_out=5).to_xarray()
+        >>> ds.exponents.dims, ds.attrs["method"]
+        (('t', 'exponent'), 'tm')
+        """
+        from .tables import to_xarray
+
+        return to_xarray(self)
+
     def to_dataframe(self):
         """The result as a pandas DataFrame, one row per orbit and time (or
-        per crossing, per map point); the provenance is in ``df.attrs``.
-        Needs pandas (``pip install varint[pandas]``)."""
+        per crossing, per map point): the variables of :meth:`to_xarray`,
+        one column per component; the provenance is in ``df.attrs``.
+        Needs pandas (``pip install "varint[pandas]"``).
+
+        Examples
+        --------
+        >>> import varint
+        >>> model, x0 = varint.paper_orbit("R1")
+        >>> varint.gali(model, x0, 10.0, k=(2, 4), t_out=3).to_dataframe().columns.tolist()
+        ['t', 'energy_error', 'gali_2', 'gali_4']
+        """
         from .tables import to_dataframe
 
         return to_dataframe(self)
@@ -183,7 +220,6 @@ class IntegrationResult(_Result):
 
 @dataclass
 class LyapunovResult(_Result):
-    plot_kind: ClassVar[str] = "lyapunov"
     """Result of :func:`varint.lyapunov_spectrum`.
 
     Attributes
@@ -194,6 +230,8 @@ class LyapunovResult(_Result):
     deviations : ndarray, shape ([M,] 2N, k)
         Final orthonormal deviation vectors (the Q factor).
     """
+
+    plot_kind: ClassVar[str] = "lyapunov"
 
     exponents: np.ndarray = None
     deviations: np.ndarray = None
@@ -209,7 +247,6 @@ class LyapunovResult(_Result):
 
 @dataclass
 class GALIResult(_Result):
-    plot_kind: ClassVar[str] = "gali"
     """Result of :func:`varint.gali`.
 
     Attributes
@@ -221,13 +258,14 @@ class GALIResult(_Result):
         Final unit deviation vectors.
     """
 
+    plot_kind: ClassVar[str] = "gali"
+
     gali: dict = None
     deviations: np.ndarray = None
 
 
 @dataclass
 class SALIResult(_Result):
-    plot_kind: ClassVar[str] = "sali"
     """Result of :func:`varint.sali`.
 
     Attributes
@@ -237,13 +275,14 @@ class SALIResult(_Result):
     deviations : ndarray, shape ([M,] 2N, 2)
     """
 
+    plot_kind: ClassVar[str] = "sali"
+
     sali: np.ndarray = None
     deviations: np.ndarray = None
 
 
 @dataclass
 class MEGNOResult(_Result):
-    plot_kind: ClassVar[str] = "megno"
     """Result of :func:`varint.megno`.
 
     Attributes
@@ -260,6 +299,8 @@ class MEGNOResult(_Result):
         for a unit initial vector.
     deviations : ndarray, shape ([M,] 2N, 1)
     """
+
+    plot_kind: ClassVar[str] = "megno"
 
     megno: np.ndarray = None
     mean_megno: np.ndarray = None
@@ -296,8 +337,6 @@ class IndicatorResult(_Result):
 
 @dataclass
 class SectionResult(_Result):
-    layout: ClassVar[str] = "section"
-    plot_kind: ClassVar[str] = "section"
     """Result of :func:`varint.surface_of_section`.
 
     Attributes
@@ -316,6 +355,9 @@ class SectionResult(_Result):
         The section q_plane = value.
     """
 
+    layout: ClassVar[str] = "section"
+    plot_kind: ClassVar[str] = "section"
+
     points: np.ndarray = None
     times: np.ndarray = None
     n_points: np.ndarray = None
@@ -325,8 +367,6 @@ class SectionResult(_Result):
 
 @dataclass
 class ChaosMapResult(_Result):
-    layout: ClassVar[str] = "map"
-    plot_kind: ClassVar[str] = "chaos_map"
     """Result of :func:`varint.chaos_map`: one indicator value per initial
     condition.
 
@@ -355,6 +395,9 @@ class ChaosMapResult(_Result):
         None and empty arrays otherwise.
     """
 
+    layout: ClassVar[str] = "map"
+    plot_kind: ClassVar[str] = "chaos_map"
+
     indicator: str = ""
     values: np.ndarray = None
     t_stop: np.ndarray = None
@@ -380,8 +423,21 @@ class ChaosMapResult(_Result):
         return self.status == -1
 
 
-def load_result(path):
-    """Read a result written by ``save``."""
+def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
+    """Read a result written by ``save``: the same class, arrays and
+    provenance.
+
+    Examples
+    --------
+    >>> import io, varint
+    >>> model, x0 = varint.paper_orbit("R1")
+    >>> r = varint.sali(model, x0, 10.0)
+    >>> buffer = io.BytesIO()         # or a path such as "r1.npz"
+    >>> r.save(buffer)
+    >>> back = varint.load_result(io.BytesIO(buffer.getvalue()))
+    >>> type(back).__name__, bool((back.sali == r.sali).all()), back.provenance == r.provenance
+    ('SALIResult', True, True)
+    """
     with np.load(path, allow_pickle=False) as data:
         meta = json.loads(str(data["__meta__"]))
         arrays = {k: data[k] for k in data.files if k != "__meta__"}

@@ -15,20 +15,23 @@ provenance and its accuracy.
 from __future__ import annotations
 
 import copy
+import os
 import warnings
+from typing import Any
 
 import numpy as np
 from numba.core.errors import NumbaError
+from numpy.typing import ArrayLike
 
 from . import _validate as check
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
-from .indicators import resolve
+from .indicators import Indicator, resolve
 from .methods import make_propagator
 from .models.base import Model
 from .protocol import Renorm, is_failure
-from .results import Provenance, package_versions
+from .results import Provenance, _Result, package_versions
 from .state import Rows, RunState, initial_deviations, output_steps, renormalized_copy
 
 __all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
@@ -40,7 +43,8 @@ _SHOWN_X0 = 32
 DEFAULT_TAU = 0.05
 
 
-def run(model, x0, indicator, t_end, tau=None, **options):
+def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
+        tau: float | None = None, **options: Any) -> _Result:
     """Compute an indicator along one or many orbits.
 
     Parameters
@@ -133,9 +137,13 @@ def run(model, x0, indicator, t_end, tau=None, **options):
     return prepare(model, x0, indicator, t_end, tau, **options).execute()
 
 
-def prepare(model, x0, indicator, t_end, tau=None, *, method="tm", t_out=None, seed=0,
-            deviations=None, progress=None, errors="raise", escape_radius=None,
-            checkpoint=None, checkpoint_interval=60.0, **options):
+def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
+            tau: float | None = None, *, method: str = "tm",
+            t_out: int | ArrayLike | None = None, seed: int | None = 0,
+            deviations: ArrayLike | None = None, progress: bool | None = None,
+            errors: str = "raise", escape_radius: float | None = None,
+            checkpoint: str | os.PathLike[str] | None = None,
+            checkpoint_interval: float = 60.0, **options: Any) -> Run:
     """The :class:`Run` of :func:`run` (same arguments), every input checked
     and the state started or resumed, not yet executed."""
     return Run(model, x0, indicator, t_end, tau, method, t_out, seed, deviations, progress,

@@ -40,13 +40,16 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _validate as check
 from .driver import IntegrationError
 from .methods import make_propagator
+from .models.base import Model
 from .state import RunState, initial_deviations
 
 __all__ = ["select_scheme", "SchemeChoice", "DEFAULT_SCHEMES", "DEFAULT_TAUS"]
@@ -154,8 +157,10 @@ def _time_unit_cost(model, x0, method, scheme, tau, k):
         n *= 2
 
 
-def select_scheme(model, x0, target_error, metric="energy", t_end=1e4, pilot_t=None,
-                  candidates=None, k=None):
+def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str = "energy",
+                  t_end: float = 1e4, pilot_t: float | None = None,
+                  candidates: Sequence[tuple[str, str | None, float]] | None = None,
+                  k: int | None = None) -> SchemeChoice:
     """The cheapest (method, scheme, τ) whose error at t_end meets a target.
 
     Parameters
@@ -196,6 +201,18 @@ def select_scheme(model, x0, target_error, metric="energy", t_end=1e4, pilot_t=N
     -----
     See the module docstring for how the pilot relates to t_end and when
     the choice can be wrong. References are computed once and cached.
+
+    Examples
+    --------
+    The pilots run against the extended-precision Taylor reference, which
+    takes a minute the first time (it is cached after that):
+
+    >>> import varint
+    >>> model, x0 = varint.paper_orbit("R1")
+    >>> choice = varint.select_scheme(model, x0, 1e-8, metric="energy",
+    ...                               t_end=1e6)                    # doctest: +SKIP
+    >>> print(choice)                       # the table, cheapest first  # doctest: +SKIP
+    >>> r = varint.lyapunov_spectrum(model, x0, 1e6, **choice.options())  # doctest: +SKIP
     """
     from .cache import reference
     from .api import integrate, lyapunov_spectrum

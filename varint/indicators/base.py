@@ -26,6 +26,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from collections.abc import Mapping
 from typing import Any, Callable
 
 import numpy as np
@@ -238,7 +239,8 @@ INDICATORS = MappingProxyType(_REGISTRY)
 _ALIASES: dict = {}
 
 
-def register_indicator(indicator, aliases=None):
+def register_indicator(indicator: Indicator,
+                       aliases: Mapping[str, Mapping[str, Any]] | None = None) -> Indicator:
     """Add ``indicator`` to :data:`INDICATORS` (and optional shorthands
     ``{alias: options}``); returns it.
 
@@ -258,7 +260,7 @@ def register_indicator(indicator, aliases=None):
     return indicator
 
 
-def get_indicator(name):
+def get_indicator(name: str | Indicator) -> Indicator:
     """The registered :class:`Indicator` called ``name`` (case-insensitive),
     or ``name`` itself if it is an Indicator.
 

@@ -157,6 +157,8 @@ class LocalExponentsResult(_Result):
     """
 
     plot_kind: ClassVar[str] = "series"
+    dims: ClassVar[dict] = dict.fromkeys(("local", "mean", "std", "minimum", "maximum",
+                                          "windows"), ("exponent",))
 
     local: np.ndarray = None
     mean: np.ndarray = None

@@ -30,7 +30,7 @@ METHODS = {
 }
 
 
-def register_method(name, target):
+def register_method(name: str, target: str) -> None:
     """Make ``method=name`` available everywhere; ``target`` is
     "module:Class" of a class following :class:`varint.protocol.Propagator`.
 

@@ -27,9 +27,11 @@ from its Python source with NumPy's when the model is built.
 from __future__ import annotations
 
 import numbers
+from collections.abc import Callable
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
+from numpy.typing import ArrayLike
 
 import numba
 
@@ -78,8 +80,10 @@ class Model:
         Runs stop with an error when |q| exceeds this (the orbit escaped).
     """
 
-    def __init__(self, n_dof, potential, grad, hess, third, bandwidth, params=(), inverse_mass=None,
-                 name="model", escape_radius=None):
+    def __init__(self, n_dof: int, potential: Callable[[np.ndarray], np.ndarray],
+                 grad: Dispatcher, hess: Dispatcher, third: Dispatcher, bandwidth: int,
+                 params: ArrayLike = (), inverse_mass: ArrayLike | None = None,
+                 name: str = "model", escape_radius: float | None = None) -> None:
         if (isinstance(n_dof, (bool, np.bool_)) or not isinstance(n_dof, numbers.Real)
                 or not float(n_dof).is_integer() or n_dof < 1):
             raise ValueError(f"n_dof must be a positive integer, got {n_dof!r}")

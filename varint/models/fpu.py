@@ -95,7 +95,7 @@ class FPUBeta(Model):
     Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (56).
     """
 
-    def __init__(self, n=8, beta=1.5):
+    def __init__(self, n: int = 8, beta: float = 1.5) -> None:
         if (isinstance(n, (bool, np.bool_)) or not isinstance(n, numbers.Real)
                 or not float(n).is_integer() or n < 2):
             raise ValueError(f"n must be an integer >= 2 (number of moving particles), got {n!r}")

@@ -66,7 +66,7 @@ class HenonHeiles(Model):
 
     escape_energy = ESCAPE_ENERGY
 
-    def __init__(self, escape_radius=None):
+    def __init__(self, escape_radius: float | None = None) -> None:
         super().__init__(2, _potential, _grad, _hess, _third, bandwidth=1,
                          name="HenonHeiles", escape_radius=escape_radius)
 

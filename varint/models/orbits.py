@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from .base import Model
 from .fpu import FPUBeta
 from .henon_heiles import HenonHeiles
 from .three_dof import ThreeDof
@@ -11,7 +13,8 @@ from .three_dof import ThreeDof
 __all__ = ["solve_momentum", "paper_orbit", "PAPER_ORBITS"]
 
 
-def solve_momentum(model, q, p, energy, index=0):
+def solve_momentum(model: Model, q: ArrayLike, p: ArrayLike, energy: float,
+                   index: int = 0) -> np.ndarray:
     """The state (q, p) with ``p[index] ≥ 0`` solved from H(q, p) = energy.
 
     Parameters
@@ -72,7 +75,7 @@ PAPER_ORBITS = {
 }
 
 
-def paper_orbit(name):
+def paper_orbit(name: str) -> tuple[Model, np.ndarray]:
     """The model and initial state of one of the paper's orbits.
 
     Parameters

@@ -28,8 +28,10 @@ import importlib.util
 import sys
 import tempfile
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -264,7 +266,8 @@ class SymbolicModel(Model):
         return d
 
 
-def from_potential(V, q, inverse_mass=None, name=None, escape_radius=None):
+def from_potential(V: sp.Expr, q: Sequence[sp.Symbol], inverse_mass: Sequence[Any] | None = None,
+                   name: str | None = None, escape_radius: float | None = None) -> SymbolicModel:
     """A model H = ½ pᵀM⁻¹p + V(q) from a SymPy potential.
 
     Everything every method needs is derived from ``V``: compiled ∇V, band

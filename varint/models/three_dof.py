@@ -67,7 +67,7 @@ class ThreeDof(Model):
     Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (55).
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__(3, _potential, _grad, _hess, _third, bandwidth=2,
                          inverse_mass=(1.0, _S2, _S3), name="ThreeDof")
 
