@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["plot", "plot_lyapunov", "plot_gali", "plot_sali", "plot_megno",
-           "plot_energy_error", "plot_section", "plot_chaos_map"]
+           "plot_energy_error", "plot_series", "plot_section", "plot_chaos_map"]
 
 
 def _axes(ax):
@@ -127,6 +127,31 @@ def plot_energy_error(result, ax=None):
     return ax
 
 
+def plot_series(result, ax=None):
+    """Every per-output field of a single-orbit result against log t (the
+    plot of a user-registered indicator's :class:`~varint.results.IndicatorResult`
+    and of local exponents): one line per field and trailing index."""
+    import dataclasses
+
+    ax = _axes(ax)
+    t = np.asarray(result.t)
+    skip = {"t", "energy_error", "state", "status", "deviations"}
+    for f in dataclasses.fields(result):
+        value = getattr(result, f.name)
+        series = value if isinstance(value, dict) else {f.name: value}
+        for name, arr in series.items():
+            arr = np.asarray(arr) if f.name not in skip else None
+            if arr is None or arr.dtype.kind != "f" or arr.ndim == 0 or arr.shape[0] != len(t):
+                continue
+            columns = arr.reshape(len(t), -1)
+            for j in range(columns.shape[1]):
+                label = str(name) if columns.shape[1] == 1 else f"{name}[{j}]"
+                ax.semilogx(t, columns[:, j], label=label)
+    ax.set_xlabel("t")
+    ax.legend(fontsize=8)
+    return ax
+
+
 def _section_axes(plane, dim):
     n = dim // 2
     j = (plane + 1) % n
@@ -224,21 +249,20 @@ def plot(result, ax=None, orbit=None, **kwargs):
     **kwargs
         Passed to the specific function.
     """
-    from .results import (ChaosMapResult, GALIResult, IntegrationResult, LyapunovResult,
-                          MEGNOResult, SALIResult, SectionResult)
-
-    if isinstance(result, ChaosMapResult):
+    # Dispatch on the result class's plot_kind, so that this module needs
+    # no result class (results.py imports it for result.plot()).
+    kind = getattr(result, "plot_kind", None)
+    if kind == "chaos_map":
         return plot_chaos_map(result, ax, **kwargs)
-    if isinstance(result, SectionResult):
+    if kind == "section":
         return plot_section(result, ax, **kwargs)
-    if np.ndim(result.status) == 1:
-        if orbit is None:
-            raise ValueError("this result holds a batch of orbits: pass orbit= to plot one")
-        result = _one_orbit(result, orbit)
-    functions = ((LyapunovResult, plot_lyapunov), (GALIResult, plot_gali),
-                 (SALIResult, plot_sali), (MEGNOResult, plot_megno),
-                 (IntegrationResult, plot_energy_error))
-    for cls, function in functions:
-        if isinstance(result, cls):
-            return function(result, ax, **kwargs)
+    functions = {"lyapunov": plot_lyapunov, "gali": plot_gali, "sali": plot_sali,
+                 "megno": plot_megno, "energy_error": plot_energy_error,
+                 "series": plot_series}
+    if kind in functions:
+        if np.ndim(result.status) == 1:
+            if orbit is None:
+                raise ValueError("this result holds a batch of orbits: pass orbit= to plot one")
+            result = _one_orbit(result, orbit)
+        return functions[kind](result, ax, **kwargs)
     raise ValueError(f"no plot for {type(result).__name__}")

@@ -175,11 +175,12 @@ class _Builder:
 
 def layout(result):
     """The :class:`Layout` of any varint result (see the module docstring)."""
-    from .results import ChaosMapResult, SectionResult
-
-    if isinstance(result, ChaosMapResult):
+    # By the result class's layout, so that this module needs no result
+    # class (results.py imports it for result.to_xarray()).
+    kind = getattr(result, "layout", "series")
+    if kind == "map":
         return _map(result)
-    if isinstance(result, SectionResult):
+    if kind == "section":
         return _section(result)
     return _series(result)
 
@@ -305,8 +306,6 @@ def columns(result):
     :func:`to_dataframe` and the command line's CSV files hold): the
     variables of :func:`layout` over its row dimensions, flattened in
     row-major order."""
-    from .results import SectionResult
-
     lay = layout(result)
     rows = lay.rows
     shape = tuple(len(lay.coords[d][1]) for d in rows)
@@ -315,7 +314,7 @@ def columns(result):
     out = {}
     if "orbit" in rows:
         out["orbit"] = lay.coords["orbit"][1][index[rows.index("orbit")][keep]]
-    elif isinstance(result, SectionResult):  # one orbit: still say which
+    elif getattr(result, "layout", None) == "section":  # one orbit: still say which
         out["orbit"] = np.zeros(int(keep.sum()), dtype=int)
     if "t" in rows:
         out["t"] = lay.coords["t"][1][index[rows.index("t")][keep]]
