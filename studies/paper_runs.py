@@ -106,8 +106,8 @@ def longest_stored(out, kind, orbit, method, tau, *, orders=None, delta=None):
     """The horizon of the longest stored run of this kind, orbit, method, τ
     (and orders, δ), or None: a study asks for its default horizon or the
     longest run already stored, whichever is longer, so that a longer run
-    (e.g. DOP853 to the paper's 1e8, once it is fast enough) replaces the
-    shorter one in every claim without a change of code."""
+    (e.g. a DOP853 run of C2 to the paper's 1e8) replaces the shorter one in
+    every claim without a change of code."""
     model, _ = varint.paper_orbit(orbit)
     _, _, key_options = _key_options(kind, model, method, orbit, delta, orders)
     stem = run_key(kind, orbit, method, tau, 1.0, key_options).rsplit("-t", 1)[0]

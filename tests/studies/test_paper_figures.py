@@ -67,19 +67,19 @@ def test_tdh_methods_leave_the_regular_law_on_r1(quick):
 
 
 def test_a_longer_stored_dop853_run_replaces_the_default(quick, tmp_path):
-    # A stored run longer than the default horizon is used (e.g. DOP853 to
-    # 1e8 once it is fast enough); in quick mode the default stays.
+    # A stored run longer than the default horizon is used (e.g. C2's DOP853
+    # to 1e8, once run); in quick mode the default stays.
     _, ctx = quick
     runs = tmp_path / "runs"
     runs.mkdir()
-    key = "lyapunov-R1-dop853-delta1e-05-tau0.05-t"
+    key = "lyapunov-C2-dop853-delta1e-05-tau0.05-t"
     for t_end in ("100000", "1e+08"):
         for ext in ("npz", "json"):
             (runs / f"{key}{t_end}.{ext}").write_text("")
     full = paper_figures.Context(tmp_path, quick=False, fresh=False)
-    assert full.horizon("lyapunov", "R1", "dop853", delta=1e-5) == 1e8
-    assert full.horizon("gali", "R1", "dop853") == paper_figures.DOP853_T_END["R1"][0]
-    assert ctx.horizon("lyapunov", "R1", "dop853") == paper_figures.DOP853_T_END["R1"][1]
+    assert full.horizon("lyapunov", "C2", "dop853", delta=1e-5) == 1e8
+    assert full.horizon("gali", "C2", "dop853") == paper_figures.DOP853_T_END["C2"][0]
+    assert ctx.horizon("lyapunov", "C2", "dop853") == paper_figures.DOP853_T_END["C2"][1]
 
 
 @pytest.mark.parametrize("orbit", ["R1", "C1"])

@@ -1,12 +1,16 @@
-"""Table I's quick mode (R1 to t = 1e4, DOP853 to 1e3): the table is
-complete, projections are labelled, and the laws that show at this horizon
-hold."""
+"""Table I: in quick mode (every row to t = 1e4) the table is complete, no
+row is projected, and the laws that show at this horizon hold; the stored
+full table has every row measured to the paper's t = 1e8."""
 
 import csv
+from pathlib import Path
 
 import pytest
 
 from studies import table1
+
+#: The committed results of the full run.
+RESULTS = Path(__file__).resolve().parents[2] / "studies" / "results"
 
 
 @pytest.fixture(scope="module")
@@ -32,13 +36,78 @@ def test_all_rows_with_paper_and_ours(quick):
                 "energy_error", "X1_paper", "X1", "cpu_paper", "cpu_s"):
         assert all(line[col] != "" for line in lines if col != "delta"
                    or line["integrator"] == "DOP853"), col
-    for row in rows:
-        # Nothing reaches 1e8 in quick mode: every CPU time to 1e8 and every
-        # DOP853 energy error at 1e8 is a labelled projection.
-        assert row["cpu_projected"] and row["cpu_to_1e8_s"] > row["cpu_s"]
-        if row["method"] == "DOP853":
-            assert row["energy_error_1e8_projected"] is not None
     assert (out / "table1_energy.png").exists() and (out / "table1.claims.json").exists()
+
+
+def test_no_row_is_projected(quick):
+    # Every row, DOP853's too, runs to the table's horizon; its CPU time is
+    # that of its own run, and the paper's numbers at 1e8 are not compared
+    # with ours at 1e4.
+    res, _ = quick
+    for row in res["rows"]:
+        assert row["t_end"] == table1.QUICK_T_END, row["method"]
+        assert not any("project" in key for key in row), sorted(row)
+        assert (row["X1_verdict"], row["energy_verdict"]) == ("", "")
+        assert row["cpu_ratio"] > 0
+    assert not any("project" in c for c in table1.COLUMNS)
+    dop = [r for r in res["rows"] if r["method"] == "DOP853"]
+    assert len(dop) == 7 and {r["engine"] for r in dop} == {"compiled"}
+    tm = next(r for r in res["rows"] if r["method"] == "TM" and r["tau"] == 0.05)
+    assert tm["cpu_ratio"] == 1.0
+
+
+@pytest.mark.xfail(strict=True, reason="the 7 DOP853 rows to 1e8 (about 5 h of CPU, "
+                   "studies/results/table1_cost.md) have not been run with the compiled "
+                   "engine yet; the stored table is the one with projected rows. Strict: once "
+                   "the full table is stored this passes and the marker must go")
+def test_stored_table_is_measured_to_1e8():
+    # The committed full run: all 17 rows to the paper's horizon, each
+    # judged against the paper's X1 and energy error.
+    with open(RESULTS / "table1.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 17
+    assert not any("project" in c for c in rows[0])
+    for row in rows:
+        assert float(row["t_end"]) == table1.T_END, row
+        assert row["X1_verdict"] in ("holds", "differs"), row
+        assert row["energy_verdict"] in ("holds", "differs"), row
+        if row["method"] == "DOP853":
+            assert row["engine"] == "compiled"
+
+
+def test_dop853_energy_error_is_a_number_symplectic_a_band():
+    # DOP853's error drifts: compared at 1e8 as a number (factor 3). The
+    # symplectic error oscillates: the paper's value needs only to fall in
+    # our band over the last decade.
+    base = {"X1": 1.6e-7, "X1_paper": 1.6e-7, "energy_error_paper": 7e-10,
+            "energy_error_median_last_decade": 1e-12, "energy_error_max_last_decade": 3e-9}
+    dop = dict(base, method="DOP853", energy_error=3e-9)
+    tm = dict(base, method="TM", energy_error=3e-9)
+    assert table1.verdicts(dop, table1.T_END) == ("holds", "differs")
+    assert table1.verdicts(tm, table1.T_END) == ("holds", "holds")
+    assert table1.verdicts(dict(dop, energy_error=1e-9), table1.T_END) == ("holds", "holds")
+    assert table1.verdicts(dict(tm, X1=1e-6), table1.T_END) == ("differs", "holds")
+    assert table1.verdicts(tm, table1.QUICK_T_END) == ("", "")
+
+
+def test_one_row_runs_alone_and_is_stored(tmp_path):
+    # A row run on its own (one background job per row) stores its run,
+    # which the table then reads instead of computing it again.
+    (row,) = table1.run_rows(tmp_path, [17], quick=True)
+    assert (row["method"], row["tau"], row["t_end"]) == ("TM", 0.5, table1.QUICK_T_END)
+    stored = sorted(p.name for p in (tmp_path / "runs").glob("*.npz"))
+    assert stored == ["lyapunov-R1-tm-tau0.5-t10000.npz"]
+    again, _ = table1.row_result(tmp_path, table1.PAPER_TABLE[16], table1.QUICK_T_END,
+                                 fresh=False, progress=False)
+    assert again["X1"] == row["X1"] and again["cpu_s"] == row["cpu_s"]
+    assert not list((tmp_path / "runs" / "checkpoints").iterdir())
+
+
+@pytest.mark.parametrize("numbers", [[0], [18], [1, 18]])
+def test_row_numbers_are_checked_before_any_run(tmp_path, numbers):
+    with pytest.raises(ValueError, match=r"row must be 1 to 17, got 18|got 0"):
+        table1.run_rows(tmp_path, numbers, quick=True)
+    assert not (tmp_path / "runs").exists()
 
 
 def test_laws_at_the_quick_horizon(quick):
