@@ -264,7 +264,12 @@ class Run:
             check.orthonormal(W0)
         elif ind.require == "unit":
             check.full_rank(W0)
-            W0 = W0 / np.linalg.norm(W0, axis=1, keepdims=True)
+            # Columns of unit length to round-off (e.g. seeded orthonormal
+            # ones) are kept as given: a run given the vectors its seed
+            # would draw (as a chaos map's chunk is) is the seeded run, bit
+            # for bit.
+            norms = np.linalg.norm(W0, axis=1, keepdims=True)
+            W0 = np.where(np.abs(norms - 1.0) <= 8 * np.finfo(float).eps, W0, W0 / norms)
         return W0, None
 
     @staticmethod

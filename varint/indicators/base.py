@@ -32,6 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..protocol import Accumulator, Renorm
+from ..results import IndicatorResult
 
 __all__ = ["Indicator", "Option", "INDICATORS", "register_indicator", "get_indicator",
            "resolve", "as_values", "Field"]
@@ -118,7 +119,9 @@ class Indicator:
         depend on the options.
     finish : callable
         ``finish(fields, options) -> dict``: the stacked records (orbit
-        axis first) turned into the result's fields; identity by default.
+        axis first) turned into the result's fields; by default identity,
+        or :func:`as_values` when ``result`` is (a subclass of)
+        :class:`~varint.results.IndicatorResult`.
     scalar : callable or None
         ``scalar(record, model, options) -> ndarray (M,)``: the one value
         per orbit a chaos map shows, from a record of ``read``; None if the
@@ -186,6 +189,8 @@ class Indicator:
         if acc is not None and self.renorm == Renorm.NONE:
             raise ValueError(f"indicator {self.name!r}: an accumulator needs renormalised "
                              "vectors (renorm 'qr' or 'normalize')")
+        if self.finish is _no_finish and issubclass(self.result, IndicatorResult):
+            object.__setattr__(self, "finish", as_values)
         # A plain dict (a copy): indicators travel to Dask workers by pickle.
         object.__setattr__(self, "options", dict(self.options))
 
