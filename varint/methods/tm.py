@@ -236,10 +236,10 @@ class TangentMapPropagator:
         blocks = -(-len(active) // self.LANES)
         width = -(-len(active) // (blocks * self.MIN_LANES)) * self.MIN_LANES
         lanes = _Lanes(active, width)
+        sched = self._schedule(state)     # first: part of the state to restore
         start = {"x": state.x[active], "W": state.W[active], "acc_m": state.acc_m[active],
                  "acc_e": state.acc_e[active]}
         extra_start = {key: arr[active] for key, arr in state.extra.items()}
-        sched = self._schedule(state)
         aux = self._accumulator(state)
         X, W = lanes.soa(state.x), lanes.soa(state.W)
         am, ae = lanes.soa(state.acc_m), lanes.soa(state.acc_e)
