@@ -41,6 +41,13 @@ except ImportError:  # imported as studies.bench_chaos_map
 ENERGY, TAU, THRESHOLD = 0.125, 0.05, 1e-8
 
 
+def section(model, n_grid):
+    """The map's initial conditions: an n_grid × n_grid grid of (y, p_y) on
+    the section x = 0, p_x ≥ 0 at H = ENERGY (the allowed points)."""
+    return varint.section_grid(model, ENERGY, np.linspace(-0.45, 0.7, n_grid),
+                               np.linspace(-0.45, 0.45, n_grid))
+
+
 def heyoka_loop(model, X, t_end, steps, indices, seed=0):
     """SALI of each orbit of X by a Python loop over heyoka; returns
     (values, seconds without the one-off compilation)."""
@@ -112,8 +119,7 @@ def main(argv=None):
     args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     n_grid, t_end, n_sample = (40, 500.0, 8) if args.quick else (200, 1e3, 40)
     model = HenonHeiles()
-    grid = varint.section_grid(model, ENERGY, np.linspace(-0.45, 0.7, n_grid),
-                               np.linspace(-0.45, 0.45, n_grid))
+    grid = section(model, n_grid)
     m = len(grid)
     with Stopwatch() as compile_sw:
         varint.chaos_map(model, grid, "sali", t_end=10 * TAU, progress=False)

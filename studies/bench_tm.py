@@ -14,6 +14,7 @@ Usage: ``python studies/bench_tm.py [--quick] [--csv FILE]``
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
 import subprocess
@@ -87,21 +88,38 @@ int main(int argc, char **argv) {
 """
 
 
-def c_loop_ns_per_step(px, n_steps, repeats):
-    """Best-of-``repeats`` ns/step of the C loop, or None without gcc."""
+@contextlib.contextmanager
+def c_program(source):
+    """An executable compiled from the C ``source`` with ``gcc -O3
+    -march=native`` in a temporary directory (removed on exit), or None
+    without gcc."""
     gcc = shutil.which("gcc")
     if gcc is None:
-        return None, None
+        yield None
+        return
     with tempfile.TemporaryDirectory() as tmp:
-        src, exe = os.path.join(tmp, "tm.c"), os.path.join(tmp, "tm")
+        src, exe = os.path.join(tmp, "loop.c"), os.path.join(tmp, "loop")
         with open(src, "w") as f:
-            f.write(C_LOOP)
+            f.write(source)
         subprocess.run([gcc, "-O3", "-march=native", src, "-o", exe, "-lm"], check=True)
+        yield exe
+
+
+def run_c(exe, *args):
+    """One run of a compiled loop: the numbers it prints, as floats."""
+    out = subprocess.run([exe, *map(str, args)], check=True, capture_output=True, text=True)
+    return [float(v) for v in out.stdout.split()]
+
+
+def c_loop_ns_per_step(px, n_steps, repeats):
+    """Best-of-``repeats`` ns/step of the C loop, or None without gcc."""
+    with c_program(C_LOOP) as exe:
+        if exe is None:
+            return None, None
         best, x1 = np.inf, None
         for _ in range(repeats):
-            out = subprocess.run([exe, str(n_steps), repr(float(px))], check=True, capture_output=True,
-                                 text=True).stdout.split()
-            best, x1 = min(best, float(out[0])), float(out[1])
+            seconds, x1 = run_c(exe, n_steps, repr(float(px)))
+            best = min(best, seconds)
     return best / n_steps * 1e9, x1
 
 
