@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import textwrap
 import time
 
@@ -36,9 +34,9 @@ from varint.schemes import DRIFT, stage_arrays
 from varint.state import RunState
 
 try:
-    from bench_tm import C_LOOP as C_SPECTRUM
+    from bench_tm import C_LOOP as C_SPECTRUM, c_program, run_c
 except ImportError:  # imported as studies.bench_stepper
-    from .bench_tm import C_LOOP as C_SPECTRUM
+    from .bench_tm import C_LOOP as C_SPECTRUM, c_program, run_c
 
 TAU = 0.05
 
@@ -71,26 +69,6 @@ def orbit_c_source(scheme, tau):
             return 0;
         }
         """) % "\n        ".join(body)
-
-
-class CLoop:
-    """A C program compiled once, timed by its own clock (best of calls)."""
-
-    def __init__(self, source, folder):
-        gcc = shutil.which("gcc")
-        self.exe = None
-        if gcc is None:
-            return
-        src = os.path.join(folder, f"loop{abs(hash(source))}.c")
-        with open(src, "w") as f:
-            f.write(source)
-        self.exe = src[:-2]
-        subprocess.run([gcc, "-O3", "-march=native", src, "-o", self.exe, "-lm"], check=True)
-
-    def ns_per_step(self, n_steps, px):
-        out = subprocess.run([self.exe, str(n_steps), repr(float(px))], check=True,
-                             capture_output=True, text=True).stdout.split()
-        return float(out[0]) / n_steps * 1e9, float(out[1])
 
 
 def varint_ns_per_step(prop, x0, k, n_steps):
@@ -157,14 +135,13 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="small sizes")
     parser.add_argument("--csv", help="also write the table to this CSV file")
     args = parser.parse_args(argv)
-    n_steps = 100_000 if args.quick else 2_000_000
+    n_steps = 20_000 if args.quick else 2_000_000
     repeats = 2 if args.quick else 5
     rows = []
 
     model, x0 = varint.paper_orbit("R1")
-    with tempfile.TemporaryDirectory() as tmp:
-        c_orbit = CLoop(orbit_c_source("ABA864", TAU), tmp)
-        c_spec = CLoop(C_SPECTRUM, tmp)
+    with c_program(orbit_c_source("ABA864", TAU)) as c_orbit, \
+            c_program(C_SPECTRUM) as c_spec:
         orbit = make_propagator("tm", model, TAU, "none", scheme="ABA864")
         every = make_propagator("tm", model, TAU, "qr", scheme="SBAB2C", renormalize_every=1)
         sparse = make_propagator("tm", model, TAU, "qr", scheme="SBAB2C")
@@ -175,9 +152,10 @@ def main(argv=None):
             best["orbit"] = min(best["orbit"], varint_ns_per_step(orbit, x0, 0, n_steps)[0])
             best["every"] = min(best["every"], varint_ns_per_step(every, x0, 4, n_steps)[0])
             best["sparse"] = min(best["sparse"], varint_ns_per_step(sparse, x0, 4, n_steps)[0])
-            if c_orbit.exe:
-                best["c_orbit"] = min(best["c_orbit"], c_orbit.ns_per_step(n_steps, x0[2])[0])
-                best["c_spec"] = min(best["c_spec"], c_spec.ns_per_step(n_steps, x0[2])[0])
+            if c_orbit is not None:
+                for key, exe in (("c_orbit", c_orbit), ("c_spec", c_spec)):
+                    seconds = run_c(exe, n_steps, repr(float(x0[2])))[0]
+                    best[key] = min(best[key], seconds / n_steps * 1e9)
     print(f"# ns per step, best of {repeats} interleaved ({n_steps} steps)")
     print(f"{'case':46}{'varint':>10}{'C loop':>10}{'ratio':>8}{'target':>8}")
     for label, v, c, target in (
@@ -192,13 +170,13 @@ def main(argv=None):
           f"({times[1000]:.3f} s / {times[2]:.3f} s; target <= 1.2)")
     rows.append(("1000 outputs / 2 outputs", times[1000], times[2], ratio, 1.2))
 
-    cold, warm = first_run_seconds()
+    cold, warm = first_run_seconds(1 if args.quick else 2)
     print(f"first R1 spectrum (t = 100) in a new process, kernels cached: {warm:.2f} s "
           f"(the process that filled the cache: {cold:.2f} s; target <= 0.5 s)")
     rows.append(("first run in a new process (s)", warm, cold, warm, 0.5))
 
-    side = 12 if args.quick else 45                 # 45 x 45 grid: about 1990 orbits
-    t_map = 100.0 if args.quick else 1e3
+    side = 6 if args.quick else 45                 # 45 x 45 grid: about 1990 orbits
+    t_map = 20.0 if args.quick else 1e3
     r1, n = fli_map_rate(side, t_map, 1)
     r2, _ = fli_map_rate(side, t_map, 2)
     print(f"\nFLI map, {n} orbits of the x = 0 section, t = {t_map:g}: {r1:.0f} orbits/s "
