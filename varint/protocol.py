@@ -20,8 +20,8 @@ import enum
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Status", "Renorm", "REASONS", "TANGENT_LIMIT", "COUNTERS", "Propagator",
-           "Accumulator", "is_failure"]
+__all__ = ["Status", "Renorm", "REASONS", "TANGENT_LIMIT", "COUNTERS", "TIME_MOMENTUM",
+           "Propagator", "Accumulator", "is_failure"]
 
 
 class Status(enum.IntEnum):
@@ -77,6 +77,12 @@ TANGENT_LIMIT = 1e300
 #: evaluations, third-derivative contractions, kick products on the
 #: deviation vectors (D²V·W or D²C·W).
 COUNTERS = ("gradient", "hessian", "third", "tangent_products")
+
+
+#: Key in ``RunState.extra`` of the orbits' momenta p_t conjugate to time
+#: (M,), kept by every method for a time-dependent V (integrated in the
+#: extended phase space, t = step·τ): K = H(x, t) + p_t is conserved.
+TIME_MOMENTUM = "p_t"
 
 
 class Renorm(enum.IntEnum):

@@ -27,11 +27,12 @@ from .files import canonical
 from .indicators import resolve
 from .methods import make_propagator
 from .models.base import Model
-from .protocol import Renorm, is_failure
+from .models.maps import MapModel
+from .protocol import TIME_MOMENTUM, Renorm, is_failure
 from .results import Provenance, package_versions
 from .state import RunState, initial_deviations, output_steps
 
-__all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
+__all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "default_tau", "energy_scale"]
 
 #: Initial states of at most this many numbers are stored in a checkpoint's
 #: parameters as values (so a mismatch shows them), larger ones as a digest.
@@ -58,7 +59,9 @@ def run(model, x0, indicator, t_end, tau=None, **options):
         Final time (rounded to a multiple of τ).
     tau : float, optional
         Renormalisation interval, which is also the step of the splitting
-        methods ("tm" and the TDH methods). Default 0.05.
+        methods ("tm" and the TDH methods). Default 0.05; for a map model
+        (:mod:`varint.models.maps`) a whole number of iterations, default 1,
+        and t counts iterations.
 
     Other Parameters
     ----------------
@@ -142,8 +145,14 @@ def prepare(model, x0, indicator, t_end, tau=None, *, method="tm", t_out=None, s
                errors, escape_radius, checkpoint, checkpoint_interval, options)
 
 
+def default_tau(model):
+    """τ when none is given: :data:`DEFAULT_TAU` for a flow, one iteration
+    for a map."""
+    return 1.0 if getattr(model, "kind", "flow") == "map" else DEFAULT_TAU
+
+
 def _model(model):
-    if isinstance(model, Model):
+    if isinstance(model, (Model, MapModel)):
         return model
     hint = (" (varint.paper_orbit(name) returns a model and its initial state)"
             if isinstance(model, str) else "")
@@ -154,8 +163,11 @@ def _model(model):
 def energy_scale(model, x):
     """The energy scale against which energy errors are relative, per orbit:
     |T(x)| + |V(x)|, which is |H| for an orbit in a well (T, V ≥ 0) and stays
-    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0.
+    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0
+    and for a map (whose energy is 0, see :mod:`varint.models.maps`).
     """
+    if getattr(model, "kind", "flow") == "map":
+        return np.ones(np.shape(x)[:-1])
     n = model.n_dof
     scale = np.abs(model.kinetic(x[..., n:])) + np.abs(model.potential(x[..., :n]))
     return np.where(scale > 0, scale, 1.0)
@@ -206,7 +218,7 @@ class Run:
             self.run_options["escape_radius"] = model.escape_radius
         self.model = model
         self.x0, self.single = check.states(model, x0)
-        self.t_end, self.tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+        self.t_end, self.tau = check.horizon(t_end, default_tau(model) if tau is None else tau)
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
@@ -288,20 +300,22 @@ class Run:
         versions.update(self.propagator.versions())
         return versions
 
-    def energy_error(self, x):
+    def energy_error(self, x, t=0.0, p_t=0.0):
         """Energy error of states ``x`` (M, 2N) relative to the orbits'
-        energy scale (:func:`energy_scale`)."""
+        energy scale (:func:`energy_scale`); for a time-dependent V, of the
+        extended energy K = H(x, t) + p_t (p_t (M,), the momenta conjugate
+        to time, ``RunState.extra[TIME_MOMENTUM]``)."""
         # A failed orbit's frozen state may overflow here; its records are
         # replaced by NaN anyway, so NumPy's warnings would be noise.
         with np.errstate(over="ignore", invalid="ignore"):
-            return np.abs(self.model.energy(x) - self.energy0) / self.energy_scale
+            return np.abs(self.model.energy(x, t, p_t) - self.energy0) / self.energy_scale
 
     def record(self, state):
         """The indicator's values at the current output time, and the
         energy error."""
         t = state.step * self.tau
         rec = self.indicator.read(state, self.model, t, self.options)
-        rec["energy_error"] = self.energy_error(state.x)
+        rec["energy_error"] = self.energy_error(state.x, t, state.extra.get(TIME_MOMENTUM, 0.0))
         return rec
 
     def execute(self):

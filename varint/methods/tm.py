@@ -13,7 +13,7 @@ import numba
 
 from ..kernels import tm as K
 from ..protocol import COUNTERS, Renorm, Status
-from ..schemes import get_scheme, stage_arrays
+from ..schemes import get_scheme, stage_arrays, stage_times
 from . import method_options
 
 __all__ = ["TangentMapPropagator", "tangent_map_steps"]
@@ -49,6 +49,8 @@ class TangentMapPropagator:
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
+        # A time-dependent V: the stage times and ∂_tV kernel (kernels/tm.py).
+        self._time = (stage_times(self.scheme), model.time_kernel) if model.time_dependent else ()
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
 
@@ -70,7 +72,8 @@ class TangentMapPropagator:
         model = self.model
         update, aux, flow = self._accumulator(state)
         kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth,
-                                K.use_parallel(self.parallel, m), flow)
+                                K.use_parallel(self.parallel, m), flow, model.time_dependent)
+        time = self._time + (state.time_momentum(),) if self._time else ()
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == Status.OK
@@ -78,14 +81,14 @@ class TangentMapPropagator:
                self._hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
                self._escape_r2, counters, state.status, done, update, aux,
-               state.step, self.tau)
+               state.step, self.tau, *time)
         state.after_kernel(n, was_active, done, counters, COUNTERS)
 
 
 def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     """Low-level: ``n_steps`` steps of the numerical map S and its tangent
     map TS, without renormalisation; τ may be negative (S(−τ) is the inverse
-    of S(τ) for the symmetric schemes).
+    of S(τ) for the symmetric schemes). A time-dependent V starts at t = 0.
 
     Parameters
     ----------
@@ -122,13 +125,15 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     status = np.zeros(1, dtype=np.int64)
     done = np.zeros(1, dtype=np.int64)
     r = model.escape_radius
-    kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False)
+    time = ((stage_times(get_scheme(scheme)), model.time_kernel, np.zeros(1))
+            if model.time_dependent else ())
+    kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False, False, bool(time))
     kernel(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), int(n_steps), kinds, h,
            hc, model.inverse_mass, model.params, model.bandwidth, model.grad_kernel,
            model.hess_kernel, model.third_kernel, int(Renorm.NONE),
            np.inf if r is None else float(r) ** 2,
            np.zeros((1, len(COUNTERS)), dtype=np.int64), status, done,
-           K.no_accumulator, np.empty((1, 0, 0)), 0, float(tau))
+           K.no_accumulator, np.empty((1, 0, 0)), 0, float(tau), *time)
     if status[0] != Status.OK:
         raise FloatingPointError(f"the map failed after {done[0]} steps: "
                                  f"{REASONS.get(Status(status[0]), status[0])}")

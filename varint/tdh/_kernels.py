@@ -24,6 +24,11 @@ Then the vectors follow the recorded orbit through the block:
 The TDH is a quadratic form of w, so its corrector term
 C̃ = {B̃, {B̃, Ã}} = δqᵀ D²V M⁻¹ D²V δq (eq. 36 with a mass) needs no third
 derivatives of V.
+
+A time-dependent V(q, t) (``TIME``): the orbit is the TM stepper's in the
+extended phase space (:mod:`varint.kernels.tm`), and D²V at grid point j of
+interval i is evaluated at its time t = (i·m + j)·Δt, written to the last
+entry of a private copy of ``par``.
 """
 
 from __future__ import annotations
@@ -56,16 +61,18 @@ _NONE = int(Renorm.NONE)
 _BLOCK_VALUES = 1 << 16
 
 
-def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
+def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, TIME=False):
     """The one-orbit TDH stepper for method ``MODE``; sizes are constants
     when ≥ 0, else read from the arrays. ``FLOW``: the accumulator reads the
-    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`)."""
-    orbit = K.orbit_kernel(N_C, BW_C)
+    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`). ``TIME``:
+    a time-dependent V, with ``ctime``, ``dtime``, ``pt`` as for the TM
+    stepper (:func:`varint.kernels.tm.tm_batch`)."""
+    orbit = K.orbit_kernel(N_C, BW_C, TIME)
 
     @njit
     def tdh_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx,
                   need, tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2,
-                  counters, accumulate, aux, step0):
+                  counters, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -104,14 +111,22 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
         mb = np.empty(ne)
         rs = np.sqrt(minv)                      # S = M^{-1/2}
         have_end = False                        # Hs[n_sub] is D²V at the current q
+        pl = par.copy()                         # with the time of a grid point (TIME)
+        dt = tau / n_sub
         done = 0
         while done < n_steps:
             nb = min(block, n_steps - done)
             for i in range(n):
                 x0[i] = x[i]
-            status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
-                                  bw_rt, grad, hess, third, _NONE, escape_r2, counters,
-                                  rec, K.no_accumulator, no_aux, 0, 0.0)
+            if TIME:
+                status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
+                                      bw_rt, grad, hess, third, _NONE, escape_r2, counters,
+                                      rec, K.no_accumulator, no_aux, (step0 + done) * n_sub,
+                                      dt, ctime, dtime, pt)
+            else:
+                status, steps = orbit(x, no_W, no_m, no_e, nb * n_sub, kinds, h, hc, minv, par,
+                                      bw_rt, grad, hess, third, _NONE, escape_r2, counters,
+                                      rec, K.no_accumulator, no_aux, 0, 0.0)
             complete = steps // n_sub if status != _OK else nb
             for s in range(complete):
                 if tangent:
@@ -128,7 +143,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
                         r = s * n_sub + jg - 1
                         for i in range(n):
                             q[i] = x0[i] if r < 0 else rec[r, i]
-                        hess(q, par, H)
+                        if TIME:
+                            pl[pl.shape[0] - 1] = float((step0 + done + s) * n_sub + jg) * dt
+                        hess(q, pl, H)
                         counters[1] += 1
                         if not all_finite(H.ravel(), (bw + 1) * n):
                             for i in range(d):
@@ -226,7 +243,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
                         if FLOW:
                             for i in range(n):
                                 q[i] = rec[r, i]
-                            grad(q, par, gq)
+                            if TIME:
+                                pl[pl.shape[0] - 1] = float((step0 + done + s + 1) * n_sub) * dt
+                            grad(q, pl, gq)
                             counters[0] += 1
                             for i in range(n):
                                 flow[i] = minv[i] * rec[r, n + i]
@@ -248,7 +267,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW):
 
 
 @lru_cache(maxsize=None)
-def tdh_batch(n, k, bw, mode, parallel, flow=False):
+def tdh_batch(n, k, bw, mode, parallel, flow=False, time=False):
     """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
     read at run time).
@@ -259,29 +278,37 @@ def tdh_batch(n, k, bw, mode, parallel, flow=False):
     completed and ``status[m]`` its status (codes of :class:`varint.protocol.Status`).
     An orbit that fails is frozen as it was at the failure: the orbit at the
     end of the failed orbit step and the vectors at the start of that
-    interval, or, if their renormalisation failed, both at its end.
+    interval, or, if their renormalisation failed, both at its end. With
+    ``time`` (a time-dependent V) ``ctime``, ``dtime`` and ``pt`` (M,)
+    follow ``step0``, as for :func:`varint.kernels.tm.tm_batch`.
     """
-    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow)
+    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow, time)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx, need,
               tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2, counters,
-              status, done, accumulate, aux, step0):
+              status, done, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
         for m in prange(X.shape[0]):
             if status[m] != _OK:
                 done[m] = 0
                 continue
-            st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc, n_sub,
-                                  tkinds, th, thc, tidx, need, tau, minv, par, bw_rt, grad,
-                                  hess, third, eig, renorm, escape_r2, counters[m],
-                                  accumulate, aux[m], step0)
+            if time:
+                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
+                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
+                                      accumulate, aux[m], step0, ctime, dtime, pt[m:m + 1])
+            else:
+                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
+                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
+                                      accumulate, aux[m], step0)
             status[m] = st
             done[m] = steps
 
     return batch
 
 
-def batch_kernel(n, k, bw, mode, parallel, flow=False):
+def batch_kernel(n, k, bw, mode, parallel, flow=False, time=False):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
     TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`)."""
-    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel, flow)
+    return tdh_batch(*K.specialised_sizes(n, k, bw), mode, parallel, flow, time)
