@@ -184,6 +184,7 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         ``times`` ([M,] n), ``n_points``, the relative energy error of every
         crossing, and the provenance.
     """
+    _autonomous_flow(model)
     X, single = check.states(model, x0)
     t_end, tau = check.horizon(t_end, tau)
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) \
@@ -256,6 +257,19 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
                          value=float(value))
 
 
+def _autonomous_flow(model):
+    """Sections at fixed energy need an autonomous flow: refuse a map or a
+    time-dependent V (whose energy is not conserved), naming the remedy."""
+    if getattr(model, "kind", "flow") == "map":
+        raise ValueError(f"{model.name} is a map: its orbits are already a section; grid its "
+                         "phase space with varint.phase_grid")
+    if model.time_dependent:
+        raise ValueError(f"{model.name} depends on time, so its energy is not conserved and has "
+                         "no section at fixed energy; grid its phase space with "
+                         "varint.phase_grid (a stroboscopic section: t_out at multiples of the "
+                         "period)")
+
+
 @dataclass
 class SectionGrid:
     """Initial conditions on a grid of a surface of section at fixed energy.
@@ -315,6 +329,7 @@ def section_grid(model, energy, u, v, axes=None, plane=0, value=0.0, base=None):
     SectionGrid
         Points where no real p_plane solves the energy are masked out.
     """
+    _autonomous_flow(model)
     n = model.n_dof
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) or not 0 <= plane < n:
         raise ValueError(f"plane must be a coordinate index in 0..{n - 1}, got {plane!r}")
