@@ -29,7 +29,10 @@ def _pandas():
     return pandas
 
 
-def _state_names(dim):
+def _state_names(dim, variables=None):
+    # A map model names its own variables (its state need not be (q, p)).
+    if variables is not None and len(variables) == dim:
+        return list(variables)
     n = dim // 2
     return [f"q{i}" for i in range(n)] + [f"p{i}" for i in range(n)]
 
@@ -56,7 +59,8 @@ def columns(result):
 
     if isinstance(result, ChaosMapResult):
         out = {"orbit": np.arange(len(result.values))}
-        out.update(zip(_state_names(result.x0.shape[1]), result.x0.T))
+        out.update(zip(_state_names(result.x0.shape[1],
+                                    result.provenance.model.get("variables")), result.x0.T))
         out.update(value=result.values, t_stop=result.t_stop, status=result.status,
                    energy_error=result.energy_error)
         return out
