@@ -136,7 +136,8 @@ class Accumulator:
         renormalised vectors at time ``t``, ``flow`` (2N,) the phase-space
         velocity ẋ at ``x`` (empty unless ``needs_flow``).
     needs_flow : bool
-        Whether ``update`` reads ``flow``; maps, which have none, refuse it.
+        Whether ``update`` reads ``flow``. Maps have none: they pass an
+        empty ``flow`` (and the OFLI indicator refuses map models).
     """
 
     name: str
