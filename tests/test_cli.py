@@ -302,6 +302,14 @@ BAD_ARGUMENTS = [
     (["map", "--map", "standard", "--energy", "1"], 2, "does not apply to a map"),
     (["map", "--potential", "-cos(q)*cos(t)", "--coords", "q", "--time", "t"], 2,
      "give --u and --v"),
+    # The two-particle method's options.
+    (["run", "x1", *R1, "--d0", "1e-6"], 2, "--d0 applies to --method two-particle only"),
+    ([*MAP, "--method", "dop853", "--d-max", "1e-3"], 2,
+     "--d-max applies to --method two-particle only, not dop853"),
+    (["run", "x1", *R1, "--method", "two-particle", "--d0", "0"], 2,
+     "--d0: expected a positive finite number"),
+    (["run", "x1", *R1, "--method", "two-particle", "--d0", "1e-6", "--d-max", "1e-7"], 2,
+     "d_max must exceed d0"),
 ]
 
 
@@ -466,6 +474,28 @@ def test_run_and_map_a_driven_pendulum(capsys, tmp_path):
                                    "--indicator", "x1", "--t-end", "100"])
     assert code == 0, err
     assert "on the plane of state components 0, 1: 9 orbits" in out
+
+
+def test_two_particle_method_with_its_separation(capsys, tmp_path):
+    """--method two-particle --d0: X1 of C1 within the method's error of the
+    TM method's (both on the same orbit, tests/test_two_particle.py), and
+    further from it at a d0 where the curvature error dominates; a chaos
+    map of the standard map with neighbours put back only beyond --d-max."""
+    def x1(*extra):
+        code, out, err = _run(capsys, ["run", "x1", "--orbit", "C1", "--t-end", "100",
+                                       "--t-out", "1", "--csv", str(tmp_path / "x.csv"),
+                                       *extra])
+        assert code == 0, err
+        return float(_rows(tmp_path / "x.csv")[-1][2])
+
+    tm = x1()
+    assert abs(x1("--method", "two-particle", "--d0", "1e-8") - tm) < 1e-6
+    assert abs(x1("--method", "two-particle", "--d0", "1e-3") - tm) > 1e-5
+    code, out, err = _run(capsys, ["map", "--map", "standard", "--K", "1.2", "--u", "0:6:4",
+                                   "--v", "-3:3:3", "--t-end", "500", "--method",
+                                   "two-particle", "--d0", "1e-9", "--d-max", "1e-6"])
+    assert code == 0, err
+    assert "sali map of StandardMap(K=1.2)" in out and "12 orbits" in out
 
 
 def test_select(capsys, tmp_path):

@@ -516,6 +516,16 @@ def _method_options(args):
     # the TDH methods); the method refuses a scheme it does not take.
     if args.scheme is not None:
         out["scheme"] = args.scheme
+    # The two-particle method's separation and renormalisation rule; no
+    # other method has them.
+    for name in ("d0", "d_max"):
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if args.method != "two-particle":
+            raise ValueError(f"--{name.replace('_', '-')} applies to --method two-particle "
+                             f"only, not {args.method}")
+        out[name] = value
     return out
 
 
@@ -804,6 +814,11 @@ def _add_run_options(p, t_end=1e4):
     p.add_argument("--method", default="tm", help="integration method: tm (default), taylor, "
                    "cvode, dop853, tdhcc, tdhes, tdheps, two-particle (maps: tm, two-particle)")
     p.add_argument("--scheme", help="splitting scheme (default SBAB2C); see 'varint schemes'")
+    p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "
+                   "each neighbour after it is put back (default 1e-8)")
+    p.add_argument("--d-max", type=_positive, default=None, help="two-particle: put a "
+                   "neighbour back only once its separation exceeds D_MAX (> --d0; default: "
+                   "every interval)")
     p.add_argument("--seed", type=_natural, default=0,
                    help="seed of the random deviation vectors (an integer >= 0)")
 
