@@ -482,9 +482,9 @@ def test_two_particle_method_with_its_separation(capsys, tmp_path):
     further from it at a d0 where the curvature error dominates; a chaos
     map of the standard map with neighbours put back only beyond --d-max."""
     def x1(*extra):
-        code, out, err = _run(capsys, ["run", "x1", "--orbit", "C1", "--t-end", "100",
-                                       "--t-out", "1", "--csv", str(tmp_path / "x.csv"),
-                                       *extra])
+        code, _, err = _run(capsys, ["run", "x1", "--orbit", "C1", "--t-end", "100",
+                                     "--t-out", "1", "--csv", str(tmp_path / "x.csv"),
+                                     *extra])
         assert code == 0, err
         return float(_rows(tmp_path / "x.csv")[-1][2])
 
