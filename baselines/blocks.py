@@ -41,7 +41,7 @@ from varint.kernels.tm import no_accumulator
 from varint.methods import method_options
 from varint.protocol import Renorm, Status
 
-from .rhs import pack
+from .rhs import clock_size, pack
 
 __all__ = ["BlockPropagator", "consume", "COND_LIMIT"]
 
@@ -61,7 +61,7 @@ MAX_BLOCK_VALUES = 1 << 21
 
 @njit
 def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit,
-            accumulate, aux, grad, par, minv, flow, step_first, tau):
+            accumulate, aux, grad, par, minv, flow, step_first, tau, clock=0):
     """Take the outputs ``start … stop−1`` of a block for one orbit.
 
     Parameters
@@ -94,6 +94,10 @@ def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit,
         ``step_first · tau``: from an integer, so it does not depend on how
         the run is chunked).
     tau : float
+    clock : int
+        Entries of the clock (t, p_t) ending each row of ``ys`` for a
+        time-dependent V (:mod:`varint.baselines.rhs`), 0 otherwise; the
+        flow is then evaluated at the row's t.
 
     Returns
     -------
@@ -111,6 +115,7 @@ def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit,
     r = np.empty(k if aux.shape[0] > 0 else 0)
     q = np.empty(n)
     g = np.empty(n)
+    pl = par.copy()
     for j in range(start, stop):
         for i in range(d):
             x[i] = ys[j, i]
@@ -137,7 +142,9 @@ def consume(ys, C, start, stop, x, W, mode, acc_m, acc_e, escape_r2, cond_limit,
             if flow.shape[0] > 0:
                 for i in range(n):
                     q[i] = x[i]
-                grad(q, par, g)
+                if clock > 0:
+                    pl[pl.shape[0] - 1] = ys[j, ys.shape[1] - clock]
+                grad(q, pl, g)
                 for i in range(n):
                     flow[i] = minv[i] * x[n + i]
                     flow[n + i] = -g[i]
@@ -182,6 +189,11 @@ class BlockPropagator:
     the flat state ``y0`` of orbit ``m`` from t = 0 and return the flat
     states at τ, 2τ, …, n_out·τ (fewer rows if it failed, with ``status``
     saying why; ``Status.OK`` otherwise) and a dict of work counts.
+
+    For a time-dependent V the flat states end with the clock (t, p_t)
+    (:mod:`varint.baselines.rhs`), which carries the absolute time: a block
+    starts at t = step·τ, from the integer step, and p_t of the last output
+    taken is written back to ``RunState.extra[TIME_MOMENTUM]``.
     """
 
     method = None
@@ -200,6 +212,7 @@ class BlockPropagator:
         if block is not None and not (integer and block >= 1):
             raise ValueError(f"block must be a positive integer (intervals of tau), got {block!r}")
         self.options = options
+        self._clock = clock_size(model)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
 
@@ -251,7 +264,7 @@ class BlockPropagator:
         m, d, k = state.W.shape
         b = self.block_size(d, k)
         state.extra.update({
-            self._key("y"): np.zeros((m, b, d * (1 + k))),
+            self._key("y"): np.zeros((m, b, d * (1 + k) + self._clock)),
             self._key("C"): np.zeros((m, k, k)),
             # Outputs taken / outputs held / why a short block stopped.
             self._key("next"): np.zeros(m, dtype=np.int64),
@@ -271,13 +284,18 @@ class BlockPropagator:
             if nxt[m] == filled[m]:
                 if failed[m] != Status.OK:
                     return done, int(failed[m])
-                self._new_block(state, m)
+                self._new_block(state, m, state.step + done)
             start = nxt[m]
             status, j = consume(ys[m], C[m], start, min(filled[m], start + n - done), state.x[m],
                                 state.W[m], self._mode, state.acc_m[m], state.acc_e[m],
                                 self._escape_r2, COND_LIMIT, accumulate, aux, model.grad_kernel,
                                 model.params, model.inverse_mass, flow,
-                                state.step + done + 1, self.tau)
+                                state.step + done + 1, self.tau, self._clock)
+            if self._clock:
+                # p_t of the last output taken (the failing one if it failed).
+                last = j if status not in (Status.OK, END_BLOCK) else j - 1
+                if last >= start:
+                    state.time_momentum()[m] = ys[m, last, -1]
             done += j - start
             nxt[m] = j
             if status == END_BLOCK:
@@ -296,10 +314,18 @@ class BlockPropagator:
         return acc.update, state.extra[acc.key][m], np.empty(
             self.model.dim if acc.needs_flow else 0)
 
-    def _new_block(self, state, m):
+    def clock(self, state, m, step):
+        """The clock (t, p_t) of orbit ``m`` at interval ``step`` for a
+        time-dependent V (t from the integer step), else ()."""
+        if not self._clock:
+            return ()
+        return (step * self.tau, state.time_momentum()[m])
+
+    def _new_block(self, state, m, step):
         ex = state.extra
         b = ex[self._key("y")].shape[1]
-        ys, status, counts = self._integrate(state, m, pack(state.x[m], state.W[m]), b)
+        y0 = pack(state.x[m], state.W[m], clock=self.clock(state, m, step))
+        ys, status, counts = self._integrate(state, m, y0, b)
         filled = len(ys)
         ex[self._key("y")][m, :filled] = ys
         ex[self._key("filled")][m] = filled

@@ -124,11 +124,14 @@ class DOP853Propagator(BlockPropagator):
         counts = np.zeros(len(COUNTS), dtype=np.int64)
         accumulate, aux, flow = self._accumulator(state, m)
         model = self.model
+        clock = (np.array(self.clock(state, m, state.step)),) if self._clock else ()
         done, status = advance_orbit(
             self._rhs, state.x[m], state.W[m], state.acc_m[m], state.acc_e[m],
             state.extra["dop853_h"][m:m + 1], n, self.tau, self.options["rtol"],
             self.options["atol"], POWERS, self._mode, self._escape_r2, counts, accumulate, aux,
-            model.grad_kernel, model.params, model.inverse_mass, flow, state.step)
+            model.grad_kernel, model.params, model.inverse_mass, flow, state.step, *clock)
+        if clock:
+            state.time_momentum()[m] = clock[0][1]
         if counts[COUNTS.index("blocks")]:
             # As the SciPy engine counts: per interval integrated.
             state.add_counts(**dict(zip(COUNTS, counts.tolist())))

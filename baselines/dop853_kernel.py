@@ -345,7 +345,7 @@ def integrate_interval(rhs, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, 
 
 @njit
 def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, escape_r2,
-                  counts, accumulate, aux, grad, par, minv, flow, step0):
+                  counts, accumulate, aux, grad, par, minv, flow, step0, clock=None):
     """Advance one orbit by ``n`` intervals τ, restarting DOP853 every τ
     from the renormalised state (the paper's scheme; :mod:`varint.baselines.dop853`).
 
@@ -375,6 +375,10 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
         :func:`varint.baselines.blocks.consume`.
     step0 : int
         The run's interval count at the start.
+    clock : ndarray, shape (2,), optional
+        For a time-dependent V: (t, p_t) of the orbit, appended to the flat
+        state (:mod:`varint.baselines.rhs`); t is set to (step0 + j)·τ at
+        the start of interval j and p_t updated after it.
 
     Returns
     -------
@@ -386,7 +390,8 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
         :func:`varint.baselines.blocks.consume` (x, W hold the failing state).
     """
     d, k = W.shape
-    size = d * (1 + k)
+    c = 0 if clock is None else clock.shape[0]
+    size = d * (1 + k) + c
     ys = np.empty((1, size))
     y = ys[0]
     Ks = np.empty((N_STAGES + 1, size))
@@ -400,6 +405,10 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
             y[i] = x[i]
             for a in range(k):
                 y[d + i * k + a] = W[i, a]
+        if c:
+            # From the integer step, as every method's time.
+            y[size - 2] = (step0 + j) * tau
+            y[size - 1] = clock[1]
         counts[_BLOCKS] += 1
         status, h_next = integrate_interval(rhs, y, h[0], tau, rtol, atol, powers, Ks, y_new,
                                             work, counts)
@@ -411,7 +420,10 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
             for b in range(k):
                 Cv[a, b] = 1.0 if a == b else 0.0
         status, _ = consume(ys, Cv, 0, 1, x, W, mode, acc_m, acc_e, escape_r2, COND_LIMIT,
-                            accumulate, aux, grad, par, minv, flow, step0 + j + 1, tau)
+                            accumulate, aux, grad, par, minv, flow, step0 + j + 1, tau, c)
+        if c:
+            clock[0] = y[size - 2]
+            clock[1] = y[size - 1]
         if status != _OK and status != END_BLOCK:
             return j, status
     return n, _OK

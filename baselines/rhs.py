@@ -11,6 +11,14 @@ flat state is ``y = (x, W.ravel())``: the orbit x = (q, p) of length 2N,
 then the deviation vectors as the (2N, k) matrix W in row-major order —
 the layout of ``RunState.W[m]`` and of heyoka's variational state. k is read
 from the length of y, so one compiled function serves every k.
+
+A time-dependent V(q, t) is integrated in the extended phase space, as by
+the TM method (:mod:`varint.kernels.tm`): the flat state ends with the
+*clock* (t, p_t), with ṫ = 1 and ṗ_t = −∂_tV, so y carries its own time
+(every integrator may start a block at its own t = 0) and the momentum
+conjugate to time for the conserved extended energy K = H + p_t. The
+deviation vectors have δt = 0, so their equations are those above with D²V
+at (q, t).
 """
 
 from __future__ import annotations
@@ -20,32 +28,54 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-__all__ = ["tangent_rhs", "pack", "unpack"]
+__all__ = ["tangent_rhs", "pack", "unpack", "clock_size", "CLOCK"]
+
+#: Entries of the clock (t, p_t) at the end of the flat state of a
+#: time-dependent model.
+CLOCK = 2
 
 
-def pack(x, W, out=None):
-    """The flat state (x, W.ravel()) of one orbit; ``W`` has shape (2N, k)."""
+def clock_size(model):
+    """Length of the clock in the flat state of ``model``'s orbits: 2 for a
+    time-dependent V, else 0."""
+    return CLOCK if model.time_dependent else 0
+
+
+def pack(x, W, out=None, clock=()):
+    """The flat state (x, W.ravel(), *clock) of one orbit; ``W`` has shape
+    (2N, k), ``clock`` is (t, p_t) for a time-dependent V."""
     d = x.shape[0]
+    c = len(clock)
     if out is None:
-        out = np.empty(d * (1 + W.shape[1]), dtype=np.result_type(x, W))
+        out = np.empty(d * (1 + W.shape[1]) + c, dtype=np.result_type(x, W))
     out[:d] = x
-    out[d:] = W.ravel()
+    out[d:len(out) - c] = W.ravel()
+    if c:
+        out[len(out) - c:] = clock
     return out
 
 
-def unpack(y, d):
-    """Views (x, W) of a flat state with orbit dimension ``d`` = 2N."""
-    return y[:d], y[d:].reshape(d, -1)
+def unpack(y, d, clock=0):
+    """Views (x, W) of a flat state with orbit dimension ``d`` = 2N and a
+    clock of ``clock`` entries at its end."""
+    return y[:d], y[d:len(y) - clock].reshape(d, -1)
 
 
 @lru_cache(maxsize=None)
-def _compiled(grad, hess, n, bw, minv_bytes, par_bytes):
+def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
     minv = np.frombuffer(minv_bytes)
-    par = np.frombuffer(par_bytes)
+    par_model = np.frombuffer(par_bytes)
     d = 2 * n
+    c = 0 if dtime is None else CLOCK
 
     @njit
     def rhs(t, y, yp):
+        if c:
+            # The clock (t, p_t) ends y; the kernels read t from par[-1].
+            par = par_model.copy()
+            par[-1] = y[y.shape[0] - 2]
+        else:
+            par = par_model
         # Orbit (eq. 6).
         q = y[:n].copy()
         g = np.empty(n)
@@ -53,7 +83,11 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes):
         for i in range(n):
             yp[i] = minv[i] * y[n + i]
             yp[n + i] = -g[i]
-        k = (y.shape[0] - d) // d
+        if c:
+            gt = np.empty(n)
+            yp[y.shape[0] - 2] = 1.0
+            yp[y.shape[0] - 1] = -dtime(q, par, gt)
+        k = (y.shape[0] - d - c) // d
         if k == 0:
             return
         # Variational equations (eq. 7), D²V in band storage.
@@ -101,7 +135,10 @@ def tangent_rhs(model):
     -----
     Compiled once per model kernels, size and parameters (cached for the
     process), so every propagator built for the same model shares them.
+    For a time-dependent V the flat state ends with the clock (t, p_t)
+    (see the module docstring) and ``t`` is not read.
     """
     return _compiled(model.grad_kernel, model.hess_kernel, model.n_dof, model.bandwidth,
                      np.ascontiguousarray(model.inverse_mass, dtype=np.float64).tobytes(),
-                     np.ascontiguousarray(model.params, dtype=np.float64).tobytes())
+                     np.ascontiguousarray(model.params, dtype=np.float64).tobytes(),
+                     model.time_kernel if model.time_dependent else None)

@@ -25,6 +25,12 @@ Two precisions:
 For k < 2N only k vectors are integrated (``var_ode_sys`` with respect to k
 of the initial conditions, whose columns are then overwritten), and k = 0
 integrates the bare orbit.
+
+A time-dependent V(q, t) is written with heyoka's ``hy.time``, and the
+momentum conjugate to time joins the state, ṗ_t = −∂_tV (∂_tV derived by
+SymPy), so the extended energy K = H + p_t can be checked; its variations
+are integrated (heyoka's layout puts p_t after p) and dropped. Each block
+starts at the time its flat state carries (:mod:`varint.baselines.rhs`).
 """
 
 from __future__ import annotations
@@ -43,7 +49,7 @@ from varint.protocol import Renorm, Status
 from varint._validate import choice, positive_float
 
 from .blocks import BlockPropagator
-from .rhs import pack, unpack
+from .rhs import CLOCK, pack, unpack
 
 __all__ = ["TaylorPropagator", "heyoka_system"]
 
@@ -122,18 +128,27 @@ def heyoka_system(symbolic, fp=np.float64):
     Returns
     -------
     system : list of (variable, expression)
-        q̇ = M⁻¹p, ṗ = −∇V, in state order (q, p).
+        q̇ = M⁻¹p, ṗ = −∇V, in state order (q, p); for a time-dependent V
+        (``symbolic.time``, written as ``hy.time``) then ṗ_t = −∂_tV.
     variables : list of heyoka expressions
-        q_0 … q_{N−1}, p_0 … p_{N−1}.
+        q_0 … q_{N−1}, p_0 … p_{N−1} (and p_t for a time-dependent V).
     """
     n = len(symbolic.q)
     q = [hy.expression(f"q{i}") for i in range(n)]
     p = [hy.expression(f"p{i}") for i in range(n)]
-    V = _to_heyoka(symbolic.V, dict(zip(symbolic.q, q)), fp)
+    names = dict(zip(symbolic.q, q))
+    time = getattr(symbolic, "time", None)
+    if time is not None:
+        names[time] = hy.time
+    V = _to_heyoka(symbolic.V, names, fp)
     system = [(qi, pi if mi == 1 else _to_heyoka(mi, {}, fp) * pi)
               for qi, pi, mi in zip(q, p, symbolic.inverse_mass)]
     system += [(pi, -hy.diff(V, qi)) for qi, pi in zip(q, p)]
-    return system, q + p
+    if time is None:
+        return system, q + p
+    pt = hy.expression("p_t")
+    system.append((pt, -_to_heyoka(sp.diff(symbolic.V, time), names, fp)))
+    return system, q + p + [pt]
 
 
 @lru_cache(maxsize=64)
@@ -149,6 +164,7 @@ def _integrator(symbolic, precision, tol, compact, k, thread):
     fp = _FP[precision]
     system, variables = heyoka_system(symbolic, fp)
     if k:
+        # Variations with respect to (q, p) only: δt = 0 and p_t drives nothing.
         args = hy.var_args.vars if k == len(variables) else variables[:k]
         system = hy.var_ode_sys(system, args, order=1)
     kwargs = {"fp_type": fp, "compact_mode": compact}
@@ -257,16 +273,30 @@ class TaylorPropagator(BlockPropagator):
         return self._integrators[key]
 
     def _integrate(self, state, m, y0, n_out):
-        ta = self._integrator(len(y0) // self.model.dim - 1)
-        ta.time = self._fp(0)
-        ta.state[:] = y0
+        d, c = self.model.dim, self._clock
+        k = (len(y0) - c) // d - 1
+        ta = self._integrator(k)
         grid = np.arange(n_out + 1, dtype=self._fp) * self._fp(self.tau)
+        if c:
+            # heyoka's layout: (x, p_t, δx, δp_t), from the clock at the end of y0.
+            x, W = unpack(y0, d, c)
+            t0, pt = y0[-CLOCK], y0[-1]
+            y0 = np.concatenate([x, [pt], W.ravel(), np.zeros(k, dtype=y0.dtype)])
+            grid = grid + self._fp(t0)
+            ta.time = self._fp(t0)
+        else:
+            ta.time = self._fp(0)
+        ta.state[:] = y0
         outcome, _, _, steps, _, states = ta.propagate_grid(grid)
         status = Status.OK
         if outcome != hy.taylor_outcome.time_limit:
             status = (Status.ORBIT_NONFINITE if outcome == hy.taylor_outcome.err_nf_state
                       else Status.INTEGRATOR_FAILED)
-        return states[1:], status, {"taylor_steps": steps}
+        states = states[1:]
+        if c:
+            states = np.concatenate([states[:, :d], states[:, d + 1:d + 1 + d * k],
+                                     grid[1:len(states) + 1, None], states[:, d:d + 1]], axis=1)
+        return states, status, {"taylor_steps": steps}
 
     # -- extended precision: restart every τ from the long-double state -------
     def _prepare(self, state):
@@ -275,19 +305,27 @@ class TaylorPropagator(BlockPropagator):
         if "taylor_x" not in state.extra:
             state.extra["taylor_x"] = state.x.astype(np.longdouble)
             state.extra["taylor_W"] = state.W.astype(np.longdouble)
+            if self._clock:
+                state.extra["taylor_pt"] = state.time_momentum().astype(np.longdouble)
 
     def _advance_orbit(self, state, m, n):
         if self._fp is np.float64:
             return super()._advance_orbit(state, m, n)
-        d = state.x.shape[1]
+        d, c = state.x.shape[1], self._clock
         x, W = state.extra["taylor_x"][m], state.extra["taylor_W"][m]
+        pt = state.extra["taylor_pt"][m:m + 1] if c else None
         accumulate, aux, flow = self._accumulator(state, m)
         for done in range(n):
-            ys, status, counts = self._integrate(state, m, pack(x, W), 1)
+            # The time in long double, from the integer step.
+            clock = ((self._fp(state.step + done) * self._fp(self.tau), pt[0]) if c else ())
+            ys, status, counts = self._integrate(state, m, pack(x, W, clock=clock), 1)
             state.add_counts(**counts)
             if len(ys):
-                x1, W1 = unpack(ys[0], d)
+                x1, W1 = unpack(ys[0], d, c)
                 x[:], W[:] = x1, W1
+                if c:
+                    pt[0] = ys[0][-1]
+                    state.time_momentum()[m] = float(pt[0])
                 status = self._check(x, W, state.acc_m[m], state.acc_e[m], accumulate, aux, flow,
                                      (state.step + done + 1) * self.tau)
             state.x[m], state.W[m] = x, W
@@ -311,7 +349,7 @@ class TaylorPropagator(BlockPropagator):
         if aux.shape[0]:
             n = self.model.n_dof
             if flow.shape[0]:
-                g = self.model.gradient(xd[:n])
+                g = self.model.gradient(xd[:n], t)
                 flow[:n], flow[n:] = self.model.inverse_mass * xd[n:], -g
             accumulate(aux, r, xd, W.astype(np.float64), flow, t)
         return Status.OK

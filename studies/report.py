@@ -47,6 +47,7 @@ KNOWN = {
     "stress": "Stress",
     "bench_baselines": "Benchmark: the reference integrators (studies/bench_baselines.py)",
     "bench_chaos_map": "Benchmark: chaos maps (studies/bench_chaos_map.py)",
+    "two_particle": "The two-particle method the paper left out (studies/two_particle.py)",
 }
 VERDICT = {True: "holds", False: "**differs**", None: "—"}
 #: Studies whose claims the paper makes (the rest are our own questions);

@@ -287,6 +287,29 @@ BAD_ARGUMENTS = [
     ([*MAP, "--threshold", "1,2"], 2, "--threshold needs 1 numbers, got 2"),
     (["--traceback"], 0, None),
     (["run", "sali", *R1, "--nosuch"], 2, "unrecognized arguments: --nosuch"),
+    # Maps and time-dependent potentials.
+    (["run", "x1", "--map", "standard", "--energy", "1"], 2, "is a map, which has no energy"),
+    (["run", "x1", "--map", "standard", "--x0", "1,0", "--method", "dop853"], 2,
+     "maps take: tm, two-particle"),
+    (["run", "x1", "--map", "standard", "--x0", "1,0", "--tau", "0.5"], 2, "whole iterations"),
+    (["run", "x1", "--map", "coupled", "--x0", "1,0,0,0", "--K", "2"], 2,
+     "--K applies to --map standard only"),
+    (["run", "x1", *HH, "--x0", "0,0,0,0", "--K1", "2"], 2, "--K1 applies to --map coupled"),
+    (["run", "sali", *R1, "--beta", "2"], 2, "--beta applies to --model fpu-beta and --map"),
+    (["run", "sali", *R1, "--time", "t"], 2, "--time applies to --potential only"),
+    (["run", "sali", "--potential", "-cos(q)*cos(t)", "--coords", "q", "--time", "q", "--x0",
+      "0,1"], 2, "--time q is also one of the --coords"),
+    (["map", "--map", "standard", "--energy", "1"], 2, "does not apply to a map"),
+    (["map", "--potential", "-cos(q)*cos(t)", "--coords", "q", "--time", "t"], 2,
+     "give --u and --v"),
+    # The two-particle method's options.
+    (["run", "x1", *R1, "--d0", "1e-6"], 2, "--d0 applies to --method two-particle only"),
+    ([*MAP, "--method", "dop853", "--d-max", "1e-3"], 2,
+     "--d-max applies to --method two-particle only, not dop853"),
+    (["run", "x1", *R1, "--method", "two-particle", "--d0", "0"], 2,
+     "--d0: expected a positive finite number"),
+    (["run", "x1", *R1, "--method", "two-particle", "--d0", "1e-6", "--d-max", "1e-7"], 2,
+     "d_max must exceed d0"),
 ]
 
 
@@ -418,6 +441,61 @@ def test_map(capsys, tmp_path):
     rows = _rows(tmp_path / "m.csv")
     assert rows[0][:5] == ["orbit", "q0", "q1", "p0", "p1"] and len(rows) > 10
     assert (tmp_path / "m.png").exists() and (tmp_path / "ck" / "map.json").exists()
+
+
+def test_run_and_map_a_symplectic_map(capsys, tmp_path):
+    """--map: t counts iterations (τ = 1), X1 of the standard map at K = 10
+    near ln(K/2), and a chaos map of its phase space."""
+    code, out, err = _run(capsys, ["run", "x1", "--map", "standard", "--K", "10", "--x0",
+                                   "1,0.5", "--t-end", "20000", "--csv",
+                                   str(tmp_path / "x1.csv")])
+    assert code == 0, err
+    assert "StandardMap(K=10)" in out and "tau=1 " in out
+    rows = _rows(tmp_path / "x1.csv")
+    assert float(rows[-1][0]) == 20000 and float(rows[-1][1]) == 0.0
+    assert abs(float(rows[-1][2]) - np.log(5)) < 0.05
+    code, out, err = _run(capsys, ["map", "--map", "coupled", "--u", "0:1:4", "--v", "0:1:3",
+                                   "--t-end", "200", "--csv", str(tmp_path / "m.csv")])
+    assert code == 0, err
+    assert "sali map of CoupledStandardMaps" in out and "12 orbits" in out
+    assert _rows(tmp_path / "m.csv")[0][:5] == ["orbit", "x1", "x2", "x3", "x4"]
+
+
+def test_run_and_map_a_driven_pendulum(capsys, tmp_path):
+    """--time: the chaotic layer of the parametrically driven pendulum (SALI
+    → 0), the extended energy K conserved, and a map of its phase space."""
+    pot = ["--potential", "-cos(q)*(1+0.2*cos(1.5*t))", "--coords", "q", "--time", "t"]
+    code, out, err = _run(capsys, ["run", "sali", *pot, "--x0", "0,2", "--t-end", "300",
+                                   "--csv", str(tmp_path / "s.csv")])
+    assert code == 0, err
+    rows = _rows(tmp_path / "s.csv")
+    assert float(rows[-1][2]) < 1e-8 and float(rows[-1][1]) < 1e-6
+    code, out, err = _run(capsys, ["map", *pot, "--u", "-3:3:3", "--v", "-2.5:2.5:3",
+                                   "--indicator", "x1", "--t-end", "100"])
+    assert code == 0, err
+    assert "on the plane of state components 0, 1: 9 orbits" in out
+
+
+def test_two_particle_method_with_its_separation(capsys, tmp_path):
+    """--method two-particle --d0: X1 of C1 within the method's error of the
+    TM method's (both on the same orbit, tests/test_two_particle.py), and
+    further from it at a d0 where the curvature error dominates; a chaos
+    map of the standard map with neighbours put back only beyond --d-max."""
+    def x1(*extra):
+        code, _, err = _run(capsys, ["run", "x1", "--orbit", "C1", "--t-end", "100",
+                                     "--t-out", "1", "--csv", str(tmp_path / "x.csv"),
+                                     *extra])
+        assert code == 0, err
+        return float(_rows(tmp_path / "x.csv")[-1][2])
+
+    tm = x1()
+    assert abs(x1("--method", "two-particle", "--d0", "1e-8") - tm) < 1e-6
+    assert abs(x1("--method", "two-particle", "--d0", "1e-3") - tm) > 1e-5
+    code, out, err = _run(capsys, ["map", "--map", "standard", "--K", "1.2", "--u", "0:6:4",
+                                   "--v", "-3:3:3", "--t-end", "500", "--method",
+                                   "two-particle", "--d0", "1e-9", "--d-max", "1e-6"])
+    assert code == 0, err
+    assert "sali map of StandardMap(K=1.2)" in out and "12 orbits" in out
 
 
 def test_select(capsys, tmp_path):

@@ -75,6 +75,7 @@ from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
 from .checkpoint import CheckpointError  # noqa: E402
 from .departure import Departure, departure  # noqa: E402
 from .driver import IntegrationError  # noqa: E402
+from .grids import PhaseGrid, phase_grid  # noqa: E402
 from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
 from .maps import chaos_map  # noqa: E402
 from .methods import METHODS, register_method  # noqa: E402
@@ -98,5 +99,5 @@ __all__ = [
     "IndicatorResult", "load_result", "Status", "Renorm",
     "IntegrationError", "CheckpointError", "departure", "Departure",
     "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid",
-    "SectionResult", "select_scheme",
+    "phase_grid", "PhaseGrid", "SectionResult", "select_scheme",
 ]

@@ -3,7 +3,11 @@
     varint schemes                          the splitting schemes, order, cost
     varint run lyapunov --orbit R1          an indicator for a paper orbit or
     varint run sali --potential "..."       a model given as a potential
+    varint run x1 --map standard --K 10     a symplectic map (iterations)
+    varint run sali --potential "-cos(q)*(1+0.2*cos(1.5*t))" --coords q --time t
+                                            a periodically driven system
     varint map --energy 0.125 ...           a chaos map of a surface of section
+    varint map --map standard --K 1.2 ...   a chaos map of a map's phase space
     varint select --orbit R1 --target 1e-8  the cheapest scheme and step
     varint study stress --quick             a study of studies/ (source checkout)
     varint demo                             R1 and C1, as ``python -m varint``
@@ -33,8 +37,10 @@ from . import _validate as check
 
 __all__ = ["main", "build_parser"]
 
-INDICATORS = ("lyapunov", "gali", "sali", "megno", "integrate")
+INDICATORS = ("lyapunov", "x1", "gali", "sali", "megno", "fli", "integrate")
 MODELS = ("henon-heiles", "three-dof", "fpu-beta")
+#: Built-in map models (``--map``).
+MAPS = ("standard", "coupled")
 #: Most steps (t_end / tau) one orbit of a command may take: 50 times the
 #: paper's longest run (2e9 steps), about three hours at 100 ns a step.
 MAX_STEPS = 10 ** 11
@@ -198,12 +204,16 @@ def _horizon(t_end, tau, t_name="--t-end", tau_name="--tau"):
 
 
 # -- models and initial states -------------------------------------------------
-def _add_model_arguments(p, orbit=True):
+def _add_model_arguments(p, orbit=True, maps=False):
     group = p.add_argument_group("model (one of)")
     if orbit:
         group.add_argument("--orbit", help="a paper orbit: R1, C1, C2, R2 or R3 (model and x0)")
     group.add_argument("--model", choices=MODELS,
                        help="a built-in model (fpu-beta: with --fpu-n and --beta)")
+    if maps:
+        group.add_argument("--map", choices=MAPS, help="a symplectic map: the standard map "
+                           "(with --K; state x,p) or two coupled standard maps (with --K1, "
+                           "--K2, --beta; state x1,x2,x3,x4); t counts iterations")
     group.add_argument("--potential", metavar="EXPR",
                        help="V(q) as a formula in the --coords, e.g. "
                        "'(x**2+y**2)/2 + x**2*y - y**3/3': numbers, + - * / ** ^, parentheses, "
@@ -212,8 +222,20 @@ def _add_model_arguments(p, orbit=True):
                        help="the coordinates of --potential in order, e.g. x,y")
     group.add_argument("--inverse-mass", metavar="M", help="diagonal of M^-1 for --potential "
                        "(default all 1)")
+    if maps:
+        group.add_argument("--time", metavar="NAME", help="the time variable of a "
+                           "time-dependent --potential V(q, t), e.g. t (integrated in the "
+                           "extended phase space from t = 0)")
     group.add_argument("--fpu-n", type=_fpu_size, help="FPU particles (default 8)")
-    group.add_argument("--beta", type=_finite, help="FPU beta (default 1.5)")
+    group.add_argument("--beta", type=_finite, help="FPU beta (default 1.5), or the coupling "
+                       "of --map coupled (default 0.1)")
+    if maps:
+        group.add_argument("--K", type=_finite, help="kick strength of --map standard "
+                           "(default 1.2)")
+        group.add_argument("--K1", type=_finite, help="--map coupled: first kick strength "
+                           "(default 1.5)")
+        group.add_argument("--K2", type=_finite, help="--map coupled: second kick strength "
+                           "(default 1.5)")
 
 
 def _add_state_arguments(p):
@@ -238,15 +260,27 @@ def _refuse_unused(args, names, why):
 def _model(args):
     from . import models
 
-    sources = [a for a in ("orbit", "model", "potential") if hasattr(args, a)]
+    sources = [a for a in ("orbit", "model", "potential", "map") if hasattr(args, a)]
     given = _given(args, *sources)
     if len(given) != 1:
         raise ValueError("give exactly one of " + ", ".join(f"--{a}" for a in sources)
                          + (f" (got {', '.join('--' + g for g in given)})" if given else ""))
     if args.model != "fpu-beta":
-        _refuse_unused(args, ("fpu_n", "beta"), "applies to --model fpu-beta only")
+        _refuse_unused(args, ("fpu_n",), "applies to --model fpu-beta only")
+        if getattr(args, "map", None) != "coupled":
+            _refuse_unused(args, ("beta",), "applies to --model fpu-beta and --map coupled only")
     if given[0] != "potential":
-        _refuse_unused(args, ("coords", "inverse_mass"), "applies to --potential only")
+        _refuse_unused(args, ("coords", "inverse_mass", "time"), "applies to --potential only")
+    if getattr(args, "map", None) != "standard":
+        _refuse_unused(args, ("K",), "applies to --map standard only")
+    if getattr(args, "map", None) != "coupled":
+        _refuse_unused(args, ("K1", "K2"), "applies to --map coupled only")
+    if given[0] == "map":
+        if args.map == "standard":
+            return models.StandardMap(1.2 if args.K is None else args.K), None
+        return models.CoupledStandardMaps(1.5 if args.K1 is None else args.K1,
+                                          1.5 if args.K2 is None else args.K2,
+                                          0.1 if args.beta is None else args.beta), None
     if given[0] == "orbit":
         return models.paper_orbit(args.orbit)
     if given[0] == "model":
@@ -270,14 +304,21 @@ def _potential_model(args):
                          "generated kernels grow as N^2 to N^3): write a Model with hand-written "
                          "kernels for larger systems, as varint.models.FPUBeta does")
     symbols = coordinate_symbols(names, "--coords")
-    V = parse_formula(args.potential, [s.name for s in symbols], "--potential")
+    time = getattr(args, "time", None)
+    if time is not None:
+        time = coordinate_symbols([time.strip()], "--time")[0]
+        if time.name in names:
+            raise ValueError(f"--time {time.name} is also one of the --coords")
+    variables = [s.name for s in symbols] + ([] if time is None else [time.name])
+    V = parse_formula(args.potential, variables, "--potential")
     minv = None
     if args.inverse_mass is not None:
         minv = _floats(args.inverse_mass, "--inverse-mass", len(names))
         bad = [m for m in minv if not m > 0]
         if bad:
             raise ValueError(f"--inverse-mass must be positive, got {bad[0]:g}")
-    return from_potential(V, symbols, inverse_mass=minv, name=" ".join(args.potential.split()))
+    return from_potential(V, symbols, inverse_mass=minv, name=" ".join(args.potential.split()),
+                          time=time)
 
 
 def _state(args, model, x0):
@@ -285,6 +326,9 @@ def _state(args, model, x0):
 
     if args.x0 is not None and args.energy is not None:
         raise ValueError("give either --x0 or --energy (with --q/--p), not both")
+    if _is_map(model) and args.energy is not None:
+        raise ValueError(f"--energy: {model.name} is a map, which has no energy; give --x0 "
+                         f"({','.join(model.variables)})")
     if args.energy is None:
         _refuse_unused(args, ("q", "p"), "goes with --energy (the energy fixes p[0])")
     if args.x0 is not None:
@@ -305,12 +349,22 @@ def _state(args, model, x0):
     return x0
 
 
+def _is_map(model):
+    return getattr(model, "kind", "flow") == "map"
+
+
 def _check_kernels(model, x, what="the initial state"):
     """Compile and evaluate the model's kernels at ``x`` before any long work:
     a potential numba cannot compile, or one singular at the start, is a bad
     argument, not a failed run."""
     from numba.core.errors import NumbaError
 
+    if _is_map(model):
+        values = (model.step(x), model.jacobian(x))
+        if not all(np.isfinite(v).all() for v in values):
+            raise ValueError(f"{model.name} or its tangent map is not finite at {what}, "
+                             f"x = {_short(np.asarray(x, dtype=float))}")
+        return
     q = np.ascontiguousarray(np.asarray(x, dtype=float)[:model.n_dof])
     try:
         values = (model.gradient(q), model.hessian_band(q), model.third_band(q, np.ones_like(q)))
@@ -462,6 +516,16 @@ def _method_options(args):
     # the TDH methods); the method refuses a scheme it does not take.
     if args.scheme is not None:
         out["scheme"] = args.scheme
+    # The two-particle method's separation and renormalisation rule; no
+    # other method has them.
+    for name in ("d0", "d_max"):
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if args.method != "two-particle":
+            raise ValueError(f"--{name.replace('_', '-')} applies to --method two-particle "
+                             f"only, not {args.method}")
+        out[name] = value
     return out
 
 
@@ -484,11 +548,11 @@ def _cmd_run(args):
     from .api import gali, integrate, lyapunov_spectrum, megno, sali
 
     _check_outputs(args)
-    t_end, tau, steps = _horizon(args.t_end, args.tau)
+    model, x0 = _model(args)
+    t_end, tau, steps = _horizon(args.t_end, _tau(args, model))
     if args.t_out is not None and args.t_out > steps:
         raise ValueError(f"--t-out {args.t_out} asks for more output times than the run has "
                          f"steps (--t-end / --tau = {steps})")
-    model, x0 = _model(args)
     x0 = _state(args, model, x0)
     _check_kernels(model, x0)
     k, kind_options = _vectors(args, model)
@@ -498,9 +562,14 @@ def _cmd_run(args):
     opts = dict(_method_options(args), tau=tau, t_out=args.t_out, progress=None)
     if args.indicator != "integrate":
         opts["seed"] = args.seed
-    run = {"lyapunov": lyapunov_spectrum, "gali": gali, "sali": sali, "megno": megno,
-           "integrate": integrate}[args.indicator]
-    r = run(model, x0, t_end, **kind_options, **opts)
+    if args.indicator in ("x1", "fli"):
+        from .run import run as generic
+
+        r = generic(model, x0, args.indicator, t_end, **opts)
+    else:
+        run = {"lyapunov": lyapunov_spectrum, "gali": gali, "sali": sali, "megno": megno,
+               "integrate": integrate}[args.indicator]
+        r = run(model, x0, t_end, **kind_options, **opts)
     if r.interrupted and len(r.t) == 0:
         raise KeyboardInterrupt
     print(r.summary())
@@ -511,28 +580,64 @@ def _cmd_run(args):
                                                          else ""))
 
 
-def _cmd_map(args):
-    from .maps import chaos_map
+def _tau(args, model):
+    """--tau, or the default of the model's kind (one iteration for a map)."""
+    from .run import default_tau
+
+    return default_tau(model) if args.tau is None else args.tau
+
+
+#: --u and --v of a chaos map when they are not given: the paper's
+#: Hénon–Heiles section, or a built-in map's whole phase space.
+_DEFAULT_AXES = {None: ("-0.45:0.7:100", "-0.45:0.45:100"),
+                 "standard": ("0:6.283185307179586:100", "-3.141592653589793:3.141592653589793:100"),
+                 "coupled": ("0:1:100", "0:1:100")}
+
+
+def _grid(args, model):
+    """The initial conditions of ``varint map``: a section at --energy for
+    an autonomous flow, else (a map, a time-dependent flow) a grid of the
+    plane of two state components (--axes)."""
+    from .grids import phase_grid
     from .sections import section_grid
 
-    _check_outputs(args)
-    if args.checkpoint is not None:
-        _check_directory(args.checkpoint, "--checkpoint")
-    if args.energy is None:
-        raise ValueError("--energy is required: the map is a grid on the section at that energy")
-    t_end, tau, _ = _horizon(args.t_end, args.tau)
-    model, _ = _model(args)
     n = model.n_dof
+    built_in = getattr(args, "map", None)
+    phase = _is_map(model) or model.time_dependent
+    if phase and (args.u is None or args.v is None) and built_in is None:
+        raise ValueError("give --u and --v: the grid of a time-dependent model is a plane of "
+                         "its phase space (--axes, default q0,p0)")
+    u, v = (args.u or _DEFAULT_AXES[built_in][0]), (args.v or _DEFAULT_AXES[built_in][1])
     axes = None if args.axes is None else tuple(_ints(args.axes, "--axes", 2, 0, 2 * n - 1))
-    (u0, u1, nu), (v0, v1, nv) = _grid_spec(args.u, "--u"), _grid_spec(args.v, "--v")
+    (u0, u1, nu), (v0, v1, nv) = _grid_spec(u, "--u"), _grid_spec(v, "--v")
     # The grid's states, the potential's temporaries and the map's results:
     # about 8 (6 + 8 N) bytes per point.
     check.check_memory(check.array_bytes((nu, nv, 6 + 8 * n)),
                        f"a grid of {nu} x {nv} = {nu * nv} points (--u, --v)")
+    us, vs = np.linspace(u0, u1, nu), np.linspace(v0, v1, nv)
+    if phase:
+        what = "a map" if _is_map(model) else "a time-dependent model"
+        _refuse_unused(args, ("energy", "plane"), f"does not apply to {what}, whose chaos map is a "
+                       "grid of a plane of its phase space (--u, --v on --axes)")
+        default = (0, 1) if _is_map(model) else (0, n)
+        return phase_grid(model, us, vs, axes=default if axes is None else axes)
+    if args.energy is None:
+        raise ValueError("--energy is required: the map is a grid on the section at that energy")
     # Points where V overflows are outside the energy surface; no warning.
     with np.errstate(over="ignore", invalid="ignore"):
-        grid = section_grid(model, args.energy, np.linspace(u0, u1, nu),
-                            np.linspace(v0, v1, nv), axes=axes, plane=args.plane)
+        return section_grid(model, args.energy, us, vs, axes=axes,
+                            plane=0 if args.plane is None else args.plane)
+
+
+def _cmd_map(args):
+    from .maps import chaos_map
+
+    _check_outputs(args)
+    if args.checkpoint is not None:
+        _check_directory(args.checkpoint, "--checkpoint")
+    model, _ = _model(args)
+    t_end, tau, _ = _horizon(args.t_end, _tau(args, model))
+    grid = _grid(args, model)
     if grid.states.size:
         _check_kernels(model, grid.states[0], "the first grid point")
     threshold = "default"
@@ -550,7 +655,9 @@ def _cmd_map(args):
             client.close()
     with np.errstate(invalid="ignore"):
         finite = r.values[np.isfinite(r.values)]
-    print(f"{r.indicator} map of {model.name} on q{grid.plane} = 0 at H = {args.energy:g}: "
+    where = (f"on q{grid.plane} = 0 at H = {args.energy:g}" if grid.plane is not None else
+             f"on the plane of state components {grid.axes[0]}, {grid.axes[1]}")
+    print(f"{r.indicator} map of {model.name} {where}: "
           f"{len(r.values)} orbits ({grid.mask.size} grid points), t_end = {t_end:g}, "
           f"{r.provenance.wall_time:.3g} s")
     print(f"decided early: {int(r.decided.sum())}, failed: {int((r.status > 0).sum())}"
@@ -702,11 +809,16 @@ def _cmd_demo(args):
 def _add_run_options(p, t_end=1e4):
     p.add_argument("--t-end", type=_positive, default=t_end,
                    help=f"final time (default {t_end:g})")
-    p.add_argument("--tau", type=_positive, default=0.05, help="step / renormalisation interval "
-                   "(default 0.05)")
+    p.add_argument("--tau", type=_positive, default=None, help="step / renormalisation "
+                   "interval (default 0.05; for a map, iterations per interval, default 1)")
     p.add_argument("--method", default="tm", help="integration method: tm (default), taylor, "
-                   "cvode, dop853, tdhcc, tdhes, tdheps")
+                   "cvode, dop853, tdhcc, tdhes, tdheps, two-particle (maps: tm, two-particle)")
     p.add_argument("--scheme", help="splitting scheme (default SBAB2C); see 'varint schemes'")
+    p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "
+                   "each neighbour after it is put back (default 1e-8)")
+    p.add_argument("--d-max", type=_positive, default=None, help="two-particle: put a "
+                   "neighbour back only once its separation exceeds D_MAX (> --d0; default: "
+                   "every interval)")
     p.add_argument("--seed", type=_natural, default=0,
                    help="seed of the random deviation vectors (an integer >= 0)")
 
@@ -730,7 +842,7 @@ def build_parser():
                        "values at up to 12 of the output times, and optionally write them "
                        "all (CSV) and a plot (PNG).")
     p.add_argument("indicator", choices=INDICATORS, help="what to compute")
-    _add_model_arguments(p)
+    _add_model_arguments(p, maps=True)
     _add_state_arguments(p)
     _add_run_options(p)
     p.add_argument("--k", help="lyapunov: number of exponents; gali: orders, e.g. 2,3,4")
@@ -745,16 +857,19 @@ def build_parser():
                        "OFLI) on a grid "
                        "of a surface of section q[plane] = 0 at fixed energy, with p[plane] >= "
                        "0 solved from it, locally on all cores or on a Dask cluster.")
-    _add_model_arguments(p, orbit=False)
-    p.add_argument("--energy", type=_finite, help="energy of the section (required)")
-    p.add_argument("--plane", type=_natural, default=0, help="coordinate index of the section "
-                   "(default 0: x = 0)")
+    _add_model_arguments(p, orbit=False, maps=True)
+    p.add_argument("--energy", type=_finite, help="energy of the section (required for an "
+                   "autonomous flow; maps and time-dependent models take a grid of a plane of "
+                   "their phase space instead)")
+    p.add_argument("--plane", type=_natural, default=None, help="coordinate index of the "
+                   "section (default 0: x = 0)")
     p.add_argument("--axes", help="state indices of the grid axes (default: the next coordinate "
-                   "and its momentum, 1,3 = y,py for 2 dof)")
-    p.add_argument("--u", default="-0.45:0.7:100", help="first axis START:STOP:NUM "
-                   "(default -0.45:0.7:100)")
-    p.add_argument("--v", default="-0.45:0.45:100", help="second axis START:STOP:NUM "
-                   "(default -0.45:0.45:100)")
+                   "and its momentum, 1,3 = y,py for 2 dof; 0,1 for a map; q0,p0 for a "
+                   "time-dependent model)")
+    p.add_argument("--u", default=None, help="first axis START:STOP:NUM "
+                   "(default -0.45:0.7:100; a built-in map's whole range)")
+    p.add_argument("--v", default=None, help="second axis START:STOP:NUM "
+                   "(default -0.45:0.45:100; a built-in map's whole range)")
     p.add_argument("--indicator", default="sali", help="sali (default), gali, gali_K, x1, "
                    "megno, fli, ofli")
     _add_run_options(p, t_end=1e3)

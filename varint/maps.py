@@ -58,7 +58,7 @@ from .methods import METHODS
 from .models.base import Model
 from .protocol import REASONS, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
-from .run import DEFAULT_TAU, prepare
+from .run import default_tau, prepare
 from .sections import SectionGrid
 from .state import initial_deviations, output_steps
 
@@ -250,7 +250,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     t_end : float
         Final time of every orbit not stopped early.
     tau : float, optional
-        Step (renormalisation interval); 0.05 by default.
+        Step (renormalisation interval); 0.05 by default, one iteration for
+        a map model.
     method : str, default "tm"
         As in :func:`varint.run`; every method computes every indicator.
     **options
@@ -303,6 +304,12 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     >>> r = varint.chaos_map(model, grid, "sali", t_end=1e3)      # doctest: +SKIP
     >>> plt.imshow(np.log10(r.image()), origin="lower")           # doctest: +SKIP
 
+    A map's phase space (:func:`varint.phase_grid`), t_end in iterations:
+
+    >>> sm = varint.models.StandardMap(1.2)
+    >>> grid = varint.phase_grid(sm, np.linspace(0, 2 * np.pi, 64), np.linspace(-np.pi, np.pi, 64))
+    >>> r = varint.chaos_map(sm, grid, "x1", t_end=1000)         # doctest: +SKIP
+
     On a cluster (each worker needs varint installed)::
 
         from dask.distributed import Client
@@ -321,7 +328,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         if single:
             raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
                              f"got shape {np.shape(initial_conditions)}")
-    t_end, tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+    t_end, tau = check.horizon(t_end, default_tau(model) if tau is None else tau)
     ind, fixed = resolve(indicator)
     if ind.scalar is None:
         raise ValueError(f"indicator {ind.name!r} has no map value (one number per orbit); "

@@ -20,8 +20,8 @@ import enum
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Status", "Renorm", "REASONS", "TANGENT_LIMIT", "COUNTERS", "Propagator",
-           "Accumulator", "is_failure"]
+__all__ = ["Status", "Renorm", "REASONS", "TANGENT_LIMIT", "COUNTERS", "TIME_MOMENTUM",
+           "Propagator", "Accumulator", "is_failure"]
 
 
 class Status(enum.IntEnum):
@@ -79,6 +79,12 @@ TANGENT_LIMIT = 1e300
 COUNTERS = ("gradient", "hessian", "third", "tangent_products")
 
 
+#: Key in ``RunState.extra`` of the orbits' momenta p_t conjugate to time
+#: (M,), kept by every method for a time-dependent V (integrated in the
+#: extended phase space, t = step·τ): K = H(x, t) + p_t is conserved.
+TIME_MOMENTUM = "p_t"
+
+
 class Renorm(enum.IntEnum):
     """How deviation vectors are renormalised at the end of every interval.
 
@@ -130,7 +136,8 @@ class Accumulator:
         renormalised vectors at time ``t``, ``flow`` (2N,) the phase-space
         velocity ẋ at ``x`` (empty unless ``needs_flow``).
     needs_flow : bool
-        Whether ``update`` reads ``flow``; maps, which have none, refuse it.
+        Whether ``update`` reads ``flow``. Maps have none: they pass an
+        empty ``flow`` (and the OFLI indicator refuses map models).
     """
 
     name: str

@@ -30,11 +30,12 @@ from .files import canonical
 from .indicators import Indicator, resolve
 from .methods import make_propagator
 from .models.base import Model
-from .protocol import Renorm, is_failure
+from .models.maps import MapModel
+from .protocol import TIME_MOMENTUM, Renorm, is_failure
 from .results import Provenance, _Result, package_versions
 from .state import Rows, RunState, initial_deviations, output_steps, renormalized_copy
 
-__all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
+__all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "default_tau", "energy_scale"]
 
 #: Initial states of at most this many numbers are stored in a checkpoint's
 #: parameters as values (so a mismatch shows them), larger ones as a digest.
@@ -62,7 +63,9 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
         Final time (rounded to a multiple of τ).
     tau : float, optional
         Renormalisation interval, which is also the step of the splitting
-        methods ("tm" and the TDH methods). Default 0.05.
+        methods ("tm" and the TDH methods). Default 0.05; for a map model
+        (:mod:`varint.models.maps`) a whole number of iterations, default 1,
+        and t counts iterations.
 
     Other Parameters
     ----------------
@@ -150,8 +153,14 @@ def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: floa
                errors, escape_radius, checkpoint, checkpoint_interval, options)
 
 
+def default_tau(model):
+    """τ when none is given: :data:`DEFAULT_TAU` for a flow, one iteration
+    for a map."""
+    return 1.0 if getattr(model, "kind", "flow") == "map" else DEFAULT_TAU
+
+
 def _model(model):
-    if isinstance(model, Model):
+    if isinstance(model, (Model, MapModel)):
         return model
     hint = (" (varint.paper_orbit(name) returns a model and its initial state)"
             if isinstance(model, str) else "")
@@ -162,8 +171,11 @@ def _model(model):
 def energy_scale(model, x):
     """The energy scale against which energy errors are relative, per orbit:
     |T(x)| + |V(x)|, which is |H| for an orbit in a well (T, V ≥ 0) and stays
-    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0.
+    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0
+    and for a map (whose energy is 0, see :mod:`varint.models.maps`).
     """
+    if getattr(model, "kind", "flow") == "map":
+        return np.ones(np.shape(x)[:-1])
     n = model.n_dof
     scale = np.abs(model.kinetic(x[..., n:])) + np.abs(model.potential(x[..., :n]))
     return np.where(scale > 0, scale, 1.0)
@@ -214,7 +226,7 @@ class Run:
             self.run_options["escape_radius"] = model.escape_radius
         self.model = model
         self.x0, self.single = check.states(model, x0)
-        self.t_end, self.tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+        self.t_end, self.tau = check.horizon(t_end, default_tau(model) if tau is None else tau)
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
@@ -304,14 +316,18 @@ class Run:
     def record(self, rows):
         """The indicator's values and the energy error at every row (a
         :class:`~varint.state.Rows`: one per orbit, and per output time when
-        several outputs are read at once)."""
+        several outputs are read at once); for a time-dependent V, the error
+        of the extended energy K = H(x, t) + p_t (p_t the momenta conjugate
+        to time, ``extra[TIME_MOMENTUM]``)."""
         t = rows.step * self.tau
         rec = self.indicator.read(rows, self.model, t, self.options)
         reps = len(t) // self.state.n_orbits
+        p_t = rows.extra.get(TIME_MOMENTUM, 0.0)
         # A failed orbit's frozen state may overflow here; its records are
         # replaced by NaN anyway, so NumPy's warnings would be noise.
         with np.errstate(over="ignore", invalid="ignore"):
-            rec["energy_error"] = (np.abs(self.model.energy(rows.x) - np.tile(self.energy0, reps))
+            rec["energy_error"] = (np.abs(self.model.energy(rows.x, t, p_t)
+                                          - np.tile(self.energy0, reps))
                                    / np.tile(self.energy_scale, reps))
         return rec
 

@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme"]
+__all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme", "stage_arrays",
+           "stage_times"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -374,3 +375,29 @@ def stage_arrays(scheme: SplittingScheme, tau: float):
             hc[0] = hc[-1] = h_c
     return (np.array(kinds, dtype=np.int64), np.array(h, dtype=np.float64),
             np.array(hc, dtype=np.float64))
+
+
+def stage_times(scheme: SplittingScheme):
+    """The time of each stage of :func:`stage_arrays` in units of τ from the
+    start of its step, for a time-dependent V integrated in the extended
+    phase space (A = ½pᵀM⁻¹p + p_t drifts t by its length, B = V(q, t)
+    kicks at fixed t; :mod:`varint.kernels.tm`).
+
+    Stage s acts at c_s = the sum of the drift coefficients before it
+    (summed exactly, :func:`math.fsum`). A value within 1e-14 of 1 (the
+    last kick of a BAB scheme) is exactly 1, so that kick and the first
+    kick of the next step are at the same time, bit for bit, and the
+    stepper can reuse the force between them.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_stages,)
+    """
+    kinds, h, _ = stage_arrays(scheme, 1.0)
+    out, before = [], []
+    for kind, c in zip(kinds, h):
+        total = math.fsum(before)
+        out.append(1.0 if abs(total - 1.0) <= 1e-14 else total)
+        if kind == DRIFT:
+            before.append(float(c))
+    return np.array(out, dtype=np.float64)

@@ -201,6 +201,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     >>> bool(np.abs(s.points[:, 0]).max() < 1e-15)
     True
     """
+    _autonomous_flow(model)
     X, single = check.states(model, x0)
     t_end, tau = check.horizon(t_end, tau)
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) \
@@ -271,6 +272,19 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
                          status=sq(status), interrupted=False, points=sq(points),
                          times=sq(times), n_points=sq(n_found), plane=int(plane),
                          value=float(value))
+
+
+def _autonomous_flow(model):
+    """Sections at fixed energy need an autonomous flow: refuse a map or a
+    time-dependent V (whose energy is not conserved), naming the remedy."""
+    if getattr(model, "kind", "flow") == "map":
+        raise ValueError(f"{model.name} is a map: its orbits are already a section; grid its "
+                         "phase space with varint.phase_grid")
+    if model.time_dependent:
+        raise ValueError(f"{model.name} depends on time, so its energy is not conserved and has "
+                         "no section at fixed energy; grid its phase space with "
+                         "varint.phase_grid (a stroboscopic section: t_out at multiples of the "
+                         "period)")
 
 
 @dataclass
@@ -348,6 +362,7 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
     >>> bool(np.allclose(model.energy(grid.states), 0.125))
     True
     """
+    _autonomous_flow(model)
     n = model.n_dof
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) or not 0 <= plane < n:
         raise ValueError(f"plane must be a coordinate index in 0..{n - 1}, got {plane!r}")

@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .protocol import TIME_MOMENTUM
+
 __all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
            "renormalized_copy"]
 
@@ -69,6 +71,13 @@ class RunState:
     @property
     def k(self):
         return self.W.shape[2]
+
+    def time_momentum(self):
+        """The orbits' momenta conjugate to time, (M,), created as zeros on
+        first use (``extra[TIME_MOMENTUM]``; for a time-dependent V)."""
+        if TIME_MOMENTUM not in self.extra:
+            self.extra[TIME_MOMENTUM] = np.zeros(self.n_orbits)
+        return self.extra[TIME_MOMENTUM]
 
     def log_growth(self):
         """Σ log of the stretching of each vector so far, shape (M, k)."""

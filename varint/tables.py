@@ -116,15 +116,18 @@ def _xarray():
     return xarray
 
 
-def state_labels(dim):
-    """q0 … q{N−1}, p0 … p{N−1} for a state of length ``dim`` = 2N."""
+def state_labels(dim, variables=None):
+    """q0 … q{N−1}, p0 … p{N−1} for a state of length ``dim`` = 2N, or a
+    map model's own ``variables`` (its state need not be (q, p))."""
+    if variables is not None and len(variables) == dim:
+        return [str(v) for v in variables]
     n = dim // 2
     return [f"q{i}" for i in range(n)] + [f"p{i}" for i in range(n)]
 
 
-def _coordinate(name, size):
+def _coordinate(name, size, variables=None):
     if name == "component":
-        return np.array(state_labels(size))
+        return np.array(state_labels(size, variables))
     if name in ("exponent", "vector"):
         return np.arange(1, size + 1)
     return np.arange(size)
@@ -158,6 +161,8 @@ class _Builder:
         self.result = result
         self.dims = {**DIMS, **getattr(type(result), "dims", {})}
         self.out = Layout(attrs=_attrs(result))
+        model = getattr(result.provenance, "model", None)
+        self.variables = model.get("variables") if isinstance(model, dict) else None
 
     def add(self, name, lead, array, trailing=None):
         array = np.asarray(array)
@@ -169,7 +174,7 @@ class _Builder:
         dims = tuple(lead) + trailing
         for d, size in zip(dims, array.shape):
             if d not in self.out.coords:
-                self.out.coords[d] = ((d,), _coordinate(d, size))
+                self.out.coords[d] = ((d,), _coordinate(d, size, self.variables))
         self.out.data[name] = (dims, array)
 
 
@@ -251,7 +256,7 @@ def _map(result):
         b.add(name, ("orbit",), value)
     b.out.rows = ("orbit",)
     if result.axes is not None:
-        labels = state_labels(np.shape(result.x0)[1])
+        labels = state_labels(np.shape(result.x0)[1], b.variables)
         u, v = (labels[int(a)] for a in result.axes)
         b.out.grid = {"mask": np.asarray(result.mask, dtype=bool), "dims": (v, u),
                       "coords": {v: np.asarray(result.v), u: np.asarray(result.u)}}

@@ -11,7 +11,8 @@ the interval ending at t_i = iτ:
   chaotic ones.
 * OFLI (Fouchard, Lega, Froeschlé & Froeschlé 2002): the same for the part
   of w orthogonal to the flow f = ẋ, which removes the linear shear along
-  the flow and separates periodic from quasi-periodic orbits.
+  the flow and separates periodic from quasi-periodic orbits. A map has no
+  flow: OFLI refuses map models, and MEGNO's ``ofli`` is NaN for them.
 
 Quadrature
 ----------
@@ -37,6 +38,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ..protocol import Accumulator, Renorm
@@ -100,10 +102,24 @@ def _one_vector(model, options, given):
     return 1
 
 
+def _is_map(model):
+    return getattr(model, "kind", "flow") == "map"
+
+
+def _one_vector_of_a_flow(model, options, given):
+    # OFLI removes the component along the flow ẋ: a map has no flow.
+    if _is_map(model):
+        raise ValueError(f"OFLI needs the flow (the phase-space velocity) and {model.name} is a "
+                         "map, which has none; use 'fli' or 'megno'")
+    return _one_vector(model, options, given)
+
+
 def _read_megno(rows, model, t, options):
-    aux = rows.extra[MEGNO_ACCUMULATOR.key][:, 0]  # (M, columns) of the one vector
+    aux = rows.extra[MEGNO_ACCUMULATOR.key][:, 0]  # (R, columns) of the one vector
+    # A map has no flow to be orthogonal to: no OFLI (NaN), see _one_vector_of_a_flow.
+    ofli = np.full(len(aux), np.nan) if _is_map(model) else aux[:, OFLI_MAX].copy()
     return {"megno": 2.0 * aux[:, WEIGHTED] / t, "mean_megno": aux[:, MEGNO_SUM] / rows.step,
-            "fli": aux[:, FLI_MAX].copy(), "ofli": aux[:, OFLI_MAX].copy()}
+            "fli": aux[:, FLI_MAX].copy(), "ofli": ofli}
 
 
 def _read_fli(rows, model, t, options):
@@ -157,7 +173,7 @@ OFLI = register_indicator(Indicator(
     name="ofli",
     summary="orthogonal FLI: sup_{s≤t} ln‖w_⊥(s)‖, w_⊥ the part of w orthogonal to the flow",
     renorm=Renorm.NORMALIZE,
-    vectors=_one_vector,
+    vectors=_one_vector_of_a_flow,
     read=_read_ofli,
     result=IndicatorResult,
     require="unit",

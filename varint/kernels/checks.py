@@ -24,8 +24,9 @@ from numba import njit
 
 from ..protocol import Renorm, Status, TANGENT_LIMIT
 
-__all__ = ["orbit_status", "renormalize", "renormalize_block", "tangent_overflow",
-           "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL", "CHECK_EVERY", "HUGE_Q2"]
+__all__ = ["orbit_status", "state_status", "renormalize", "renormalize_block",
+           "tangent_overflow", "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL",
+           "CHECK_EVERY", "HUGE_Q2"]
 
 # Plain integers in the compiled loops (numba folds them to constants).
 _OK = int(Status.OK)
@@ -58,6 +59,21 @@ def orbit_status(x, n, escape_r2):
         return _ESCAPED
     if not (rq + rp < np.inf):
         return _NONFINITE
+    return _OK
+
+
+@njit(inline="always")
+def state_status(x, d, escape_r2):
+    """:func:`orbit_status` for a map's state ``x`` (d,), whose components
+    need not split into positions and momenta: ``ESCAPED`` if |x|² >
+    ``escape_r2``, ``ORBIT_NONFINITE`` if it holds a NaN or infinity."""
+    r = 0.0
+    for i in range(d):
+        r += x[i] * x[i]
+    if not (r < np.inf):
+        return _NONFINITE
+    if r > escape_r2:
+        return _ESCAPED
     return _OK
 
 

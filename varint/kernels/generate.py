@@ -161,7 +161,11 @@ def _model_expressions(model):
 
 def symbolic_fits(model, k):
     """Whether ``model`` gets a generated straight-line stepper for ``k``
-    vectors (it knows its potential symbolically and is small)."""
+    vectors (an autonomous flow that knows its potential symbolically and
+    is small; a time-dependent V takes the generic stepper's extended phase
+    space)."""
+    if getattr(model, "time_dependent", False) or getattr(model, "kind", "flow") != "flow":
+        return False
     if not callable(getattr(model, "symbolic", None)) or model.n_dof > SYMBOLIC_MAX_N:
         return False
     if 2 * model.n_dof * (1 + k) > SYMBOLIC_MAX_VALUES:

@@ -15,6 +15,18 @@ p at the same q. Forces and Hessians are reused while q is unchanged (the
 last kick of a BAB step and the first of the next), which is exact: the
 same inputs give the same bits.
 
+A potential V(q, t) that depends on time (``model.time_dependent``) is
+integrated in the extended phase space, with t and its conjugate momentum
+p_t as one more degree of freedom: A = ½pᵀM⁻¹p + p_t, B = V(q, t). Only
+drifts advance t (by their length h), so the kicks of stage s act at the
+known time t_s = (step + c_s)·τ, c_s the drift coefficients before it
+(:func:`varint.schemes.stage_times`); the kernels read t from their last
+parameter (a private copy per orbit, ``par[-1] = t_s``), and p_t, which
+nothing else depends on, is kicked by −h ∂_tV − h_c ∂_tC for the conserved
+extended energy K = H + p_t (``time=True`` steppers; see
+:func:`_make_orbit_kernel`). Every scheme stays symplectic in the extended
+space, and the deviation vectors, with δt = 0, follow the same formulas.
+
 After every step the orbit is checked and the deviation vectors are
 renormalised (:mod:`varint.kernels.checks`); an indicator's accumulator
 (:class:`varint.protocol.Accumulator`) is then updated. A derivative kernel
@@ -64,7 +76,7 @@ def no_accumulator(aux, r, x, W, flow, t):
     """The accumulator of indicators that accumulate nothing."""
 
 
-def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
+def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False, TIME=False):
     """The one-orbit stepper; sizes are constants when ≥ 0, else read from
     the arrays.
 
@@ -76,12 +88,24 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
 
     With ``FLOW`` (likewise) the phase-space velocity (M⁻¹p, −∇V) at the end
     of each step is passed to the accumulator.
+
+    With ``TIME`` (likewise) V depends on t (see the module docstring), and
+    three more arguments are read: ``ctime`` (n_stages,), the time of each
+    stage in units of τ from the step's start (:func:`varint.schemes.stage_times`);
+    ``dtime``, the model's kernel ``dtime(q, par, gt) -> ∂_tV`` that also
+    writes ``gt = ∂_t∇V``; and ``pt`` (1,), the orbit's p_t, updated in
+    place. The kick of stage s of step ``step0 + i`` evaluates ∇V, D²V and
+    the third derivatives at t = (step0 + i + ctime[s])·τ, written to the
+    last entry of a private copy of ``par``: the time depends only on the
+    step and stage, so chunking never changes a bit, and forces are reused
+    between stages only when both q and t are bitwise unchanged. The time
+    derivatives are evaluated with every gradient (and counted with it).
     """
 
     @njit
     def tm_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
                  grad, hess, third, renorm, escape_r2, counters, record, accumulate, aux,
-                 step0, tau):
+                 step0, tau, ctime=None, dtime=None, pt=None):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -99,6 +123,14 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
         flow = np.empty(d if FLOW else 0)
         tangent = k > 0
         have_g = have_h = have_c = have_hc = False
+        if TIME:
+            pl = par.copy()          # par[-1] = t of this orbit's kicks
+            last = pl.shape[0] - 1
+            gt = np.empty(n)         # ∂_t∇V
+            dv = 0.0                 # ∂_tV
+            t_have = np.nan          # the time of g, H, ∇C and D²C
+        else:
+            pl = par
         for s in range(n_steps):
             for st in range(kinds.shape[0]):
                 hs = h[st]
@@ -113,16 +145,26 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                     continue
                 # Kick e^{h L_BV}, fused with a corrector e^{hc L_CV} at the same q.
                 hcs = hc[st]
+                if TIME:
+                    tk = (float(step0 + s) + ctime[st]) * tau
+                    if tk != t_have:
+                        have_g = have_h = have_c = have_hc = False
+                        pl[last] = tk
+                        t_have = tk
                 if not have_g:
                     for i in range(n):
                         q[i] = x[i]
-                    grad(q, par, g)
+                    grad(q, pl, g)
                     counters[0] += 1
+                    if TIME:
+                        dv = dtime(q, pl, gt)
+                        if not (all_finite(gt, n) and dv - dv == 0.0):
+                            return _GRAD, s
                     if not all_finite(g, n):
                         return derivative_status(q, n, _GRAD), s
                     have_g = True
                 if (tangent or hcs != 0.0) and not have_h:
-                    hess(q, par, H)
+                    hess(q, pl, H)
                     counters[1] += 1
                     if not all_finite(H.ravel(), (bw + 1) * n):
                         return derivative_status(q, n, _HESS), s
@@ -137,9 +179,17 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                         have_c = True
                     for i in range(n):
                         x[n + i] -= hs * g[i] + hcs * gc[i]
+                    if TIME:
+                        # ∂_tC = 2 (M⁻¹∇V)·∂_t∇V
+                        ct = 0.0
+                        for i in range(n):
+                            ct += minv[i] * g[i] * gt[i]
+                        pt[0] -= hs * dv + hcs * 2.0 * ct
                 else:
                     for i in range(n):
                         x[n + i] -= hs * g[i]
+                    if TIME:
+                        pt[0] -= hs * dv
                 if not tangent:
                     continue
                 counters[3] += 1
@@ -150,7 +200,7 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                     band_kick_block(Kb, W, n, k, bw)
                     continue
                 if not have_hc:
-                    third(q, par, mg, T)
+                    third(q, pl, mg, T)
                     counters[2] += 1
                     if not all_finite(T.ravel(), (bw + 1) * n):
                         return derivative_status(q, n, _THIRD), s
@@ -175,11 +225,19 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
                     return status, s
                 if aux.shape[0] > 0:
                     if FLOW:
+                        if TIME:
+                            te = float(step0 + s + 1) * tau
+                            if te != t_have:
+                                have_g = have_h = have_c = have_hc = False
+                                pl[last] = te
+                                t_have = te
                         if not have_g:  # the flow at the current q needs ∇V
                             for i in range(n):
                                 q[i] = x[i]
-                            grad(q, par, g)
+                            grad(q, pl, g)
                             counters[0] += 1
+                            if TIME:
+                                dv = dtime(q, pl, gt)
                             have_g = True
                         for i in range(n):
                             flow[i] = minv[i] * x[n + i]
@@ -197,16 +255,18 @@ def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False):
 
 
 @lru_cache(maxsize=None)
-def orbit_kernel(n, bw):
+def orbit_kernel(n, bw, time=False):
     """The one-orbit stepper without deviation vectors (k = 0) for N = ``n``
     and bandwidth ``bw`` (−1 for both: sizes read at run time), with the
     ``record`` of :func:`_make_orbit_kernel` written: how the TDH methods
-    integrate their orbit by the same machinery as the TM method."""
-    return _make_orbit_kernel(n, 0, bw, RECORD=True)
+    integrate their orbit by the same machinery as the TM method. With
+    ``time``, for a time-dependent V (its arguments as in
+    :func:`_make_orbit_kernel`)."""
+    return _make_orbit_kernel(n, 0, bw, RECORD=True, TIME=time)
 
 
 @lru_cache(maxsize=None)
-def tm_batch(n, k, bw, parallel, flow=False):
+def tm_batch(n, k, bw, parallel, flow=False, time=False):
     """The batch stepper for N = ``n``, ``k`` vectors and bandwidth ``bw``
     (pass −1 for all three to get the run-time-sized one).
 
@@ -218,21 +278,31 @@ def tm_batch(n, k, bw, parallel, flow=False):
     ``accumulate`` updates ``aux[m]`` (k, columns) after every step
     (``step0``: the step count at the start, ``tau``: the step); pass :func:`no_accumulator` and an
     empty ``aux`` (M, 0, 0) for none. With ``flow`` the accumulator is given
-    the phase-space velocity.
+    the phase-space velocity. With ``time`` (a time-dependent V) three more
+    arguments follow ``tau``: ``ctime`` (n_stages,) and the model's
+    ``dtime`` kernel (see :func:`_make_orbit_kernel`) and ``pt`` (M,), the
+    orbits' momenta conjugate to time, updated in place.
     """
-    tm_orbit = _make_orbit_kernel(n, k, bw, FLOW=flow)
+    tm_orbit = _make_orbit_kernel(n, k, bw, FLOW=flow, TIME=time)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
               grad, hess, third, renorm, escape_r2, counters, status, done, accumulate, aux,
-              step0, tau):
+              step0, tau, ctime=None, dtime=None, pt=None):
         for m in prange(X.shape[0]):
             if status[m] != _OK:
                 done[m] = 0
                 continue
-            st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
-                                 minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
-                                 counters[m], np.empty((0, 0)), accumulate, aux[m], step0, tau)
+            if time:
+                st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
+                                     counters[m], np.empty((0, 0)), accumulate, aux[m], step0,
+                                     tau, ctime, dtime, pt[m:m + 1])
+            else:
+                st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
+                                     counters[m], np.empty((0, 0)), accumulate, aux[m], step0,
+                                     tau)
             status[m] = st
             done[m] = steps
 
@@ -263,6 +333,6 @@ def use_parallel(parallel, n_orbits):
     return bool(parallel)
 
 
-def batch_kernel(n, k, bw, parallel, flow=False):
+def batch_kernel(n, k, bw, parallel, flow=False, time=False):
     """:func:`tm_batch` for the sizes of :func:`specialised_sizes`."""
-    return tm_batch(*specialised_sizes(n, k, bw), parallel, flow)
+    return tm_batch(*specialised_sizes(n, k, bw), parallel, flow, time)

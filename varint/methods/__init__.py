@@ -8,6 +8,11 @@ that protocol, so every method feeds the same indicator code.
 A method is registered by name with the "module:class" that implements it
 (imported on first use, so heyoka and SUNDIALS load only when asked for); a
 new method is one file plus one call of :func:`register_method`.
+
+Map models (``model.kind == "map"``, :mod:`varint.models.maps`) are not
+integrated: ``"tm"`` iterates them with their own tangent map
+(:class:`varint.methods.map.MapPropagator`), and only the methods in
+:data:`MAP_METHODS` take them; the others refuse them with that list.
 """
 
 from __future__ import annotations
@@ -16,7 +21,8 @@ import importlib
 
 from ..protocol import Renorm
 
-__all__ = ["METHODS", "make_propagator", "register_method", "method_options", "propagator_class"]
+__all__ = ["METHODS", "MAP_METHODS", "make_propagator", "register_method", "method_options",
+           "propagator_class"]
 
 #: ``method=`` name → "module:class".
 METHODS = {
@@ -27,24 +33,35 @@ METHODS = {
     "taylor": "varint.baselines.taylor:TaylorPropagator",
     "cvode": "varint.baselines.cvode:CVODEPropagator",
     "dop853": "varint.baselines.dop853:DOP853Propagator",
+    "two-particle": "varint.methods.two_particle:TwoParticlePropagator",
+}
+
+#: The methods that take map models: ``method=`` name → "module:class".
+MAP_METHODS = {
+    "tm": "varint.methods.map:MapPropagator",
+    "two-particle": "varint.methods.two_particle:TwoParticlePropagator",
 }
 
 
-def register_method(name: str, target: str) -> None:
+def register_method(name: str, target: str, maps: str | None = None) -> None:
     """Make ``method=name`` available everywhere; ``target`` is
-    "module:Class" of a class following :class:`varint.protocol.Propagator`.
+    "module:Class" of a class following :class:`varint.protocol.Propagator`,
+    and ``maps`` (optional) the one that runs it on map models.
 
     Raises
     ------
     ValueError
-        If the name is taken or ``target`` is not of the form "module:Class".
+        If the name is taken or a target is not of the form "module:Class".
     """
     key = str(name).lower()
     if key in METHODS:
         raise ValueError(f"a method named {name!r} is already registered")
-    if not (isinstance(target, str) and target.count(":") == 1 and all(target.split(":"))):
-        raise ValueError(f"target must be 'module:Class', got {target!r}")
+    for t in (target,) if maps is None else (target, maps):
+        if not (isinstance(t, str) and t.count(":") == 1 and all(t.split(":"))):
+            raise ValueError(f"target must be 'module:Class', got {t!r}")
     METHODS[key] = target
+    if maps is not None:
+        MAP_METHODS[key] = maps
 
 
 def _key(method):
@@ -54,15 +71,25 @@ def _key(method):
     return key
 
 
-def propagator_class(method):
-    """The class registered under ``method`` (case-insensitive).
+def propagator_class(method, model=None):
+    """The class registered under ``method`` (case-insensitive), for
+    ``model`` if given (a map model takes the methods of :data:`MAP_METHODS`).
 
     Raises
     ------
     ValueError
-        For an unknown method; the message lists the valid ones.
+        For an unknown method (the message lists the valid ones), or one
+        that does not take map models, for a map.
     """
-    module, _, cls = METHODS[_key(method)].partition(":")
+    key = _key(method)
+    target = METHODS[key]
+    if getattr(model, "kind", "flow") == "map":
+        if key not in MAP_METHODS:
+            raise ValueError(f"method {method!r} integrates flows, but {model.name} is a map "
+                             f"(iterated, not integrated); maps take: {', '.join(MAP_METHODS)} "
+                             "('tm' iterates the map's own tangent map)")
+        target = MAP_METHODS[key]
+    module, _, cls = target.partition(":")
     return getattr(importlib.import_module(module), cls)
 
 
@@ -105,5 +132,5 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
         For an option the method does not take (the message lists its
         options).
     """
-    cls = propagator_class(method)
+    cls = propagator_class(method, model)
     return cls(model, tau, Renorm.parse(renorm), accumulator=accumulator, **options)

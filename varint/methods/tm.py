@@ -23,7 +23,7 @@ import numba
 from ..kernels import generate as G
 from ..kernels import tm as K
 from ..protocol import COUNTERS, Renorm, Status
-from ..schemes import DRIFT, get_scheme, stage_arrays
+from ..schemes import DRIFT, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
 from . import method_options
 
@@ -73,6 +73,8 @@ class TangentMapPropagator:
         self.accumulator = accumulator
         self.every = self._every(opts.get("renormalize_every"))
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
+        # A time-dependent V: the stage times and ∂_tV kernel (kernels/tm.py).
+        self._time = (stage_times(self.scheme), model.time_kernel) if model.time_dependent else ()
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
@@ -296,7 +298,8 @@ class TangentMapPropagator:
         acc = self.accumulator
         update, flow = (K.no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
         kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth,
-                                K.use_parallel(self.parallel, m), flow)
+                                K.use_parallel(self.parallel, m), flow, model.time_dependent)
+        time = self._time + (state.time_momentum(),) if self._time else ()
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == Status.OK
@@ -304,14 +307,14 @@ class TangentMapPropagator:
                self._hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
                self._escape_r2, counters, state.status, done, update, self._accumulator(state),
-               state.step, self.tau)
+               state.step, self.tau, *time)
         state.after_kernel(n, was_active, done, counters, COUNTERS)
 
 
 def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
     """Low-level: ``n_steps`` steps of the numerical map S and its tangent
     map TS, without renormalisation; τ may be negative (S(−τ) is the inverse
-    of S(τ) for the symmetric schemes).
+    of S(τ) for the symmetric schemes). A time-dependent V starts at t = 0.
 
     Parameters
     ----------

@@ -1,15 +1,18 @@
-"""Models H = ½ pᵀM⁻¹p + V(q): the protocol and the paper's systems."""
+"""Models H = ½ pᵀM⁻¹p + V(q) (or V(q, t)): the protocol and the paper's
+systems; and symplectic maps with their tangent maps (:mod:`.maps`)."""
 
 from .base import Model
 from .fpu import FPUBeta
 from .henon_heiles import HenonHeiles
+from .maps import CoupledStandardMaps, MapModel, StandardMap
 from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
 __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "paper_orbit", "solve_momentum",
-           "PAPER_ORBITS", "from_potential", "SymbolicModel", "SymbolicPotential"]
+           "PAPER_ORBITS", "from_potential", "SymbolicModel", "SymbolicPotential",
+           "MapModel", "StandardMap", "CoupledStandardMaps", "from_map", "SymbolicMap"]
 
-_SYMBOLIC = ("from_potential", "SymbolicModel", "SymbolicPotential")
+_SYMBOLIC = ("from_potential", "SymbolicModel", "SymbolicPotential", "from_map", "SymbolicMap")
 
 
 def __getattr__(name):

@@ -56,6 +56,13 @@ def _numpy_errors(kernel):
 class Model:
     """A Hamiltonian H = ½ pᵀM⁻¹p + V(q) with compiled derivative kernels.
 
+    V may depend on time (``time_dependent``; e.g. from
+    :func:`~varint.models.from_potential` with ``time=``): the kernels then
+    read t from the last parameter, ``par[-1]``, which the integrators set
+    to the time of each kick, and ``time_kernel(q, par, gt)`` returns ∂_tV
+    and writes ∂_t∇V into ``gt``, for the momentum p_t conjugate to time and
+    the conserved extended energy K = H + p_t (:mod:`varint.kernels.tm`).
+
     Subclasses pass their potential and kernels; everything else is
     generic. State vectors are ``x = (q, p)`` of length 2N (paper eq. 2).
 
@@ -79,6 +86,13 @@ class Model:
     escape_radius : float, optional
         Runs stop with an error when |q| exceeds this (the orbit escaped).
     """
+
+    #: A Hamiltonian flow (map models, :mod:`varint.models.maps`, say "map").
+    kind = "flow"
+    #: Whether V depends on t (then ``time_kernel`` is set and ``potential``
+    #: takes t).
+    time_dependent = False
+    time_kernel = None
 
     def __init__(self, n_dof: int, potential: Callable[[np.ndarray], np.ndarray],
                  grad: Dispatcher, hess: Dispatcher, third: Dispatcher, bandwidth: int,
@@ -128,9 +142,11 @@ class Model:
             raise ValueError(f"escape_radius must be positive and finite, got {escape_radius!r}")
         self.escape_radius = escape_radius
 
-    def potential(self, q):
-        """V(q) for ``q`` of shape (..., N), vectorised over leading axes."""
-        return self._potential(np.asarray(q, dtype=float))
+    def potential(self, q, t=0.0):
+        """V(q) (V(q, t) if time-dependent) for ``q`` of shape (..., N),
+        vectorised over leading axes."""
+        q = np.asarray(q, dtype=float)
+        return self._potential(q, t) if self.time_dependent else self._potential(q)
 
     def describe(self) -> dict:
         """JSON-serialisable description: enough to rebuild the model."""
@@ -153,11 +169,14 @@ class Model:
         p = np.asarray(p, dtype=float)
         return 0.5 * np.sum(self.inverse_mass * p * p, axis=-1)
 
-    def energy(self, x):
-        """H(x) for states ``x`` of shape (..., 2N)."""
+    def energy(self, x, t=0.0, p_t=0.0):
+        """H(x) for states ``x`` of shape (..., 2N); for a time-dependent V
+        the extended energy K = H(x, t) + p_t, conserved along an orbit
+        whose momentum conjugate to time is p_t at time t."""
         x = np.asarray(x, dtype=float)
         n = self.n_dof
-        return self.kinetic(x[..., n:]) + self.potential(x[..., :n])
+        e = self.kinetic(x[..., n:]) + self.potential(x[..., :n], t)
+        return e + p_t if self.time_dependent else e
 
     def _q(self, q):
         q = np.ascontiguousarray(q, dtype=np.float64)
@@ -165,23 +184,40 @@ class Model:
             raise ValueError(f"q must have shape ({self.n_dof},), got {q.shape}")
         return q
 
-    def gradient(self, q):
-        """∇V(q), shape (N,)."""
+    def parameters_at(self, t=None):
+        """The kernels' ``par``: :attr:`params`, with the last entry set to
+        ``t`` for a time-dependent V (t = 0 when None)."""
+        if not self.time_dependent:
+            return self.params
+        par = self.params.copy()
+        par[-1] = 0.0 if t is None else float(t)
+        return par
+
+    def gradient(self, q, t=None):
+        """∇V(q) (at time t for a time-dependent V), shape (N,)."""
         q = self._q(q)
         g = np.empty(self.n_dof)
-        self.grad_kernel(q, self.params, g)
+        self.grad_kernel(q, self.parameters_at(t), g)
         return g
 
-    def hessian_band(self, q):
+    def time_derivatives(self, q, t=0.0):
+        """(∂_tV, ∂_t∇V) at (q, t) of a time-dependent V."""
+        if not self.time_dependent:
+            raise ValueError(f"{self.name} does not depend on time")
+        gt = np.empty(self.n_dof)
+        dv = self.time_kernel(self._q(q), self.parameters_at(t), gt)
+        return float(dv), gt
+
+    def hessian_band(self, q, t=None):
         """D²V(q) in band storage, shape (bandwidth + 1, N)."""
         q = self._q(q)
         B = np.zeros((self.bandwidth + 1, self.n_dof))
-        self.hess_kernel(q, self.params, B)
+        self.hess_kernel(q, self.parameters_at(t), B)
         return B
 
-    def hessian(self, q):
+    def hessian(self, q, t=None):
         """Dense D²V(q), shape (N, N); for small N and tests."""
-        return band_to_dense(self.hessian_band(q))
+        return band_to_dense(self.hessian_band(q, t))
 
     def hvp(self, q, W):
         """D²V(q) · W for a block ``W`` of shape (N, k), matrix-free."""
@@ -192,12 +228,12 @@ class Model:
         band_kick_block(self.hessian_band(q), stacked, self.n_dof, X.shape[1], self.bandwidth)
         return -stacked[self.n_dof:].reshape(W.shape)
 
-    def third_band(self, q, v):
+    def third_band(self, q, v, t=None):
         """Σ_k v_k D²(∂_k V)(q) in band storage."""
         q = self._q(q)
         v = np.ascontiguousarray(v, dtype=np.float64)
         B = np.zeros((self.bandwidth + 1, self.n_dof))
-        self.third_kernel(q, self.params, v, B)
+        self.third_kernel(q, self.parameters_at(t), v, B)
         return B
 
     def corrector(self, q):

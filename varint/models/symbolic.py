@@ -1,7 +1,9 @@
-"""Models from a potential written in SymPy: one definition for every method.
+"""Models from a potential (or a map) written in SymPy: one definition for
+every method.
 
-:func:`from_potential` takes V(q) as a SymPy expression and derives what the
-integrators need (paper eqs. 6–7 and, for the correctors, eq. 26):
+:func:`from_potential` takes V(q) — or V(q, t), with ``time=t`` — as a SymPy
+expression and derives what the integrators need (paper eqs. 6–7 and, for
+the correctors, eq. 26):
 
 * ∇V, D²V in symmetric band storage (:mod:`varint.kernels.banded`), and the third
   derivatives contracted with a vector, Σ_k v_k D²(∂_kV), as numba kernels
@@ -10,6 +12,16 @@ integrators need (paper eqs. 6–7 and, for the correctors, eq. 26):
 * V itself as a vectorised NumPy function (energies at output times);
 * the expression, for the Taylor reference (heyoka builds its own
   variational equations from it) — :meth:`SymbolicModel.symbolic`.
+
+A time-dependent V(q, t) is integrated in the extended phase space (see
+:mod:`varint.kernels.tm`): the kernels read t from their last parameter,
+``par[-1]``, and a fourth kernel ``dtime(q, par, gt)`` returns ∂_tV and
+writes ∂_t∇V, for the momentum conjugate to time and the conserved extended
+energy K = H + p_t.
+
+:func:`from_map` takes a map x' = F(x) as SymPy expressions and compiles F
+and its tangent map DF, derived symbolically, into a
+:class:`~varint.models.maps.MapModel`.
 
 The Hessian's bandwidth is read off its symbolic sparsity, so a lattice with
 nearest-neighbour coupling gets bandwidth 1. Kernels are straight-line code
@@ -40,8 +52,9 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from ..files import atomic_write
 from .base import Model
+from .maps import MapModel
 
-__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential"]
+__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map"]
 
 #: Functions whose presence in V or its first three derivatives means V is
 #: not smooth enough (the corrector needs third derivatives everywhere).
@@ -63,11 +76,14 @@ class SymbolicPotential:
     inverse_mass : tuple of sympy.Expr
         Diagonal of M⁻¹, exact where the model knows it exactly (√2, not
         1.41421356…), so extended-precision references see the exact model.
+    time : sympy.Symbol or None
+        The time in V(q, t), or None for an autonomous V.
     """
 
     V: sp.Expr
     q: tuple
     inverse_mass: tuple
+    time: sp.Symbol | None = None
 
 
 def _coordinates(q):
@@ -87,17 +103,29 @@ def _coordinates(q):
     return q
 
 
-def _check_potential(V, q):
+def _time_symbol(time, q):
+    if time is None:
+        return None
+    if not isinstance(time, sp.Symbol):
+        raise ValueError(f"time must be a SymPy symbol (the t in V(q, t)), got "
+                         f"{type(time).__name__} {time!r}")
+    if time in q:
+        raise ValueError(f"the time symbol {time} is also a coordinate")
+    return time
+
+
+def _check_potential(V, q, time=None):
     if isinstance(V, (int, float)) and not isinstance(V, bool):
         V = sp.Float(V) if isinstance(V, float) else sp.Integer(V)
     if not isinstance(V, sp.Expr):
         raise ValueError(f"V must be a SymPy expression in q, got {type(V).__name__} {V!r}")
-    extra = V.free_symbols - set(q)
+    extra = V.free_symbols - set(q) - ({time} if time is not None else set())
     if extra:
         names = ", ".join(sorted(map(str, extra)))
+        hint = "" if time is not None else " (a time-dependent V needs time=<its symbol>)"
         raise ValueError(
             f"V contains symbols that are not coordinates: {names}; substitute numbers for "
-            "parameters (V.subs(...)) or add them to q")
+            f"parameters (V.subs(...)) or add them to q{hint}")
     if V.has(*_NONFINITE):
         raise ValueError(f"V contains a non-finite constant (oo, zoo or nan): {V}")
     if V.has(sp.I):
@@ -105,17 +133,17 @@ def _check_potential(V, q):
     return V
 
 
-def _check_smooth(exprs, what):
+def _check_smooth(exprs, what, subject="V", need="three times differentiable"):
     for e in exprs:
         if e.has(*_NONFINITE):
-            raise ValueError(f"{what} of V contain a non-finite constant: {e}")
+            raise ValueError(f"{what} of {subject} contain a non-finite constant: {e}")
         bad = e.atoms(*_NONSMOOTH)
         if bad:
             raise ValueError(
-                f"V must be three times differentiable, but its {what} contain "
+                f"{subject} must be {need}, but its {what} contain "
                 f"{sorted(map(str, bad))[0]}"
                 " (from |.|, sign, max/min, floor, a piecewise definition or similar); "
-                "write V as a smooth expression")
+                f"write {subject} as a smooth expression")
 
 
 def _inverse_mass(inverse_mass, n):
@@ -156,9 +184,10 @@ def _assignments(printer, targets, exprs):
     return lines
 
 
-def _kernel_source(V, n):
+def _kernel_source(V, n, time=False):
     """Source of the module defining ``grad``, ``hess``, ``third`` for V in
-    the symbols q_0 … q_{n−1}, and the Hessian's bandwidth."""
+    the symbols q_0 … q_{n−1} (and ``dtime`` when V depends on the symbol
+    ``t``, read from ``par[-1]``), and the Hessian's bandwidth."""
     q = sp.symbols(f"q_0:{n}")
     v = sp.symbols(f"v_0:{n}")
     g = [sp.diff(V, s) for s in q]
@@ -175,11 +204,20 @@ def _kernel_source(V, n):
         third.append(sp.Add(*[v[m] * t for m, t in enumerate(terms)]))
     printer = _KernelPrinter()
     unpack_q = [f"    q_{i} = q[{i}]" for i in range(n)]
+    if time:
+        unpack_q.append("    t = par[-1]")
     unpack_v = [f"    v_{i} = v[{i}]" for i in range(n)]
     try:
         body_g = _assignments(printer, [f"g[{i}]" for i in range(n)], g)
         body_h = _assignments(printer, [f"B[{b}, {i}]" for b, i in band], hess)
         body_t = _assignments(printer, [f"B[{b}, {i}]" for b, i in band], third)
+        if time:
+            t = sp.Symbol("t")
+            dt = sp.diff(V, t)
+            dtg = [sp.diff(dt, s) for s in q]
+            _check_smooth([dt, *dtg], "time derivatives")
+            body_d = _assignments(printer, [f"gt[{i}]" for i in range(n)] + ["dv"],
+                                  [*dtg, dt])
     except PrintMethodNotImplementedError as exc:
         raise ValueError(f"V uses a function the compiled kernels cannot evaluate: {exc}") from None
     lines = [
@@ -190,6 +228,9 @@ def _kernel_source(V, n):
         "", "", "@njit(cache=True, error_model='numpy')", "def third(q, par, v, B):", *unpack_q, *unpack_v, *body_t,
         "",
     ]
+    if time:
+        lines += ["", "@njit(cache=True, error_model='numpy')", "def dtime(q, par, gt):",
+                  *unpack_q, *body_d, "    return dv", ""]
     return "\n".join(lines), bw
 
 
@@ -233,25 +274,38 @@ def _load_kernels(source):
 class SymbolicModel(Model):
     """A model generated from a SymPy potential; see :func:`from_potential`."""
 
-    def __init__(self, V, q, inverse_mass=None, name=None, escape_radius=None):
+    def __init__(self, V, q, inverse_mass=None, name=None, escape_radius=None, time=None):
         q = _coordinates(q)
-        V = _check_potential(V, q)
+        time = _time_symbol(time, q)
+        V = _check_potential(V, q, time)
         minv = _inverse_mass(inverse_mass, len(q))
         n = len(q)
         qs = sp.symbols(f"q_0:{n}")
-        V_std = V.xreplace(dict(zip(q, qs)))
-        source, bw = _kernel_source(V_std, n)
+        t = sp.Symbol("t")
+        V_std = V.xreplace({**dict(zip(q, qs)), **({time: t} if time is not None else {})})
+        source, bw = _kernel_source(V_std, n, time=time is not None)
         kernels = _load_kernels(source)
-        numpy_V = sp.lambdify(qs, V_std, modules="numpy")
+        if time is None:
+            numpy_V = sp.lambdify(qs, V_std, modules="numpy")
 
-        def potential(x):
-            # A constant term comes back as a scalar; broadcast to x's shape.
-            return numpy_V(*(x[..., i] for i in range(n))) + np.zeros(x.shape[:-1])
+            def potential(x):
+                # A constant term comes back as a scalar; broadcast to x's shape.
+                return numpy_V(*(x[..., i] for i in range(n))) + np.zeros(x.shape[:-1])
+        else:
+            numpy_Vt = sp.lambdify((*qs, t), V_std, modules="numpy")
 
-        self._symbolic = SymbolicPotential(V, q, minv)
+            def potential(x, t=0.0):
+                return numpy_Vt(*(x[..., i] for i in range(n)), t) + np.zeros(x.shape[:-1])
+
+        self._symbolic = SymbolicPotential(V, q, minv, time)
+        # The kernels of a time-dependent V read t from par[-1].
         super().__init__(n, potential, kernels.grad, kernels.hess, kernels.third, bandwidth=bw,
+                         params=() if time is None else (0.0,),
                          inverse_mass=[float(m) for m in minv], name=name or f"V = {V}",
                          escape_radius=escape_radius)
+        if time is not None:
+            self.time_dependent = True
+            self.time_kernel = kernels.dtime
 
     def symbolic(self) -> SymbolicPotential:
         """The potential, coordinates and inverse mass as given."""
@@ -263,12 +317,15 @@ class SymbolicModel(Model):
         d.update(potential=sp.srepr(s.V), q=[str(x) for x in s.q],
                  inverse_mass_exact=[sp.srepr(m) for m in s.inverse_mass],
                  escape_radius=self.escape_radius)
+        if s.time is not None:
+            d["time"] = str(s.time)
         return d
 
 
 def from_potential(V: sp.Expr, q: Sequence[sp.Symbol], inverse_mass: Sequence[Any] | None = None,
-                   name: str | None = None, escape_radius: float | None = None) -> SymbolicModel:
-    """A model H = ½ pᵀM⁻¹p + V(q) from a SymPy potential.
+                   name: str | None = None, escape_radius: float | None = None,
+                   time: sp.Symbol | None = None) -> SymbolicModel:
+    """A model H = ½ pᵀM⁻¹p + V(q) (or V(q, t)) from a SymPy potential.
 
     Everything every method needs is derived from ``V``: compiled ∇V, band
     D²V and third-derivative kernels for the TM stepper (hence the corrector
@@ -292,6 +349,15 @@ def from_potential(V: sp.Expr, q: Sequence[sp.Symbol], inverse_mass: Sequence[An
         Name in results; ``"V = <expression>"`` by default.
     escape_radius : float, optional
         Runs stop when |q| exceeds it (see :class:`~varint.models.Model`).
+    time : sympy.Symbol, optional
+        The time t in a time-dependent V(q, t) (a periodically driven
+        pendulum or lattice, a rotating potential). The model is integrated
+        in the extended phase space with t and its momentum p_t as one more
+        degree of freedom (see :mod:`varint.kernels.tm`): every scheme and
+        corrector stays symplectic, the TM method applies unchanged, runs
+        start at t = 0, indicators use the physical deviation vectors
+        (δt = 0), and the energy error is that of the conserved extended
+        energy K = H(q, p, t) + p_t with p_t(0) = 0.
 
     Returns
     -------
@@ -312,5 +378,162 @@ def from_potential(V: sp.Expr, q: Sequence[sp.Symbol], inverse_mass: Sequence[An
     >>> m = from_potential((x**2 + y**2) / 2 + x**2 * y - y**3 / 3, [x, y], name="HH")
     >>> m.gradient([0.1, 0.2]).round(3).tolist()
     [0.14, 0.17]
+
+    A parametrically driven pendulum, V = −cos q (1 + ε cos Ωt):
+
+    >>> q, t = sp.symbols("q t")
+    >>> m = from_potential(-sp.cos(q) * (1 + sp.Rational(1, 2) * sp.cos(2 * t)), [q], time=t)
+    >>> m.time_dependent
+    True
     """
-    return SymbolicModel(V, q, inverse_mass=inverse_mass, name=name, escape_radius=escape_radius)
+    return SymbolicModel(V, q, inverse_mass=inverse_mass, name=name, escape_radius=escape_radius,
+                         time=time)
+
+
+# -- maps ----------------------------------------------------------------------------------
+def _map_source(F, n):
+    """Source of the module defining ``iterate`` and ``jacobian`` for the map
+    ``F`` (expressions in x_0 … x_{n−1})."""
+    x = sp.symbols(f"x_0:{n}")
+    _check_smooth(F, "expressions", subject="the map", need="differentiable")
+    J = [[sp.diff(f, xi) for xi in x] for f in F]
+    _check_smooth([e for row in J for e in row], "first derivatives", subject="the map",
+                  need="differentiable")
+    printer = _KernelPrinter()
+    unpack = [f"    x_{i} = x[{i}]" for i in range(n)]
+    try:
+        body_f = _assignments(printer, [f"out[{i}]" for i in range(n)], F)
+        body_j = _assignments(printer, [f"J[{i}, {j}]" for i in range(n) for j in range(n)],
+                              [e for row in J for e in row])
+    except PrintMethodNotImplementedError as exc:
+        raise ValueError(f"the map uses a function the compiled kernels cannot evaluate: "
+                         f"{exc}") from None
+    lines = [
+        '"""Generated by varint.models.symbolic.from_map; do not edit."""',
+        "import math", "from numba import njit", "",
+        "", "@njit(cache=True, error_model='numpy')", "def iterate(x, par, out):", *unpack,
+        *body_f,
+        "", "", "@njit(cache=True, error_model='numpy')", "def jacobian(x, par, J):", *unpack,
+        *body_j, "",
+    ]
+    return "\n".join(lines)
+
+
+def _map_periods(periods, coords):
+    if periods is None:
+        return None
+    if isinstance(periods, dict):
+        unknown = [str(c) for c in periods if c not in coords]
+        if unknown:
+            raise ValueError(f"periods names {unknown[0]}, which is not one of the coordinates "
+                             f"{[str(c) for c in coords]}")
+        values = [periods.get(c, 0) for c in coords]
+    else:
+        values = list(periods) if np.ndim(periods) else [periods] * len(coords)
+        if len(values) != len(coords):
+            raise ValueError(f"periods must have {len(coords)} entries (one per coordinate, 0 "
+                             f"for none), got {len(values)}")
+    out = []
+    for c, v in zip(coords, values):
+        try:
+            value = float(sp.sympify(v))
+        except (sp.SympifyError, TypeError, ValueError):
+            raise ValueError(f"the period of {c} must be a number, got {v!r}") from None
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"the period of {c} must be finite and >= 0 (0: none), got {v!r}")
+        out.append(value)
+    return out
+
+
+class SymbolicMap(MapModel):
+    """A map generated from SymPy expressions; see :func:`from_map`."""
+
+    def __init__(self, exprs, coords, periods=None, name=None, escape_radius=None):
+        coords = _coordinates(coords)
+        n = len(coords)
+        if n % 2:
+            raise ValueError(f"a symplectic map acts on an even number of variables (q and p); "
+                             f"got {n} coordinates {[str(c) for c in coords]}")
+        if isinstance(exprs, (sp.Expr, str)) or not np.iterable(exprs):
+            raise ValueError("exprs must be a sequence of SymPy expressions, one per coordinate")
+        exprs = [_check_map_expr(e, coords, i) for i, e in enumerate(exprs)]
+        if len(exprs) != n:
+            raise ValueError(f"exprs must give the image of each of the {n} coordinates, got "
+                             f"{len(exprs)} expressions")
+        xs = sp.symbols(f"x_0:{n}")
+        F = [e.xreplace(dict(zip(coords, xs))) for e in exprs]
+        kernels = _load_kernels(_map_source(F, n))
+        self._symbolic = (tuple(exprs), coords)
+        super().__init__(n, kernels.iterate, kernels.jacobian,
+                         periods=_map_periods(periods, coords),
+                         name=name or "map " + ", ".join(f"{c}' = {e}" for c, e in
+                                                         zip(coords, exprs)),
+                         escape_radius=escape_radius, variables=[str(c) for c in coords])
+
+    def symbolic(self):
+        """(expressions, coordinates) as given."""
+        return self._symbolic
+
+    def describe(self):
+        d = super().describe()
+        exprs, coords = self._symbolic
+        d.update(map=[sp.srepr(e) for e in exprs], coords=[str(c) for c in coords])
+        return d
+
+
+def _check_map_expr(e, coords, i):
+    if isinstance(e, (int, float)) and not isinstance(e, bool):
+        e = sp.Float(e) if isinstance(e, float) else sp.Integer(e)
+    if not isinstance(e, sp.Expr):
+        raise ValueError(f"exprs[{i}] must be a SymPy expression, got {type(e).__name__} {e!r}")
+    extra = e.free_symbols - set(coords)
+    if extra:
+        raise ValueError(f"exprs[{i}] contains symbols that are not coordinates: "
+                         f"{', '.join(sorted(map(str, extra)))}; substitute numbers for "
+                         "parameters (expr.subs(...))")
+    if e.has(sp.I):
+        raise ValueError(f"exprs[{i}] must be real; it contains the imaginary unit: {e}")
+    return e
+
+
+def from_map(exprs, coords, periods=None, name=None, escape_radius=None):
+    """A map model x' = F(x) from SymPy expressions.
+
+    F and its tangent map DF (derived symbolically) are compiled into the
+    kernels of :class:`~varint.models.maps.MapModel`, so every indicator,
+    chaos maps and the two-particle method run on it (``method="tm"``
+    iterates DF exactly).
+
+    Parameters
+    ----------
+    exprs : sequence of sympy.Expr
+        The images x'_i of the coordinates, in terms of the old coordinates
+        only. A map composed of steps (kick then drift) is written by
+        substitution: ``p1 = p + K*sin(x); exprs = [x + p1, p1]``.
+    coords : sequence of sympy.Symbol
+        The coordinates, in state order (an even number: a symplectic map).
+        Symplecticity is not checked; the laws of the indicators (paired
+        exponents, GALI power laws) assume it.
+    periods : dict or sequence, optional
+        Periods of coordinates taken modulo them after every iteration
+        (e.g. ``{x: 2*sympy.pi}``); 0 or absent: unbounded.
+    name : str, optional
+    escape_radius : float, optional
+        Runs stop an orbit once |x| exceeds it.
+
+    Returns
+    -------
+    SymbolicMap
+
+    Examples
+    --------
+    The standard map:
+
+    >>> import sympy as sp
+    >>> x, p = sp.symbols("x p")
+    >>> p1 = p + 1.2 * sp.sin(x)
+    >>> m = from_map([x + p1, p1], [x, p], periods={x: 2 * sp.pi})
+    >>> m.jacobian([0.0, 0.0]).tolist()
+    [[2.2, 1.0], [1.2, 1.0]]
+    """
+    return SymbolicMap(exprs, coords, periods=periods, name=name, escape_radius=escape_radius)

@@ -24,6 +24,11 @@ Then the vectors follow the recorded orbit through the block:
 The TDH is a quadratic form of w, so its corrector term
 C̃ = {B̃, {B̃, Ã}} = δqᵀ D²V M⁻¹ D²V δq (eq. 36 with a mass) needs no third
 derivatives of V.
+
+A time-dependent V(q, t) (``TIME``): the orbit is the TM stepper's in the
+extended phase space (:mod:`varint.kernels.tm`), and D²V at grid point j of
+interval i is evaluated at its time t = (i·m + j)·Δt, written to the last
+entry of a private copy of ``par``.
 """
 
 from __future__ import annotations
@@ -96,16 +101,20 @@ def generated_orbit(module):
     return run_orbit
 
 
-def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
+def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit, TIME=False):
     """The one-orbit TDH stepper for method ``MODE``; sizes are constants
     when ≥ 0, else read from the arrays. ``FLOW``: the accumulator reads the
     phase-space velocity (see :func:`varint.kernels.tm.tm_batch`).
-    ``run_orbit``: :func:`generic_orbit` or :func:`generated_orbit`."""
+    ``run_orbit``: :func:`generic_orbit` or :func:`generated_orbit`.
+    ``TIME``: a time-dependent V, with ``ctime``, ``dtime``, ``pt`` as for
+    the TM stepper (:func:`varint.kernels.tm.tm_batch`); its orbit is the
+    generic stepper's in the extended phase space."""
+    time_orbit = K.orbit_kernel(N_C, BW_C, True) if TIME else run_orbit
 
     @njit
     def tdh_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx,
                   need, tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2,
-                  counters, accumulate, aux, step0):
+                  counters, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
         n = N_C if N_C >= 0 else x.shape[0] // 2
         k = K_C if K_C >= 0 else W.shape[1]
         bw = BW_C if BW_C >= 0 else bw_rt
@@ -142,13 +151,23 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
         mb = np.empty(ne)
         rs = np.sqrt(minv)                      # S = M^{-1/2}
         have_end = False                        # Hs[n_sub] is D²V at the current q
+        pl = par.copy()                         # with the time of a grid point (TIME)
+        dt = tau / n_sub
         done = 0
         while done < n_steps:
             nb = min(block, n_steps - done)
             for i in range(n):
                 x0[i] = x[i]
-            status, steps = run_orbit(x, nb * n_sub, kinds, h, hc, minv, par, bw_rt, grad, hess,
-                                      third, escape_r2, counters, rec)
+            if TIME:
+                status, steps = time_orbit(x, np.empty((d, 0)), np.ones(0),
+                                           np.zeros(0, dtype=np.int64), nb * n_sub, kinds, h,
+                                           hc, minv, par, bw_rt, grad, hess, third, _NONE,
+                                           escape_r2, counters, rec, K.no_accumulator,
+                                           np.empty((0, 0)), (step0 + done) * n_sub, dt, ctime,
+                                           dtime, pt)
+            else:
+                status, steps = run_orbit(x, nb * n_sub, kinds, h, hc, minv, par, bw_rt, grad,
+                                          hess, third, escape_r2, counters, rec)
             complete = steps // n_sub if status != _OK else nb
             for s in range(complete):
                 if tangent:
@@ -165,7 +184,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
                         r = s * n_sub + jg - 1
                         for i in range(n):
                             q[i] = x0[i] if r < 0 else rec[r, i]
-                        hess(q, par, H)
+                        if TIME:
+                            pl[pl.shape[0] - 1] = float((step0 + done + s) * n_sub + jg) * dt
+                        hess(q, pl, H)
                         counters[1] += 1
                         if not all_finite(H.ravel(), (bw + 1) * n):
                             for i in range(d):
@@ -263,7 +284,9 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
                         if FLOW:
                             for i in range(n):
                                 q[i] = rec[r, i]
-                            grad(q, par, gq)
+                            if TIME:
+                                pl[pl.shape[0] - 1] = float((step0 + done + s + 1) * n_sub) * dt
+                            grad(q, pl, gq)
                             counters[0] += 1
                             for i in range(n):
                                 flow[i] = minv[i] * rec[r, n + i]
@@ -285,7 +308,7 @@ def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit):
 
 
 @lru_cache(maxsize=None)
-def tdh_batch(n, k, bw, mode, parallel, flow, run_orbit):
+def tdh_batch(n, k, bw, mode, parallel, flow, run_orbit, time=False):
     """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
     read at run time).
@@ -298,32 +321,40 @@ def tdh_batch(n, k, bw, mode, parallel, flow, run_orbit):
     end of the failed orbit step and the vectors at the start of that
     interval, or, if their renormalisation failed, both at its end.
     ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
-    :func:`generated_orbit`).
+    :func:`generated_orbit`). With ``time`` (a time-dependent V) ``ctime``,
+    ``dtime`` and ``pt`` (M,) follow ``step0``, as for
+    :func:`varint.kernels.tm.tm_batch`.
     """
-    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow, run_orbit)
+    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow, run_orbit, time)
 
     @njit(parallel=parallel)
     def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx, need,
               tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2, counters,
-              status, done, accumulate, aux, step0):
+              status, done, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
         for m in prange(X.shape[0]):
             if status[m] != _OK:
                 done[m] = 0
                 continue
-            st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc, n_sub,
-                                  tkinds, th, thc, tidx, need, tau, minv, par, bw_rt, grad,
-                                  hess, third, eig, renorm, escape_r2, counters[m],
-                                  accumulate, aux[m], step0)
+            if time:
+                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
+                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
+                                      accumulate, aux[m], step0, ctime, dtime, pt[m:m + 1])
+            else:
+                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
+                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
+                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
+                                      accumulate, aux[m], step0)
             status[m] = st
             done[m] = steps
 
     return batch
 
 
-def batch_kernel(n, k, bw, mode, parallel, flow=False, module=None):
+def batch_kernel(n, k, bw, mode, parallel, flow=False, module=None, time=False):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
     TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`), its orbit
     by the generated stepper ``module`` if given, else the generic one."""
     sizes = K.specialised_sizes(n, k, bw)
     run_orbit = generic_orbit(sizes[0], sizes[2]) if module is None else generated_orbit(module)
-    return tdh_batch(*sizes, mode, parallel, flow, run_orbit)
+    return tdh_batch(*sizes, mode, parallel, flow, run_orbit, time)

@@ -36,7 +36,7 @@ from ..kernels import tm as K
 from ..methods import method_options
 from ..models.henon_heiles import HenonHeiles
 from ..protocol import COUNTERS, Renorm, Status
-from ..schemes import DRIFT, SCHEMES, get_scheme, stage_arrays
+from ..schemes import DRIFT, SCHEMES, get_scheme, stage_arrays, stage_times
 from . import _kernels as TK
 from .frozen import henon_heiles_eig, lapack_eig
 
@@ -108,6 +108,8 @@ class _TDHPropagator:
         #: The orbit's integration step Δt (τ, or τ/m for TDHeps).
         self.orbit_step = self.tau / self.n_sub
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.orbit_step)
+        # A time-dependent V: the orbit's stage times and ∂_tV kernel.
+        self._time = (stage_times(self.scheme), model.time_kernel) if model.time_dependent else ()
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         # Defaults for the tangent part; subclasses overwrite what they use.
@@ -146,7 +148,8 @@ class _TDHPropagator:
         update, aux, flow = ((K.no_accumulator, np.empty((m, 0, 0)), False) if acc is None
                              else (acc.update, state.extra[acc.key], acc.needs_flow))
         kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode,
-                                 parallel, flow, self._orbit_stepper())
+                                 parallel, flow, self._orbit_stepper(), model.time_dependent)
+        time = self._time + (state.time_momentum(),) if self._time else ()
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == Status.OK
@@ -155,7 +158,7 @@ class _TDHPropagator:
                self._need, self.tau, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, self._eig,
                int(self.renorm), self._escape_r2, counters, state.status, done, update, aux,
-               state.step)
+               state.step, *time)
         state.after_kernel(n, was_active, done, counters,
                            TK.COUNTERS if self._mode == TK.ES else COUNTERS)
 
