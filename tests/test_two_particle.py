@@ -18,8 +18,11 @@ def test_spectrum_agrees_with_the_tm_method_at_the_best_separation(r1, c1):
         tp = varint.lyapunov_spectrum(model, x0, 200.0, method="two-particle", d0=1e-8,
                                       t_out=[200.0])
         assert np.abs(tp.exponents - tm.exponents).max() < 1e-7
-        # The reference orbit is the TM method's, bit for bit.
-        assert np.array_equal(tp.state, tm.state)
+        # The reference orbit is the TM method's scheme and step; the TM
+        # method's generated stepper evaluates the derivatives in another
+        # order, so they agree to round-off grown by the chaotic divergence
+        # (e^{χ1 t} ≈ 1e4 on C1 at t = 200).
+        np.testing.assert_allclose(tp.state, tm.state, rtol=0, atol=1e-10)
 
 
 def test_error_grows_as_d0_and_as_d0_goes_to_zero(r1):
