@@ -11,6 +11,7 @@ stopping between chunks and resuming from a checkpoint.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import signal
 import sys
 import threading
@@ -20,7 +21,7 @@ import warnings
 import numpy as np
 
 from .protocol import REASONS, Status, is_failure
-from .state import Rows
+from .state import Rows, renormalized_copy
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
 
@@ -183,7 +184,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                 if errors == "raise" and is_failure(state.status).any():
                     stop = "failed"
                 elif state.step == target:
-                    records.append(_record_now(state, record, decide))
+                    records.append(_record_now(prop, state, record, decide, renorm))
                     todo = todo[1:]
             if bar is not None:
                 bar.update(n)
@@ -235,9 +236,15 @@ def _batch(state, todo, chunk):
     return end - state.step, inside
 
 
-def _record_now(state, record, decide):
-    """The record of every orbit at the current step (frozen ones NaN)."""
-    rec = record(Rows.of(state))
+def _record_now(prop, state, record, decide, renorm):
+    """The record of every orbit at the current step (frozen ones NaN). A
+    propagator that renormalises sparsely may hold raw vectors: they are
+    read renormalised (copies), as its snapshots are."""
+    rows = Rows.of(state)
+    if getattr(prop, "sparse", 0) and renorm and state.k:
+        W, acc_m, acc_e = renormalized_copy(state.W, state.acc_m, state.acc_e, renorm)
+        rows = dataclasses.replace(rows, W=W, acc_m=acc_m, acc_e=acc_e)
+    rec = record(rows)
     _blank(rec, is_failure(state.status))
     if decide is not None:
         settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)
