@@ -11,7 +11,6 @@ stopping between chunks and resuming from a checkpoint.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import signal
 import sys
 import threading
@@ -21,7 +20,7 @@ import warnings
 import numpy as np
 
 from .protocol import REASONS, Status, is_failure
-from .state import Rows, renormalized_copy
+from .state import Rows
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
 
@@ -240,10 +239,7 @@ def _record_now(prop, state, record, decide, renorm):
     """The record of every orbit at the current step (frozen ones NaN). A
     propagator that renormalises sparsely may hold raw vectors: they are
     read renormalised (copies), as its snapshots are."""
-    rows = Rows.of(state)
-    if getattr(prop, "sparse", 0) and renorm and state.k:
-        W, acc_m, acc_e = renormalized_copy(state.W, state.acc_m, state.acc_e, renorm)
-        rows = dataclasses.replace(rows, W=W, acc_m=acc_m, acc_e=acc_e)
+    rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
     rec = record(rows)
     _blank(rec, is_failure(state.status))
     if decide is not None:
