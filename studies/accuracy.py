@@ -54,6 +54,7 @@ from varint.driver import drive  # noqa: E402
 from varint.indicators import gali_from_vectors  # noqa: E402
 from varint.methods import make_propagator  # noqa: E402
 from varint.state import RunState, initial_deviations, output_steps  # noqa: E402
+from varint.protocol import Renorm  # noqa: E402
 
 ORBITS = ("R1", "C1", "C2", "R2", "R3")
 #: Restart grid of the references; every τ used is TAU_REF·2^j (see above).
@@ -223,9 +224,9 @@ def observe(config, model, x0, W0, tau, times, renorm="none", repeats=1,
     steps = output_steps(times[-1], tau, times)
     e0 = model.energy(x0)
 
-    def record(state):
-        return {"x": state.x.copy(), "W": state.W.copy(), "growth": state.log_growth(),
-                "energy_error": np.abs(model.energy(state.x) - e0) / abs(e0)}
+    def record(rows):
+        return {"x": rows.x.copy(), "W": rows.W.copy(), "growth": rows.log_growth(),
+                "energy_error": np.abs(model.energy(rows.x) - e0) / abs(e0)}
 
     prop.advance(RunState.start(x0[None], W0[None]), 1)  # compile, build integrators
     best = best_cpu = math.inf
@@ -233,7 +234,8 @@ def observe(config, model, x0, W0, tau, times, renorm="none", repeats=1,
         state = RunState.start(x0[None], W0[None])
         cpu = time.process_time()
         with np.errstate(all="ignore"):  # an unstable τ fails; it is flagged below
-            recs, _, wall = drive(prop, state, steps, record, progress=False, errors="flag")
+            recs, _, wall = drive(prop, state, steps, record, progress=False, errors="flag",
+                                   renorm=Renorm.parse(renorm))
         best, best_cpu = min(best, wall), min(best_cpu, time.process_time() - cpu)
         if wall > repeat_limit:
             break

@@ -79,7 +79,7 @@ def methods_table(t_end, ks, repeats):
             rows.append({"config": label, "k": k, "ms_per_tu": 1e3 * seconds / t_end,
                          "work_per_tu": work / t_end,
                          "orbit_error": float(np.abs(state.x[0] - ref.state).max()),
-                         "X_error": float(np.abs(state.log_growth()[0] / (n * 0.05)
+                         "X_error": float(np.abs(state.renormalized("qr").log_growth()[0] / (n * 0.05)
                                                  - ref.exponents[-1]).max())})
     return rows
 

@@ -47,6 +47,7 @@ def orbit_c_source(scheme, tau):
     kinds, h, _ = stage_arrays(varint.get_scheme(scheme), tau)
     body = []
     for kind, c in zip(kinds, h):
+        c = float(c)                      # repr: a C literal, not "np.float64(...)"
         if kind == DRIFT:
             body.append(f"q0 += {c!r}*p0; q1 += {c!r}*p1;")
         else:

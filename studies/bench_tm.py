@@ -150,7 +150,7 @@ def main(argv=None):
     model, x0 = varint.paper_orbit("R1")
     c_ns, c_x1 = c_loop_ns_per_step(x0[2], n_steps, repeats)
     tm_ns, state = tm_ns_per_step(model, x0, "SBAB2C", 4, n_steps, repeats)
-    tm_x1 = float((np.log(state.acc_m[0, 0]) + state.acc_e[0, 0] * np.log(2)) / (n_steps * 0.05))
+    tm_x1 = float(state.renormalized("qr").log_growth()[0, 0] / (n_steps * 0.05))
     print(f"varint TM       {tm_ns:8.1f} ns/step   X1(t={n_steps * 0.05:g}) = {tm_x1:.6e}")
     if c_ns is not None:
         print(f"C loop (gcc -O3) {c_ns:7.1f} ns/step   X1 = {c_x1:.6e}")

@@ -60,3 +60,16 @@ def test_with_the_taylor_reference(angle):
     tm = varint.run(model, r1, angle, t_end=50.0, t_out=t_out, tau=0.01)
     ty = varint.run(model, r1, angle, t_end=50.0, t_out=t_out, tau=0.01, method="taylor")
     np.testing.assert_allclose(tm["angle"], ty["angle"], rtol=1e-6)
+
+
+def test_early_stopping_reads_renormalised_vectors(angle):
+    """With early stopping the map reads every orbit at every check time
+    (renormalised copies of vectors that the stepper renormalises only
+    when needed): the regular orbit's value is the single run's, bit for
+    bit, and the chaotic one is stopped below the threshold."""
+    model = varint.models.HenonHeiles()
+    x0 = np.array([varint.paper_orbit("R1")[1], varint.paper_orbit("C1")[1]])
+    m = varint.chaos_map(model, x0, angle, t_end=1500.0)
+    one = varint.run(model, x0[0], angle, t_end=1500.0, t_out=np.array([1500.0]))
+    assert m.values[0] == one["angle"][-1]
+    assert m.decided[1] and m.values[1] < 1e-8

@@ -183,7 +183,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                 if errors == "raise" and is_failure(state.status).any():
                     stop = "failed"
                 elif state.step == target:
-                    records.append(_record_now(state, record, decide))
+                    records.append(_record_now(prop, state, record, decide, renorm))
                     todo = todo[1:]
             if bar is not None:
                 bar.update(n)
@@ -235,9 +235,12 @@ def _batch(state, todo, chunk):
     return end - state.step, inside
 
 
-def _record_now(state, record, decide):
-    """The record of every orbit at the current step (frozen ones NaN)."""
-    rec = record(Rows.of(state))
+def _record_now(prop, state, record, decide, renorm):
+    """The record of every orbit at the current step (frozen ones NaN). A
+    propagator that renormalises sparsely may hold raw vectors: they are
+    read renormalised (copies), as its snapshots are."""
+    rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
+    rec = record(rows)
     _blank(rec, is_failure(state.status))
     if decide is not None:
         settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .protocol import TIME_MOMENTUM
+from .protocol import TIME_MOMENTUM, Renorm
 
 __all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
            "renormalized_copy"]
@@ -23,7 +23,9 @@ class RunState:
     x : ndarray, shape (M, 2N)
         The orbits.
     W : ndarray, shape (M, 2N, k)
-        Their deviation vectors (renormalised, or raw for ``renorm="none"``).
+        Their deviation vectors (renormalised, or raw for ``renorm="none"``
+        and between the renormalisations of a sparse schedule: read them
+        through :meth:`renormalized`).
     acc_m, acc_e : ndarray, shape (M, k)
         Σ log(stretching) of each vector = log(acc_m) + acc_e · ln 2
         (mantissa and binary exponent kept apart so no log is taken per step).
@@ -80,8 +82,24 @@ class RunState:
         return self.extra[TIME_MOMENTUM]
 
     def log_growth(self):
-        """Σ log of the stretching of each vector so far, shape (M, k)."""
+        """Σ log of the stretching of each vector so far, shape (M, k) (up to
+        the last renormalisation: see :meth:`renormalized`)."""
         return np.log(self.acc_m) + self.acc_e * math.log(2.0)
+
+    def renormalized(self, renorm):
+        """The vectors as an indicator reads them: copies renormalised by
+        ``renorm`` (a :class:`~varint.protocol.Renorm`), with the
+        stretching since the last renormalisation folded into the
+        accumulators, as :class:`Rows`. A propagator that renormalises
+        sparsely (``renormalize_every``) leaves raw vectors in the state
+        between renormalisations; vectors renormalised already change by
+        round-off only."""
+        renorm = Renorm.parse(renorm) if isinstance(renorm, str) else Renorm(renorm)
+        rows = Rows.of(self)
+        if renorm == Renorm.NONE or not self.k:
+            return rows
+        W, acc_m, acc_e = renormalized_copy(self.W, self.acc_m, self.acc_e, renorm)
+        return Rows(x=rows.x, W=W, acc_m=acc_m, acc_e=acc_e, step=rows.step, extra=rows.extra)
 
     def add_counts(self, **counts):
         for key, value in counts.items():
@@ -177,7 +195,7 @@ def renormalized_copy(W, acc_m, acc_e, renorm):
     """Copies of vectors ``W`` (R, 2N, k) renormalised (QR with a positive
     diagonal for ``Renorm.QR``, unit columns for ``Renorm.NORMALIZE``), the
     stretching folded into new accumulators (mantissa, exponent)."""
-    if renorm == 2:
+    if renorm == Renorm.QR:
         Q, R = np.linalg.qr(W)
         d = np.diagonal(R, axis1=1, axis2=2)
         sign = np.where(d < 0, -1.0, 1.0)
