@@ -42,6 +42,7 @@ from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
 from .checkpoint import CheckpointError  # noqa: E402
 from .departure import Departure, departure  # noqa: E402
 from .driver import IntegrationError  # noqa: E402
+from .ensemble import EnsembleResult, ensemble  # noqa: E402
 from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
 from .maps import chaos_map  # noqa: E402
 from .methods import METHODS, register_method  # noqa: E402
@@ -64,6 +65,7 @@ __all__ = [
     "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "MEGNOResult",
     "IndicatorResult", "load_result", "Status", "Renorm",
     "IntegrationError", "CheckpointError", "departure", "Departure",
-    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid",
+    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid", "ensemble",
+    "EnsembleResult",
     "SectionResult", "select_scheme",
 ]
