@@ -62,6 +62,10 @@ def moments(z, positions):
         1 / Σ z_l².
     """
     z = np.asarray(z, dtype=float)
+    lead = z.shape[:-1]
+    # One row per distribution, so that a single one (shape (N,)) is
+    # handled by the same masked recomputation below.
+    z = z.reshape(-1, z.shape[-1])
     with np.errstate(invalid="ignore", divide="ignore"):
         z = z / np.sum(z, axis=-1, keepdims=True)
         centre = z @ positions
@@ -74,7 +78,8 @@ def moments(z, positions):
             d = positions[None, :, :] - centre[narrow][:, None, :]
             m2[narrow] = np.sum(z[narrow] * np.sum(d * d, axis=-1), axis=-1)
         participation = 1.0 / np.sum(z * z, axis=-1)
-    return centre, m2, participation
+    return (centre.reshape(lead + centre.shape[-1:]), m2.reshape(lead),
+            participation.reshape(lead))
 
 
 def _lattice(model):
