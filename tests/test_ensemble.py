@@ -77,3 +77,30 @@ def test_regular_motion_gives_lambda_proportional_to_inverse_time():
 def test_bad_ensembles_are_refused(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_gives_the_same_bits(tmp_path):
+    """Realisations as tasks on a LocalCluster: the values are bitwise
+    those of a run in this process, and the realisations finished there
+    resume here."""
+    import warnings
+
+    distributed = pytest.importorskip("distributed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                           dashboard_address=None)
+        client = distributed.Client(cluster)
+    try:
+        remote = small([1, 2, 3], client=client, checkpoint=tmp_path)
+    finally:
+        client.close()
+        cluster.close()
+    local = small([1, 2, 3])
+    for name in ("x1", "m2", "dvd_m2"):
+        assert np.array_equal(remote[name], local[name]), name
+    assert remote.provenance.options["client"] == "dask (2 threads)"
+    again = small([1, 2, 3], checkpoint=tmp_path)
+    assert again.provenance.options["resumed"] == 3
+    assert np.array_equal(again["x1"], local["x1"])
