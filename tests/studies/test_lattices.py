@@ -32,7 +32,7 @@ def test_quick_run(tmp_path):
         sel = [r for r in rows if r["case"] == case]
         # The accurate runs of every method agree on X1 at the end.
         accurate = [r["x1"] for r in sel if r["energy_error"] < 1e-7]
-        assert len(accurate) >= 3, case
+        assert len(accurate) >= 2, case
         assert np.ptp(accurate) < 1e-3 * abs(np.median(accurate)), (case, accurate)
         # Halving τ lowers every scheme's energy error.
         for method in {r["method"] for r in sel if r["setting"].startswith("τ")}:
@@ -47,5 +47,7 @@ def test_quick_run(tmp_path):
         laws = list(csv.DictReader(f))
     assert [r["case"] for r in laws] == [c[0] for c in lattices.LAWS]
     assert all(float(r["max_energy_error"]) < 1e-4 for r in laws)
-    claims = json.loads((tmp_path / "lattices.claims.json").read_text())
+    claims = json.loads((tmp_path / "lattices_laws.claims.json").read_text())
     assert sum("∝ t^" in c["claim"] for c in claims) == 2 * len(lattices.LAWS)
+    claims = json.loads((tmp_path / "lattices.claims.json").read_text())
+    assert any(c["claim"].startswith("D19: the most efficient scheme for ddnls") for c in claims)
