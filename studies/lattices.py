@@ -58,7 +58,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import varint  # noqa: E402
-from studies.claims import power_law  # noqa: E402
+from studies.claims import exponent_law  # noqa: E402
 from studies.common import Claims, parse_args, save_csv, save_json  # noqa: E402
 from varint.models import DDNLS, FPUT, DisorderedKG  # noqa: E402
 
@@ -352,8 +352,7 @@ def laws(quick, out, claims):
                "seconds": sec, "max_energy_error": float(np.nanmax(np.abs(e.energy_error)))}
         for what, law in (("x1", law_x1), ("m2", law_m2)):
             fit = e.exponent(what, window)
-            mean, _, _ = e.log_mean(what)
-            judged = power_law(e.t, 10.0 ** mean, law, window)
+            judged = exponent_law(fit["a"], fit["a_err"], law, window)
             row.update({f"{what}_exponent": fit["a"], f"{what}_spread": fit["a_std"],
                         f"{what}_stderr": fit["a_err"], f"{what}_paper": law})
             label = "Λ" if what == "x1" else "m₂"

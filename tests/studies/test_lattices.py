@@ -51,3 +51,13 @@ def test_quick_run(tmp_path):
     assert sum("∝ t^" in c["claim"] for c in claims) == 2 * len(lattices.LAWS)
     claims = json.loads((tmp_path / "lattices.claims.json").read_text())
     assert any(c["claim"].startswith("D19: the most efficient scheme for ddnls") for c in claims)
+
+
+def test_exponent_rule_tells_neighbouring_laws_apart():
+    from studies.claims import exponent_law
+
+    assert exponent_law(-0.26, 0.01, -0.25, (1e3, 1e5)).holds is True
+    assert exponent_law(-0.25, 0.01, -0.3, (1e3, 1e5)).holds is False    # weak vs strong
+    assert exponent_law(0.32, 0.04, 1 / 3, (1e3, 1e5)).holds is True      # 2σ = 0.08 band
+    assert exponent_law(0.0, 0.13, -0.25, (1e3, 1e5)).holds is None       # too few to tell
+    assert exponent_law(float("nan"), 0.01, -0.25, (1e3, 1e5)).holds is None
