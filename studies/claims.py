@@ -45,7 +45,8 @@ __all__ = ["Judgement", "verdict", "RATIO_FACTOR", "ABOVE_FACTOR", "SLOPE_TOLERA
            "LATE_DECADES", "DEPARTURE_FACTOR", "PLOT_FACTOR", "COST_NOISE", "late_window",
            "agrees", "in_band", "at_most", "above", "power_law", "power_tolerance",
            "power_law_decades", "rate_law", "levels_off", "inverse_t", "grows", "departure",
-           "same_time", "costs_more", "same_cost", "RULES"]
+           "same_time", "costs_more", "same_cost", "exponent_law", "EXPONENT_TOLERANCE",
+           "EXPONENT_UNRESOLVED", "RULES"]
 
 #: Numbers agree within this factor. The paper's numbers come from single
 #: runs of finite-time indicators from one random set of deviation vectors
@@ -320,6 +321,33 @@ def same_cost(a, b, what=""):
                      f"|ratio − 1| ≤ {COST_NOISE:g}", f"{what}{ratio:.2f}×")
 
 
+#: A disorder-averaged exponent (m₂ ∝ t^a, Λ ∝ t^a of the lattice papers)
+#: agrees with the paper's within this, or within two standard errors of
+#: the mean single-realisation slope if that is larger: half the smallest
+#: gap between the papers' neighbouring laws (Λ: −0.25 weak vs −0.3 strong
+#: chaos in 1D), so that one slope cannot agree with both.
+EXPONENT_TOLERANCE = 0.025
+#: Two standard errors above this and the ensemble cannot tell the m₂ laws
+#: (1/5, 1/3, 1/2: gaps 0.13–0.17) apart: no verdict.
+EXPONENT_UNRESOLVED = 0.1
+
+
+def exponent_law(a, stderr, law, window, what=""):
+    """Rule: the exponent ``a`` of a disorder-averaged power law, with the
+    standard error ``stderr`` of the realisations' slopes, agrees with the
+    paper's ``law`` when |a − law| ≤ max(EXPONENT_TOLERANCE, 2·stderr); no
+    verdict when 2·stderr > EXPONENT_UNRESOLVED (too few realisations)."""
+    tol = f"|a − ({law:.3g})| ≤ max({EXPONENT_TOLERANCE:g}, 2σ)"
+    if not _finite(a, stderr):
+        return Judgement("exponent_law", None, None, window, tol, f"{what}no value")
+    text = f"{what}a = {a:.3f} ± {stderr:.3f}"
+    if 2 * stderr > EXPONENT_UNRESOLVED:
+        return Judgement("exponent_law", None, float(a), window, tol,
+                         text + " (too few realisations to tell)")
+    holds = abs(a - law) <= max(EXPONENT_TOLERANCE, 2 * stderr)
+    return Judgement("exponent_law", bool(holds), float(a), window, tol, text)
+
+
 #: The rules in the order of the report's table: name -> (function, the
 #: tolerance in words, why that tolerance).
 RULES = {
@@ -358,4 +386,8 @@ RULES = {
                    "CPU time per step of one method varies 2 % between runs on this shared "
                    "machine; 10 % leaves room for its load"),
     "same_cost": (same_cost, f"|CPU ratio − 1| ≤ {COST_NOISE:g}", "as costs_more"),
+    "exponent_law": (exponent_law, f"|a − p| ≤ max({EXPONENT_TOLERANCE:g}, 2σ) of the "
+                                   "disorder-averaged slope; no verdict when 2σ > "
+                                   f"{EXPONENT_UNRESOLVED:g}",
+                     "half the gap between the lattice papers' neighbouring laws (0.05)"),
 }

@@ -48,6 +48,10 @@ KNOWN = {
     "bench_baselines": "Benchmark: the reference integrators (studies/bench_baselines.py)",
     "bench_chaos_map": "Benchmark: chaos maps (studies/bench_chaos_map.py)",
     "two_particle": "The two-particle method the paper left out (studies/two_particle.py)",
+    "lattices": "Many-body lattices: the scheme ranking of Danieli et al. 2019 and the speed "
+                "targets (studies/lattices.py)",
+    "lattices_laws": "Many-body lattices: the chaos laws of disordered lattices "
+                     "(studies/lattices.py --part laws)",
 }
 VERDICT = {True: "holds", False: "**differs**", None: "—"}
 #: Studies whose claims the paper makes (the rest are our own questions);

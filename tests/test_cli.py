@@ -53,7 +53,7 @@ def _env():
 def test_help_is_complete():
     parser = cli.build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(sub.choices) == {"schemes", "run", "map", "select", "study", "demo"}
+    assert set(sub.choices) == {"schemes", "run", "map", "select", "lattice", "study", "demo"}
     for name, p in sub.choices.items():
         assert p.description, name
         text = p.format_help()

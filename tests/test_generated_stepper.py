@@ -157,3 +157,15 @@ def test_generated_module_is_written_to_the_cache(tmp_path, monkeypatch):
     assert again is not module and again.__file__ == str(files[0])
     assert files[0].stat().st_mtime_ns == mtime
     assert G.symbolic_fits(HH, 4) and not G.symbolic_fits(HH, G.SYMBOLIC_MAX_VALUES)
+
+
+def test_too_many_vectors_for_straight_line_code_use_the_generic_stepper():
+    """FPU n = 8 with the full spectrum (16 vectors: beyond the generated
+    stepper's size) runs on the generic stepper, outputs and all, and its
+    16 finite-time exponents sum to zero (the tangent map preserves volume:
+    Σ ln R_ii = ln det = 0 at every t)."""
+    model, x0 = varint.paper_orbit("R3")
+    assert G.symbolic_fits(model, 1) and not G.symbolic_fits(model, 16)
+    r = varint.lyapunov_spectrum(model, x0, t_end=200.0, t_out=np.array([100.0, 200.0]))
+    x = np.asarray(r.exponents)
+    assert x.shape == (2, 16) and np.abs(x.sum(axis=1)).max() < 1e-12

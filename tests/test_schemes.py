@@ -162,3 +162,127 @@ def test_register_scheme_refuses_what_is_not_a_scheme():
     with pytest.raises(ValueError, match="register_scheme needs a SplittingScheme, got str"):
         varint.register_scheme("SBAB9")
     assert varint.SCHEMES == before
+
+
+# -- schemes over k parts (the lattices) ---------------------------------------
+from varint.schemes import PART_SCHEMES, CompositionScheme, scheme_word  # noqa: E402
+
+PART_NAMES = [s.name for s in PART_SCHEMES.values()]
+
+
+def test_part_registry_holds_the_verified_compositions():
+    expected = {"ABC2", "ABC4_Y", "ABC4_S", "ABC6_Y", "ABC6_YA", "s9ABC6", "s11ABC6", "s13ABC6",
+                "s15ABC8", "s17ABC8", "s21ABC8"}
+    assert expected == set(PART_NAMES)
+    # Danieli et al. 2019 name s19ABC8, but its 19-stage table was not found:
+    # it is not registered, and no other table stands in for it.
+    assert "S19ABC8" not in PART_SCHEMES
+    with pytest.raises(ValueError, match="composes the flows of 3 parts"):
+        varint.get_scheme("s9ABC6")
+
+
+@pytest.mark.parametrize("name", PART_NAMES)
+def test_compositions_are_palindromic_and_consistent(name):
+    s = PART_SCHEMES[name.upper()]
+    word = s.word()
+    assert word == word[::-1]
+    for part in range(3):
+        assert math.isclose(math.fsum(c for p, c in word if p == part), 1.0, abs_tol=1e-14)
+    assert all(a[0] != b[0] for a, b in zip(word, word[1:])), "adjacent flows merged"
+    # A's merge across stages: s + 1 A flows, 2s B flows, s C flows.
+    assert s.flows_per_step() == (s.stages + 1, 2 * s.stages, s.stages)
+
+
+def test_invalid_compositions_are_refused():
+    with pytest.raises(ValueError, match="sum to"):
+        CompositionScheme("bad", 3, (0.4,), order=2)
+    with pytest.raises(ValueError, match="n_parts must be an integer >= 2"):
+        CompositionScheme("bad", 1, (1.0,), order=2)
+
+
+def test_corrector_schemes_become_words_with_correctors_outside():
+    word = scheme_word(varint.get_scheme("SABA2C"))
+    assert word[0][0] == word[-1][0] == varint.schemes.CORRECTOR
+    assert word[0][2] == 3 and word[0][1] == pytest.approx(-varint.get_scheme("SABA2C")
+                                                           .corrector / 2)
+
+
+def _rms_energy_error(model, x0, tau, scheme, t_end=8.0, every=0.4):
+    """RMS of ΔH/H at the times every 0.4 up to 8: common to all step sizes
+    τ = 0.4/m, so the error at each time scales exactly as τ^order (a max
+    over a window of an oscillating error, as above, scatters by ±0.3 for
+    the 6th- and 8th-order compositions)."""
+    t_out = np.arange(1, int(round(t_end / every)) + 1) * every
+    r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, t_out=t_out)
+    e = model.energy(r.states)
+    h0 = model.energy(x0)
+    return float(np.sqrt(np.mean(((e - h0) / h0) ** 2)))
+
+
+LADDER = tuple(0.4 / m for m in (3, 4, 5, 6, 8))   # τ = 0.133 … 0.05
+
+
+@pytest.fixture(scope="module")
+def ddnls_cases():
+    rng = np.random.default_rng(1)
+    out = []
+    for shape in (16, (4, 4)):
+        model = varint.models.DDNLS(shape, 4.0, 1.0, 1)
+        out.append((model, rng.uniform(-1, 1, model.dim)))
+    return out
+
+
+@pytest.mark.parametrize("name", PART_NAMES)
+def test_measured_order_of_three_part_schemes(name, ddnls_cases):
+    """Energy-error slope against τ on the DDNLS (1D, 16 sites, and 2D,
+    4 × 4; W = 4, β = 1, random q, p in [−1, 1]) within 0.2 of the order."""
+    s = PART_SCHEMES[name.upper()]
+    for model, x0 in ddnls_cases:
+        errs = [_rms_energy_error(model, x0, tau, name) for tau in LADDER]
+        assert abs(fitted_slope(LADDER, errs) - s.order) < 0.2, (model.name, errs)
+
+
+@pytest.mark.parametrize("model, scheme", [
+    (varint.models.DisorderedKG(16, 4.0, 1), "ABA864"),
+    (varint.models.DisorderedKG((4, 4), 10.0, 1), "ABA864"),
+    (varint.models.FPUT(16, 0.25, 1.0), "ABA864"),
+    (varint.models.FPUT(16, 0.25, 1.0, boundary="periodic"), "s11odr6"),
+    (varint.models.DisorderedKG(16, 4.0, 2, boundary="periodic"), "SABA2"),
+    (varint.models.DDNLS(16, 4.0, 1.0, 1), "ABA864"),
+    (varint.models.DDNLS((4, 4), 4.0, 1.0, 1), "s11odr6"),
+    (varint.models.FPUT(16, 0.25, 1.0), "SABA2C"),
+], ids=["KG1D-ABA864", "KG2D-ABA864", "FPUT-ABA864", "FPUTring-s11odr6", "KGring-SABA2",
+        "DDNLS2part-ABA864", "DDNLS2D2part-s11odr6", "FPUT-SABA2C"])
+def test_measured_order_of_two_part_schemes_on_lattices(model, scheme):
+    """The two-part schemes through the lattices' fused flows keep their
+    order (ABA864's (8,6,4) is 4 when neither part is small)."""
+    rng = np.random.default_rng(3)
+    x0 = rng.uniform(-0.5, 0.5, model.dim)
+    errs = [_rms_energy_error(model, x0, tau, scheme) for tau in LADDER]
+    order = varint.get_scheme(scheme).order
+    assert abs(fitted_slope(LADDER, errs) - order) < 0.2, errs
+
+
+def test_ddnls_norm_is_the_second_integral(ddnls_cases):
+    """The two-part split (every flow a rotation) conserves the norm to
+    round-off; the three-part split does not (B and C each change it), its
+    norm error falls with the scheme's order."""
+    model, x0 = ddnls_cases[0]
+    s0 = model.norm(x0)
+
+    def worst(scheme, tau):
+        r = varint.integrate(model, x0, 20.0, tau=tau, scheme=scheme, t_out=50)
+        return np.max(np.abs(model.norm(r.states) / s0 - 1))
+    # Round-off of 200 steps of the eigenvector transforms: ~3e-13.
+    assert worst("ABA864", 0.1) < 2e-12
+    assert worst("s11odr6", 0.1) < 2e-12
+    errs = [worst("ABC4_Y", tau) for tau in (0.1, 0.05, 0.025)]
+    assert errs[-1] > 1e-11 and abs(fitted_slope((0.1, 0.05, 0.025), errs) - 4) < 0.3
+    assert worst("s17ABC8", 0.1) < 1e-3 * worst("ABC2", 0.1)
+
+
+def test_two_and_three_part_splits_converge_to_the_same_orbit(ddnls_cases):
+    model, x0 = ddnls_cases[1]
+    a = varint.integrate(model, x0, 2.0, tau=0.01, scheme="s17ABC8").state
+    b = varint.integrate(model, x0, 2.0, tau=0.01, scheme="s11odr6").state
+    assert np.max(np.abs(a - b)) < 1e-10

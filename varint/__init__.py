@@ -76,6 +76,7 @@ from .checkpoint import CheckpointError  # noqa: E402
 from .departure import Departure, departure  # noqa: E402
 from .driver import IntegrationError  # noqa: E402
 from .grids import PhaseGrid, phase_grid  # noqa: E402
+from .ensemble import EnsembleResult, ensemble  # noqa: E402
 from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
 from .maps import chaos_map  # noqa: E402
 from .methods import METHODS, register_method  # noqa: E402
@@ -98,6 +99,6 @@ __all__ = [
     "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "MEGNOResult",
     "IndicatorResult", "load_result", "Status", "Renorm",
     "IntegrationError", "CheckpointError", "departure", "Departure",
-    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid",
-    "phase_grid", "PhaseGrid", "SectionResult", "select_scheme",
+    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid", "ensemble",
+    "EnsembleResult", "phase_grid", "PhaseGrid", "SectionResult", "select_scheme",
 ]

@@ -103,7 +103,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
           errors="raise", checkpoint=None, decide=None, renorm=0):
     """Advance ``state`` to each step of ``out_steps`` and record there.
 
-    A propagator that takes snapshots (``prop.snapshots`` true: it copies
+    A propagator that takes snapshots (``prop.takes_snapshots(state)``: it copies
     the state at given output steps inside its compiled loop) is advanced in
     chunks that span many outputs, and all their records are read at once,
     so outputs cost no more than the steps between them. Other propagators,
@@ -158,7 +158,8 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     stop = None
     if errors == "raise" and is_failure(state.status).any():
         stop, todo = "failed", todo[:0]  # resumed from a checkpoint written at a failure
-    batched = decide is None and getattr(prop, "snapshots", False)
+    takes = getattr(prop, "takes_snapshots", None)
+    batched = decide is None and takes is not None and takes(state)
     pace = _Pace()
     with _sigint_to_flag() as interrupted, \
             _progress_bar(progress, state.step, out_steps[-1], desc) as bar:

@@ -20,6 +20,22 @@ References
 .. [FR90] E. Forest & R. D. Ruth, Physica D 43, 105 (1990); H. Yoshida,
    Phys. Lett. A 150, 262 (1990).
 .. [KL97] W. Kahan & R.-C. Li, Math. Comp. 66, 1089 (1997).
+.. [S14] Ch. Skokos, E. Gerlach, J. D. Bodyfelt, G. Papamikos & S. Eggl,
+   Phys. Lett. A 378, 1809 (2014): the three-part split ABC of the DDNLS.
+.. [SS05] M. Sofroniou & G. Spaletta, Optim. Methods Softw. 20, 597 (2005).
+.. [D19] C. Danieli, B. Many Manda, T. Mithun & Ch. Skokos, Math. Eng. 1, 447
+   (2019): s9ABC6, s11ABC6, s17ABC8 (and s19ABC8, whose table is not here).
+
+Schemes over k ≥ 2 named parts
+------------------------------
+A Hamiltonian split into k integrable parts H = P_1 + … + P_k (the DDNLS's
+on-site part A and its two hopping parts B and C, [S14]_) is integrated by
+:class:`CompositionScheme`: a symmetric composition of the symmetric
+second-order map S2 (ABC² for k = 3). Those live in :data:`PART_SCHEMES`
+(the two-part registry :data:`SCHEMES` is unchanged). Both kinds become a
+*word* (:func:`scheme_word`): the ordered flows, each a slot (which part),
+a coefficient and the power of τ of its length, which the part stepper
+(:mod:`varint.kernels.parts`) runs.
 """
 
 from __future__ import annotations
@@ -31,7 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme", "stage_arrays",
-           "stage_times"]
+           "stage_times", "CompositionScheme", "PART_SCHEMES", "register_part_scheme",
+           "resolve_scheme", "scheme_word", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -254,6 +271,11 @@ def get_scheme(scheme: str | SplittingScheme) -> SplittingScheme:
         return scheme
     if isinstance(scheme, str) and scheme.upper() in SCHEMES:
         return SCHEMES[scheme.upper()]
+    if isinstance(scheme, (str, CompositionScheme)) and _part_key(scheme) in PART_SCHEMES:
+        s = PART_SCHEMES[_part_key(scheme)]
+        raise ValueError(
+            f"scheme {s.name!r} composes the flows of {s.n_parts} parts; it runs on models that "
+            f"declare a {s.n_parts}-part split (e.g. varint.models.DDNLS) with method='tm'")
     raise ValueError(
         f"unknown scheme {scheme!r}; expected one of: {', '.join(s.name for s in SCHEMES.values())}"
     )
@@ -401,3 +423,270 @@ def stage_times(scheme: SplittingScheme):
         if kind == DRIFT:
             before.append(float(c))
     return np.array(out, dtype=np.float64)
+
+
+# --------------------------------------------------------------------------
+# Words: a scheme as the ordered flows it applies.
+
+#: The slot of the corrector flow e^{h L_C}, C = {B,{B,A}}, in a word.
+CORRECTOR = -1
+
+
+def scheme_word(scheme):
+    """The flows of one step of ``scheme``, in order of application.
+
+    Parameters
+    ----------
+    scheme : SplittingScheme or CompositionScheme
+
+    Returns
+    -------
+    tuple of (slot, coefficient, power)
+        Flow e^{c τ^power L_slot}. For a two-part scheme slot 0 is the drift
+        (A = ½pᵀM⁻¹p), slot 1 the kick (B = V), and :data:`CORRECTOR` the
+        corrector, whose length is −gτ³/2 on each side of the step
+        (Skokos & Gerlach 2010, eq. 22); for a k-part composition the slots
+        are the parts 0 … k−1.
+    """
+    if isinstance(scheme, CompositionScheme):
+        return tuple((slot, c, 1) for slot, c in scheme.word())
+    if not isinstance(scheme, SplittingScheme):
+        raise ValueError(f"scheme_word needs a SplittingScheme or CompositionScheme, got "
+                         f"{type(scheme).__name__} {scheme!r}")
+    word = tuple((0 if kind == DRIFT else 1, c, 1) for kind, c in scheme.stages())
+    if scheme.corrector is not None:
+        # Both correctors act on p at the q of the outer stage, so for a BAB
+        # layout they commute with the first and last kick, and for an ABA
+        # layout they sit outside the first and last drift, as in eq. 22.
+        end = ((CORRECTOR, -scheme.corrector / 2, 3),)
+        word = end + word + end
+    return word
+
+
+def _merge(word):
+    """Adjacent flows of the same part composed into one (exact: they are
+    the flow of one autonomous Hamiltonian); zero-length flows dropped."""
+    out = []
+    for slot, c in word:
+        if out and out[-1][0] == slot:
+            out[-1] = (slot, out[-1][1] + c)
+        else:
+            out.append((slot, c))
+    return tuple((s, c) for s, c in out if c != 0.0)
+
+
+def strang_word(n_parts):
+    """S2(h) for H = P_0 + … + P_{k−1}: e^{h/2 L_0} … e^{h L_{k−1}} … e^{h/2 L_0},
+    the symmetric second-order map (ABC² of [S14]_ for k = 3), as
+    (slot, coefficient) pairs."""
+    half = [(slot, 0.5) for slot in range(n_parts - 1)]
+    return tuple(half + [(n_parts - 1, 1.0)] + half[::-1])
+
+
+@dataclass(frozen=True)
+class CompositionScheme:
+    """A symmetric composition Π_i S2(γ_i τ) of the second-order map
+    S2 = :func:`strang_word` over ``n_parts`` parts, adjacent flows of the
+    same part merged (Yoshida 1990; Kahan & Li 1997; McLachlan 1995).
+
+    Parameters
+    ----------
+    name : str
+        Literature name, e.g. ``"s9ABC6"``; the key in :data:`PART_SCHEMES`.
+    n_parts : int
+        The number of parts k ≥ 2 of the split it composes.
+    gammas : tuple of float
+        The independent half of the palindromic γ_1 … γ_s, centre last
+        (s = 2·len − 1 stages), as published; Σγ = 1.
+    order : int
+        Order of the energy error.
+    reference : str
+        Where the coefficients come from.
+
+    Raises
+    ------
+    ValueError
+        If a field has the wrong type, the γ do not sum to 1, or n_parts < 2.
+    """
+
+    name: str
+    n_parts: int
+    gammas: tuple
+    order: int
+    reference: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"a scheme's name must be a non-empty string, got {self.name!r}")
+        where = f"scheme {self.name!r}"
+        if isinstance(self.n_parts, bool) or not isinstance(self.n_parts, numbers.Integral) \
+                or self.n_parts < 2:
+            raise ValueError(f"{where}: n_parts must be an integer >= 2, got {self.n_parts!r}")
+        if isinstance(self.order, bool) or not isinstance(self.order, numbers.Integral) \
+                or self.order < 1:
+            raise ValueError(f"{where}: order must be a positive integer, got {self.order!r}")
+        g = self.gammas
+        if isinstance(g, (str, bytes)) or not hasattr(g, "__len__") or len(g) == 0:
+            raise ValueError(f"{where}: gammas must be a non-empty sequence of numbers, got {g!r}")
+        for i, c in enumerate(g):
+            if isinstance(c, bool) or not isinstance(c, numbers.Real) or not math.isfinite(c):
+                raise ValueError(f"{where}: gammas[{i}] must be a finite real number, got {c!r}")
+        object.__setattr__(self, "gammas", tuple(float(c) for c in g))
+        object.__setattr__(self, "n_parts", int(self.n_parts))
+        object.__setattr__(self, "order", int(self.order))
+        total = math.fsum(self.stage_gammas())
+        if not abs(total - 1.0) <= 1e-14:
+            raise ValueError(f"{where}: the composition coefficients sum to {total!r}, expected 1")
+
+    def stage_gammas(self):
+        """The full palindrome γ_1 … γ_s."""
+        g = list(self.gammas)
+        return tuple(g + g[-2::-1])
+
+    @property
+    def stages(self):
+        """s, the number of S2 maps per step."""
+        return 2 * len(self.gammas) - 1
+
+    def word(self):
+        """The merged (slot, coefficient) flows of one step."""
+        base = strang_word(self.n_parts)
+        return _merge([(slot, g * c) for g in self.stage_gammas() for slot, c in base])
+
+    def flows_per_step(self):
+        """Flows of each part in one step: (count of part 0, …)."""
+        counts = [0] * self.n_parts
+        for slot, _ in self.word():
+            counts[slot] += 1
+        return tuple(counts)
+
+    def describe(self) -> dict:
+        """JSON-serialisable description (for result provenance)."""
+        return {"name": self.name, "parts": self.n_parts, "stages": self.stages,
+                "order": self.order, "flows_per_step": list(self.flows_per_step()),
+                "reference": self.reference}
+
+
+#: Schemes over k ≥ 2 named parts, by upper-cased name.
+PART_SCHEMES: dict[str, CompositionScheme] = {}
+
+
+def _part_key(scheme):
+    return (scheme.name if isinstance(scheme, CompositionScheme) else scheme).upper()
+
+
+def register_part_scheme(scheme):
+    """Add a :class:`CompositionScheme` to :data:`PART_SCHEMES`.
+
+    Raises
+    ------
+    ValueError
+        If it is not a CompositionScheme or its name is taken (in either
+        registry).
+    """
+    if not isinstance(scheme, CompositionScheme):
+        raise ValueError(f"register_part_scheme needs a CompositionScheme, got "
+                         f"{type(scheme).__name__} {scheme!r}")
+    key = scheme.name.upper()
+    if key in PART_SCHEMES or key in SCHEMES:
+        raise ValueError(f"a scheme named {scheme.name!r} is already registered")
+    PART_SCHEMES[key] = scheme
+    return scheme
+
+
+def resolve_scheme(scheme):
+    """A two-part :class:`SplittingScheme` or a :class:`CompositionScheme`
+    from itself or its name (case-insensitive).
+
+    Raises
+    ------
+    ValueError
+        For an unknown name; the message lists the names of both registries.
+    """
+    if isinstance(scheme, (SplittingScheme, CompositionScheme)):
+        return scheme
+    if isinstance(scheme, str):
+        key = scheme.upper()
+        if key in SCHEMES:
+            return SCHEMES[key]
+        if key in PART_SCHEMES:
+            return PART_SCHEMES[key]
+    names = [s.name for s in SCHEMES.values()] + [s.name for s in PART_SCHEMES.values()]
+    raise ValueError(f"unknown scheme {scheme!r}; expected one of: {', '.join(names)}")
+
+
+def part_stages(scheme, tau, slots):
+    """Stage tables of the part stepper, already scaled by τ.
+
+    Parameters
+    ----------
+    scheme : SplittingScheme or CompositionScheme
+    tau : float
+    slots : mapping of slot -> int
+        The model's part index of each slot of the word (including
+        :data:`CORRECTOR` if the scheme has one).
+
+    Returns
+    -------
+    parts : ndarray of int64, shape (n_flows,)
+    h : ndarray of float64, shape (n_flows,)
+        Flow lengths c τ^power.
+    """
+    word = scheme_word(scheme)
+    parts = np.array([slots[slot] for slot, _, _ in word], dtype=np.int64)
+    h = np.array([c * tau ** power for _, c, power in word], dtype=np.float64)
+    return parts, h
+
+
+# --------------------------------------------------------------------------
+# Compositions of ABC² (three-part split of the DDNLS, [S14]_, [D19]_).
+# γ tables: independent half, centre last. The digits were checked against
+# several public tables and every one is verified by its measured order
+# (tests/test_schemes.py, studies/lattices.py). The 19-stage order-8 table
+# behind D19's s19ABC8 was not found, so s19ABC8 is not registered (no
+# other table stands in for it).
+_cbrt2, _fifth2 = 2 ** (1 / 3), 2 ** (1 / 5)
+_y4 = (1 / (2 - _cbrt2), -_cbrt2 / (2 - _cbrt2))
+_y6_1, _y6_0 = 1 / (2 - _fifth2), -_fifth2 / (2 - _fifth2)
+_p4 = 1 / (4 - 4 ** (1 / 3))
+_YOSHIDA = "Yoshida, Phys. Lett. A 150, 262 (1990)"
+_SS05 = "Sofroniou & Spaletta, Optim. Methods Softw. 20, 597 (2005)"
+_ABC = [
+    ("ABC2", (1.0,), 2, "Strang splitting of A + B + C; Skokos et al., Phys. Lett. A 378, 1809 "
+                        "(2014)"),
+    ("ABC4_Y", _y4, 4, _YOSHIDA + " (triple jump)"),
+    ("ABC4_S", (_p4, _p4, 1 - 4 * _p4), 4, "Suzuki, Phys. Lett. A 146, 319 (1990)"),
+    ("ABC6_Y", (_y4[0] * _y6_1, _y4[1] * _y6_1, _y4[0] * _y6_1, _y4[0] * _y6_0,
+                _y4[1] * _y6_0), 6, _YOSHIDA + " (triple jump of ABC4_Y)"),
+    ("ABC6_YA", (0.78451361047755726382, 0.23557321335935813368, -1.1776799841788710069,
+                 1.3151863206839112189), 6, _YOSHIDA + " (solution A)"),
+    ("s9ABC6", (0.39216144400731413927925056, 0.33259913678935943859974864,
+                -0.70624617255763935980996482, 0.08221359629355080023149045,
+                0.79854399093482996339895035), 6, _KL + " (s9odr6a)"),
+    ("s11ABC6", (0.21375583945878254555518066964857, 0.18329381407425713911385974425217,
+                 0.17692819473098943794898811709929, -0.44329082681170215849622829626258,
+                 0.11728560432865935385403585669136, 0.50405474843802736404832781714239),
+     6, _SS05 + " (s11odr6)"),
+    ("s13ABC6", (0.13861930854051695245808013042625, 0.13346562851074760407046858832209,
+                 0.13070531011449225190542755785015, 0.12961893756907034772505366537091,
+                 -0.35000324893920896516170830911323, 0.11805530653002387170273438954049,
+                 0.39907751534871587459988795520665), 6, _SS05 + " (s13odr6)"),
+    ("s15ABC8", (0.74167036435061295344822780, -0.40910082580003159399730010,
+                 0.19075471029623837995387626, -0.57386247111608226665638773,
+                 0.29906418130365592384446354, 0.33462491824529818378495798,
+                 0.31529309239676659663205666, -0.79688793935291635401978884), 8,
+     "McLachlan, SIAM J. Sci. Comput. 16, 151 (1995) (s15odr8)"),
+    ("s17ABC8", (0.13020248308889008087881763, 0.56116298177510838456196441,
+                 -0.38947496264484728640807860, 0.15884190655515560089621075,
+                 -0.39590389413323757733623154, 0.18453964097831570709183254,
+                 0.25837438768632204729397911, 0.29501172360931029887096624,
+                 -0.60550853383003451169892108), 8, _KL + " (s17odr8a)"),
+    ("s21ABC8", (0.10647728984550031823931967854896, 0.10837408645835726397433410591546,
+                 0.35337821052654342419534541324080, -0.23341414023165082198780281128319,
+                 -0.24445266791528841269462171413216, 0.11317848435755633314700952515599,
+                 0.11892905625000350062692972283951, 0.12603912321825988140305670268365,
+                 0.12581718736176041804392391641587, 0.11699135019217642180722881433533,
+                 -0.38263596012643665350944670744040), 8, _SS05 + " (s21odr8)"),
+]
+for _name, _half, _order, _ref in _ABC:
+    register_part_scheme(CompositionScheme(_name, 3, _half, _order, _ref))

@@ -4,10 +4,11 @@ indicator declares and how to add one).
 
 Built in: ``"lyapunov"`` (alias ``"x1"`` for X_1 alone), ``"gali"`` (and
 ``"gali_k"``), ``"sali"``, ``"megno"``, ``"fli"``, ``"ofli"``,
-``"local_exponents"`` and ``"integrate"`` (the orbit itself).
+``"local_exponents"``, ``"integrate"`` (the orbit itself), and for lattices
+``"spreading"`` and ``"dvd"`` (:mod:`varint.indicators.lattice`).
 """
 
-from . import alignment, local_exponents, lyapunov, megno, orbit  # noqa: F401  (registers them)
+from . import alignment, lattice, local_exponents, lyapunov, megno, orbit  # noqa: F401  (registers them)
 from .alignment import gali_from_vectors, sali_from_vectors
 from .base import (INDICATORS, Field, Indicator, Option, as_values, get_indicator,
                    register_indicator, resolve)

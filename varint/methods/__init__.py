@@ -13,6 +13,11 @@ Map models (``model.kind == "map"``, :mod:`varint.models.maps`) are not
 integrated: ``"tm"`` iterates them with their own tangent map
 (:class:`varint.methods.map.MapPropagator`), and only the methods in
 :data:`MAP_METHODS` take them; the others refuse them with that list.
+
+``method="tm"`` has two steppers: the generic one (:mod:`varint.methods.tm`,
+H = T + V with band kernels) and, for models split into k ≥ 2 parts (the
+lattices), the part stepper (:mod:`varint.methods.parts`), which
+:func:`make_propagator` picks by :func:`varint.methods.parts.runs_parts`.
 """
 
 from __future__ import annotations
@@ -133,4 +138,15 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
         options).
     """
     cls = propagator_class(method, model)
+    # Models split into parts (the lattices) run "tm" through their fused
+    # part flows (varint.methods.parts decides when), and only "tm" when
+    # they have no band kernels for the other methods.
+    from .parts import PartsPropagator, runs_parts
+
+    if _key(method) == "tm" and runs_parts(model, options.get("scheme")):
+        cls = PartsPropagator
+    elif not getattr(model, "band_kernels", True):
+        raise ValueError(f"method {method!r} needs the band-Hessian kernels of "
+                         f"varint.models.base, which {model.name} does not have (a 2D lattice, "
+                         "a ring, or H not of the form T(p) + V(q)); use method='tm'")
     return cls(model, tau, Renorm.parse(renorm), accumulator=accumulator, **options)

@@ -125,11 +125,10 @@ class TangentMapPropagator:
             self._generated[k] = module
         return self._generated[k]
 
-    @property
-    def snapshots(self):
-        """Whether :meth:`advance` copies the state at output steps (for a
-        model with a generated stepper)."""
-        return G.symbolic_fits(self.model, 0)
+    def takes_snapshots(self, state):
+        """Whether :meth:`advance` can copy ``state`` at output steps inside
+        the compiled loop (a generated stepper for this model and k)."""
+        return self._stepper(state.k) is not None
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -148,7 +147,7 @@ class TangentMapPropagator:
         n : int
         outputs : ndarray of int, optional
             Steps in (state.step, state.step + n] at which to copy the state
-            (only with :attr:`snapshots`).
+            (only if :meth:`takes_snapshots`).
 
         Returns
         -------

@@ -1,15 +1,22 @@
 """Models H = ½ pᵀM⁻¹p + V(q) (or V(q, t)): the protocol and the paper's
-systems; and symplectic maps with their tangent maps (:mod:`.maps`)."""
+systems; symplectic maps with their tangent maps (:mod:`.maps`); and the
+many-body lattices (:mod:`varint.models.lattice`), which also declare the
+parts their Hamiltonians split into."""
 
 from .base import Model
+from .ddnls import DDNLS
 from .fpu import FPUBeta
+from .fput import FPUT
 from .henon_heiles import HenonHeiles
+from .kg import DisorderedKG
+from .lattice import LatticeModel, Parts
 from .maps import CoupledStandardMaps, MapModel, StandardMap
 from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
-__all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "paper_orbit", "solve_momentum",
-           "PAPER_ORBITS", "from_potential", "SymbolicModel", "SymbolicPotential",
+__all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "FPUT", "DisorderedKG", "DDNLS",
+           "LatticeModel", "Parts", "paper_orbit", "solve_momentum", "PAPER_ORBITS",
+           "from_potential", "SymbolicModel", "SymbolicPotential",
            "MapModel", "StandardMap", "CoupledStandardMaps", "from_map", "SymbolicMap"]
 
 _SYMBOLIC = ("from_potential", "SymbolicModel", "SymbolicPotential", "from_map", "SymbolicMap")

@@ -1,0 +1,447 @@
+"""Ensembles over disorder: one indicator for many realisations of a
+disordered lattice, and its averages.
+
+:func:`ensemble` runs :func:`varint.run` once per realisation (one seed of
+the disorder each), in this process or as tasks on a Dask cluster (as
+:func:`varint.chaos_map` runs its chunks), and stacks the realisations'
+series. What the lattice laws are stated for — ⟨log₁₀ m₂⟩(t), ⟨log₁₀ Λ⟩(t)
+averaged over disorder (Flach, Krimer & Skokos 2009; Senyange, Many Manda &
+Skokos 2018) — is :meth:`EnsembleResult.log_mean`, and the exponent of a
+power law with its spread over realisations :meth:`EnsembleResult.exponent`.
+
+Deterministic by construction: realisation s is the model built for seed s,
+its initial state, and deviation vectors drawn from ``default_rng([s, 0])``;
+nothing depends on the order in which realisations run, on the worker, or
+on resuming.
+
+Resuming: with ``checkpoint=DIR`` every finished realisation is written to
+``DIR/seed_<s>.npz`` (with its run parameters in ``seed_<s>.json``) as
+soon as it arrives, and a realisation in progress keeps a run checkpoint
+``DIR/seed_<s>.ckpt`` (:func:`varint.run`'s, bitwise resumable). The same
+call again loads the finished realisations, resumes the one in progress and
+runs the rest; a stored realisation whose parameters differ from this
+call's is refused with a :class:`~varint.CheckpointError` naming them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import numbers
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+from . import _validate as check
+from .checkpoint import CheckpointError, canonical, differences
+from .files import atomic_file, atomic_write
+from .indicators import resolve
+from .maps import _bar, _cluster_threads, _worker_threads
+from .protocol import REASONS, is_failure
+from .results import Provenance, _Result, load_result, package_versions
+from .run import prepare
+
+__all__ = ["ensemble", "EnsembleResult"]
+
+#: Fields of a single run's result that are not its series.
+_NOT_SERIES = ("t", "energy_error", "state", "provenance", "status", "interrupted", "deviations")
+
+
+@dataclass
+class EnsembleResult(_Result):
+    """Result of :func:`ensemble`.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_out,)
+    seeds : ndarray of int, shape (R,)
+        The realisations, in the order of the call.
+    values : dict of str -> ndarray, shape (R, n_out, ...)
+        Every series of the indicator, stacked over realisations (NaN for
+        realisations not finished or after a failure).
+    energy_error : ndarray, shape (R, n_out)
+    state : ndarray, shape (R, 2N)
+        Final states.
+    status : ndarray, shape (R,)
+        0 for realisations that ran to the end, a failure code otherwise
+        (−2 for one not run, after an interruption).
+    wall_times : ndarray, shape (R,)
+        Seconds each realisation took.
+    """
+
+    plot_kind: ClassVar[str] = "series"
+
+    seeds: np.ndarray = None
+    values: dict = None
+    wall_times: np.ndarray = None
+
+    def __getitem__(self, name):
+        try:
+            return self.values[name]
+        except KeyError:
+            raise KeyError(f"this ensemble holds {', '.join(self.values)}; not {name!r}") from None
+
+    def _series(self, name, column):
+        v = np.asarray(self[name], dtype=float)
+        if column is not None:
+            v = v[..., column]
+        elif v.ndim > 2:
+            raise ValueError(f"{name!r} has shape {v.shape}: pick a column= (e.g. 0)")
+        return v
+
+    def log_mean(self, name, column=None):
+        """⟨log₁₀|v|⟩ over the realisations at each output time.
+
+        Parameters
+        ----------
+        name : str
+            A series of :attr:`values` (e.g. ``"m2"``, ``"x1"``).
+        column : int, optional
+            Which column of a series with one (e.g. exponent 0).
+
+        Returns
+        -------
+        mean, std : ndarray, shape (n_out,)
+            The average of log₁₀|v| and its standard deviation over the
+            realisations that have a finite value there.
+        count : ndarray of int, shape (n_out,)
+            How many realisations that is.
+        """
+        v = self._series(name, column)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logs = np.log10(np.abs(v))
+        ok = np.isfinite(logs)
+        count = ok.sum(axis=0)
+        with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mean = np.nanmean(np.where(ok, logs, np.nan), axis=0)
+            std = np.nanstd(np.where(ok, logs, np.nan), axis=0)
+        return mean, std, count
+
+    def exponent(self, name, window, column=None):
+        """The power law v ∝ t^a over ``window``, fitted two ways.
+
+        Parameters
+        ----------
+        name : str
+        window : (float, float)
+            First and last time of the fit.
+        column : int, optional
+
+        Returns
+        -------
+        dict
+            ``a``: the least-squares slope of ⟨log₁₀|v|⟩ against log₁₀ t;
+            ``a_mean``, ``a_std``: mean and standard deviation of the slopes
+            of the single realisations (their spread); ``a_err``: the
+            standard error of that mean (a_std/√R); ``realisations``: R;
+            ``window``: the output times actually used.
+        """
+        lo, hi = window
+        t = np.asarray(self.t, dtype=float)
+        use = (t >= lo * (1 - 1e-12)) & (t <= hi * (1 + 1e-12))
+        if use.sum() < 3:
+            raise ValueError(f"the window {window} holds {int(use.sum())} output times; a fit "
+                             "needs at least 3")
+        lt = np.log10(t[use])
+        mean, _, _ = self.log_mean(name, column)
+        a = float(np.polyfit(lt, mean[use], 1)[0]) if np.isfinite(mean[use]).all() else math.nan
+        v = self._series(name, column)[:, use]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logs = np.log10(np.abs(v))
+        slopes = np.array([np.polyfit(lt, row, 1)[0] for row in logs if np.isfinite(row).all()])
+        r = slopes.size
+        return {"a": a, "a_mean": float(slopes.mean()) if r else math.nan,
+                "a_std": float(slopes.std(ddof=1)) if r > 1 else math.nan,
+                "a_err": float(slopes.std(ddof=1) / math.sqrt(r)) if r > 1 else math.nan,
+                "realisations": int(r), "window": (float(t[use][0]), float(t[use][-1]))}
+
+
+@dataclass
+class _Spec:
+    """What every realisation of one ensemble shares (sent to the workers)."""
+
+    factory: object
+    params: dict | None
+    x0: object
+    indicator: object
+    t_end: float
+    tau: float | None
+    options: dict
+
+    def model(self, seed):
+        if self.params is not None:
+            return self.factory(**self.params, seed=seed)
+        return self.factory(seed)
+
+    def initial(self, model, seed):
+        return self.x0(model, seed) if callable(self.x0) else self.x0
+
+    def job(self, seed, checkpoint=None):
+        """The prepared run of realisation ``seed`` (:func:`varint.run.prepare`)."""
+        model = self.model(seed)
+        return prepare(model, self.initial(model, seed), self.indicator, self.t_end, self.tau,
+                       seed=int(seed), progress=False, errors="flag", checkpoint=checkpoint,
+                       **self.options)
+
+
+def _realise(spec, seed, checkpoint):
+    """One realisation, run to the end (or interrupted): its result and the
+    parameters that determine it."""
+    with _worker_threads(), warnings.catch_warnings():
+        # Failures are counted by the ensemble, which warns once.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        job = spec.job(seed, checkpoint)
+        result = job.execute()
+    return result, canonical(job.parameters())
+
+
+class _Store:
+    """The checkpoint directory of an ensemble (see the module docstring)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if self.path.exists() and not self.path.is_dir():
+            raise ValueError(f"checkpoint must be a directory, {self.path} is a file")
+        self.path.mkdir(parents=True, exist_ok=True)
+
+    def _file(self, seed, suffix):
+        return self.path / f"seed_{int(seed)}{suffix}"
+
+    def run_checkpoint(self, seed):
+        return self._file(seed, ".ckpt")
+
+    def load(self, seed, expected):
+        """The stored result of ``seed`` if finished, checked against the
+        ``expected`` run parameters; None if not there."""
+        result_file, meta_file = self._file(seed, ".npz"), self._file(seed, ".json")
+        if not (result_file.exists() and meta_file.exists()):
+            return None
+        stored = json.loads(meta_file.read_text())
+        diff = differences(stored, expected)
+        if diff:
+            raise CheckpointError(
+                f"{result_file} holds realisation {seed} of an ensemble with other parameters: "
+                + "; ".join(diff) + ". Use another directory, or delete it to start over")
+        try:
+            return load_result(result_file)
+        except Exception as exc:  # a damaged file must never be used
+            warnings.warn(f"ensemble file {result_file} is unreadable ({exc}); recomputing it",
+                          RuntimeWarning, stacklevel=3)
+            return None
+
+    def save(self, seed, result, parameters):
+        atomic_write(self._file(seed, ".json"), json.dumps(parameters, indent=1))
+        with atomic_file(self._file(seed, ".npz")) as f:
+            result.save(f)
+        self.run_checkpoint(seed).unlink(missing_ok=True)
+
+
+def _seeds(seeds):
+    try:
+        values = list(seeds)
+    except TypeError:
+        raise ValueError(f"seeds must be a sequence of non-negative integers, got {seeds!r}") \
+            from None
+    if not values:
+        raise ValueError("seeds holds no realisation")
+    for s in values:
+        if isinstance(s, (bool, np.bool_)) or not isinstance(s, numbers.Integral) or s < 0:
+            raise ValueError(f"seeds must be non-negative integers, got {s!r}")
+    if len(set(int(s) for s in values)) != len(values):
+        raise ValueError("seeds must be distinct (each seed is one realisation)")
+    return [int(s) for s in values]
+
+
+def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, client=None,
+             checkpoint=None, progress=None, **options):
+    """An indicator over many realisations of a disordered model.
+
+    Parameters
+    ----------
+    model : type or callable
+        A model class taking ``seed=`` (e.g. :class:`varint.models.DDNLS`),
+        built as ``model(**params, seed=s)``; or a function ``seed -> Model``.
+    seeds : sequence of int
+        One realisation per seed (distinct, non-negative).
+    x0 : array_like, shape (2N,), or callable
+        The initial state of every realisation, or ``x0(model, seed) ->
+        state`` (e.g. ``lambda m, s: m.initial_block(21, 0.1, seed=s)``).
+    indicator : str or Indicator
+        As for :func:`varint.run` (``"dvd"``, ``"spreading"``, ``"x1"``, …).
+    t_end, tau : float
+        As for :func:`varint.run`.
+    params : dict, optional
+        The model's parameters when ``model`` is a class.
+    client : dask.distributed.Client, optional
+        Run the realisations as tasks on this cluster (each worker needs
+        varint); values are bitwise those of a run here.
+    checkpoint : str or os.PathLike, optional
+        Directory that keeps the finished realisations (module docstring).
+    progress : bool, optional
+        A progress bar over realisations (by default when stderr is a
+        terminal).
+    **options
+        Everything else :func:`varint.run` takes (``scheme``, ``t_out``,
+        ``method``, the indicator's options, …) except ``seed``, which is
+        each realisation's.
+
+    Returns
+    -------
+    EnsembleResult
+        The stacked series, with :meth:`~EnsembleResult.log_mean` and
+        :meth:`~EnsembleResult.exponent`. After Ctrl-C: the realisations
+        finished so far, ``interrupted=True``.
+
+    Examples
+    --------
+    >>> import varint                                                  # doctest: +SKIP
+    >>> r = varint.ensemble(varint.models.DDNLS, range(20),
+    ...                     lambda m, s: m.initial_block(21, 1.0, seed=s), "dvd", 1e5,
+    ...                     tau=0.1, params={"shape": 512, "W": 4, "beta": 0.04},
+    ...                     scheme="s9ABC6", checkpoint="ddnls_weak")
+    >>> r.exponent("x1", (1e3, 1e5))["a"]                               # doctest: +SKIP
+    """
+    start = time.perf_counter()
+    if "seed" in options:
+        raise ValueError("seed= is each realisation's own seed; give the realisations as seeds")
+    if not callable(model):
+        raise ValueError(f"model must be a model class or a function seed -> Model, got "
+                         f"{type(model).__name__} {model!r}")
+    if params is not None and not isinstance(params, dict):
+        raise ValueError(f"params must be a dict of the model's parameters, got {params!r}")
+    if isinstance(model, type) and params is None:
+        params = {}
+    seeds = _seeds(seeds)
+    check.dask_client(client)
+    if not callable(x0):
+        x0 = check.real_array(x0, "x0")
+    spec = _Spec(model, params, x0, resolve(indicator)[0], t_end, tau, dict(options))
+    # Every input checked before any long run: build (and discard) the
+    # first realisation's run.
+    first = spec.job(seeds[0])
+    store = None if checkpoint is None else _Store(checkpoint)
+    results, parameters = {}, {}
+    if store is not None:
+        for s in seeds:
+            expected = canonical(spec.job(s).parameters())
+            found = store.load(s, expected)
+            if found is not None:
+                results[s], parameters[s] = found, expected
+    resumed = len(results)
+    todo = [s for s in seeds if s not in results]
+    runner = _run_local if client is None else _run_dask
+    with _bar(progress, len(seeds), resumed) as bar:
+        interrupted = runner(client, spec, todo, results, parameters, store, bar)
+    return _assemble(spec, first, seeds, results, resumed, interrupted, client,
+                     time.perf_counter() - start)
+
+
+def _keep(seed, result, params, results, parameters, store, bar):
+    results[seed], parameters[seed] = result, params
+    if store is not None:
+        store.save(seed, result, params)
+    if bar is not None:
+        bar.update(1)
+
+
+def _run_local(client, spec, todo, results, parameters, store, bar):
+    """Realisations one after the other in this process. Returns whether
+    Ctrl-C stopped the ensemble (the realisation in progress keeps its run
+    checkpoint, if any)."""
+    try:
+        for s in todo:
+            ckpt = None if store is None else store.run_checkpoint(s)
+            result, params = _realise(spec, s, ckpt)
+            if result.interrupted:
+                return True
+            _keep(s, result, params, results, parameters, store, bar)
+    except KeyboardInterrupt:
+        return True
+    return False
+
+
+def _run_dask(client, spec, todo, results, parameters, store, bar):
+    """Realisations as tasks on a Dask cluster, taken as they finish."""
+    from distributed import as_completed
+
+    futures = {client.submit(_realise, spec, s,
+                             None if store is None else str(store.run_checkpoint(s)),
+                             pure=False): s for s in todo}
+    try:
+        for future in as_completed(futures):
+            result, params = future.result()
+            _keep(futures[future], result, params, results, parameters, store, bar)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        return True
+    return False
+
+
+def _series(result):
+    """The series of one realisation's result by name."""
+    out = {}
+    for f in dataclasses.fields(result):
+        if f.name in _NOT_SERIES:
+            continue
+        value = getattr(result, f.name)
+        if isinstance(value, dict):
+            prefix = "" if f.name == "values" else f"{f.name}_"
+            out.update({f"{prefix}{k}": np.asarray(v) for k, v in value.items()})
+        elif isinstance(value, np.ndarray):
+            out[f.name] = value
+    return out
+
+
+def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
+    r_count, dim = len(seeds), first.model.dim
+    t = first.steps * first.tau
+    n_out = t.size
+    status = np.full(r_count, -2, dtype=np.int64)
+    energy = np.full((r_count, n_out), np.nan)
+    state = np.full((r_count, dim), np.nan)
+    walls = np.full(r_count, np.nan)
+    values, counts = {}, {}
+    for i, s in enumerate(seeds):
+        res = results.get(s)
+        if res is None:
+            continue
+        status[i] = int(res.status)
+        energy[i] = res.energy_error
+        state[i] = res.state
+        walls[i] = res.provenance.wall_time
+        for key, n in res.provenance.counts.items():
+            counts[key] = counts.get(key, 0) + int(n)
+        for name, arr in _series(res).items():
+            if name not in values:
+                values[name] = np.full((r_count,) + arr.shape, np.nan)
+            values[name][i] = arr
+    failed = is_failure(status)
+    if failed.any():
+        codes = "; ".join(f"{int(n)}: {REASONS.get(int(c), f'status {int(c)}')}"
+                          for c, n in zip(*np.unique(status[failed], return_counts=True)))
+        warnings.warn(f"{int(failed.sum())} of {r_count} realisations failed ({codes}); their "
+                      "later values are NaN", RuntimeWarning, stacklevel=3)
+    if interrupted:
+        warnings.warn(f"ensemble interrupted: {len(results)} of {r_count} realisations finished",
+                      RuntimeWarning, stacklevel=3)
+    some = next(iter(results.values()), None)
+    p = some.provenance if some is not None else None
+    options = {"indicator": first.indicator.name, "seeds": seeds, "realisations": r_count,
+               "finished": len(results), "resumed": resumed, "options": canonical(first.options),
+               "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}
+    model = dict(first.model.describe())
+    model.pop("seed", None)
+    prov = Provenance(kind="ensemble", model=model, x0=[], method=first.method,
+                      method_options=first.propagator.describe(), tau=first.tau,
+                      t_end=first.t_end, seed=None, options=options,
+                      versions=p.versions if p is not None else package_versions(),
+                      counts=counts, wall_time=wall)
+    return EnsembleResult(t=t, energy_error=energy, state=state, provenance=prov, status=status,
+                          interrupted=interrupted, seeds=np.array(seeds, dtype=np.int64),
+                          values=values, wall_times=walls)

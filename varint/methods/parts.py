@@ -1,0 +1,185 @@
+"""The tangent map method on models split into k ≥ 2 parts: what
+``method="tm"`` runs for a model that declares its parts
+(:class:`varint.models.lattice.Parts`; the lattices of
+:mod:`varint.models`).
+
+Any two-part scheme of :data:`varint.SCHEMES` (drift → the first part of the
+model's two-part split, kick → the second) or composition of
+:data:`varint.schemes.PART_SCHEMES` over k parts runs through the model's
+fused part flows (:mod:`varint.kernels.parts`). Corrector schemes (SABA_nC,
+SBAB_nC) need the corrector C = {B,{B,A}} = |∇V|² and its Hessian; the
+lattices have no corrector part, so they run through the generic stepper
+(:mod:`varint.methods.tm`) with the band kernels when the model has them
+(chains with fixed ends), and are refused otherwise. :func:`runs_parts`
+decides, and :func:`varint.methods.make_propagator` asks it.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ..kernels import parts as K
+from ..kernels.tm import no_accumulator, use_parallel
+from ..protocol import REASONS, Renorm, Status
+from ..schemes import CORRECTOR, CompositionScheme, part_stages, resolve_scheme, scheme_word
+from . import method_options
+
+__all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
+
+
+def _scheme(model, scheme):
+    parts = model.parts
+    return resolve_scheme(scheme if scheme is not None else parts.default_scheme)
+
+
+def runs_parts(model, scheme=None):
+    """Whether ``method="tm"`` runs ``model`` with ``scheme`` (None: the
+    default) through the part stepper: the model declares parts, and the
+    scheme is a k-part composition or a two-part scheme without corrector,
+    or the model has no band kernels for the generic stepper."""
+    parts = getattr(model, "parts", None)
+    if parts is None:
+        return False
+    if scheme is None and parts.default_scheme is None:
+        return False
+    s = _scheme(model, scheme)
+    if isinstance(s, CompositionScheme) or s.corrector is None:
+        return True
+    return not getattr(model, "band_kernels", True)
+
+
+class PartsPropagator:
+    """Advance orbits and deviation vectors through a model's part flows.
+
+    Parameters
+    ----------
+    model : LatticeModel
+        A model with ``parts``.
+    tau : float
+        Step, which is also the renormalisation interval.
+    renorm : Renorm
+    accumulator : Accumulator, optional
+    scheme : str, SplittingScheme or CompositionScheme, optional
+        By default the model's (``model.parts.default_scheme``).
+    parallel : bool, optional
+        Run the orbits of a batch on all cores (numba ``prange``); by
+        default when there is more than one orbit and more than one thread.
+
+    Raises
+    ------
+    ValueError
+        If the scheme does not fit the model's splits (e.g. a three-part
+        composition on H = T + V) or needs a corrector part the model does
+        not have.
+    """
+
+    method = "tm"
+    OPTIONS = ("scheme", "parallel")
+
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        opts = method_options(self.method, options, self.OPTIONS)
+        parts = getattr(model, "parts", None)
+        if parts is None:
+            raise ValueError(f"{model.name} declares no parts; the part stepper needs a model "
+                             "such as varint.models.DisorderedKG, FPUT or DDNLS")
+        self.model = model
+        self.tau = float(tau)
+        self.scheme = _scheme(model, opts.get("scheme"))
+        self.renorm = Renorm.parse(renorm)
+        self.parallel = opts.get("parallel")
+        self.accumulator = accumulator
+        self._parts, self._h, self._par, self._n_work = _tables(model, self.scheme, self.tau)
+        r = model.escape_radius
+        self._escape_r2 = np.inf if r is None else float(r) ** 2
+
+    def describe(self):
+        d = {"scheme": self.scheme.describe(), "stepper": "parts"}
+        return d
+
+    def versions(self):
+        return {"numba": numba.__version__}
+
+    def advance(self, state, n):
+        """Advance every active orbit of ``state`` by ``n`` steps."""
+        m = state.n_orbits
+        parts = self.model.parts
+        acc = self.accumulator
+        if acc is None:
+            update, aux, flow = no_accumulator, np.empty((m, 0, 0)), False
+        else:
+            update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
+        kernel = K.parts_batch(parts.apply, parts.field, state.k,
+                               use_parallel(self.parallel, m), flow)
+        counters = np.zeros((m, len(parts.names)), dtype=np.int64)
+        done = np.zeros(m, dtype=np.int64)
+        was_active = state.status == Status.OK
+        kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._parts, self._h,
+               self._par, self._n_work, int(self.renorm), self._escape_r2, counters,
+               state.status, done, update, aux, state.step, self.tau)
+        state.after_kernel(n, was_active, done, counters,
+                           tuple(f"flow_{name}" for name in parts.names))
+
+
+def _tables(model, scheme, tau):
+    """Stage tables (part index and length of every flow), parameters and
+    scratch size of one step of ``scheme`` on ``model``."""
+    parts = model.parts
+    word = scheme_word(scheme)
+    has_corrector = any(slot == CORRECTOR for slot, _, _ in word)
+    if has_corrector:
+        raise ValueError(f"scheme {scheme.name!r} needs the corrector flow of C = {{B,{{B,A}}}}, "
+                         f"which {model.name} does not provide through its parts; use a "
+                         "scheme without corrector (ABA864, SABA2, SBAB2, …), or a chain with "
+                         "fixed ends, whose band kernels run correctors in the generic stepper")
+    n_parts = scheme.n_parts if isinstance(scheme, CompositionScheme) else 2
+    slots = parts.slots(n_parts)
+    kinds, h = part_stages(scheme, tau, slots)
+    par, n_work = parts.params(n_parts)
+    return kinds, h, np.ascontiguousarray(par, dtype=np.float64), int(n_work)
+
+
+def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
+    """Low-level: ``n_steps`` steps of the numerical map S and its tangent
+    map TS through the model's part flows, without renormalisation; τ may
+    be negative (S(−τ) inverts S(τ) for the symmetric schemes).
+
+    Parameters
+    ----------
+    model : LatticeModel
+    x : array_like, shape (2N,)
+    W : array_like, shape (2N, k), optional
+    tau : float
+    n_steps : int
+    scheme : str, SplittingScheme or CompositionScheme, optional
+
+    Returns
+    -------
+    x : ndarray, shape (2N,)
+    W : ndarray, shape (2N, k)
+
+    Raises
+    ------
+    FloatingPointError
+        If the map fails (the message gives the step and the reason).
+    """
+    x = np.array(x, dtype=np.float64).reshape(1, -1)
+    if x.shape[1] != model.dim or not np.isfinite(x).all():
+        raise ValueError(f"x must be a finite state of length {model.dim}")
+    if not (np.isfinite(tau) and tau != 0):
+        raise ValueError(f"tau must be finite and non-zero, got {tau!r}")
+    W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
+    W = np.ascontiguousarray(W.reshape(model.dim, -1)[None])
+    k = W.shape[2]
+    kinds, h, par, n_work = _tables(model, _scheme(model, scheme), float(tau))
+    status = np.zeros(1, dtype=np.int64)
+    done = np.zeros(1, dtype=np.int64)
+    kernel = K.parts_batch(model.parts.apply, model.parts.field, k, False)
+    kernel(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), int(n_steps), kinds, h,
+           par, n_work, int(Renorm.NONE), np.inf,
+           np.zeros((1, len(model.parts.names)), dtype=np.int64), status, done, no_accumulator,
+           np.empty((1, 0, 0)), 0, float(tau))
+    if status[0] != Status.OK:
+        raise FloatingPointError(f"the map failed after {done[0]} steps: "
+                                 f"{REASONS.get(Status(status[0]), status[0])}")
+    return x[0], W[0]
