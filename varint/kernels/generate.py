@@ -781,8 +781,10 @@ class _Emitter:
         self.dedent()
         self.dedent()
         for name, parallel in (("blocks_serial", False), ("blocks_parallel", True)):
+            # numba cannot cache a kernel that calls set_parallel_chunksize
+            # (a dynamic global): the parallel one compiles once per process.
             self("", "",
-                 f"@njit(cache=True, error_model='numpy', parallel={parallel})",
+                 f"@njit(cache={not parallel}, error_model='numpy', parallel={parallel})",
                  f"def {name}(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, "
                  "escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
             self.indent()
