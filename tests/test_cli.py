@@ -647,7 +647,7 @@ def test_warnings_are_one_line_each(capsys, monkeypatch):
 
 
 def test_ctrl_c_prints_the_outputs_so_far_then_one_line(capsys, monkeypatch, tmp_path):
-    hook_advance(monkeypatch, "tm", 8, lambda: os.kill(os.getpid(), signal.SIGINT))
+    hook_advance(monkeypatch, "tm", 2, lambda: os.kill(os.getpid(), signal.SIGINT))
     code, out, err = _run(capsys, ["run", "lyapunov", "--orbit", "C1", "--t-end", "200",
                                    "--csv", str(tmp_path / "r.csv")])
     assert code == 130

@@ -96,12 +96,17 @@ def test_disk_full_during_a_run_keeps_the_last_checkpoint_and_the_result(c1, tmp
     child = start_child(f"""
         import resource, signal
         import varint.checkpoint as C
+        import varint.driver as D
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # get EFBIG, not death
+        # Chunks of 16 steps: many checkpoint writes, the first with the
+        # 13 outputs to t = 0.8 (the stepper would otherwise take long chunks).
+        D._Pace.__init__ = lambda self: setattr(self, "chunk", 16)
+        D._Pace.took = lambda self, n, seconds: None
         real = C.write
         def write(p, snapshot):
             real(p, snapshot)
             if resource.getrlimit(resource.RLIMIT_FSIZE)[0] == resource.RLIM_INFINITY:
-                limit = os.path.getsize(p) + 1600  # room for about ten records
+                limit = os.path.getsize(p) + 3000  # room for about twenty records
                 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
         C.write = write
         model, x0 = varint.paper_orbit("C1")
@@ -167,7 +172,7 @@ def test_damaged_checkpoints_are_refused_and_kept(c1, tmp_path, monkeypatch):
     the user deletes the file the run starts over and is correct."""
     path = tmp_path / "run.ckpt"
     with monkeypatch.context() as patch:
-        hook_advance(patch, "tm", 5, stop)
+        hook_advance(patch, "tm", 2, stop)
         with pytest.raises(Stop):
             lyapunov(c1, checkpoint=path, checkpoint_interval=0)
     data = path.read_bytes()

@@ -34,7 +34,7 @@ def test_ctrl_c_returns_the_outputs_so_far_and_saves_them(c1, tmp_path, monkeypa
     reference = lyapunov(c1)
     handler = signal.getsignal(signal.SIGINT)
     with monkeypatch.context() as patch:
-        hook_advance(patch, "tm", 8, ctrl_c)
+        hook_advance(patch, "tm", 2, ctrl_c)
         with pytest.warns(RuntimeWarning, match=f"interrupted at t = .*saved to {path}"):
             partial = lyapunov(c1, checkpoint=path)
     assert signal.getsignal(signal.SIGINT) is handler  # restored
@@ -51,7 +51,7 @@ def test_ctrl_c_returns_the_outputs_so_far_and_saves_them(c1, tmp_path, monkeypa
 
 
 def test_ctrl_c_without_a_checkpoint_still_returns_the_partial_result(c1, monkeypatch):
-    hook_advance(monkeypatch, "tm", 8, ctrl_c)
+    hook_advance(monkeypatch, "tm", 2, ctrl_c)
     with pytest.warns(RuntimeWarning, match="returning the [0-9]+ outputs recorded so far$"):
         partial = varint.gali(*c1, T_END)
     assert partial.interrupted and len(partial.t) > 0
@@ -63,7 +63,7 @@ def test_a_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(c1, tmp_path,
     then; the checkpoint written after the previous chunk resumes."""
     path = tmp_path / "run.ckpt"
     with monkeypatch.context() as patch:
-        hook_advance(patch, "tm", 8, lambda: (ctrl_c(), ctrl_c()))
+        hook_advance(patch, "tm", 2, lambda: (ctrl_c(), ctrl_c()))
         with pytest.raises(KeyboardInterrupt):
             lyapunov(c1, checkpoint=path, checkpoint_interval=0)
     assert ckpt.read(path).state.step > 0
