@@ -194,16 +194,19 @@ class Snapshots:
 def renormalized_copy(W, acc_m, acc_e, renorm):
     """Copies of vectors ``W`` (R, 2N, k) renormalised (QR with a positive
     diagonal for ``Renorm.QR``, unit columns for ``Renorm.NORMALIZE``), the
-    stretching folded into new accumulators (mantissa, exponent)."""
-    if renorm == Renorm.QR:
-        Q, R = np.linalg.qr(W)
-        d = np.diagonal(R, axis1=1, axis2=2)
-        sign = np.where(d < 0, -1.0, 1.0)
-        W, r = Q * sign[:, None, :], np.abs(d)
-    else:
-        r = np.linalg.norm(W, axis=1)
-        W = W / r[:, None, :]
-    m, e = np.frexp(acc_m * r)
+    stretching folded into new accumulators (mantissa, exponent). Rows of
+    failed orbits (non-finite or overflowing vectors) give non-finite values
+    without NumPy warnings: their records are blanked."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        if renorm == Renorm.QR:
+            Q, R = np.linalg.qr(W)
+            d = np.diagonal(R, axis1=1, axis2=2)
+            sign = np.where(d < 0, -1.0, 1.0)
+            W, r = Q * sign[:, None, :], np.abs(d)
+        else:
+            r = np.linalg.norm(W, axis=1)
+            W = W / r[:, None, :]
+        m, e = np.frexp(acc_m * r)
     return W, m, acc_e + e
 
 
