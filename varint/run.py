@@ -21,11 +21,13 @@ import numpy as np
 from numba.core.errors import NumbaError
 
 from . import _validate as check
+from . import accuracy, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
 from .indicators import resolve
-from .methods import make_propagator
+from .methods import METHODS, make_propagator, propagator_class
+from .methods import method_options as check_method_options
 from .models.base import Model
 from .protocol import Renorm, is_failure
 from .results import Provenance, package_versions
@@ -36,8 +38,9 @@ __all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "energy_scale"]
 #: Initial states of at most this many numbers are stored in a checkpoint's
 #: parameters as values (so a mismatch shows them), larger ones as a digest.
 _SHOWN_X0 = 32
-#: The step when none is given (see :func:`prepare`).
-DEFAULT_TAU = 0.05
+#: The step when no pilot can choose one (methods without a splitting
+#: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
+DEFAULT_TAU = stepsize.FALLBACK_TAU
 
 
 def run(model, x0, indicator, t_end, tau=None, **options):
@@ -58,7 +61,11 @@ def run(model, x0, indicator, t_end, tau=None, **options):
         Final time (rounded to a multiple of τ).
     tau : float, optional
         Renormalisation interval, which is also the step of the splitting
-        methods ("tm" and the TDH methods). Default 0.05.
+        methods ("tm" and the TDH methods). By default the largest step of
+        the scheme whose relative energy error over a short pilot run stays
+        within ``energy_tol / 100`` (:mod:`varint.stepsize`; recorded in
+        ``result.provenance.tau_choice``); 0.05 for the methods whose τ is
+        not a step (CVODE, DOP853, Taylor). A given τ is used as it is.
 
     Other Parameters
     ----------------
@@ -98,6 +105,13 @@ def run(model, x0, indicator, t_end, tau=None, **options):
         arguments is refused with a :class:`CheckpointError` naming them.
     checkpoint_interval : float, default 60
         Seconds of wall time between checkpoint writes.
+    energy_tol : float, optional
+        The relative error of the energy (and of any other quantity the
+        model conserves) above which the result's indicators are not
+        trusted: ``result.accuracy`` says so and an
+        :class:`~varint.accuracy.AccuracyWarning` gives the figure and what
+        to do; 1e-3 by default (:data:`varint.accuracy.DEFAULT_ENERGY_TOL`,
+        measured), ``inf`` never warns. Also sets the automatic step.
     **options
         The indicator's options (e.g. ``k`` for GALI, ``n_exponents`` for
         the spectrum, ``window`` for local exponents; see
@@ -110,7 +124,8 @@ def run(model, x0, indicator, t_end, tau=None, **options):
     result
         The indicator's result class (e.g. :class:`~varint.LyapunovResult`):
         ``t`` (n_out,), its series ([M,] n_out, ...), ``energy_error``,
-        ``status``, the final ``state`` and ``deviations``, and
+        ``status``, the final ``state`` and ``deviations``, the
+        ``accuracy`` verdict (:class:`~varint.accuracy.Accuracy`) and
         ``provenance``. After Ctrl-C: the outputs recorded so far, with
         ``interrupted=True`` (and a warning); a second Ctrl-C stops at once.
 
@@ -121,6 +136,11 @@ def run(model, x0, indicator, t_end, tau=None, **options):
         and what was expected).
     IntegrationError
         When an orbit fails and ``errors="raise"``.
+
+    Warns
+    -----
+    AccuracyWarning
+        When the energy error exceeds ``energy_tol``.
 
     Examples
     --------
@@ -135,11 +155,11 @@ def run(model, x0, indicator, t_end, tau=None, **options):
 
 def prepare(model, x0, indicator, t_end, tau=None, *, method="tm", t_out=None, seed=0,
             deviations=None, progress=None, errors="raise", escape_radius=None,
-            checkpoint=None, checkpoint_interval=60.0, **options):
+            checkpoint=None, checkpoint_interval=60.0, energy_tol=None, **options):
     """The :class:`Run` of :func:`run` (same arguments), every input checked
     and the state started or resumed, not yet executed."""
     return Run(model, x0, indicator, t_end, tau, method, t_out, seed, deviations, progress,
-               errors, escape_radius, checkpoint, checkpoint_interval, options)
+               errors, escape_radius, checkpoint, checkpoint_interval, options, energy_tol)
 
 
 def _model(model):
@@ -152,13 +172,9 @@ def _model(model):
 
 
 def energy_scale(model, x):
-    """The energy scale against which energy errors are relative, per orbit:
-    |T(x)| + |V(x)|, which is |H| for an orbit in a well (T, V ≥ 0) and stays
-    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0.
-    """
-    n = model.n_dof
-    scale = np.abs(model.kinetic(x[..., n:])) + np.abs(model.potential(x[..., :n]))
-    return np.where(scale > 0, scale, 1.0)
+    """The energy scale against which energy errors are relative, per orbit
+    (:meth:`varint.models.base.Model.energy_scale`: |T| + |V| at t = 0)."""
+    return model.energy_scale(x)
 
 
 class Run:
@@ -174,6 +190,10 @@ class Run:
     single : bool
         Whether the caller passed one state (results drop the orbit axis).
     t_end, tau : float
+    tau_choice : dict
+        How τ was chosen (:class:`varint.stepsize.StepChoice`): given, or by
+        a pilot.
+    energy_tol : float
     steps : ndarray of int
         Output steps (multiples of τ).
     propagator
@@ -187,7 +207,8 @@ class Run:
     """
 
     def __init__(self, model, x0, indicator, t_end, tau, method, t_out, seed, deviations,
-                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options):
+                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options,
+                 energy_tol=None):
         model = _model(model)
         self.indicator, fixed = resolve(indicator)
         ind = self.indicator
@@ -206,24 +227,47 @@ class Run:
             self.run_options["escape_radius"] = model.escape_radius
         self.model = model
         self.x0, self.single = check.states(model, x0)
-        self.t_end, self.tau = check.horizon(t_end, DEFAULT_TAU if tau is None else tau)
+        # A state where V or its derivatives are singular is refused here,
+        # not reported as a run failing at its first step.
+        check.kernels(model, self.x0)
+        self.reference = accuracy.Reference(model, self.x0)
+        self.energy_tol = accuracy.energy_tolerance(energy_tol)
+        # Times are checked against t_end now only for the automatic step,
+        # whose pilot comes first (with τ given, output_steps checks them
+        # against t_end rounded to whole steps).
+        t_out = check.output_times(
+            t_out, t_end=t_end if tau is None and isinstance(t_end, (int, float))
+            and np.isfinite(t_end) else None)
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
+        self.method = check.choice(method, METHODS, "method")
+        # Misspelt options fail now, not after a pilot run.
+        check_method_options(self.method, method_options,
+                             tuple(propagator_class(self.method).OPTIONS))
         self.checkpoint = (None if checkpoint is None
                            else Checkpoint(checkpoint, checkpoint_interval))
         saved = None if self.checkpoint is None else self.checkpoint.read()
         self.W0, self.seed = self._initial_vectors(deviations, seed, saved)
         if ind.count_option is not None:
             self.options[ind.count_option] = self.W0.shape[2]
-        t_out = check.output_times(t_out)
+        self.accumulator = ind.accumulator_for(self.options)
+        self.tau_choice = stepsize.StepChoice(rule="given")
+        if tau is None:
+            # Even the largest step the pilot may choose must fit the counter.
+            check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
+            tau, self.tau_choice = stepsize.choose_step(
+                model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
+                method=self.method, scheme=method_options.get("scheme"),
+                cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
+                W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+        self.t_end, self.tau = check.horizon(t_end, tau)
         if t_out is None and ind.output_times is not None:
             t_out = ind.output_times(self.t_end, self.tau, self.options)
         self.steps = output_steps(self.t_end, self.tau, t_out)
-        self.accumulator = ind.accumulator_for(self.options)
-        self.propagator = make_propagator(method, model, self.tau, ind.renorm, self.accumulator,
-                                          **method_options)
-        self.method = method.lower()
+        self._check_size()
+        self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
+                                          self.accumulator, **method_options)
         if saved is None:
             self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), [], 0.0
         else:
@@ -235,8 +279,20 @@ class Run:
         if acc is not None and acc.key not in self.state.extra:
             self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
                                                 (self.state.n_orbits, self.state.k, 1))
-        self.energy0 = model.energy(self.x0)
-        self.energy_scale = energy_scale(model, self.x0)
+        self.energy0 = self.reference.values["energy"]
+        self.energy_scale = self.reference.scales["energy"]
+
+    def _check_size(self):
+        """Refuse a run whose vectors and records would not fit in memory,
+        before allocating them."""
+        m, dim = self.x0.shape
+        k = self.W0.shape[2]
+        # Vectors: the state's, the initial ones and the QR workspace; per
+        # output and orbit at most the state, k exponents, 2N GALIs and the
+        # errors, held twice (the records and their stacked arrays).
+        need = check.array_bytes((4, m, dim, k), (2, len(self.steps), m, 2 * dim + k + 4))
+        check.check_memory(need, f"a run of {m} orbit(s) of {self.model.name} with {k} "
+                                 f"deviation vectors and {len(self.steps)} output times")
 
     def _initial_vectors(self, deviations, seed, saved):
         """(W0 (M, 2N, k), seed): the given vectors, checked as the
@@ -246,6 +302,10 @@ class Run:
         if deviations is None:
             k = ind.vectors(model, self.options, None)
             seed = self._seed(seed, saved)
+            # The vectors, their copies and the QR workspace, before any.
+            check.check_memory(check.array_bytes((4, m, dim, k)),
+                               f"a run of {m} orbit(s) of {model.name} with {k} deviation "
+                               "vectors")
             return initial_deviations(dim, k, m, seed), seed
         W0 = check.deviations(deviations, dim, m)
         if ind.renorm != Renorm.NONE:
@@ -291,25 +351,40 @@ class Run:
     def energy_error(self, x):
         """Energy error of states ``x`` (M, 2N) relative to the orbits'
         energy scale (:func:`energy_scale`)."""
-        # A failed orbit's frozen state may overflow here; its records are
-        # replaced by NaN anyway, so NumPy's warnings would be noise.
-        with np.errstate(over="ignore", invalid="ignore"):
-            return np.abs(self.model.energy(x) - self.energy0) / self.energy_scale
+        return self.reference.errors(x)["energy_error"]
 
     def record(self, state):
         """The indicator's values at the current output time, and the
-        energy error."""
+        relative errors of the conserved quantities (an orbit where they are
+        not finite is marked failed: :func:`varint.accuracy.flag_nonfinite`)."""
         t = state.step * self.tau
         rec = self.indicator.read(state, self.model, t, self.options)
-        rec["energy_error"] = self.energy_error(state.x)
+        errors = self.reference.errors(state.x)
+        accuracy.flag_nonfinite(state, errors)
+        rec.update(errors)
         return rec
 
     def execute(self):
         """Drive the run to its last output time and return its result."""
         records, stop, wall = self.drive()
+        if self.errors == "raise":
+            records = self._before_failure(records)
         result = self._result(records, stop == "interrupted", wall)
         self._report_failures(result)
+        accuracy.warn(result.accuracy, self.method)
         return result
+
+    def _before_failure(self, records):
+        """The records made before the first failure: a failure found when
+        recording (:func:`varint.accuracy.flag_nonfinite`) has made one
+        record holding NaN, which a partial result must not pass on."""
+        failed = is_failure(self.state.status)
+        if not records or not failed.any():
+            return records
+        first = self.state.fail_step[failed].min()
+        n = len(next(iter(records.values())))
+        keep = int(np.searchsorted(self.steps[:n], first))
+        return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
     def drive(self, record=None, decide=None):
         """Advance to every output time, recording there.
@@ -360,14 +435,21 @@ class Run:
             records = {key: np.asarray(v)[None][:0] for key, v in self.record(self.state).items()}
         n_done = len(next(iter(records.values())))
         fields = {key: self.squeeze(np.moveaxis(arr, 0, 1)) for key, arr in records.items()}
-        energy_error = fields.pop("energy_error")
+        errors = {key: np.moveaxis(records[key], 0, 1) for key in records
+                  if key == "energy_error" or key.startswith("conserved_error:")}
+        for key in errors:
+            fields.pop(key)
+        t = self.steps[:n_done] * self.tau
+        verdict = accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
+                                  self.single)
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
             fields["deviations"] = self.squeeze(self.state.W)
-        return cls(t=self.steps[:n_done] * self.tau, energy_error=energy_error,
+        return cls(t=t, energy_error=self.squeeze(errors["energy_error"]),
                    state=self.squeeze(self.state.x), provenance=self.provenance(wall),
-                   status=self.squeeze(self.state.status), interrupted=interrupted, **fields)
+                   status=self.squeeze(self.state.status), interrupted=interrupted,
+                   accuracy=verdict, **fields)
 
     def _report_failures(self, result):
         failed = is_failure(self.state.status)
@@ -406,4 +488,4 @@ class Run:
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall)
+            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice))

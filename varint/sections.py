@@ -33,6 +33,7 @@ from numba import njit, prange
 from .kernels import tm as K
 from .protocol import COUNTERS, Renorm, Status
 from . import _validate as check
+from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
 from .schemes import get_scheme, stage_arrays
 
@@ -150,7 +151,7 @@ def _section_kernel(n, bw):
 
 
 def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, value=0.0,
-                       direction=1, max_points=None, escape_radius=None):
+                       direction=1, max_points=None, escape_radius=None, energy_tol=None):
     """Crossings of orbits with the section q_plane = value.
 
     Parameters
@@ -176,6 +177,10 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         Stop an orbit after this many crossings.
     escape_radius : float, optional
         Stop an orbit whose |q| exceeds this (status ESCAPED).
+    energy_tol : float, optional
+        As for :func:`varint.run`: above this relative energy error at the
+        crossings, ``result.accuracy`` says the section is not to be
+        trusted and an :class:`~varint.accuracy.AccuracyWarning` says so.
 
     Returns
     -------
@@ -184,6 +189,7 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         ``times`` ([M,] n), ``n_points``, the relative energy error of every
         crossing, and the provenance.
     """
+    model = check.model(model)
     X, single = check.states(model, x0)
     t_end, tau = check.horizon(t_end, tau)
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) \
@@ -201,10 +207,17 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         limit = int(max_points)
     radius = model.escape_radius if escape_radius is None else check.positive_float(
         escape_radius, "escape_radius")
+    energy_tol = energy_tolerance(energy_tol)
     sch = get_scheme(scheme)
     kinds, h, hc = stage_arrays(sch, tau)
-    n_steps = max(1, int(round(t_end / tau)))
+    n_steps = check.step_count(t_end, tau)
     m, d = X.shape
+    # The crossing buffer of every orbit, and the states, times and errors
+    # of the crossings (at least one row each), before allocating them.
+    check.check_memory(check.array_bytes((m, _BUFFER, d + 1), (m, 2 * d + 4)),
+                       f"surface_of_section of {m} orbits of {model.name}")
+    check.kernels(model, X)
+    reference = Reference(model, X)
     x = X.copy()
     small = model.n_dof <= K.SPECIALISE_N
     kernel = _section_kernel(model.n_dof if small else -1, model.bandwidth if small else -1)
@@ -235,9 +248,10 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
             rows = np.concatenate(found[j])
             points[j, :len(rows)] = rows[:, :d]
             times[j, :len(rows)] = rows[:, d] * tau
-    h0 = model.energy(X)
-    scale = np.where(h0 != 0, np.abs(h0), 1.0)
-    energy_error = np.abs(model.energy(points) - h0[:, None]) / scale[:, None]
+    # Relative to |T| + |V| at the start (varint.accuracy), as for runs.
+    with np.errstate(invalid="ignore", over="ignore"):
+        energy_error = (np.abs(model.energy(points) - reference.values["energy"][:, None])
+                        / reference.scales["energy"][:, None])
     total = counts.sum(axis=0)
     prov = Provenance(
         kind="surface_of_section", model=model.describe(),
@@ -249,9 +263,12 @@ def surface_of_section(model, x0, t_end, tau=0.01, scheme="ABA864", plane=0, val
         counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total)))),
         wall_time=time.perf_counter() - start)
     sq = (lambda a: a[0]) if single else (lambda a: a)
+    verdict = assess(times, {"energy_error": energy_error}, status, energy_tol, tau, single)
+    warn(verdict, "tm", what="the surface of section")
     return SectionResult(t=done * tau if not single else np.array([done[0] * tau]),
                          energy_error=sq(energy_error), state=sq(x), provenance=prov,
-                         status=sq(status), interrupted=False, points=sq(points),
+                         status=sq(status), interrupted=False, accuracy=verdict,
+                         points=sq(points),
                          times=sq(times), n_points=sq(n_found), plane=int(plane),
                          value=float(value))
 
@@ -315,6 +332,7 @@ def section_grid(model, energy, u, v, axes=None, plane=0, value=0.0, base=None):
     SectionGrid
         Points where no real p_plane solves the energy are masked out.
     """
+    model = check.model(model)
     n = model.n_dof
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) or not 0 <= plane < n:
         raise ValueError(f"plane must be a coordinate index in 0..{n - 1}, got {plane!r}")
@@ -334,6 +352,12 @@ def section_grid(model, energy, u, v, axes=None, plane=0, value=0.0, base=None):
     base = np.zeros(2 * n) if base is None else check.real_array(base, "base").reshape(-1)
     if base.shape != (2 * n,):
         raise ValueError(f"base must have shape ({2 * n},), got {base.shape}")
+    if not np.isfinite(base).all():
+        raise ValueError(f"base must be finite, got {base.tolist()}")
+    # The grid's states, the potential's temporaries and the mask.
+    points = len(grids[0]) * len(grids[1])
+    check.check_memory(check.array_bytes((points, 6 * n + 4)),
+                       f"a section grid of {len(grids[0])} x {len(grids[1])} = {points} points")
     U, V = np.meshgrid(*grids)
     X = np.broadcast_to(base, U.shape + (2 * n,)).copy()
     X[..., axes[0]], X[..., axes[1]] = U, V
