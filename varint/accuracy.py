@@ -25,6 +25,13 @@ SALI, MEGNO and FLI were right in every run with an energy error below
 number of digits, which depends on the orbit; ``select_scheme`` chooses a
 scheme and step for a target.)
 
+The study's quick mode (t = 500, ensembles of four chaotic Hénon–Heiles and
+FPU orbits) does not bear this out, and cannot: there a chaotic orbit near
+the SALI or MEGNO threshold flips its verdict at any accuracy (one FPU
+orbit's SALI at an energy error of 8e-8 with s11odr6), while the stiff
+quartic at τ = 0.05 (energy error 0.52) gets all four verdicts wrong. The
+full study is the basis of the default; rerun it before changing it.
+
 Energy scale
 ------------
 Errors are relative to |T| + |V| at t = 0 (:meth:`Model.energy_scale`),
