@@ -143,3 +143,18 @@ def test_the_ladder_search_finds_the_largest_passing_rung(monkeypatch):
     # tolerance; one rung up misses it.
     assert calls == [1.0, best, 2.0 ** (-13 / 4)]
     assert info["rule"] == "pilot"
+
+
+def test_options_are_checked_before_the_pilot_naming_the_methods_that_take_them(monkeypatch):
+    """A misspelt or misplaced option fails before any pilot runs; a method
+    without a pilot keeps its own message."""
+    def no_pilot(*args):
+        raise AssertionError("the pilot ran")
+
+    monkeypatch.setattr(stepsize, "_pilot", no_pilot)
+    model, x0 = varint.paper_orbit("R1")
+    with pytest.raises(TypeError, match=r"unknown option 'rtol' for method 'tm'; valid "
+                                        r"options: .*\('rtol' is an option of .*cvode"):
+        varint.sali(model, x0, 10.0, rtol=1e-9)
+    with pytest.raises(ValueError, match="method 'taylor' takes no scheme"):
+        varint.sali(model, x0, 10.0, method="taylor", scheme="ABA864")

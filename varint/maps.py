@@ -53,7 +53,7 @@ from . import accuracy, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, resolve
-from .methods import METHODS, propagator_class
+from .methods import METHODS
 from .protocol import REASONS, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import prepare
@@ -382,9 +382,8 @@ def chaos_map(model, initial_conditions, indicator="sali", *, t_end, tau=None, m
     if escape_radius is not None:
         escape_radius = check.positive_float(escape_radius, "escape_radius")
     method = check.choice(method, METHODS, "method")
-    cls = propagator_class(method)
-    check.method_options(method, method_options, tuple(cls.OPTIONS),
-                         {name: tuple(propagator_class(name).OPTIONS) for name in ("tm",)})
+    if tau is None and stepsize.pilots(method):
+        stepsize.check_options(method, method_options)
     progress = check.flag(progress, "progress")
     t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
@@ -436,7 +435,7 @@ def _choose_step(model, X, t_end, method, method_options, t_check, escape_radius
     (:func:`varint.stepsize.choose_step` with the map defaults: scheme
     :data:`MAP_SCHEME` unless one is given, tolerance :data:`MAP_PILOT_TOL`,
     quantile :data:`MAP_QUANTILE`)."""
-    if "scheme" in propagator_class(method).OPTIONS:
+    if stepsize.pilots(method):
         method_options.setdefault("scheme", MAP_SCHEME)
     if escape_radius is not None:
         model = copy.copy(model)

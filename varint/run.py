@@ -26,8 +26,7 @@ from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
 from .indicators import resolve
-from .methods import METHODS, make_propagator, propagator_class
-from .methods import method_options as check_method_options
+from .methods import METHODS, make_propagator
 from .models.base import Model
 from .protocol import Renorm, is_failure
 from .results import Provenance, package_versions
@@ -242,9 +241,8 @@ class Run:
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
         self.method = check.choice(method, METHODS, "method")
-        # Misspelt options fail now, not after a pilot run.
-        check_method_options(self.method, method_options,
-                             tuple(propagator_class(self.method).OPTIONS))
+        if tau is None and stepsize.pilots(self.method):
+            stepsize.check_options(self.method, method_options)
         self.checkpoint = (None if checkpoint is None
                            else Checkpoint(checkpoint, checkpoint_interval))
         saved = None if self.checkpoint is None else self.checkpoint.read()

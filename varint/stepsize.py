@@ -41,14 +41,15 @@ import warnings
 
 import numpy as np
 
+from . import _validate as check
 from .accuracy import AccuracyWarning, Reference
-from .methods import propagator_class
+from .methods import METHODS, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import Renorm, Status
 from .schemes import get_scheme
 from .state import RunState, initial_deviations
 
-__all__ = ["choose_step", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
+__all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
 
 #: The pilot's tolerance is the run's energy_tol divided by this (see the
 #: module docstring for the measurements).
@@ -84,9 +85,21 @@ class StepChoice(dict):
     deterministic: the same call chooses the same step, bit for bit)."""
 
 
-def _steps(method):
-    """Whether ``method``'s τ is the step of a splitting scheme."""
+def pilots(method):
+    """Whether ``method``'s τ is the step of a splitting scheme, which a
+    pilot chooses when τ is not given."""
     return "scheme" in getattr(propagator_class(method), "OPTIONS", ())
+
+
+def check_options(method, options):
+    """Refuse options ``method`` does not take before its pilot runs (a
+    misspelt option must not wait for it), naming the methods that take
+    them; otherwise the propagator checks them when it is built."""
+    valid = tuple(propagator_class(method).OPTIONS)
+    if set(options) <= set(valid):
+        return
+    others = {name: tuple(propagator_class(name).OPTIONS) for name in METHODS}
+    check.method_options(method, options, valid, others)
 
 
 def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=None,
@@ -131,7 +144,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
     choice : StepChoice
     """
     cap = min(TAU_MAX, t_end, cap if cap is not None else math.inf)
-    if not _steps(method):
+    if not pilots(method):
         tau = _divide(t_end, min(FALLBACK_TAU, cap))
         return tau, StepChoice(rule="fixed", tau=tau, note=(
             f"{method}'s tau is its renormalisation interval, not its step; its accuracy is "
