@@ -103,9 +103,9 @@ def _dask_map(model, grid, t_end, workers):
 
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster, Client(cluster) as client:
-        varint.chaos_map(model, grid, "sali", t_end=10 * TAU, client=client)  # compile
+        varint.chaos_map(model, grid, "sali", t_end=10 * TAU, tau=TAU, client=client)  # compile
         with Stopwatch() as sw:
-            r = varint.chaos_map(model, grid, "sali", t_end=t_end, client=client)
+            r = varint.chaos_map(model, grid, "sali", t_end=t_end, tau=TAU, client=client)
     return r, sw.seconds
 
 
@@ -122,12 +122,12 @@ def main(argv=None):
     grid = section(model, n_grid)
     m = len(grid)
     with Stopwatch() as compile_sw:
-        varint.chaos_map(model, grid, "sali", t_end=10 * TAU, progress=False)
+        varint.chaos_map(model, grid, "sali", t_end=10 * TAU, tau=TAU, progress=False)
     runs = {}
     for label, threshold in (("varint, early stopping", "default"),
                              ("varint, no early stopping", None)):
         with Stopwatch() as sw:
-            r = varint.chaos_map(model, grid, "sali", t_end=t_end, threshold=threshold,
+            r = varint.chaos_map(model, grid, "sali", t_end=t_end, tau=TAU, threshold=threshold,
                                  progress=False)
         runs[label] = (r, sw.seconds)
     ref, ref_seconds = runs["varint, early stopping"]

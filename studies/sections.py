@@ -138,7 +138,7 @@ def main(argv=None):
     grid = varint.section_grid(model, ENERGY, np.linspace(-0.45, 0.7, n_grid),
                                np.linspace(-0.45, 0.45, n_grid))
     with Stopwatch() as sw3:
-        smap = varint.chaos_map(model, grid, "sali", t_end=t_map, progress=False)
+        smap = varint.chaos_map(model, grid, "sali", t_end=t_map, tau=0.05, progress=False)
 
     def at(name, around=0):
         """SALI at the grid point nearest the orbit's start, or the median

@@ -71,8 +71,8 @@ def escape_energies(energies, horizon):
         x0 = varint.solve_momentum(model, x0[:2], x0[2:], e, index=0)
         row = {"energy": e, "escaped_at": None, "X1": None, "energy_error": None, "message": ""}
         try:
-            r = varint.lyapunov_spectrum(model, x0, horizon, n_exponents=1, t_out=[horizon],
-                                         progress=False)
+            r = varint.lyapunov_spectrum(model, x0, horizon, tau=0.05, n_exponents=1,
+                                         t_out=[horizon], progress=False)
             row.update(X1=float(r.exponents[-1, 0]), energy_error=float(r.energy_error[-1]))
         except IntegrationError as exc:
             row.update(escaped_at=exc.t, message=str(exc))
@@ -88,7 +88,7 @@ def fpu_scaling(sizes, horizon):
         model = FPUBeta(n, 1.5)
         i = np.arange(1, n + 1)
         x0 = np.concatenate([0.5 * np.sin(np.pi * i / (n + 1)), np.zeros(n)])
-        err = varint.integrate(model, x0, horizon, progress=False).energy_error[-1]
+        err = varint.integrate(model, x0, horizon, tau=0.05, progress=False).energy_error[-1]
         for k in (0, 1, 8):
             steps = max(200, int(2e6 / (n * (k + 1))))
             ns, _ = tm_ns_per_step(model, x0, "SBAB2C", k, steps, repeats=2)
@@ -102,7 +102,7 @@ def overflow_without_renormalisation(horizon):
     they pass 1e300 near t ≈ 690/0.045 ≈ 1.5e4."""
     model, x0 = varint.paper_orbit("C1")
     try:
-        varint.integrate(model, x0, horizon, deviations=np.eye(4), progress=False)
+        varint.integrate(model, x0, horizon, tau=0.05, deviations=np.eye(4), progress=False)
     except IntegrationError as exc:
         return {"detected": True, "t": exc.t, "step": exc.step, "message": str(exc),
                 "partial_result_kept": exc.partial is not None}

@@ -23,14 +23,27 @@ def assert_bitwise_equal(a, b):
                 px.pop(key), py.pop(key)
             assert px == py
             assert x.counts.get("steps") == y.counts.get("steps")
-        elif isinstance(x, dict):
-            assert x.keys() == y.keys()
-            for key in x:
-                _assert_same_bits(x[key], y[key], f"{f.name}[{key}]")
-        elif isinstance(x, np.ndarray):
-            _assert_same_bits(x, y, f.name)
         else:
-            assert x == y, f.name
+            _assert_same(x, y, f.name)
+
+
+def _assert_same(x, y, name):
+    """Same bits in arrays and numbers, the same keys and values in dicts,
+    and field by field in a nested dataclass (the accuracy verdict)."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(x):
+        assert type(x) is type(y), name
+        for f in dataclasses.fields(x):
+            _assert_same(getattr(x, f.name), getattr(y, f.name), f"{name}.{f.name}")
+    elif isinstance(x, dict):
+        assert x.keys() == y.keys(), name
+        for key in x:
+            _assert_same(x[key], y[key], f"{name}[{key}]")
+    elif isinstance(x, (np.ndarray, np.generic, float)):
+        _assert_same_bits(x, y, name)
+    else:
+        assert x == y, name
 
 
 def _assert_same_bits(x, y, name):

@@ -9,6 +9,7 @@ import os
 import numpy as np
 import pytest
 import sympy as sp
+from numba import njit
 
 import varint
 from varint import _validate as check
@@ -55,6 +56,27 @@ def truncated_checkpoint(path):
     data = (path / "c.ckpt").read_bytes()
     (path / "c.ckpt").write_bytes(data[: len(data) * 2 // 3])
     return run(checkpoint=path / "c.ckpt")
+
+
+def _sym(expr, name):
+    return varint.models.from_potential(expr, [x, y], name=name)
+
+
+INVERSE_X = _sym(1 / x + y**2 / 2, "1/x")
+LOG_X = _sym(sp.log(x) + y**2 / 2, "log x")
+SQRT_X = _sym(sp.sqrt(x) + y**2 / 2, "sqrt x")
+EXP_X = _sym(sp.exp(1000 * x) + y**2 / 2, "exp 1000x")
+HH_GRID = varint.section_grid(HH, 0.125, np.linspace(-0.4, 0.6, 3), np.linspace(-0.4, 0.4, 3))
+
+
+@njit
+def _grad_two_args(q, g):
+    g[0] = q[0]
+
+
+def map_into_a_file(path):
+    (path / "taken").write_text("a file, not a directory")
+    return varint.chaos_map(HH, [X0, X0], t_end=10.0, tau=0.05, checkpoint=path / "taken")
 
 
 ORTHO_NOT = np.array([[1.0, 0.5], [0.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
@@ -341,6 +363,244 @@ CASES = [
         {"cvode": ("rtol", "atol"), "dop853": ("delta", "rtol", "atol")}), TypeError,
      "unknown option 'rtol' for method 'tm'; valid options: scheme, parallel, fast_indicators "
      "\\('rtol' is an option of cvode, dop853\\)"),
+    # -- round 2: step counts, sizes and memory, before any allocation
+    ("t_end beyond the step counter", lambda p: run(t_end=1e300, tau=0.05), ValueError,
+     r"t_end / tau = 1e\+300 / 0.05 = 2e\+301 steps, more than the 4.61e\+18 a run can take"),
+    ("t_end beyond the counter with the automatic step", lambda p: run(t_end=1e300),
+     ValueError, r"t_end / tau = 1e\+300 / 1 = 1e\+300 steps, more than"),
+    ("tau too small for the counter", lambda p: run(tau=1e-300), ValueError,
+     r"t_end / tau = 10 / 1e-300 = 1e\+301 steps"),
+    ("tau the smallest double", lambda p: run(tau=5e-324), ValueError,
+     r"t_end / tau = 10 / 4.94066e-324 = inf steps, more than"),
+    ("three outputs of a run beyond the counter", lambda p: run(t_end=1e300, tau=0.05, t_out=3),
+     ValueError, "steps, more than the 4.61e\\+18 a run can take"),
+    ("more outputs than steps", lambda p: run(t_out=10 ** 9, tau=0.05), ValueError,
+     "t_out = 1000000000 output times, more than the 200 steps of the run "
+     r"\(t_end / tau = 10 / 0.05\); give at most 200"),
+    ("output count as a huge float", lambda p: run(t_out=1e20, tau=0.05), ValueError,
+     "t_out = 100000000000000000000 output times, more than the 200 steps"),
+    ("output count boolean", lambda p: run(t_out=True), ValueError,
+     "t_out as a count must be a positive integer, got True"),
+    ("records beyond memory", lambda p: run(x0=np.tile(X0, (10 ** 4, 1)), t_end=1e5, tau=0.05,
+                                            t_out=10 ** 6), ValueError,
+     r"a run of 10000 orbit\(s\) of HenonHeiles with 4 deviation vectors and 1000000 output "
+     "times needs about .* of memory, but .* is available"),
+    ("deviation vectors beyond memory", lambda p: run(model=FPUBeta(10 ** 5), x0=np.zeros(
+        2 * 10 ** 5)), ValueError,
+     r"a run of 1 orbit\(s\) of FPUBeta\(n=100000, beta=1.5\) with 200000 deviation vectors "
+     "needs about 1.16 TiB of memory"),
+    ("a section grid beyond memory", lambda p: varint.section_grid(
+        HH, 0.125, np.linspace(0, 1, 10 ** 6), np.linspace(0, 1, 10 ** 6)), ValueError,
+     r"a section grid of 1000000 x 1000000 = 1000000000000 points needs about"),
+    ("a surface of section of too many orbits", lambda p: varint.surface_of_section(
+        HH, np.broadcast_to(X0, (10 ** 6, 4)), 10.0), ValueError,
+     "surface_of_section of 1000000 orbits of HenonHeiles needs about"),
+    ("a map beyond memory", lambda p: varint.chaos_map(
+        HH, np.broadcast_to(X0, (2 * 10 ** 10, 4)), t_end=10.0), ValueError,
+     r"initial_conditions of shape \(20000000000, 4\) \(as float64\) needs about 596 GiB"),
+    ("a section of more steps than the counter", lambda p: varint.surface_of_section(
+        HH, X0, 1e300), ValueError, "steps, more than the 4.61e\\+18"),
+    ("a map of more steps than the counter", lambda p: varint.chaos_map(
+        HH, [X0, X0], t_end=1e300, tau=0.05), ValueError, "steps, more than"),
+    # -- round 2: types of the run arguments
+    ("model None", lambda p: run(model=None), ValueError, "model must be a varint model"),
+    ("model a name in a map", lambda p: varint.chaos_map("henon-heiles", [X0], t_end=10.0),
+     ValueError, "model must be a varint model .* got str 'henon-heiles'"),
+    ("model a name in a section", lambda p: varint.surface_of_section("hh", X0, 10.0),
+     ValueError, "model must be a varint model"),
+    ("model a name in select_scheme", lambda p: varint.select_scheme("hh", X0, 1e-6),
+     ValueError, "model must be a varint model"),
+    ("model a name in departure", lambda p: varint.departure("hh", X0, "tm", 0.05, 100.0),
+     ValueError, "model must be a varint model"),
+    ("Dask client a name", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0, client="local"),
+     ValueError, "client must be a dask.distributed.Client or None, got str 'local'"),
+    ("Dask client an address", lambda p: varint.chaos_map(
+        HH, [X0, X0], t_end=10.0, client=("tcp://localhost", 8786)), ValueError,
+     "client must be a dask.distributed.Client or None, got tuple"),
+    ("indicator a number", lambda p: varint.run(HH, X0, 3, 10.0), ValueError,
+     "unknown indicator 3; expected one of"),
+    ("indicator None", lambda p: varint.run(HH, X0, None, 10.0), ValueError,
+     "unknown indicator None"),
+    ("method None", lambda p: run(method=None), ValueError, "unknown method None; expected"),
+    ("method a number", lambda p: run(method=3), ValueError, "unknown method 3"),
+    ("scheme a number", lambda p: run(scheme=3), ValueError, "unknown scheme 3; expected one of"),
+    ("scheme unknown with the automatic step", lambda p: run(fn=varint.sali, scheme="RK4"),
+     ValueError, "unknown scheme 'RK4'"),
+    ("seed as text", lambda p: run(seed="1"), ValueError,
+     "seed must be a non-negative integer or None, got '1'"),
+    ("seed NaN", lambda p: run(seed=np.nan), ValueError, "seed must be .* got nan"),
+    ("errors None", lambda p: run(errors=None), ValueError,
+     "unknown errors None; expected one of: raise, flag"),
+    ("energy_tol zero", lambda p: run(energy_tol=0.0), ValueError,
+     "energy_tol must be a positive number .* got 0.0"),
+    ("energy_tol negative", lambda p: run(energy_tol=-1e-3), ValueError,
+     "energy_tol must be a positive number .* got -0.001"),
+    ("energy_tol NaN", lambda p: run(energy_tol=np.nan), ValueError,
+     "energy_tol must be a positive number .* got nan"),
+    ("energy_tol as text", lambda p: run(energy_tol="1e-3"), ValueError,
+     "energy_tol must be a positive number .* got '1e-3'"),
+    ("energy_tol of a map boolean", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                               energy_tol=True), ValueError,
+     "energy_tol must be a positive number .* got True"),
+    ("t_end as text", lambda p: run(t_end="100"), ValueError,
+     "t_end must be a finite number, got '100'"),
+    ("t_end infinite with the automatic step", lambda p: run(t_end=np.inf), ValueError,
+     "t_end must be a finite number, got inf"),
+    ("t_end zero with the automatic step", lambda p: run(t_end=0.0), ValueError,
+     "t_end must be > 0 \\(a run takes at least one step\\), got 0.0"),
+    ("t_end boolean", lambda p: run(t_end=True, tau=0.05), ValueError,
+     "t_end must be a finite number, got True"),
+    ("tau an array", lambda p: run(tau=np.array([0.05, 0.1])), ValueError,
+     "tau must be a positive finite number, got array"),
+    ("x0 as a dict", lambda p: run(x0={"x": 0.0}), ValueError,
+     r"x0 must hold real numbers, got \{'x': 0.0\} \(dict\)"),
+    ("x0 as one string", lambda p: run(x0="0,0.1,0.2,0"), ValueError,
+     "x0 must be an array of real numbers, got dtype <U"),
+    ("n_exponents a NumPy integer above 2N", lambda p: run(n_exponents=np.int64(5)),
+     ValueError, r"n_exponents must be in 1\.\.4 \(2N for this model\), got 5"),
+    ("GALI order fractional", lambda p: run(fn=varint.gali, k=(2.5,)), ValueError,
+     "GALI order"),
+    ("local-exponent window NaN", lambda p: varint.run(HH, X0, "local_exponents", 10.0,
+                                                        window=np.nan), ValueError,
+     "window must be a positive finite time"),
+    ("zero deviation vectors", lambda p: run(fn=varint.gali, k=2, deviations=np.zeros((4, 2))),
+     ValueError, "deviations of orbit 0 are linearly dependent"),
+    ("checkpoint interval as text", lambda p: run(checkpoint=p / "c", checkpoint_interval="60"),
+     ValueError, "checkpoint_interval must be a finite number of seconds >= 0, got '60'"),
+    ("t_out times beyond t_end with the automatic step", lambda p: run(t_out=[1.0, 20.0]),
+     ValueError, r"t_out must lie in \[tau, t_end\] = \(0, 10.0\], got 1.0..20.0"),
+    ("t_out times with NaN", lambda p: run(t_out=[1.0, np.nan]), ValueError,
+     "t_out must be a non-empty array of finite times"),
+    ("t_out empty", lambda p: run(t_out=[]), ValueError,
+     "t_out must be a non-empty array of finite times"),
+    # -- round 2: initial states where V or its derivatives are singular
+    ("a state on the singularity of 1/x", lambda p: run(model=INVERSE_X, x0=[0.0, 0.1, 0.1, 0.0]),
+     ValueError, r"the derivatives of V \(1/x\) are not finite at the initial state, "
+     r"q = \[0.0, 0.1\]: the gradient ∇V is \[-inf, 0.1\]"),
+    ("a batch with one singular state", lambda p: run(model=INVERSE_X, x0=[[1.0, 0.1, 0.1, 0.0],
+                                                                          [0.0, 0.1, 0.1, 0.0]]),
+     ValueError, "not finite at the initial state of orbit 1, q = \\[0.0, 0.1\\]"),
+    ("log x at x < 0", lambda p: run(model=LOG_X, x0=[-1.0, 0.1, 0.0, 0.0]), ValueError,
+     r"the potential of log x is not finite at the initial state, q = \[-1.0, 0.1\] "
+     r"\(energy = nan\)"),
+    ("sqrt x at x < 0", lambda p: run(model=SQRT_X, x0=[-1.0, 0.1, 0.0, 0.0]), ValueError,
+     r"are not finite at the initial state, q = \[-1.0, 0.1\]: the gradient ∇V is \[nan"),
+    ("an overflowing exponential", lambda p: run(model=EXP_X, x0=[1.0, 0.1, 0.0, 0.0]),
+     ValueError, "the gradient ∇V is \\[inf"),
+    ("a singular point in a map", lambda p: varint.chaos_map(
+        INVERSE_X, [[1.0, 0.1, 0.1, 0.0], [0.5, 0.0, 0.0, 0.0], [0.0, 0.2, 0.0, 0.1]],
+        t_end=10.0), ValueError,
+     "not finite at initial condition of orbit 2, q = \\[0.0, 0.2\\]"),
+    ("a singular state in select_scheme", lambda p: varint.select_scheme(
+        INVERSE_X, [0.0, 0.1, 0.1, 0.0], 1e-6), ValueError, "are not finite at the initial state"),
+    ("a singular state in a section", lambda p: varint.surface_of_section(
+        INVERSE_X, [0.0, 0.1, 0.1, 0.0], 10.0), ValueError, "are not finite at the initial state"),
+    ("a singular state in departure", lambda p: varint.departure(
+        INVERSE_X, [0.0, 0.1, 0.1, 0.0], "tm", 0.05, 100.0), ValueError,
+     "are not finite at the initial state"),
+    ("a model whose kernels fail to compile", lambda p: run(model=Model(
+        2, _potential, _grad_two_args, _hess, _third, 1, name="two-args")), TypeError,
+     "the kernels of model 'two-args' could not be compiled"),
+    ("inverse mass infinite", lambda p: Model(2, _potential, _grad, _hess, _third, 1,
+                                              inverse_mass=[1.0, np.inf]), ValueError,
+     "inverse_mass must be positive and finite; got inf at index 1"),
+    # -- round 2: maps
+    ("map chunk size zero", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0, chunk_size=0),
+     ValueError, "chunk_size must be a positive integer, got 0"),
+    ("map chunk size fractional", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                             chunk_size=2.5), ValueError,
+     "chunk_size must be a positive integer, got 2.5"),
+    ("map threshold as text", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                         threshold="none"), ValueError,
+     "threshold must be a finite number, None or 'default', got 'none'"),
+    ("map threshold NaN", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                     threshold=np.nan), ValueError,
+     "threshold must be a finite number"),
+    ("map check times empty", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0, t_check=[]),
+     ValueError, "t_check must be a non-empty array of finite times"),
+    ("map check times beyond t_end", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                                t_check=[5.0, 50.0]), ValueError,
+     r"t_check must lie in \[tau, t_end\]"),
+    ("map progress as text", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                        progress="yes"), ValueError,
+     "progress must be True, False or None, got 'yes'"),
+    ("map option misspelt", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0, shceme="ABA864"),
+     TypeError, "unknown option 'shceme' for method 'tm'"),
+    ("map seed negative", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0, seed=-3),
+     ValueError, "seed must be a non-negative integer, got -3"),
+    ("map of a grid of another model", lambda p: varint.chaos_map(
+        varint.models.ThreeDof(), HH_GRID, t_end=10.0), ValueError,
+     r"the section grid's states must have shape \(6,\) or \(M, 6\) for ThreeDof"),
+    ("map escape radius infinite", lambda p: varint.chaos_map(HH, [X0, X0], t_end=10.0,
+                                                              escape_radius=np.inf), ValueError,
+     "escape_radius must be a positive finite number, got inf"),
+    # -- round 2: sections and grids
+    ("section plane out of range", lambda p: varint.surface_of_section(HH, X0, 10.0, plane=5),
+     ValueError, r"plane must be a coordinate index in 0\.\.1, got 5"),
+    ("section direction 2", lambda p: varint.surface_of_section(HH, X0, 10.0, direction=2),
+     ValueError, "direction must be 1, -1 or 0, got 2"),
+    ("section max_points zero", lambda p: varint.surface_of_section(HH, X0, 10.0, max_points=0),
+     ValueError, "max_points must be a positive integer, got 0"),
+    ("section value NaN", lambda p: varint.surface_of_section(HH, X0, 10.0, value=np.nan),
+     ValueError, "value must be a finite number, got nan"),
+    ("section energy_tol negative", lambda p: varint.surface_of_section(HH, X0, 10.0,
+                                                                        energy_tol=-1.0),
+     ValueError, "energy_tol must be a positive number"),
+    ("grid energy NaN", lambda p: varint.section_grid(HH, np.nan, [0.1], [0.1]), ValueError,
+     "energy must be a finite number, got nan"),
+    ("grid axis with NaN", lambda p: varint.section_grid(HH, 0.125, [0.1, np.nan], [0.1]),
+     ValueError, "u must be a non-empty array of finite values"),
+    ("grid base infinite", lambda p: varint.section_grid(HH, 0.125, [0.1], [0.1],
+                                                         base=[0, 0, np.inf, 0]), ValueError,
+     "base must be finite, got"),
+    ("momentum for an infinite energy", lambda p: solve_momentum(HH, [0.0, 0.1], [0.0, 0.0],
+                                                                np.inf), ValueError,
+     "energy must be finite, got inf"),
+    # -- round 2: select_scheme and departure
+    ("candidate of an unknown method", lambda p: varint.select_scheme(
+        HH, X0, 1e-6, candidates=[("rk4", None, 0.1)]), ValueError,
+     "unknown method 'rk4'; expected one of"),
+    ("candidate of an unknown scheme", lambda p: varint.select_scheme(
+        HH, X0, 1e-6, candidates=[("tm", "SABA9", 0.1)]), ValueError, "unknown scheme 'SABA9'"),
+    ("candidates a string", lambda p: varint.select_scheme(HH, X0, 1e-6, candidates="tm"),
+     ValueError, "candidates must be a list of \\(method, scheme or None, tau\\), got 'tm'"),
+    ("select t_end shorter than a pilot", lambda p: varint.select_scheme(HH, X0, 1e-6, t_end=0.5),
+     ValueError, "t_end = 0.5 is shorter than the shortest pilot, 0.8"),
+    ("select target zero", lambda p: varint.select_scheme(HH, X0, 0.0), ValueError,
+     "target_error must be a positive finite number, got 0.0"),
+    ("select k above 2N", lambda p: varint.select_scheme(HH, X0, 1e-6, k=9), ValueError,
+     r"k must be in 0\.\.4"),
+    ("select a batch", lambda p: varint.select_scheme(HH, [X0, X0], 1e-6), ValueError,
+     r"x0 must be one state of shape \(4,\)"),
+    ("departure of an unknown method", lambda p: varint.departure(HH, X0, "rk4", 0.05, 100.0),
+     ValueError, "unknown method 'rk4'"),
+    ("departure reference not a dict", lambda p: varint.departure(HH, X0, "tm", 0.05, 100.0,
+                                                                  reference="tm"), ValueError,
+     "reference must be a dict with a 'method' name, got 'tm'"),
+    ("departure reference of an unknown method", lambda p: varint.departure(
+        HH, X0, "tm", 0.05, 100.0, reference={"method": "nope"}), ValueError,
+     "unknown reference method 'nope'"),
+    ("departure GALI order 1", lambda p: varint.departure(HH, X0, "tm", 0.05, 100.0,
+                                                          gali_orders=(1,)), ValueError,
+     r"GALI order must be in 2\.\.4"),
+    ("departure GALI orders a number", lambda p: varint.departure(HH, X0, "tm", 0.05, 100.0,
+                                                                  gali_orders=5), ValueError,
+     "gali_orders must be a sequence of GALI orders"),
+    ("departure per_decade zero", lambda p: varint.departure(HH, X0, "tm", 0.05, 100.0,
+                                                             per_decade=0), ValueError,
+     "per_decade must be a positive integer, got 0"),
+    ("departure of a batch", lambda p: varint.departure(HH, [X0, X0], "tm", 0.05, 100.0),
+     ValueError, r"x0 must be one state of shape \(4,\)"),
+    ("departure steps beyond the counter", lambda p: varint.departure(HH, X0, "tm", 1e-300,
+                                                                      100.0), ValueError,
+     "steps, more than"),
+    # -- round 2: paths
+    ("checkpoint in a missing directory", lambda p: run(checkpoint=p / "no" / "c.ckpt"),
+     varint.CheckpointError, "does not exist"),
+    ("checkpoint in /proc", lambda p: run(checkpoint="/proc/version"), varint.CheckpointError,
+     "/proc/version"),
+    ("map checkpoint a file", lambda p: map_into_a_file(p), varint.CheckpointError,
+     "cannot use .* as a chaos map checkpoint directory"),
 ]
 
 
@@ -384,3 +644,64 @@ def test_check_memory_names_what_and_how_much(monkeypatch):
         check.check_memory(check.array_bytes((10 ** 12,)), "a big run")
     monkeypatch.setattr(check, "available_memory", lambda: None)
     check.check_memory(2 ** 80, "anything, when the memory is unknown")
+
+
+def test_the_tables_hold_at_least_150_bad_api_inputs():
+    # This table, plus the concurrent uses below.
+    assert len(CASES) >= 150
+
+
+def test_maps_sharing_a_checkpoint_directory_from_two_threads_agree(tmp_path):
+    """Two threads run the same map into one checkpoint directory at once:
+    chunk files are written atomically, so each map is complete and both
+    equal a map computed alone; the directory then resumes the map."""
+    import threading
+
+    grid = varint.section_grid(HH, 0.125, np.linspace(-0.4, 0.6, 12), np.linspace(-0.4, 0.4, 12))
+    kw = dict(t_end=50.0, tau=0.05, chunk_size=16, progress=False)
+    alone = varint.chaos_map(HH, grid, "sali", **kw)
+    out, errors = {}, []
+
+    def work(i):
+        try:
+            out[i] = varint.chaos_map(HH, grid, "sali", checkpoint=tmp_path / "map", **kw)
+        except Exception as exc:  # reported below, with the thread
+            errors.append((i, exc))
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for r in out.values():
+        assert r.values.tobytes() == alone.values.tobytes()
+    again = varint.chaos_map(HH, grid, "sali", checkpoint=tmp_path / "map", **kw)
+    assert again.provenance.options["chunks_resumed"] == again.provenance.options["chunks"]
+    assert again.values.tobytes() == alone.values.tobytes()
+
+
+def test_runs_in_threads_give_the_results_of_runs_alone():
+    """The run loop shares nothing between calls: runs with and without
+    the automatic step, in four threads at once, give bitwise the serial
+    results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    r1 = paper_orbit("R1")
+    jobs = [(varint.sali, HH, X0, {"tau": 0.05}), (varint.lyapunov_spectrum, *r1, {}),
+            (varint.megno, HH, X0, {}), (varint.gali, *r1, {"tau": 0.1})]
+    serial = [fn(m, x0, 200.0, **kw) for fn, m, x0, kw in jobs]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(lambda j: j[0](j[1], j[2], 200.0, **j[3]), jobs))
+    for a, b in zip(serial, threaded):
+        assert a.provenance.tau == b.provenance.tau
+        assert a.energy_error.tobytes() == b.energy_error.tobytes()
+
+
+def test_a_map_refuses_a_directory_holding_another_map_even_when_resuming(tmp_path):
+    grid = varint.section_grid(HH, 0.125, np.linspace(-0.4, 0.6, 4), np.linspace(-0.4, 0.4, 4))
+    varint.chaos_map(HH, grid, "sali", t_end=20.0, tau=0.05, checkpoint=tmp_path / "m",
+                     progress=False)
+    with pytest.raises(varint.CheckpointError, match="holds a chaos map with other parameters"):
+        varint.chaos_map(HH, grid, "sali", t_end=20.0, checkpoint=tmp_path / "m",
+                         progress=False)

@@ -15,6 +15,8 @@ from varint.state import RunState
 from tests.helpers import assert_bitwise_equal, hook_advance
 
 T_END = 200.0  # 4000 steps of τ = 0.05 for TM: tens of chunks, a fraction of a second
+# Runs pass τ, so that the crash points count chunks of a known step; the
+# automatic step resumes too (test_the_automatic_step_resumes_bitwise).
 
 
 class Crash(Exception):
@@ -26,11 +28,12 @@ def crash():
 
 
 RUNS = {
-    "lyapunov_spectrum": lambda model, x0, **kw: varint.lyapunov_spectrum(model, x0, T_END, **kw),
-    "gali": lambda model, x0, **kw: varint.gali(model, x0, T_END, **kw),
-    "sali": lambda model, x0, **kw: varint.sali(model, x0, T_END, **kw),
+    "lyapunov_spectrum": lambda model, x0, **kw: varint.lyapunov_spectrum(
+        model, x0, T_END, tau=0.05, **kw),
+    "gali": lambda model, x0, **kw: varint.gali(model, x0, T_END, tau=0.05, **kw),
+    "sali": lambda model, x0, **kw: varint.sali(model, x0, T_END, tau=0.05, **kw),
     "integrate": lambda model, x0, **kw: varint.integrate(
-        model, x0, T_END, deviations=np.eye(4)[:, :2], t_out=50, **kw),
+        model, x0, T_END, tau=0.05, deviations=np.eye(4)[:, :2], t_out=50, **kw),
 }
 
 
@@ -73,7 +76,7 @@ def test_resume_after_a_crash_is_bitwise_identical(kind, c1, tmp_path, monkeypat
 def test_resume_is_bitwise_identical_for_every_method(method, c1, tmp_path, monkeypatch):
     """Rules 3 and 8 of varint.methods, checked through a checkpoint."""
     def run(**kw):
-        return varint.lyapunov_spectrum(*c1, 20.0, method=method, **kw)
+        return varint.lyapunov_spectrum(*c1, 20.0, tau=0.05, method=method, **kw)
 
     reference = run()
     resumed, step = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", run, at=2,
@@ -82,14 +85,28 @@ def test_resume_is_bitwise_identical_for_every_method(method, c1, tmp_path, monk
     assert_bitwise_equal(resumed, reference)
 
 
+def test_the_automatic_step_resumes_bitwise(c1, tmp_path, monkeypatch):
+    """Without τ the pilot chooses the step again when the run resumes: it
+    is deterministic, so the resumed run continues the same steps (the
+    pilot's own steps are not the run's chunks and are not hooked)."""
+    def run(**kw):
+        return varint.lyapunov_spectrum(*c1, T_END, **kw)
+
+    reference = run()
+    assert reference.provenance.tau_choice["rule"] == "pilot"
+    resumed, step = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", run)
+    assert 0 < step < round(T_END / reference.provenance.tau)
+    assert_bitwise_equal(resumed, reference)
+
+
 def test_batch_with_a_flagged_failure_resumes_bitwise(c1, tmp_path, monkeypatch):
     """Frozen orbits, NaN records and status survive a checkpoint."""
     escaping = varint.models.solve_momentum(c1[0], [0.0, 0.0], [0.0, 0.2], 0.25)
     x0 = np.stack([c1[1], escaping, c1[1] * 0.99])
     with pytest.warns(RuntimeWarning, match="1 of 3 orbits failed"):
-        reference = varint.lyapunov_spectrum(c1[0], x0, T_END, errors="flag")
+        reference = varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05, errors="flag")
         resumed, _ = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", lambda **kw:
-                                       varint.lyapunov_spectrum(c1[0], x0, T_END,
+                                       varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05,
                                                                 errors="flag", **kw),
                                        at=lambda state: state.step > T_END / 0.05 / 2)
     assert list(reference.status != 0) == [False, True, False]
@@ -106,23 +123,24 @@ def test_a_run_stopped_by_a_failure_can_be_continued_with_errors_flag(c1, tmp_pa
     x0 = np.stack([c1[1], escaping])
     path = tmp_path / "c.ckpt"
     with pytest.raises(varint.IntegrationError) as first:
-        varint.lyapunov_spectrum(c1[0], x0, T_END, checkpoint=path)
+        varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05, checkpoint=path)
     calls = hook_advance(monkeypatch, "tm", 10 ** 9, lambda: None)
     with pytest.raises(varint.IntegrationError) as again:
-        varint.lyapunov_spectrum(c1[0], x0, T_END, checkpoint=path)
+        varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05, checkpoint=path)
     assert str(again.value) == str(first.value) and not calls
     with pytest.warns(RuntimeWarning, match="orbits failed"):
-        continued = varint.lyapunov_spectrum(c1[0], x0, T_END, checkpoint=path, errors="flag")
-        reference = varint.lyapunov_spectrum(c1[0], x0, T_END, errors="flag")
+        continued = varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05, checkpoint=path,
+                                             errors="flag")
+        reference = varint.lyapunov_spectrum(c1[0], x0, T_END, tau=0.05, errors="flag")
     assert_bitwise_equal(continued, reference)
 
 
 def test_a_finished_checkpoint_returns_the_result_without_integrating(c1, tmp_path,
                                                                      monkeypatch):
     path = tmp_path / "c.ckpt"
-    first = varint.gali(*c1, T_END, checkpoint=path)
+    first = varint.gali(*c1, T_END, tau=0.05, checkpoint=path)
     calls = hook_advance(monkeypatch, "tm", 10 ** 9, lambda: None)
-    again = varint.gali(*c1, T_END, checkpoint=path)
+    again = varint.gali(*c1, T_END, tau=0.05, checkpoint=path)
     assert not calls
     assert_bitwise_equal(again, first)
 
@@ -131,16 +149,16 @@ def test_seed_none_resumes_with_the_seed_it_drew(c1, tmp_path, monkeypatch):
     """With seed=None the first call draws a seed; the resumed call must
     continue the same random vectors, not draw new ones."""
     resumed, _ = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", lambda **kw:
-                                   varint.lyapunov_spectrum(*c1, T_END, seed=None, **kw))
+                                   varint.lyapunov_spectrum(*c1, T_END, tau=0.05, seed=None, **kw))
     assert isinstance(resumed.provenance.seed, int)
-    reference = varint.lyapunov_spectrum(*c1, T_END, seed=resumed.provenance.seed)
+    reference = varint.lyapunov_spectrum(*c1, T_END, tau=0.05, seed=resumed.provenance.seed)
     assert_bitwise_equal(resumed, reference)
 
 
 def test_provenance_sums_wall_time_and_work_over_sessions(c1, tmp_path, monkeypatch):
     path = tmp_path / "c.ckpt"
     resumed, _ = crash_then_resume(monkeypatch, path, lambda **kw:
-                                   varint.lyapunov_spectrum(*c1, T_END, **kw))
+                                   varint.lyapunov_spectrum(*c1, T_END, tau=0.05, **kw))
     assert resumed.provenance.counts["steps"] == round(T_END / 0.05)
     assert resumed.provenance.wall_time >= ckpt.read(path).wall_time > 0
 
@@ -160,9 +178,9 @@ def test_provenance_sums_wall_time_and_work_over_sessions(c1, tmp_path, monkeypa
 ])
 def test_a_checkpoint_of_other_parameters_is_refused_naming_them(change, named, c1, tmp_path):
     path = tmp_path / "c.ckpt"
-    varint.lyapunov_spectrum(*c1, T_END, checkpoint=path)
+    varint.lyapunov_spectrum(*c1, T_END, tau=0.05, checkpoint=path)
     before = path.read_bytes()
-    args = dict(model=c1[0], x0=c1[1], t_end=T_END, checkpoint=path)
+    args = dict(model=c1[0], x0=c1[1], t_end=T_END, tau=0.05, checkpoint=path)
     args.update(change)
     with pytest.raises(varint.CheckpointError, match="other parameters") as err:
         varint.lyapunov_spectrum(**args)
@@ -172,20 +190,20 @@ def test_a_checkpoint_of_other_parameters_is_refused_naming_them(change, named, 
 
 def test_a_checkpoint_of_another_kind_of_run_is_refused(c1, tmp_path):
     path = tmp_path / "c.ckpt"
-    varint.sali(*c1, T_END, checkpoint=path)
+    varint.sali(*c1, T_END, tau=0.05, checkpoint=path)
     with pytest.raises(varint.CheckpointError, match="kind .checkpoint: 'sali', this call: 'gali'"):
-        varint.gali(*c1, T_END, checkpoint=path)
+        varint.gali(*c1, T_END, tau=0.05, checkpoint=path)
 
 
 def test_a_checkpoint_from_other_package_versions_is_refused(c1, tmp_path):
     """Bitwise resumption holds only for the same numerical code."""
     path = tmp_path / "c.ckpt"
-    varint.lyapunov_spectrum(*c1, T_END, checkpoint=path)
+    varint.lyapunov_spectrum(*c1, T_END, tau=0.05, checkpoint=path)
     snap = ckpt.read(path)
     snap.parameters["versions"]["numba"] = "0.1"
     ckpt.write(path, snap)
     with pytest.raises(varint.CheckpointError, match=r"versions\.numba \(checkpoint: '0\.1'"):
-        varint.lyapunov_spectrum(*c1, T_END, checkpoint=path)
+        varint.lyapunov_spectrum(*c1, T_END, tau=0.05, checkpoint=path)
 
 
 def test_write_read_round_trip_keeps_every_bit(tmp_path):

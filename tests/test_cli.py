@@ -399,7 +399,7 @@ def test_run_an_indicator_of_a_potential(capsys, tmp_path):
     assert rows[0] == ["t", "energy_error", "sali"]
     # The same run through the API, on the built-in model: same values.
     model, x0 = varint.paper_orbit("R1")
-    ref = varint.sali(model, x0, 5.0)
+    ref = varint.sali(model, x0, 5.0, tau=0.05)  # the command's --tau default
     assert np.allclose([float(r[2]) for r in rows[1:]], ref.sali, rtol=1e-12)
     assert (tmp_path / "r.png").stat().st_size > 1000
 
@@ -427,7 +427,7 @@ def test_run_every_other_indicator(capsys, tmp_path, indicator, column):
     assert column in rows[0] and len(rows) == 5
     if indicator == "integrate":
         ref = varint.integrate(varint.models.HenonHeiles(), [-0.1, 0.2, -0.05, 0.1], 2.0,
-                               t_out=4)
+                               tau=0.05, t_out=4)
         assert np.allclose([float(v) for v in rows[-1][2:6]], ref.states[-1], rtol=1e-14)
 
 

@@ -58,7 +58,8 @@ def test_nothing_meets_the_target(r1):
 @pytest.mark.parametrize("kwargs, match", [
     ({"metric": "speed"}, "unknown metric 'speed'; expected one of: energy, tangent, X1"),
     ({"target_error": -1.0}, "target_error must be a positive finite number"),
-    ({"candidates": [("tm", "ABA864", 0.03)]}, "pilot_t / 4 = 25 must be a multiple"),
+    ({"candidates": [("tm", "ABA864", 0.03)], "pilot_t": 100.0},
+     "pilot_t / 4 = 25 must be a multiple"),
     ({"candidates": [("tm", "ABA864")]}, "each candidate must be"),
 ])
 def test_bad_arguments(r1, kwargs, match):
@@ -67,3 +68,17 @@ def test_bad_arguments(r1, kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         varint.select_scheme(model, x0, **args)
+
+
+def test_the_default_pilot_fits_any_candidate_steps():
+    """Without pilot_t the pilot is the largest T <= min(t_end, 100) with T/4
+    a whole number of steps of every candidate, so steps such as 0.03 need
+    no pilot_t."""
+    from varint.selection import default_pilot
+
+    assert default_pilot(1e4, [0.05, 0.1, 0.2]) == pytest.approx(100.0)
+    T = default_pilot(1e4, [0.03])
+    assert T == pytest.approx(99.96) and (T / 4 / 0.03) == pytest.approx(833)
+    assert default_pilot(10.0, [0.05, 0.2]) == pytest.approx(9.6)
+    with pytest.raises(ValueError, match="shorter than the shortest pilot, 0.8"):
+        default_pilot(0.5, [0.05, 0.2])

@@ -101,3 +101,29 @@ def test_new_results_save_and_load(results, name, tmp_path):
     if name == "map":
         assert back.axes == [1, 3] and back.indicator == "sali" and back.threshold == 1e-8
         assert np.array_equal(back.image(), r.image(), equal_nan=True)
+
+
+def test_gali_guides_are_in_the_legend_and_keep_the_axis_to_the_data():
+    """A short GALI run: the t⁻² and t⁻⁴ laws of regular motion are drawn
+    and named in the legend, and they do not stretch the y-axis beyond the
+    decades the GALIs span (t⁻⁴ over three decades would reach 1e12)."""
+    import matplotlib.pyplot as plt
+
+    model, x0 = varint.paper_orbit("R1")
+    g = varint.gali(model, x0, 10.0, tau=0.05, k=(2, 3, 4))
+    ax = g.plot()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert r"$\propto t^{-2}$" in labels and r"$\propto t^{-4}$" in labels
+    values = np.concatenate([g.gali[k] for k in (2, 3, 4)])
+    low, high = ax.get_ylim()
+    assert high <= 10 * values.max() and low >= values.min() / 10
+    plt.close("all")
+
+
+def test_the_lyapunov_guide_is_in_the_legend():
+    import matplotlib.pyplot as plt
+
+    model, x0 = varint.paper_orbit("R1")
+    ax = varint.lyapunov_spectrum(model, x0, 100.0, tau=0.05).plot()
+    assert r"$\propto t^{-1}$" in [t.get_text() for t in ax.get_legend().get_texts()]
+    plt.close("all")

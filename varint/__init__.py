@@ -71,6 +71,7 @@ def _source_checkout_baselines():
 _source_checkout_baselines()
 
 from . import models  # noqa: E402
+from .accuracy import Accuracy, AccuracyWarning  # noqa: E402
 from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
 from .checkpoint import CheckpointError  # noqa: E402
 from .departure import Departure, departure  # noqa: E402
@@ -101,4 +102,5 @@ __all__ = [
     "IntegrationError", "CheckpointError", "departure", "Departure",
     "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid", "ensemble",
     "EnsembleResult", "phase_grid", "PhaseGrid", "SectionResult", "select_scheme",
+    "Accuracy", "AccuracyWarning",
 ]

@@ -23,7 +23,8 @@ def positive_float(value, name):
 
 
 def horizon(t_end, tau):
-    """``(t_end, tau)`` checked: both finite, τ > 0, t_end ≥ τ."""
+    """``(t_end, tau)`` checked: both finite, τ > 0, t_end ≥ τ, and at most
+    :data:`MAX_STEPS` steps."""
     tau = positive_float(tau, "tau")
     if isinstance(t_end, bool) or not isinstance(t_end, numbers.Real) or not np.isfinite(t_end):
         raise ValueError(f"t_end must be a finite number, got {t_end!r}")
@@ -32,7 +33,19 @@ def horizon(t_end, tau):
         raise ValueError(f"t_end must be >= 0, got {t_end!r}")
     if t_end < tau * (1 - 1e-12):
         raise ValueError(f"t_end = {t_end!r} is shorter than one step tau = {tau!r}")
+    step_count(t_end, tau)
     return t_end, tau
+
+
+def end_time(t_end, name="t_end"):
+    """``t_end`` as a float that is finite and > 0 (before τ is known)."""
+    if isinstance(t_end, bool) or not isinstance(t_end, numbers.Real) or not np.isfinite(t_end):
+        raise ValueError(f"{name} must be a finite number, got {t_end!r}")
+    if t_end < 0:
+        raise ValueError(f"{name} must be >= 0, got {t_end!r}")
+    if t_end == 0:
+        raise ValueError(f"{name} must be > 0 (a run takes at least one step), got {t_end!r}")
+    return float(t_end)
 
 
 def real_array(value, name):
@@ -59,6 +72,8 @@ def real_array(value, name):
     if kind not in "iuf":
         raise ValueError(f"{name} must be an array of real numbers, got dtype {a.dtype} "
                          f"({value!r})")
+    # A broadcast view or a memory map may stand for more numbers than fit.
+    check_memory(array_bytes(a.shape), f"{name} of shape {a.shape} (as float64)")
     return np.array(a, dtype=np.float64)
 
 
@@ -79,9 +94,10 @@ def flag(value, name):
     return None if value is None else bool(value)
 
 
-def output_times(t_out, name="t_out"):
+def output_times(t_out, name="t_out", t_end=None):
     """``t_out`` as None, a positive integer count, or a 1-D float array of
-    times (see :func:`varint.state.output_steps` for their meaning)."""
+    increasing finite times, in (0, t_end] if ``t_end`` is given (see
+    :func:`varint.state.output_steps` for their meaning)."""
     if t_out is None:
         return None
     if isinstance(t_out, np.ndarray) and t_out.ndim == 0:
@@ -94,6 +110,13 @@ def output_times(t_out, name="t_out"):
     t = real_array(t_out, name)
     if t.ndim != 1:
         raise ValueError(f"{name} must be a 1-D array of times, got shape {t.shape}")
+    if t.size == 0 or not np.isfinite(t).all():
+        raise ValueError(f"{name} must be a non-empty array of finite times")
+    if (np.diff(t) <= 0).any():
+        raise ValueError(f"{name} must be strictly increasing")
+    if t_end is not None and not (t[0] > 0 and t[-1] <= t_end * (1 + 1e-12)):
+        raise ValueError(f"{name} must lie in [tau, t_end] = (0, {t_end!r}], got "
+                         f"{float(t[0])!r}..{float(t[-1])!r}")
     return t
 
 
@@ -291,13 +314,104 @@ def step_count(t_end, tau, limit=MAX_STEPS):
     return max(1, round(n))
 
 
+#: Kernel evaluations of one block of :func:`kernels` hold at most this many
+#: numbers.
+_KERNEL_BLOCK = 2 ** 18
+
+
+def kernels(model, X, what="the initial state"):
+    """Evaluate the model's derivative kernels (∇V, D²V, the third
+    derivatives) at every state of ``X`` (M, 2N) before any long work, and
+    refuse a state where one is not finite.
+
+    A potential singular somewhere (1/r, log r, √r) is a legitimate model;
+    an orbit that *starts* on its singularity is a bad argument, not a run
+    that fails at its first step. An orbit that later runs into it fails
+    with :class:`~varint.IntegrationError` (``Status.*_NONFINITE``).
+
+    Raises
+    ------
+    ValueError
+        Naming the state (``what``, and the orbit of a batch), q and the
+        kernel that is not finite there.
+    TypeError
+        If the kernels cannot be compiled or called as the protocol says
+        (:mod:`varint.models.base`).
+    """
+    from numba.core.errors import NumbaError
+
+    X = np.asarray(X, dtype=float)
+    n, rows = model.n_dof, model.bandwidth + 1
+    block = max(1, min(len(X), _KERNEL_BLOCK // (n * (2 * rows + 1))))
+    v = np.ones(n)
+    labels = ("the gradient ∇V", "the Hessian D²V", "the third derivatives of V")
+    for start in range(0, len(X), block):
+        Q = np.ascontiguousarray(X[start:start + block, :n])
+        G = np.empty((len(Q), n))
+        H = np.zeros((len(Q), rows, n))
+        T = np.zeros((len(Q), rows, n))
+        try:
+            for i in range(len(Q)):
+                model.grad_kernel(Q[i], model.params, G[i])
+                model.hess_kernel(Q[i], model.params, H[i])
+                model.third_kernel(Q[i], model.params, v, T[i])
+        except (NumbaError, TypeError) as exc:
+            reason = _first_line(exc)
+            if reason.startswith("Int value is too large"):
+                reason += ("; an integer beyond 64 bits, e.g. from (2*x)**100: write its "
+                           "numbers with a decimal point, (2.0*x)**100")
+            raise TypeError(
+                f"the kernels of model {model.name!r} could not be compiled ({reason}); they "
+                "must be numba functions grad(q, par, g), hess(q, par, B), third(q, par, v, B) "
+                "writing float64 arrays in place, see varint.models.base") from exc
+        except ArithmeticError as exc:
+            raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
+                             f"{_where(what, start + i, len(X))}, q = {_short(Q[i])}: "
+                             f"{type(exc).__name__}: {exc}") from None
+        for label, values in zip(labels, (G, H, T)):
+            bad = np.flatnonzero(~np.isfinite(values.reshape(len(Q), -1)).all(axis=1))
+            if bad.size:
+                i = int(bad[0])
+                raise ValueError(
+                    f"the derivatives of V ({model.name}) are not finite at "
+                    f"{_where(what, start + i, len(X))}, q = {_short(Q[i])}: {label} is "
+                    f"{_short(values[i].ravel())}; V is singular, not real or too large there "
+                    "(start the orbit elsewhere)")
+
+
+def _where(what, m, total):
+    return what if total == 1 else f"{what} of orbit {m}"
+
+
+def _short(q, limit=8):
+    """A vector for a one-line message (a long one elided)."""
+    q = np.asarray(q, dtype=float)
+    if len(q) <= limit:
+        return str(q.tolist())
+    return f"[{', '.join(f'{v:g}' for v in q[:3])}, ... ({len(q)} values)]"
+
+
+def _first_line(exc):
+    """The first line of ``exc``'s message that says something: numba's
+    begin with "Failed in nopython mode pipeline" and may be coloured."""
+    import re
+
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
+    lines = [line.strip() for line in text.splitlines()
+             if line.strip() and not line.strip().startswith("Failed in ")]
+    return lines[0] if lines else type(exc).__name__
+
+
 # -- arguments of the public runs ----------------------------------------------
 def model(value, name="model"):
-    """``value`` if it is a :class:`varint.models.Model`; a name (e.g.
-    ``"henon-heiles"``) or anything else is refused with the remedy."""
-    from .models.base import Model
-
-    if not isinstance(value, Model):
+    """``value`` if it is a varint model (a :class:`varint.models.Model` or a
+    map model: it has ``kind``, ``dim`` and ``energy``); a name (e.g.
+    ``"henon-heiles"``) or anything else is refused with the remedy. Checked
+    by what a model has, not by class: the models import this module."""
+    if isinstance(value, type) or not (
+            getattr(value, "kind", None) in ("flow", "map")
+            and isinstance(getattr(value, "dim", None), int)
+            and callable(getattr(value, "energy", None))):
         raise ValueError(
             f"{name} must be a varint model (e.g. varint.models.HenonHeiles(), or "
             f"varint.models.from_potential(V, q)), got {type(value).__name__} {value!r}")

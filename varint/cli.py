@@ -195,13 +195,21 @@ def _grid_spec(text, name):
 
 
 def _horizon(t_end, tau, t_name="--t-end", tau_name="--tau"):
-    """(t_end, tau, steps) checked: positive, finite, at most MAX_STEPS steps."""
+    """(t_end, tau, steps) checked: positive, finite, at most MAX_STEPS steps
+    (the command's limit checked first, so that its message names the
+    options)."""
+    def too_many(steps):
+        return ValueError(f"{t_name} {t_end:g} / {tau_name} {tau:g} is {steps:.3g} steps, more "
+                          f"than the {MAX_STEPS:.0e} a command runs; use a larger {tau_name} or "
+                          f"a shorter {t_name}")
+
+    tau = check.positive_float(tau, "tau")
+    if isinstance(t_end, float) and math.isfinite(t_end) and t_end / tau > MAX_STEPS:
+        raise too_many(t_end / tau)
     t_end, tau = check.horizon(t_end, tau)
     steps = t_end / tau
     if steps > MAX_STEPS:
-        raise ValueError(f"{t_name} {t_end:g} / {tau_name} {tau:g} is {steps:.3g} steps, more "
-                         f"than the {MAX_STEPS:.0e} a command runs; use a larger {tau_name} or "
-                         f"a shorter {t_name}")
+        raise too_many(steps)
     return t_end, tau, max(1, round(steps))
 
 

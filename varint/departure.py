@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike
 
 from . import _validate as check
 from .api import gali, lyapunov_spectrum
+from .methods import METHODS
 from .models.base import Model
 from .state import output_steps
 
@@ -192,20 +193,33 @@ def departure(model: Model, x0: ArrayLike, method: str, tau: float, t_end: float
     >>> d.t_x1, d.level, d.t_gali                                         # doctest: +SKIP
     (6.4e3, 9.5e-4, {2: 5.7e3, 3: 3.2e3, 4: 3.2e3})
     """
-    x0 = np.asarray(x0, dtype=float)
-    if x0.shape != (model.dim,):
-        raise ValueError(f"x0 must be one state of shape ({model.dim},), got shape {x0.shape}")
+    model = check.model(model)
+    states, single = check.states(model, x0)
+    if not single:
+        raise ValueError(f"x0 must be one state of shape ({model.dim},), got shape "
+                         f"{np.shape(x0)}")
+    x0 = states[0]
+    check.kernels(model, states)
     t_end, tau = check.horizon(t_end, tau)
     threshold = check.positive_float(threshold, "threshold")
     gali_threshold = check.positive_float(gali_threshold, "gali_threshold")
     if isinstance(per_decade, bool) or not isinstance(per_decade, (int, np.integer)) \
             or per_decade < 1:
         raise ValueError(f"per_decade must be a positive integer, got {per_decade!r}")
+    if reference is not None and not isinstance(reference, dict):
+        raise ValueError(f"reference must be a dict with a 'method' name, got {reference!r}")
     ref = dict(DEFAULT_REFERENCE if reference is None else reference)
     if not isinstance(ref.get("method"), str):
         raise ValueError(f"reference must be a dict with a 'method' name, got {reference!r}")
-    ref_method = ref.pop("method")
+    ref_method = check.choice(ref.pop("method"), METHODS, "reference method")
+    method = check.choice(method, METHODS, "method")
+    if gali_orders is not None and (isinstance(gali_orders, (str, bytes))
+                                    or not hasattr(gali_orders, "__iter__")):
+        raise ValueError(f"gali_orders must be a sequence of GALI orders in 2..{model.dim}, "
+                         f"got {gali_orders!r}")
     orders = tuple(range(2, model.dim + 1)) if gali_orders is None else tuple(gali_orders)
+    for k in orders:
+        check.n_vectors(k, model.dim, "GALI order", minimum=2)
     t_out = output_steps(t_end, tau, per_decade=per_decade) * tau
 
     common = dict(tau=tau, seed=seed, t_out=t_out, progress=progress)

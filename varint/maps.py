@@ -36,6 +36,7 @@ the map, unlike a run checkpoint that may stand for days).
 from __future__ import annotations
 
 import contextlib
+import copy
 import io
 import json
 import math
@@ -51,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
+from . import accuracy, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
@@ -62,7 +64,17 @@ from .run import default_tau, prepare
 from .sections import SectionGrid
 from .state import initial_deviations, output_steps
 
-__all__ = ["chaos_map"]
+__all__ = ["chaos_map", "MAP_SCHEME", "MAP_PILOT_TOL"]
+
+#: The scheme of a map whose step is chosen automatically, and the energy
+#: error its pilot must meet: the cheapest pair that classifies the
+#: Hénon–Heiles section as a tight reference does (studies/map_defaults.py,
+#: see :func:`chaos_map`).
+MAP_SCHEME = "SBAB2C"
+MAP_PILOT_TOL = 1e-5
+#: The quantile of the pilot orbits' errors that must meet it: a few orbits
+#: of a map that escape or graze a singularity do not set the step of all.
+MAP_QUANTILE = 0.9
 
 
 @dataclass
@@ -91,6 +103,8 @@ class _Chunk:
     status: np.ndarray
     energy_error: np.ndarray
     state: np.ndarray
+    max_energy_error: np.ndarray = None
+    max_error: np.ndarray = None
     counts: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     interrupted: bool = False
@@ -134,8 +148,10 @@ def run_chunk(model, x0, indices, spec):
 
         def record(rows):
             rec = job.record(rows)
+            errors = [v for k, v in rec.items()
+                      if k == "energy_error" or k.startswith("conserved_error:")]
             return {"value": ind.scalar(rec, model, job.options),
-                    "energy_error": rec["energy_error"]}
+                    "energy_error": rec["energy_error"], "max_error": np.max(errors, axis=0)}
 
         def decide(rec):
             return ind.settled(rec["value"], spec.threshold)
@@ -151,9 +167,20 @@ def run_chunk(model, x0, indices, spec):
     rows = np.arange(len(x0))
     values = records["value"][at, rows] if n_done else np.full(len(x0), np.nan)
     energy = records["energy_error"][at, rows] if n_done else np.full(len(x0), np.nan)
+    # The largest errors up to the output each orbit is read at.
+    largest = []
+    for key in ("energy_error", "max_error"):
+        if not n_done:
+            largest.append(np.full(len(x0), np.nan))
+            continue
+        upto = np.where(np.arange(n_done)[:, None] <= at[None, :], records[key], np.nan)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # failed before the first
+            largest.append(np.nanmax(upto, axis=0))
     t_stop = np.where(state.status != Status.OK, state.fail_step, state.step) * spec.tau
     return _Chunk(values=values, t_stop=t_stop, status=state.status.copy(), energy_error=energy,
-                  state=state.x.copy(), counts=dict(state.counts),
+                  state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
+                  counts=dict(state.counts),
                   provenance={"method_options": job.propagator.describe(),
                               "versions": job.versions()},
                   interrupted=stop == "interrupted")
@@ -197,7 +224,7 @@ class _ChunkStore:
             with np.load(path, allow_pickle=False) as data:
                 meta = json.loads(str(data["__meta__"]))
                 arrays = {k: data[k] for k in ("values", "t_stop", "status", "energy_error",
-                                               "state")}
+                                               "state", "max_energy_error", "max_error")}
             return _Chunk(**arrays, counts=meta["counts"], provenance=meta["provenance"])
         except Exception as exc:  # a damaged chunk must never be used
             warnings.warn(f"chaos map chunk file {path} is unreadable ({exc}); recomputing it",
@@ -208,7 +235,8 @@ class _ChunkStore:
         buf = io.BytesIO()
         meta = json.dumps(jsonable({"counts": chunk.counts, "provenance": chunk.provenance}))
         np.savez(buf, __meta__=np.array(meta), values=chunk.values, t_stop=chunk.t_stop,
-                 status=chunk.status, energy_error=chunk.energy_error, state=chunk.state)
+                 status=chunk.status, energy_error=chunk.energy_error, state=chunk.state,
+                 max_energy_error=chunk.max_energy_error, max_error=chunk.max_error)
         atomic_write(self._file(c), buf.getvalue())
 
 
@@ -230,7 +258,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
               progress: bool | None = None, escape_radius: float | None = None,
-              **options: Any) -> ChaosMapResult:
+              energy_tol: float | None = None, **options: Any) -> ChaosMapResult:
     """An indicator for many initial conditions (final SALI, GALI_k, X1,
     MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
     map value), with early stopping once an orbit is decided.
@@ -318,17 +346,30 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              checkpoint="hh_sali_map")
     """
     start = time.perf_counter()
+    model = check.model(model)
+    client = check.dask_client(client)
     grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
     if grid is not None:
-        X = np.ascontiguousarray(grid.states, dtype=float)
-        if X.size == 0:
+        if grid.states.size == 0:
             raise ValueError("the section grid holds no allowed point at this energy")
+        X, _ = check.states(model, grid.states, "the section grid's states")
     else:
         X, single = check.states(model, initial_conditions, "initial_conditions")
         if single:
             raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
                              f"got shape {np.shape(initial_conditions)}")
-    t_end, tau = check.horizon(t_end, default_tau(model) if tau is None else tau)
+    m = len(X)
+    # The map's per-orbit results (values, times, status, errors, states).
+    check.check_memory(check.array_bytes((m, 2 * X.shape[1] + 8)),
+                       f"a chaos map of {m} orbits of {model.name}")
+    if getattr(model, "kind", "flow") == "map":
+        tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
+    else:
+        # An initial condition where V or its derivatives are singular is
+        # refused, not computed as a failed orbit.
+        check.kernels(model, X, "initial condition")
+    accuracy.Reference(model, X)
+    energy_tol = accuracy.energy_tolerance(energy_tol)
     ind, fixed = resolve(indicator)
     if ind.scalar is None:
         raise ValueError(f"indicator {ind.name!r} has no map value (one number per orbit); "
@@ -350,19 +391,29 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         threshold = float(threshold)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    m = len(X)
     workers = 1 if client is None else _cluster_threads(client)
     if chunk_size is None:
         chunk_size = _default_chunk_size(m, workers)
     elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
             or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    steps = output_steps(t_end, tau, check.output_times(t_check, "t_check"))
     if escape_radius is not None:
         escape_radius = check.positive_float(escape_radius, "escape_radius")
+    method = check.choice(method, METHODS, "method")
+    if tau is None and stepsize.pilots(method):
+        stepsize.check_options(method, method_options)
+    progress = check.flag(progress, "progress")
+    t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
+        t_end, (int, float)) and np.isfinite(t_end) else None)
+    tau_choice = {"rule": "given"}
+    if tau is None:
+        check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
+        tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
+                                       t_check, escape_radius, ind, configured, k, seed)
+    t_end, tau = check.horizon(t_end, tau)
+    steps = output_steps(t_end, tau, t_check)
     spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=tau,
-                 method=check.choice(method, METHODS, "method"),
-                 method_options=method_options, steps=steps, seed=int(seed),
+                 method=method, method_options=method_options, steps=steps, seed=int(seed),
                  threshold=threshold, escape_radius=escape_radius)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -389,8 +440,29 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     runner = _run_local if client is None else _run_dask
     with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
         interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
-    return _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
-                     interrupted, store is not None, time.perf_counter() - start, client)
+    result = _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
+                       interrupted, store is not None, time.perf_counter() - start, client,
+                       energy_tol, tau_choice)
+    accuracy.warn(result.accuracy, method, what="the chaos map")
+    return result
+
+
+def _choose_step(model, X, t_end, method, method_options, t_check, escape_radius, ind,
+                 configured, k, seed):
+    """The map's step from a pilot on a sample of its orbits
+    (:func:`varint.stepsize.choose_step` with the map defaults: scheme
+    :data:`MAP_SCHEME` unless one is given, tolerance :data:`MAP_PILOT_TOL`,
+    quantile :data:`MAP_QUANTILE`)."""
+    if stepsize.pilots(method):
+        method_options.setdefault("scheme", MAP_SCHEME)
+    if escape_radius is not None:
+        model = copy.copy(model)
+        model.escape_radius = escape_radius
+    return stepsize.choose_step(
+        model, X, t_end, MAP_PILOT_TOL, method=method, scheme=method_options.get("scheme"),
+        cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
+        quantile=MAP_QUANTILE, seed=seed, k=k, renorm=ind.renorm,
+        accumulator=ind.accumulator_for(configured))
 
 
 def _describe_options(options):
@@ -451,10 +523,10 @@ def _finish(c, chunk, done, store, bar):
 
 
 def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, interrupted, kept,
-              wall, client):
+              wall, client, energy_tol, tau_choice):
     m, dim = X.shape
     values, t_stop = np.full(m, np.nan), np.full(m, np.nan)
-    energy = np.full(m, np.nan)
+    energy, max_energy, max_error = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
     status = np.zeros(m, dtype=np.int64)
     state = np.full((m, dim), np.nan)
     counts = {}
@@ -462,6 +534,7 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         idx = chunks[c]
         values[idx], t_stop[idx], energy[idx] = chunk.values, chunk.t_stop, chunk.energy_error
         status[idx], state[idx] = chunk.status, chunk.state
+        max_energy[idx], max_error[idx] = chunk.max_energy_error, chunk.max_error
         for key, n in chunk.counts.items():
             counts[key] = counts.get(key, 0) + int(n)
     failed = is_failure(status)
@@ -484,11 +557,23 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
                       method_options=first.get("method_options", {}), tau=spec.tau,
                       t_end=spec.t_end, seed=spec.seed, options=options,
                       versions=first.get("versions", package_versions()), counts=counts,
-                      wall_time=wall)
+                      wall_time=wall, tau_choice=dict(tau_choice))
+    failed = is_failure(status)
+    with np.errstate(invalid="ignore"):
+        accurate = ~failed & (max_error <= energy_tol)
+    conserved = {"energy": max_energy}
+    if not np.array_equal(max_error, max_energy, equal_nan=True):
+        conserved["conserved quantities"] = max_error
+    # When an orbit's error was largest is not kept (only the largest, up to
+    # the time it was read at).
+    verdict = accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
+                                t_worst=np.full(m, np.nan), energy_tol=energy_tol,
+                                accurate=accurate, tau=spec.tau)
     empty = np.empty(0)
     return ChaosMapResult(
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,
-        status=status, interrupted=interrupted, indicator=ind.name, values=values,
+        status=status, interrupted=interrupted, accuracy=verdict, indicator=ind.name,
+        values=values,
         t_stop=t_stop, threshold=spec.threshold, x0=X,
         axes=None if grid is None else list(grid.axes),
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,

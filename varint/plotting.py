@@ -22,12 +22,29 @@ def _axes(ax):
     return ax
 
 
-def _guide(ax, t, y_end, power, label=None, color="k", decades=3.0):
+def _guide(ax, t, y_end, power, label=None, color="k", decades=3.0, span=None):
     """A power law t^power through the last point, over the last decades
-    (where the asymptotic law should hold)."""
+    (where the asymptotic law should hold), and only where it stays within
+    ``span`` = (low, high): a steep law over a short run would otherwise
+    stretch the y-axis by many decades (t⁻⁴ over three decades is 1e12)."""
     t = np.asarray(t, dtype=float)
-    t = t[t >= t[-1] * 10.0 ** -decades]
-    ax.loglog(t, y_end * (t / t[-1]) ** power, "--", color=color, lw=0.8, label=label)
+    t_end = t[-1]
+    start = max(t[0], t_end * 10.0 ** -decades)
+    if span is not None and power != 0:
+        # The law leaves [low, high] at t_end (bound / y_end)^(1 / power);
+        # only a crossing before t_end cuts the guide.
+        for bound in span:
+            crossing = t_end * (bound / y_end) ** (1.0 / power)
+            if crossing < t_end:
+                start = max(start, crossing)
+    if not start < t_end:
+        return
+    t = np.geomspace(start, t_end, 50)
+    ax.loglog(t, y_end * (t / t_end) ** power, "--", color=color, lw=0.8, label=label)
+
+
+def _power_label(power):
+    return rf"$\propto t^{{{power:g}}}$"
 
 
 def plot_lyapunov(result, ax=None, which=None, guide=True):
@@ -52,7 +69,7 @@ def plot_lyapunov(result, ax=None, which=None, guide=True):
     for i in which:
         ax.loglog(result.t, np.abs(X[:, i]), label=f"$|X_{{{i + 1}}}|$")
     if guide:
-        _guide(ax, result.t, abs(X[-1, 0]), -1.0, r"$\propto t^{-1}$")
+        _guide(ax, result.t, abs(X[-1, 0]), -1.0, _power_label(-1))
     ax.set_xlabel("t")
     ax.set_ylabel("finite-time LCE")
     ax.legend(fontsize=8)
@@ -68,13 +85,17 @@ def plot_gali(result, ax=None, n_dof=None, guide=True):
     """
     ax = _axes(ax)
     n = n_dof or result.provenance.model.get("n_dof")
-    for k, g in sorted(result.gali.items()):
-        g = np.asarray(g)
-        if g.ndim != 1:
-            raise ValueError("plot_gali takes a single-orbit result; index the batch first")
+    series = {k: np.asarray(g) for k, g in sorted(result.gali.items())}
+    if any(g.ndim != 1 for g in series.values()):
+        raise ValueError("plot_gali takes a single-orbit result; index the batch first")
+    # The guides stay within the decades the GALIs themselves span.
+    positive = np.concatenate([g[g > 0] for g in series.values()] + [np.empty(0)])
+    span = (positive.min(), positive.max()) if positive.size else None
+    for k, g in series.items():
         line, = ax.loglog(result.t, g, label=f"GALI$_{{{k}}}$")
         if guide and n is not None and k > n and g[-1] > 0:
-            _guide(ax, result.t, g[-1], -2.0 * (k - n), color=line.get_color())
+            _guide(ax, result.t, g[-1], -2.0 * (k - n), _power_label(-2.0 * (k - n)),
+                   color=line.get_color(), span=span)
     ax.set_xlabel("t")
     ax.set_ylabel("GALI")
     ax.legend(fontsize=8)

@@ -46,6 +46,11 @@ class Status(enum.IntEnum):
     GRADIENT_NONFINITE = 6
     HESSIAN_NONFINITE = 7
     THIRD_NONFINITE = 8
+    #: The potential (or another conserved quantity) is not finite at an
+    #: output time although its derivatives were: V is singular or not real
+    #: where the orbit is (e.g. log x at x < 0). Found by the run when it
+    #: records, not by the stepper.
+    POTENTIAL_NONFINITE = 9
 
 
 def is_failure(status):
@@ -68,6 +73,9 @@ REASONS = {
                                "position: the potential is singular (or overflows) there"),
     Status.THIRD_NONFINITE: ("the third derivatives of the potential (needed by the "
                              "corrector) are not finite at the orbit's position"),
+    Status.POTENTIAL_NONFINITE: ("the potential is not finite at the orbit's position (it is "
+                                 "singular or not real there) although its derivatives were, "
+                                 "so the energy is undefined; found at this output time"),
 }
 
 #: Unrenormalised deviation vectors larger than this are reported as overflow.

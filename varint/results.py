@@ -21,6 +21,7 @@ from typing import IO, ClassVar
 
 import numpy as np
 
+from .accuracy import Accuracy
 from .files import jsonable
 
 __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult",
@@ -80,6 +81,10 @@ class Provenance:
         Seconds.
     created : str
         ISO 8601 time at which the run finished.
+    tau_choice : dict
+        How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
+        (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
+        ``tried`` steps and their errors, ``counts`` of the pilot's work).
     """
 
     kind: str
@@ -96,6 +101,7 @@ class Provenance:
     wall_time: float
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
+    tau_choice: dict = field(default_factory=dict)
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
@@ -104,6 +110,13 @@ class Provenance:
 @dataclass
 class _Result:
     """Fields every result has; subclasses add their indicator arrays.
+
+    Every result has ``t``, ``energy_error`` (the relative energy error at
+    each output, see :mod:`varint.accuracy`), the final ``state``,
+    ``provenance``, ``status``, ``interrupted`` and its ``accuracy``
+    verdict (:class:`~varint.accuracy.Accuracy`: the largest errors of the
+    conserved quantities and whether they are within the tolerance at which
+    indicators can be trusted).
 
     ``layout`` says how the arrays are laid out (``"series"``: ([M,] n_out,
     ...) over the output times; ``"map"``: one value per initial
@@ -128,6 +141,7 @@ class _Result:
     provenance: Provenance
     status: np.ndarray
     interrupted: bool
+    accuracy: Accuracy | None = None
 
     def save(self, path):
         """Write the result to ``path`` (``.npz``): arrays plus provenance JSON."""
@@ -136,6 +150,8 @@ class _Result:
             value = getattr(self, f.name)
             if f.name == "provenance":
                 meta["provenance"] = value.to_dict()
+            elif f.name == "accuracy":
+                meta["accuracy"] = None if value is None else jsonable(value.to_dict())
             elif isinstance(value, dict):
                 meta.setdefault("dict_fields", {})[f.name] = [str(k) for k in value]
                 for key, arr in value.items():
@@ -200,18 +216,27 @@ class _Result:
 class IntegrationResult(_Result):
     """Result of :func:`varint.integrate`.
 
+    The trajectory is ``states``; ``state`` is only where it ended.
+
     Attributes
     ----------
     t : ndarray, shape (n_out,)
+        The output times (only t_end by default: pass ``t_out`` for a
+        trajectory).
     states : ndarray, shape ([M,] n_out, 2N)
-        The orbit at the output times.
+        The trajectory: the orbit at each output time.
+    state : ndarray, shape ([M,] 2N)
+        The final state only (as in every result): ``states[..., -1, :]``
+        for a run that finished.
     deviations : ndarray, shape ([M,] 2N, k)
         Final deviation vectors, never renormalised: the tangent map of the
         whole run applied to the initial vectors.
-    state : ndarray, shape ([M,] 2N)
-        Final state.
     energy_error : ndarray, shape ([M,] n_out)
-        |H(t) − H(0)| / |H(0)| (absolute where H(0) = 0).
+        |H(t) − H(0)| / (|T| + |V|)(0): relative to the kinetic plus the
+        absolute potential energy at t = 0, which stays meaningful when
+        H(0) = 0 (:mod:`varint.accuracy`).
+    accuracy : Accuracy
+        The largest errors and the verdict.
     """
 
     states: np.ndarray = None
@@ -443,6 +468,8 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
         arrays = {k: data[k] for k in data.files if k != "__meta__"}
     cls = _CLASSES[meta.pop("class")]
     kwargs = {"provenance": Provenance(**meta.pop("provenance"))}
+    acc = meta.pop("accuracy", None)
+    kwargs["accuracy"] = None if acc is None else Accuracy.from_dict(acc)
     for name, keys in meta.pop("dict_fields", {}).items():
         kwargs[name] = {int(k) if k.isdigit() else k: arrays.pop(f"{name}__{k}") for k in keys}
     kwargs.update(arrays)

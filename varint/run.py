@@ -24,11 +24,12 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
+from . import accuracy, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
 from .indicators import Indicator, resolve
-from .methods import make_propagator
+from .methods import METHODS, make_propagator
 from .models.base import Model
 from .models.maps import MapModel
 from .protocol import TIME_MOMENTUM, Renorm, is_failure
@@ -40,8 +41,9 @@ __all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "default_tau", "energy_scale"
 #: Initial states of at most this many numbers are stored in a checkpoint's
 #: parameters as values (so a mismatch shows them), larger ones as a digest.
 _SHOWN_X0 = 32
-#: The step when none is given (see :func:`prepare`).
-DEFAULT_TAU = 0.05
+#: The step when no pilot can choose one (methods without a splitting
+#: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
+DEFAULT_TAU = stepsize.FALLBACK_TAU
 
 
 def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
@@ -63,9 +65,13 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
         Final time (rounded to a multiple of τ).
     tau : float, optional
         Renormalisation interval, which is also the step of the splitting
-        methods ("tm" and the TDH methods). Default 0.05; for a map model
-        (:mod:`varint.models.maps`) a whole number of iterations, default 1,
-        and t counts iterations.
+        methods ("tm" and the TDH methods). By default the largest step of
+        the scheme whose relative energy error over a short pilot run stays
+        within ``energy_tol / 100`` (:mod:`varint.stepsize`; recorded in
+        ``result.provenance.tau_choice``); 0.05 for the methods whose τ is
+        not a step (CVODE, DOP853, Taylor). A given τ is used as it is. For
+        a map model (:mod:`varint.models.maps`): a whole number of
+        iterations, default 1, and t counts iterations.
 
     Other Parameters
     ----------------
@@ -105,6 +111,13 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
         arguments is refused with a :class:`CheckpointError` naming them.
     checkpoint_interval : float, default 60
         Seconds of wall time between checkpoint writes.
+    energy_tol : float, optional
+        The relative error of the energy (and of any other quantity the
+        model conserves) above which the result's indicators are not
+        trusted: ``result.accuracy`` says so and an
+        :class:`~varint.accuracy.AccuracyWarning` gives the figure and what
+        to do; 1e-3 by default (:data:`varint.accuracy.DEFAULT_ENERGY_TOL`,
+        measured), ``inf`` never warns. Also sets the automatic step.
     **options
         The indicator's options (e.g. ``k`` for GALI, ``n_exponents`` for
         the spectrum, ``window`` for local exponents; see
@@ -117,7 +130,8 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
     result
         The indicator's result class (e.g. :class:`~varint.LyapunovResult`):
         ``t`` (n_out,), its series ([M,] n_out, ...), ``energy_error``,
-        ``status``, the final ``state`` and ``deviations``, and
+        ``status``, the final ``state`` and ``deviations``, the
+        ``accuracy`` verdict (:class:`~varint.accuracy.Accuracy`) and
         ``provenance``. After Ctrl-C: the outputs recorded so far, with
         ``interrupted=True`` (and a warning); a second Ctrl-C stops at once.
 
@@ -128,6 +142,11 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
         and what was expected).
     IntegrationError
         When an orbit fails and ``errors="raise"``.
+
+    Warns
+    -----
+    AccuracyWarning
+        When the energy error exceeds ``energy_tol``.
 
     Examples
     --------
@@ -146,11 +165,12 @@ def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: floa
             deviations: ArrayLike | None = None, progress: bool | None = None,
             errors: str = "raise", escape_radius: float | None = None,
             checkpoint: str | os.PathLike[str] | None = None,
-            checkpoint_interval: float = 60.0, **options: Any) -> Run:
+            checkpoint_interval: float = 60.0, energy_tol: float | None = None,
+            **options: Any) -> Run:
     """The :class:`Run` of :func:`run` (same arguments), every input checked
     and the state started or resumed, not yet executed."""
     return Run(model, x0, indicator, t_end, tau, method, t_out, seed, deviations, progress,
-               errors, escape_radius, checkpoint, checkpoint_interval, options)
+               errors, escape_radius, checkpoint, checkpoint_interval, options, energy_tol)
 
 
 def default_tau(model):
@@ -169,16 +189,9 @@ def _model(model):
 
 
 def energy_scale(model, x):
-    """The energy scale against which energy errors are relative, per orbit:
-    |T(x)| + |V(x)|, which is |H| for an orbit in a well (T, V ≥ 0) and stays
-    meaningful when H = 0; 1 (absolute errors) for an orbit at rest at V = 0
-    and for a map (whose energy is 0, see :mod:`varint.models.maps`).
-    """
-    if getattr(model, "kind", "flow") == "map":
-        return np.ones(np.shape(x)[:-1])
-    n = model.n_dof
-    scale = np.abs(model.kinetic(x[..., n:])) + np.abs(model.potential(x[..., :n]))
-    return np.where(scale > 0, scale, 1.0)
+    """The energy scale against which energy errors are relative, per orbit
+    (:meth:`varint.models.base.Model.energy_scale`: |T| + |V| at t = 0)."""
+    return model.energy_scale(x)
 
 
 class Run:
@@ -194,6 +207,10 @@ class Run:
     single : bool
         Whether the caller passed one state (results drop the orbit axis).
     t_end, tau : float
+    tau_choice : dict
+        How τ was chosen (:class:`varint.stepsize.StepChoice`): given, or by
+        a pilot.
+    energy_tol : float
     steps : ndarray of int
         Output steps (multiples of τ).
     propagator
@@ -207,7 +224,8 @@ class Run:
     """
 
     def __init__(self, model, x0, indicator, t_end, tau, method, t_out, seed, deviations,
-                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options):
+                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options,
+                 energy_tol=None):
         model = _model(model)
         self.indicator, fixed = resolve(indicator)
         ind = self.indicator
@@ -226,24 +244,50 @@ class Run:
             self.run_options["escape_radius"] = model.escape_radius
         self.model = model
         self.x0, self.single = check.states(model, x0)
-        self.t_end, self.tau = check.horizon(t_end, default_tau(model) if tau is None else tau)
+        is_map = getattr(model, "kind", "flow") == "map"
+        if not is_map:
+            # A state where V or its derivatives are singular is refused
+            # here, not reported as a run failing at its first step.
+            check.kernels(model, self.x0)
+        self.reference = accuracy.Reference(model, self.x0)
+        self.energy_tol = accuracy.energy_tolerance(energy_tol)
+        if tau is None and is_map:
+            tau = default_tau(model)      # one iteration: no step to choose
+        # Times are checked against t_end now only for the automatic step,
+        # whose pilot comes first (with τ given, output_steps checks them
+        # against t_end rounded to whole steps).
+        t_out = check.output_times(
+            t_out, t_end=t_end if tau is None and isinstance(t_end, (int, float))
+            and np.isfinite(t_end) else None)
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
+        self.method = check.choice(method, METHODS, "method")
+        if tau is None and stepsize.pilots(self.method):
+            stepsize.check_options(self.method, method_options)
         self.checkpoint = (None if checkpoint is None
                            else Checkpoint(checkpoint, checkpoint_interval))
         saved = None if self.checkpoint is None else self.checkpoint.read()
         self.W0, self.seed = self._initial_vectors(deviations, seed, saved)
         if ind.count_option is not None:
             self.options[ind.count_option] = self.W0.shape[2]
-        t_out = check.output_times(t_out)
+        self.accumulator = ind.accumulator_for(self.options)
+        self.tau_choice = stepsize.StepChoice(rule="given")
+        if tau is None:
+            # Even the largest step the pilot may choose must fit the counter.
+            check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
+            tau, self.tau_choice = stepsize.choose_step(
+                model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
+                method=self.method, scheme=method_options.get("scheme"),
+                cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
+                W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+        self.t_end, self.tau = check.horizon(t_end, tau)
         if t_out is None and ind.output_times is not None:
             t_out = ind.output_times(self.t_end, self.tau, self.options)
         self.steps = output_steps(self.t_end, self.tau, t_out)
-        self.accumulator = ind.accumulator_for(self.options)
-        self.propagator = make_propagator(method, model, self.tau, ind.renorm, self.accumulator,
-                                          **method_options)
-        self.method = method.lower()
+        self._check_size()
+        self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
+                                          self.accumulator, **method_options)
         if saved is None:
             self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), [], 0.0
         else:
@@ -255,8 +299,20 @@ class Run:
         if acc is not None and acc.key not in self.state.extra:
             self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
                                                 (self.state.n_orbits, self.state.k, 1))
-        self.energy0 = model.energy(self.x0)
-        self.energy_scale = energy_scale(model, self.x0)
+        self.energy0 = self.reference.values["energy"]
+        self.energy_scale = self.reference.scales["energy"]
+
+    def _check_size(self):
+        """Refuse a run whose vectors and records would not fit in memory,
+        before allocating them."""
+        m, dim = self.x0.shape
+        k = self.W0.shape[2]
+        # Vectors: the state's, the initial ones and the QR workspace; per
+        # output and orbit at most the state, k exponents, 2N GALIs and the
+        # errors, held twice (the records and their stacked arrays).
+        need = check.array_bytes((4, m, dim, k), (2, len(self.steps), m, 2 * dim + k + 4))
+        check.check_memory(need, f"a run of {m} orbit(s) of {self.model.name} with {k} "
+                                 f"deviation vectors and {len(self.steps)} output times")
 
     def _initial_vectors(self, deviations, seed, saved):
         """(W0 (M, 2N, k), seed): the given vectors, checked as the
@@ -266,6 +322,10 @@ class Run:
         if deviations is None:
             k = ind.vectors(model, self.options, None)
             seed = self._seed(seed, saved)
+            # The vectors, their copies and the QR workspace, before any.
+            check.check_memory(check.array_bytes((4, m, dim, k)),
+                               f"a run of {m} orbit(s) of {model.name} with {k} deviation "
+                               "vectors")
             return initial_deviations(dim, k, m, seed), seed
         W0 = check.deviations(deviations, dim, m)
         if ind.renorm != Renorm.NONE:
@@ -314,35 +374,41 @@ class Run:
         return versions
 
     def record(self, rows):
-        """The indicator's values and the energy error at every row (a
-        :class:`~varint.state.Rows`: one per orbit, and per output time when
-        several outputs are read at once); for a time-dependent V, the error
-        of the extended energy K = H(x, t) + p_t (p_t the momenta conjugate
-        to time, ``extra[TIME_MOMENTUM]``)."""
+        """The indicator's values at every row (a :class:`~varint.state.Rows`:
+        one per orbit, and per output time when several outputs are read at
+        once), and the relative errors of the conserved quantities (for a
+        time-dependent V, of the extended energy K = H(x, t) + p_t, p_t the
+        momenta conjugate to time in ``extra[TIME_MOMENTUM]``). An orbit
+        where they are not finite is marked failed
+        (:func:`varint.accuracy.flag_nonfinite`)."""
         t = rows.step * self.tau
         rec = self.indicator.read(rows, self.model, t, self.options)
-        reps = len(t) // self.state.n_orbits
-        p_t = rows.extra.get(TIME_MOMENTUM, 0.0)
-        # A failed orbit's frozen state may overflow here; its records are
-        # replaced by NaN anyway, so NumPy's warnings would be noise.
-        with np.errstate(over="ignore", invalid="ignore"):
-            rec["energy_error"] = (np.abs(self.model.energy(rows.x, t, p_t)
-                                          - np.tile(self.energy0, reps))
-                                   / np.tile(self.energy_scale, reps))
+        errors = self.reference.errors(rows.x, t, rows.extra.get(TIME_MOMENTUM, 0.0))
+        accuracy.flag_nonfinite(self.state, errors, rows.step)
+        rec.update(errors)
         return rec
 
     def execute(self):
         """Drive the run to its last output time and return its result."""
         records, stop, wall = self.drive()
-        if stop == "failed" and records:
-            # The partial result of a run that raises ends before the failure
-            # (a checkpoint keeps every output reached, for errors="flag").
-            first = self.state.fail_step[is_failure(self.state.status)].min()
-            keep = int(np.searchsorted(self.steps, first))
-            records = {key: arr[:keep] for key, arr in records.items()}
+        if self.errors == "raise":
+            records = self._before_failure(records)
         result = self._result(records, stop == "interrupted", wall)
         self._report_failures(result)
+        accuracy.warn(result.accuracy, self.method)
         return result
+
+    def _before_failure(self, records):
+        """The records made before the first failure: a failure found when
+        recording (:func:`varint.accuracy.flag_nonfinite`) has made one
+        record holding NaN, which a partial result must not pass on."""
+        failed = is_failure(self.state.status)
+        if not records or not failed.any():
+            return records
+        first = self.state.fail_step[failed].min()
+        n = len(next(iter(records.values())))
+        keep = int(np.searchsorted(self.steps[:n], first))
+        return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
     def drive(self, record=None, decide=None):
         """Advance to every output time, recording there.
@@ -396,14 +462,21 @@ class Run:
             records = {key: np.asarray(v)[None][:0] for key, v in now.items()}
         n_done = len(next(iter(records.values())))
         fields = {key: self.squeeze(np.moveaxis(arr, 0, 1)) for key, arr in records.items()}
-        energy_error = fields.pop("energy_error")
+        errors = {key: np.moveaxis(records[key], 0, 1) for key in records
+                  if key == "energy_error" or key.startswith("conserved_error:")}
+        for key in errors:
+            fields.pop(key)
+        t = self.steps[:n_done] * self.tau
+        verdict = accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
+                                  self.single)
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
             fields["deviations"] = self.squeeze(self.final_vectors())
-        return cls(t=self.steps[:n_done] * self.tau, energy_error=energy_error,
+        return cls(t=t, energy_error=self.squeeze(errors["energy_error"]),
                    state=self.squeeze(self.state.x), provenance=self.provenance(wall),
-                   status=self.squeeze(self.state.status), interrupted=interrupted, **fields)
+                   status=self.squeeze(self.state.status), interrupted=interrupted,
+                   accuracy=verdict, **fields)
 
     def final_vectors(self):
         """The deviation vectors at the end, renormalised as the indicator
@@ -452,4 +525,4 @@ class Run:
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall)
+            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice))

@@ -35,6 +35,7 @@ from .kernels import tm as K
 from .models.base import Model
 from .protocol import COUNTERS, Renorm, Status
 from . import _validate as check
+from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
 from .schemes import SplittingScheme, get_scheme, stage_arrays
 
@@ -154,7 +155,8 @@ def _section_kernel(n, bw):
 def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0.01,
                        scheme: str | SplittingScheme = "ABA864", plane: int = 0,
                        value: float = 0.0, direction: int = 1, max_points: int | None = None,
-                       escape_radius: float | None = None) -> SectionResult:
+                       escape_radius: float | None = None,
+                       energy_tol: float | None = None) -> SectionResult:
     """Crossings of orbits with the section q_plane = value.
 
     Parameters
@@ -180,6 +182,10 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
         Stop an orbit after this many crossings.
     escape_radius : float, optional
         Stop an orbit whose |q| exceeds this (status ESCAPED).
+    energy_tol : float, optional
+        As for :func:`varint.run`: above this relative energy error at the
+        crossings, ``result.accuracy`` says the section is not to be
+        trusted and an :class:`~varint.accuracy.AccuracyWarning` says so.
 
     Returns
     -------
@@ -201,6 +207,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     >>> bool(np.abs(s.points[:, 0]).max() < 1e-15)
     True
     """
+    model = check.model(model)
     _autonomous_flow(model)
     X, single = check.states(model, x0)
     t_end, tau = check.horizon(t_end, tau)
@@ -219,10 +226,17 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
         limit = int(max_points)
     radius = model.escape_radius if escape_radius is None else check.positive_float(
         escape_radius, "escape_radius")
+    energy_tol = energy_tolerance(energy_tol)
     sch = get_scheme(scheme)
     kinds, h, hc = stage_arrays(sch, tau)
-    n_steps = max(1, int(round(t_end / tau)))
+    n_steps = check.step_count(t_end, tau)
     m, d = X.shape
+    # The crossing buffer of every orbit, and the states, times and errors
+    # of the crossings (at least one row each), before allocating them.
+    check.check_memory(check.array_bytes((m, _BUFFER, d + 1), (m, 2 * d + 4)),
+                       f"surface_of_section of {m} orbits of {model.name}")
+    check.kernels(model, X)
+    reference = Reference(model, X)
     x = X.copy()
     small = model.n_dof <= K.SPECIALISE_N
     kernel = _section_kernel(model.n_dof if small else -1, model.bandwidth if small else -1)
@@ -253,9 +267,10 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
             rows = np.concatenate(found[j])
             points[j, :len(rows)] = rows[:, :d]
             times[j, :len(rows)] = rows[:, d] * tau
-    h0 = model.energy(X)
-    scale = np.where(h0 != 0, np.abs(h0), 1.0)
-    energy_error = np.abs(model.energy(points) - h0[:, None]) / scale[:, None]
+    # Relative to |T| + |V| at the start (varint.accuracy), as for runs.
+    with np.errstate(invalid="ignore", over="ignore"):
+        energy_error = (np.abs(model.energy(points) - reference.values["energy"][:, None])
+                        / reference.scales["energy"][:, None])
     total = counts.sum(axis=0)
     prov = Provenance(
         kind="surface_of_section", model=model.describe(),
@@ -267,9 +282,12 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
         counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total)))),
         wall_time=time.perf_counter() - start)
     sq = (lambda a: a[0]) if single else (lambda a: a)
+    verdict = assess(times, {"energy_error": energy_error}, status, energy_tol, tau, single)
+    warn(verdict, "tm", what="the surface of section")
     return SectionResult(t=done * tau if not single else np.array([done[0] * tau]),
                          energy_error=sq(energy_error), state=sq(x), provenance=prov,
-                         status=sq(status), interrupted=False, points=sq(points),
+                         status=sq(status), interrupted=False, accuracy=verdict,
+                         points=sq(points),
                          times=sq(times), n_points=sq(n_found), plane=int(plane),
                          value=float(value))
 
@@ -362,6 +380,7 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
     >>> bool(np.allclose(model.energy(grid.states), 0.125))
     True
     """
+    model = check.model(model)
     _autonomous_flow(model)
     n = model.n_dof
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) or not 0 <= plane < n:
@@ -382,6 +401,12 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
     base = np.zeros(2 * n) if base is None else check.real_array(base, "base").reshape(-1)
     if base.shape != (2 * n,):
         raise ValueError(f"base must have shape ({2 * n},), got {base.shape}")
+    if not np.isfinite(base).all():
+        raise ValueError(f"base must be finite, got {base.tolist()}")
+    # The grid's states, the potential's temporaries and the mask.
+    points = len(grids[0]) * len(grids[1])
+    check.check_memory(check.array_bytes((points, 6 * n + 4)),
+                       f"a section grid of {len(grids[0])} x {len(grids[1])} = {points} points")
     U, V = np.meshgrid(*grids)
     X = np.broadcast_to(base, U.shape + (2 * n,)).copy()
     X[..., axes[0]], X[..., axes[1]] = U, V

@@ -10,7 +10,8 @@ table.
 How the pilot horizon relates to t_end
 --------------------------------------
 Errors are measured at two pilot times, T/4 and T (T = ``pilot_t``, by
-default min(t_end, 100)), and extrapolated to t_end with the power law
+default the largest T ≤ min(t_end, 100) with T/4 a multiple of every candidate
+τ), and extrapolated to t_end with the power law
 through them, error ∝ t^a (a ≥ 0). That law is what theory gives where a
 choice is meaningful:
 
@@ -48,11 +49,12 @@ from numpy.typing import ArrayLike
 
 from . import _validate as check
 from .driver import IntegrationError
-from .methods import make_propagator
+from .methods import METHODS, make_propagator
 from .models.base import Model
+from .schemes import get_scheme
 from .state import RunState, initial_deviations
 
-__all__ = ["select_scheme", "SchemeChoice", "DEFAULT_SCHEMES", "DEFAULT_TAUS"]
+__all__ = ["select_scheme", "SchemeChoice", "DEFAULT_SCHEMES", "DEFAULT_TAUS", "default_pilot"]
 
 #: Schemes tried by default: 2nd order without and 4th order with corrector
 #: (the paper's SBAB2C), the optimised 4th-order ABA864, two 6th-order ones.
@@ -127,15 +129,42 @@ class SchemeChoice:
 def _candidates(candidates):
     if candidates is None:
         return [("tm", s, tau) for s in DEFAULT_SCHEMES for tau in DEFAULT_TAUS]
+    if isinstance(candidates, (str, bytes)) or not hasattr(candidates, "__iter__"):
+        raise ValueError(f"candidates must be a list of (method, scheme or None, tau), got "
+                         f"{candidates!r}")
     out = []
     for c in candidates:
         if not (isinstance(c, (tuple, list)) and len(c) == 3):
             raise ValueError(f"each candidate must be (method, scheme or None, tau), got {c!r}")
         method, scheme, tau = c
-        out.append((str(method).lower(), scheme, check.positive_float(tau, "candidate tau")))
+        method = check.choice(method, METHODS, "method")
+        if scheme is not None:
+            get_scheme(scheme)  # an unknown name fails now, listing the valid ones
+        out.append((method, scheme, check.positive_float(tau, "candidate tau")))
     if not out:
         raise ValueError("candidates must name at least one (method, scheme, tau)")
     return out
+
+
+def default_pilot(t_end, taus):
+    """The default pilot horizon T: the largest ≤ min(t_end, 100) with T/4 a
+    multiple of every candidate step (the quarter of a pilot is one of its
+    check times), so that any t_end works, not only multiples of 0.8."""
+    taus = sorted(set(taus), reverse=True)
+    unit = None
+    for n in range(1, 10001):
+        q = taus[0] * n
+        if all(abs(q / t - round(q / t)) <= 1e-9 * q / t for t in taus):
+            unit = q
+            break
+    if unit is None:
+        raise ValueError(f"the candidate steps {taus} have no common multiple below "
+                         f"{10000 * taus[0]:g}; give pilot_t (with pilot_t/4 a multiple of each)")
+    pilot = math.floor(min(t_end, 100.0) / (4 * unit) + 1e-9) * 4 * unit
+    if pilot == 0:
+        raise ValueError(f"t_end = {t_end:g} is shorter than the shortest pilot, {4 * unit:g} "
+                         "(4 steps of the largest candidate tau); shorten the candidate steps")
+    return pilot
 
 
 def _time_unit_cost(model, x0, method, scheme, tau, k):
@@ -177,8 +206,8 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
     t_end : float, default 1e4
         Horizon of the production run.
     pilot_t : float, optional
-        Pilot horizon T; min(t_end, 100) by default. T/4 must be a multiple
-        of every candidate τ.
+        Pilot horizon T. T/4 must be a multiple of every candidate τ; by
+        default the largest such T ≤ min(t_end, 100) (:func:`default_pilot`).
     candidates : list of (method, scheme, tau), optional
         By default the TM method with :data:`DEFAULT_SCHEMES` ×
         :data:`DEFAULT_TAUS`. ``scheme`` is None for methods without one
@@ -217,9 +246,11 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
     from .cache import reference
     from .api import integrate, lyapunov_spectrum
 
+    model = check.model(model)
     x0, single = check.states(model, x0)
     if not single:
         raise ValueError(f"x0 must be one state of shape ({model.dim},), got {x0.shape}")
+    check.kernels(model, x0)
     x0 = x0[0]
     target = check.positive_float(target_error, "target_error")
     name, metric = metric, {m.lower(): m for m in METRICS}.get(str(metric).lower())
@@ -227,9 +258,9 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
         raise ValueError(f"unknown metric {name!r}; expected one of: "
                          f"{', '.join(METRICS)}")
     t_end = check.positive_float(t_end, "t_end")
-    pilot = min(t_end, 100.0) if pilot_t is None else check.positive_float(pilot_t, "pilot_t")
-    pilot = min(pilot, t_end)
     cands = _candidates(candidates)
+    pilot = (default_pilot(t_end, [tau for _, _, tau in cands]) if pilot_t is None
+             else min(check.positive_float(pilot_t, "pilot_t"), t_end))
     quarter = pilot / 4
     for method, scheme, tau in cands:
         if abs(quarter / tau - round(quarter / tau)) > 1e-9 * quarter / tau or quarter < tau:
@@ -251,7 +282,9 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
                          deviations=np.eye(dim)).deviations for t in checks]
 
     def errors(method, scheme, tau):
-        opts = {"method": method, "tau": tau, "progress": False}
+        # Candidates too coarse to trust are what the table is for: no
+        # accuracy warnings from the pilots.
+        opts = {"method": method, "tau": tau, "progress": False, "energy_tol": math.inf}
         if scheme is not None:
             opts["scheme"] = scheme
         if metric == "energy":

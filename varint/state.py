@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _validate as check
 from .protocol import TIME_MOMENTUM, Renorm
 
 __all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
@@ -244,16 +245,28 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
     Returns
     -------
     ndarray of int64, strictly increasing, last = round(t_end / τ).
+
+    Raises
+    ------
+    ValueError
+        For more steps than the int64 step counter holds
+        (:func:`varint._validate.step_count`), a count of outputs above the
+        number of steps or beyond the memory, or times outside [τ, t_end].
     """
-    n_end = max(1, int(round(t_end / tau)))
+    n_end = check.step_count(t_end, tau)
     if t_out is None:
         decades = max(math.log10(n_end), 0.0)
         steps = np.logspace(0, decades, max(2, int(math.ceil(decades * per_decade)) + 1))
         steps = np.unique(np.round(steps).astype(np.int64))
     elif np.ndim(t_out) == 0:
-        n = int(t_out)
-        if n != t_out or n < 1:
+        if isinstance(t_out, (bool, np.bool_)) or not float(t_out).is_integer() or t_out < 1:
             raise ValueError(f"t_out as a count must be a positive integer, got {t_out!r}")
+        n = int(t_out)
+        if n > n_end:
+            raise ValueError(f"t_out = {n} output times, more than the {n_end} steps of the "
+                             f"run (t_end / tau = {t_end:g} / {tau:g}); give at most {n_end}")
+        # linspace, its rounding and np.unique: three arrays of n numbers.
+        check.check_memory(check.array_bytes((3, n)), f"t_out = {n} output times")
         steps = np.unique(np.round(np.linspace(n_end / n, n_end, n)).astype(np.int64))
     else:
         t = np.asarray(t_out, dtype=float).reshape(-1)
@@ -261,7 +274,8 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
             raise ValueError("t_out must be a non-empty array of finite times")
         if (np.diff(t) <= 0).any():
             raise ValueError("t_out must be strictly increasing")
-        if t[0] < tau * (1 - 1e-12) or t[-1] > t_end * (1 + 1e-12):
+        # t_end is rounded to whole steps: times up to the rounded end are in.
+        if t[0] < tau * (1 - 1e-12) or t[-1] > max(t_end, n_end * tau) * (1 + 1e-12):
             raise ValueError(
                 f"t_out must lie in [tau, t_end] = [{tau!r}, {t_end!r}], "
                 f"got {float(t[0])!r}..{float(t[-1])!r}")

@@ -101,7 +101,8 @@ def c1_chaotic_spread():
     X = np.array([varint.solve_momentum(model, [0.0, x0[1] + 1e-12 * rng.standard_normal()],
                                         [0.0, 0.0], 0.125) for _ in range(64)])
     W0 = initial_deviations(4, 4, 1, seed=0)[0]
-    r = varint.lyapunov_spectrum(model, X, 1000.0, scheme="ABA864", deviations=W0, t_out=1)
+    r = varint.lyapunov_spectrum(model, X, 1000.0, tau=0.05, scheme="ABA864", deviations=W0,
+                                 t_out=1)
     E = r.exponents[:, -1]
     return E.mean(axis=0), E.std(axis=0)
 
@@ -117,7 +118,7 @@ def test_lyapunov_spectra_of_c1_from_all_four_methods_agree(c1, c1_chaotic_sprea
     ref = reference(model, x0, 1000.0, 0.05, kind="lyapunov_spectrum", t_out=[100, 1000])
     results = {"taylor (extended)": ref}
     for method in ("tm", "taylor", "cvode", "dop853"):
-        results[method] = varint.lyapunov_spectrum(model, x0, 1000.0, method=method,
+        results[method] = varint.lyapunov_spectrum(model, x0, 1000.0, tau=0.05, method=method,
                                                    t_out=[100, 1000])
     for method, r in results.items():
         assert np.abs(r.exponents[0] - ref.exponents[0]).max() < 1e-5, method

@@ -178,6 +178,30 @@ class Model:
         e = self.kinetic(x[..., n:]) + self.potential(x[..., :n], t)
         return e + p_t if self.time_dependent else e
 
+    def energy_scale(self, x):
+        """The scale against which energy errors are relative, per state
+        (``x`` of shape (..., 2N)): |T| + |V|, which is |H| for an orbit in a
+        well (T, V ≥ 0) and stays meaningful when H = 0 or H < 0; 1 (an
+        absolute error) for a state at rest where V = 0. V's additive
+        constant enters it, so a model whose V carries a large constant
+        should override this (see :mod:`varint.accuracy`)."""
+        x = np.asarray(x, dtype=float)
+        n = self.n_dof
+        scale = np.abs(self.kinetic(x[..., n:])) + np.abs(self.potential(x[..., :n]))
+        return np.where(scale > 0, scale, 1.0)
+
+    def conserved(self, x, t=0.0, p_t=0.0):
+        """Quantities the exact flow conserves, for states ``x`` of shape
+        (..., 2N): a dict name → values of shape (...). Runs record the
+        relative error of each and their accuracy verdict checks it
+        (:mod:`varint.accuracy`). The energy (H) always; a model with
+        another first integral (e.g. the norm of the DDNLS lattice, an
+        angular momentum) adds it here. Errors of quantities other than the
+        energy are relative to their value at t = 0 (absolute where that is
+        0). For a time-dependent V, the extended energy K = H(x, t) + p_t
+        (``t``, ``p_t``: the time and the momentum conjugate to it)."""
+        return {"energy": self.energy(x, t, p_t)}
+
     def _q(self, q):
         q = np.ascontiguousarray(q, dtype=np.float64)
         if q.shape != (self.n_dof,):

@@ -146,6 +146,14 @@ class MapModel:
         docstring), so results' ``energy_error`` is 0."""
         return np.zeros(np.shape(x)[:-1])
 
+    def energy_scale(self, x):
+        """1 per state: the (zero) energy errors of a map are absolute."""
+        return np.ones(np.shape(x)[:-1])
+
+    def conserved(self, x):
+        """No conserved quantity is checked for a map (its "energy" is 0)."""
+        return {"energy": self.energy(x)}
+
     def __repr__(self):
         return f"<{type(self).__name__} {self.name!r}, dim={self.dim}>"
 

@@ -1,0 +1,329 @@
+"""Accuracy verdicts: whether a result is accurate enough to trust its
+indicators, measured on the run itself.
+
+Every result carries an :class:`Accuracy`: the largest relative error of
+each quantity the exact flow conserves (the energy, and whatever else the
+model declares with :meth:`varint.models.base.Model.conserved`) over its
+output times, and the verdict against a tolerance. An error above the
+tolerance means the numerical orbit has left the energy surface of the
+true one by more than indicators survive: a regular orbit may be reported
+chaotic, a chaotic one's X1 be tens of percent off. Then an
+:class:`AccuracyWarning` gives the figure, when it was reached, and what to
+do.
+
+The default tolerance
+---------------------
+:data:`DEFAULT_ENERGY_TOL` = 1e-3, a decade below the smallest energy error
+at which any verdict went wrong in ``studies/energy_tolerance.py``: the
+paper's orbits R1, C1 (Hénon–Heiles), R2 (3D system), R3 (FPU-β) and a box
+orbit of a stiff quartic, integrated to t = 1e4 by 2nd-, 4th- and
+6th-order schemes at steps up to their stability limits. Verdicts of X1,
+SALI, MEGNO and FLI were right in every run with an energy error below
+1e-2; the first wrong one (SBAB2C at τ = 0.05 on the stiff quartic: X1 =
+0.2, SALI = 0, MEGNO = 740 on a regular orbit) had an error of 1.1e-2.
+(A smaller error does not guarantee the indicator's *value* to a given
+number of digits, which depends on the orbit; ``select_scheme`` chooses a
+scheme and step for a target.)
+
+The study's quick mode (t = 500, ensembles of four chaotic Hénon–Heiles and
+FPU orbits) does not bear this out, and cannot: there a chaotic orbit near
+the SALI or MEGNO threshold flips its verdict at any accuracy (one FPU
+orbit's SALI at an energy error of 8e-8 with s11odr6), while the stiff
+quartic at τ = 0.05 (energy error 0.52) gets all four verdicts wrong. The
+full study is the basis of the default; rerun it before changing it.
+
+Energy scale
+------------
+Errors are relative to |T| + |V| at t = 0 (:meth:`Model.energy_scale`),
+which is |H| for an orbit in a well (T, V ≥ 0) and stays meaningful when
+H = 0 or H < 0 (where |H(t) − H(0)| / |H(0)| is infinite or inflated).
+V's additive constant enters it: write V with its minimum (or the level
+of interest) at 0, or override ``energy_scale``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .protocol import Status
+
+__all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
+           "Reference", "assess", "warn", "flag_nonfinite"]
+
+#: Largest relative error of a conserved quantity at which indicators are
+#: still trusted (see the module docstring for the measurements).
+DEFAULT_ENERGY_TOL = 1e-3
+#: Record keys of the conserved quantities other than the energy.
+_PREFIX = "conserved_error:"
+
+
+class AccuracyWarning(UserWarning):
+    """A result's energy (or another conserved quantity) drifted beyond the
+    tolerance at which its indicators can be trusted."""
+
+
+def energy_tolerance(value, name="energy_tol"):
+    """``value`` checked: None (the default), a positive number, or inf
+    (never warn)."""
+    import numbers
+
+    if value is None:
+        return DEFAULT_ENERGY_TOL
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
+            or not float(value) > 0):
+        raise ValueError(f"{name} must be a positive number (a relative energy error, e.g. "
+                         f"1e-3; inf never warns), got {value!r}")
+    return float(value)
+
+
+class Reference:
+    """The conserved quantities of the initial states and their scales,
+    against which later values are compared.
+
+    Parameters
+    ----------
+    model : Model
+    x0 : ndarray, shape (M, 2N)
+
+    Raises
+    ------
+    ValueError
+        If a quantity is not finite at an initial state (e.g. a potential
+        that is not real there, such as log x at x < 0).
+    """
+
+    def __init__(self, model, x0):
+        self.model = model
+        with np.errstate(all="ignore"):
+            values = _conserved(model, x0)
+            scale = np.asarray(model.energy_scale(x0), dtype=float)
+        for name, v in values.items():
+            bad = np.flatnonzero(~np.isfinite(v))
+            if bad.size:
+                m = int(bad[0])
+                what = "the potential" if name == "energy" else f"the conserved {name}"
+                where = "" if len(x0) == 1 else f" of orbit {m}"
+                raise ValueError(
+                    f"{what} of {model.name} is not finite at the initial state{where}, "
+                    f"q = {_short(x0[m, :model.n_dof])} ({name} = {float(v[m])!r}): V must be "
+                    "real and finite where an orbit starts")
+        self.values = values
+        self.scales = {name: (scale if name == "energy" else np.where(v != 0, np.abs(v), 1.0))
+                       for name, v in values.items()}
+
+    def errors(self, x, t=0.0, p_t=0.0):
+        """Relative errors of the conserved quantities at states ``x``
+        (R, 2N): ``{"energy_error": ..., "conserved_error:<name>": ...}``.
+        The rows are the M orbits, or several outputs of them (R a multiple
+        of M, output-major); for a time-dependent V, ``t`` and ``p_t`` (R,)
+        give the extended energy K = H(x, t) + p_t."""
+        reps = len(x) // len(next(iter(self.values.values())))
+        # A failed orbit's frozen state may overflow here; its records are
+        # replaced by NaN anyway, so NumPy's warnings would be noise.
+        with np.errstate(all="ignore"):
+            now = _conserved(self.model, x, t, p_t)
+            out = {}
+            for name, v in now.items():
+                key = "energy_error" if name == "energy" else _PREFIX + name
+                out[key] = (np.abs(v - np.tile(self.values[name], reps))
+                            / np.tile(self.scales[name], reps))
+        return out
+
+
+def _conserved(model, x, t=0.0, p_t=0.0):
+    found = (model.conserved(x, t, p_t) if getattr(model, "time_dependent", False)
+             else model.conserved(x))
+    values = {name: np.asarray(v, dtype=float) for name, v in found.items()}
+    if "energy" not in values:
+        raise TypeError(f"{type(model).__name__}.conserved must include the energy")
+    return values
+
+
+def _short(q, limit=8):
+    q = np.asarray(q, dtype=float)
+    if len(q) <= limit:
+        return str(q.tolist())
+    return f"[{', '.join(f'{v:g}' for v in q[:3])}, ... ({len(q)} values)]"
+
+
+def flag_nonfinite(state, errors, steps):
+    """Mark orbits that are still running but whose conserved quantities
+    are not finite (the potential is singular or not real where the orbit
+    is, while its derivatives were finite, so the stepper could not see
+    it) as failed, at the first output step where they are: no NaN is
+    passed on as a result. ``errors`` and ``steps`` have one row per orbit
+    and output (output-major, as :meth:`Reference.errors`)."""
+    m = state.n_orbits
+    steps = np.asarray(steps).reshape(-1, m)
+    bad = np.zeros(steps.shape, dtype=bool)
+    for v in errors.values():
+        bad |= ~np.isfinite(np.asarray(v).reshape(-1, m))
+    hit = bad.any(axis=0) & (state.status == Status.OK)
+    if hit.any():
+        first = steps[np.argmax(bad, axis=0), np.arange(m)]
+        state.status[hit] = Status.POTENTIAL_NONFINITE
+        state.fail_step[hit] = first[hit]
+
+
+@dataclass
+class Accuracy:
+    """How accurate a result is, and whether its indicators can be trusted.
+
+    Attributes
+    ----------
+    energy_error : ndarray, shape ([M,])
+        The largest relative energy error at the output times (up to its
+        failure for a failed orbit; NaN if it failed before the first
+        output).
+    conserved : dict of str -> ndarray, shape ([M,])
+        The same for every conserved quantity the model declares, the
+        energy included.
+    t_worst : ndarray, shape ([M,])
+        The output time at which the largest of them was reached.
+    energy_tol : float
+        The tolerance.
+    accurate : ndarray of bool, shape ([M,])
+        Every conserved quantity within the tolerance (False for a failed
+        orbit).
+    """
+
+    energy_error: np.ndarray
+    conserved: dict
+    t_worst: np.ndarray
+    energy_tol: float
+    accurate: np.ndarray
+    tau: float = float("nan")
+    notes: dict = field(default_factory=dict)
+
+    @property
+    def fraction_over(self):
+        """Fraction of the orbits whose errors exceed the tolerance."""
+        over = self.over
+        return float(np.mean(over)) if over.size else 0.0
+
+    @property
+    def over(self):
+        """Which orbits exceed the tolerance (bool, shape ([M,]))."""
+        worst = np.atleast_1d(self.worst)
+        with np.errstate(invalid="ignore"):
+            return worst > self.energy_tol
+
+    @property
+    def worst(self):
+        """The largest relative error of any conserved quantity, per orbit."""
+        stacked = np.stack([np.asarray(v, dtype=float) for v in self.conserved.values()])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN orbits
+            return np.nanmax(stacked, axis=0)
+
+    @property
+    def verdict(self):
+        """One line: "accurate" or what exceeded the tolerance."""
+        over = self.over
+        if not over.any():
+            return (f"accurate: relative energy error {np.nanmax(np.atleast_1d(self.worst)):.2g}"
+                    f" <= energy_tol = {self.energy_tol:g}"
+                    if np.isfinite(self.worst).any() else "no output recorded")
+        return (f"inaccurate: {int(over.sum())} of {over.size} orbits above energy_tol = "
+                f"{self.energy_tol:g} (largest error {np.nanmax(self.worst):.2g})")
+
+    def to_dict(self):
+        return {"energy_error": np.asarray(self.energy_error).tolist(),
+                "conserved": {k: np.asarray(v).tolist() for k, v in self.conserved.items()},
+                "t_worst": np.asarray(self.t_worst).tolist(), "energy_tol": self.energy_tol,
+                "accurate": np.asarray(self.accurate).tolist(), "tau": self.tau,
+                "notes": dict(self.notes)}
+
+    @classmethod
+    def from_dict(cls, d):
+        def arr(v, dtype=float):
+            return np.array([np.nan if e is None else e for e in np.ravel(v)] if dtype is float
+                            else v, dtype=dtype).reshape(np.shape(v))
+
+        return cls(energy_error=arr(d["energy_error"]),
+                   conserved={k: arr(v) for k, v in d["conserved"].items()},
+                   t_worst=arr(d["t_worst"]), energy_tol=float(d["energy_tol"]),
+                   accurate=np.array(d["accurate"], dtype=bool), tau=float(d.get("tau", "nan")),
+                   notes=dict(d.get("notes", {})))
+
+
+def assess(t, errors, status, energy_tol, tau, single):
+    """The :class:`Accuracy` of recorded errors.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n_out,) or (M, n_out)
+        Output times (per orbit for crossings of a surface of section).
+    errors : dict of str -> ndarray, shape (M, n_out)
+        ``energy_error`` and ``conserved_error:<name>`` series (NaN after a
+        failure).
+    status : ndarray, shape (M,)
+    energy_tol, tau : float
+    single : bool
+        Drop the orbit axis.
+    """
+    conserved = {("energy" if key == "energy_error" else key[len(_PREFIX):]): np.asarray(v)
+                 for key, v in errors.items()}
+    m = len(status)
+    t = np.asarray(t, dtype=float)
+    largest, when = {}, np.full(m, np.nan)
+    overall = np.full(m, -np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for name, v in conserved.items():
+            v = v.reshape(m, -1)
+            if v.shape[1] == 0:
+                largest[name] = np.full(m, np.nan)
+                continue
+            largest[name] = np.nanmax(v, axis=1)
+            filled = np.where(np.isnan(v), -np.inf, v)
+            at = np.argmax(filled, axis=1)
+            better = largest[name] > overall
+            when[better] = np.broadcast_to(t, v.shape)[np.arange(m), at][better]
+            overall = np.where(better, largest[name], overall)
+    failed = np.asarray(status) > Status.OK
+    with np.errstate(invalid="ignore"):
+        accurate = ~failed & np.all([v <= energy_tol for v in largest.values()], axis=0)
+
+    def sq(a):
+        return a[0] if single else a
+
+    return Accuracy(energy_error=sq(largest["energy"]),
+                    conserved={k: sq(v) for k, v in largest.items()}, t_worst=sq(when),
+                    energy_tol=float(energy_tol), accurate=sq(accurate), tau=float(tau))
+
+
+def advice(tau, method="tm"):
+    """What to do about an inaccurate run, for the warnings."""
+    if method not in ("tm", "tdhcc", "tdhes", "tdheps"):
+        return "tighten the method's tolerances"
+    return (f"use a smaller tau (tau = {tau / 2:g} cuts a p-th order scheme's error 2^p "
+            "times), a higher-order scheme (scheme='ABA864' or 's11odr6'), or let "
+            "varint.select_scheme(model, x0, target_error, t_end=...) choose both")
+
+
+def warn(accuracy, method="tm", what="the run", stacklevel=3):
+    """Warn (:class:`AccuracyWarning`) if any orbit of ``accuracy`` is over
+    its tolerance: the figure, when, and what to do."""
+    over = accuracy.over
+    if not over.any():
+        return
+    worst = np.atleast_1d(accuracy.worst)
+    m = int(np.nanargmax(np.where(over, worst, -np.inf)))
+    t = float(np.atleast_1d(accuracy.t_worst)[m])
+    step = int(round(t / accuracy.tau)) if np.isfinite(t) and accuracy.tau > 0 else None
+    names = [k for k, v in accuracy.conserved.items()
+             if np.atleast_1d(v)[m] > accuracy.energy_tol]
+    quantity = "energy" if names == ["energy"] or not names else " and ".join(names)
+    who = ("" if over.size == 1 else f"{int(over.sum())} of {over.size} orbits "
+           f"({over.mean():.1%}); worst: orbit {m}, ")
+    at = ("" if not np.isfinite(t) else f" at t = {t:.10g}"
+          + ("" if step is None else f" (step {step} of tau = {accuracy.tau:g})"))
+    warnings.warn(
+        f"{what} is not accurate enough to trust its indicators ({who}relative {quantity} "
+        f"error {worst[m]:.3g}{at}, above energy_tol = {accuracy.energy_tol:g}): regular "
+        f"orbits may look chaotic and chaotic ones' exponents be off; "
+        + advice(accuracy.tau, method), AccuracyWarning, stacklevel=stacklevel + 1)

@@ -1,0 +1,270 @@
+"""The step when none is given: the largest step of the scheme whose error
+in the conserved quantities over a short pilot run stays within a
+tolerance — as an adaptive integrator's ``rtol`` chooses its steps, but once,
+before the run, so the run itself keeps the fixed step a symplectic scheme
+needs.
+
+The pilot integrates the run's own initial states — a sample of them for a
+batch or a map — with the run's deviation vectors (so that it runs the
+compiled stepper the run will) to ``t = min(t_end, 100)``, a few percent of
+a long run's work, and measures the largest relative energy error
+(:mod:`varint.accuracy`) at 50 times along it. The steps tried are
+τ = c·2^(j/4), j = 0, −1, …, from the largest down, where c = min(1, t_end,
+the first output time), so that a requested first output time is a whole
+step. A step that misses
+the tolerance predicts the next from the scheme's order p (error ∝ τ^p),
+and the search then climbs back one rung at a time, so it ends on the
+largest rung that met the tolerance with a failing rung just above it
+(typically three to five pilots). The step is then lowered to divide t_end
+into whole steps.
+
+The energy error does not bound everything: with a higher-order scheme the
+pilot may allow steps that resolve the motion coarsely. On 64 copies of the
+chaotic orbit C1, ABA864's automatic step τ = 0.5 (energy error 7e-6) gives
+a mean X1(t = 1000) of 0.036, against 0.053–0.057 at τ ≤ 0.125 (SBAB2C's
+automatic 0.125 gives 0.056). Pass ``tau`` for higher-order schemes on
+chaotic orbits until the search also bounds the step by the motion's time
+scale.
+
+When the error does not shrink with the step (the orbit runs into a
+singularity of V, or escapes), no step helps: the run falls back to
+τ = 0.05 and an :class:`~varint.accuracy.AccuracyWarning` says so; the run's
+own failure or accuracy verdict then reports what happened.
+
+The tolerance is the run's ``energy_tol`` divided by :data:`PILOT_MARGIN`
+(100): over t = 1e4 the energy errors of SBAB2C, ABA864 and s11odr6 on the
+paper's orbits exceeded their pilot's by at most a factor 12
+(``studies/energy_tolerance.py``), so a run whose pilot meets
+``energy_tol / 100`` stays below ``energy_tol``. On the paper's five orbits
+(t_end = 1e4, default tolerance) this chooses τ = 0.125 for SBAB2C on R1,
+C1, C2 and R3 and τ = 0.105 on R2, at 0.41–0.49 times the force evaluations
+of τ = 0.05 with the pilot (3–4 pilot runs, 3300–6200 gradients) included
+(``studies/default_step.py``, ``tests/test_stepsize.py``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from . import _validate as check
+from .accuracy import AccuracyWarning, Reference
+from .methods import METHODS, make_propagator, propagator_class
+from .methods.tm import TangentMapPropagator
+from .protocol import TIME_MOMENTUM, Renorm, Status
+from .schemes import get_scheme
+from .state import RunState, initial_deviations
+
+__all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
+
+#: The pilot's tolerance is the run's energy_tol divided by this (see the
+#: module docstring for the measurements).
+PILOT_MARGIN = 100.0
+#: Pilot horizon (time units), shortened to t_end.
+PILOT_T = 100.0
+#: The search gives up on steps for which the pilot would take more steps
+#: than this (τ < 1e-4 for the full pilot horizon).
+PILOT_STEPS = 1_000_000
+#: Times along the pilot at which the error is measured.
+PILOT_CHECKS = 50
+#: Most orbits a pilot integrates (a sample of a larger batch).
+PILOT_ORBITS = 16
+#: Rungs per factor 2 of the ladder τ = cap·2^(j/RUNGS), j ≤ 0, and the
+#: largest step.
+RUNGS = 4
+TAU_MAX = 1.0
+#: The step when no step meets the tolerance, or for methods whose τ is not
+#: a step (adaptive integrators: τ is their renormalisation interval).
+FALLBACK_TAU = 0.05
+#: The TM method's step, bound when varint is imported. The pilot is not
+#: part of the run: code that wraps the propagator's ``advance`` to act on a
+#: run's chunks (fault injection, counting a run's work) sees the run's
+#: chunks only, before and after the pilot alike.
+_advance = TangentMapPropagator.advance
+
+
+class StepChoice(dict):
+    """How the step was chosen (a dict, stored in the provenance as
+    ``tau_choice``): ``rule`` ("pilot", "fallback" or "fixed"), ``tau``,
+    and for a pilot its ``scheme``, ``tolerance``, ``pilot_t``, ``orbits``,
+    the ``tried`` steps with their errors and its ``counts`` (all of it
+    deterministic: the same call chooses the same step, bit for bit)."""
+
+
+def pilots(method):
+    """Whether ``method``'s τ is the step of a splitting scheme, which a
+    pilot chooses when τ is not given."""
+    return "scheme" in getattr(propagator_class(method), "OPTIONS", ())
+
+
+def check_options(method, options):
+    """Refuse options ``method`` does not take before its pilot runs (a
+    misspelt option must not wait for it), naming the methods that take
+    them; otherwise the propagator checks them when it is built."""
+    valid = tuple(propagator_class(method).OPTIONS)
+    if set(options) <= set(valid):
+        return
+    others = {name: tuple(propagator_class(name).OPTIONS) for name in METHODS}
+    check.method_options(method, options, valid, others)
+
+
+def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=None,
+                quantile=1.0, seed=0, W0=None, k=None, renorm="none", accumulator=None):
+    """The largest step whose pilot meets ``tolerance`` (see the module
+    docstring).
+
+    Parameters
+    ----------
+    model : Model
+    X : ndarray, shape (M, 2N)
+        Initial states (checked); a sample of at most :data:`PILOT_ORBITS`
+        of them runs the pilot.
+    t_end : float
+    tolerance : float
+        Largest relative error of the conserved quantities over the pilot.
+    method : str
+        For methods without a splitting scheme the step is
+        :data:`FALLBACK_TAU` and no pilot is run.
+    scheme : str or SplittingScheme, optional
+        The method's scheme (its default when None).
+    cap : float, optional
+        Largest acceptable step (e.g. the first requested output time).
+    quantile : float
+        Which quantile of the orbits' errors must meet the tolerance (1: all
+        of them; a map takes 0.9, so a few orbits that escape or graze a
+        singularity do not set the step of all).
+    seed : int
+        Seed of the sample of orbits.
+    W0 : ndarray, shape (M, 2N, k), optional
+        The run's initial deviation vectors, and its ``renorm`` and
+        ``accumulator``: the pilot carries them too (their work is small
+        over a pilot) so that it runs the very compiled stepper the run
+        will, instead of compiling another.
+    k : int, optional
+        Instead of ``W0``: the number of vectors, drawn at random for the
+        pilot's orbits.
+
+    Returns
+    -------
+    tau : float
+    choice : StepChoice
+    """
+    cap = min(TAU_MAX, t_end, cap if cap is not None else math.inf)
+    if not pilots(method):
+        tau = _divide(t_end, min(FALLBACK_TAU, cap))
+        return tau, StepChoice(rule="fixed", tau=tau, note=(
+            f"{method}'s tau is its renormalisation interval, not its step; its accuracy is "
+            "set by its tolerances"))
+    sch = get_scheme("SBAB2C" if scheme is None else scheme)
+    pick = np.arange(len(X))
+    if len(X) > PILOT_ORBITS:
+        pick = np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))
+    X = X[pick]
+    if W0 is not None:
+        W0 = W0[pick]
+    else:
+        W0 = initial_deviations(model.dim, k or 0, len(X), seed, pick)
+    setup = (W0, renorm, accumulator)
+    reference = Reference(model, X)
+    tried, counts = {}, {}
+
+    def error(j):
+        if j not in tried:
+            tried[j] = _pilot(model, X, rung(j), t_end, sch, reference, quantile,
+                              counts, setup)
+        return tried[j]
+
+    def rung(j):
+        return cap * 2.0 ** (j / RUNGS)
+
+    top = 0
+    j, best, lowest_fail, stuck = top, None, None, False
+    while True:
+        e = error(j)
+        if e <= tolerance:
+            best = j if best is None else max(best, j)
+        else:
+            lowest_fail = j if lowest_fail is None else min(lowest_fail, j)
+        if best is not None:
+            if best == top or best + 1 == lowest_fail:
+                break
+            j = best + 1
+            continue
+        # No step met it yet: predict from the order, at least one rung down.
+        drop = (RUNGS * math.log2(e / tolerance) / sch.order if math.isfinite(e) and e > 0
+                else RUNGS * 4)
+        nxt = j - max(1, math.ceil(drop))
+        stuck = (_not_shrinking(tried, j)
+                 or min(t_end, PILOT_T) / rung(nxt) > PILOT_STEPS)
+        if stuck:
+            break
+        j = nxt
+    info = StepChoice(scheme=sch.name, tolerance=float(tolerance),
+                      pilot_t=float(min(t_end, PILOT_T)), orbits=len(X), quantile=quantile,
+                      tried=[[rung(k), float(v)] for k, v in sorted(tried.items())],
+                      counts=counts)
+    if best is None:
+        tau = _divide(t_end, min(FALLBACK_TAU, cap))
+        smallest = min(tried)
+        warnings.warn(
+            f"no step of {sch.name} keeps the relative energy error of a pilot run (to t = "
+            f"{info['pilot_t']:g}) within {tolerance:g}: it is still {tried[smallest]:.3g} at "
+            f"tau = {rung(smallest):.3g} and does not shrink with the step, so the "
+            "orbit probably runs into a singularity of the potential or escapes; running with "
+            f"tau = {tau:g} (pass tau= to choose the step yourself)", AccuracyWarning,
+            stacklevel=4)
+        info.update(rule="fallback", tau=tau)
+        return tau, info
+    tau = _divide(t_end, rung(best))
+    info.update(rule="pilot", tau=tau)
+    return tau, info
+
+
+def _not_shrinking(tried, j):
+    """Whether halving the step (or more) has not halved the error: the
+    error is not the scheme's truncation error."""
+    e = tried[j]
+    for k, v in tried.items():
+        if k >= j + RUNGS and not (e <= v / 2):
+            return True
+    return False
+
+
+def _divide(t_end, tau):
+    """The largest step ≤ tau that divides t_end into whole steps."""
+    return t_end / math.ceil(t_end / tau * (1 - 1e-12))
+
+
+def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
+    """The ``quantile`` over orbits of the largest relative error of the
+    conserved quantities along a pilot with step ``tau`` (inf if an orbit
+    became non-finite; an escaped orbit counts up to its escape)."""
+    W0, renorm, accumulator = setup
+    t_pilot = min(t_end, PILOT_T)
+    n = max(1, int(round(t_pilot / tau)))
+    checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
+    # make_propagator: a lattice's "tm" is its part stepper.
+    prop = make_propagator("tm", model, tau, Renorm.parse(renorm), accumulator, scheme=scheme)
+    advance = _advance if type(prop) is TangentMapPropagator else type(prop).advance
+    state = RunState.start(X, W0)
+    if accumulator is not None:
+        state.extra[accumulator.key] = np.tile(np.array(accumulator.initial, dtype=np.float64),
+                                               (len(X), W0.shape[2], 1))
+    worst = np.zeros(len(X))
+    with np.errstate(all="ignore"):
+        for s in checks:
+            advance(prop, state, int(s - state.step))
+            ok = state.status == Status.OK
+            errs = reference.errors(state.x, state.step * tau,
+                                    state.extra.get(TIME_MOMENTUM, 0.0))
+            e = np.max(np.stack(list(errs.values())), axis=0)
+            worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
+            blown = (state.status > Status.OK) & (state.status != Status.ESCAPED)
+            worst[blown] = np.inf
+            if not ok.any():
+                break
+    for key, value in state.counts.items():
+        counts[key] = counts.get(key, 0) + int(value)
+    return float(np.quantile(worst, quantile, method="higher"))
