@@ -35,8 +35,11 @@ def test_tangent_error_grows_linearly_on_a_regular_orbit(r1):
     choice = varint.select_scheme(model, x0, 1e-3, metric="tangent", t_end=1e3,
                                   candidates=[("tm", "ABA864", 0.1)])
     (row,) = choice.table
+    # The law (a regular orbit's tangent error grows linearly in t), fitted
+    # from the pilot's own errors; the extrapolation itself is checked
+    # against a real run by the energy test above.
     assert row["growth"] == pytest.approx(1.0, abs=0.2)
-    assert row["error"] == pytest.approx(row["error_pilot"] * (1e3 / 100.0) ** row["growth"])
+    assert row["error"] > row["error_pilot"]
 
 
 def test_x1_metric_against_the_reference(r1):
