@@ -478,13 +478,13 @@ class LatticeModel(Model):
                              "H not of the form T(p) + V(q)); its kicks apply the stencil "
                              "directly (method='tm')")
 
-    def hessian_band(self, q):
+    def hessian_band(self, q, t=None):
         self._band()
-        return super().hessian_band(q)
+        return super().hessian_band(q, t)
 
-    def third_band(self, q, v):
+    def third_band(self, q, v, t=None):
         self._band()
-        return super().third_band(q, v)
+        return super().third_band(q, v, t)
 
     def describe(self):
         d = super().describe()
