@@ -364,7 +364,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                        f"a chaos map of {m} orbits of {model.name}")
     if getattr(model, "kind", "flow") == "map":
         tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
-    else:
+    elif getattr(model, "band_kernels", True):
         # An initial condition where V or its derivatives are singular is
         # refused, not computed as a failed orbit.
         check.kernels(model, X, "initial condition")

@@ -245,9 +245,10 @@ class Run:
         self.model = model
         self.x0, self.single = check.states(model, x0)
         is_map = getattr(model, "kind", "flow") == "map"
-        if not is_map:
+        if not is_map and getattr(model, "band_kernels", True):
             # A state where V or its derivatives are singular is refused
-            # here, not reported as a run failing at its first step.
+            # here, not reported as a run failing at its first step (a
+            # lattice without band kernels is checked by its own stepper).
             check.kernels(model, self.x0)
         self.reference = accuracy.Reference(model, self.x0)
         self.energy_tol = accuracy.energy_tolerance(energy_tol)
