@@ -54,7 +54,7 @@ from .accuracy import AccuracyWarning, Reference
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import TIME_MOMENTUM, Renorm, Status
-from .schemes import get_scheme
+from .schemes import get_scheme, resolve_scheme
 from .state import RunState, initial_deviations
 
 __all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
@@ -97,6 +97,17 @@ def pilots(method):
     """Whether ``method``'s τ is the step of a splitting scheme, which a
     pilot chooses when τ is not given."""
     return "scheme" in getattr(propagator_class(method), "OPTIONS", ())
+
+
+def _default_scheme(model, scheme):
+    """The scheme "tm" runs ``model`` with: the given one, a lattice's own
+    default (its part split), or the paper's SBAB2C."""
+    if scheme is not None:
+        return resolve_scheme(scheme)
+    parts = getattr(model, "parts", None)
+    if parts is not None and parts.default_scheme is not None:
+        return resolve_scheme(parts.default_scheme)
+    return get_scheme("SBAB2C")
 
 
 def check_options(method, options):
@@ -157,7 +168,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
         return tau, StepChoice(rule="fixed", tau=tau, note=(
             f"{method}'s tau is its renormalisation interval, not its step; its accuracy is "
             "set by its tolerances"))
-    sch = get_scheme("SBAB2C" if scheme is None else scheme)
+    sch = _default_scheme(model, scheme)
     pick = np.arange(len(X))
     if len(X) > PILOT_ORBITS:
         pick = np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))

@@ -200,7 +200,7 @@ class Model:
         energy are relative to their value at t = 0 (absolute where that is
         0). For a time-dependent V, the extended energy K = H(x, t) + p_t
         (``t``, ``p_t``: the time and the momentum conjugate to it)."""
-        return {"energy": self.energy(x, t, p_t)}
+        return {"energy": self.energy(x, t, p_t) if self.time_dependent else self.energy(x)}
 
     def _q(self, q):
         q = np.ascontiguousarray(q, dtype=np.float64)
