@@ -62,14 +62,15 @@ SYMBOLIC_MAX_VALUES = 160
 
 #: Sparse renormalisation keeps the growth of every vector between two
 #: renormalisations below e^SPARSE_NORM_LOG (1e50: far from overflow) and,
-#: for QR, the spread of the stretchings below e^SPARSE_COND_LOG (1e3: the
-#: ill-conditioning modified Gram–Schmidt then sees costs at most ~1e3 ε in
-#: the smallest exponent's R_kk), and renormalises at least every
+#: for QR, the spread of the stretchings below e^SPARSE_COND_LOG (32: the
+#: ill-conditioning modified Gram–Schmidt then sees costs at most ~32 ε in
+#: the smallest exponent's R_kk; with 1e3, the sum of C1's exponents, 0 in
+#: exact arithmetic, was off by 5e-12 at t = 1e3), and renormalises at least every
 #: SPARSE_MAX_STEPS steps. The interval at most doubles from one
 #: renormalisation to the next, so a sudden stronger stretching cannot
 #: overflow before it is seen.
 SPARSE_NORM_LOG = 115.0
-SPARSE_COND_LOG = 6.9
+SPARSE_COND_LOG = 3.47
 SPARSE_MAX_STEPS = 1 << 16
 #: Vectors beyond this size are renormalised at the next check, whatever the
 #: schedule (checked every CHECK_EVERY steps).
@@ -826,8 +827,24 @@ class _Emitter:
 
 
 def generated_source(E, plan):
-    """The Python source of the stepper for expressions ``E`` and ``plan``."""
-    return _Emitter(E, plan).source()
+    """The Python source of the stepper for expressions ``E`` and ``plan``.
+    Its first line names the generator's own code, so that the file (whose
+    name is the hash of its source) changes when the code it calls or
+    inlines does: numba's cache does not follow a changed dependency."""
+    return f"# varint generator {_generator_id()}\n" + _Emitter(E, plan).source()
+
+
+@lru_cache(maxsize=1)
+def _generator_id():
+    """A hash of the modules whose code and constants a generated stepper
+    compiles in (this one, the checks, the protocol's codes)."""
+    from .. import protocol
+    from . import checks
+
+    digest = hashlib.sha256()
+    for module in (sys.modules[__name__], checks, protocol):
+        digest.update(Path(module.__file__).read_bytes())
+    return digest.hexdigest()[:16]
 
 
 # -- loading --------------------------------------------------------------------------
