@@ -38,7 +38,10 @@ UNSTABLE = 0.5
 
 def _stable(model, x0, scheme, tau, horizon):
     try:
-        r = varint.integrate(model, x0, horizon, tau=tau, scheme=scheme, t_out=50, progress=False)
+        # At most one output per step (large τ near the stability limit).
+        n_out = max(1, min(50, int(horizon // tau)))
+        r = varint.integrate(model, x0, horizon, tau=tau, scheme=scheme, t_out=n_out,
+                             progress=False)
     except IntegrationError:
         return False
     return bool(np.max(r.energy_error) < UNSTABLE)
