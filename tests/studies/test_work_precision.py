@@ -62,7 +62,9 @@ def test_energy_error_is_bounded_for_tm_and_drifts_for_dop853(result):
     about 10× over the same span."""
     res, _ = result
     for r in rows_of(res, "energy_R1", "TM"):
-        assert r["error"] < 3 * r["error_to_t_end_over_10"], r["label"]
+        # Plus the round-off floor: at ~1e-14 (SRKN14a at τ = 0.05) the
+        # error is round-off, which grows as √t (Brouwer's law), √10 ≈ 3.2.
+        assert r["error"] < 3 * r["error_to_t_end_over_10"] + 1e-13, r["label"]
     for r in rows_of(res, "energy_R1", "DOP853"):
         if r["series"].startswith("DOP853 δ=1e-5"):
             assert r["error"] > 3 * r["error_to_t_end_over_10"], r["label"]
