@@ -59,6 +59,10 @@ def test_sigkill_while_writing_a_checkpoint_then_resume(c1, tmp_path):
     path, mark = tmp_path / "run.ckpt", tmp_path / "writing"
     child = start_child(f"""
         import varint.checkpoint as C
+        import varint.driver as D
+        # Chunks of 16 steps, so the run writes many checkpoints.
+        D._Pace.__init__ = lambda self: setattr(self, "chunk", 16)
+        D._Pace.took = lambda self, n, seconds: None
         real, writes = C._write_npz, []
         def stalled(stream, arrays):
             writes.append(1)
@@ -98,15 +102,17 @@ def test_disk_full_during_a_run_keeps_the_last_checkpoint_and_the_result(c1, tmp
         import varint.checkpoint as C
         import varint.driver as D
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # get EFBIG, not death
-        # Chunks of 16 steps: many checkpoint writes, the first with the
-        # 13 outputs to t = 0.8 (the stepper would otherwise take long chunks).
+        # Chunks of 16 steps: many checkpoint writes (the stepper would
+        # otherwise take a few long chunks).
         D._Pace.__init__ = lambda self: setattr(self, "chunk", 16)
         D._Pace.took = lambda self, n, seconds: None
-        real = C.write
+        real, writes = C.write, []
         def write(p, snapshot):
             real(p, snapshot)
-            if resource.getrlimit(resource.RLIMIT_FSIZE)[0] == resource.RLIM_INFINITY:
-                limit = os.path.getsize(p) + 3000  # room for about twenty records
+            writes.append(1)
+            if len(writes) == 2:
+                # Room for a few more records: later writes no longer fit.
+                limit = os.path.getsize(p) + 300
                 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
         C.write = write
         model, x0 = varint.paper_orbit("C1")

@@ -47,7 +47,7 @@ _NONE = int(Renorm.NONE)
 _BLOCK_VALUES = 1 << 16
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _place(x, Y, W, d0, periods, d, k, raw, reset, d_max):
     """Put neighbour j back at x + d0 ŵ_j where it must be (every interval,
     or once its separation, modulo the periods, exceeds ``d_max`` > 0).
@@ -73,7 +73,7 @@ def _place(x, Y, W, d0, periods, d, k, raw, reset, d_max):
             Y[j, i] = x[i] + d0 * W[i, j] / c
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _separations(x, Y, W, start, scale, periods, d, k):
     """w_j ← D_j · scale_j / start_j with D_j = y_j − x, each component of
     positive period P reduced into [−P/2, P/2)."""
@@ -87,7 +87,7 @@ def _separations(x, Y, W, start, scale, periods, d, k):
             W[i, j] = v * f
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _starts(x, Y, W, start, scale, periods, d, k, raw):
     """|y_j − x| (modulo the periods) and the vectors' lengths (1 unless
     ``raw``) at the start of an interval."""
@@ -109,7 +109,7 @@ def _starts(x, Y, W, start, scale, periods, d, k, raw):
         scale[j] = c
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _end_of_interval(x, Y, W, acc_m, acc_e, start, scale, periods, d, k, renorm, r, aux,
                      accumulate, flow, t, d0, d_max, s):
     """The separations as vectors, their renormalisation and accumulator,
@@ -135,7 +135,7 @@ def _make_flow_orbit(N_C, BW_C, FLOW, TIME):
     :func:`varint.kernels.tm.tm_batch`)."""
     record = K.orbit_kernel(N_C, BW_C, TIME)
 
-    @njit
+    @njit(error_model="numpy")
     def tp_orbit(x, W, acc_m, acc_e, Y, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess,
                  third, renorm, escape_r2, d0, d_max, counters, accumulate, aux, step0, tau,
                  ctime=None, dtime=None, pt=None):
@@ -229,7 +229,7 @@ def flow_batch(n, bw, parallel, flow=False, time=False):
     ``ctime``, ``dtime``, ``pt`` after ``tau`` with ``time``."""
     tp_orbit = _make_flow_orbit(n, bw, flow, time)
 
-    @njit(parallel=parallel)
+    @njit(parallel=parallel, error_model="numpy")
     def batch(X, W, acc_m, acc_e, Y, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third,
               renorm, escape_r2, d0, d_max, counters, status, done, accumulate, aux, step0, tau,
               ctime=None, dtime=None, pt=None):
@@ -253,7 +253,7 @@ def flow_batch(n, bw, parallel, flow=False, time=False):
 
 
 def _make_map_orbit():
-    @njit
+    @njit(error_model="numpy")
     def tp_map_orbit(x, W, acc_m, acc_e, Y, n_steps, iters, par, periods, iterate, renorm,
                      escape_r2, d0, d_max, counters, accumulate, aux, step0, tau):
         d = x.shape[0]
@@ -296,7 +296,7 @@ def map_batch(parallel):
     ``iters`` iterations per interval and the map's ``periods``)."""
     tp_map_orbit = _make_map_orbit()
 
-    @njit(parallel=parallel)
+    @njit(parallel=parallel, error_model="numpy")
     def batch(X, W, acc_m, acc_e, Y, n_steps, iters, par, periods, iterate, renorm, escape_r2,
               d0, d_max, counters, status, done, accumulate, aux, step0, tau):
         for m in prange(X.shape[0]):
