@@ -343,24 +343,30 @@ class _Emitter:
                 if terms:
                     self(f"{self.b[i][j]} -= {' + '.join(terms)}")
 
+    def orthogonalize(self, j):
+        """Modified Gram–Schmidt of vector ``j`` against the earlier ones (QR
+        only), in the locals; returns the expression of its squared norm."""
+        n, a, b = self.n, self.a, self.b
+        if j:
+            self("if mode == QR:")
+            self.indent()
+            for c in range(j):
+                dot = " + ".join([f"{a[i][c]} * {a[i][j]}" for i in range(n)]
+                                 + [f"{b[i][c]} * {b[i][j]}" for i in range(n)])
+                self(f"rr = {dot}")
+                for i in range(n):
+                    self(f"{a[i][j]} -= rr * {a[i][c]}", f"{b[i][j]} -= rr * {b[i][c]}")
+            self.dedent()
+        return " + ".join([f"{a[i][j]} * {a[i][j]}" for i in range(n)]
+                          + [f"{b[i][j]} * {b[i][j]}" for i in range(n)])
+
     def renormalize(self):
         """Modified Gram–Schmidt (QR) or normalisation in the locals; the
         stretching r{j} is multiplied into am{j}/ae{j} (mantissa, exponent;
         :mod:`varint.kernels.checks`)."""
         n, k, a, b = self.n, self.k, self.a, self.b
         for j in range(k):
-            if j:
-                self("if mode == QR:")
-                self.indent()
-                for c in range(j):
-                    dot = " + ".join([f"{a[i][c]} * {a[i][j]}" for i in range(n)]
-                                     + [f"{b[i][c]} * {b[i][j]}" for i in range(n)])
-                    self(f"rr = {dot}")
-                    for i in range(n):
-                        self(f"{a[i][j]} -= rr * {a[i][c]}", f"{b[i][j]} -= rr * {b[i][c]}")
-                self.dedent()
-            sq = " + ".join([f"{a[i][j]} * {a[i][j]}" for i in range(n)]
-                            + [f"{b[i][j]} * {b[i][j]}" for i in range(n)])
+            sq = self.orthogonalize(j)
             self(f"r{j} = math.sqrt({sq})", f"if not (r{j} > 0.0 and r{j} < np.inf):")
             self.fail(_DEGENERATE)
             # The mantissa rescaled by exact powers of two (as in lanes).
@@ -614,18 +620,7 @@ class _Emitter:
         self("due = every == 0 or step >= nxt[b] or (step % CHECK_EVERY == 0 and "
              f"({early}))")
         for j in range(k):
-            if j:
-                self("if mode == QR:")
-                self.indent()
-                for c in range(j):
-                    dot = " + ".join([f"{a[i][c]} * {a[i][j]}" for i in range(n)]
-                                     + [f"{b[i][c]} * {b[i][j]}" for i in range(n)])
-                    self(f"rr = {dot}")
-                    for i in range(n):
-                        self(f"{a[i][j]} -= rr * {a[i][c]}", f"{b[i][j]} -= rr * {b[i][c]}")
-                self.dedent()
-            sq = " + ".join([f"{a[i][j]} * {a[i][j]}" for i in range(n)]
-                            + [f"{b[i][j]} * {b[i][j]}" for i in range(n)])
+            sq = self.orthogonalize(j)
             self(f"r{j} = math.sqrt({sq})",
                  f"if due and not (r{j} > 0.0 and r{j} < np.inf) and st[b] == 0:",
                  f"    st[b] = {_DEGENERATE}",
