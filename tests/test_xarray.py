@@ -40,6 +40,9 @@ def results(r1, c1):
         "ChaosMapResult": varint.chaos_map(model, grid, "sali", t_end=5.0, progress=False),
         "ChaosMapResult/orbits": varint.chaos_map(model, both, "sali", t_end=5.0,
                                                   progress=False),
+        "EnsembleResult": varint.ensemble(
+            varint.models.DDNLS, range(2), lambda m, s: m.initial_block(3, 1.0, seed=s),
+            "dvd", 2.0, tau=0.1, params={"shape": 16, "W": 4, "beta": 0.04}, progress=False),
     }
 
 

@@ -34,7 +34,7 @@ class FPUBeta(FPUT):
     Skokos & Gerlach, Phys. Rev. E 82, 036704 (2010), eq. (56).
     """
 
-    def __init__(self, n=8, beta=1.5):
+    def __init__(self, n: int = 8, beta: float = 1.5) -> None:
         n = check_size(n)
         beta = check_coupling(beta, "beta")
         super().__init__(n, 0.0, beta, "fixed", name=f"FPUBeta(n={n}, beta={beta:g})")
