@@ -51,7 +51,7 @@ class TangentMapPropagator:
         as needed — every step when an accumulator needs the stretching of
         every step, otherwise on an adaptive schedule that keeps every
         vector's growth below 1e50 and, for QR, the spread of the
-        stretchings below 1e3 between two renormalisations
+        stretchings below 32 and the interval at most 64 steps
         (:func:`varint.kernels.generate.next_interval`); the exponents,
         GALIs and SALI are those of renormalising every step, to round-off.
         An int n: every n steps; a float: every that much time (rounded to
