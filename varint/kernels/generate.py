@@ -354,6 +354,13 @@ class _Emitter:
                 if terms:
                     self(f"{self.b[i][j]} -= {' + '.join(terms)}")
 
+    def needs(self, corrected):
+        """What a kick stage evaluates: ∇V; D²V with vectors; ∇C (and D²C
+        with vectors) with a corrector."""
+        k = self.k
+        return {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
+            | ({"HC"} if corrected and k else set())
+
     def orthogonalize(self, j):
         """Modified Gram–Schmidt of vector ``j`` against the earlier ones (QR
         only), in the locals; returns the expression of its squared norm."""
@@ -497,8 +504,7 @@ class _Emitter:
                 self.drift(st)
                 continue
             corrected = plan.corrected[st]
-            what = {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
-                | ({"HC"} if corrected and k else set())
+            what = self.needs(corrected)
             if st == 0 and reuse_first:
                 self("if s == 0:")
                 self.indent()
@@ -719,8 +725,7 @@ class _Emitter:
                 self.dedent()
                 continue
             corrected = plan.corrected[stage]
-            what = {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
-                | ({"HC"} if corrected and k else set())
+            what = self.needs(corrected)
             if stage == 0 and reuse_first:
                 # After s = 0 the last kick's values are those at this q.
                 self("if s == 0:")
