@@ -107,6 +107,53 @@ def test_lanes_are_bitwise_the_one_orbit_stepper():
             np.testing.assert_array_equal(s1.W[:, 0], snaps.W[:, i])
 
 
+@pytest.mark.parametrize("name", ["fli", "megno"])
+def test_inline_accumulators_lanes_orbit_chunks_and_generic(name):
+    """The accumulators ``lanes`` writes out inline (FLI, MEGNO): lanes give
+    bitwise what the one-orbit stepper gives, in one call or in several
+    (chunking), with the outputs' accumulators; and the generic stepper's
+    values (FLI as a running sum of logarithms, not the generated peak) to
+    round-off."""
+    from varint.indicators.megno import FLI_ACCUMULATOR, MEGNO_ACCUMULATOR
+
+    acc = FLI_ACCUMULATOR if name == "fli" else MEGNO_ACCUMULATOR
+    m = 20
+    x0, W0 = _hh_orbits(m), _deviations(m, 1)
+    W0 /= np.linalg.norm(W0, axis=1, keepdims=True)
+    outputs = np.array([100, 400])
+
+    def run(rows, splits, generated=True):
+        p = TangentMapPropagator(HH, 0.05, Renorm.NORMALIZE, acc, parallel=False)
+        state = RunState.start(x0[rows].copy(), W0[rows].copy())
+        state.extra[acc.key] = np.tile(np.array(acc.initial), (len(rows), 1, 1))
+        if not generated:
+            p._generated[1] = None
+            p.advance(state, sum(splits))
+            return state, None
+        snaps = [p.advance(state, n, outputs[(outputs > state.step)
+                                             & (outputs <= state.step + n)])
+                 for n in splits]
+        return state, np.concatenate([s.extra[acc.key] for s in snaps])
+
+    batch, bsnap = run(np.arange(m), [400])
+    assert G._inline_kind(acc) == name
+    chunked, csnap = run(np.arange(m), [150, 250])
+    np.testing.assert_array_equal(batch.extra[acc.key], chunked.extra[acc.key])
+    np.testing.assert_array_equal(bsnap, csnap)
+    for i in (0, 7, 19):
+        one, osnap = run(np.array([i]), [400])
+        np.testing.assert_array_equal(one.extra[acc.key][0], batch.extra[acc.key][i])
+        np.testing.assert_array_equal(osnap[:, 0], bsnap[:, i])
+    generic, _ = run(np.arange(m), [400], generated=False)
+    used = [0, 1] if name == "fli" else [0, 1, 2, 3, 4]
+    a, b = batch.extra[acc.key][..., used], generic.extra[acc.key][..., used]
+    # Round-off of the two steppers, grown along the chaotic orbits (the
+    # deviation vectors' directions differ by ~1e-13 at t = 20).
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+    fli = a[:, 0, 1] if name == "fli" else a[:, 0, 3]
+    assert (fli >= a[:, 0, 0] - 1e-12).all()     # the supremum of ln‖w‖ bounds its last value
+
+
 @pytest.mark.parametrize("indicator, options", [
     ("lyapunov", {}),
     ("gali", {"k": (2, 4)}),

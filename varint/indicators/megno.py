@@ -91,9 +91,15 @@ MEGNO_ACCUMULATOR = Accumulator(
     initial=(0.0, 0.0, 0.0, 0.0, -math.inf), update=_update_megno, needs_flow=True)
 
 #: FLI alone: ln‖w‖ and its supremum; needs no flow (so no extra force
-#: evaluation in schemes that end on a drift).
-FLI_ACCUMULATOR = Accumulator(name="fli", columns=("log", "fli"), initial=(0.0, 0.0),
-                              update=_update_fli)
+#: evaluation in schemes that end on a drift). ``update`` keeps them as a
+#: running sum of ln r; the generated stepper
+#: (:mod:`varint.kernels.generate`) keeps instead the largest ‖w‖ as a
+#: mantissa and exponent ("peak", "peak_exp": the product of the stretchings
+#: at the step of the supremum) and takes one logarithm when the state is
+#: copied out, which lets its loop over orbits vectorise. The two agree to
+#: round-off; each is deterministic.
+FLI_ACCUMULATOR = Accumulator(name="fli", columns=("log", "fli", "peak", "peak_exp"),
+                              initial=(0.0, 0.0, 1.0, 0.0), update=_update_fli)
 
 
 def _one_vector(model, options, given):

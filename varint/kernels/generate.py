@@ -167,11 +167,21 @@ def _expressions(V_srepr, minv_srepr, n):
     return _Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q)
 
 
-def _model_expressions(model):
+def _model_key(model):
+    """The arguments of :func:`_expressions` for ``model``."""
     s = model.symbolic()
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"))))
-    return _expressions(sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n)
+    return sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n
+
+
+@lru_cache(maxsize=64)
+def _source(key, plan):
+    """The stepper's source for the model of ``key`` (:func:`_model_key`)
+    and ``plan``, written once per process: each chunk of a chaos map makes
+    its own propagator, and emitting the source (SymPy's common
+    subexpressions, printing) costs ~60 ms."""
+    return generated_source(_expressions(*key), plan)
 
 
 def symbolic_fits(model, k):
@@ -211,6 +221,9 @@ class Plan:
         ``"module:name"`` of the indicator's accumulator update, or "".
     flow : bool
         Pass the accumulator the phase-space velocity.
+    inline : str
+        A built-in accumulator that ``lanes`` writes out in its loop
+        (a key of ``_INLINE_COLUMNS``), or "": any other is called.
     """
 
     kinds: tuple
@@ -218,12 +231,37 @@ class Plan:
     k: int
     accumulator: str
     flow: bool
+    inline: str = ""
 
 
 _OK, _ESCAPED, _NONFINITE = int(Status.OK), int(Status.ESCAPED), int(Status.ORBIT_NONFINITE)
 _DEGENERATE, _OVERFLOW = int(Status.TANGENT_DEGENERATE), int(Status.TANGENT_OVERFLOW)
 _GRAD, _HESS, _THIRD = (int(Status.GRADIENT_NONFINITE), int(Status.HESSIAN_NONFINITE),
                         int(Status.THIRD_NONFINITE))
+
+#: Orbits per block of ``lanes`` at most (its work arrays' width).
+LANE_WIDTH = 64
+
+#: Built-in accumulators whose update ``lanes`` writes out inside its
+#: vectorised loop (calling an update per lane and step would keep that loop
+#: scalar): the columns each keeps, as in :mod:`varint.indicators.megno`.
+_INLINE_COLUMNS = {"fli": ("log", "fli", "peak", "peak_exp"),
+                   "megno": ("log", "weighted", "megno_sum", "fli", "ofli")}
+#: The columns each one updates every step (FLI's others are read off the
+#: peak and the stretching accumulators when the state is copied out).
+_INLINE_LIVE = {"fli": (2, 3), "megno": (0, 1, 2, 3, 4)}
+_LN2 = 0.6931471805599453
+
+
+def _inline_kind(accumulator):
+    """The key of ``_INLINE_COLUMNS`` that ``accumulator`` is, or ""."""
+    from ..indicators.megno import FLI_ACCUMULATOR, MEGNO_ACCUMULATOR
+
+    for key, builtin in (("fli", FLI_ACCUMULATOR), ("megno", MEGNO_ACCUMULATOR)):
+        if accumulator is not None and accumulator.update is builtin.update \
+                and tuple(accumulator.columns) == _INLINE_COLUMNS[key]:
+            return key
+    return ""
 
 
 class _Emitter:
@@ -284,17 +322,21 @@ class _Emitter:
                 self(f"W[{i}, {j}] = {self.a[i][j]}", f"W[{n + i}, {j}] = {self.b[i][j]}")
         for j in range(k):
             self(f"acc_m[{j}] = am{j}", f"acc_e[{j}] = ae{j}")
+            if self.plan.inline == "fli":
+                self.fli_readout(f"aux[{j}, {{}}]", f"am{j}", f"ae{j}", f"pk{j}", f"pe{j}")
         self("counters[0] += c_grad", "counters[1] += c_hess", "counters[2] += c_third",
              "counters[3] += c_tan", "rsched[0] = next_renorm", "rsched[1] = interval")
 
     # -- the pieces of a step -----------------------------------------------------------
-    def derivatives(self, label, what):
+    def derivatives(self, label, what, lane=False):
         """Evaluate ∇V and, as ``what`` asks, D²V, ∇C, D²C at the current q,
         with a singular value caught before it is used.
 
         The orbit's quantities (∇V, ∇C) and the tangent ones (D²V, D²C) are
         simplified separately, so the orbit gets the same bits whether or
-        not deviation vectors are carried.
+        not deviation vectors are carried. With ``lane``, a singular value
+        marks the lane (``code``, ``fstep``; see :meth:`lane_fail`) instead
+        of leaving the loop, and nothing is counted.
         """
         E = self.E
         orbit = [("g", [f"g{i}" for i in range(self.n)], list(E.g), _GRAD, "c_grad")]
@@ -318,9 +360,12 @@ class _Emitter:
             for t, e in zip(targets, reduced):
                 self(f"{t} = {self.printer.doprint(e)}")
             for _, names, _, status, counter in groups:
-                if counter:
+                if counter and not lane:
                     self(f"{counter} += 1")
-                if names:
+                if names and lane:
+                    self(f"fin = {' + '.join(names)}")
+                    self.lane_fail("fin - fin != 0.0", status)
+                elif names:
                     self(f"fin = {' + '.join(names)}", "if fin - fin != 0.0:")
                     self.fail(status)
 
@@ -332,7 +377,7 @@ class _Emitter:
             for j in range(self.k):
                 self(f"{self.a[i][j]} += {h} * {self.b[i][j]}")
 
-    def kick(self, st, corrected):
+    def kick(self, st, corrected, count=True):
         """p −= h ∇V + hc ∇C and δp −= (h D²V + hc D²C) δq (paper eqs. 47, 53)."""
         E, n, k = self.E, self.n, self.k
         for i in range(n):
@@ -340,7 +385,8 @@ class _Emitter:
             self(f"{self.p[i]} -= h{st} * g{i}{corr}")
         if not k:
             return
-        self("c_tan += 1")
+        if count:
+            self("c_tan += 1")
         entries = set(E.H) | (set(E.HC) if corrected else set())
         for key in sorted(entries):
             terms = ([f"h{st} * H{key[0]}_{key[1]}"] if key in E.H else [])
@@ -413,8 +459,34 @@ class _Emitter:
         # Every-step renormalisation keeps no schedule (as the lanes do).
         self("if every != 0:", "    next_renorm = step + interval")
 
+    def fli_peak(self, j, pk, pe, ok=None):
+        """The largest ‖w_j‖ so far, as the (mantissa, exponent) pair
+        (pk, pe) of the step where it was reached, compared exactly with
+        the current (am, ae): the exponents are multiples of 500, so
+        am · 2^(ae − pe) is exact where it matters and otherwise decides
+        by its exponent alone. FLI = ln pk + pe ln 2 is taken only when
+        the state is copied out — no logarithm per step, so the loop over
+        lanes vectorises (the arithmetic of Froeschlé et al.'s sup, not of
+        :func:`varint.indicators.megno._update_fli`'s running sum)."""
+        self(f"d = ae{j} - {pe}",
+             f"v = am{j} if d == 0.0 else (am{j} * ACC_BIG if d == 500.0 else "
+             f"(am{j} * ACC_SMALL if d == -500.0 else (np.inf if d > 0.0 else 0.0)))")
+        up = f"v > {pk}" if ok is None else f"{ok} and v > {pk}"
+        self(f"up = {up}", f"{pk} = am{j} if up else {pk}",
+             f"{pe} = float(ae{j}) if up else {pe}")
+
+    def fli_readout(self, target, am, ae, pk, pe):
+        """``target`` (a format string of the column) = FLI's columns."""
+        self(f"{target.format(0)} = math.log({am}) + {ae} * LN2",
+             f"{target.format(1)} = math.log({pk}) + {pe} * LN2",
+             f"{target.format(2)} = {pk}", f"{target.format(3)} = {pe}")
+
     def accumulate(self, kinds):
         n, k = self.n, self.k
+        if self.plan.inline == "fli":
+            for j in range(k):
+                self.fli_peak(j, f"pk{j}", f"pe{j}")
+            return
         for j in range(k):
             self(f"rbuf[{j}] = r{j}")
         for i in range(n):
@@ -447,7 +519,11 @@ class _Emitter:
                      f"snap_W[jo, {n + i}, {j}] = {self.b[i][j]}")
         for j in range(k):
             self(f"snap_m[jo, {j}] = am{j}", f"snap_e[jo, {j}] = ae{j}")
-        if self.plan.accumulator:
+        if self.plan.inline == "fli":
+            for j in range(k):
+                self.fli_readout(f"snap_aux[jo, {j}, {{}}]", f"am{j}", f"ae{j}", f"pk{j}",
+                                 f"pe{j}")
+        elif self.plan.accumulator:
             self("for jj in range(aux.shape[0]):",
                  "    for cc in range(aux.shape[1]):",
                  "        snap_aux[jo, jj, cc] = aux[jj, cc]")
@@ -464,7 +540,7 @@ class _Emitter:
              "from numba import njit, prange, set_parallel_chunksize", "",
              f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
              f"TANGENT_LIMIT = {TANGENT_LIMIT!r}", f"EARLY = {_EARLY!r}", f"HUGE = {HUGE_Q2!r}",
-             f"CHECK_EVERY = {CHECK_EVERY}",
+             f"CHECK_EVERY = {CHECK_EVERY}", f"LANE_WIDTH = {LANE_WIDTH}", f"LN2 = {_LN2!r}",
              f"NONE, QR = {int(Renorm.NONE)}, {int(Renorm.QR)}", "", "",
              "@njit(cache=True, error_model='numpy', nogil=True)",
              "def orbit(x, W, acc_m, acc_e, n_steps, step0, tau, h, hc, escape_r2, counters, aux,"
@@ -480,6 +556,8 @@ class _Emitter:
                 self(f"{self.a[i][j]} = W[{i}, {j}]", f"{self.b[i][j]} = W[{n + i}, {j}]")
         for j in range(k):
             self(f"am{j} = acc_m[{j}]", f"ae{j} = acc_e[{j}]", f"r{j} = 1.0")
+            if plan.inline == "fli":
+                self(f"pk{j} = aux[{j}, 2]", f"pe{j} = aux[{j}, 3]")
         self("c_grad = 0", "c_hess = 0", "c_third = 0", "c_tan = 0",
              "next_renorm = rsched[0]", "interval = rsched[1]")
         if plan.accumulator:
@@ -564,131 +642,208 @@ class _Emitter:
         return "\n".join(self.lines) + "\n"
 
     # -- structure of arrays: many orbits at once -------------------------------------------
-    def lane_derivatives(self, label, what):
-        """As :meth:`derivatives`, for lane ``b`` (q read from ``X``), into
-        the per-lane scratch rows ``Dg``, ``Dgc``, ``DH``, ``DHC``; a value
-        that is not finite marks the lane as failed (with the status
-        :meth:`fail` gives it)."""
-        E, n = self.E, self.n
-        orbit = [("Dg", list(E.g), _GRAD)]
-        if "gc" in what:
-            orbit.append(("Dgc", list(E.gc), _THIRD))
-        tangent = []
-        if "H" in what:
-            tangent.append(("DH", list(E.H.values()), _HESS))
-        if "HC" in what:
-            tangent.append(("DHC", list(E.HC.values()), _THIRD))
-        for i in range(n):
-            self(f"q{i} = X[{i}, b]")
-        rq = " + ".join(f"q{i} * q{i}" for i in range(n))
-        for part, groups in (("o", orbit), ("w", tangent)):
-            if not groups:
-                continue
-            exprs = [e for g in groups for e in g[1]]
-            temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"t{label}{part}_"))
-            for t, e in temps:
-                self(f"{t} = {self.printer.doprint(e)}")
-            at = 0
-            for array, values, status in groups:
-                names = [f"v{array}{j}" for j in range(len(values))]
-                for name, e in zip(names, reduced[at:at + len(values)]):
-                    self(f"{name} = {self.printer.doprint(e)}")
-                at += len(values)
-                if names:
-                    self(f"fin = {' + '.join(names)}",
-                         "if fin - fin != 0.0 and st[b] == 0:",
-                         f"    st[b] = {status} if {rq} < HUGE else {_NONFINITE}",
-                         "    fs[b] = s")
-                for j, name in enumerate(names):
-                    self(f"{array}[{j}, b] = {name}")
+    # ``lanes`` copies its block into two arrays it allocates itself, floats F
+    # and integers I, LANE_WIDTH columns each, one row per quantity. Their rows
+    # are a constant distance apart, so LLVM proves the loop over lanes free of
+    # aliasing and vectorises it; over the caller's arrays (strides unknown to
+    # it) it needed more run-time overlap checks than it allows and kept the
+    # loop scalar: 28 against 4.4 ns per orbit and step (Hénon–Heiles, SBAB2C,
+    # one vector, AVX-512).
 
-    def lane_kick(self, stage, corrected):
-        E, n, k = self.E, self.n, self.k
-        H_keys, HC_keys = list(E.H), list(E.HC)
-        for i in range(n):
-            corr = f" + hc{stage} * Dgc[{i}, b]" if corrected else ""
-            self(f"X[{n + i}, b] -= h{stage} * Dg[{i}, b]{corr}")
-        if not k:
-            return
-        entries = sorted(set(H_keys) | (set(HC_keys) if corrected else set()))
-        for key in entries:
-            terms = [f"h{stage} * DH[{H_keys.index(key)}, b]"] if key in E.H else []
-            if corrected and key in E.HC:
-                terms.append(f"hc{stage} * DHC[{HC_keys.index(key)}, b]")
-            self(f"K{key[0]}_{key[1]} = {' + '.join(terms)}")
-        for j in range(k):
-            for i in range(n):
-                terms = [f"K{min(i, l)}_{max(i, l)} * W[{l}, {j}, b]" for l in range(n)
-                         if (min(i, l), max(i, l)) in entries]
-                if terms:
-                    self(f"W[{n + i}, {j}, b] -= {' + '.join(terms)}")
+    def lane_layout(self):
+        """Row numbers of the per-lane quantities in F and I."""
+        n, k, E, plan = self.n, self.k, self.E, self.plan
+        self.fw = 2 * n                            # W[i, j] -> fw + i k + j
+        self.fam = self.fw + 2 * n * k             # am_j
+        self.fr = self.fam + k                     # r_j where renormalised, else 0
+        self.reuse = []
+        if plan.kinds[0] != DRIFT and plan.kinds[-1] != DRIFT:
+            # After s = 0 the first kick reuses the last kick's values (same q).
+            what = self.needs(plan.corrected[0])
+            self.reuse = [f"g{i}" for i in range(n)]
+            if "gc" in what:
+                self.reuse += [f"gc{i}" for i in range(n)]
+            if "H" in what:
+                self.reuse += [f"H{i}_{j}" for i, j in E.H]
+            if "HC" in what:
+                self.reuse += [f"HC{i}_{j}" for i, j in E.HC]
+        self.fd = self.fr + k
+        self.faux = self.fd + len(self.reuse)
+        self.ncols = len(_INLINE_COLUMNS.get(plan.inline, ()))
+        self.nf = self.faux + k * self.ncols
+        # I: status, failure step, ae_j, next renormalisation step.
+        self.iae, self.inxt = 2, 2 + k
+        self.ni = 3 + k
 
-    def lane_renormalize(self):
-        """Renormalisation of lane ``b`` where due (every step, or on its own
-        adaptive schedule ``nxt``/``itv``), by exactly the arithmetic of
-        :meth:`renormalize`: the vectors are loaded into locals, renormalised
-        there, and stored only if due (a select, so the loop over lanes
-        still vectorises)."""
-        n, k, a, b = self.n, self.k, self.a, self.b
-        vec = [(i, j) for i in range(2 * n) for j in range(k)]
-        for i, j in vec:
-            self(f"{self._w(i, j)} = W[{i}, {j}, b]")
-        early = " or ".join(f"abs({self._w(i, j)}) > EARLY" for i, j in vec)
-        self("due = every == 0 or step >= nxt[b] or (step % CHECK_EVERY == 0 and "
-             f"({early}))")
-        for j in range(k):
-            sq = self.orthogonalize(j)
-            self(f"r{j} = math.sqrt({sq})",
-                 f"if due and not (r{j} > 0.0 and r{j} < np.inf) and st[b] == 0:",
-                 f"    st[b] = {_DEGENERATE}",
-                 "    fs[b] = s",
-                 f"aa = am[{j}, b] * r{j}",
-                 "ee = 500 if aa > ACC_BIG else (-500 if aa < ACC_SMALL else 0)",
-                 "aa = aa * ACC_SMALL if aa > ACC_BIG else (aa * ACC_BIG if aa < ACC_SMALL else aa)",
-                 f"am[{j}, b] = aa if due else am[{j}, b]",
-                 f"ae[{j}, b] += ee if due else 0",
-                 f"R[{j}, b] = r{j} if due else 0.0",
-                 f"inv = 1.0 / r{j}")
-            for i in range(n):
-                self(f"{a[i][j]} *= inv", f"{b[i][j]} *= inv")
-        for i, j in vec:
-            self(f"W[{i}, {j}, b] = {self._w(i, j)} if due else W[{i}, {j}, b]")
+    def lane_fail(self, condition, status):
+        """Mark the lane failed with ``status`` if ``condition`` holds and it
+        has not failed before (selects, so the loop still vectorises)."""
+        if status in (_GRAD, _HESS, _THIRD):
+            rq = " + ".join(f"{v} * {v}" for v in self.q)
+            value = f"({status} if {rq} < HUGE else {_NONFINITE})"
+        else:
+            value = str(status)
+        self(f"bad = ({condition}) & (code == 0)",
+             f"code = {value} if bad else code", "fstep = s if bad else fstep")
+
+    def lane_rows(self):
+        """(local, F or I row) of everything a lane carries through a step."""
+        n, k = self.n, self.k
+        rows = [(self.q[i], f"F[{i}, b]") for i in range(n)]
+        rows += [(self.p[i], f"F[{n + i}, b]") for i in range(n)]
+        rows += [(self._w(i, j), f"F[{self.fw + i * k + j}, b]")
+                 for i in range(2 * n) for j in range(k)]
+        rows += [(f"am{j}", f"F[{self.fam + j}, b]") for j in range(k)]
+        rows += [(f"ae{j}", f"I[{self.iae + j}, b]") for j in range(k)]
+        rows += [(name, f"F[{self.fd + c}, b]") for c, name in enumerate(self.reuse)]
+        rows += [(f"u{j}_{c}", f"F[{self.faux + j * self.ncols + c}, b]")
+                 for j in range(k) for c in _INLINE_LIVE.get(self.plan.inline, ())]
+        return rows + [("code", "I[0, b]"), ("fstep", "I[1, b]")]
 
     def _w(self, i, j):
         """The local of component ``i`` (0 … 2N−1) of vector ``j``."""
         return self.a[i][j] if i < self.n else self.b[i - self.n][j]
 
+    def lane_renormalize(self):
+        """Renormalisation of the lane where due (every step, on its own
+        sparse schedule ``nxt``, or early when a vector grew huge), by
+        exactly the arithmetic of :meth:`renormalize`: done on copies of the
+        vectors and kept only if due."""
+        n, k = self.n, self.k
+        early = " | ".join(f"(abs({self._w(i, j)}) > EARLY)"
+                           for i in range(2 * n) for j in range(k))
+        self(f"early = {early}",
+             f"due = renorm & ((every == 0) | (step >= I[{self.inxt}, b]) | (chk & early))")
+        kept = self.a, self.b
+        self.a = [[f"c{v}" for v in row] for row in kept[0]]
+        self.b = [[f"c{v}" for v in row] for row in kept[1]]
+        for i in range(2 * n):
+            for j in range(k):
+                self(f"c{self._w_of(kept, i, j)} = {self._w_of(kept, i, j)}")
+        for j in range(k):
+            sq = self.orthogonalize(j)
+            self(f"r{j} = math.sqrt({sq})")
+            self.lane_fail(f"due & (not (r{j} > 0.0 and r{j} < np.inf))", _DEGENERATE)
+            self(f"aa = am{j} * r{j}",
+                 "ee = 500 if aa > ACC_BIG else (-500 if aa < ACC_SMALL else 0)",
+                 "aa = aa * ACC_SMALL if aa > ACC_BIG else (aa * ACC_BIG if aa < ACC_SMALL else aa)",
+                 f"am{j} = aa if due else am{j}", f"ae{j} += ee if due else 0",
+                 f"F[{self.fr + j}, b] = r{j} if due else 0.0", f"inv = 1.0 / r{j}")
+            for i in range(2 * n):
+                self(f"{self._w(i, j)} *= inv")
+        copies = self.a, self.b
+        self.a, self.b = kept
+        for i in range(2 * n):
+            for j in range(k):
+                self(f"{self._w(i, j)} = {self._w_of(copies, i, j)} if due else {self._w(i, j)}")
+
+    def _w_of(self, ab, i, j):
+        return ab[0][i][j] if i < self.n else ab[1][i - self.n][j]
+
+    def lane_inline(self, kinds):
+        """A built-in accumulator (``plan.inline``) in the lane loop, by
+        exactly the arithmetic of its compiled update (so lanes and the
+        one-orbit stepper, which calls it, agree bitwise)."""
+        n, k = self.n, self.k
+        self("ok = due & (code == 0)")
+        if self.plan.inline == "fli":
+            for j in range(k):
+                self.fli_peak(j, f"u{j}_2", f"u{j}_3", ok="ok")
+            return
+        # varint.indicators.megno._update_megno, with the flow (M⁻¹p, −∇V).
+        if kinds[-1] == DRIFT:
+            self.derivatives("f", {"g"}, lane=True)
+        flow = [self.p[i] if self.E.minv[i] == 1.0 else f"({self.E.minv[i]!r} * {self.p[i]})"
+                for i in range(n)] + [f"(-g{i})" for i in range(n)]
+        self("ff = " + " + ".join(f"{f} * {f}" for f in flow))
+        for j in range(k):
+            wf = " + ".join(f"{self._w(i, j)} * {flow[i]}" for i in range(2 * n))
+            self(f"lr = math.log(r{j})", f"sv = u{j}_0 + lr",
+                 f"u{j}_0 = sv if ok else u{j}_0",
+                 f"u{j}_1 = u{j}_1 + t * lr if ok else u{j}_1",
+                 f"u{j}_2 = u{j}_2 + 2.0 * u{j}_1 / t if ok else u{j}_2",
+                 f"u{j}_3 = sv if ok and sv > u{j}_3 else u{j}_3",
+                 f"wf = {wf}",
+                 "perp = 1.0 - wf * wf / ff if ff > 0.0 else 1.0",
+                 "o = sv + 0.5 * math.log(perp)",
+                 f"u{j}_4 = o if ok and perp > 0.0 and o > u{j}_4 else u{j}_4")
+
+    def lane_aux_out(self, j, target):
+        """Copy vector ``j``'s inline accumulator columns of lane ``b`` to
+        ``target`` (a format string of vector and column)."""
+        col = self.faux + j * self.ncols
+        if self.plan.inline == "fli":
+            self.fli_readout(target.replace("{}", str(j), 1), f"F[{self.fam + j}, b]",
+                             f"I[{self.iae + j}, b]", f"F[{col + 2}, b]", f"F[{col + 3}, b]")
+            return
+        for c in range(self.ncols):
+            self(f"{target.format(j, c)} = F[{col + c}, b]")
+
     def lane_schedule(self):
-        """The adaptive schedule of every lane that was renormalised (a
+        """The sparse schedule of every lane that was renormalised (a
         scalar loop: it takes logarithms, rarely)."""
         k = self.k
-        logs = [f"math.log(R[{j}, b])" for j in range(k)]
+        logs = [f"math.log(F[{self.fr + j}, b])" for j in range(k)]
         self("if every != 0:")
         self.indent()
         self("for b in range(nb):")
         self.indent()
-        self("if R[0, b] == 0.0:", "    continue", "if every < 0:")
+        self(f"if F[{self.fr}, b] == 0.0:", "    continue", "if every < 0:")
         self.indent()
         self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         if k > 1:
             self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
         else:
             self("spread = 0.0")
-        self("itv[b] = next_interval(max(step - (nxt[b] - itv[b]), 1), lmax, spread)")
+        self(f"itv[b] = next_interval(max(step - (I[{self.inxt}, b] - itv[b]), 1), lmax, spread)")
         self.dedent()
-        self("else:", "    itv[b] = every", "nxt[b] = step + itv[b]")
+        self("else:", "    itv[b] = every", f"I[{self.inxt}, b] = step + itv[b]")
         self.dedent()
         self.dedent()
 
+    def lane_accumulate(self, kinds):
+        """An indicator's own accumulator, lane by lane (a scalar loop: it
+        calls the indicator's compiled update)."""
+        n, k = self.n, self.k
+        self("for b in range(nb):")
+        self.indent()
+        self("if I[0, b] != 0:", "    continue")
+        for j in range(k):
+            self(f"rbuf[{j}] = F[{self.fr + j}, b]")
+        for i in range(2 * n):
+            self(f"xbuf[{i}] = F[{i}, b]")
+            for j in range(k):
+                self(f"Wbuf[{i}, {j}] = F[{self.fw + i * k + j}, b]")
+        if self.plan.flow:
+            self("code = 0", "fstep = 0")
+            if kinds[-1] == DRIFT or not self.reuse:
+                for i in range(n):
+                    self(f"q{i} = F[{i}, b]")
+                self.derivatives("f", {"g"}, lane=True)
+                self("I[0, b] = code", "I[1, b] = fstep")
+            else:
+                for c, name in enumerate(self.reuse[:n]):
+                    self(f"{name} = F[{self.fd + c}, b]")
+            for i in range(n):
+                m = self.E.minv[i]
+                self(f"flowbuf[{i}] = F[{n + i}, b]" if m == 1.0
+                     else f"flowbuf[{i}] = {m!r} * F[{n + i}, b]",
+                     f"flowbuf[{n + i}] = -g{i}")
+        self("accumulate(aux[b], rbuf, xbuf, Wbuf, flowbuf, step * tau)")
+        self.dedent()
+
     def lanes(self):
-        """``lanes``: a block of orbits in structure-of-arrays layout (the
-        orbit index innermost, so every stage is a loop over orbits that
-        vectorises), each orbit with the arithmetic of ``orbit`` — bitwise
-        its results, with the same renormalisation schedule. A lane that
-        fails is marked (``st``, ``fs``) and goes on being computed; the
-        caller recomputes it exactly with ``orbit``."""
+        """``lanes``: a block of at most LANE_WIDTH orbits (the orbit index
+        innermost), each step one loop over the lanes that does the whole
+        step of each orbit with the arithmetic of ``orbit`` — bitwise its
+        results, with the same renormalisation schedule. A lane that fails
+        is marked (``st``, ``fs``) and goes on being computed; the caller
+        recomputes it exactly with ``orbit``."""
         E, plan, n, k = self.E, self.plan, self.n, self.k
         kinds = plan.kinds
+        self.lane_layout()
+        inline = bool(plan.inline)
+        rows = self.lane_rows()
         self("", "",
              "@njit(cache=True, error_model='numpy', nogil=True)",
              "def lanes(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, escape_r2, mode,"
@@ -699,76 +854,79 @@ class _Emitter:
             if plan.corrected[stage]:
                 self(f"hc{stage} = hc[{stage}]")
         self("nb = X.shape[1]",
-             f"Dg = np.zeros(({n}, nb))", f"Dgc = np.zeros(({n}, nb))",
-             f"DH = np.zeros(({max(len(E.H), 1)}, nb))",
-             f"DHC = np.zeros(({max(len(E.HC), 1)}, nb))",
-             f"R = np.ones(({max(k, 1)}, nb))")
-        if plan.accumulator:
+             "if nb > LANE_WIDTH:",
+             "    raise ValueError('a block of lanes is at most LANE_WIDTH orbits wide')",
+             f"F = np.zeros(({self.nf}, LANE_WIDTH))",
+             f"I = np.zeros(({self.ni}, LANE_WIDTH), dtype=np.int64)",
+             "renorm = mode != NONE", "s = 0", "step = step0")
+        if plan.accumulator and not inline:
             self(f"rbuf = np.empty({k})", f"xbuf = np.empty({2 * n})",
                  f"Wbuf = np.empty(({2 * n}, {k}))",
                  f"flowbuf = np.empty({2 * n if plan.flow else 0})")
+        # In: the caller's block into F and I.
+        self("for b in range(nb):")
+        self.indent()
+        for i in range(2 * n):
+            self(f"F[{i}, b] = X[{i}, b]")
+            for j in range(k):
+                self(f"F[{self.fw + i * k + j}, b] = W[{i}, {j}, b]")
+        for j in range(k):
+            self(f"F[{self.fam + j}, b] = am[{j}, b]", f"I[{self.iae + j}, b] = ae[{j}, b]")
+            for c in range(self.ncols):
+                self(f"F[{self.faux + j * self.ncols + c}, b] = aux[b, {j}, {c}]")
+        self("I[0, b] = st[b]", "I[1, b] = fs[b]", f"I[{self.inxt}, b] = nxt[b]")
+        if self.reuse:
+            # The first kick's values at the starting q.
+            for i in range(n):
+                self(f"q{i} = F[{i}, b]")
+            self("code = I[0, b]", "fstep = I[1, b]")
+            self.derivatives(0, self.needs(plan.corrected[0]), lane=True)
+            for c, name in enumerate(self.reuse):
+                self(f"F[{self.fd + c}, b] = {name}")
+            self("I[0, b] = code", "I[1, b] = fstep")
+        self.dedent()
         self("jo = 0", "while jo < outs.shape[0] and outs[jo] <= step0:", "    jo += 1",
              "for s in range(n_steps):")
         self.indent()
-        self("step = step0 + s + 1")
-        reuse_first = kinds[0] != DRIFT and kinds[-1] != DRIFT
-        for stage, kind in enumerate(kinds):
-            self("for b in range(nb):")
-            self.indent()
-            if kind == DRIFT:
-                for i in range(n):
-                    m = E.minv[i]
-                    hh = f"h{stage}" if m == 1.0 else f"(h{stage} * {m!r})"
-                    self(f"X[{i}, b] += {hh} * X[{n + i}, b]")
-                    for j in range(k):
-                        self(f"W[{i}, {j}, b] += {hh} * W[{n + i}, {j}, b]")
-                self.dedent()
-                continue
-            corrected = plan.corrected[stage]
-            what = self.needs(corrected)
-            if stage == 0 and reuse_first:
-                # After s = 0 the last kick's values are those at this q.
-                self("if s == 0:")
-                self.indent()
-                self.lane_derivatives(stage, what)
-                self.dedent()
-            else:
-                self.lane_derivatives(stage, what)
-            self.lane_kick(stage, corrected)
-            self.dedent()
-        # End of the step: the checks of orbit_status.
+        self("step = step0 + s + 1", "chk = step % CHECK_EVERY == 0")
+        if inline:
+            self("t = step * tau")
         self("for b in range(nb):")
         self.indent()
-        self("rq = " + " + ".join(f"X[{i}, b] * X[{i}, b]" for i in range(n)),
-             "rp = " + " + ".join(f"X[{n + i}, b] * X[{n + i}, b]" for i in range(n)),
-             "if st[b] == 0:",
-             "    if rq > escape_r2:",
-             f"        st[b] = {_ESCAPED}",
-             "        fs[b] = s",
-             "    elif not (rq + rp < np.inf):",
-             f"        st[b] = {_NONFINITE}",
-             "        fs[b] = s")
+        for local, row in rows:
+            self(f"{local} = {row}")
+        for stage, kind in enumerate(kinds):
+            if kind == DRIFT:
+                self.drift(stage)
+                continue
+            corrected = plan.corrected[stage]
+            if not (stage == 0 and self.reuse):
+                self.derivatives(stage, self.needs(corrected), lane=True)
+            self.kick(stage, corrected, count=False)
+        # The end-of-step checks of orbit_status.
+        self("rq = " + " + ".join(f"{v} * {v}" for v in self.q),
+             "rp = " + " + ".join(f"{v} * {v}" for v in self.p))
+        self.lane_fail("rq > escape_r2", _ESCAPED)
+        self.lane_fail("not (rq + rp < np.inf)", _NONFINITE)
+        if k:
+            self.lane_renormalize()
+            if inline:
+                self.lane_inline(kinds)
+        for local, row in rows:
+            self(f"{row} = {local}")
         self.dedent()
         if k:
-            self("if mode != NONE:")
+            self("if renorm:")
             self.indent()
-            self("for b in range(nb):")
-            self.indent()
-            self.lane_renormalize()
-            self.dedent()
             self.lane_schedule()
-            if plan.accumulator:
+            if plan.accumulator and not inline:
                 self.lane_accumulate(kinds)
             self.dedent()
-            self("elif step % CHECK_EVERY == 0:")
-            self.indent()
-            self("for b in range(nb):")
-            self.indent()
-            big = " or ".join(f"not (abs(W[{i}, {j}, b]) < TANGENT_LIMIT)"
-                              for i in range(2 * n) for j in range(k))
-            self(f"if ({big}) and st[b] == 0:", f"    st[b] = {_OVERFLOW}", "    fs[b] = s")
-            self.dedent()
-            self.dedent()
+            big = " or ".join(f"not (abs(F[{self.fw + c}, b]) < TANGENT_LIMIT)"
+                              for c in range(2 * n * k))
+            self("elif chk:", "    for b in range(nb):",
+                 f"        if ({big}) and I[0, b] == 0:",
+                 f"            I[0, b] = {_OVERFLOW}", "            I[1, b] = s")
         # Output steps: copy every lane (raw vectors are checked there, as
         # in orbit).
         self("if jo < outs.shape[0] and step == outs[jo]:")
@@ -776,23 +934,37 @@ class _Emitter:
         self("for b in range(nb):")
         self.indent()
         if k:
-            big = " or ".join(f"not (abs(W[{i}, {j}, b]) < TANGENT_LIMIT)"
-                              for i in range(2 * n) for j in range(k))
-            self(f"if mode == NONE and ({big}) and st[b] == 0:", f"    st[b] = {_OVERFLOW}",
-                 "    fs[b] = s")
+            big = " or ".join(f"not (abs(F[{self.fw + c}, b]) < TANGENT_LIMIT)"
+                              for c in range(2 * n * k))
+            self(f"if mode == NONE and ({big}) and I[0, b] == 0:",
+                 f"    I[0, b] = {_OVERFLOW}", "    I[1, b] = s")
         for i in range(2 * n):
-            self(f"snap_x[jo, {i}, b] = X[{i}, b]")
+            self(f"snap_x[jo, {i}, b] = F[{i}, b]")
             for j in range(k):
-                self(f"snap_W[jo, {i}, {j}, b] = W[{i}, {j}, b]")
+                self(f"snap_W[jo, {i}, {j}, b] = F[{self.fw + i * k + j}, b]")
         for j in range(k):
-            self(f"snap_m[jo, {j}, b] = am[{j}, b]", f"snap_e[jo, {j}, b] = ae[{j}, b]")
-        if plan.accumulator:
+            self(f"snap_m[jo, {j}, b] = F[{self.fam + j}, b]",
+                 f"snap_e[jo, {j}, b] = I[{self.iae + j}, b]")
+            self.lane_aux_out(j, "snap_aux[jo, b, {}, {}]")
+        if plan.accumulator and not inline:
             self("for jj in range(aux.shape[1]):",
                  "    for cc in range(aux.shape[2]):",
                  "        snap_aux[jo, b, jj, cc] = aux[b, jj, cc]")
         self.dedent()
         self("jo += 1")
         self.dedent()
+        self.dedent()
+        # Out: F and I back into the caller's block.
+        self("for b in range(nb):")
+        self.indent()
+        for i in range(2 * n):
+            self(f"X[{i}, b] = F[{i}, b]")
+            for j in range(k):
+                self(f"W[{i}, {j}, b] = F[{self.fw + i * k + j}, b]")
+        for j in range(k):
+            self(f"am[{j}, b] = F[{self.fam + j}, b]", f"ae[{j}, b] = I[{self.iae + j}, b]")
+            self.lane_aux_out(j, "aux[b, {}, {}]")
+        self("st[b] = I[0, b]", "fs[b] = I[1, b]", f"nxt[b] = I[{self.inxt}, b]")
         self.dedent()
         self.dedent()
         for name, parallel in (("blocks_serial", False), ("blocks_parallel", True)):
@@ -814,30 +986,6 @@ class _Emitter:
             if parallel:
                 self("set_parallel_chunksize(old)")
             self.dedent()
-
-    def lane_accumulate(self, kinds):
-        """The accumulator, lane by lane (a scalar loop: it is the
-        indicator's own code)."""
-        n, k = self.n, self.k
-        self("for b in range(nb):")
-        self.indent()
-        self("if st[b] != 0:", "    continue")
-        for j in range(k):
-            self(f"rbuf[{j}] = R[{j}, b]")
-        for i in range(2 * n):
-            self(f"xbuf[{i}] = X[{i}, b]")
-            for j in range(k):
-                self(f"Wbuf[{i}, {j}] = W[{i}, {j}, b]")
-        if self.plan.flow:
-            if kinds[-1] == DRIFT:
-                self.lane_derivatives("f", {"g"})
-            for i in range(n):
-                m = self.E.minv[i]
-                self(f"flowbuf[{i}] = X[{n + i}, b]" if m == 1.0
-                     else f"flowbuf[{i}] = {m!r} * X[{n + i}, b]",
-                     f"flowbuf[{n + i}] = -Dg[{i}, b]")
-        self("accumulate(aux[b], rbuf, xbuf, Wbuf, flowbuf, step * tau)")
-        self.dedent()
 
 
 def generated_source(E, plan):
@@ -935,11 +1083,11 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
         step (0), on the adaptive schedule of :func:`next_interval` (−1), or
         every ``every`` steps.
     """
-    E = _model_expressions(model)
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
                 k=int(k), accumulator="" if accumulator is None else _function_id(accumulator.update),
-                flow=bool(accumulator is not None and accumulator.needs_flow))
-    source = generated_source(E, plan)
+                flow=bool(accumulator is not None and accumulator.needs_flow),
+                inline=_inline_kind(accumulator))
+    source = _source(_model_key(model), plan)
     extra = {"next_interval": next_interval}
     if accumulator is not None:
         extra["accumulate"] = accumulator.update

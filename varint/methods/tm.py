@@ -133,7 +133,7 @@ class TangentMapPropagator:
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
     #: state stays in the L1 cache.
-    LANES = 64
+    LANES = G.LANE_WIDTH
     #: Fewer orbits than one vector's width run one at a time: lanes would
     #: compute padding.
     MIN_LANES = 8
