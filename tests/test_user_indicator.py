@@ -44,11 +44,12 @@ def test_laws_in_a_single_run(angle):
 
 def test_in_a_chaos_map_as_in_single_runs(angle):
     """The map's value of each orbit is the single run's last value, bit
-    for bit (same seeds: orbit m draws from default_rng([seed, m]))."""
+    for bit (same seeds: orbit m draws from default_rng([seed, m]); the
+    same step, given: a map's automatic step has defaults of its own)."""
     model = varint.models.HenonHeiles()
     x0 = np.array([varint.paper_orbit("R1")[1], varint.paper_orbit("C1")[1]])
-    m = varint.chaos_map(model, x0, angle, t_end=300.0, threshold=None)
-    one = varint.run(model, x0, angle, t_end=300.0, t_out=np.array([300.0]))
+    m = varint.chaos_map(model, x0, angle, t_end=300.0, tau=0.05, threshold=None)
+    one = varint.run(model, x0, angle, t_end=300.0, tau=0.05, t_out=np.array([300.0]))
     np.testing.assert_array_equal(m.values, one["angle"][:, -1])
 
 
@@ -69,7 +70,7 @@ def test_early_stopping_reads_renormalised_vectors(angle):
     bit, and the chaotic one is stopped below the threshold."""
     model = varint.models.HenonHeiles()
     x0 = np.array([varint.paper_orbit("R1")[1], varint.paper_orbit("C1")[1]])
-    m = varint.chaos_map(model, x0, angle, t_end=1500.0)
-    one = varint.run(model, x0[0], angle, t_end=1500.0, t_out=np.array([1500.0]))
+    m = varint.chaos_map(model, x0, angle, t_end=1500.0, tau=0.05)
+    one = varint.run(model, x0[0], angle, t_end=1500.0, tau=0.05, t_out=np.array([1500.0]))
     assert m.values[0] == one["angle"][-1]
     assert m.decided[1] and m.values[1] < 1e-8

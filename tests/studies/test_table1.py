@@ -56,10 +56,10 @@ def test_no_row_is_projected(quick):
     assert tm["cpu_ratio"] == 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="5 of the 7 DOP853 rows to 1e8 (about 3.5 h of CPU, "
-                   "studies/results/table1_cost.md; rows 8 and 10 are stored) have not been "
-                   "run with the compiled engine yet, and the stored table is the one with "
-                   "projected rows. Strict: once "
+@pytest.mark.xfail(strict=True, reason="4 of the 7 DOP853 rows to 1e8 (rows 1, 6, 7, 9; "
+                   "studies/results/table1_cost.md; rows 8, 10 and 11 are stored) have not "
+                   "been run with the compiled engine yet, and the stored table is the one "
+                   "with projected rows. Strict: once "
                    "the full table is stored this passes and the marker must go")
 def test_stored_table_is_measured_to_1e8():
     # The committed full run: all 17 rows to the paper's horizon, each

@@ -990,9 +990,9 @@ class _Emitter:
 
 def generated_source(E, plan):
     """The Python source of the stepper for expressions ``E`` and ``plan``.
-    Its first line names the generator's own code, so that the file (whose
-    name is the hash of its source) changes when the code it calls or
-    inlines does: numba's cache does not follow a changed dependency."""
+    Its first line names the generator's own code, as the file's name does
+    (:func:`symbolic_stepper`): numba's cache does not follow a changed
+    dependency, so a changed generator must write a new file."""
     return f"# varint generator {_generator_id()}\n" + _Emitter(E, plan).source()
 
 
@@ -1014,10 +1014,11 @@ def _generator_id():
 _LOADED = {}
 
 
-def _load(source, extra_globals):
-    """Import the generated module (written once, atomically, to the cache
-    directory under the hash of its source) with ``extra_globals`` set."""
-    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+def _load(digest, make_source, extra_globals):
+    """Import the generated module ``varint_stepper_<digest>`` with
+    ``extra_globals`` set. Its file in the cache directory is written once,
+    atomically, from ``make_source()``; afterwards the source is not emitted
+    again (the digest names everything it is made from)."""
     if digest in _LOADED:
         return _LOADED[digest]
     from ..cache import cache_dir
@@ -1027,14 +1028,14 @@ def _load(source, extra_globals):
         folder = cache_dir() / "kernels"
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{name}.py"
-        if not path.exists() or path.read_text() != source:
-            atomic_write(path, source)
+        if not path.exists():
+            atomic_write(path, make_source())
     except OSError as exc:
         # An unwritable cache costs the on-disk kernel cache, not the run.
         warnings.warn(f"cannot write generated kernels to {cache_dir()} ({exc}); compiling "
                       "them in a temporary directory", RuntimeWarning, stacklevel=4)
         path = Path(tempfile.mkdtemp(prefix="varint-")) / f"{name}.py"
-        path.write_text(source)
+        path.write_text(make_source())
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     module.__dict__.update(extra_globals)
@@ -1087,11 +1088,14 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
                 k=int(k), accumulator="" if accumulator is None else _function_id(accumulator.update),
                 flow=bool(accumulator is not None and accumulator.needs_flow),
                 inline=_inline_kind(accumulator))
-    source = _source(_model_key(model), plan)
+    key = _model_key(model)
+    # The generator's code, the model's potential and masses, and the plan
+    # (scheme, k, accumulator's code) determine the source.
+    digest = hashlib.sha256(f"{_generator_id()}|{key}|{plan}".encode()).hexdigest()[:24]
     extra = {"next_interval": next_interval}
     if accumulator is not None:
         extra["accumulate"] = accumulator.update
-    return _load(source, extra)
+    return _load(digest, lambda: _source(key, plan), extra)
 
 
 def step_counts(kinds, corrected, k, flow=False):
