@@ -248,6 +248,25 @@ def _divide(t_end, tau):
     return t_end / math.ceil(t_end / tau * (1 - 1e-12))
 
 
+def _pilot_by_checks(prop, advance, state, checks, tau, reference):
+    """Per orbit, the largest error at the ``checks`` steps, advancing to
+    each in turn (propagators that take no snapshots)."""
+    worst = np.zeros(state.n_orbits)
+    with np.errstate(all="ignore"):
+        for s in checks:
+            advance(prop, state, int(s - state.step))
+            ok = state.status == Status.OK
+            errs = reference.errors(state.x, state.step * tau,
+                                    state.extra.get(TIME_MOMENTUM, 0.0))
+            e = np.max(np.stack(list(errs.values())), axis=0)
+            worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
+            blown = (state.status > Status.OK) & (state.status != Status.ESCAPED)
+            worst[blown] = np.inf
+            if not ok.any():
+                break
+    return worst
+
+
 def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     """The ``quantile`` over orbits of the largest relative error of the
     conserved quantities along a pilot with step ``tau`` (inf if an orbit
@@ -263,7 +282,6 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     if accumulator is not None:
         state.extra[accumulator.key] = np.tile(np.array(accumulator.initial, dtype=np.float64),
                                                (len(X), W0.shape[2], 1))
-    worst = np.zeros(len(X))
     if advance is _advance and prop.takes_snapshots(state):
         # One compiled call copies the state at every check.
         snaps = advance(prop, state, n, checks)
@@ -275,19 +293,8 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
         taken = np.isfinite(snaps.x).all(axis=2)
         worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
         worst[(state.status > Status.OK) & (state.status != Status.ESCAPED)] = np.inf
-        checks = ()
-    with np.errstate(all="ignore"):
-        for s in checks:
-            advance(prop, state, int(s - state.step))
-            ok = state.status == Status.OK
-            errs = reference.errors(state.x, state.step * tau,
-                                    state.extra.get(TIME_MOMENTUM, 0.0))
-            e = np.max(np.stack(list(errs.values())), axis=0)
-            worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
-            blown = (state.status > Status.OK) & (state.status != Status.ESCAPED)
-            worst[blown] = np.inf
-            if not ok.any():
-                break
+    else:
+        worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
     for key, value in state.counts.items():
         counts[key] = counts.get(key, 0) + int(value)
     return float(np.quantile(worst, quantile, method="higher"))
