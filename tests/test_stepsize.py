@@ -107,7 +107,7 @@ def test_escaping_orbits_count_up_to_their_escape():
 
 
 def test_maps_choose_their_step_from_a_sample_with_the_map_defaults():
-    from varint.maps import MAP_PILOT_TOL, MAP_SCHEME
+    from varint.maps import MAP_PILOT_TOL, MAP_SCHEME, pilot_tolerance
 
     model = varint.models.HenonHeiles()
     grid = varint.section_grid(model, 0.125, np.linspace(-0.4, 0.6, 8), np.linspace(-0.4, 0.4, 8))
@@ -115,7 +115,10 @@ def test_maps_choose_their_step_from_a_sample_with_the_map_defaults():
         warnings.simplefilter("error", AccuracyWarning)
         r = varint.chaos_map(model, grid, "sali", t_end=100.0, progress=False)
     choice = r.provenance.tau_choice
-    assert choice["rule"] == "pilot" and choice["tolerance"] == MAP_PILOT_TOL
+    # SALI declares a tighter pilot tolerance than the maps' default.
+    assert choice["rule"] == "pilot" and choice["tolerance"] == 1e-8 < MAP_PILOT_TOL
+    assert pilot_tolerance(varint.indicators.resolve("sali")[0]) == 1e-8
+    assert pilot_tolerance(varint.indicators.resolve("fli")[0]) == MAP_PILOT_TOL
     assert choice["scheme"] == r.provenance.method_options["scheme"]["name"] == MAP_SCHEME
     assert choice["orbits"] == min(len(grid), stepsize.PILOT_ORBITS)
     assert choice["quantile"] == 0.9

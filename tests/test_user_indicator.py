@@ -74,3 +74,29 @@ def test_early_stopping_reads_renormalised_vectors(angle):
     one = varint.run(model, x0[0], angle, t_end=1500.0, tau=0.05, t_out=np.array([1500.0]))
     assert m.values[0] == one["angle"][-1]
     assert m.decided[1] and m.values[1] < 1e-8
+
+
+def test_a_declared_map_tolerance_sets_the_maps_pilot():
+    """An indicator that declares ``map_tolerance`` has its maps' step
+    chosen to that energy error; the step is smaller than at the maps'
+    default tolerance (error ∝ τ^p), and a meaningless tolerance is refused
+    when the indicator is built."""
+    from varint.maps import MAP_PILOT_TOL
+
+    fields = dict(summary="smaller angle", renorm="normalize",
+                  vectors=lambda model, options, given: 2, read=_read_angle,
+                  result=IndicatorResult, require="unit",
+                  scalar=lambda record, model, options: record["angle"])
+    if "user_angle_tight" not in INDICATORS:
+        varint.register_indicator(Indicator(name="user_angle_tight", map_tolerance=1e-10,
+                                            **fields))
+    model = varint.models.HenonHeiles()
+    grid = varint.section_grid(model, 0.125, np.linspace(-0.3, 0.5, 4), np.linspace(-0.3, 0.3, 4))
+    tight = varint.chaos_map(model, grid, "user_angle_tight", t_end=50.0, progress=False)
+    fli = varint.chaos_map(model, grid, "fli", t_end=50.0, progress=False)
+    assert tight.provenance.tau_choice["tolerance"] == 1e-10
+    assert fli.provenance.tau_choice["tolerance"] == MAP_PILOT_TOL
+    assert tight.provenance.tau < fli.provenance.tau
+    for bad in (0.0, -1e-8, float("inf"), "1e-8"):
+        with pytest.raises(ValueError, match="map_tolerance must be a positive finite"):
+            Indicator(name="bad_tolerance", map_tolerance=bad, **fields)

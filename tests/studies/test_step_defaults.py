@@ -40,8 +40,10 @@ def test_energy_tolerance_quick(tmp_path):
 def test_map_defaults_quick(tmp_path):
     res = map_defaults.main(["--quick", "--out", str(tmp_path)])
     assert min(res["floor"].values()) >= 0.99  # two tight maps classify alike
+    assert res["rows"][1]["note"] == "peer"  # heyoka's batch mode sets the bar too
+    assert all(res["needed"][i] >= res["rows"][1][f"agree_{i}"] for i in res["needed"])
     piloted = {}
-    for r in res["rows"][1:]:
+    for r in res["rows"][2:]:
         piloted.setdefault(r["scheme"], []).append(r)
     for scheme, (loose, tight) in piloted.items():
         # A tighter pilot tolerance gives a smaller step and classifies at

@@ -23,6 +23,7 @@ then compute it with every method, with no other change. See
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -145,6 +146,11 @@ class Indicator:
         What the indicator does on regular and chaotic orbits (for the
         documentation).
     references : tuple of str
+    map_tolerance : float or None
+        The energy error a chaos map's pilot must meet when it chooses the
+        step for this indicator, if its classification needs a tighter one
+        than :data:`varint.maps.MAP_PILOT_TOL` (measured in
+        ``studies/map_defaults.py``); None: the maps' default.
     """
 
     name: str
@@ -165,6 +171,7 @@ class Indicator:
     count_option: str | None = None
     laws: str = ""
     references: tuple = ()
+    map_tolerance: float | None = None
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and re.fullmatch(r"[a-z][a-z0-9_]*", self.name)):
@@ -189,6 +196,10 @@ class Indicator:
         if acc is not None and self.renorm == Renorm.NONE:
             raise ValueError(f"indicator {self.name!r}: an accumulator needs renormalised "
                              "vectors (renorm 'qr' or 'normalize')")
+        tol = self.map_tolerance
+        if tol is not None and not (isinstance(tol, (int, float)) and 0 < tol < math.inf):
+            raise ValueError(f"indicator {self.name!r}: map_tolerance must be a positive "
+                             f"finite energy error or None, got {tol!r}")
         if self.finish is _no_finish and issubclass(self.result, IndicatorResult):
             object.__setattr__(self, "finish", as_values)
         # A plain dict (a copy): indicators travel to Dask workers by pickle.
