@@ -140,8 +140,11 @@ BAD_ARGUMENTS = [
     (["run", "sali", *R1, "--k", "2"], 2, "--k applies to lyapunov and gali, not sali"),
     (["run", "sali", *R1, "--t-out", "2.5"], 2, "--t-out: expected a positive integer, got '2.5'"),
     (["run", "sali", *R1, "--t-out", "0"], 2, "--t-out: expected a positive integer, got '0'"),
-    (["run", "sali", *R1, "--t-end", "1", "--t-out", "1000"], 2,
+    (["run", "sali", *R1, "--t-end", "1", "--t-out", "1000", "--tau", "0.05"], 2,
      "--t-out 1000 asks for more output times than the run has steps"),
+    # With the automatic step, the run refuses them once the step is chosen.
+    (["run", "sali", *R1, "--t-end", "1", "--t-out", "1000"], 2,
+     "t_out = 1000 output times, more than the 8 steps of the run (t_end / tau = 1 / 0.125)"),
     (["run", "sali", *R1, "--seed", "1.5"], 2, "--seed: expected an integer >= 0, got '1.5'"),
     (["run", "sali", *R1, "--seed", "-1"], 2, "--seed: expected an integer >= 0, got '-1'"),
     (["run", "sali", "--model", "fpu-beta", "--fpu-n", "3.7"], 2,
@@ -164,7 +167,10 @@ BAD_ARGUMENTS = [
     (["run", "sali", *R1, "--t-end", "-inf"], 2, "--t-end: expected a positive finite number"),
     (["run", "sali", *R1, "--tau", "1e-300"], 2,
      "--t-end 10000 / --tau 1e-300 is 1e+304 steps, more than the 1e+11 a command runs"),
-    (["run", "sali", *R1, "--t-end", "1e300"], 2, "is 2e+301 steps, more than the 1e+11"),
+    (["run", "sali", *R1, "--t-end", "1e300"], 2, "--t-end 1e+300 takes more than the 1e+11 "
+     "steps a command runs even at the largest automatic step (1)"),
+    (["run", "sali", *R1, "--t-end", "1e300", "--tau", "0.05"], 2,
+     "is 2e+301 steps, more than the 1e+11"),
     (["run", "sali", *R1, "--tau", "1", "--t-end", "0.5"], 2,
      "t_end = 0.5 is shorter than one step tau = 1.0"),
     (["run", "sali", *R1, "--tau", "0.05abc"], 2, "--tau: expected a positive finite number"),
@@ -243,7 +249,7 @@ BAD_ARGUMENTS = [
     ([*MAP, "--scheduler", ""], 2, "--scheduler must be an address"),
     ([*MAP, "--energy", "-1", "--u=0:0.1:2", "--v=0:0.1:2"], 2,
      "the section grid holds no allowed point"),
-    ([*MAP, "--t-end", "1e300"], 2, "steps, more than the 1e+11"),
+    ([*MAP, "--t-end", "1e300"], 2, "takes more than the 1e+11 steps a command runs"),
     # -- select, demo, study
     (["select", *R1, "--target", "0"], 2, "--target: expected a positive finite number"),
     (["select", *R1, "--target", "-1e-8"], 2, "--target: expected a positive finite number"),
@@ -262,9 +268,12 @@ BAD_ARGUMENTS = [
     (["run", "sali", *R1, "--csv", "/tmp/no such dir/x.csv"], 2,
      "directory /tmp/no such dir does not exist"),
     (["run", "lyapunov", *R1, "--k", "-1"], 2, "--k must be an integer in 1..4, got '-1'"),
+    (["run", "lyapunov", *R1, "--t-end", "1", "--t-out", "99999999999999999999", "--tau",
+      "0.05"], 2, "asks for more output times than the run has steps (--t-end / --tau = 20)"),
     (["run", "lyapunov", *R1, "--t-end", "1", "--t-out", "99999999999999999999"], 2,
-     "asks for more output times than the run has steps (--t-end / --tau = 20)"),
-    (["run", "sali", *R1, "--t-end", "0.0499999"], 2, "is shorter than one step tau = 0.05"),
+     "with 99999999999999999999 outputs needs about"),
+    (["run", "sali", *R1, "--t-end", "0.0499999", "--tau", "0.05"], 2,
+     "is shorter than one step tau = 0.05"),
     (["run", "sali", *HH, "--energy", "1e308"], 2,
      "--energy 1e+308 gives a momentum p[0] = inf beyond the range of a double"),
     (["run", "sali", *HH, "--x0", "1e200,0,0,0"], 2,
@@ -399,7 +408,7 @@ def test_run_an_indicator_of_a_potential(capsys, tmp_path):
     assert rows[0] == ["t", "energy_error", "sali"]
     # The same run through the API, on the built-in model: same values.
     model, x0 = varint.paper_orbit("R1")
-    ref = varint.sali(model, x0, 5.0, tau=0.05)  # the command's --tau default
+    ref = varint.sali(model, x0, 5.0)  # the automatic step, as the command's
     assert np.allclose([float(r[2]) for r in rows[1:]], ref.sali, rtol=1e-12)
     assert (tmp_path / "r.png").stat().st_size > 1000
 
@@ -427,7 +436,7 @@ def test_run_every_other_indicator(capsys, tmp_path, indicator, column):
     assert column in rows[0] and len(rows) == 5
     if indicator == "integrate":
         ref = varint.integrate(varint.models.HenonHeiles(), [-0.1, 0.2, -0.05, 0.1], 2.0,
-                               tau=0.05, t_out=4)
+                               t_out=4)
         assert np.allclose([float(v) for v in rows[-1][2:6]], ref.states[-1], rtol=1e-14)
 
 
@@ -469,7 +478,8 @@ def test_run_and_map_a_driven_pendulum(capsys, tmp_path):
                                    "--csv", str(tmp_path / "s.csv")])
     assert code == 0, err
     rows = _rows(tmp_path / "s.csv")
-    assert float(rows[-1][2]) < 1e-8 and float(rows[-1][1]) < 1e-6
+    # The automatic step keeps the pilot's energy error within 1e-5.
+    assert float(rows[-1][2]) < 1e-8 and float(rows[-1][1]) < 1e-4
     code, out, err = _run(capsys, ["map", *pot, "--u", "-3:3:3", "--v", "-2.5:2.5:3",
                                    "--indicator", "x1", "--t-end", "100"])
     assert code == 0, err

@@ -555,31 +555,32 @@ def _vectors(args, model):
 
 
 def _cmd_run(args):
-    from .api import gali, integrate, lyapunov_spectrum, megno, sali
+    from .run import prepare
 
     _check_outputs(args)
     model, x0 = _model(args)
-    t_end, tau, steps = _horizon(args.t_end, _tau(args, model))
-    if args.t_out is not None and args.t_out > steps:
-        raise ValueError(f"--t-out {args.t_out} asks for more output times than the run has "
-                         f"steps (--t-end / --tau = {steps})")
+    tau = _tau(args, model)
+    # The command's limits on the horizon, before anything runs; with the
+    # automatic step they are checked again once the pilot has chosen it.
+    steps = _steps(args, tau)
     x0 = _state(args, model, x0)
     _check_kernels(model, x0)
     k, kind_options = _vectors(args, model)
     n_out = args.t_out or 10 * math.ceil(math.log10(steps) + 1)
     _check_run_size(model, k, n_out, f"a run of {k} vectors of {model.name} with {n_out} "
                     "outputs")
-    opts = dict(_method_options(args), tau=tau, t_out=args.t_out, progress=None)
+    opts = dict(_method_options(args), t_out=args.t_out, progress=None)
     if args.indicator != "integrate":
         opts["seed"] = args.seed
-    if args.indicator in ("x1", "fli"):
-        from .run import run as generic
-
-        r = generic(model, x0, args.indicator, t_end, **opts)
-    else:
-        run = {"lyapunov": lyapunov_spectrum, "gali": gali, "sali": sali, "megno": megno,
-               "integrate": integrate}[args.indicator]
-        r = run(model, x0, t_end, **kind_options, **opts)
+    # A pilot that finds no step warns; if the run then fails, its error
+    # says why (the orbit escapes, V is singular) and the note is dropped.
+    with warnings.catch_warnings(record=True) as notes:
+        job = prepare(model, x0, args.indicator, args.t_end, tau, **kind_options, **opts)
+    if tau is None:
+        _steps(args, job.tau)
+    r = job.execute()
+    for note in notes:
+        warnings.showwarning(note.message, note.category, note.filename, note.lineno)
     if r.interrupted and len(r.t) == 0:
         raise KeyboardInterrupt
     print(r.summary())
@@ -590,11 +591,38 @@ def _cmd_run(args):
                                                          else ""))
 
 
+def _steps(args, tau):
+    """The run's steps of ``tau``, with --t-end and --t-out checked against
+    them. For the automatic step (None), before its pilot has run: --t-end
+    against the largest step the pilot may choose, and the steps at
+    τ = 0.05 as an estimate (for the number of default output times); the
+    run is checked again with the step chosen."""
+    if tau is None:
+        from .stepsize import FALLBACK_TAU, TAU_MAX
+
+        t_end = check.positive_float(args.t_end, "--t-end")
+        if t_end / TAU_MAX > MAX_STEPS:
+            raise ValueError(f"--t-end {t_end:g} takes more than the {MAX_STEPS:.0e} steps a "
+                             f"command runs even at the largest automatic step ({TAU_MAX:g}); "
+                             "use a shorter --t-end")
+        return max(1, round(t_end / FALLBACK_TAU))
+    _, _, steps = _horizon(args.t_end, tau)
+    t_out = getattr(args, "t_out", None)  # a map has none
+    if t_out is not None and t_out > steps:
+        raise ValueError(f"--t-out {t_out} asks for more output times than the run has "
+                         f"steps (--t-end / --tau = {steps})")
+    return steps
+
+
 def _tau(args, model):
-    """--tau, or the default of the model's kind (one iteration for a map)."""
+    """--tau; else, for a flow, None: the library's default (the step a
+    pilot chooses for the splitting methods, :mod:`varint.stepsize`;
+    τ = 0.05 for the others); for a map, one iteration."""
     from .run import default_tau
 
-    return default_tau(model) if args.tau is None else args.tau
+    if args.tau is not None:
+        return args.tau
+    return default_tau(model) if getattr(model, "kind", "flow") == "map" else None
 
 
 #: --u and --v of a chaos map when they are not given: the paper's
@@ -646,7 +674,9 @@ def _cmd_map(args):
     if args.checkpoint is not None:
         _check_directory(args.checkpoint, "--checkpoint")
     model, _ = _model(args)
-    t_end, tau, _ = _horizon(args.t_end, _tau(args, model))
+    tau = _tau(args, model)
+    t_end = args.t_end
+    _steps(args, tau)
     grid = _grid(args, model)
     if grid.states.size:
         _check_kernels(model, grid.states[0], "the first grid point")
@@ -992,7 +1022,9 @@ def _add_run_options(p, t_end=1e4):
     p.add_argument("--t-end", type=_positive, default=t_end,
                    help=f"final time (default {t_end:g})")
     p.add_argument("--tau", type=_positive, default=None, help="step / renormalisation "
-                   "interval (default 0.05; for a map, iterations per interval, default 1)")
+                   "interval (default: for tm, the largest step whose energy error over a "
+                   "short pilot run meets the tolerance; 0.05 for the other methods; for a "
+                   "map, iterations per interval, default 1)")
     p.add_argument("--method", default="tm", help="integration method: tm (default), taylor, "
                    "cvode, dop853, tdhcc, tdhes, tdheps, two-particle (maps: tm, two-particle)")
     p.add_argument("--scheme", help="splitting scheme (default SBAB2C); see 'varint schemes'")
