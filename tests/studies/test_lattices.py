@@ -61,3 +61,13 @@ def test_exponent_rule_tells_neighbouring_laws_apart():
     assert exponent_law(0.32, 0.04, 1 / 3, (1e3, 1e5)).holds is True      # 2σ = 0.08 band
     assert exponent_law(0.0, 0.13, -0.25, (1e3, 1e5)).holds is None       # too few to tell
     assert exponent_law(float("nan"), 0.01, -0.25, (1e3, 1e5)).holds is None
+
+
+def test_the_2d_run_part_runs_its_lattice_to_the_horizon(tmp_path):
+    """``--part kg2d`` (quick: 20 × 20 to t = 100): the run reaches t_end
+    with the energy conserved to ABA864's accuracy at τ = 0.05 and a
+    finite-time mLCE of a weakly chaotic packet (0 < Λ ≪ 1)."""
+    row = lattices.main(["--quick", "--part", "kg2d", "--out", str(tmp_path)])["kg2d"]
+    assert row["sites"] == 400 and row["t_end"] == 100.0
+    assert row["energy_error"] < 1e-7 and 0 < row["mlce"] < 0.1
+    assert row["cpu_s"] > 0

@@ -237,13 +237,20 @@ def hop(x, V, k, dst, src, coef, nx, ny, dim, periodic):
             for c in range(k):
                 V[c, dst + s] += coef * (V[c, src + s - 1] + V[c, src + s + 1])
         return
+    # Row by row through slices indexed from 1, as in the KG kick: no
+    # negative-index fix-up, so the site loops vectorise.
     for i in range(1, nx - 1):
-        for s in range(i * ny + 1, i * ny + ny - 1):
-            x[dst + s] += coef * ((x[src + s - 1] + x[src + s + 1])
-                                  + (x[src + s - ny] + x[src + s + ny]))
-            for c in range(k):
-                V[c, dst + s] += coef * ((V[c, src + s - 1] + V[c, src + s + 1])
-                                         + (V[c, src + s - ny] + V[c, src + s + ny]))
+        r = i * ny
+        r0 = src + r
+        a, au, ad = x[r0:r0 + ny], x[r0 - ny:r0], x[r0 + ny:r0 + 2 * ny]
+        out = x[dst + r:dst + r + ny]
+        for j in range(1, ny - 1):
+            out[j] += coef * ((a[j - 1] + a[j + 1]) + (au[j] + ad[j]))
+        for c in range(k):
+            v, vu, vd = V[c, r0:r0 + ny], V[c, r0 - ny:r0], V[c, r0 + ny:r0 + 2 * ny]
+            w = V[c, dst + r:dst + r + ny]
+            for j in range(1, ny - 1):
+                w[j] += coef * ((v[j - 1] + v[j + 1]) + (vu[j] + vd[j]))
 
 
 @njit(cache=True, error_model="numpy")
