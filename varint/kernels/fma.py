@@ -1,6 +1,7 @@
 """A fused multiply–add for compiled kernels: ``fma(a, b, c)`` = a·b + c
 with one rounding, LLVM's ``llvm.fma`` intrinsic (one instruction on every
-x86-64 CPU with FMA3 and on ARMv8).
+x86-64 CPU with FMA3 and on ARMv8; elsewhere a call to the C library's
+``fma``, as exact and slower).
 
 The generated steppers (:mod:`varint.kernels.generate`) write their drifts
 and kicks with it. A step is a chain of dependent multiply–adds, and the
