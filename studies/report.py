@@ -52,6 +52,12 @@ KNOWN = {
                 "targets (studies/lattices.py)",
     "lattices_laws": "Many-body lattices: the chaos laws of disordered lattices "
                      "(studies/lattices.py --part laws)",
+    "lattices_kg2d": "Many-body lattices: the 100 × 100 KG lattice run to t = 1e5 "
+                     "(studies/lattices.py --part kg2d)",
+    "default_step": "The automatic step: its cost, its margin and the held-out cases "
+                    "(studies/default_step.py)",
+    "map_defaults": "The chaos maps' defaults: scheme and pilot tolerance by classification "
+                    "agreement (studies/map_defaults.py)",
 }
 VERDICT = {True: "holds", False: "**differs**", None: "—"}
 #: Studies whose claims the paper makes (the rest are our own questions);
