@@ -30,7 +30,10 @@ FPU orbits) does not bear this out, and cannot: there a chaotic orbit near
 the SALI or MEGNO threshold flips its verdict at any accuracy (one FPU
 orbit's SALI at an energy error of 8e-8 with s11odr6), while the stiff
 quartic at τ = 0.05 (energy error 0.52) gets all four verdicts wrong. The
-full study is the basis of the default; rerun it before changing it.
+full study is the basis of the default; the figures above come from a full
+run whose outputs are not stored in ``studies/results`` (the full mode
+takes about 13 CPU-hours on a 2-core machine, the quick mode 3.5 minutes).
+Rerun it, and store it, before changing the default.
 
 Energy scale
 ------------
