@@ -338,16 +338,16 @@ def kg2d_run(quick, claims):
 #: law of Λ, law of m₂, source)
 LAWS = [
     ("KG 1D weak chaos", DisorderedKG, {"shape": 512, "W": 4.0},
-     (1, 0.4), "ABA864", 0.2, 1e5, -0.25, 1 / 3,
+     (1, 0.4), "ABA864", 0.2, 1e6, -0.25, 1 / 3,
      "FKS09 (m₂ ∝ t^1/3); SMS18 (Λ ∝ t^−0.25)"),
     ("DDNLS 1D weak chaos", DDNLS, {"shape": 256, "W": 4.0, "beta": 0.04},
-     (21, 1.0), "s9ABC6", 0.2, 1e4, -0.25, 1 / 3,
+     (21, 1.0), "s9ABC6", 0.2, 1e5, -0.25, 1 / 3,
      "FKS09 (m₂ ∝ t^1/3); SMS18 (Λ ∝ t^−0.25)"),
     ("DDNLS 1D strong chaos", DDNLS, {"shape": 256, "W": 3.5, "beta": 0.72},
-     (21, 1.0), "s9ABC6", 0.2, 1e4, -0.3, 1 / 2,
+     (21, 1.0), "s9ABC6", 0.2, 1e5, -0.3, 1 / 2,
      "Laptyeva et al. 2010 (m₂ ∝ t^1/2, then 1/3); SMS18 (Λ ∝ t^−0.3)"),
     ("KG 2D weak chaos", DisorderedKG, {"shape": (41, 41), "W": 10.0},
-     (1, 0.4), "ABA864", 0.2, 1e4, -0.37, 1 / 5,
+     (1, 0.4), "ABA864", 0.2, 1e5, -0.37, 1 / 5,
      "MSS20 (m₂ ∝ t^1/5, Λ ∝ t^−0.37)"),
 ]
 
