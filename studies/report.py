@@ -58,6 +58,8 @@ KNOWN = {
                     "(studies/default_step.py)",
     "map_defaults": "The chaos maps' defaults: scheme and pilot tolerance by classification "
                     "agreement (studies/map_defaults.py)",
+    "energy_tolerance": "The accuracy verdict's default energy tolerance "
+                        "(studies/energy_tolerance.py)",
 }
 VERDICT = {True: "holds", False: "**differs**", None: "—"}
 #: Studies whose claims the paper makes (the rest are our own questions);
