@@ -56,8 +56,8 @@ def test_no_row_is_projected(quick):
     assert tm["cpu_ratio"] == 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="2 of the 7 DOP853 rows to 1e8 (rows 1 and 7; "
-                   "studies/results/table1_cost.md; rows 6 and 8 to 11 are stored) have not "
+@pytest.mark.xfail(strict=True, reason="1 of the 7 DOP853 rows to 1e8 (row 1; "
+                   "studies/results/table1_cost.md; rows 6 to 11 are stored) has not "
                    "been run with the compiled engine yet, and the stored table is the one "
                    "with projected rows. Strict: once "
                    "the full table is stored this passes and the marker must go")
