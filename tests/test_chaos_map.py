@@ -243,3 +243,15 @@ def test_dask_cluster_gives_the_same_bits(hh, orbits, full_map, dask_client, tmp
     (tmp_path / "chunk_000000.npz").unlink()
     _same(varint.chaos_map(hh, orbits, "sali", t_end=T_END, tau=TAU, chunk_size=4,
                            checkpoint=tmp_path, progress=False), full_map)
+
+
+def test_default_check_times_start_at_the_first_check_step(hh, orbits):
+    """Checks of early stopping are log-spaced from FIRST_CHECK_STEP steps
+    on (and the end): earlier ones cost more than they could save."""
+    r = varint.chaos_map(hh, orbits[:3], "sali", t_end=200 * TAU, tau=TAU, progress=False)
+    steps = np.round(r.t / TAU).astype(int)
+    every = varint.state.output_steps(200 * TAU, TAU)
+    assert steps.tolist() == every[every >= cm.FIRST_CHECK_STEP].tolist()
+    assert steps[0] < 1.3 * cm.FIRST_CHECK_STEP and steps[-1] == 200
+    short = varint.chaos_map(hh, orbits[:3], "sali", t_end=20 * TAU, tau=TAU, progress=False)
+    assert np.round(short.t / TAU).astype(int).tolist() == [20]

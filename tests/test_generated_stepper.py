@@ -221,3 +221,53 @@ def test_too_many_vectors_for_straight_line_code_use_the_generic_stepper():
     r = varint.lyapunov_spectrum(model, x0, t_end=200.0, t_out=np.array([100.0, 200.0]))
     x = np.asarray(r.exponents)
     assert x.shape == (2, 16) and np.abs(x.sum(axis=1)).max() < 1e-12
+
+
+def test_renormalised_copies_are_the_steppers_renormalisation():
+    """Snapshots read between renormalisations are renormalised by the
+    steppers' own Gram–Schmidt: Q R = W with R's diagonal the stretching
+    (as NumPy's QR with a positive diagonal, to round-off), and a failed
+    row reads NaN."""
+    from varint.state import renormalized_copy
+
+    rng = np.random.default_rng(4)
+    W = rng.standard_normal((50, 6, 3)) * rng.uniform(1e-3, 1e3, (50, 1, 3))
+    acc_m, acc_e = rng.uniform(0.5, 1.0, (50, 3)), rng.integers(-600, 600, (50, 3))
+    W[7, :, 1] = np.inf
+    Q, m, e = renormalized_copy(W, acc_m, acc_e, Renorm.QR)
+    q, r = np.linalg.qr(np.delete(W, 7, axis=0))
+    d = np.diagonal(r, axis1=1, axis2=2)
+    ok = np.delete(np.arange(50), 7)
+    assert np.abs(Q[ok] - q * np.sign(d)[:, None, :]).max() < 1e-12
+    growth = np.log(m) + e * np.log(2.0)
+    want = np.log(acc_m[ok]) + acc_e[ok] * np.log(2.0) + np.log(np.abs(d))
+    assert np.abs(growth[ok] - want).max() < 1e-12
+    assert np.isnan(Q[7]).all() and np.isnan(m[7]).all()
+    # Unit columns, each stretching its own norm.
+    U, m1, e1 = renormalized_copy(W[ok], acc_m[ok], acc_e[ok], Renorm.NORMALIZE)
+    norms = np.linalg.norm(W[ok], axis=1)
+    assert np.abs(U - W[ok] / norms[:, None, :]).max() < 1e-15
+    assert np.abs(np.log(m1) + e1 * np.log(2.0)
+                  - (np.log(acc_m[ok]) + acc_e[ok] * np.log(2.0) + np.log(norms))).max() < 1e-12
+    # The inputs are not touched.
+    assert np.isinf(W[7, :, 1]).all()
+
+
+def test_lane_layout_round_trip():
+    """Orbits into SIMD lanes and back: every active row, padding dropped,
+    inactive rows untouched, for contiguous and strided arrays."""
+    from varint.methods.tm import _Lanes
+
+    rng = np.random.default_rng(2)
+    active = np.sort(rng.choice(40, 27, replace=False))
+    lanes = _Lanes(active, 8)
+    for a in (rng.standard_normal((40, 4, 3)), rng.integers(0, 99, (40, 2)),
+              rng.standard_normal((40, 2))[:, 1], np.zeros((40, 4, 0))):
+        soa = lanes.soa(a)
+        assert soa.shape == (lanes.blocks,) + a.shape[1:] + (8,)
+        rows = np.moveaxis(soa, -1, 1).reshape((lanes.blocks * 8,) + a.shape[1:])
+        assert np.array_equal(rows[:27], a[active])
+        target = np.zeros_like(a)
+        lanes.put(soa, target)
+        assert np.array_equal(target[active], a[active])
+        assert not np.delete(target, active, axis=0).any()

@@ -271,6 +271,11 @@ def format_bytes(n):
     return f"{value:.3g} PiB"
 
 
+#: Requests smaller than this are not checked: they cannot be what exhausts
+#: the memory, and reading it costs ~0.1 ms (a chaos map checks dozens).
+_UNCHECKED_BYTES = 2 ** 24
+
+
 def check_memory(nbytes, what):
     """Refuse work whose arrays would not fit in the available memory.
 
@@ -290,8 +295,11 @@ def check_memory(nbytes, what):
     ------
     ValueError
         ``"<what> needs about 7.3 TiB of memory, but 21.4 GiB is available"``.
-        Nothing is raised when the available memory is unknown.
+        Nothing is raised when the available memory is unknown, nor for
+        fewer than 16 MiB.
     """
+    if nbytes < _UNCHECKED_BYTES:
+        return
     free = available_memory()
     if free is not None and nbytes > free:
         raise ValueError(f"{what} needs about {format_bytes(nbytes)} of memory, but "

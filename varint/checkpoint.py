@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .files import atomic_file, canonical as _canonical
+from .records import Records
 from .state import RunState
 
 __all__ = ["CheckpointError", "Checkpoint", "Snapshot", "read", "write"]
@@ -69,15 +70,16 @@ class Snapshot:
         JSON description of everything that determines the result (see
         :meth:`varint.run.Run.parameters`).
     state : RunState
-    records : list of dict
-        One dict of per-orbit arrays per output time reached.
+    records : varint.records.Records or list of dict
+        One dict of per-orbit arrays per output time reached (read back as
+        :class:`~varint.records.Records`).
     wall_time : float
         Seconds spent on the run so far, summed over sessions.
     """
 
     parameters: dict
     state: RunState
-    records: list
+    records: Records | list
     wall_time: float = 0.0
 
 
@@ -155,9 +157,11 @@ def _arrays_and_meta(snapshot):
     arrays = {f"state__{name}": getattr(s, name) for name in STATE_ARRAYS}
     for key, value in s.extra.items():
         arrays[f"extra__{key}"] = np.asarray(value)
-    keys = list(snapshot.records[0]) if snapshot.records else []
+    records = snapshot.records
+    stacked = (records if isinstance(records, Records) else Records(records)).stacked()
+    keys = list(stacked)
     for key in keys:
-        arrays[f"records__{key}"] = np.stack([r[key] for r in snapshot.records])
+        arrays[f"records__{key}"] = stacked[key]
     meta = {"parameters": canonical(snapshot.parameters), "step": int(s.step),
             "counts": {k: int(v) for k, v in s.counts.items()}, "extra": list(s.extra),
             "records": keys, "n_records": len(snapshot.records),
@@ -249,7 +253,7 @@ def _decode(payload):
                      step=int(meta["step"]), counts=dict(meta["counts"]),
                      extra={k: arrays[f"extra__{k}"] for k in meta["extra"]})
     stacked = {k: arrays[f"records__{k}"] for k in meta["records"]}
-    records = [{k: a[i] for k, a in stacked.items()} for i in range(int(meta["n_records"]))]
+    records = Records.from_stacked(stacked, int(meta["n_records"]))
     return Snapshot(parameters=meta["parameters"], state=state, records=records,
                     wall_time=float(meta["wall_time"]))
 

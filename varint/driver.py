@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 
 from .protocol import REASONS, Status, is_failure
+from .records import Records
 from .state import Rows
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
@@ -119,9 +120,9 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         ``record(rows) -> dict`` of arrays with one row per row of the
         :class:`~varint.state.Rows` it is given (the orbits at one output,
         or at several outputs, output-major).
-    records : list of dict, optional
+    records : varint.records.Records, optional
         Records of the first ``len(records)`` output steps, made before
-        (when resuming); the list is extended in place.
+        (when resuming); extended in place.
     progress : bool or None
         Progress bar on stderr; by default only when it is a terminal;
         ``False``: nothing is printed.
@@ -150,7 +151,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     wall : float
         Seconds spent.
     """
-    records = [] if records is None else records
+    records = Records() if records is None else records
     start = time.perf_counter()
     # Outputs are recorded in order, so the records say which remain; a
     # checkpoint may hold a state at an output step not yet recorded.
@@ -171,7 +172,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                 pace.took(n, time.perf_counter() - t0)
                 # Every output of the chunk is recorded, also after a failure
                 # (the failed orbit's values NaN): the state has passed them.
-                records.extend(_read_snapshots(snaps, state, record, renorm))
+                records.extend(_read_snapshots(snaps, state, record, renorm), len(outs))
                 todo = todo[len(outs):]
                 if errors == "raise" and is_failure(state.status).any():
                     stop = "failed"
@@ -200,9 +201,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         warnings.warn(f"interrupted at t = {state.step * prop.tau:g}: returning the "
                       f"{len(records)} outputs recorded so far{where}", RuntimeWarning,
                       stacklevel=4)
-    stacked = {key: np.stack([r[key] for r in records]) if records else None
-               for key in (records[0] if records else {})}
-    return stacked, stop, time.perf_counter() - start
+    return records.stacked(), stop, time.perf_counter() - start
 
 
 class _Pace:
@@ -251,10 +250,11 @@ def _record_now(prop, state, record, decide, renorm):
 
 
 def _read_snapshots(snaps, state, record, renorm):
-    """One record per snapshot step, read in one call of ``record``."""
+    """The records of every snapshot step, read in one call of ``record``:
+    a dict of arrays with a leading output axis (empty without snapshots)."""
     s = len(snaps.steps)
     if s == 0:
-        return []
+        return {}
     m = state.n_orbits
     failed = is_failure(state.status)
     # Rows of orbits that had failed by an output were never written: show
@@ -270,15 +270,15 @@ def _read_snapshots(snaps, state, record, renorm):
             arr[out, orb] = state.extra[key][orb]
     flat = record(snaps.rows(renorm))
     # One copy per key for the whole chunk (the record may hold views of
-    # the snapshot buffers), blanked at once; each output's record is a view
-    # of it: no work per output beyond a dict (1000 outputs cost ~1 ms).
+    # the snapshot buffers), blanked at once and kept as one block: no work
+    # per output.
     shaped = {}
     for key, arr in flat.items():
         block = np.array(arr).reshape((s, m) + np.shape(arr)[1:])
         if np.issubdtype(block.dtype, np.floating):
             block[dead] = np.nan
         shaped[key] = block
-    return [{key: block[j] for key, block in shaped.items()} for j in range(s)]
+    return shaped
 
 
 def _blank(rec, dead):

@@ -33,6 +33,7 @@ from .methods import METHODS, make_propagator
 from .models.base import Model
 from .models.maps import MapModel
 from .protocol import TIME_MOMENTUM, Renorm, is_failure
+from .records import Records
 from .results import Provenance, _Result, package_versions
 from .state import Rows, RunState, initial_deviations, output_steps, renormalized_copy
 
@@ -218,7 +219,7 @@ class Run:
     seed : int or None
         None when the deviation vectors were given.
     state : RunState
-    records : list of dict
+    records : varint.records.Records
         The outputs recorded so far (after a resume, those of earlier
         sessions).
     """
@@ -290,7 +291,7 @@ class Run:
         self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
                                           self.accumulator, **method_options)
         if saved is None:
-            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), [], 0.0
+            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
         else:
             self.checkpoint.require(saved, self.parameters())
             self.state, self.records, self.wall_before = (saved.state, saved.records,

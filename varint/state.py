@@ -9,7 +9,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _validate as check
+from .kernels.checks import renormalized_rows
 from .protocol import TIME_MOMENTUM, Renorm
+from .seeds import standard_normals
 
 __all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
            "renormalized_copy"]
@@ -193,22 +195,15 @@ class Snapshots:
 
 
 def renormalized_copy(W, acc_m, acc_e, renorm):
-    """Copies of vectors ``W`` (R, 2N, k) renormalised (QR with a positive
-    diagonal for ``Renorm.QR``, unit columns for ``Renorm.NORMALIZE``), the
-    stretching folded into new accumulators (mantissa, exponent). Rows of
-    failed orbits (non-finite or overflowing vectors) give non-finite values
-    without NumPy warnings: their records are blanked."""
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        if renorm == Renorm.QR:
-            Q, R = np.linalg.qr(W)
-            d = np.diagonal(R, axis1=1, axis2=2)
-            sign = np.where(d < 0, -1.0, 1.0)
-            W, r = Q * sign[:, None, :], np.abs(d)
-        else:
-            r = np.linalg.norm(W, axis=1)
-            W = W / r[:, None, :]
-        m, e = np.frexp(acc_m * r)
-    return W, m, acc_e + e
+    """Copies of vectors ``W`` (R, 2N, k) renormalised (modified Gram–Schmidt
+    for ``Renorm.QR``, unit columns for ``Renorm.NORMALIZE``: the steppers'
+    own :func:`~varint.kernels.checks.renormalize`), the stretching folded
+    into new accumulators (mantissa, exponent). Rows of failed orbits
+    (non-finite or overflowing vectors) give NaN: their records are
+    blanked."""
+    W = np.ascontiguousarray(W, dtype=float)
+    return renormalized_rows(W, int(renorm), np.ascontiguousarray(acc_m, dtype=float),
+                             np.ascontiguousarray(acc_e, dtype=np.int64))
 
 
 def initial_deviations(dim, k, n_orbits, seed, indices=None):
@@ -219,10 +214,9 @@ def initial_deviations(dim, k, n_orbits, seed, indices=None):
     many orbits share the call; a chunk of a chaos map passes the orbits'
     indices in the whole map, so the map does not depend on its chunking.
     """
-    indices = range(n_orbits) if indices is None else indices
-    A = np.empty((n_orbits, dim, k))
-    for m, index in enumerate(indices):
-        A[m] = np.random.default_rng([seed, int(index)]).standard_normal((dim, k))
+    indices = np.arange(n_orbits) if indices is None else indices
+    # The same numbers as a generator per orbit, drawn ~5x faster.
+    A = standard_normals(seed, indices, (dim, k))
     if n_orbits == 0 or k == 0:
         return A
     # One stacked QR (LAPACK per matrix, as a loop of single QRs would be).

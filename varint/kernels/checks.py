@@ -25,6 +25,7 @@ from numba import njit
 from ..protocol import Renorm, Status, TANGENT_LIMIT
 
 __all__ = ["orbit_status", "state_status", "renormalize", "renormalize_block",
+           "renormalized_rows",
            "tangent_overflow", "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL",
            "CHECK_EVERY", "HUGE_Q2"]
 
@@ -147,6 +148,25 @@ def renormalize_block(W, mode, acc_m, acc_e, r):
     Python and from methods that renormalise between calls of their
     integrator."""
     return renormalize(W, mode, acc_m, acc_e, r, W.shape[0], W.shape[1])
+
+
+@njit(cache=True)
+def renormalized_rows(W, mode, acc_m, acc_e):
+    """Renormalised copies of the vectors ``W`` (R, 2N, k) of R rows, with
+    copies of their accumulators: :func:`renormalize` of each row, so a
+    snapshot read between renormalisations gives what the stepper would
+    have held had it renormalised there. A row whose vectors are degenerate
+    (zero, not finite: a failed orbit) gets NaN vectors and mantissas."""
+    W = W.copy()
+    acc_m = acc_m.copy()
+    acc_e = acc_e.copy()
+    none = np.empty(0)
+    d, k = W.shape[1], W.shape[2]
+    for row in range(W.shape[0]):
+        if renormalize(W[row], mode, acc_m[row], acc_e[row], none, d, k) != _OK:
+            W[row] = np.nan
+            acc_m[row] = np.nan
+    return W, acc_m, acc_e
 
 
 @njit(cache=True)

@@ -172,7 +172,14 @@ def _expressions(V_srepr, minv_srepr, n):
 
 def _model_key(model):
     """The arguments of :func:`_expressions` for ``model``."""
-    s = model.symbolic()
+    return _symbolic_key(model.symbolic())
+
+
+@lru_cache(maxsize=256)
+def _symbolic_key(s):
+    """:func:`_model_key` of a model's (frozen, hashable) symbolic form:
+    printed once per process, not once per chunk of a chaos map (~0.4 ms
+    each)."""
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"))))
     return sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n
@@ -1060,9 +1067,11 @@ def _load(digest, make_source, extra_globals):
     return module
 
 
+@lru_cache(maxsize=256)
 def _function_id(function):
     """A name for a compiled function that changes when its code does
-    (``module:qualname:hash of its source``), for the generated file's name."""
+    (``module:qualname:hash of its source``), for the generated file's name;
+    read once per function and process (reading the source costs ~1 ms)."""
     import inspect
 
     py = getattr(function, "py_func", function)

@@ -15,6 +15,7 @@ stepper (:mod:`varint.kernels.tm`).
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -22,6 +23,7 @@ import numba
 
 from ..kernels import generate as G
 from ..kernels import tm as K
+from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, Renorm, Status
 from ..schemes import DRIFT, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
@@ -78,6 +80,7 @@ class TangentMapPropagator:
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
+        self._counts = {}
 
     def _every(self, every):
         if every is None:
@@ -185,6 +188,16 @@ class TangentMapPropagator:
                                                           dtype=np.int64), (state.n_orbits, 1))
         return state.extra["tm_schedule"]
 
+    def _step_counts(self, k):
+        """:func:`~varint.kernels.generate.step_counts` for k vectors (worked
+        out once: a map with early stopping calls the stepper at every
+        check time)."""
+        if k not in self._counts:
+            self._counts[k] = G.step_counts(
+                self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
+                self.accumulator is not None and self.accumulator.needs_flow)
+        return self._counts[k]
+
     def _snapshots(self, state, outputs):
         """Empty snapshot arrays (NaN) for the output steps of this call."""
         m, d, k = state.W.shape
@@ -260,8 +273,9 @@ class TangentMapPropagator:
         kernel(X, W, am, ae, st, fs, nxt, itv, int(n), int(state.step), self.tau, self._h,
                self._hc, self._escape_r2, int(self.renorm), self.sparse, lane_aux, snaps.steps,
                sx, sW, sm, se, saux)
-        state.x[active], state.W[active] = lanes.aos(X), lanes.aos(W)
-        state.acc_m[active], state.acc_e[active] = lanes.aos(am), lanes.aos(ae)
+        for lane_array, target in ((X, state.x), (W, state.W), (am, state.acc_m),
+                                   (ae, state.acc_e)):
+            lanes.put(lane_array, target)
         sched[active, 0], sched[active, 1] = lanes.aos(nxt), lanes.aos(itv)
         if aux.size:
             aux[active] = lanes.from_rows_by_lane(lane_aux)
@@ -272,8 +286,7 @@ class TangentMapPropagator:
             snaps.acc_e[:, active] = lanes.snapshot_rows(se)
             if aux.size:
                 snaps.extra[self.accumulator.key][:, active] = lanes.snapshot_rows_by_lane(saux)
-        per, first = G.step_counts(self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
-                                   self.accumulator is not None and self.accumulator.needs_flow)
+        per, first = self._step_counts(k)
         done = np.zeros(m, dtype=np.int64)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done[active], counters[active] = n, per * int(n) + first
@@ -361,19 +374,32 @@ class _Lanes:
 
     def __init__(self, active, width):
         self.n = len(active)
+        self.active = active
         self.width = width
         self.blocks = -(-self.n // width)
         self.index = np.concatenate([active, np.full(self.blocks * width - self.n, active[-1])])
 
     def soa(self, a):
         """Rows of ``a`` (M, ...) -> (blocks, ..., lanes)."""
-        b = a[self.index].reshape((self.blocks, self.width) + a.shape[1:])
-        return np.ascontiguousarray(np.moveaxis(b, 1, -1))
+        out = np.empty((self.blocks,) + a.shape[1:] + (self.width,), dtype=a.dtype)
+        f = math.prod(a.shape[1:])
+        gather(a.reshape(len(a), f), self.index, out.reshape(self.blocks, f, self.width))
+        return out
 
     def aos(self, a):
         """(blocks, ..., lanes) -> the active orbits' rows (n, ...)."""
         rows = np.moveaxis(a, -1, 1).reshape((self.blocks * self.width,) + a.shape[1:-1])
         return rows[:self.n]
+
+    def put(self, a, target):
+        """Write lanes ``a`` (blocks, ..., lanes) into the active orbits'
+        rows of ``target`` (M, ...), in place."""
+        if target.flags.c_contiguous:
+            f = math.prod(target.shape[1:])
+            scatter(a.reshape(self.blocks, f, self.width), self.active,
+                    target.reshape(len(target), f))
+        else:
+            target[self.active] = self.aos(a)
 
     def rows_by_lane(self, a):
         """Rows of ``a`` (M, ...) -> (blocks, lanes, ...): per-lane arrays

@@ -1,0 +1,41 @@
+"""varint.seeds: the fast per-orbit streams are NumPy's, bit for bit."""
+
+import numpy as np
+import pytest
+
+from varint.seeds import standard_normals
+from varint.state import initial_deviations
+
+
+@pytest.mark.parametrize("seed", [0, 1, 7, 20100927, 2 ** 31, 2 ** 32 - 1, 2 ** 32, 2 ** 70])
+def test_standard_normals_are_default_rng_per_orbit(seed):
+    # Small and large indices, and ones beyond uint32 (NumPy's own path).
+    indices = [0, 1, 2, 5, 999, 123456, 2 ** 32 - 1, 2 ** 32, 2 ** 40 + 3]
+    got = standard_normals(seed, indices, (6, 3))
+    want = np.array([np.random.default_rng([seed, i]).standard_normal((6, 3))
+                     for i in indices])
+    assert got.tobytes() == want.tobytes()
+
+
+def test_many_orbits_and_shapes():
+    idx = np.random.default_rng(1).permutation(5000)[:700]
+    for shape in [(4, 1), (4, 2), (2, 4), (128, 1), ()]:
+        got = standard_normals(3, idx, shape)
+        want = np.array([np.random.default_rng([3, int(i)]).standard_normal(shape)
+                         for i in idx])
+        assert got.shape == (700,) + shape and got.tobytes() == want.tobytes()
+
+
+def test_no_orbits():
+    assert standard_normals(0, [], (4, 2)).shape == (0, 4, 2)
+
+
+def test_initial_deviations_do_not_depend_on_the_batch():
+    # Orbit 37's vectors are the same alone and inside a permuted batch.
+    idx = np.random.default_rng(5).permutation(100)
+    batch = initial_deviations(4, 2, 100, 11, idx)
+    alone = initial_deviations(4, 2, 1, 11, [37])
+    assert batch[np.flatnonzero(idx == 37)[0]].tobytes() == alone[0].tobytes()
+    # Orthonormal columns.
+    gram = np.einsum("mik,mil->mkl", batch, batch)
+    assert np.abs(gram - np.eye(2)).max() < 1e-14
