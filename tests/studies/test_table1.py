@@ -56,11 +56,6 @@ def test_no_row_is_projected(quick):
     assert tm["cpu_ratio"] == 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="1 of the 7 DOP853 rows to 1e8 (row 1; "
-                   "studies/results/table1_cost.md; rows 6 to 11 are stored) has not "
-                   "been run with the compiled engine yet, and the stored table is the one "
-                   "with projected rows. Strict: once "
-                   "the full table is stored this passes and the marker must go")
 def test_stored_table_is_measured_to_1e8():
     # The committed full run: all 17 rows to the paper's horizon, each
     # judged against the paper's X1 and energy error.
