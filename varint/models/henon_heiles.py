@@ -7,6 +7,8 @@ Bounded motion below the escape energy 1/6.
 
 from __future__ import annotations
 
+import functools
+
 from numba import njit
 
 from .base import Model
@@ -78,10 +80,18 @@ class HenonHeiles(Model):
     def symbolic(self):
         """The potential in SymPy: the one definition the Taylor reference
         integrates, and the twin the kernels above are tested against."""
-        import sympy as sp
+        return _symbolic()
 
-        from .symbolic import SymbolicPotential
 
-        x, y = sp.symbols("x y")
-        V = (x**2 + y**2) / 2 + x**2 * y - y**3 / 3
-        return SymbolicPotential(V, (x, y), (sp.Integer(1),) * 2)
+@functools.cache
+def _symbolic():
+    """The model in SymPy, built once per process (the expressions are
+    immutable; building them costs ~0.1 ms, and every run and every chunk of a
+    chaos map asks for them)."""
+    import sympy as sp
+
+    from .symbolic import SymbolicPotential
+
+    x, y = sp.symbols("x y")
+    V = (x**2 + y**2) / 2 + x**2 * y - y**3 / 3
+    return SymbolicPotential(V, (x, y), (sp.Integer(1),) * 2)
