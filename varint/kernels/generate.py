@@ -209,8 +209,15 @@ def symbolic_fits(model, k):
         s = model.symbolic()
     except (NotImplementedError, ValueError):
         return False
-    return len(s.q) == model.n_dof and np.allclose([float(m) for m in s.inverse_mass],
-                                                    model.inverse_mass, rtol=1e-15, atol=0)
+    return _matches(s, model.n_dof, tuple(float(m) for m in model.inverse_mass))
+
+
+@lru_cache(maxsize=256)
+def _matches(s, n_dof, inverse_mass):
+    """Whether the symbolic form ``s`` has the model's coordinates and
+    masses (once per model and process: a run asks at every call)."""
+    return len(s.q) == n_dof and np.allclose([float(m) for m in s.inverse_mass],
+                                             inverse_mass, rtol=1e-15, atol=0)
 
 
 # -- source emission ------------------------------------------------------------------
@@ -1112,13 +1119,19 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
                 flow=bool(accumulator is not None and accumulator.needs_flow),
                 inline=_inline_kind(accumulator))
     key = _model_key(model)
-    # The generator's code, the model's potential and masses, and the plan
-    # (scheme, k, accumulator's code) determine the source.
-    digest = hashlib.sha256(f"{_generator_id()}|{key}|{plan}".encode()).hexdigest()[:24]
+    digest = _digest(key, plan)
     extra = {"next_interval": next_interval}
     if accumulator is not None:
         extra["accumulate"] = accumulator.update
     return _load(digest, lambda: _source(key, plan), extra)
+
+
+@lru_cache(maxsize=256)
+def _digest(key, plan):
+    """The generated module's name: the generator's code, the model's
+    potential and masses (``key``) and the plan (scheme, k, accumulator's
+    code) determine its source."""
+    return hashlib.sha256(f"{_generator_id()}|{key}|{plan}".encode()).hexdigest()[:24]
 
 
 def step_counts(kinds, corrected, k, flow=False):
