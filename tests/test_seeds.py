@@ -39,3 +39,19 @@ def test_initial_deviations_do_not_depend_on_the_batch():
     # Orthonormal columns.
     gram = np.einsum("mik,mil->mkl", batch, batch)
     assert np.abs(gram - np.eye(2)).max() < 1e-14
+
+
+def test_a_numpy_that_seeds_otherwise_falls_back_to_its_own_path(monkeypatch):
+    # A fast path that no longer matches NumPy (here: a wrong PCG64
+    # multiplier) is caught by the once-per-process check.
+    from varint import seeds
+
+    monkeypatch.setattr(seeds, "_PCG_MULT", seeds._PCG_MULT + 2)
+    seeds._fast_path_is_numpys.cache_clear()
+    try:
+        assert not seeds._fast_path_is_numpys()
+        got = standard_normals(5, [3, 4], (4, 2))
+        want = np.array([np.random.default_rng([5, i]).standard_normal((4, 2)) for i in (3, 4)])
+        assert got.tobytes() == want.tobytes()
+    finally:
+        seeds._fast_path_is_numpys.cache_clear()

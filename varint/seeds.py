@@ -13,10 +13,13 @@ orbit: it runs ``SeedSequence``'s hash (M. E. O'Neill's ``seed_seq``
 construction, as NumPy implements it) for all orbits at once in vectorised
 uint32 arithmetic, seeds PCG64 from its output as NumPy does, and sets one
 reused generator to each orbit's state. Entropy words outside uint32 (a seed
-or index ≥ 2³²) take NumPy's own path.
+or index ≥ 2³²) take NumPy's own path, and so does everything if a NumPy
+release seeds differently (checked once per process).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -53,11 +56,30 @@ def standard_normals(seed, indices, shape):
     out = np.empty((len(indices),) + tuple(shape))
     if not len(indices):
         return out
-    if not (0 <= seed < 2 ** 32 and indices.min() >= 0 and indices.max() < 2 ** 32):
+    if not (0 <= seed < 2 ** 32 and indices.min() >= 0 and indices.max() < 2 ** 32
+            and _fast_path_is_numpys()):
         for m, index in enumerate(indices):
             out[m] = np.random.default_rng([seed, int(index)]).standard_normal(shape)
         return out
-    words = _pcg_seed_words(int(seed), indices.astype(np.uint32)).tolist()
+    _draw(int(seed), indices, shape, out)
+    return out
+
+
+@functools.cache
+def _fast_path_is_numpys():
+    """Whether this NumPy seeds as the fast path assumes (checked once per
+    process against ``default_rng``, so a NumPy that changed its seeding
+    falls back to the slow path instead of giving other numbers)."""
+    probe = np.array([0, 1, 2 ** 31 + 5])
+    want = np.array([np.random.default_rng([7, int(i)]).standard_normal(3) for i in probe])
+    got = np.empty_like(want)
+    _draw(7, probe, (3,), got)
+    return got.tobytes() == want.tobytes()
+
+
+def _draw(seed, indices, shape, out):
+    """The fast path of :func:`standard_normals`, into ``out``."""
+    words = _pcg_seed_words(seed, indices.astype(np.uint32)).tolist()
     bit_generator = np.random.PCG64(0)
     generator = np.random.Generator(bit_generator)
     state = {"bit_generator": "PCG64", "state": None, "has_uint32": 0, "uinteger": 0}
@@ -69,7 +91,6 @@ def standard_normals(seed, indices, shape):
         state["state"] = {"state": (x * _PCG_MULT + inc) & _MASK128, "inc": inc}
         bit_generator.state = state
         out[m] = generator.standard_normal(shape)
-    return out
 
 
 def _pcg_seed_words(seed, indices):
