@@ -56,7 +56,7 @@ def runs_parts(model, scheme=None):
     # A two-part scheme on a chain split as T + V is the TM method's own
     # splitting: a small chain with a symbolic potential takes the stepper
     # generated for it, ~5x faster than the part flows' loops over sites
-    # (FPU-beta N = 8, SBAB2: 22 against 174 ns per step).
+    # (FPU-beta N = 8, SBAB2: 23 against 174 ns per step).
     return not (parts.splits.get(2) == ("T", "V") and G.symbolic_fits(model, 0))
 
 
