@@ -56,10 +56,15 @@ def hook_advance(monkeypatch, method, at, action):
     """Call ``action()`` just after the ``at``-th ``advance`` of the
     propagator class registered under ``method`` (1-based), or after the
     first one whose state satisfies ``at(state)``; returns the list of
-    calls so far, for counting."""
+    calls so far, for counting. Chunks grow at most 8-fold meanwhile, so
+    that a short run still takes several (quick chunks may otherwise grow
+    64-fold, see ``varint.driver._Pace``)."""
     import importlib
 
     import varint
+    from varint import driver
+
+    monkeypatch.setattr(driver, "_QUICK_CHUNK", 0.0)
 
     module, _, name = varint.METHODS[method].partition(":")
     cls = getattr(importlib.import_module(module), name)

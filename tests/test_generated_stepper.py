@@ -203,9 +203,10 @@ def test_generated_module_is_written_to_the_cache(tmp_path, monkeypatch):
     assert len(files) == 1 and "def orbit(" in files[0].read_text()
     assert TangentMapPropagator(HH, 0.05, Renorm.QR, scheme="SBAB2C")._stepper(1) is module
     mtime = files[0].stat().st_mtime_ns
-    monkeypatch.setattr(G, "_LOADED", {})      # as in a new process
+    monkeypatch.setattr(G, "_LOADED", {})      # as in a new process,
     monkeypatch.setattr(G, "_source", lambda *args: pytest.fail("source emitted again"))
-    again = TangentMapPropagator(HH, 0.05, Renorm.QR, scheme="SBAB2C")._stepper(1)
+    # with a new model (a model remembers its steppers)
+    again = TangentMapPropagator(HenonHeiles(), 0.05, Renorm.QR, scheme="SBAB2C")._stepper(1)
     assert again is not module and again.__file__ == str(files[0])
     assert files[0].stat().st_mtime_ns == mtime
     assert G.symbolic_fits(HH, 4) and not G.symbolic_fits(HH, G.SYMBOLIC_MAX_VALUES)

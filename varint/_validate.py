@@ -7,6 +7,7 @@ import errno
 import numbers
 import os
 import tempfile
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -112,7 +113,7 @@ def output_times(t_out, name="t_out", t_end=None):
         raise ValueError(f"{name} must be a 1-D array of times, got shape {t.shape}")
     if t.size == 0 or not np.isfinite(t).all():
         raise ValueError(f"{name} must be a non-empty array of finite times")
-    if (np.diff(t) <= 0).any():
+    if t.size > 1 and (np.diff(t) <= 0).any():
         raise ValueError(f"{name} must be strictly increasing")
     if t_end is not None and not (t[0] > 0 and t[-1] <= t_end * (1 + 1e-12)):
         raise ValueError(f"{name} must lie in [tau, t_end] = (0, {t_end!r}], got "
@@ -186,11 +187,15 @@ def full_rank(W, name="deviations"):
 
 def orthonormal(W, name="deviations", tol=1e-10):
     """Raise unless every (2N, k) block has orthonormal columns."""
-    full_rank(W, name)
     k = W.shape[2]
-    err = np.abs(np.einsum("mik,mil->mkl", W, W) - np.eye(k)).max(axis=(1, 2))
-    bad = np.flatnonzero(err > tol)
+    if k == 0:
+        return
+    err = np.abs(np.matmul(W.transpose(0, 2, 1), W) - np.eye(k)).max(axis=(1, 2))
+    bad = np.flatnonzero(~(err <= tol))
     if bad.size:
+        # Dependent vectors are the more telling message (and orthonormal
+        # ones are independent, so the SVD is needed only here).
+        full_rank(W, name)
         raise ValueError(
             f"{name} of orbit {bad[0]} are not orthonormal (max |WᵀW − I| = {err[bad[0]]:.3g}); "
             "the Lyapunov spectrum needs orthonormal initial vectors: orthonormalise them "
@@ -325,6 +330,12 @@ def step_count(t_end, tau, limit=MAX_STEPS):
 #: Kernel evaluations of one block of :func:`kernels` hold at most this many
 #: numbers.
 _KERNEL_BLOCK = 2 ** 18
+#: :func:`kernels` remembers batches of at most this many states, and at
+#: most this many of them per model.
+_MEMO_ORBITS, _MEMO_SIZE = 8, 256
+#: The states :func:`kernels` found finite, per model (beside the model, not
+#: in it: a model must stay picklable).
+_FINITE_AT = weakref.WeakKeyDictionary()
 
 
 def kernels(model, X, what="the initial state"):
@@ -350,6 +361,15 @@ def kernels(model, X, what="the initial state"):
 
     X = np.asarray(X, dtype=float)
     n, rows = model.n_dof, model.bandwidth + 1
+    # A few orbits checked before with the same kernels and parameters (a
+    # study repeating a run) are not evaluated again: calling the three
+    # kernels from Python costs tens of microseconds.
+    memo = _FINITE_AT.setdefault(model, set()) if len(X) <= _MEMO_ORBITS else None
+    key = None if memo is None else (
+        id(model.grad_kernel), id(model.hess_kernel), id(model.third_kernel),
+        np.asarray(model.params, dtype=float).tobytes(), X[:, :n].tobytes())
+    if key is not None and key in memo:
+        return
     block = max(1, min(len(X), _KERNEL_BLOCK // (n * (2 * rows + 1))))
     v = np.ones(n)
     labels = ("the gradient ∇V", "the Hessian D²V", "the third derivatives of V")
@@ -385,6 +405,10 @@ def kernels(model, X, what="the initial state"):
                     f"{_where(what, start + i, len(X))}, q = {_short(Q[i])}: {label} is "
                     f"{_short(values[i].ravel())}; V is singular, not real or too large there "
                     "(start the orbit elsewhere)")
+    if key is not None:
+        if len(memo) >= _MEMO_SIZE:
+            memo.clear()
+        memo.add(key)
 
 
 def _where(what, m, total):

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .protocol import Status
+from .protocol import STATUS_OK, Status
 
 __all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
            "Reference", "assess", "warn", "flag_nonfinite"]
@@ -165,7 +165,7 @@ def flag_nonfinite(state, errors, steps):
     bad = np.zeros(steps.shape, dtype=bool)
     for v in errors.values():
         bad |= ~np.isfinite(np.asarray(v).reshape(-1, m))
-    hit = bad.any(axis=0) & (state.status == Status.OK)
+    hit = bad.any(axis=0) & (state.status == STATUS_OK)
     if hit.any():
         first = steps[np.argmax(bad, axis=0), np.arange(m)]
         state.status[hit] = Status.POTENTIAL_NONFINITE
@@ -211,17 +211,15 @@ class Accuracy:
     @property
     def over(self):
         """Which orbits exceed the tolerance (bool, shape ([M,]))."""
-        worst = np.atleast_1d(self.worst)
-        with np.errstate(invalid="ignore"):
-            return worst > self.energy_tol
+        return np.atleast_1d(self.worst) > self.energy_tol   # NaN: False
 
     @property
     def worst(self):
         """The largest relative error of any conserved quantity, per orbit."""
-        stacked = np.stack([np.asarray(v, dtype=float) for v in self.conserved.values()])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN orbits
-            return np.nanmax(stacked, axis=0)
+        # fmax skips NaN and gives NaN only where every value is NaN (an
+        # orbit that failed before its first output), without nanmax's
+        # warning.
+        return np.fmax.reduce([np.asarray(v, dtype=float) for v in self.conserved.values()])
 
     @property
     def verdict(self):
@@ -275,22 +273,23 @@ def assess(t, errors, status, energy_tol, tau, single):
     t = np.asarray(t, dtype=float)
     largest, when = {}, np.full(m, np.nan)
     overall = np.full(m, -np.inf)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        for name, v in conserved.items():
-            v = v.reshape(m, -1)
-            if v.shape[1] == 0:
-                largest[name] = np.full(m, np.nan)
-                continue
-            largest[name] = np.nanmax(v, axis=1)
-            filled = np.where(np.isnan(v), -np.inf, v)
-            at = np.argmax(filled, axis=1)
-            better = largest[name] > overall
-            when[better] = np.broadcast_to(t, v.shape)[np.arange(m), at][better]
+    for name, v in conserved.items():
+        v = v.reshape(m, -1)
+        if v.shape[1] == 0:
+            largest[name] = np.full(m, np.nan)
+            continue
+        # NaN (after a failure) never wins; an orbit with only NaN keeps NaN
+        # (fmax, unlike nanmax, does so without a warning).
+        largest[name] = np.fmax.reduce(v, axis=1)
+        at = np.argmax(np.where(np.isnan(v), -np.inf, v), axis=1)
+        better = largest[name] > overall
+        if better.any():
+            when[better] = (t[at] if t.ndim == 1 else t[np.arange(m), at])[better]
             overall = np.where(better, largest[name], overall)
-    failed = np.asarray(status) > Status.OK
-    with np.errstate(invalid="ignore"):
-        accurate = ~failed & np.all([v <= energy_tol for v in largest.values()], axis=0)
+    failed = np.asarray(status) > STATUS_OK
+    accurate = ~failed
+    for v in largest.values():
+        accurate &= v <= energy_tol           # NaN compares False: not accurate
 
     def sq(a):
         return a[0] if single else a

@@ -19,13 +19,15 @@ import warnings
 
 import numpy as np
 
-from .protocol import REASONS, Status, is_failure
+from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .records import Records
 from .state import Rows
 
 __all__ = ["IntegrationError", "drive", "failure_message"]
 
 _CHUNK_SECONDS = 0.2
+#: Chunks shorter than this may grow faster (:class:`_Pace`).
+_QUICK_CHUNK = 1e-3
 #: A progress bar appears only once a run has lasted this many seconds.
 _PROGRESS_DELAY = 1.0
 
@@ -215,7 +217,12 @@ class _Pace:
     def took(self, n, seconds):
         if n >= self.chunk:
             grown = n * _CHUNK_SECONDS / max(seconds, 1e-6)
-            self.chunk = max(1, int(np.clip(grown, n / 8, n * 8)))
+            # A chunk grows at most 8-fold, so that one unrepresentative
+            # chunk cannot make the next last for minutes; a chunk of under
+            # 1 ms (mostly the fixed cost of a call) may grow 64-fold, since
+            # the next then lasts at most ~64 ms at this rate.
+            most = 64 if seconds < _QUICK_CHUNK else 8
+            self.chunk = max(1, int(np.clip(grown, n / 8, n * most)))
 
 
 #: Most bytes of snapshots taken in one chunk of a batched run.
@@ -243,7 +250,7 @@ def _record_now(prop, state, record, decide, renorm):
     rec = record(rows)
     _blank(rec, is_failure(state.status))
     if decide is not None:
-        settled = np.asarray(decide(rec), dtype=bool) & (state.status == Status.OK)
+        settled = np.asarray(decide(rec), dtype=bool) & (state.status == STATUS_OK)
         state.status[settled] = Status.DECIDED
         state.fail_step[settled] = state.step
     return rec

@@ -58,7 +58,33 @@ def canonical(obj):
     """``obj`` as it reads back from :func:`canonical_json` (tuples become
     lists, NumPy scalars Python numbers), so a fresh description compares
     equal to a stored one."""
-    return json.loads(canonical_json(obj))
+    plain = _plain(obj)
+    return json.loads(canonical_json(obj)) if plain is _NOT_PLAIN else plain
+
+
+_NOT_PLAIN = object()
+_SCALARS = (str, int, float, bool, type(None))
+
+
+def _plain(obj):
+    """What :func:`canonical` returns, built directly (keys sorted, a new
+    container) when ``obj`` holds only dicts with string keys, lists and
+    Python scalars — a run's options, whose JSON round trip cost more than
+    the rest of its provenance; else ``_NOT_PLAIN``."""
+    if type(obj) in _SCALARS:
+        return obj
+    if type(obj) is dict:
+        out = {}
+        for key in sorted(obj) if all(type(k) is str for k in obj) else ():
+            value = _plain(obj[key])
+            if value is _NOT_PLAIN:
+                return _NOT_PLAIN
+            out[key] = value
+        return out if len(out) == len(obj) else _NOT_PLAIN
+    if type(obj) is list:
+        out = [_plain(v) for v in obj]
+        return _NOT_PLAIN if any(v is _NOT_PLAIN for v in out) else out
+    return _NOT_PLAIN
 
 
 @contextlib.contextmanager

@@ -58,7 +58,7 @@ from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
 from .methods import METHODS
 from .models.base import Model
-from .protocol import REASONS, Status, is_failure
+from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import default_tau, prepare
 from .sections import SectionGrid
@@ -199,7 +199,7 @@ def run_chunk(model, x0, indices, spec):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # failed before the first
             largest.append(np.nanmax(upto, axis=0))
-    t_stop = np.where(state.status != Status.OK, state.fail_step, state.step) * spec.tau
+    t_stop = np.where(state.status != STATUS_OK, state.fail_step, state.step) * spec.tau
     return _Chunk(values=values, t_stop=t_stop, status=state.status.copy(), energy_error=energy,
                   state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
                   counts=dict(state.counts),

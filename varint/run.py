@@ -463,8 +463,9 @@ class Run:
             now = self.record(Rows.of(self.state))
             records = {key: np.asarray(v)[None][:0] for key, v in now.items()}
         n_done = len(next(iter(records.values())))
-        fields = {key: self.squeeze(np.moveaxis(arr, 0, 1)) for key, arr in records.items()}
-        errors = {key: np.moveaxis(records[key], 0, 1) for key in records
+        # Records are (n_out, M, ...); results (M, n_out, ...).
+        fields = {key: self.squeeze(arr.swapaxes(0, 1)) for key, arr in records.items()}
+        errors = {key: records[key].swapaxes(0, 1) for key in records
                   if key == "energy_error" or key.startswith("conserved_error:")}
         for key in errors:
             fields.pop(key)

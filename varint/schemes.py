@@ -40,6 +40,7 @@ a coefficient and the power of τ of its length, which the part stepper
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -381,6 +382,12 @@ def stage_arrays(scheme: SplittingScheme, tau: float):
         corrector next to a kick at the same q is fused with it; for ABA
         layouts a kick stage of zero length carries it.
     """
+    # New arrays every call: callers may keep and change them.
+    return tuple(a.copy() for a in _stage_arrays(scheme, float(tau)))
+
+
+@functools.lru_cache(maxsize=64)
+def _stage_arrays(scheme, tau):
     st = list(scheme.stages())
     h_c = 0.0 if scheme.corrector is None else -scheme.corrector * tau ** 3 / 2
     kinds, h, hc = [], [], []

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike
 
 from .kernels import tm as K
 from .models.base import Model
-from .protocol import COUNTERS, Renorm, Status
+from .protocol import COUNTERS, STATUS_OK, Renorm, Status
 from . import _validate as check
 from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
@@ -256,7 +256,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
             rows = buf[j][~np.isnan(buf[j, :, d])]
             if len(rows):
                 found[j].append(rows.copy())
-        active = (status == Status.OK) & (done < n_steps) & (n_found < limit)
+        active = (status == STATUS_OK) & (done < n_steps) & (n_found < limit)
         if not active.any():
             break
     n_max = max(1, int(n_found.max()))

@@ -266,7 +266,7 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
         t = np.asarray(t_out, dtype=float).reshape(-1)
         if t.size == 0 or not np.isfinite(t).all():
             raise ValueError("t_out must be a non-empty array of finite times")
-        if (np.diff(t) <= 0).any():
+        if t.size > 1 and (np.diff(t) <= 0).any():
             raise ValueError("t_out must be strictly increasing")
         # t_end is rounded to whole steps: times up to the rounded end are in.
         if t[0] < tau * (1 - 1e-12) or t[-1] > max(t_end, n_end * tau) * (1 + 1e-12):
@@ -274,7 +274,7 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
                 f"t_out must lie in [tau, t_end] = [{tau!r}, {t_end!r}], "
                 f"got {float(t[0])!r}..{float(t[-1])!r}")
         steps = np.round(t / tau).astype(np.int64)
-        if (np.diff(steps) <= 0).any():
+        if steps.size > 1 and (np.diff(steps) <= 0).any():
             raise ValueError(f"t_out has two times within one step tau = {tau!r} of each other")
         return steps
     steps = steps[(steps >= 1) & (steps <= n_end)]

@@ -55,7 +55,7 @@ from . import _validate as check
 from .accuracy import AccuracyWarning, Reference
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
-from .protocol import TIME_MOMENTUM, Renorm, Status
+from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
 from .schemes import get_scheme, resolve_scheme
 from .state import RunState, initial_deviations
 
@@ -257,12 +257,12 @@ def _pilot_by_checks(prop, advance, state, checks, tau, reference):
     with np.errstate(all="ignore"):
         for s in checks:
             advance(prop, state, int(s - state.step))
-            ok = state.status == Status.OK
+            ok = state.status == STATUS_OK
             errs = reference.errors(state.x, state.step * tau,
                                     state.extra.get(TIME_MOMENTUM, 0.0))
             e = np.max(np.stack(list(errs.values())), axis=0)
             worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
-            blown = (state.status > Status.OK) & (state.status != Status.ESCAPED)
+            blown = (state.status > STATUS_OK) & (state.status != Status.ESCAPED)
             worst[blown] = np.inf
             if not ok.any():
                 break
@@ -294,7 +294,7 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
         # orbit counts up to its escape, one that failed otherwise is inf.
         taken = np.isfinite(snaps.x).all(axis=2)
         worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
-        worst[(state.status > Status.OK) & (state.status != Status.ESCAPED)] = np.inf
+        worst[(state.status > STATUS_OK) & (state.status != Status.ESCAPED)] = np.inf
     else:
         worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
     for key, value in state.counts.items():

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..kernels import map_stepper as K
 from ..kernels.tm import no_accumulator, use_parallel
-from ..protocol import Renorm, Status
+from ..protocol import STATUS_OK, Renorm
 from . import method_options
 
 __all__ = ["MapPropagator", "iterations"]
@@ -91,7 +91,7 @@ class MapPropagator:
         kernel = K.batch_kernel(model.dim, state.k, use_parallel(self.parallel, m))
         counters = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self.iters, model.params,
                model.periods, model.iterate_kernel, model.jacobian_kernel, int(self.renorm),
                self._escape_r2, counters, state.status, done, update, aux, state.step,

@@ -22,7 +22,7 @@ import numpy as np
 from ..kernels import generate as G
 from ..kernels import parts as K
 from ..kernels.tm import no_accumulator, use_parallel
-from ..protocol import REASONS, Renorm, Status
+from ..protocol import REASONS, STATUS_OK, Renorm, Status
 from ..schemes import CORRECTOR, CompositionScheme, part_stages, resolve_scheme, scheme_word
 from . import method_options
 
@@ -124,7 +124,7 @@ class PartsPropagator:
                                use_parallel(self.parallel, m), flow)
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._parts, self._h,
                self._par, self._n_work, int(self.renorm), self._escape_r2, counters,
                state.status, done, update, aux, state.step, self.tau)
@@ -190,7 +190,7 @@ def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
            par, n_work, int(Renorm.NONE), np.inf,
            np.zeros((1, len(model.parts.names)), dtype=np.int64), status, done, no_accumulator,
            np.empty((1, 0, 0)), 0, float(tau))
-    if status[0] != Status.OK:
+    if status[0] != STATUS_OK:
         raise FloatingPointError(f"the map failed after {done[0]} steps: "
                                  f"{REASONS.get(Status(status[0]), status[0])}")
     return x[0], W[0]

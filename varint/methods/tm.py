@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import weakref
 
 import numpy as np
 import numba
@@ -24,7 +25,7 @@ import numba
 from ..kernels import generate as G
 from ..kernels import tm as K
 from ..kernels.lanes import gather, scatter
-from ..protocol import COUNTERS, Renorm, Status
+from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import DRIFT, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
 from . import method_options
@@ -120,12 +121,8 @@ class TangentMapPropagator:
     def _stepper(self, k):
         """The generated stepper module for k vectors, or None (generic)."""
         if k not in self._generated:
-            module = None
-            if G.symbolic_fits(self.model, k):
-                corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
-                module = G.symbolic_stepper(self.model, self._kinds, corrected, k,
-                                            self.accumulator)
-            self._generated[k] = module
+            self._generated[k] = _generated_stepper(self.model, self._kinds, self._hc, k,
+                                                    self.accumulator)
         return self._generated[k]
 
     def takes_snapshots(self, state):
@@ -163,7 +160,7 @@ class TangentMapPropagator:
             self._advance_generic(state, n)
             return None
         snaps = self._snapshots(state, outputs)
-        active = np.flatnonzero(state.status == Status.OK)
+        active = np.flatnonzero(state.status == STATUS_OK)
         # Many orbits run as SIMD lanes; the lanes give bitwise the results
         # of the one-orbit stepper, so this choice never changes a result.
         if len(active) >= self.MIN_LANES:
@@ -223,7 +220,7 @@ class TangentMapPropagator:
         sched = self._schedule(state)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         if orbits is not None:
             was_active &= np.isin(np.arange(m), orbits)
         status = np.where(was_active, state.status, -1)   # others are skipped
@@ -314,7 +311,7 @@ class TangentMapPropagator:
         time = self._time + (state.time_momentum(),) if self._time else ()
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
@@ -365,6 +362,28 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
         raise FloatingPointError(f"the map failed in step {state.fail_step[0]}: "
                                  f"{REASONS.get(Status(state.status[0]), state.status[0])}")
     return state.x[0], state.W[0]
+
+
+#: Generated stepper modules per model (:func:`_generated_stepper`).
+_STEPPERS = weakref.WeakKeyDictionary()
+
+
+def _generated_stepper(model, kinds, hc, k, accumulator):
+    """The generated stepper module of (model, scheme stages, k,
+    accumulator), or None when the model has none
+    (:func:`varint.kernels.generate.symbolic_fits`). Remembered per
+    model, keyed by what the module depends on (its parameters and masses
+    included), so that repeated runs skip the lookup (~50 µs)."""
+    corrected = (hc != 0.0) & (kinds != DRIFT)
+    # Beside the model, not in it: a model must stay picklable (Dask).
+    memo = _STEPPERS.setdefault(model, {})
+    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator,
+           np.asarray(model.params, dtype=float).tobytes(),
+           np.asarray(model.inverse_mass, dtype=float).tobytes())
+    if key not in memo:
+        memo[key] = (G.symbolic_stepper(model, kinds, corrected, k, accumulator)
+                     if G.symbolic_fits(model, k) else None)
+    return memo[key]
 
 
 class _Lanes:

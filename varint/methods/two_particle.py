@@ -50,7 +50,7 @@ from .._validate import positive_float
 from ..kernels import two_particle as K
 from ..kernels.map_stepper import COUNTERS as MAP_COUNTERS
 from ..kernels.tm import no_accumulator, specialised_sizes, use_parallel
-from ..protocol import COUNTERS, Renorm, Status
+from ..protocol import COUNTERS, STATUS_OK, Renorm
 from ..schemes import get_scheme, stage_arrays, stage_times
 from . import method_options
 from .map import iterations
@@ -149,7 +149,7 @@ class TwoParticlePropagator:
         Y = self._neighbours(state)
         parallel = use_parallel(self.parallel, m)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         d_max = 0.0 if self.d_max is None else self.d_max
         if self.is_map:
             counters = np.zeros((m, 1), dtype=np.int64)

@@ -35,7 +35,7 @@ from ..kernels import generate as G
 from ..kernels import tm as K
 from ..methods import method_options
 from ..models.henon_heiles import HenonHeiles
-from ..protocol import COUNTERS, Renorm, Status
+from ..protocol import COUNTERS, STATUS_OK, Renorm
 from ..schemes import DRIFT, SCHEMES, get_scheme, stage_arrays, stage_times
 from . import _kernels as TK
 from .frozen import henon_heiles_eig, lapack_eig
@@ -152,7 +152,7 @@ class _TDHPropagator:
         time = self._time + (state.time_momentum(),) if self._time else ()
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
-        was_active = state.status == Status.OK
+        was_active = state.status == STATUS_OK
         kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
                self._hc, self.n_sub, self._tkinds, self._th, self._thc, self._tidx,
                self._need, self.tau, model.inverse_mass, model.params, model.bandwidth,
