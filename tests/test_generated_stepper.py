@@ -272,3 +272,45 @@ def test_lane_layout_round_trip():
         lanes.put(soa, target)
         assert np.array_equal(target[active], a[active])
         assert not np.delete(target, active, axis=0).any()
+
+
+def test_a_built_in_models_symbolic_facts_are_read_from_the_cache(monkeypatch, tmp_path):
+    """Whether a built-in model gets a generated stepper, and the key of its
+    potential, are kept beside the steppers under its description: a new
+    process running it builds no SymPy expression. Another description
+    (here other parameters) is another file; an unreadable file is made
+    again."""
+    from varint.models import FPUT
+
+    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(G, "_FACTS", {})
+    model = FPUT(6, 0.25, 1.0)
+    fits, key = G.symbolic_fits(model, 1), G._model_key(model)
+    assert fits and key[2] == 6 and "Symbol('q5')" in key[0]
+    files = list((tmp_path / "kernels").glob("varint_model_*.json"))
+    assert len(files) == 1
+
+    def sympy_asked(model):
+        raise AssertionError("SymPy asked")
+
+    monkeypatch.setattr(G, "_FACTS", {})              # as in a new process
+    monkeypatch.setattr(G, "_facts_now", sympy_asked)
+    assert G.symbolic_fits(FPUT(6, 0.25, 1.0), 1) and G._model_key(FPUT(6, 0.25, 1.0)) == key
+    with pytest.raises(AssertionError, match="SymPy asked"):
+        G.symbolic_fits(FPUT(6, 0.5, 1.0), 1)         # another alpha: its own facts
+    files[0].write_text("{not json")
+    monkeypatch.setattr(G, "_FACTS", {})
+    with pytest.raises(AssertionError, match="SymPy asked"):
+        G.symbolic_fits(FPUT(6, 0.25, 1.0), 1)
+
+
+def test_a_users_own_model_class_is_asked_for_its_symbolic_form_every_process(monkeypatch):
+    """Only varint's own classes have their facts cached: the code behind a
+    user's class (and what it imports) is not known, so a change to it
+    could not be seen."""
+    class Stiffer(HenonHeiles):
+        pass
+
+    asked = []
+    monkeypatch.setattr(G, "_facts_now", lambda model: asked.append(model) or (False, None))
+    assert not G.symbolic_fits(Stiffer(), 1) and len(asked) == 1

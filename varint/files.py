@@ -74,13 +74,15 @@ def _plain(obj):
     if type(obj) in _SCALARS:
         return obj
     if type(obj) is dict:
+        if not all(type(key) is str for key in obj):
+            return _NOT_PLAIN
         out = {}
-        for key in sorted(obj) if all(type(k) is str for k in obj) else ():
+        for key in sorted(obj):          # as json.dumps(sort_keys=True)
             value = _plain(obj[key])
             if value is _NOT_PLAIN:
                 return _NOT_PLAIN
             out[key] = value
-        return out if len(out) == len(obj) else _NOT_PLAIN
+        return out
     if type(obj) is list:
         out = [_plain(v) for v in obj]
         return _NOT_PLAIN if any(v is _NOT_PLAIN for v in out) else out

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 import sys
 import tempfile
 import warnings
@@ -170,16 +171,11 @@ def _expressions(V_srepr, minv_srepr, n):
     return _Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q)
 
 
-def _model_key(model):
-    """The arguments of :func:`_expressions` for ``model``."""
-    return _symbolic_key(model.symbolic())
-
-
 @lru_cache(maxsize=256)
 def _symbolic_key(s):
-    """:func:`_model_key` of a model's (frozen, hashable) symbolic form:
-    printed once per process, not once per chunk of a chaos map (~0.4 ms
-    each)."""
+    """The arguments of :func:`_expressions` for a model's (frozen,
+    hashable) symbolic form: printed once per process, not once per chunk
+    of a chaos map (~0.4 ms each)."""
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"))))
     return sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n
@@ -205,19 +201,92 @@ def symbolic_fits(model, k):
         return False
     if 2 * model.n_dof * (1 + k) > SYMBOLIC_MAX_VALUES:
         return False
+    return _facts(model)[0]
+
+
+def _model_key(model):
+    """The arguments of :func:`_expressions` for ``model``."""
+    return _facts(model)[1]
+
+
+def _facts(model):
+    """(whether the model's symbolic form has its coordinates and masses,
+    the form's :func:`_symbolic_key` or None).
+
+    For a built-in model they are kept in the kernels' cache directory,
+    named after the model's description (:meth:`~varint.models.base.Model.describe`,
+    "enough to rebuild the model") and the code of ``varint.models``: a new
+    process that runs it on cached steppers then builds no SymPy
+    expression, whose first costs ~0.1 s (SymPy imports its tensor
+    module). Other models are asked directly: one made from an expression
+    (``from_potential``) holds it already, and the code behind a user's
+    own class is not known.
+    """
+    from ..models.symbolic import SymbolicModel
+
+    cls = type(model)
+    if isinstance(model, SymbolicModel) or not cls.__module__.startswith("varint.models."):
+        return _facts_now(model)
+    name = _description_id(cls, _canonical_description(model))
+    if name in _FACTS:
+        return _FACTS[name]
+    from ..cache import cache_dir
+
+    path = cache_dir() / "kernels" / f"varint_model_{name}.json"
+    try:
+        fits, key = json.loads(path.read_text())
+        facts = (bool(fits), None if key is None else (key[0], tuple(key[1]), int(key[2])))
+    except (OSError, ValueError, TypeError, IndexError):
+        facts = _facts_now(model)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(path, json.dumps(facts))
+        except OSError:
+            pass            # an unwritable cache costs SymPy's time, not the run
+    _FACTS[name] = facts
+    return facts
+
+
+#: :func:`_facts` of the models run in this process, by description id.
+_FACTS = {}
+
+
+def _facts_now(model):
+    """:func:`_facts` from the model's SymPy form."""
     try:
         s = model.symbolic()
     except (NotImplementedError, ValueError):
-        return False
-    return _matches(s, model.n_dof, tuple(float(m) for m in model.inverse_mass))
+        return False, None
+    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass))
 
 
 @lru_cache(maxsize=256)
-def _matches(s, n_dof, inverse_mass):
-    """Whether the symbolic form ``s`` has the model's coordinates and
-    masses (once per model and process: a run asks at every call)."""
-    return len(s.q) == n_dof and np.allclose([float(m) for m in s.inverse_mass],
+def _facts_of(s, n_dof, inverse_mass):
+    """:func:`_facts` of the symbolic form ``s`` for a model of ``n_dof``
+    coordinates and these masses (once per form and process)."""
+    fits = len(s.q) == n_dof and np.allclose([float(m) for m in s.inverse_mass],
                                              inverse_mass, rtol=1e-15, atol=0)
+    return bool(fits), _symbolic_key(s) if fits else None
+
+
+def _canonical_description(model):
+    """``model.describe()`` as canonical JSON text."""
+    from ..files import canonical_json
+
+    return canonical_json(model.describe())
+
+
+@lru_cache(maxsize=256)
+def _description_id(cls, description):
+    """A name for a built-in model's symbolic facts: its class and
+    description and the code they come from (``varint.models`` and this
+    module, which prints the key), so that a change of either names new
+    facts."""
+    digest = hashlib.sha256(f"{_generator_id()}|{cls.__module__}.{cls.__qualname__}|"
+                            f"{description}".encode())
+    for path in sorted((Path(__file__).parent.parent / "models").glob("*.py")):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:24]
 
 
 # -- source emission ------------------------------------------------------------------
