@@ -33,18 +33,27 @@ def test_quick_chunks_grow_faster_but_a_slow_one_at_most_eightfold():
 
 
 def test_the_kernel_check_remembers_only_the_states_that_passed():
+    """A chaos map checks its grid, then each chunk its orbits: states found
+    finite are not evaluated again; one that is not is refused every time,
+    named by its place in the batch even when states before it were
+    skipped."""
     x, y = sp.symbols("x y")
     model = from_potential(0.5 * (x ** 2 + y ** 2) + 1 / x, [x, y])
-    good = np.array([[1.0, 0.0, 0.0, 0.1]])
-    singular = np.array([[0.0, 0.0, 0.0, 0.1]])
+    good = np.array([[1.0, 0.0, 0.0, 0.1], [0.5, 0.2, 0.1, 0.0], [2.0, -1.0, 0.0, 0.0]])
+    singular = np.array([0.0, 0.3, 0.0, 0.1])
+
+    def remembered():
+        return sum(len(states) for states in check._FINITE_AT[model].values())
+
     check.kernels(model, good)
-    assert len(check._FINITE_AT[model]) == 1
-    for _ in range(2):              # refused every time, never remembered
-        with pytest.raises(ValueError, match="not finite"):
-            check.kernels(model, singular)
-    assert len(check._FINITE_AT[model]) == 1
+    assert remembered() == 3
+    batch = np.vstack([good[:2], singular, good[2:]])
+    for _ in range(2):
+        with pytest.raises(ValueError, match="initial state of orbit 2, q = .0.0, 0.3."):
+            check.kernels(model, batch)
+    assert remembered() == 3
     with pytest.raises(ValueError, match="not finite"):
-        varint.lyapunov_spectrum(model, singular[0], 1.0, tau=0.1)
+        varint.lyapunov_spectrum(model, singular, 1.0, tau=0.1)
 
 
 def test_a_model_that_ran_still_pickles_as_it_was():

@@ -330,11 +330,11 @@ def step_count(t_end, tau, limit=MAX_STEPS):
 #: Kernel evaluations of one block of :func:`kernels` hold at most this many
 #: numbers.
 _KERNEL_BLOCK = 2 ** 18
-#: :func:`kernels` remembers batches of at most this many states, and at
-#: most this many of them per model.
-_MEMO_ORBITS, _MEMO_SIZE = 8, 256
-#: The states :func:`kernels` found finite, per model (beside the model, not
-#: in it: a model must stay picklable).
+#: :func:`kernels` remembers at most this many states per model.
+_MEMO_STATES = 1 << 16
+#: The states (q, as bytes) where :func:`kernels` found the kernels finite,
+#: per model and (kernels, parameters); beside the model, not in it: a model
+#: must stay picklable.
 _FINITE_AT = weakref.WeakKeyDictionary()
 
 
@@ -361,20 +361,21 @@ def kernels(model, X, what="the initial state"):
 
     X = np.asarray(X, dtype=float)
     n, rows = model.n_dof, model.bandwidth + 1
-    # A few orbits checked before with the same kernels and parameters (a
-    # study repeating a run) are not evaluated again: calling the three
-    # kernels from Python costs tens of microseconds.
-    memo = _FINITE_AT.setdefault(model, set()) if len(X) <= _MEMO_ORBITS else None
-    key = None if memo is None else (
-        id(model.grad_kernel), id(model.hess_kernel), id(model.third_kernel),
-        np.asarray(model.params, dtype=float).tobytes(), X[:, :n].tobytes())
-    if key is not None and key in memo:
-        return
-    block = max(1, min(len(X), _KERNEL_BLOCK // (n * (2 * rows + 1))))
+    # States checked before with the same kernels and parameters are not
+    # evaluated again (~10 µs each from Python): a chaos map checks its
+    # grid, then each chunk its orbits; a study repeats a run.
+    memo = _FINITE_AT.setdefault(model, {}).setdefault(
+        (id(model.grad_kernel), id(model.hess_kernel), id(model.third_kernel),
+         np.asarray(model.params, dtype=float).tobytes()), set())
+    q_all = np.ascontiguousarray(X[:, :n])
+    keys = [q.tobytes() for q in q_all]
+    todo = np.array([m for m, key in enumerate(keys) if key not in memo], dtype=np.int64)
+    block = max(1, min(len(todo), _KERNEL_BLOCK // (n * (2 * rows + 1))))
     v = np.ones(n)
     labels = ("the gradient ∇V", "the Hessian D²V", "the third derivatives of V")
-    for start in range(0, len(X), block):
-        Q = np.ascontiguousarray(X[start:start + block, :n])
+    for start in range(0, len(todo), block):
+        orbits = todo[start:start + block]
+        Q = q_all[orbits]
         G = np.empty((len(Q), n))
         H = np.zeros((len(Q), rows, n))
         T = np.zeros((len(Q), rows, n))
@@ -394,7 +395,7 @@ def kernels(model, X, what="the initial state"):
                 "writing float64 arrays in place, see varint.models.base") from exc
         except ArithmeticError as exc:
             raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
-                             f"{_where(what, start + i, len(X))}, q = {_short(Q[i])}: "
+                             f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: "
                              f"{type(exc).__name__}: {exc}") from None
         for label, values in zip(labels, (G, H, T)):
             bad = np.flatnonzero(~np.isfinite(values.reshape(len(Q), -1)).all(axis=1))
@@ -402,13 +403,12 @@ def kernels(model, X, what="the initial state"):
                 i = int(bad[0])
                 raise ValueError(
                     f"the derivatives of V ({model.name}) are not finite at "
-                    f"{_where(what, start + i, len(X))}, q = {_short(Q[i])}: {label} is "
+                    f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: {label} is "
                     f"{_short(values[i].ravel())}; V is singular, not real or too large there "
                     "(start the orbit elsewhere)")
-    if key is not None:
-        if len(memo) >= _MEMO_SIZE:
-            memo.clear()
-        memo.add(key)
+    if len(memo) + len(todo) > _MEMO_STATES:
+        memo.clear()
+    memo.update(keys[m] for m in todo[:_MEMO_STATES])
 
 
 def _where(what, m, total):
