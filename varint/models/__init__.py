@@ -1,7 +1,9 @@
 """Models H = ½ pᵀM⁻¹p + V(q) (or V(q, t)): the protocol and the paper's
-systems; symplectic maps with their tangent maps (:mod:`.maps`); and the
+systems; symplectic maps with their tangent maps (:mod:`.maps`); the
 many-body lattices (:mod:`varint.models.lattice`), which also declare the
-parts their Hamiltonians split into."""
+parts their Hamiltonians split into; and planetary systems
+(:mod:`varint.models.planetary`), split into Kepler problems and their
+interaction."""
 
 from .base import Model
 from .ddnls import DDNLS
@@ -11,11 +13,12 @@ from .henon_heiles import HenonHeiles
 from .kg import DisorderedKG
 from .lattice import LatticeModel, Parts
 from .maps import CoupledStandardMaps, MapModel, StandardMap
+from .planetary import Planetary
 from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
 __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "FPUT", "DisorderedKG", "DDNLS",
-           "LatticeModel", "Parts", "paper_orbit", "solve_momentum", "PAPER_ORBITS",
+           "LatticeModel", "Parts", "Planetary", "paper_orbit", "solve_momentum", "PAPER_ORBITS",
            "from_potential", "SymbolicModel", "SymbolicPotential",
            "MapModel", "StandardMap", "CoupledStandardMaps", "from_map", "SymbolicMap"]
 

@@ -1,0 +1,447 @@
+"""Gravitational interaction of a star and n planets in the canonical
+coordinates of Wisdom–Holman maps, with the exact flows of the map's parts
+fused with their tangent maps.
+
+State x = (q, p), q and p of length N = 3n: planet i (0-based) at
+q[3i:3i+3], p[3i:3i+3]; the star and the centre of mass are eliminated.
+Two coordinate systems (``par[COORDS]``):
+
+Jacobi (0)
+    q_i is planet i's position relative to the centre of mass of the star
+    and the planets inside it, p_i = m′_i q̇_i with m′_i = m_i M_{i−1}/M_i
+    (M_i: the mass of the star and planets 0 … i). Then
+    H = Σ p_i²/2m′_i + U(q) with U the Newtonian potential of all pairs, and
+    the Wisdom–Holman split H = A + B is A = Σ [p_i²/2m′_i − G m_i M_{i−1}/|q_i|]
+    (a Kepler problem per planet, μ_i = G M_i) and the interaction
+    B = U + Σ G m_i M_{i−1}/|q_i|, a function of q alone (Wisdom & Holman
+    1991; for the innermost planet the two star terms cancel exactly and
+    are left out).
+Democratic heliocentric (1)
+    Q_i = x_i − x_star, P_i the barycentric momenta: H = H_K + H_I + H_J
+    with H_K = Σ [P_i²/2m_i − G m₀m_i/|Q_i|] (μ = G m₀), H_I = −Σ_{i<j}
+    G m_i m_j/|Q_i − Q_j| and H_J = |Σ P_i|²/2m₀ (Duncan, Levison & Lee
+    1998), three parts each exactly solvable.
+
+The heliocentric positions u_i = x_i − x_star follow from the Jacobi ones by
+a lower-triangular map u = Lq (u_i = q_i + Σ_{j<i} m_j u_j / M_{i−1}), so
+∇_q = Lᵀ∇_u and D²_q = Lᵀ D²_u L, each applied by an O(n) recursion
+(:func:`jacobi_to_helio`, :func:`jacobi_transpose`); pair terms cost O(n²).
+
+Parameters ``par`` (floats): n, G, the coordinate flag, then the masses
+m₀ … m_n, the interior masses M₀ … M_n, the Kepler parameters μ_i and the
+Kepler masses m′_i (:func:`planetary_params`).
+
+References
+----------
+J. Wisdom & M. Holman, Astron. J. 102, 1528 (1991); M. J. Duncan,
+H. F. Levison & M. H. Lee, Astron. J. 116, 2067 (1998); H. Rein &
+D. Tamayo, Mon. Not. R. Astron. Soc. 452, 376 (2015) (WHFast, with the
+variational equations of these flows).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .kepler import KEPLER_OK, kepler_step
+
+__all__ = ["planetary_params", "JACOBI", "DEMOCRATIC", "KEPLER", "INTERACTION", "JUMP",
+           "apply_flow", "vector_field", "potential_gradient", "potential_hessian_band",
+           "potential_third_band", "interaction_gradient", "jacobi_to_helio",
+           "jacobi_transpose", "n_work", "apply_word"]
+
+#: Coordinate flags (``par[COORDS]``).
+JACOBI, DEMOCRATIC = 0, 1
+#: Part indices of :func:`apply_flow`.
+KEPLER, INTERACTION, JUMP = 0, 1, 2
+
+_N, _G, _COORDS, _MASS = 0, 1, 2, 3
+
+
+def planetary_params(masses, G, coordinates):
+    """The kernels' ``par`` for a star and planets of ``masses`` (m₀ … m_n)
+    in ``coordinates`` (:data:`JACOBI` or :data:`DEMOCRATIC`)."""
+    m = np.asarray(masses, dtype=np.float64)
+    n = len(m) - 1
+    interior = np.cumsum(m)
+    if coordinates == JACOBI:
+        mu = G * interior[1:]
+        kmass = m[1:] * interior[:-1] / interior[1:]
+    else:
+        mu = np.full(n, G * m[0])
+        kmass = m[1:].copy()
+    return np.concatenate([[n, G, coordinates], m, interior, mu, kmass])
+
+
+def n_work(n):
+    """Scratch floats per orbit of :func:`apply_flow` for n planets."""
+    return 4 * 3 * n
+
+
+@njit(inline="always")
+def _interior(n):
+    return _MASS + n + 1
+
+
+@njit(inline="always")
+def _mu(n):
+    return _MASS + 2 * n + 2
+
+
+@njit(inline="always")
+def _kmass(n):
+    return _MASS + 3 * n + 2
+
+
+@njit(cache=True, error_model="numpy")
+def jacobi_to_helio(q, par, u):
+    """u = Lq: heliocentric positions (3n,) from Jacobi positions ``q``;
+    also maps Jacobi deviations δq to heliocentric ones (L is linear)."""
+    n = int(par[_N])
+    oi = _interior(n)
+    sx = sy = sz = 0.0
+    for i in range(n):
+        inv = 1.0 / par[oi + i]          # 1/M_{i−1}: star and planets inside i
+        u[3 * i] = q[3 * i] + sx * inv
+        u[3 * i + 1] = q[3 * i + 1] + sy * inv
+        u[3 * i + 2] = q[3 * i + 2] + sz * inv
+        m = par[_MASS + 1 + i]
+        sx += m * u[3 * i]
+        sy += m * u[3 * i + 1]
+        sz += m * u[3 * i + 2]
+
+
+@njit(cache=True, error_model="numpy")
+def jacobi_transpose(g, par, out):
+    """out = Lᵀg: a gradient (or Hessian column) with respect to the
+    heliocentric positions taken to the Jacobi ones (the transpose of
+    :func:`jacobi_to_helio`, by the backward recursion
+    out_j = g_j + m_j Σ_{i>j} out_i/M_{i−1})."""
+    n = int(par[_N])
+    oi = _interior(n)
+    tx = ty = tz = 0.0
+    for j in range(n - 1, -1, -1):
+        m = par[_MASS + 1 + j]
+        ox = g[3 * j] + m * tx
+        oy = g[3 * j + 1] + m * ty
+        oz = g[3 * j + 2] + m * tz
+        out[3 * j], out[3 * j + 1], out[3 * j + 2] = ox, oy, oz
+        inv = 1.0 / par[oi + j]
+        tx += ox * inv
+        ty += oy * inv
+        tz += oz * inv
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_gradient(u, par, g, star_from):
+    """g = ∂U/∂u for U = −Σ_{i ≥ star_from} G m₀m_i/|u_i| − Σ_{i<j} G m_i m_j/|u_i − u_j|."""
+    n = int(par[_N])
+    G = par[_G]
+    m0 = par[_MASS]
+    for a in range(3 * n):
+        g[a] = 0.0
+    for i in range(star_from, n):
+        x, y, z = u[3 * i], u[3 * i + 1], u[3 * i + 2]
+        r2 = x * x + y * y + z * z
+        c = G * m0 * par[_MASS + 1 + i] / (r2 * math.sqrt(r2))
+        g[3 * i] += c * x
+        g[3 * i + 1] += c * y
+        g[3 * i + 2] += c * z
+    for i in range(n):
+        mi = par[_MASS + 1 + i]
+        for j in range(i + 1, n):
+            dx = u[3 * i] - u[3 * j]
+            dy = u[3 * i + 1] - u[3 * j + 1]
+            dz = u[3 * i + 2] - u[3 * j + 2]
+            r2 = dx * dx + dy * dy + dz * dz
+            c = G * mi * par[_MASS + 1 + j] / (r2 * math.sqrt(r2))
+            g[3 * i] += c * dx
+            g[3 * i + 1] += c * dy
+            g[3 * i + 2] += c * dz
+            g[3 * j] -= c * dx
+            g[3 * j + 1] -= c * dy
+            g[3 * j + 2] -= c * dz
+
+
+@njit(inline="always")
+def _pair_block(K, dx, dy, dz, ex, ey, ez, wx, wy, wz, third):
+    """The 3-vector D²φ·e (or, with ``third``, (D³φ·w)·e) of the pair
+    potential φ(d) = −K/|d| at separation d."""
+    r2 = dx * dx + dy * dy + dz * dz
+    ir2 = 1.0 / r2
+    ir3 = ir2 / math.sqrt(r2)
+    de = dx * ex + dy * ey + dz * ez
+    if not third:
+        # D²φ = K (I − 3 d dᵀ/r²)/r³.
+        s = 3.0 * de * ir2
+        return K * ir3 * (ex - s * dx), K * ir3 * (ey - s * dy), K * ir3 * (ez - s * dz)
+    # D³φ·w = K [−3 (d·w) I − 3 (w dᵀ + d wᵀ) + 15 (d·w) d dᵀ/r²]/r⁵.
+    dw = dx * wx + dy * wy + dz * wz
+    we = wx * ex + wy * ey + wz * ez
+    c = K * ir3 * ir2
+    a = -3.0 * dw
+    b = 15.0 * dw * de * ir2 - 3.0 * we
+    return (c * (a * ex - 3.0 * de * wx + b * dx), c * (a * ey - 3.0 * de * wy + b * dy),
+            c * (a * ez - 3.0 * de * wz + b * dz))
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_operator(u, e, w, par, out, star_from, third):
+    """out = D²U·e (or (D³U·w)·e with ``third``) with respect to the
+    heliocentric positions ``u`` (U as in :func:`_pair_gradient`)."""
+    n = int(par[_N])
+    G = par[_G]
+    m0 = par[_MASS]
+    for a in range(3 * n):
+        out[a] = 0.0
+    for i in range(star_from, n):
+        K = G * m0 * par[_MASS + 1 + i]
+        bx, by, bz = _pair_block(K, u[3 * i], u[3 * i + 1], u[3 * i + 2], e[3 * i],
+                                 e[3 * i + 1], e[3 * i + 2], w[3 * i], w[3 * i + 1],
+                                 w[3 * i + 2], third)
+        out[3 * i] += bx
+        out[3 * i + 1] += by
+        out[3 * i + 2] += bz
+    for i in range(n):
+        mi = par[_MASS + 1 + i]
+        for j in range(i + 1, n):
+            K = G * mi * par[_MASS + 1 + j]
+            bx, by, bz = _pair_block(
+                K, u[3 * i] - u[3 * j], u[3 * i + 1] - u[3 * j + 1], u[3 * i + 2] - u[3 * j + 2],
+                e[3 * i] - e[3 * j], e[3 * i + 1] - e[3 * j + 1], e[3 * i + 2] - e[3 * j + 2],
+                w[3 * i] - w[3 * j], w[3 * i + 1] - w[3 * j + 1], w[3 * i + 2] - w[3 * j + 2],
+                third)
+            out[3 * i] += bx
+            out[3 * i + 1] += by
+            out[3 * i + 2] += bz
+            out[3 * j] -= bx
+            out[3 * j + 1] -= by
+            out[3 * j + 2] -= bz
+
+
+@njit(inline="always")
+def _coords(par):
+    return int(par[_COORDS])
+
+
+# -- the whole potential U(q): the model's kernels ---------------------------
+@njit(cache=True, error_model="numpy")
+def potential_gradient(q, par, g):
+    """g = ∇U(q), the gradient of the Newtonian potential of all pairs in
+    the model's coordinates (the ``grad`` kernel of
+    :class:`varint.models.Planetary` in Jacobi coordinates)."""
+    n3 = q.shape[0]
+    u = np.empty(n3)
+    gu = np.empty(n3)
+    if _coords(par) == JACOBI:
+        jacobi_to_helio(q, par, u)
+        _pair_gradient(u, par, gu, 0)
+        jacobi_transpose(gu, par, g)
+    else:
+        _pair_gradient(q, par, g, 0)
+
+
+@njit(cache=True, error_model="numpy")
+def _potential_columns(q, par, v, B, third):
+    # Column j of D²U (or of Σ_k v_k D²∂_kU) is Lᵀ (D²_u U) L e_j.
+    n3 = q.shape[0]
+    jac = _coords(par) == JACOBI
+    u, e, w = np.zeros(n3), np.zeros(n3), np.zeros(n3)
+    col, tmp = np.zeros(n3), np.zeros(n3)
+    if jac:
+        jacobi_to_helio(q, par, u)
+        if third:
+            jacobi_to_helio(v, par, w)
+    else:
+        u[:] = q
+        if third:
+            w[:] = v
+    unit = np.zeros(n3)
+    for j in range(n3):
+        unit[:] = 0.0
+        unit[j] = 1.0
+        if jac:
+            jacobi_to_helio(unit, par, e)
+        else:
+            e[:] = unit
+        _pair_operator(u, e, w, par, tmp, 0, third)
+        if jac:
+            jacobi_transpose(tmp, par, col)
+        else:
+            col[:] = tmp
+        for i in range(j + 1):
+            B[j - i, i] = col[i]
+
+
+@njit(cache=True, error_model="numpy")
+def potential_hessian_band(q, par, B):
+    """D²U(q) in band storage of full bandwidth (B[b, i] = A[i, i + b])."""
+    _potential_columns(q, par, q, B, False)
+
+
+@njit(cache=True, error_model="numpy")
+def potential_third_band(q, par, v, B):
+    """Σ_k v_k D²(∂_kU)(q) in band storage of full bandwidth."""
+    _potential_columns(q, par, v, B, True)
+
+
+# -- the Wisdom–Holman parts ---------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def interaction_gradient(q, par, out, work):
+    """out = ∇B(q), the gradient of the interaction part (module
+    docstring); ``work`` holds 6n floats of scratch."""
+    n = int(par[_N])
+    n3 = 3 * n
+    if _coords(par) == DEMOCRATIC:
+        _pair_gradient(q, par, out, n)
+        return
+    u = work[:n3]
+    gu = work[n3:2 * n3]
+    jacobi_to_helio(q, par, u)
+    _pair_gradient(u, par, gu, 1)
+    jacobi_transpose(gu, par, out)
+    oi = _interior(n)
+    G = par[_G]
+    for i in range(1, n):
+        K = G * par[_MASS + 1 + i] * par[oi + i]       # G m_i M_{i−1}
+        x, y, z = q[3 * i], q[3 * i + 1], q[3 * i + 2]
+        r2 = x * x + y * y + z * z
+        c = K / (r2 * math.sqrt(r2))
+        out[3 * i] -= c * x
+        out[3 * i + 1] -= c * y
+        out[3 * i + 2] -= c * z
+
+
+@njit(cache=True, error_model="numpy")
+def _kick(x, V, k, h, par, work):
+    """e^{h L_B}: p −= h∇B(q), δp −= h D²B(q) δq, for the k rows of V."""
+    n = int(par[_N])
+    n3 = 3 * n
+    g = work[2 * n3:3 * n3]
+    interaction_gradient(x[:n3], par, g, work)
+    for a in range(n3):
+        x[n3 + a] -= h * g[a]
+    if k == 0:
+        return
+    jac = _coords(par) == JACOBI
+    u = work[:n3]                       # heliocentric positions, still there
+    du = work[n3:2 * n3]
+    hv = work[3 * n3:4 * n3]
+    star_from = 1 if jac else n
+    oi = _interior(n)
+    G = par[_G]
+    for c in range(k):
+        if jac:
+            jacobi_to_helio(V[c, :n3], par, du)
+            _pair_operator(u, du, du, par, hv, star_from, False)
+            jacobi_transpose(hv, par, g)
+            for i in range(1, n):
+                # D²(K/r)·δq = K (3 (q·δq) q/r² − δq)/r³.
+                K = G * par[_MASS + 1 + i] * par[oi + i]
+                x0, y0, z0 = x[3 * i], x[3 * i + 1], x[3 * i + 2]
+                ex, ey, ez = V[c, 3 * i], V[c, 3 * i + 1], V[c, 3 * i + 2]
+                r2 = x0 * x0 + y0 * y0 + z0 * z0
+                ir3 = 1.0 / (r2 * math.sqrt(r2))
+                s = 3.0 * (x0 * ex + y0 * ey + z0 * ez) / r2
+                g[3 * i] += K * ir3 * (s * x0 - ex)
+                g[3 * i + 1] += K * ir3 * (s * y0 - ey)
+                g[3 * i + 2] += K * ir3 * (s * z0 - ez)
+        else:
+            _pair_operator(x[:n3], V[c, :n3], V[c, :n3], par, g, star_from, False)
+        for a in range(n3):
+            V[c, n3 + a] -= h * g[a]
+
+
+@njit(cache=True, error_model="numpy")
+def _jump(x, V, k, h, par):
+    """e^{h L_J}, H_J = |ΣP|²/2m₀: every Q_i += h ΣP/m₀ (and δQ likewise)."""
+    n = int(par[_N])
+    n3 = 3 * n
+    c = h / par[_MASS]
+    for f in range(k + 1):
+        row = x if f == 0 else V[f - 1]
+        sx = sy = sz = 0.0
+        for i in range(n):
+            sx += row[n3 + 3 * i]
+            sy += row[n3 + 3 * i + 1]
+            sz += row[n3 + 3 * i + 2]
+        for i in range(n):
+            row[3 * i] += c * sx
+            row[3 * i + 1] += c * sy
+            row[3 * i + 2] += c * sz
+
+
+@njit(cache=True, error_model="numpy")
+def _kepler(x, V, k, h, par):
+    """The Kepler flow of every planet for time h; the first failing
+    planet's status (the planets before it have moved)."""
+    n = int(par[_N])
+    n3 = 3 * n
+    omu, okm = _mu(n), _kmass(n)
+    for i in range(n):
+        status = kepler_step(x, V, k, 3 * i, n3 + 3 * i, par[omu + i], par[okm + i], h)
+        if status != KEPLER_OK:
+            return status
+    return KEPLER_OK
+
+
+@njit(cache=True, error_model="numpy")
+def apply_flow(part, h, x, V, k, par, work):
+    """The exact flow of ``part`` (:data:`KEPLER`, :data:`INTERACTION` or
+    :data:`JUMP`) for time ``h``, on the orbit ``x`` (2N,) and the first
+    ``k`` rows of ``V`` (the deviation vectors, (≥k, 2N)), in place;
+    ``work`` holds :func:`n_work` floats.
+
+    Returns
+    -------
+    int
+        0, or the Kepler solver's failure
+        (:data:`varint.kernels.kepler.KEPLER_UNCONVERGED`,
+        :data:`~varint.kernels.kepler.KEPLER_DEGENERATE`).
+    """
+    if part == KEPLER:
+        return _kepler(x, V, k, h, par)
+    if part == INTERACTION:
+        _kick(x, V, k, h, par, work)
+    else:
+        _jump(x, V, k, h, par)
+    return KEPLER_OK
+
+
+@njit(cache=True, error_model="numpy")
+def vector_field(x, par, out):
+    """out = ẋ = J∇H(x), the Hamiltonian vector field (2N,)."""
+    n = int(par[_N])
+    n3 = 3 * n
+    okm = _kmass(n)
+    g = np.empty(n3)
+    potential_gradient(x[:n3], par, g)
+    for i in range(n):
+        inv = 1.0 / par[okm + i]
+        for a in range(3):
+            out[3 * i + a] = x[n3 + 3 * i + a] * inv
+    if _coords(par) == DEMOCRATIC:
+        inv0 = 1.0 / par[_MASS]
+        for a in range(3):
+            s = 0.0
+            for i in range(n):
+                s += x[n3 + 3 * i + a]
+            for i in range(n):
+                out[3 * i + a] += s * inv0
+    for a in range(n3):
+        out[n3 + a] = -g[a]
+
+
+@njit(cache=True, error_model="numpy")
+def apply_word(parts, h, x, V, k, par, work):
+    """The flows ``parts[s]`` for times ``h[s]`` in order (a scheme's step
+    or a corrector, :mod:`varint.correctors`); the first failure's status,
+    with the flows before it applied."""
+    for s in range(parts.shape[0]):
+        status = apply_flow(parts[s], h[s], x, V, k, par, work)
+        if status != KEPLER_OK:
+            return status
+    return KEPLER_OK
