@@ -164,11 +164,28 @@ def _bracket(r0, beta, mu, h, h2):
     if beta > 0.0:
         far = min(far, mu * (1.0 + e) / beta)
     near = h / q if q > 0.0 else math.copysign(np.inf, h)
+    if beta < 0.0:
+        # Beyond X√−β = 700 the Stiefel functions overflow (the distance
+        # would grow by e^700): no step that is resolvable needs it.
+        near = math.copysign(min(abs(near), 700.0 / math.sqrt(-beta)), h)
     slow = h / far
     widen = 1e-12
     if h > 0.0:
         return slow * (1.0 - widen), near * (1.0 + widen)
     return near * (1.0 + widen), slow * (1.0 - widen)
+
+
+@njit(cache=True, error_model="numpy")
+def _middle(lo, hi):
+    """The bisection point of a bracket: its geometric mean while it spans
+    more than a factor 16 on one side of 0 (the a-priori bounds of a
+    near-parabolic orbit far from pericentre are decades apart), else its
+    midpoint."""
+    if lo > 0.0 and hi > 16.0 * lo:
+        return math.sqrt(lo * hi)
+    if hi < 0.0 and lo < 16.0 * hi:
+        return -math.sqrt(lo * hi)
+    return 0.5 * (lo + hi)
 
 
 @njit(cache=True, error_model="numpy")
@@ -220,7 +237,7 @@ def solve_universal(r0, eta0, zeta0, beta, mu, h, h2):
         # A long step, where the series is no guess: start in the bracket.
         lo, hi = _bracket(r0, beta, mu, h, h2)
         bounded = True
-        X = 0.5 * (lo + hi) if math.isfinite(hi - lo) else s
+        X = _middle(lo, hi) if math.isfinite(hi - lo) else s
     before = np.nan
     for _ in range(MAX_ITERATIONS):
         G0, G1, G2, G3, G4, G5 = gauss(beta, X)
@@ -230,8 +247,10 @@ def solve_universal(r0, eta0, zeta0, beta, mu, h, h2):
             return KEPLER_OK, X, G0, G1, G2, G3, G4, G5
         if F < 0.0:
             lo = X
-        elif F > 0.0 or X * h > 0.0:
-            # Positive, or overflowed beyond the root (F grows with X).
+        elif F > 0.0:
+            hi = X
+        elif X > 0.0:
+            # F overflowed: |X| is beyond the root (F grows with X).
             hi = X
         else:
             lo = X
@@ -244,7 +263,7 @@ def solve_universal(r0, eta0, zeta0, beta, mu, h, h2):
             if not bounded:
                 a, b = _bracket(r0, beta, mu, h, h2)
                 lo, hi, bounded = max(lo, a), min(hi, b), True
-            Xn = 0.5 * (lo + hi)
+            Xn = _middle(lo, hi)
             if not math.isfinite(Xn):
                 break
         if Xn in (X, before):
