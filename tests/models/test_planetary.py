@@ -347,3 +347,39 @@ def test_rebound_conversions():
     assert np.allclose(Planetary.from_rebound(back)[1], x, rtol=0, atol=1e-15)
     dem, xd = Planetary.from_rebound(sim, coordinates="democratic")
     assert dem.energy(xd) == pytest.approx(sim.energy(), rel=1e-13)
+
+
+@pytest.mark.parametrize("n, coords", [(1, "jacobi"), (2, "jacobi"), (3, "jacobi"),
+                                       (1, "democratic"), (3, "democratic")])
+def test_unrolled_flows_are_the_generic_ones_bit_for_bit(n, coords):
+    """The straight-line drift and kick of varint.kernels.nbody_unrolled
+    (what runs) against the generic loops of varint.kernels.nbody (what
+    the tests above hold to the physics)."""
+    from varint.kernels.nbody_unrolled import drift_kernel, kick_kernel
+
+    model = Planetary(MASSES[:n + 1], G=1.3, coordinates=coords)
+    x0 = model.from_elements(ELEMENTS[:n])
+    V0 = np.random.default_rng(1).normal(size=(3, model.dim))
+    work = np.empty(model.parts.n_work)
+    for part, kernel in ((nbody.KEPLER, drift_kernel(n)),
+                         (nbody.INTERACTION, kick_kernel(n, coords == "jacobi"))):
+        for h in (0.3, 0.0, -7.0):
+            x1, V1 = x0.copy(), V0.copy()
+            x2, V2 = x0.copy(), V0.copy()
+            out = kernel(x1, V1, 3, h, model.params)
+            assert nbody.apply_flow(part, h, x2, V2, 3, model.params, work) == (out or 0)
+            assert x1.tobytes() == x2.tobytes() and V1.tobytes() == V2.tobytes()
+
+
+def test_a_failing_drift_moves_no_planet():
+    """One planet at the centre: the drift reports it degenerate and no
+    planet moves (the generic loop would have moved the planets before)."""
+    from varint.kernels.kepler import KEPLER_DEGENERATE
+    from varint.kernels.nbody_unrolled import drift_kernel
+
+    model = Planetary(MASSES[:3])
+    x = model.from_elements(ELEMENTS[:2])
+    x[3:6] = 0.0
+    before = x.copy()
+    assert drift_kernel(2)(x, np.eye(12)[:1].copy(), 1, 0.3, model.params) == KEPLER_DEGENERATE
+    assert np.array_equal(x, before)

@@ -77,8 +77,9 @@ def planetary_params(masses, G, coordinates):
 
 
 def n_work(n):
-    """Scratch floats per orbit of :func:`apply_flow` for n planets."""
-    return 4 * 3 * n
+    """Scratch floats per orbit of :func:`apply_flow` for n planets: five
+    vectors of 3n and c, s of each of the at most n(n + 3)/2 terms of B."""
+    return 5 * 3 * n + n * (n + 3)
 
 
 @njit(inline="always")
@@ -289,68 +290,166 @@ def potential_third_band(q, par, v, B):
 
 
 # -- the Wisdom–Holman parts ---------------------------------------------------
+@njit(inline="always")
+def _term(K, dx, dy, dz, cs, t):
+    """Store c = K/r³ and s = 3/r² of the pair term φ(d) = −K/|d| as term
+    ``t`` of ``cs``, and return c (its gradient is c·d, its Hessian
+    c (I − s d dᵀ))."""
+    r2 = dx * dx + dy * dy + dz * dz
+    c = K / (r2 * math.sqrt(r2))
+    cs[2 * t] = c
+    cs[2 * t + 1] = 3.0 / r2
+    return c
+
+
+@njit(inline="always")
+def _hessian_term(cs, t, dx, dy, dz, ex, ey, ez):
+    """D²φ·e of term ``t`` (stored by :func:`_term`) at separation d."""
+    c = cs[2 * t]
+    a = cs[2 * t + 1] * (dx * ex + dy * ey + dz * ez)
+    return c * (ex - a * dx), c * (ey - a * dy), c * (ez - a * dz)
+
+
+@njit(cache=True, error_model="numpy")
+def _interaction(q, par, work):
+    """The gradient ∇B(q) of the interaction part into ``work[2·3n:3·3n]``,
+    and what its Hessian needs: the heliocentric positions (``work[:3n]``)
+    and each term's c, s (``work[5·3n:]``, :func:`_term`), in the order
+    star terms, planet pairs, then (Jacobi) the Kepler terms removed.
+
+    The terms of B: −G m₀m_i/|u_i| for i ≥ 1 (Jacobi; none in democratic
+    heliocentric coordinates, where they are in H_K), −G m_i m_j/|u_i − u_j|,
+    and (Jacobi) +G m_i M_{i−1}/|q_i| for i ≥ 1, a term of the same form
+    with K = −G m_i M_{i−1} in the Jacobi positions themselves (module
+    docstring; planet 0's two star terms cancel and are left out).
+    """
+    n = int(par[_N])
+    n3 = 3 * n
+    jac = _coords(par) == JACOBI
+    u = work[:n3]
+    gu = work[n3:2 * n3]
+    g = work[2 * n3:3 * n3]
+    cs = work[5 * n3:]
+    if jac:
+        jacobi_to_helio(q, par, u)
+    else:
+        for a in range(n3):
+            u[a] = q[a]
+    for a in range(n3):
+        gu[a] = 0.0
+    G = par[_G]
+    m0 = par[_MASS]
+    t = 0
+    if jac:
+        for i in range(1, n):
+            x, y, z = u[3 * i], u[3 * i + 1], u[3 * i + 2]
+            c = _term(G * m0 * par[_MASS + 1 + i], x, y, z, cs, t)
+            t += 1
+            gu[3 * i] += c * x
+            gu[3 * i + 1] += c * y
+            gu[3 * i + 2] += c * z
+    for i in range(n):
+        mi = par[_MASS + 1 + i]
+        for j in range(i + 1, n):
+            dx = u[3 * i] - u[3 * j]
+            dy = u[3 * i + 1] - u[3 * j + 1]
+            dz = u[3 * i + 2] - u[3 * j + 2]
+            c = _term(G * mi * par[_MASS + 1 + j], dx, dy, dz, cs, t)
+            t += 1
+            gu[3 * i] += c * dx
+            gu[3 * i + 1] += c * dy
+            gu[3 * i + 2] += c * dz
+            gu[3 * j] -= c * dx
+            gu[3 * j + 1] -= c * dy
+            gu[3 * j + 2] -= c * dz
+    if not jac:
+        for a in range(n3):
+            g[a] = gu[a]
+        return
+    jacobi_transpose(gu, par, g)
+    oi = _interior(n)
+    for i in range(1, n):
+        x, y, z = q[3 * i], q[3 * i + 1], q[3 * i + 2]
+        c = _term(-G * par[_MASS + 1 + i] * par[oi + i], x, y, z, cs, t)
+        t += 1
+        g[3 * i] += c * x
+        g[3 * i + 1] += c * y
+        g[3 * i + 2] += c * z
+
+
+@njit(cache=True, error_model="numpy")
+def _interaction_hvp(q, e, par, work, out):
+    """out = D²B(q)·e for a deviation of the positions ``e`` (3n,), from
+    the geometry :func:`_interaction` left in ``work``."""
+    n = int(par[_N])
+    n3 = 3 * n
+    jac = _coords(par) == JACOBI
+    u = work[:n3]
+    du = work[3 * n3:4 * n3]
+    hv = work[4 * n3:5 * n3] if jac else out
+    cs = work[5 * n3:]
+    if jac:
+        jacobi_to_helio(e, par, du)
+    else:
+        for a in range(n3):
+            du[a] = e[a]
+    for a in range(n3):
+        hv[a] = 0.0
+    t = 0
+    if jac:
+        for i in range(1, n):
+            bx, by, bz = _hessian_term(cs, t, u[3 * i], u[3 * i + 1], u[3 * i + 2], du[3 * i],
+                                       du[3 * i + 1], du[3 * i + 2])
+            t += 1
+            hv[3 * i] += bx
+            hv[3 * i + 1] += by
+            hv[3 * i + 2] += bz
+    for i in range(n):
+        for j in range(i + 1, n):
+            bx, by, bz = _hessian_term(
+                cs, t, u[3 * i] - u[3 * j], u[3 * i + 1] - u[3 * j + 1],
+                u[3 * i + 2] - u[3 * j + 2], du[3 * i] - du[3 * j],
+                du[3 * i + 1] - du[3 * j + 1], du[3 * i + 2] - du[3 * j + 2])
+            t += 1
+            hv[3 * i] += bx
+            hv[3 * i + 1] += by
+            hv[3 * i + 2] += bz
+            hv[3 * j] -= bx
+            hv[3 * j + 1] -= by
+            hv[3 * j + 2] -= bz
+    if not jac:
+        return
+    jacobi_transpose(hv, par, out)
+    for i in range(1, n):
+        bx, by, bz = _hessian_term(cs, t, q[3 * i], q[3 * i + 1], q[3 * i + 2], e[3 * i],
+                                   e[3 * i + 1], e[3 * i + 2])
+        t += 1
+        out[3 * i] += bx
+        out[3 * i + 1] += by
+        out[3 * i + 2] += bz
+
+
 @njit(cache=True, error_model="numpy")
 def interaction_gradient(q, par, out, work):
     """out = ∇B(q), the gradient of the interaction part (module
-    docstring); ``work`` holds 6n floats of scratch."""
-    n = int(par[_N])
-    n3 = 3 * n
-    if _coords(par) == DEMOCRATIC:
-        _pair_gradient(q, par, out, n)
-        return
-    u = work[:n3]
-    gu = work[n3:2 * n3]
-    jacobi_to_helio(q, par, u)
-    _pair_gradient(u, par, gu, 1)
-    jacobi_transpose(gu, par, out)
-    oi = _interior(n)
-    G = par[_G]
-    for i in range(1, n):
-        K = G * par[_MASS + 1 + i] * par[oi + i]       # G m_i M_{i−1}
-        x, y, z = q[3 * i], q[3 * i + 1], q[3 * i + 2]
-        r2 = x * x + y * y + z * z
-        c = K / (r2 * math.sqrt(r2))
-        out[3 * i] -= c * x
-        out[3 * i + 1] -= c * y
-        out[3 * i + 2] -= c * z
+    docstring); ``work`` holds :func:`n_work` floats of scratch."""
+    _interaction(q, par, work)
+    n3 = q.shape[0]
+    for a in range(n3):
+        out[a] = work[2 * n3 + a]
 
 
 @njit(cache=True, error_model="numpy")
 def _kick(x, V, k, h, par, work):
     """e^{h L_B}: p −= h∇B(q), δp −= h D²B(q) δq, for the k rows of V."""
-    n = int(par[_N])
-    n3 = 3 * n
+    n3 = 3 * int(par[_N])
+    q = x[:n3]
+    _interaction(q, par, work)
     g = work[2 * n3:3 * n3]
-    interaction_gradient(x[:n3], par, g, work)
     for a in range(n3):
         x[n3 + a] -= h * g[a]
-    if k == 0:
-        return
-    jac = _coords(par) == JACOBI
-    u = work[:n3]                       # heliocentric positions, still there
-    du = work[n3:2 * n3]
-    hv = work[3 * n3:4 * n3]
-    star_from = 1 if jac else n
-    oi = _interior(n)
-    G = par[_G]
     for c in range(k):
-        if jac:
-            jacobi_to_helio(V[c, :n3], par, du)
-            _pair_operator(u, du, du, par, hv, star_from, False)
-            jacobi_transpose(hv, par, g)
-            for i in range(1, n):
-                # D²(K/r)·δq = K (3 (q·δq) q/r² − δq)/r³.
-                K = G * par[_MASS + 1 + i] * par[oi + i]
-                x0, y0, z0 = x[3 * i], x[3 * i + 1], x[3 * i + 2]
-                ex, ey, ez = V[c, 3 * i], V[c, 3 * i + 1], V[c, 3 * i + 2]
-                r2 = x0 * x0 + y0 * y0 + z0 * z0
-                ir3 = 1.0 / (r2 * math.sqrt(r2))
-                s = 3.0 * (x0 * ex + y0 * ey + z0 * ez) / r2
-                g[3 * i] += K * ir3 * (s * x0 - ex)
-                g[3 * i + 1] += K * ir3 * (s * y0 - ey)
-                g[3 * i + 2] += K * ir3 * (s * z0 - ez)
-        else:
-            _pair_operator(x[:n3], V[c, :n3], V[c, :n3], par, g, star_from, False)
+        _interaction_hvp(q, V[c, :n3], par, work, g)
         for a in range(n3):
             V[c, n3 + a] -= h * g[a]
 

@@ -53,6 +53,7 @@ import numpy as np
 
 from .._validate import real_array
 from ..kernels import nbody as K
+from ..kernels.nbody_unrolled import flows
 from .base import Model
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
 
@@ -159,7 +160,7 @@ class Planetary(Model):
         names = ("Kepler", "Interaction") if jacobi else ("Kepler", "Interaction", "Jump")
         splits = {2: ("Kepler", "Interaction")} if jacobi else {3: ("Interaction", "Jump",
                                                                      "Kepler")}
-        self.parts = Parts(names=names, apply=K.apply_flow, field=K.vector_field,
+        self.parts = Parts(names=names, apply=flows(n, jacobi), field=K.vector_field,
                            splits=splits, par=par, n_work=K.n_work(n),
                            default_scheme="SABA1" if jacobi else "ABC2")
 
@@ -238,7 +239,7 @@ class Planetary(Model):
         """∇B(q), shape (N,) (compiled: what the kicks use)."""
         q = self._q(q)
         out = np.empty(self.n_dof)
-        K.interaction_gradient(q, self.params, out, np.empty(2 * self.n_dof))
+        K.interaction_gradient(q, self.params, out, np.empty(K.n_work(self.n_planets)))
         return out
 
     def describe(self):
