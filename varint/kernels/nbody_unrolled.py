@@ -22,6 +22,7 @@ model's parts.
 
 from __future__ import annotations
 
+import math
 from functools import cache
 
 import numba
@@ -146,8 +147,6 @@ def _transpose(add, n, jacobi, src, dst, ind="    "):
 def kick_kernel(n, jacobi):
     """The compiled kick of n planets (Jacobi or democratic heliocentric
     coordinates), built once per process and (n, coordinates)."""
-    import math
-
     scope = {"math": math}
     exec(compile(_source(n, jacobi), f"<varint planetary kick n={n}>", "exec"), scope)
     return numba.njit(error_model="numpy", inline="always")(scope["kick"])
@@ -192,8 +191,6 @@ def _drift_source(n):
 def drift_kernel(n):
     """The compiled Kepler drift of n planets (module docstring), built once
     per process and n."""
-    import math
-
     scope = {"math": math, "prepare": kep.prepare, "finish": kep.finish,
              "solve_fast": kep.solve_fast, "solve_universal": kep.solve_universal,
              "KEPLER_OK": KEPLER_OK, "KEPLER_DEGENERATE": KEPLER_DEGENERATE}
@@ -214,7 +211,12 @@ def flows(n, jacobi):
     @numba.njit(error_model="numpy", inline="always")
     def apply(part, h, x, V, k, par, work):
         if part == KEPLER:
-            return drift(x, V, k, h, par)
+            status = drift(x, V, k, h, par)
+            if status != KEPLER_OK:
+                # The part stepper does not read a flow's status: a NaN in the
+                # state stops the orbit there (reported as non-finite).
+                x[0] = math.nan
+            return status
         if part == INTERACTION:
             kick(x, V, k, h, par)
         else:

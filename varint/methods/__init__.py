@@ -16,8 +16,10 @@ integrated: ``"tm"`` iterates them with their own tangent map
 
 ``method="tm"`` has two steppers: the generic one (:mod:`varint.methods.tm`,
 H = T + V with band kernels) and, for models split into k ≥ 2 parts (the
-lattices), the part stepper (:mod:`varint.methods.parts`), which
-:func:`make_propagator` picks by :func:`varint.methods.parts.runs_parts`.
+lattices, planetary systems), the part stepper (:mod:`varint.methods.parts`),
+which :func:`make_propagator` picks by :func:`varint.methods.parts.runs_parts`
+(or the propagator around it a model names in ``parts_propagator``:
+:mod:`varint.methods.planetary`).
 """
 
 from __future__ import annotations
@@ -94,6 +96,11 @@ def propagator_class(method, model=None):
                              f"(iterated, not integrated); maps take: {', '.join(MAP_METHODS)} "
                              "('tm' iterates the map's own tangent map)")
         target = MAP_METHODS[key]
+    return _resolve(target)
+
+
+def _resolve(target):
+    """The class named by "module:Class"."""
     module, _, cls = target.partition(":")
     return getattr(importlib.import_module(module), cls)
 
@@ -144,7 +151,10 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
     from .parts import PartsPropagator, runs_parts
 
     if _key(method) == "tm" and runs_parts(model, options.get("scheme")):
-        cls = PartsPropagator
+        # A model may name a propagator of its own around the part stepper
+        # ("module:Class"; planetary systems: the correctors at outputs).
+        own = getattr(model, "parts_propagator", None)
+        cls = PartsPropagator if own is None else _resolve(own)
     elif not getattr(model, "band_kernels", True):
         raise ValueError(f"method {method!r} needs the band-Hessian kernels of "
                          f"varint.models.base, which {model.name} does not have (a 2D lattice, "

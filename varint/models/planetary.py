@@ -120,6 +120,9 @@ class Planetary(Model):
     """
 
     band_kernels = True
+    #: What ``method="tm"`` runs on the parts: the part stepper with the
+    #: correctors at outputs (:mod:`varint.methods.planetary`).
+    parts_propagator = "varint.methods.planetary:PlanetaryPropagator"
 
     def __init__(self, masses: Sequence[float], G: float = 1.0, coordinates: str = "jacobi",
                  name: str | None = None, escape_radius: float | None = None) -> None:
@@ -433,6 +436,24 @@ class Planetary(Model):
             self.G * (self.masses[0] + self.masses[1:])
         with np.errstate(invalid="ignore"):
             return np.where(a > 0, 2 * np.pi * np.sqrt(np.abs(a) ** 3 / mu), np.inf)
+
+    def pericentre_times(self, x):
+        """Each planet's pericentre passage time √(q³/μ(1 + e)) — the
+        pericentre distance over the pericentre speed — in its Kepler
+        problem of these coordinates, for states ``x`` (..., 2N): shape
+        (..., n)."""
+        x = np.asarray(x, dtype=float)
+        n = self.n_planets
+        q = x[..., :3 * n].reshape(x.shape[:-1] + (n, 3))
+        v = x[..., 3 * n:].reshape(x.shape[:-1] + (n, 3)) / self.kepler_mass[:, None]
+        mu = self.kepler_mu
+        r = np.linalg.norm(q, axis=-1)
+        h2 = np.sum(np.cross(q, v) ** 2, axis=-1)
+        energy = 0.5 * np.sum(v * v, axis=-1) - mu / r
+        with np.errstate(invalid="ignore"):
+            e = np.sqrt(np.maximum(1 + 2 * energy * h2 / mu ** 2, 0.0))
+            peri = h2 / (mu * (1 + e))
+            return np.sqrt(peri ** 3 / (mu * (1 + e)))
 
     def _bodies(self, value, name):
         arr = real_array(value, name)
