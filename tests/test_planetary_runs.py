@@ -162,7 +162,7 @@ def test_bad_corrector_options_are_refused(jupiter_saturn):
 
 def test_unresolved_pericentres_are_warned_and_singular_starts_refused():
     """A step longer than a planet's pericentre passage time √(q³/μ(1+e))
-    gets an AccuracyWarning naming the planet and both times (Wisdom 2015);
+    gets an AccuracyWarning naming the planet and both times;
     a planet on the star is refused before any work."""
     model = Planetary([1.0, 1e-3, 3e-4])
     x0 = model.from_elements([dict(a=1.0, e=0.9), dict(a=2.0, e=0.1, M=2.0)])
@@ -195,3 +195,21 @@ def test_megno_stability_map_over_elements(jupiter_saturn):
     assert abs(image[0, 3] - 2.0) < 0.2                  # a = 9.0, e = 0.05
     assert image[2, 1] > 8.0 and r.t_stop[r.decided].max() < 2e4   # (7.86, 0.214)
     assert r.values.tobytes() == again.values.tobytes()
+
+
+def test_close_encounters_stop_orbits():
+    """Two planets 0.15 apart (2 mutual Hill radii of 0.076): with
+    close_encounter = 3 the orbit stops with status CLOSE_ENCOUNTER at once
+    (the other orbit of the batch, far apart, goes on); without it, it runs
+    through."""
+    els = [[dict(a=1.0, e=0.0), dict(a=1.02, e=0.0, M=0.15)],
+           [dict(a=1.0, e=0.0), dict(a=3.0, e=0.0, M=2.0)]]
+    for close, want in ((3.0, int(varint.Status.CLOSE_ENCOUNTER)), (None, 0)):
+        model = Planetary([1.0, 1e-3, 3e-4], close_encounter=close)
+        x0 = np.stack([model.from_elements(e) for e in els])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = varint.integrate(model, x0, 20.0, tau=0.05, t_out=4, errors="flag")
+        assert r.status[0] == want and r.status[1] == 0
+        if close:
+            assert r.provenance.counts["steps"] < 500

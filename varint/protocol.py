@@ -51,6 +51,12 @@ class Status(enum.IntEnum):
     #: where the orbit is (e.g. log x at x < 0). Found by the run when it
     #: records, not by the stepper.
     POTENTIAL_NONFINITE = 9
+    #: Two planets came closer than the close-encounter distance
+    #: (:class:`varint.models.Planetary`, in mutual Hill radii).
+    CLOSE_ENCOUNTER = 10
+    #: A Kepler drift could not be solved (a planet on the star or a
+    #: degenerate state: :mod:`varint.kernels.kepler`).
+    KEPLER_FAILED = 11
 
 
 #: ``Status.OK`` as a plain int, for comparisons with status arrays: NumPy
@@ -82,6 +88,11 @@ REASONS = {
     Status.POTENTIAL_NONFINITE: ("the potential is not finite at the orbit's position (it is "
                                  "singular or not real there) although its derivatives were, "
                                  "so the energy is undefined; found at this output time"),
+    Status.CLOSE_ENCOUNTER: ("two planets came closer than the model's close-encounter "
+                             "distance (close_encounter, in mutual Hill radii): the "
+                             "Wisdom-Holman map does not resolve an encounter"),
+    Status.KEPLER_FAILED: ("a planet's Kepler drift could not be solved (the planet is on the "
+                           "star or its state is degenerate)"),
 }
 
 #: Unrenormalised deviation vectors larger than this are reported as overflow.

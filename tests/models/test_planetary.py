@@ -383,3 +383,35 @@ def test_a_failing_drift_moves_no_planet():
     before = x.copy()
     assert drift_kernel(2)(x, np.eye(12)[:1].copy(), 1, 0.3, model.params) == KEPLER_DEGENERATE
     assert np.array_equal(x, before)
+
+
+def test_close_encounter_is_detected_by_both_kicks():
+    """Two planets at (1, 0, 0) and (1, s, 0) from the star, against f = 2
+    mutual Hill radii ((m₁ + m₂)/3m₀)^{1/3} √((r₁² + r₂²)/2): the generic
+    and the generated kick flag the same states, exactly those closer than
+    that, on both sides of it."""
+    from varint.kernels.nbody_unrolled import kick_kernel
+
+    m = [1.0, 1e-3, 3e-4]
+    rhill = np.cbrt(1.3e-3 / 3)
+    flags = set()
+    for coords in ("jacobi", "democratic"):
+        model = Planetary(m, coordinates=coords, close_encounter=2.0)
+        for s in (0.8, 0.99, 1.01, 1.2):
+            sep = s * 2.0 * rhill           # about s times the bound
+            X = np.array([[0.0, 0, 0], [1.0, 0, 0], [1.0, sep, 0]])
+            x = model.from_cartesian(X, [[0.0, 0, 0], [0, 1, 0], [0, 1.1, 0]])
+            x1, x2 = x.copy(), x.copy()
+            V = np.zeros((0, model.dim))
+            generated = kick_kernel(2, coords == "jacobi")(x1, V, 0, 1e-9, model.params)
+            generic = nbody.apply_flow(nbody.INTERACTION, 1e-9, x2, V, 0, model.params,
+                                       np.empty(model.parts.n_work))
+            U = model.helio_positions(x1[:6])
+            bound = 2.0 * rhill * np.sqrt((U[0] @ U[0] + U[1] @ U[1]) / 2)
+            want = nbody.ENCOUNTER if np.linalg.norm(U[0] - U[1]) < bound else 0
+            assert generated == generic == want, (coords, s)
+            flags.add(want)
+    assert flags == {0, nbody.ENCOUNTER}
+    assert Planetary(m).describe().get("close_encounter") is None
+    with pytest.raises(ValueError, match="close_encounter must be a positive"):
+        Planetary(m, close_encounter=0)

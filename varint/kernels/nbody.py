@@ -49,6 +49,7 @@ from numba import njit
 from .kepler import KEPLER_OK, kepler_step
 
 __all__ = ["planetary_params", "JACOBI", "DEMOCRATIC", "KEPLER", "INTERACTION", "JUMP",
+           "ENCOUNTER",
            "apply_flow", "vector_field", "potential_gradient", "potential_hessian_band",
            "potential_third_band", "interaction_gradient", "jacobi_to_helio",
            "jacobi_transpose", "n_work", "apply_word"]
@@ -57,13 +58,23 @@ __all__ = ["planetary_params", "JACOBI", "DEMOCRATIC", "KEPLER", "INTERACTION", 
 JACOBI, DEMOCRATIC = 0, 1
 #: Part indices of :func:`apply_flow`.
 KEPLER, INTERACTION, JUMP = 0, 1, 2
+#: What a kick returns when two planets came closer than the
+#: close-encounter distance (the Kepler solver's failures are 1 and 2).
+ENCOUNTER = 3
 
 _N, _G, _COORDS, _MASS = 0, 1, 2, 3
 
 
-def planetary_params(masses, G, coordinates):
+def planetary_params(masses, G, coordinates, close_encounter=None):
     """The kernels' ``par`` for a star and planets of ``masses`` (m₀ … m_n)
-    in ``coordinates`` (:data:`JACOBI` or :data:`DEMOCRATIC`)."""
+    in ``coordinates`` (:data:`JACOBI` or :data:`DEMOCRATIC`), stopping at
+    a ``close_encounter`` (in mutual Hill radii; None: never).
+
+    A close encounter of planets i and j is |u_i − u_j|² < f² R²_ij with
+    the mutual Hill radius R²_ij = ((m_i + m_j)/3m₀)^{2/3} (|u_i|² + |u_j|²)/2
+    at the planets' present distances from the star (the mean of squares:
+    no square root in the kick); ``par`` holds f² and each pair's
+    ((m_i + m_j)/3m₀)^{2/3}/2 after the Kepler masses."""
     m = np.asarray(masses, dtype=np.float64)
     n = len(m) - 1
     interior = np.cumsum(m)
@@ -73,7 +84,10 @@ def planetary_params(masses, G, coordinates):
     else:
         mu = np.full(n, G * m[0])
         kmass = m[1:].copy()
-    return np.concatenate([[n, G, coordinates], m, interior, mu, kmass])
+    f2 = 0.0 if close_encounter is None else float(close_encounter) ** 2
+    hill = [0.5 * np.cbrt((m[1 + i] + m[1 + j]) / (3 * m[0])) ** 2
+            for i in range(n) for j in range(i + 1, n)]
+    return np.concatenate([[n, G, coordinates], m, interior, mu, kmass, [f2], hill])
 
 
 def n_work(n):
@@ -441,8 +455,11 @@ def interaction_gradient(q, par, out, work):
 
 @njit(cache=True, error_model="numpy")
 def _kick(x, V, k, h, par, work):
-    """e^{h L_B}: p −= h∇B(q), δp −= h D²B(q) δq, for the k rows of V."""
-    n3 = 3 * int(par[_N])
+    """e^{h L_B}: p −= h∇B(q), δp −= h D²B(q) δq, for the k rows of V;
+    returns :data:`ENCOUNTER` (after the kick) if two planets are closer
+    than the close-encounter distance (:func:`planetary_params`), else 0."""
+    n = int(par[_N])
+    n3 = 3 * n
     q = x[:n3]
     _interaction(q, par, work)
     g = work[2 * n3:3 * n3]
@@ -452,6 +469,29 @@ def _kick(x, V, k, h, par, work):
         _interaction_hvp(q, V[c, :n3], par, work, g)
         for a in range(n3):
             V[c, n3 + a] -= h * g[a]
+    return _encounter(work[:n3], par)
+
+
+@njit(cache=True, error_model="numpy")
+def _encounter(u, par):
+    """:data:`ENCOUNTER` if two planets at heliocentric positions ``u``
+    are within the close-encounter distance, else 0."""
+    n = int(par[_N])
+    o = _MASS + 4 * n + 2
+    f2 = par[o]
+    if f2 == 0.0:
+        return 0
+    t = o + 1
+    for i in range(n):
+        ui = u[3 * i] ** 2 + u[3 * i + 1] ** 2 + u[3 * i + 2] ** 2
+        for j in range(i + 1, n):
+            uj = u[3 * j] ** 2 + u[3 * j + 1] ** 2 + u[3 * j + 2] ** 2
+            d2 = ((u[3 * i] - u[3 * j]) ** 2 + (u[3 * i + 1] - u[3 * j + 1]) ** 2
+                  + (u[3 * i + 2] - u[3 * j + 2]) ** 2)
+            if d2 < f2 * par[t] * (ui + uj):
+                return ENCOUNTER
+            t += 1
+    return 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -497,16 +537,16 @@ def apply_flow(part, h, x, V, k, par, work):
     Returns
     -------
     int
-        0, or the Kepler solver's failure
+        0, the Kepler solver's failure
         (:data:`varint.kernels.kepler.KEPLER_UNCONVERGED`,
-        :data:`~varint.kernels.kepler.KEPLER_DEGENERATE`).
+        :data:`~varint.kernels.kepler.KEPLER_DEGENERATE`), or
+        :data:`ENCOUNTER` from a kick.
     """
     if part == KEPLER:
         return _kepler(x, V, k, h, par)
     if part == INTERACTION:
-        _kick(x, V, k, h, par, work)
-    else:
-        _jump(x, V, k, h, par)
+        return _kick(x, V, k, h, par, work)
+    _jump(x, V, k, h, par)
     return KEPLER_OK
 
 

@@ -14,7 +14,9 @@ about 4× and the drift 1.4× faster than the generic loops (the kernel
 timings of studies/bench_planetary.py).
 
 The generated functions are ``kick(x, V, k, h, par)`` (p −= h∇B(q),
-δp −= h D²B(q) δq for the first k rows of V) and ``drift(x, V, k, h,
+δp −= h D²B(q) δq for the first k rows of V; returns
+:data:`~varint.kernels.nbody.ENCOUNTER` after a kick that leaves two
+planets within the close-encounter distance) and ``drift(x, V, k, h,
 par)`` (returning the Kepler status; nothing moves when a planet's step
 fails). :func:`flows` compiles them with the jump into the ``apply`` of a
 model's parts.
@@ -29,7 +31,7 @@ import numba
 
 from . import kepler as kep
 from .kepler import KEPLER_DEGENERATE, KEPLER_OK
-from .nbody import INTERACTION, KEPLER, _jump
+from .nbody import ENCOUNTER, INTERACTION, KEPLER, _jump
 
 __all__ = ["kick_kernel", "drift_kernel", "flows"]
 
@@ -87,6 +89,20 @@ def _source(n, jacobi):
     for i in range(n):
         for a, ax in enumerate(_AX):
             add(f"    x[{n3 + 3 * i + a}] -= h * g{i}{ax}")
+    # Close encounters (varint.kernels.nbody._encounter), after the kick.
+    add(f"    f2 = par[{5 + 4 * n}]")
+    add("    met = 0")
+    if n > 1:
+        add("    if f2 != 0.0:")
+        t = 6 + 4 * n
+        for i in range(n):
+            for j in range(i + 1, n):
+                ui = " + ".join(f"u{i}{ax} ** 2" for ax in _AX)
+                uj = " + ".join(f"u{j}{ax} ** 2" for ax in _AX)
+                d2 = " + ".join(f"(u{i}{ax} - u{j}{ax}) ** 2" for ax in _AX)
+                add(f"        if met == 0 and ({d2}) < f2 * par[{t}] * (({ui}) + ({uj})):")
+                add("            met = ENCOUNTER")
+                t += 1
     add("    for c in range(k):")
     ind = "        "
     for i in range(n):
@@ -125,6 +141,7 @@ def _source(n, jacobi):
     for i in range(n):
         for a, ax in enumerate(_AX):
             add(f"{ind}V[c, {n3 + 3 * i + a}] -= h * hv{i}{ax}")
+    add("    return met")
     return "\n".join(lines) + "\n"
 
 
@@ -147,7 +164,7 @@ def _transpose(add, n, jacobi, src, dst, ind="    "):
 def kick_kernel(n, jacobi):
     """The compiled kick of n planets (Jacobi or democratic heliocentric
     coordinates), built once per process and (n, coordinates)."""
-    scope = {"math": math}
+    scope = {"math": math, "ENCOUNTER": ENCOUNTER}
     exec(compile(_source(n, jacobi), f"<varint planetary kick n={n}>", "exec"), scope)
     return numba.njit(error_model="numpy", inline="always")(scope["kick"])
 
@@ -212,15 +229,18 @@ def flows(n, jacobi):
     def apply(part, h, x, V, k, par, work):
         if part == KEPLER:
             status = drift(x, V, k, h, par)
-            if status != KEPLER_OK:
+            if status != KEPLER_OK and math.isfinite(x[0]):
                 # The part stepper does not read a flow's status: a NaN in the
-                # state stops the orbit there (reported as non-finite).
+                # state stops the orbit there (reported as non-finite, named
+                # by varint.methods.planetary); an earlier mark is kept.
                 x[0] = math.nan
             return status
         if part == INTERACTION:
-            kick(x, V, k, h, par)
-        else:
-            _jump(x, V, k, h, par)
+            status = kick(x, V, k, h, par)
+            if status != KEPLER_OK:
+                x[0] = math.inf     # an encounter: +inf tells it from a failed drift
+            return status
+        _jump(x, V, k, h, par)
         return KEPLER_OK
 
     return apply

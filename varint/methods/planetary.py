@@ -22,15 +22,16 @@ near-identity symplectic map, so every indicator's law is unchanged). With
 map. y and W_y live in ``state.extra``, so chunking and checkpoints resume
 bit for bit.
 
-A Kepler drift longer than a planet's pericentre passage time is warned
-about at the start (:meth:`PlanetaryPropagator.advance`): the map does not
-resolve such a pericentre (Wisdom 2015).
+Orbits whose planets meet (the model's ``close_encounter``) stop with
+status ``CLOSE_ENCOUNTER``, those whose Kepler drift cannot be solved with
+``KEPLER_FAILED``. A Kepler drift longer than a planet's pericentre
+passage time is warned about at the start (:meth:`PlanetaryPropagator.advance`): the map does not
+resolve such a pericentre: its error there does not fall with ε.
 
 References
 ----------
 J. Wisdom, M. Holman & J. Touma, Fields Inst. Commun. 10, 217 (1996);
-J. Wisdom, Astron. J. 150, 127 (2015); H. Rein & D. Tamayo, Mon. Not. R.
-Astron. Soc. 452, 376 (2015).
+H. Rein & D. Tamayo, Mon. Not. R. Astron. Soc. 452, 376 (2015).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from numba import njit
 from ..accuracy import AccuracyWarning
 from ..correctors import WHT_ORDERS, corrector_word
 from ..kernels.nbody import apply_word
-from ..protocol import STATUS_OK, Renorm
+from ..protocol import STATUS_OK, Renorm, Status
 from ..schemes import get_scheme
 from ..state import renormalized_copy
 from . import method_options
@@ -76,6 +77,20 @@ def _apply_word_batch(parts, h, X, W, par, n_work, active, out_X, out_W):
             out_X[m] = X[m]
             out_W[m] = W[m]
     return status
+
+
+def _name_failures(state, was_active):
+    """The planetary flows stop an orbit by a mark in its first coordinate,
+    which the part stepper reports as non-finite: +inf for a close
+    encounter, NaN (the rest finite) for a Kepler drift that could not be
+    solved (:func:`varint.kernels.nbody_unrolled.flows`). Name them."""
+    failed = was_active & (state.status == int(Status.ORBIT_NONFINITE))
+    if not failed.any():
+        return
+    first = state.x[:, 0]
+    rest_finite = np.isfinite(state.x[:, 1:]).all(axis=1)
+    state.status[failed & (first == np.inf)] = int(Status.CLOSE_ENCOUNTER)
+    state.status[failed & np.isnan(first) & rest_finite] = int(Status.KEPLER_FAILED)
 
 
 def _kick_spacing(scheme):
@@ -178,8 +193,10 @@ class PlanetaryPropagator:
         """Advance every active orbit of ``state`` by ``n`` intervals."""
         if state.step == 0:
             self._warn_unresolved(state)
+        was_active = state.status == STATUS_OK
         if self.corrector is None:
             self.inner.advance(state, n)
+            _name_failures(state, was_active)
             return
         if MAPPED_STATE not in state.extra:
             # The first call: the map starts from C⁻¹(x₀), its vectors DC⁻¹·W₀.
@@ -191,6 +208,7 @@ class PlanetaryPropagator:
         state.x[...] = y
         state.W[...] = Wy
         self.inner.advance(state, n)
+        _name_failures(state, was_active)
         y[...] = state.x
         Wy[...] = state.W
         # Outputs: x = C(y) and DC(y)·W_y, renormalised as copies.
@@ -206,8 +224,7 @@ class PlanetaryPropagator:
         drift's step exceeds a planet's pericentre passage time
         √(q³/μ(1 + e)) (the time to cross the pericentre distance at the
         pericentre speed): the Wisdom–Holman map then does not resolve the
-        pericentre, and its error grows without bound as e → 1 (Wisdom
-        2015; Rein & Tamayo 2015)."""
+        pericentre, and its error grows without bound as e → 1."""
         if getattr(self.inner.scheme, "n_parts", 2) != 2:
             return
         dt = self.tau * _kick_spacing(self.inner.scheme)

@@ -96,6 +96,12 @@ class Planetary(Model):
     escape_radius : float, optional
         Stop orbits (as escaped) once |q|, the norm of all planets'
         positions in these coordinates, exceeds it.
+    close_encounter : float, optional
+        Stop orbits (status ``CLOSE_ENCOUNTER``) once two planets come
+        closer than this many mutual Hill radii
+        ((m_i + m_j)/3m₀)^{1/3} r̄ after a kick, r̄² the mean of their squared
+        distances from the star (:func:`varint.kernels.nbody.planetary_params`);
+        by default never.
 
     Attributes
     ----------
@@ -125,7 +131,8 @@ class Planetary(Model):
     parts_propagator = "varint.methods.planetary:PlanetaryPropagator"
 
     def __init__(self, masses: Sequence[float], G: float = 1.0, coordinates: str = "jacobi",
-                 name: str | None = None, escape_radius: float | None = None) -> None:
+                 name: str | None = None, escape_radius: float | None = None,
+                 close_encounter: float | None = None) -> None:
         m = np.array(masses, dtype=np.float64) if _numbers(masses) else None
         if m is None or m.ndim != 1 or len(m) < 2:
             raise ValueError(f"masses must be a sequence of at least two numbers (the star, "
@@ -137,10 +144,12 @@ class Planetary(Model):
                              f"index {i}")
         self.G = _positive(G, "G")
         self.coordinates = _choice(coordinates, COORDINATES, "coordinates")
+        self.close_encounter = (None if close_encounter is None
+                                else _positive(close_encounter, "close_encounter"))
         self.masses = m
         self.n_planets = n = len(m) - 1
         flag = K.JACOBI if self.coordinates == "jacobi" else K.DEMOCRATIC
-        par = K.planetary_params(m, self.G, flag)
+        par = K.planetary_params(m, self.G, flag, self.close_encounter)
         interior = np.cumsum(m)
         if flag == K.JACOBI:
             self.kepler_mu = self.G * interior[1:]
@@ -250,6 +259,8 @@ class Planetary(Model):
         d.pop("inverse_mass", None)
         d.pop("params", None)
         d.update(masses=self.masses.tolist(), G=self.G, coordinates=self.coordinates)
+        if self.close_encounter is not None:
+            d["close_encounter"] = self.close_encounter
         if self.escape_radius is not None:
             d["escape_radius"] = self.escape_radius
         return d
