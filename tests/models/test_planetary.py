@@ -415,3 +415,16 @@ def test_close_encounter_is_detected_by_both_kicks():
     assert Planetary(m).describe().get("close_encounter") is None
     with pytest.raises(ValueError, match="close_encounter must be a positive"):
         Planetary(m, close_encounter=0)
+
+
+def test_models_pickle_for_dask_workers():
+    """A map on a Dask cluster sends the model to the workers: it pickles
+    with its generated flows, and the copy describes the same system."""
+    import pickle
+
+    model = Planetary(MASSES, G=1.3, close_encounter=2.0)
+    copy = pickle.loads(pickle.dumps(model))
+    assert copy.describe() == model.describe()
+    assert np.array_equal(copy.params, model.params)
+    x0 = model.from_elements(ELEMENTS)
+    assert copy.energy(x0) == model.energy(x0)
