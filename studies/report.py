@@ -47,6 +47,10 @@ KNOWN = {
     "stress": "Stress",
     "bench_baselines": "Benchmark: the reference integrators (studies/bench_baselines.py)",
     "bench_chaos_map": "Benchmark: chaos maps (studies/bench_chaos_map.py)",
+    "planetary": "Planetary systems: the Kepler tangent map and the Wisdom–Holman error laws "
+                 "(studies/planetary.py)",
+    "bench_planetary": "Benchmark: MEGNO stability maps of planetary systems against REBOUND "
+                       "(studies/bench_planetary.py)",
     "two_particle": "The two-particle method the paper left out (studies/two_particle.py)",
     "lattices": "Many-body lattices: the scheme ranking of Danieli et al. 2019 and the speed "
                 "targets (studies/lattices.py)",
