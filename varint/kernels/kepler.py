@@ -18,16 +18,21 @@ for short steps). β > 0 is an ellipse, β = 0 a parabola, β < 0 a
 hyperbola: the same formulas hold for all, including e → 1 where the
 classical anomalies break down.
 
-Kepler's equation is solved to round-off: F(X) = r₀X + η₀G₂ + ζ₀G₃ − h is
-increasing (F′ = r > 0), so a third-order Newton-type method (Chebyshev's)
-runs inside a bracket that
-always holds the root — from r ≥ q (the pericentre distance) and
-r ≤ min(Q, r₀ + v_q|h|) (apocentre, pericentre speed), X lies between
-h/min(Q, r₀ + v_q|h|) and h/q — and falls back to bisection when an
-iterate leaves it or converges slowly; it stops when the residual is at round-off or the
-iterates repeat (then the residual is checked). A step whose equation
-cannot be solved (a collision orbit with r₀ = 0, a non-finite state, no
-convergence) is reported, never returned as a number.
+Kepler's equation is solved to round-off. A resolved step takes one
+evaluation of the series: a fourth-order guess of X(h), one third-order
+correction (Chebyshev's), and the Stiefel functions moved to the corrected
+X by their Taylor series (:func:`solve_fast`); the residual is then
+checked. Otherwise F(X) = r₀X + η₀G₂ + ζ₀G₃ − h, which increases
+(F′ = r > 0), is solved inside a bracket that always holds the root — from
+r ≥ q (the pericentre distance) and r ≤ min(Q, r₀ + v_q|h|) (apocentre,
+pericentre speed), X lies between h/min(Q, r₀ + v_q|h|) and h/q — with
+bisection when an iterate leaves it or converges slowly; it stops when the
+residual is at round-off or the iterates repeat (then the residual is
+checked). A step whose equation cannot be solved (a collision orbit with
+r₀ = 0, a non-finite state, no convergence) is reported, never returned as
+a number. A radial orbit through the centre is not one: universal
+variables regularise it, and the drift continues along the collision
+ellipse.
 
 The tangent map is the derivative of that solution with respect to
 (r₀, v₀) (Mikkola & Innanen 1999): differentiating Kepler's equation at
@@ -65,8 +70,8 @@ KEPLER_OK = 0
 #: Kepler's equation was not solved to round-off within
 #: :data:`MAX_ITERATIONS` iterations (or its residual failed the check).
 KEPLER_UNCONVERGED = 1
-#: The step has no solution to find: r₀ = 0 (a collision), a radial orbit
-#: through the centre, or a non-finite state.
+#: The step has no solution to find: r₀ = 0 (a collision) or a non-finite
+#: state.
 KEPLER_DEGENERATE = 2
 
 #: Iterations of the safeguarded solver before giving up (one
