@@ -150,18 +150,33 @@ def jacobi_transpose(g, par, out):
         tz += oz * inv
 
 
+@njit(inline="always")
+def _term(K, dx, dy, dz, cs, t):
+    """Store c = K/r³ and s = 3/r² of the pair term φ(d) = −K/|d| as term
+    ``t`` of ``cs``, and return c (its gradient is c·d, its Hessian
+    c (I − s d dᵀ))."""
+    r2 = dx * dx + dy * dy + dz * dz
+    c = K / (r2 * math.sqrt(r2))
+    cs[2 * t] = c
+    cs[2 * t + 1] = 3.0 / r2
+    return c
+
+
 @njit(cache=True, error_model="numpy")
-def _pair_gradient(u, par, g, star_from):
-    """g = ∂U/∂u for U = −Σ_{i ≥ star_from} G m₀m_i/|u_i| − Σ_{i<j} G m_i m_j/|u_i − u_j|."""
+def _pair_gradient(u, par, g, star_from, cs):
+    """g = ∂U/∂u for U = −Σ_{i ≥ star_from} G m₀m_i/|u_i| − Σ_{i<j} G m_i m_j/|u_i − u_j|,
+    each term's c, s stored in ``cs`` (:func:`_term`: star terms, then the
+    pairs); returns the number of terms."""
     n = int(par[_N])
     G = par[_G]
     m0 = par[_MASS]
     for a in range(3 * n):
         g[a] = 0.0
+    t = 0
     for i in range(star_from, n):
         x, y, z = u[3 * i], u[3 * i + 1], u[3 * i + 2]
-        r2 = x * x + y * y + z * z
-        c = G * m0 * par[_MASS + 1 + i] / (r2 * math.sqrt(r2))
+        c = _term(G * m0 * par[_MASS + 1 + i], x, y, z, cs, t)
+        t += 1
         g[3 * i] += c * x
         g[3 * i + 1] += c * y
         g[3 * i + 2] += c * z
@@ -171,14 +186,15 @@ def _pair_gradient(u, par, g, star_from):
             dx = u[3 * i] - u[3 * j]
             dy = u[3 * i + 1] - u[3 * j + 1]
             dz = u[3 * i + 2] - u[3 * j + 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            c = G * mi * par[_MASS + 1 + j] / (r2 * math.sqrt(r2))
+            c = _term(G * mi * par[_MASS + 1 + j], dx, dy, dz, cs, t)
+            t += 1
             g[3 * i] += c * dx
             g[3 * i + 1] += c * dy
             g[3 * i + 2] += c * dz
             g[3 * j] -= c * dx
             g[3 * j + 1] -= c * dy
             g[3 * j + 2] -= c * dz
+    return t
 
 
 @njit(inline="always")
@@ -249,14 +265,16 @@ def potential_gradient(q, par, g):
     the model's coordinates (the ``grad`` kernel of
     :class:`varint.models.Planetary` in Jacobi coordinates)."""
     n3 = q.shape[0]
+    n = n3 // 3
     u = np.empty(n3)
     gu = np.empty(n3)
+    cs = np.empty(n * (n + 1))
     if _coords(par) == JACOBI:
         jacobi_to_helio(q, par, u)
-        _pair_gradient(u, par, gu, 0)
+        _pair_gradient(u, par, gu, 0, cs)
         jacobi_transpose(gu, par, g)
     else:
-        _pair_gradient(q, par, g, 0)
+        _pair_gradient(q, par, g, 0, cs)
 
 
 @njit(cache=True, error_model="numpy")
@@ -305,18 +323,6 @@ def potential_third_band(q, par, v, B):
 
 # -- the Wisdom–Holman parts ---------------------------------------------------
 @njit(inline="always")
-def _term(K, dx, dy, dz, cs, t):
-    """Store c = K/r³ and s = 3/r² of the pair term φ(d) = −K/|d| as term
-    ``t`` of ``cs``, and return c (its gradient is c·d, its Hessian
-    c (I − s d dᵀ))."""
-    r2 = dx * dx + dy * dy + dz * dz
-    c = K / (r2 * math.sqrt(r2))
-    cs[2 * t] = c
-    cs[2 * t + 1] = 3.0 / r2
-    return c
-
-
-@njit(inline="always")
 def _hessian_term(cs, t, dx, dy, dz, ex, ey, ez):
     """D²φ·e of term ``t`` (stored by :func:`_term`) at separation d."""
     c = cs[2 * t]
@@ -349,39 +355,14 @@ def _interaction(q, par, work):
     else:
         for a in range(n3):
             u[a] = q[a]
-    for a in range(n3):
-        gu[a] = 0.0
-    G = par[_G]
-    m0 = par[_MASS]
-    t = 0
-    if jac:
-        for i in range(1, n):
-            x, y, z = u[3 * i], u[3 * i + 1], u[3 * i + 2]
-            c = _term(G * m0 * par[_MASS + 1 + i], x, y, z, cs, t)
-            t += 1
-            gu[3 * i] += c * x
-            gu[3 * i + 1] += c * y
-            gu[3 * i + 2] += c * z
-    for i in range(n):
-        mi = par[_MASS + 1 + i]
-        for j in range(i + 1, n):
-            dx = u[3 * i] - u[3 * j]
-            dy = u[3 * i + 1] - u[3 * j + 1]
-            dz = u[3 * i + 2] - u[3 * j + 2]
-            c = _term(G * mi * par[_MASS + 1 + j], dx, dy, dz, cs, t)
-            t += 1
-            gu[3 * i] += c * dx
-            gu[3 * i + 1] += c * dy
-            gu[3 * i + 2] += c * dz
-            gu[3 * j] -= c * dx
-            gu[3 * j + 1] -= c * dy
-            gu[3 * j + 2] -= c * dz
+    t = _pair_gradient(u, par, gu, 1 if jac else n, cs)
     if not jac:
         for a in range(n3):
             g[a] = gu[a]
         return
     jacobi_transpose(gu, par, g)
     oi = _interior(n)
+    G = par[_G]
     for i in range(1, n):
         x, y, z = q[3 * i], q[3 * i + 1], q[3 * i + 2]
         c = _term(-G * par[_MASS + 1 + i] * par[oi + i], x, y, z, cs, t)
