@@ -56,7 +56,7 @@ from . import accuracy, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
-from .methods import METHODS
+from .methods import METHODS, propagator_class
 from .models.base import Model
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
@@ -571,11 +571,12 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
                           for s, n in zip(*np.unique(status[failed], return_counts=True)))
         warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
-                      "NaN", RuntimeWarning, stacklevel=3)
+                      "NaN", RuntimeWarning, stacklevel=accuracy.user_stacklevel())
     if interrupted:
         warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
                       + ("; they are kept in the checkpoint directory, call again to resume"
-                         if kept else ""), RuntimeWarning, stacklevel=3)
+                         if kept else ""), RuntimeWarning,
+                      stacklevel=accuracy.user_stacklevel())
     first = next(iter(done.values())).provenance if done else {}
     options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
                "threshold": spec.threshold, "x0": parameters["x0"],
@@ -595,9 +596,11 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         conserved["conserved quantities"] = max_error
     # When an orbit's error was largest is not kept (only the largest, up to
     # the time it was read at).
-    verdict = accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
-                                t_worst=np.full(m, np.nan), energy_tol=energy_tol,
-                                accurate=accurate, tau=spec.tau)
+    verdict = accuracy.annotate(
+        accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
+                          t_worst=np.full(m, np.nan), energy_tol=energy_tol,
+                          accurate=accurate, tau=spec.tau),
+        model, propagator_class(spec.method, model))
     empty = np.empty(0)
     return ChaosMapResult(
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,

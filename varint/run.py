@@ -470,8 +470,9 @@ class Run:
         for key in errors:
             fields.pop(key)
         t = self.steps[:n_done] * self.tau
-        verdict = accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
-                                  self.single)
+        verdict = accuracy.annotate(
+            accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
+                            self.single), self.model, self.propagator)
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
@@ -503,7 +504,7 @@ class Run:
             raise IntegrationError(msg, partial=result, **info)
         warnings.warn(f"{int(failed.sum())} of {failed.size} orbits failed and were frozen "
                       f"(their status is non-zero, their later outputs NaN); first: {msg}",
-                      RuntimeWarning, stacklevel=4)
+                      RuntimeWarning, stacklevel=accuracy.user_stacklevel())
 
     def _escape_hint(self, orbit):
         # Hénon–Heiles above 1/6 (any model with an escape energy): say why.
