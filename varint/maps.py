@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, compiling, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
@@ -432,10 +432,12 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
     tau_choice = {"rule": "given"}
+    clock = compiling.Clock(f"the {ind.name} map of {model.name} by {method}", progress)
     if tau is None:
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-        tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
-                                       t_check, escape_radius, ind, configured, k, seed)
+        with clock.part("pilot"):
+            tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
+                                           t_check, escape_radius, ind, configured, k, seed)
     t_end, tau = check.horizon(t_end, tau)
     steps = output_steps(t_end, tau, t_check)
     if t_check is None:
@@ -466,11 +468,13 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
     runner = _run_local if client is None else _run_dask
-    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
+    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar, clock.part("run"):
         interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
     result = _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
                        interrupted, store is not None, time.perf_counter() - start, client,
                        energy_tol, tau_choice)
+    # This process's compilations (a cluster's workers compile on their own).
+    result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, method, what="the chaos map")
     return result
 

@@ -85,6 +85,13 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    timing : dict
+        Seconds of this session by part, each without the numba
+        compilations inside it: ``compile`` (their sum), ``pilot`` (the
+        automatic step's pilot), ``setup`` and ``run``
+        (:mod:`varint.compiling`). ``wall_time`` holds them all: compare
+        methods by ``timing["run"]``, which a first call's compilation does
+        not inflate.
     """
 
     kind: str
@@ -102,6 +109,7 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
