@@ -929,7 +929,7 @@ def _cmd_lattice(args):
     if args.csv is not None:
         _write_csv(args.csv, cols)
     if args.png is not None:
-        _plot_lattice(r, names, args.png)
+        _plot_lattice(r, args.png)
     if r.interrupted:
         raise _Interrupted(f"interrupted: {int((r.status != -2).sum())} of {len(seeds)} "
                            "realisations finished" + (f"; run the same command again to "
@@ -937,23 +937,18 @@ def _cmd_lattice(args):
                                                       if args.checkpoint else ""))
 
 
-def _plot_lattice(r, names, path):
-    """⟨log₁₀⟩ of each series against t, log–log, with its spread over the
-    realisations shaded."""
+def _plot_lattice(r, path):
+    """The ensemble's panels (:func:`varint.plotting.plot_ensemble`):
+    ⟨log₁₀⟩ of each series against t, log–log, its spread shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2),
-                             layout="constrained", squeeze=False)
+    from .plotting import plot_ensemble
+
+    fig = plot_ensemble(r)[0].figure
     try:
-        for ax, name in zip(axes[0], names):
-            mean, std, _ = r.log_mean(name)
-            ax.loglog(r.t, 10 ** mean)
-            ax.fill_between(r.t, 10 ** (mean - std), 10 ** (mean + std), alpha=0.3)
-            ax.set_xlabel("t")
-            ax.set_title(name)
         fig.savefig(path, dpi=130)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
