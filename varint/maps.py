@@ -386,8 +386,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              f"got shape {np.shape(initial_conditions)}")
     m = len(X)
     # The map's per-orbit results (values, times, status, errors, states).
+    model_name = model.name
     check.check_memory(check.array_bytes((m, 2 * X.shape[1] + 8)),
-                       f"a chaos map of {m} orbits of {model.name}")
+                       f"a chaos map of {m} orbits of {model_name}")
     if getattr(model, "kind", "flow") == "map":
         tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
     elif getattr(model, "band_kernels", True):
@@ -432,7 +433,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
     tau_choice = {"rule": "given"}
-    clock = compiling.Clock(f"the {ind.name} map of {model.name} by {method}", progress)
+    clock = compiling.Clock(f"the {ind.name} map of {model_name} by {method}", progress)
     if tau is None:
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
         with clock.part("pilot"):

@@ -35,7 +35,7 @@ print(m.summary())
 
 fig, ax = plt.subplots(figsize=(6, 4.6), layout="constrained")
 m.plot(ax=ax)
-ax.set_title("driven pendulum: mean MEGNO at t = %g" % t_end)
+ax.set_title(f"driven pendulum: mean MEGNO at t = {t_end:g}")
 
 # %%
 # Two orbits: in the layer (X₁ levels off) and in an island (X₁ ∝ ln t / t).
