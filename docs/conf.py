@@ -41,7 +41,7 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "README.md", "**/GALLERY_HEADER.rst", "auto_examples/*.ipynb",
+exclude_patterns = ["_build", "_mathjax", "README.md", "**/GALLERY_HEADER.rst", "auto_examples/*.ipynb",
                     "auto_examples/*.py", "auto_examples/*.zip"]
 templates_path = ["_templates"]
 default_role = "code"
@@ -126,10 +126,13 @@ html_theme_options = {
     "show_toc_level": 2,
     "navigation_with_keys": False,
     "header_links_before_dropdown": 6,
-    "secondary_sidebar_items": ["page-toc"],
+    # The report's wide tables take the whole width; its sections are in
+    # the left navigation column.
+    "secondary_sidebar_items": {"**": ["page-toc"], "report": []},
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version", "theme-version"],
 }
 # Pages without sub-pages: no empty navigation column, wider tables.
-html_sidebars = {page: [] for page in ("index", "getting_started", "report", "citing",
+html_sidebars = {page: [] for page in ("index", "getting_started", "citing",
                                        "changelog", "contributing")}
+html_sidebars["report"] = ["page-toc"]

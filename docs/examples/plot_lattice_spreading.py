@@ -6,8 +6,8 @@ A packet of energy on a disordered Klein–Gordon chain (Flach, Krimer &
 Skokos 2009): one run of the ``"dvd"`` indicator gives both laws — the
 packet's second moment m₂ and participation number P as it spreads, and
 the finite-time maximum Lyapunov exponent Λ(t) = X₁(t) with the deviation
-vector distribution (DVD), which stays localised in a few chaotic spots
-while the packet spreads. ``r.plot()`` draws them as log–log panels.
+vector distribution (DVD), whose peaks show where the chaos is (Senyange,
+Many Manda & Skokos 2018). ``r.plot()`` draws them as log–log panels.
 """
 
 import matplotlib.pyplot as plt
@@ -36,8 +36,8 @@ axes = r.plot()
 axes[0].figure.set_size_inches(10, 3.3)
 
 # %%
-# Where the energy and the deviation vector are at the end: the packet
-# spreads over many sites, the DVD sits on a few of them.
+# The energy distribution z_l and the DVD ξ_l over the sites at the end of
+# the run (``profiles=True`` keeps them at every output time).
 fig, ax = plt.subplots(figsize=(7, 3), layout="constrained")
 ax.semilogy(r.values["profile"][-1], label="energy $z_l$")
 ax.semilogy(r.values["dvd"][-1], label=r"DVD $\xi_l$")
