@@ -14,7 +14,11 @@
     varint study stress --quick             a study of studies/ (source checkout)
     varint demo                             R1 and C1, as ``python -m varint``
 
-Results are printed as a table; ``--csv`` and ``--png`` write them to files.
+Results are printed as a table; ``--csv`` and ``--png`` write them to files
+(every CSV also records the method, scheme, tau and seed that ran). The
+command keeps no lists of its own: models, indicators, methods and schemes
+come from their registries (:mod:`varint.models.registry`,
+:data:`varint.INDICATORS`, :data:`varint.METHODS`, :data:`varint.SCHEMES`).
 Bad arguments and failed runs end with a one-line error (exit status 2 for
 arguments, 1 for a failed run or an internal error, 130 after Ctrl-C);
 ``varint --traceback COMMAND ...`` also prints the traceback.
