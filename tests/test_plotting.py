@@ -163,3 +163,15 @@ def test_failed_orbits_of_a_map_have_their_own_colour():
     colours = [matplotlib.colors.to_hex(c.get_facecolor()[0]) for c in ax.collections[1:]]
     assert matplotlib.colors.to_hex(plotting.FAILED_COLOR) in colours
     assert "failed" in [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def test_an_overlay_draws_the_regular_law_through_the_regular_orbit(r1, c1):
+    """The t⁻¹ guide of a batch goes through the orbit with the smallest
+    X₁ (R1), not through the first orbit (here the chaotic C1)."""
+    model, x_r1 = r1
+    _, x_c1 = c1
+    batch = varint.lyapunov_spectrum(model, np.array([x_c1, x_r1]), 500.0, tau=0.05)
+    ax = batch.plot()
+    guide = [line for line in ax.lines if line.get_linestyle() == "--"]
+    assert len(guide) == 1
+    assert np.isclose(guide[0].get_ydata()[-1], abs(batch.exponents[1, -1, 0]))

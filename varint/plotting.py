@@ -455,12 +455,22 @@ def plot_ensemble(result, ax=None, names=None):
 
 def _overlay(function, result, ax, **kwargs):
     """Every orbit of a batch on one axes: orbit m's lines labelled with m
-    (the first few), the laws drawn once."""
+    (the first few), the laws drawn once, through the most regular-looking
+    orbit — the smallest final X₁, the largest final GALI of the highest
+    order — so that a regular-motion law is not drawn through a chaotic
+    orbit."""
     ax = _axes(ax)
     m = len(result.status)
+    headline = result.headline()
+    chosen = 0
+    if headline:
+        last = np.abs(np.asarray(headline[-1 if function is plot_gali else 0][1], dtype=float))
+        if np.isfinite(last).any():
+            chosen = int(np.nanargmax(last) if function is plot_gali else np.nanargmin(last))
+    draws_guide = "guide" in function.__code__.co_varnames and kwargs.get("guide", True)
     for k in range(m):
         before = len(ax.lines)
-        extra = {"guide": False} if k and "guide" in function.__code__.co_varnames else {}
+        extra = {"guide": draws_guide and k == chosen} if draws_guide else {}
         function(_one_orbit(result, k), ax, **{**kwargs, **extra})
         for line in ax.lines[before:]:
             label = line.get_label()

@@ -7,8 +7,7 @@ V(q, t) = −cos q (1 + 0.2 cos 1.5t), integrated in the extended phase space
 splitting scheme stays symplectic). A chaotic layer grows around the
 separatrix; resonance islands survive inside it. There is no energy surface
 to cut: :func:`varint.phase_grid` lays the grid on the (q, p) plane at
-t = 0, and the map shows the mean MEGNO (2 on tori, growing in chaos) on a
-log colour scale.
+t = 0, and the map shows the mean MEGNO (2 on tori, growing in chaos).
 """
 
 import matplotlib.pyplot as plt
@@ -22,7 +21,7 @@ n, t_end = 80, 500.0
 import os  # noqa: E402
 
 if os.environ.get("VARINT_DOCS_QUICK"):
-    n, t_end = 36, 200.0
+    n, t_end = 24, 100.0
 # sphinx_gallery_end_ignore
 
 q, t = sp.symbols("q t")
