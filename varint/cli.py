@@ -561,15 +561,20 @@ def _method_options(args):
     # the TDH methods); the method refuses a scheme it does not take.
     if args.scheme is not None:
         out["scheme"] = args.scheme
-    # The two-particle method's separation and renormalisation rule; no
-    # other method has them.
+    # Options of some methods only (the two-particle method's separation
+    # and renormalisation rule): each goes to the methods whose propagator
+    # lists it in OPTIONS (varint.METHODS), and is refused for the others.
+    from .methods import METHODS, propagator_class
+
     for name in ("d0", "d_max"):
         value = getattr(args, name)
         if value is None:
             continue
-        if args.method != "two-particle":
-            raise ValueError(f"--{name.replace('_', '-')} applies to --method two-particle "
-                             f"only, not {args.method}")
+        takers = [m for m in METHODS if name in propagator_class(m).OPTIONS]
+        if args.method not in takers:
+            raise ValueError(f"--{name.replace('_', '-')} applies to "
+                             f"{', '.join('--method ' + m for m in takers)} only, not "
+                             f"{args.method}")
         out[name] = value
     return out
 
