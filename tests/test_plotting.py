@@ -63,7 +63,7 @@ def test_an_ensemble_is_mean_and_spread(tmp_path):
     # The band is ± one standard deviation of log10 over realisations.
     band = axes[1].collections[0].get_paths()[0].vertices[:, 1]
     assert np.isclose(band.max(), np.max(10 ** (mean + std)))
-    assert "3 realisations" in axes[1].get_ylabel()
+    assert "3 realisations" in axes[1].get_title()
     assert all(a.get_yscale() == "log" for a in axes)
     _rendered(axes[0].figure, tmp_path)
 

@@ -448,8 +448,11 @@ def plot_ensemble(result, ax=None, names=None):
             line, = axis.loglog(t, 10 ** mean, label=legend)
             axis.fill_between(t, 10 ** (mean - std), 10 ** (mean + std), alpha=0.25,
                               color=line.get_color(), linewidth=0)
-        _finish_panel(axis, title, rf"$\langle$ {ylabel} $\rangle$ ({realisations} "
-                      "realisations, ± 1σ)" if realisations > 1 else ylabel)
+        if realisations > 1:
+            _finish_panel(axis, f"{title}\n{realisations} realisations, mean ± 1σ",
+                          rf"$\langle$ {ylabel} $\rangle$")
+        else:
+            _finish_panel(axis, title, ylabel)
     return axes
 
 
