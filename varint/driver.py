@@ -19,6 +19,7 @@ import warnings
 
 import numpy as np
 
+from .accuracy import user_stacklevel
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .records import Records
 from .state import Rows
@@ -202,7 +203,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                  if saved else "")
         warnings.warn(f"interrupted at t = {state.step * prop.tau:g}: returning the "
                       f"{len(records)} outputs recorded so far{where}", RuntimeWarning,
-                      stacklevel=4)
+                      stacklevel=user_stacklevel())
     return records.stacked(), stop, time.perf_counter() - start
 
 

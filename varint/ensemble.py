@@ -74,7 +74,7 @@ class EnsembleResult(_Result):
         Seconds each realisation took.
     """
 
-    plot_kind: ClassVar[str] = "series"
+    plot_kind: ClassVar[str] = "ensemble"
 
     seeds: np.ndarray = None
     values: dict = None

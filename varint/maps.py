@@ -52,11 +52,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, compiling, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
-from .methods import METHODS
+from .methods import METHODS, propagator_class
 from .models.base import Model
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
@@ -386,8 +386,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              f"got shape {np.shape(initial_conditions)}")
     m = len(X)
     # The map's per-orbit results (values, times, status, errors, states).
+    model_name = model.name
     check.check_memory(check.array_bytes((m, 2 * X.shape[1] + 8)),
-                       f"a chaos map of {m} orbits of {model.name}")
+                       f"a chaos map of {m} orbits of {model_name}")
     if getattr(model, "kind", "flow") == "map":
         tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
     elif getattr(model, "band_kernels", True):
@@ -432,10 +433,12 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
     tau_choice = {"rule": "given"}
+    clock = compiling.Clock(f"the {ind.name} map of {model_name} by {method}", progress)
     if tau is None:
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-        tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
-                                       t_check, escape_radius, ind, configured, k, seed)
+        with clock.part("pilot"):
+            tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
+                                           t_check, escape_radius, ind, configured, k, seed)
     t_end, tau = check.horizon(t_end, tau)
     steps = output_steps(t_end, tau, t_check)
     if t_check is None:
@@ -466,11 +469,13 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
     runner = _run_local if client is None else _run_dask
-    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
+    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar, clock.part("run"):
         interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
     result = _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
                        interrupted, store is not None, time.perf_counter() - start, client,
                        energy_tol, tau_choice)
+    # This process's compilations (a cluster's workers compile on their own).
+    result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, method, what="the chaos map")
     return result
 
@@ -571,11 +576,12 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
                           for s, n in zip(*np.unique(status[failed], return_counts=True)))
         warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
-                      "NaN", RuntimeWarning, stacklevel=3)
+                      "NaN", RuntimeWarning, stacklevel=accuracy.user_stacklevel())
     if interrupted:
         warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
                       + ("; they are kept in the checkpoint directory, call again to resume"
-                         if kept else ""), RuntimeWarning, stacklevel=3)
+                         if kept else ""), RuntimeWarning,
+                      stacklevel=accuracy.user_stacklevel())
     first = next(iter(done.values())).provenance if done else {}
     options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
                "threshold": spec.threshold, "x0": parameters["x0"],
@@ -595,9 +601,11 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         conserved["conserved quantities"] = max_error
     # When an orbit's error was largest is not kept (only the largest, up to
     # the time it was read at).
-    verdict = accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
-                                t_worst=np.full(m, np.nan), energy_tol=energy_tol,
-                                accurate=accurate, tau=spec.tau)
+    verdict = accuracy.annotate(
+        accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
+                          t_worst=np.full(m, np.nan), energy_tol=energy_tol,
+                          accurate=accurate, tau=spec.tau),
+        model, propagator_class(spec.method, model))
     empty = np.empty(0)
     return ChaosMapResult(
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,

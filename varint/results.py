@@ -85,6 +85,13 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    timing : dict
+        Seconds of this session by part, each without the numba
+        compilations inside it: ``compile`` (their sum), ``pilot`` (the
+        automatic step's pilot), ``setup`` and ``run``
+        (:mod:`varint.compiling`). ``wall_time`` holds them all: compare
+        methods by ``timing["run"]``, which a first call's compilation does
+        not inflate.
     """
 
     kind: str
@@ -102,6 +109,7 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
@@ -126,6 +134,10 @@ class _Result:
 
     layout: ClassVar[str] = "series"
     plot_kind: ClassVar[str] = "energy_error"
+    #: Labels of series in summaries (field or key → label).
+    _labels: ClassVar[dict] = {"mean_megno": "mean MEGNO", "megno": "MEGNO", "sali": "SALI",
+                               "fli": "FLI", "ofli": "OFLI", "participation": "P",
+                               "dvd_participation": "DVD P", "dvd_m2": "DVD m2"}
     #: Names of the trailing dimensions of fields, for :meth:`to_xarray`
     #: (beyond those of :data:`varint.tables.DIMS`), e.g.
     #: ``{"local": ("exponent",)}``; unnamed ones are ``{field}_dim{i}``.
@@ -134,6 +146,10 @@ class _Result:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         _CLASSES[cls.__name__] = cls
+        # The summary below, not the dataclass's dump of every array: set
+        # in the class itself before @dataclass runs, which then keeps it.
+        if "__repr__" not in cls.__dict__:
+            cls.__repr__ = _Result.__repr__
 
     t: np.ndarray
     energy_error: np.ndarray
@@ -207,9 +223,108 @@ class _Result:
     def summary(self):
         """One-line description for logs and the command line."""
         p = self.provenance
-        return (f"{p.kind} of {p.model.get('name')} by {p.method} "
-                f"({p.method_options.get('scheme', {}).get('name', '')}) tau={p.tau:g} "
-                f"to t={float(np.max(self.t)):g} in {p.wall_time:.3g} s")
+        scheme = p.method_options.get("scheme")
+        scheme = f" ({scheme.get('name', '')})" if isinstance(scheme, dict) else ""
+        t = np.asarray(self.t, dtype=float)
+        end = f" to t={float(np.nanmax(t)):g}" if t.size and np.isfinite(t).any() else ""
+        return (f"{p.kind} of {p.model.get('name')} by {p.method}{scheme} tau={p.tau:g}"
+                f"{end} in {p.wall_time:.3g} s")
+
+    def headline(self):
+        """The values a reader looks at first, as (label, value) pairs: the
+        last output of each series (per orbit for a batch: median and
+        range)."""
+        out = []
+        for name, value in self._series():
+            v = np.asarray(value, dtype=float)
+            if v.ndim == 0 or v.shape[-1 if self._batch() else 0] == 0:
+                continue
+            last = v[..., -1] if self._batch() else v[-1]
+            out.append((name, last))
+        return out
+
+    def _batch(self):
+        return np.ndim(self.status) == 1
+
+    def _series(self):
+        """(name, array ([M,] n_out)) of every per-output series with one
+        value per output time (columns of wider ones are named name[i])."""
+        skip = {"t", "energy_error", "state", "status", "deviations", "provenance", "accuracy",
+                "interrupted", "states"}
+        n_out = len(np.atleast_1d(self.t))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name in skip or value is None:
+                continue
+            items = value.items() if isinstance(value, dict) else [(f.name, value)]
+            for key, arr in items:
+                arr = np.asarray(arr)
+                if arr.dtype.kind != "f" or arr.ndim == 0:
+                    continue
+                lead = 1 if self._batch() else 0
+                if arr.ndim <= lead or arr.shape[lead] != n_out:
+                    continue
+                label = f"GALI_{key}" if f.name == "gali" else self._labels.get(key, str(key))
+                if arr.ndim == lead + 1:
+                    yield label, arr
+                elif arr.ndim == lead + 2 and arr.shape[-1] <= 8:
+                    for j in range(arr.shape[-1]):
+                        yield (f"X{j + 1}" if label == "exponents" else f"{label}[{j}]"), \
+                            arr[..., j]
+
+    def __repr__(self):
+        """A summary, not the arrays: what ran, the headline values, the
+        accuracy verdict, and the fields that hold the rest."""
+        p = self.provenance
+        lines = [f"{type(self).__name__}: {self.summary()}"]
+        t = np.atleast_1d(np.asarray(self.t, dtype=float))
+        orbits = (f"{len(self.status)} orbits" if self._batch()
+                  else f"x0 = {_short(p.x0)}" if p.x0 else "")
+        if self.layout != "series":     # a map's t holds check times; a section's, ends
+            times = f"t_end = {p.t_end:g}"
+        elif t.size > 1 and np.isfinite(t).all():
+            times = f"{t.size} outputs, t = {t[0]:g} … {t[-1]:g}"
+        else:
+            times = f"{t.size} output(s)"
+        lines.append(f"  {orbits}; {times}" if orbits else f"  {times}")
+        pairs = self.headline()
+        if pairs:
+            at = f"at t = {t[-1]:g}" if self.layout == "series" and t.size else "values"
+            shown = ", ".join(f"{name} = {_value(v)}" for name, v in pairs[:8])
+            more = f" (+{len(pairs) - 8} more)" if len(pairs) > 8 else ""
+            lines.append(f"  {at}: {shown}{more}")
+        if self.accuracy is not None:
+            lines.append(f"  accuracy: {self.accuracy.verdict}")
+        if np.any(np.asarray(self.status) > 0):
+            lines.append(f"  failed: {int(np.sum(np.asarray(self.status) > 0))} orbit(s) "
+                         "(status > 0)")
+        if self.interrupted:
+            lines.append("  interrupted: the outputs so far")
+        arrays = [f"{f.name} {np.shape(getattr(self, f.name))}" for f in dataclasses.fields(self)
+                  if isinstance(getattr(self, f.name), np.ndarray)]
+        dicts = [f"{f.name}[{', '.join(map(repr, getattr(self, f.name)))}]"
+                 for f in dataclasses.fields(self) if isinstance(getattr(self, f.name), dict)]
+        lines.append("  fields: " + ", ".join(arrays + dicts) + "; .provenance, .accuracy")
+        return "\n".join(lines)
+
+
+def _value(v):
+    """A headline value: one number, or median and range over orbits."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim == 0:
+        return f"{float(v):.4g}"
+    finite = v[np.isfinite(v)]
+    if not finite.size:
+        return "nan"
+    return (f"{np.median(finite):.4g} (median of {v.size}; {finite.min():.3g} … "
+            f"{finite.max():.3g})")
+
+
+def _short(x0):
+    x = np.asarray(x0, dtype=float).ravel()
+    if x.size <= 6:
+        return "[" + ", ".join(f"{v:.6g}" for v in x) + "]"
+    return f"[{', '.join(f'{v:.6g}' for v in x[:3])}, … ({x.size} values)]"
 
 
 @dataclass
@@ -383,6 +498,9 @@ class SectionResult(_Result):
     layout: ClassVar[str] = "section"
     plot_kind: ClassVar[str] = "section"
 
+    def headline(self):
+        return [("crossings", np.asarray(self.n_points))]
+
     points: np.ndarray = None
     times: np.ndarray = None
     n_points: np.ndarray = None
@@ -432,6 +550,17 @@ class ChaosMapResult(_Result):
     u: np.ndarray = None
     v: np.ndarray = None
     mask: np.ndarray = None
+
+    def headline(self):
+        values = np.asarray(self.values, dtype=float)
+        out = [(self.indicator.upper(), values)]
+        if self.threshold is not None:
+            below = int(np.sum(self.decided))
+            out.append(("decided early", np.asarray(float(below))))
+        return out
+
+    def _batch(self):
+        return True
 
     def image(self):
         """``values`` on the grid, shape (len(v), len(u)), NaN where no

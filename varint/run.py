@@ -24,7 +24,7 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, compiling, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
@@ -275,21 +275,28 @@ class Run:
             self.options[ind.count_option] = self.W0.shape[2]
         self.accumulator = ind.accumulator_for(self.options)
         self.tau_choice = stepsize.StepChoice(rule="given")
+        scheme = method_options.get("scheme")
+        self.clock = compiling.Clock(
+            f"{ind.name} of {model.name} by {self.method}"
+            + (f" ({getattr(scheme, 'name', scheme)})" if scheme is not None else ""),
+            self.progress)
         if tau is None:
             # Even the largest step the pilot may choose must fit the counter.
             check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-            tau, self.tau_choice = stepsize.choose_step(
-                model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
-                method=self.method, scheme=method_options.get("scheme"),
-                cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
-                W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+            with self.clock.part("pilot"):
+                tau, self.tau_choice = stepsize.choose_step(
+                    model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
+                    method=self.method, scheme=scheme,
+                    cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
+                    W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
         self.t_end, self.tau = check.horizon(t_end, tau)
         if t_out is None and ind.output_times is not None:
             t_out = ind.output_times(self.t_end, self.tau, self.options)
         self.steps = output_steps(self.t_end, self.tau, t_out)
         self._check_size()
-        self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
-                                          self.accumulator, **method_options)
+        with self.clock.part("setup"):
+            self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
+                                              self.accumulator, **method_options)
         if saved is None:
             self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
         else:
@@ -432,11 +439,12 @@ class Run:
         """
         self._begin_checkpoint()
         try:
-            return drive(self.propagator, self.state, self.steps, record or self.record,
-                         records=self.records, progress=self.progress,
-                         desc=self.indicator.name, errors=self.errors,
-                         checkpoint=self.checkpoint, decide=decide,
-                         renorm=self.indicator.renorm)
+            with self.clock.part("run"):
+                return drive(self.propagator, self.state, self.steps, record or self.record,
+                             records=self.records, progress=self.progress,
+                             desc=self.indicator.name, errors=self.errors,
+                             checkpoint=self.checkpoint, decide=decide,
+                             renorm=self.indicator.renorm)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.
@@ -470,8 +478,9 @@ class Run:
         for key in errors:
             fields.pop(key)
         t = self.steps[:n_done] * self.tau
-        verdict = accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
-                                  self.single)
+        verdict = accuracy.annotate(
+            accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
+                            self.single), self.model, self.propagator)
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
@@ -503,7 +512,7 @@ class Run:
             raise IntegrationError(msg, partial=result, **info)
         warnings.warn(f"{int(failed.sum())} of {failed.size} orbits failed and were frozen "
                       f"(their status is non-zero, their later outputs NaN); first: {msg}",
-                      RuntimeWarning, stacklevel=4)
+                      RuntimeWarning, stacklevel=accuracy.user_stacklevel())
 
     def _escape_hint(self, orbit):
         # Hénon–Heiles above 1/6 (any model with an escape energy): say why.
@@ -528,4 +537,10 @@ class Run:
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice))
+            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
+            timing=self.timing())
+
+    def timing(self):
+        """Seconds of this session's compilation, pilot, setup and run
+        (each without the compilations inside it; :mod:`varint.compiling`)."""
+        return {k: round(v, 6) for k, v in self.clock.timing.items()}

@@ -36,7 +36,7 @@ from ..protocol import Accumulator, Renorm
 from ..results import IndicatorResult
 
 __all__ = ["Indicator", "Option", "INDICATORS", "register_indicator", "get_indicator",
-           "resolve", "as_values", "Field"]
+           "indicator_names", "resolve", "as_values", "Field"]
 
 
 @dataclass(frozen=True)
@@ -274,6 +274,12 @@ def register_indicator(indicator: Indicator,
     for alias, fixed in (aliases or {}).items():
         _ALIASES[alias] = (indicator.name, dict(fixed))
     return indicator
+
+
+def indicator_names() -> list:
+    """Every name :func:`resolve` takes: the registered indicators and
+    their shorthands ("x1"), without the "gali_k" pattern."""
+    return list(_REGISTRY) + [a for a in _ALIASES if a not in _REGISTRY]
 
 
 def get_indicator(name: str | Indicator) -> Indicator:
