@@ -1089,10 +1089,22 @@ def _cmd_study(args):
         raise ValueError(f"unknown study {args.name!r}; expected one of: {', '.join(names)}")
     if str(root) not in sys.path:
         sys.path.insert(0, str(root))
+    _forget_other_studies(root / "studies")
     module = importlib.import_module(f"studies.{args.name}")
     status = study_status(module.main(args.study_args))
     if status:
         raise SystemExit(status)
+
+
+def _forget_other_studies(folder):
+    """Drop a ``studies`` package imported from another folder (another
+    checkout, in the same process): the study must come from ``folder``."""
+    loaded = sys.modules.get("studies")
+    paths = [Path(p).resolve() for p in getattr(loaded, "__path__", [])]
+    if loaded is None or Path(folder).resolve() in paths:
+        return
+    for name in [n for n in sys.modules if n == "studies" or n.startswith("studies.")]:
+        del sys.modules[name]
 
 
 def _cmd_demo(args):
