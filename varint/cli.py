@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate as check
+from .files import output_file
 
 __all__ = ["main", "build_parser"]
 
@@ -455,7 +456,7 @@ def _cell(v):
 
 def _write_csv(path, cols, flag="--csv"):
     try:
-        with open(path, "w", newline="") as f:
+        with output_file(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
             w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
@@ -475,12 +476,21 @@ def _save_plot(result, path, **kwargs):
     fig, ax = plt.subplots(figsize=(6, 4.5), layout="constrained")
     try:
         plot(result, ax, **kwargs)
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:
         plt.close(fig)
     print(f"plot written to {path}")
+
+
+def _savefig(fig, path):
+    """Save ``fig`` to ``path`` in the format its suffix names (PNG without
+    one), through :func:`varint.files.output_file` (no symbolic link
+    followed)."""
+    fmt = Path(path).suffix[1:].lower() or "png"
+    with output_file(path, "wb") as f:
+        fig.savefig(f, format=fmt, dpi=130)
 
 
 def _outputs(result, args, **plot_kwargs):
@@ -897,7 +907,7 @@ def _plot_lattice(r, names, path):
             ax.fill_between(r.t, 10 ** (mean - std), 10 ** (mean + std), alpha=0.3)
             ax.set_xlabel("t")
             ax.set_title(name)
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:

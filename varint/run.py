@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import os
+import time
 import warnings
 from typing import Any
 
@@ -290,19 +291,42 @@ class Run:
         self._check_size()
         self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
                                           self.accumulator, **method_options)
+        start = self._start_state()
         if saved is None:
-            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
+            self.state, self.records = start, Records()
+            self.wall_before, self.cpu_before = 0.0, 0.0
         else:
             self.checkpoint.require(saved, self.parameters())
-            self.state, self.records, self.wall_before = (saved.state, saved.records,
-                                                          saved.wall_time)
+            # Nothing from the file reaches a stepper before it is checked.
+            self.checkpoint.validate(saved, start, self.steps, self._template_record(start),
+                                     ind.renorm)
+            self.state, self.records = saved.state, saved.records
+            self.wall_before, self.cpu_before = saved.wall_time, saved.cpu_time
         self.resumed = saved is not None
-        acc = self.accumulator
-        if acc is not None and acc.key not in self.state.extra:
-            self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
-                                                (self.state.n_orbits, self.state.k, 1))
+        self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+
+    def _start_state(self):
+        """The state the run starts from: the orbits, the initial vectors and
+        the indicator's accumulator."""
+        state = RunState.start(self.x0, self.W0)
+        acc = self.accumulator
+        if acc is not None:
+            state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
+                                           (state.n_orbits, state.k, 1))
+        return state
+
+    def _template_record(self, start):
+        """One record of this run (its keys, shapes and dtypes), read off the
+        start state one step on, to check stored records against."""
+        rows = Rows.of(start)
+        rows.step = rows.step + 1
+        with np.errstate(all="ignore"):
+            rec = self.indicator.read(rows, self.model, rows.step * self.tau, self.options)
+            rec.update(self.reference.errors(rows.x, rows.step * self.tau,
+                                             rows.extra.get(TIME_MOMENTUM, 0.0)))
+        return rec
 
     def _check_size(self):
         """Refuse a run whose vectors and records would not fit in memory,
@@ -431,6 +455,7 @@ class Run:
             As :func:`varint.driver.drive`.
         """
         self._begin_checkpoint()
+        cpu = time.process_time()
         try:
             return drive(self.propagator, self.state, self.steps, record or self.record,
                          records=self.records, progress=self.progress,
@@ -446,11 +471,13 @@ class Run:
                 f"{self.method!r} integrator ({first}); they must be numba functions "
                 "grad(q, par, g), hess(q, par, B), third(q, par, v, B) writing float64 arrays "
                 "in place, see varint.models.base") from exc
+        finally:
+            self.cpu_session = time.process_time() - cpu
 
     def _begin_checkpoint(self):
         if self.checkpoint is None:
             return
-        self.checkpoint.begin(self.parameters(), self.wall_before)
+        self.checkpoint.begin(self.parameters(), self.wall_before, self.cpu_before)
         if self.resumed:
             self.checkpoint.mark_saved(self.state, self.records)
         else:
@@ -528,4 +555,5 @@ class Run:
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice))
+            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
+            cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
