@@ -36,6 +36,7 @@ import json
 import os
 import pickle
 import sys
+import threading
 import types
 from pathlib import Path
 
@@ -48,6 +49,11 @@ from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
            "HEADER", "CacheDirWarning"]
+
+_AST_LOCK = threading.Lock()
+#: One generated module is loaded at a time (threads of one process, such as
+#: a Dask worker's, may ask for the same kernels at once).
+_LOAD_LOCK = threading.RLock()
 
 #: First bytes of every signed file; the hex HMAC and a newline follow.
 HEADER = b"# varint-signed "
@@ -171,6 +177,11 @@ def load_module(name, folder, make_source, extra_globals=None):
         Registered in ``sys.modules`` under ``name`` (numba's cache finds a
         kernel's globals by module name).
     """
+    with _LOAD_LOCK:
+        return _load(name, folder, make_source, extra_globals)
+
+
+def _load(name, folder, make_source, extra_globals):
     directory = cachedir.subdir(folder)
     # The secret of the directory the files are in, kept by the module's
     # kernels for numba's files, whatever the cache directory later is.
@@ -202,12 +213,15 @@ def _execute(name, data, path, extra_globals, key=None):
     module = types.ModuleType(name)
     module.__dict__.update(extra_globals or {})
     if path is None:
-        tree = _without_disk_cache(ast.parse(data, filename=f"<varint {name}>"))
-        code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
+        # CPython 3.11's conversion of ASTs is not thread-safe (two Dask
+        # worker threads loading kernels at once raised SystemError).
+        with _AST_LOCK:
+            tree = _without_disk_cache(ast.parse(data, filename=f"<varint {name}>"))
+            code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
     else:
         module.__file__ = str(path)
-        tree = ast.increment_lineno(ast.parse(data, filename=str(path)), 1)
-        code = compile(tree, str(path), "exec", dont_inherit=True)
+        # One blank line for the signature line above the code in the file.
+        code = compile(b"\n" + data, str(path), "exec", dont_inherit=True)
     sys.modules[name] = module
     try:
         exec(code, module.__dict__)  # verified above, or generated in this process

@@ -140,22 +140,41 @@ class _Chunk:
 def _worker_threads():
     """On a Dask worker, run numba on as many threads as the worker has
     (numba's setting is per calling thread), so workers sharing a machine
-    do not oversubscribe it."""
+    do not oversubscribe it; yields the task's :func:`_cancel_check` there,
+    None elsewhere."""
     try:
         from distributed import get_worker
 
-        n = get_worker().state.nthreads
+        worker = get_worker()
+        n = worker.state.nthreads
     except (ImportError, ValueError, AttributeError):
-        yield False
+        yield None
         return
     import numba
 
     before = numba.get_num_threads()
     numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
     try:
-        yield True
+        yield _cancel_check(worker)
     finally:
         numba.set_num_threads(before)
+
+
+def _cancel_check(worker):
+    """A function telling whether the Dask task running in this thread was
+    cancelled (the map was interrupted): its run then stops at its next
+    chunk (~0.2 s) instead of finishing, so an interrupted map leaves no
+    worker busy for minutes and a cluster closes at once."""
+    try:
+        key = worker.get_current_task()
+    except Exception:  # not inside a task
+        return lambda: False
+
+    def cancelled():
+        task = worker.state.tasks.get(key)
+        return task is None or task.state in ("cancelled", "released", "forgotten")
+
+    return cancelled
 
 
 def run_chunk(model, x0, indices, spec):
@@ -164,7 +183,7 @@ def run_chunk(model, x0, indices, spec):
     """
     ind = spec.indicator
     cpu = time.process_time()
-    with _worker_threads() as on_worker, warnings.catch_warnings():
+    with _worker_threads() as cancelled, warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         W0 = initial_deviations(model.dim, spec.k, len(x0), spec.seed, indices)
@@ -183,7 +202,8 @@ def run_chunk(model, x0, indices, spec):
         def decide(rec):
             return ind.settled(rec["value"], spec.threshold)
 
-        records, stop, _ = job.drive(record, None if spec.threshold is None else decide)
+        records, stop, _ = job.drive(record, None if spec.threshold is None else decide,
+                                     cancelled)
     state = job.state
     n_done = 0 if records is None or not records else len(records["value"])
     # Read each orbit at the last output it was active at: where it was
@@ -211,7 +231,7 @@ def run_chunk(model, x0, indices, spec):
                   provenance={"method_options": job.propagator.describe(),
                               "versions": job.versions()},
                   interrupted=stop == "interrupted",
-                  cpu_time=None if on_worker else time.process_time() - cpu)
+                  cpu_time=None if cancelled is not None else time.process_time() - cpu)
 
 
 #: A map chunk's per-orbit arrays and their dtype kinds.
@@ -452,6 +472,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                       if k not in ind.options and not (k == "scheme" and v is None)}
     # Checked here, before any chunk runs, with the chunks' own rules.
     configured = ind.configure(model, ind_options)
+    ind.check_states(model, X, configured)
     k = ind.vectors(model, configured, None)
     if isinstance(threshold, str) and threshold == "default":
         threshold = ind.default_threshold(model, configured)

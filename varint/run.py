@@ -265,6 +265,7 @@ class Run:
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
+        ind.check_states(model, self.x0, self.options)
         self.method = check.choice(method, METHODS, "method")
         if tau is None and stepsize.pilots(self.method):
             stepsize.check_options(self.method, method_options)
@@ -436,7 +437,7 @@ class Run:
         keep = int(np.searchsorted(self.steps[:n], first))
         return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
-    def drive(self, record=None, decide=None):
+    def drive(self, record=None, decide=None, cancelled=None):
         """Advance to every output time, recording there.
 
         Parameters
@@ -447,6 +448,9 @@ class Run:
             record only their one value).
         decide : callable, optional
             ``decide(record) -> bool array (M,)``: orbits to stop early (see
+            :func:`varint.driver.drive`).
+        cancelled : callable, optional
+            ``cancelled() -> bool``: stop as after Ctrl-C (see
             :func:`varint.driver.drive`).
 
         Returns
@@ -461,7 +465,7 @@ class Run:
                          records=self.records, progress=self.progress,
                          desc=self.indicator.name, errors=self.errors,
                          checkpoint=self.checkpoint, decide=decide,
-                         renorm=self.indicator.renorm)
+                         renorm=self.indicator.renorm, cancelled=cancelled)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.

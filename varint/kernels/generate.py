@@ -556,21 +556,23 @@ class _Emitter:
                 self(f"{a[i][j]} *= inv", f"{b[i][j]} *= inv")
 
     def schedule(self):
-        """The next renormalisation step of the sparse schedule."""
+        """The next renormalisation step of the sparse schedule: the
+        adaptive rule's (:func:`next_interval`), at most ``every`` steps
+        when one is given. Every-step renormalisation (``every == 0``)
+        keeps no schedule (as the lanes do)."""
         k = self.k
         logs = [f"math.log(r{j})" for j in range(k)]
-        self("if every < 0:")
+        self("if every != 0:")
         self.indent()
         self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         if k > 1:
             self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
         else:
             self("spread = 0.0")
-        self("interval = next_interval(max(step - (next_renorm - interval), 1), lmax, spread)")
+        self("interval = next_interval(max(step - (next_renorm - interval), 1), lmax, spread)",
+             "if every > 0 and interval > every:", "    interval = every",
+             "next_renorm = step + interval")
         self.dedent()
-        self("elif every > 0:", "    interval = every")
-        # Every-step renormalisation keeps no schedule (as the lanes do).
-        self("if every != 0:", "    next_renorm = step + interval")
 
     def fli_peak(self, j, pk, pe, ok=None):
         """The largest ‖w_j‖ so far, as the (mantissa, exponent) pair
@@ -739,7 +741,7 @@ class _Emitter:
         self.dedent()
         for name, parallel in (("batch_serial", False), ("batch_parallel", True)):
             self("", "",
-                 f"@njit(cache=True, error_model='numpy', parallel={parallel})",
+                 f"@njit(cache=True, error_model='numpy', parallel={parallel}, nogil=True)",
                  f"def {name}(X, W, acc_m, acc_e, status, done, n_steps, step0, tau, h, hc, "
                  "escape_r2, counters, aux, rsched, outs, snap_x, snap_W, snap_m, snap_e, snap_aux,"
                  " mode, every):",
@@ -902,16 +904,15 @@ class _Emitter:
         self.indent()
         self("for b in range(nb):")
         self.indent()
-        self(f"if F[{self.fr}, b] == 0.0:", "    continue", "if every < 0:")
-        self.indent()
+        self(f"if F[{self.fr}, b] == 0.0:", "    continue")
         self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         if k > 1:
             self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
         else:
             self("spread = 0.0")
-        self(f"itv[b] = next_interval(max(step - (I[{self.inxt}, b] - itv[b]), 1), lmax, spread)")
-        self.dedent()
-        self("else:", "    itv[b] = every", f"I[{self.inxt}, b] = step + itv[b]")
+        self(f"itv[b] = next_interval(max(step - (I[{self.inxt}, b] - itv[b]), 1), lmax, spread)",
+             "if every > 0 and itv[b] > every:", "    itv[b] = every",
+             f"I[{self.inxt}, b] = step + itv[b]")
         self.dedent()
         self.dedent()
 
@@ -1085,7 +1086,7 @@ class _Emitter:
             # numba cannot cache a kernel that calls set_parallel_chunksize
             # (a dynamic global): the parallel one compiles once per process.
             self("", "",
-                 f"@njit(cache={not parallel}, error_model='numpy', parallel={parallel})",
+                 f"@njit(cache={not parallel}, error_model='numpy', parallel={parallel}, nogil=True)",
                  f"def {name}(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, "
                  "escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
             self.indent()

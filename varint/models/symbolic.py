@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -50,7 +51,8 @@ from .. import codecache
 from .base import Model
 from .maps import MapModel
 
-__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map"]
+__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map",
+           "NonSymplecticWarning"]
 
 #: Functions whose presence in V or its first three derivatives means V is
 #: not smooth enough (the corrector needs third derivatives everywhere).
@@ -483,8 +485,10 @@ class SymbolicMap(MapModel):
         F = [e.xreplace(dict(zip(coords, xs, strict=True))) for e in exprs]
         kernels = _load_kernels(_map_source(F, n))
         self._symbolic = (tuple(exprs), coords)
+        periods = _map_periods(periods, coords)
+        _warn_unless_symplectic(F, xs, periods)
         super().__init__(n, kernels.iterate, kernels.jacobian,
-                         periods=_map_periods(periods, coords),
+                         periods=periods,
                          name=name or "map " + ", ".join(f"{c}' = {e}" for c, e in
                                                          zip(coords, exprs, strict=True)),
                          escape_radius=escape_radius, variables=[str(c) for c in coords])
@@ -498,6 +502,57 @@ class SymbolicMap(MapModel):
         exprs, coords = self._symbolic
         d.update(map=[sp.srepr(e) for e in exprs], coords=[str(c) for c in coords])
         return d
+
+
+#: Points at which :func:`_warn_unless_symplectic` checks a map.
+SYMPLECTIC_SAMPLES = 16
+
+
+def _warn_unless_symplectic(F, xs, periods):
+    """Warn (:class:`NonSymplecticWarning`) if the map ``F`` (expressions in
+    ``xs`` = (q, p)) is not symplectic: DFᵀ J DF = J, J = [[0, I], [−I, 0]],
+    fails beyond round-off at one of :data:`SYMPLECTIC_SAMPLES` seeded points
+    (uniform in [−1, 1] per coordinate, in [0, period) for a periodic one;
+    points where DF is not finite are skipped). A map that is not
+    symplectic is still iterated, but the laws the indicators rest on
+    (exponents in pairs X_i + X_{2N−i+1} = 0, the GALI power laws) do not
+    hold for it: a map with det DF = 2 gives X1 + X2 = ln 2."""
+    n = len(xs)
+    half = n // 2
+    J = np.block([[np.zeros((half, half)), np.eye(half)],
+                  [-np.eye(half), np.zeros((half, half))]])
+    try:
+        jac = sp.lambdify(xs, sp.Matrix(F).jacobian(xs), modules="numpy")
+    except Exception:      # a form NumPy cannot evaluate: nothing to check
+        return
+    rng = np.random.default_rng(2010)
+    lo = np.full(n, -1.0)
+    hi = np.array([p if p else 1.0 for p in (periods or [0.0] * n)])
+    lo[hi != 1.0] = 0.0
+    worst, where = 0.0, None
+    for point in rng.uniform(lo, hi, (SYMPLECTIC_SAMPLES, n)):
+        with np.errstate(all="ignore"):
+            try:
+                D = np.array(jac(*point), dtype=float)
+            except (ArithmeticError, TypeError, ValueError):
+                continue
+        if D.shape != (n, n) or not np.isfinite(D).all():
+            continue
+        defect = np.abs(D.T @ J @ D - J).max()
+        tol = 1e3 * n * np.finfo(float).eps * (1.0 + np.abs(D).max() ** 2)
+        if defect > tol and defect > worst:
+            worst, where = defect, point
+    if where is not None:
+        warnings.warn(
+            f"the map is not symplectic: max |DFᵀ J DF − J| = {worst:.3g} at x = "
+            f"{np.round(where, 6).tolist()} (coordinates taken as q then p); it is iterated, "
+            "but its Lyapunov exponents do not come in pairs X_i + X_(2N−i+1) = 0 and the GALI "
+            "and SALI laws of symplectic maps do not hold for it", NonSymplecticWarning,
+            stacklevel=4)
+
+
+class NonSymplecticWarning(UserWarning):
+    """A map given to :func:`from_map` is not symplectic (DFᵀ J DF ≠ J)."""
 
 
 def _check_map_expr(e, coords, i):
@@ -531,8 +586,10 @@ def from_map(exprs, coords, periods=None, name=None, escape_radius=None):
         substitution: ``p1 = p + K*sin(x); exprs = [x + p1, p1]``.
     coords : sequence of sympy.Symbol
         The coordinates, in state order (an even number: a symplectic map).
-        Symplecticity is not checked; the laws of the indicators (paired
-        exponents, GALI power laws) assume it.
+        Symplecticity (DFᵀ J DF = J) is checked at a sample of points
+        (:func:`_warn_unless_symplectic`): a map that fails is iterated all
+        the same, with a :class:`NonSymplecticWarning`, since the laws of the
+        indicators (paired exponents, GALI power laws) assume it.
     periods : dict or sequence, optional
         Periods of coordinates taken modulo them after every iteration
         (e.g. ``{x: 2*sympy.pi}``); 0 or absent: unbounded.
