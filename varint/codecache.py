@@ -189,8 +189,9 @@ def _load(name, folder, make_source, extra_globals):
     path = None if key is None else directory / f"{name}.py"
     data = None if path is None else read_signed(path, "generated kernel file", key)
     if data is None:
-        if path is not None:
-            _forget_numba_files(path)
+        # numba's files of a discarded module are kept: they are verified on
+        # their own, and numba uses them only for the source they were
+        # compiled from (its stamp), which is what is written again.
         data = make_source().encode()
         if path is not None:
             try:
@@ -198,8 +199,9 @@ def _load(name, folder, make_source, extra_globals):
             except OSError as exc:
                 _unwritable(path.parent, exc)
                 path = None
-        else:
-            _unwritable(cachedir.location(), OSError("no private cache directory"))
+        elif directory is not None:
+            _unwritable(directory, OSError("no secret can be kept to sign it"))
+        # (directory None: cachedir has said why, once.)
     return _execute(name, data, path, extra_globals, key)
 
 
@@ -244,18 +246,6 @@ def _without_disk_cache(tree):
                         if kw.arg == "cache":
                             kw.value = ast.Constant(False)
     return ast.fix_missing_locations(tree)
-
-
-def _forget_numba_files(path):
-    """Delete numba's cache files of the module at ``path`` (its source was
-    discarded; they would be stale)."""
-    stem = Path(path).stem
-    folder = Path(path).parent / "__pycache__"
-    with contextlib.suppress(OSError):
-        for entry in os.scandir(folder):
-            if entry.name.startswith(stem + ".") and entry.name.endswith((".nbi", ".nbc")):
-                with contextlib.suppress(OSError):
-                    os.unlink(entry.path)
 
 
 # -- numba's cache of generated modules -------------------------------------------------

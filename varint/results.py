@@ -486,9 +486,17 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
     where = (f"result file {os.fspath(path)}" if isinstance(path, (str, os.PathLike))
              else "the result")
     try:
+        if isinstance(path, (str, os.PathLike)):
+            with open(path, "rb") as f:
+                head = f.read(4)
+        else:
+            head = path.read(4)
+            path.seek(-len(head), 1)
+        if head != b"PK\x03\x04":
+            raise _Invalid(None, "it is not an .npz archive")
         with np.load(path, allow_pickle=False) as data:
             if "__meta__" not in data.files:
-                raise _Invalid("__meta__", "it is missing")
+                raise _Invalid(None, "it has no __meta__ entry")
             meta = json.loads(str(data["__meta__"][()]))
             arrays = {k: data[k] for k in data.files if k != "__meta__"}
     except _Invalid as exc:
@@ -508,7 +516,7 @@ class _Invalid(Exception):
     """A field of a stored result that is not what ``save`` writes."""
 
     def __init__(self, field, why):
-        super().__init__(f"field {field!r}: {why}")
+        super().__init__(why if field is None else f"field {field!r}: {why}")
 
 
 #: Provenance fields and the JSON types they hold.

@@ -109,7 +109,7 @@ def _packet_defined(model, x0, options):
     """Refuse initial states whose conserved quantity sums to zero (or is not
     finite) over the sites: z_l = h_l / Σh, hence m₂ and P, are 0/0 there
     (e.g. a Klein–Gordon lattice at rest), and would be NaN at every output."""
-    total = np.sum(model.densities(x0), axis=-1)
+    total = np.sum(_lattice(model).densities(x0), axis=-1)
     bad = np.flatnonzero(~(np.isfinite(total) & (total > 0)))
     if bad.size:
         m = int(bad[0])
