@@ -338,3 +338,55 @@ def test_numbers_given_as_text_are_refused_never_parsed(private):
     assert from_map([x + p, p], [x, p], periods={x: 2 * sp.pi}).periods[0] == pytest.approx(
         2 * np.pi)
     assert from_map([x + p, p], [x, p], periods=[np.float64(6.5), 0]).periods[0] == 6.5
+
+
+def test_numba_writing_the_cache_of_varints_own_kernels_on_a_full_disk_warns(monkeypatch):
+    """varint's package kernels are cached by numba beside the package: a
+    full disk there raised a raw OSError from inside the compilation. Every
+    varint kernel's cache is wrapped so that it costs one warning."""
+    from numba.core.dispatcher import Dispatcher
+
+    from varint.kernels import checks
+
+    kernels = [v for v in vars(checks).values() if isinstance(v, Dispatcher)]
+    assert kernels and all(isinstance(k._cache, codecache._TolerantCache) for k in kernels
+                           if k._cache.__class__.__name__ != "NullCache")
+
+    class Full:
+        cache_path = "/nowhere/__pycache__"
+
+        def save_overload(self, sig, data):
+            raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(cachedir, "_WARNED", set())
+    with pytest.warns(CacheDirWarning, match="No space left"):
+        codecache._TolerantCache(Full()).save_overload(None, None)
+
+
+@pytest.mark.parametrize("damage", ["a link", "truncated", "empty"])
+def test_a_secret_that_is_not_a_private_file_is_replaced(private, tmp_path, damage):
+    """The secret planted as a link (to a key someone else knows), or cut
+    short, is replaced by a new private one; a missing one is created once
+    even by processes racing to make it."""
+    cache_dir, _ = private
+    cache_dir.mkdir(mode=0o700)
+    first = cachedir.secret(cache_dir)
+    path = cache_dir / cachedir.SECRET_FILE
+    path.unlink()
+    known = tmp_path / "known.key"
+    known.write_bytes(b"k" * 32)
+    if damage == "a link":
+        path.symlink_to(known)
+    else:
+        path.write_bytes(first[: {"truncated": 16, "empty": 0}[damage]])
+    cachedir._SECRETS.clear()
+    with pytest.warns(CacheDirWarning, match="not private"):
+        new = cachedir.secret(cache_dir)
+    assert new not in (first, b"k" * 32) and not path.is_symlink()
+    assert path.read_bytes() == new and known.read_bytes() == b"k" * 32
+    # Two makers at once: the second reads the first's.
+    path.unlink()
+    a = cachedir._new_secret(path)
+    b = cachedir._new_secret(path)
+    assert a == b == path.read_bytes()
+    assert sorted(p.name for p in cache_dir.iterdir()) == [cachedir.SECRET_FILE]

@@ -138,6 +138,23 @@ def test_edited_records_are_refused(case, c1, partial):
         varint.lyapunov_spectrum(*c1, T_END, checkpoint=partial)
 
 
+def test_an_accumulator_removed_from_a_checkpoint_is_refused(c1, tmp_path, monkeypatch):
+    """A MEGNO run's accumulator is part of its state: a checkpoint without
+    it (or with one of another shape) is refused, not restarted from zero."""
+    path = tmp_path / "megno.ckpt"
+    with monkeypatch.context() as patch:
+        hook_advance(patch, "tm", 2, stop)
+        with pytest.raises(Stop):
+            varint.megno(*c1, T_END, checkpoint=path, checkpoint_interval=0)
+    key = next(k for k, v in ckpt.read(path).state.extra.items() if v.ndim == 3)
+    rewrite(path, _set("extra", lambda e: {k: v for k, v in e.items() if k != key}))
+    with pytest.raises(CheckpointError, match=f"extra.{key}: missing"):
+        varint.megno(*c1, T_END, checkpoint=path)
+    rewrite(path, _set("extra", lambda e: {**e, key: np.zeros((1, 1, 2))}))
+    with pytest.raises(CheckpointError, match=f"extra.{key}"):
+        varint.megno(*c1, T_END, checkpoint=path)
+
+
 def test_two_stored_outputs_are_not_returned_as_a_finished_run(c1, partial, full):
     """n_records raised to the run's length while only a few are stored:
     refused (it returned 2 outputs as a finished run)."""

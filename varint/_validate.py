@@ -337,7 +337,7 @@ _MEMO_STATES = 1 << 16
 #: The states (q, as bytes) where :func:`kernels` found the kernels finite,
 #: per model and (kernels, parameters); beside the model, not in it: a model
 #: must stay picklable.
-_FINITE_AT = weakref.WeakKeyDictionary()
+_FINITE_AT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def kernels(model, X, what="the initial state"):

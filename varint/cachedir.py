@@ -270,10 +270,10 @@ def _replace_warning(path, why):
 
 
 def _new_secret(path):
-    """A new secret in ``path``: written to a private temporary file and
-    moved over whatever was there (two processes doing so at once each
-    keep theirs for their own files; later processes read the survivor and
-    rebuild what the other signed)."""
+    """A new secret in ``path``, written whole to a private temporary file
+    first. A missing secret is created by a hard link, which fails if
+    another process made one meanwhile (its secret is then read: both sign
+    alike); a bad one found by :func:`_read_secret` is replaced."""
     value = os.urandom(_SECRET_BYTES)
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{SECRET_FILE}.", suffix=".tmp")
@@ -284,11 +284,20 @@ def _new_secret(path):
             f.write(value)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            theirs = _read_secret(path)
+            if theirs is not None:
+                return theirs
+            os.replace(tmp, path)
+        except OSError:          # a file system without hard links
+            os.replace(tmp, path)
     except OSError:
+        return None
+    finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        return None
     return value
 
 

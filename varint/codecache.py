@@ -48,11 +48,11 @@ from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
-           "HEADER", "CacheDirWarning"]
+           "tolerate_full_disks", "HEADER", "CacheDirWarning"]
 
-_AST_LOCK = threading.Lock()
-#: One generated module is loaded at a time (threads of one process, such as
-#: a Dask worker's, may ask for the same kernels at once).
+#: One generated module is loaded at a time: threads of one process (a Dask
+#: worker's) ask for the same kernels at once, and CPython 3.11's AST
+#: conversion is not thread-safe (two such threads raised SystemError).
 _LOAD_LOCK = threading.RLock()
 
 #: First bytes of every signed file; the hex HMAC and a newline follow.
@@ -178,6 +178,7 @@ def load_module(name, folder, make_source, extra_globals=None):
         kernel's globals by module name).
     """
     with _LOAD_LOCK:
+        tolerate_full_disks()
         return _load(name, folder, make_source, extra_globals)
 
 
@@ -215,11 +216,8 @@ def _execute(name, data, path, extra_globals, key=None):
     module = types.ModuleType(name)
     module.__dict__.update(extra_globals or {})
     if path is None:
-        # CPython 3.11's conversion of ASTs is not thread-safe (two Dask
-        # worker threads loading kernels at once raised SystemError).
-        with _AST_LOCK:
-            tree = _without_disk_cache(ast.parse(data, filename=f"<varint {name}>"))
-            code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
+        tree = _without_disk_cache(ast.parse(data, filename=f"<varint {name}>"))
+        code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
     else:
         module.__file__ = str(path)
         # One blank line for the signature line above the code in the file.
@@ -248,12 +246,64 @@ def _without_disk_cache(tree):
     return ast.fix_missing_locations(tree)
 
 
+# -- numba's cache of varint's own kernels ---------------------------------------------
+
+_SWEPT: set = set()
+
+
+def tolerate_full_disks():
+    """Make a failure to write numba's cache of varint's own (package)
+    kernels a warning, not an error of the run: numba raises the raw
+    ``OSError`` of a full or read-only disk from inside a compilation.
+    Applies to every varint module imported so far (cheap: each kernel's
+    cache is wrapped once, :class:`_TolerantCache`)."""
+    for name, module in list(sys.modules.items()):
+        if not (name == "varint" or name.startswith(("varint.", "varint_"))) or name in _SWEPT:
+            continue
+        _SWEPT.add(name)
+        for value in list(vars(module).values()):
+            if isinstance(value, Dispatcher) and \
+                    isinstance(getattr(value, "_cache", None), caching.FunctionCache) and \
+                    not isinstance(value._cache, _SignedCache):
+                value._cache = _TolerantCache(value._cache)
+
+
+class _TolerantCache:
+    """numba's cache of one kernel, whose failures to write cost a warning."""
+
+    def __init__(self, cache):
+        self._inner = cache
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+    def save_overload(self, sig, data):
+        try:
+            self._inner.save_overload(sig, data)
+        except OSError as exc:
+            _unwritable(self._inner.cache_path, exc)
+
+
 # -- numba's cache of generated modules -------------------------------------------------
+
+#: The parts of numba's cache that :class:`_SignedCacheFile` replaces: with
+#: another numba that lacks one, generated kernels are not cached on disk
+#: (numba itself would then read signed files as plain pickles).
+_NUMBA_HOOKS = ("_load_index", "_save_index", "_load_data", "_save_data", "_open_for_write",
+                "_dump", "_data_path")
+
+
+def _numba_hooks_present():
+    return (all(hasattr(caching.IndexDataCacheFile, name) for name in _NUMBA_HOOKS)
+            and hasattr(caching.FunctionCache, "load_overload"))
+
 
 def _sign_numba_caches(module, key):
     """Give every cached kernel defined in ``module`` a :class:`_SignedCache`
     (signing with ``key``) before it is first called (numba loads its cache
-    at the first call)."""
+    at the first call); if this numba's cache is not the one
+    :class:`_SignedCacheFile` knows, switch its disk cache off."""
+    usable = _numba_hooks_present()
     for value in vars(module).values():
         if not isinstance(value, Dispatcher):
             continue
@@ -261,6 +311,8 @@ def _sign_numba_caches(module, key):
             continue            # a kernel of varint's package, passed in
         if isinstance(getattr(value, "_cache", None), caching.FunctionCache):
             try:
+                if not usable:
+                    raise NotImplementedError("another numba cache layout")
                 value._cache = _SignedCache(value.py_func, key)
             except Exception:   # no usable location: compile in memory
                 value._cache = caching.NullCache()

@@ -30,7 +30,7 @@ __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "S
 
 #: Result classes by name, for :func:`load_result` (every subclass of
 #: ``_Result`` is added when it is defined, wherever that is).
-_CLASSES = {}
+_CLASSES: dict = {}
 
 
 @functools.lru_cache(maxsize=None)

@@ -166,6 +166,9 @@ class RunState:
                 isinstance(v, int) and not isinstance(v, bool) and v >= 0
                 for v in counts.values()):
             out.append(("counts", "expected non-negative integer counts"))
+        missing = sorted(set(like.extra) - set(self.extra))
+        if missing:
+            out.append((f"extra.{missing[0]}", "missing"))
         for key, a in self.extra.items():
             if not isinstance(a, np.ndarray) or a.dtype.kind not in "biuf" \
                     or a.ndim == 0 or a.shape[0] != self.n_orbits:

@@ -140,7 +140,7 @@ class _Expressions:
 #: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
 #: q0 … q{N−1}, inverse masses, N). Only ever filled from a model's own
 #: SymPy form, never from a file.
-_FORMS = {}
+_FORMS: dict = {}
 
 
 @lru_cache(maxsize=32)
@@ -266,7 +266,7 @@ def _stored_facts(value):
 
 
 #: :func:`_facts` of the models run in this process, by description id.
-_FACTS = {}
+_FACTS: dict = {}
 
 
 def _facts_now(model):
@@ -1127,7 +1127,7 @@ def _generator_id():
 
 # -- loading --------------------------------------------------------------------------
 
-_LOADED = {}
+_LOADED: dict = {}
 
 
 def _load(digest, make_source, extra_globals):

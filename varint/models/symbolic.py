@@ -275,7 +275,7 @@ def _kernel_source(V, n, time=False):
     return "\n".join(lines), bw
 
 
-_LOADED = {}
+_LOADED: dict = {}
 
 
 def _load_kernels(source):
