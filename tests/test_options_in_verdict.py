@@ -38,9 +38,8 @@ def test_a_long_renormalisation_interval_is_capped_by_the_adaptive_rule(every, c
 
 
 def test_a_short_given_interval_still_renormalises_that_often(c1_every_step):
-    """renormalize_every=1 renormalises every step, and small intervals the
-    dynamics allow are used as given (the run's records say how often:
-    one renormalisation per interval shows in the counts of a fixed run)."""
+    """A short interval the bounds allow is used (at most that many steps):
+    the spectrum is every-step QR's to round-off."""
     model, x0 = varint.paper_orbit("C1")
     a = varint.lyapunov_spectrum(model, x0, 2000.0, tau=0.05, seed=1, renormalize_every=2,
                                  t_out=[2000.0])

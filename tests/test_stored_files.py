@@ -496,3 +496,45 @@ def test_chunk_store_keys_name_the_call():
     assert st.call_key(a) == st.call_key(dict(reversed(list(a.items()))))
     assert st.call_key(a) != st.call_key({**a, "t_end": 10.000000000000002})
     assert cm._chunk_name(3) == "chunk_000003"
+
+
+def test_every_result_class_loads_back_whole(tmp_path):
+    """The validation of load_result accepts what every result class saves:
+    series, dict fields, maps, sections, local exponents, ensembles."""
+    hh = HenonHeiles()
+    R1 = [0.0, 0.558, 0.23337397, 0.0]
+    grid = varint.section_grid(hh, 0.125, np.linspace(-0.3, 0.5, 3), np.linspace(-0.3, 0.3, 3))
+    results = [
+        varint.gali(hh, R1, 10.0, k=(2, 3), t_out=3),
+        varint.megno(hh, np.array([R1, R1]), 10.0, t_out=3),
+        varint.run(hh, R1, "fli", 10.0, t_out=3),
+        varint.run(hh, R1, "local_exponents", 10.0, window=4.0, t_out=[1.0, 8.0]),
+        varint.integrate(hh, R1, 10.0, t_out=3),
+        varint.chaos_map(hh, grid, "x1", t_end=5.0, tau=0.05, progress=False),
+        varint.surface_of_section(hh, R1, 20.0),
+        small([1, 2], None),
+    ]
+    for r in results:
+        path = tmp_path / f"{type(r).__name__}.npz"
+        r.save(path)
+        back = varint.load_result(path)
+        assert type(back) is type(r) and back.provenance == r.provenance
+
+
+def test_a_checkpoint_with_values_undefined_at_first_resumes(tmp_path, monkeypatch):
+    """A local exponent is NaN until its first window closes: a record that
+    is NaN where the run itself makes NaN is not taken for an edit."""
+    hh = HenonHeiles()
+    R1 = [0.0, 0.558, 0.23337397, 0.0]
+    kw = dict(window=20.0, t_out=[1.0, 2.0, 60.0, 100.0], tau=0.05)
+    full = varint.run(hh, R1, "local_exponents", 100.0, **kw)
+    assert np.isnan(full.local[0]).all()
+    path = tmp_path / "local.ckpt"
+    with monkeypatch.context() as patch:
+        hook_advance(patch, "tm", lambda state: state.step >= 1200, stop)
+        with pytest.raises(Stop):
+            varint.run(hh, R1, "local_exponents", 100.0, checkpoint=path, checkpoint_interval=0,
+                       **kw)
+    assert len(ckpt.read(path).records) >= 2
+    assert_bitwise_equal(varint.run(hh, R1, "local_exponents", 100.0, checkpoint=path, **kw),
+                         full)

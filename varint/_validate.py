@@ -399,7 +399,7 @@ def kernels(model, X, what="the initial state"):
             raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
                              f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: "
                              f"{type(exc).__name__}: {exc}") from None
-        for label, values in zip(labels, (G, H, T)):
+        for label, values in zip(labels, (G, H, T), strict=True):
             bad = np.flatnonzero(~np.isfinite(values.reshape(len(Q), -1)).all(axis=1))
             if bad.size:
                 i = int(bad[0])

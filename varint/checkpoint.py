@@ -490,7 +490,9 @@ class Checkpoint:
 def _record_problems(stacked, record, state, steps):
     """(field, reason) pairs for stored records ``stacked`` (n, M, ...)
     that do not match one fresh ``record`` (M, ...) of the call, or hold a
-    non-finite number for an orbit running at that output."""
+    non-finite number for an orbit running at that output (in a field that
+    is finite in ``record``: some are undefined at first, such as a local
+    exponent before its first window closes)."""
     if set(stacked) != set(record):
         odd = sorted(set(stacked) ^ set(record))[0]
         return [(f"records.{odd}", "missing" if odd in record else "not a record of this run")]
@@ -500,7 +502,7 @@ def _record_problems(stacked, record, state, steps):
         if a.shape[1:] != ref.shape or a.dtype.kind != ref.dtype.kind:
             return [(f"records.{key}", f"{a.dtype}{list(a.shape[1:])} per output, expected "
                      f"{ref.dtype}{list(ref.shape)}")]
-        if a.dtype.kind == "f":
+        if a.dtype.kind == "f" and np.isfinite(ref).all():
             finite = np.isfinite(a.reshape(a.shape[:2] + (-1,))).all(axis=2)
             bad = running & ~finite
             if bad.any():

@@ -33,7 +33,7 @@ __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "S
 _CLASSES: dict = {}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def package_versions(*extra):
     """Versions of Python, varint and the numerical packages a run used
     (cached: reading package metadata takes milliseconds)."""
@@ -651,12 +651,15 @@ def _check_shapes(cls, f):
         if e.shape != status.shape + t.shape:
             raise _Invalid("energy_error", f"shape {e.shape}, expected "
                            f"{status.shape + t.shape} (orbits, output times)")
+        # A series starts with (orbits, output times); a per-orbit array
+        # (an ensemble's seeds and wall times) is one value per orbit.
         for key, value in f.items():
             series = value.values() if isinstance(value, dict) else [value]
             for v in series:
                 if isinstance(v, np.ndarray) and key not in ("t", "state", "status",
                                                             "deviations", "energy_error") \
-                        and v.shape[:len(status.shape) + 1] != status.shape + t.shape:
+                        and v.shape[:len(status.shape) + 1] != status.shape + t.shape \
+                        and v.shape != status.shape:
                     raise _Invalid(key, f"shape {v.shape} does not start with (orbits, output "
                                    f"times) {status.shape + t.shape}")
     elif cls.layout == "map":
