@@ -20,7 +20,7 @@ def assert_bitwise_equal(a, b):
         x, y = getattr(a, f.name), getattr(b, f.name)
         if f.name == "provenance":
             px, py = x.to_dict(), y.to_dict()
-            for key in ("wall_time", "created", "counts", "timing"):
+            for key in ("wall_time", "cpu_time", "created", "counts", "timing"):
                 px.pop(key), py.pop(key)
             assert px == py
             assert x.counts.get("steps") == y.counts.get("steps")

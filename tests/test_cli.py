@@ -552,7 +552,7 @@ def test_two_particle_method_with_its_separation(capsys, tmp_path):
 
     tm = x1()
     assert abs(x1("--method", "two-particle", "--d0", "1e-8") - tm) < 1e-6
-    assert abs(x1("--method", "two-particle", "--d0", "1e-3") - tm) > 1e-5
+    assert abs(x1("--method", "two-particle", "--d0", "4e-4") - tm) > 1e-5
     code, out, err = _run(capsys, ["map", "--map", "standard", "--K", "1.2", "--u", "0:6:4",
                                    "--v", "-3:3:3", "--t-end", "500", "--method",
                                    "two-particle", "--d0", "1e-9", "--d-max", "1e-6"])

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate as check
+from .files import output_file
 
 __all__ = ["main", "build_parser"]
 
@@ -478,7 +479,7 @@ def _cell(v):
 
 def _write_csv(path, cols, flag="--csv"):
     try:
-        with open(path, "w", newline="") as f:
+        with output_file(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
             w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
@@ -498,7 +499,7 @@ def _save_plot(result, path, **kwargs):
     fig, ax = plt.subplots(figsize=(6, 4.5), layout="constrained")
     try:
         plot(result, ax, **kwargs)
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:
@@ -516,6 +517,15 @@ def _identity(result):
     return {"method": [p.method] * n,
             "scheme": [scheme.get("name", "") if isinstance(scheme, dict) else ""] * n,
             "tau": [p.tau] * n, "seed": ["" if p.seed is None else p.seed] * n}
+
+
+def _savefig(fig, path):
+    """Save ``fig`` to ``path`` in the format its suffix names (PNG without
+    one), through :func:`varint.files.output_file` (no symbolic link
+    followed)."""
+    fmt = Path(path).suffix[1:].lower() or "png"
+    with output_file(path, "wb") as f:
+        fig.savefig(f, format=fmt, dpi=130)
 
 
 def _outputs(result, args, **plot_kwargs):
@@ -958,7 +968,7 @@ def _plot_lattice(r, path):
 
     fig = plot_ensemble(r)[0].figure
     try:
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:

@@ -30,10 +30,10 @@ __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "S
 
 #: Result classes by name, for :func:`load_result` (every subclass of
 #: ``_Result`` is added when it is defined, wherever that is).
-_CLASSES = {}
+_CLASSES: dict = {}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def package_versions(*extra):
     """Versions of Python, varint and the numerical packages a run used
     (cached: reading package metadata takes milliseconds)."""
@@ -92,6 +92,13 @@ class Provenance:
         (:mod:`varint.compiling`). ``wall_time`` holds them all: compare
         methods by ``timing["run"]``, which a first call's compilation does
         not inflate.
+    cpu_time : float or None
+        CPU seconds (:func:`time.process_time`, every thread of the process)
+        the integration took: measured in every session of a resumed run
+        and summed (kept in its checkpoint), never extrapolated; None where
+        a session's was not measured (a checkpoint from before varint
+        recorded it) or cannot be told apart from other work (a chaos map
+        on a cluster).
     """
 
     kind: str
@@ -110,6 +117,7 @@ class Provenance:
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
+    cpu_time: float | None = None
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
@@ -581,6 +589,18 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
     """Read a result written by ``save``: the same class, arrays and
     provenance.
 
+    Everything is checked before a result is built (:func:`_validated`):
+    the archive holds numeric arrays only (no pickles), every field belongs
+    to the result class and has its type, the provenance and accuracy
+    verdict have theirs, the arrays' shapes agree with each other, and the
+    verdict agrees with the errors it is drawn from.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the field, for a file that is not a varint
+        result or whose content is inconsistent (a damaged or edited file).
+
     Examples
     --------
     >>> import io, varint
@@ -592,15 +612,188 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
     >>> type(back).__name__, bool((back.sali == r.sali).all()), back.provenance == r.provenance
     ('SALIResult', True, True)
     """
-    with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["__meta__"]))
-        arrays = {k: data[k] for k in data.files if k != "__meta__"}
-    cls = _CLASSES[meta.pop("class")]
-    kwargs = {"provenance": Provenance(**meta.pop("provenance"))}
+    where = (f"result file {os.fspath(path)}" if isinstance(path, (str, os.PathLike))
+             else "the result")
+    try:
+        if isinstance(path, (str, os.PathLike)):
+            with open(path, "rb") as f:
+                head = f.read(4)
+        else:
+            head = path.read(4)
+            path.seek(-len(head), 1)
+        if head != b"PK\x03\x04":
+            raise _Invalid(None, "it is not an .npz archive")
+        with np.load(path, allow_pickle=False) as data:
+            if "__meta__" not in data.files:
+                raise _Invalid(None, "it has no __meta__ entry")
+            meta = json.loads(str(data["__meta__"][()]))
+            arrays = {k: data[k] for k in data.files if k != "__meta__"}
+    except _Invalid as exc:
+        raise ValueError(f"{where} is not a varint result: {exc}") from None
+    except FileNotFoundError:
+        raise
+    except Exception as exc:     # not an .npz, a pickle, truncated, bad JSON
+        raise ValueError(f"{where} is not a varint result ({type(exc).__name__}: {exc})"
+                         ) from None
+    try:
+        return _validated(meta, arrays)
+    except _Invalid as exc:
+        raise ValueError(f"{where} is damaged or was edited: {exc}") from None
+
+
+class _Invalid(Exception):
+    """A field of a stored result that is not what ``save`` writes."""
+
+    def __init__(self, field, why):
+        super().__init__(why if field is None else f"field {field!r}: {why}")
+
+
+#: Provenance fields and the JSON types they hold.
+_PROVENANCE_TYPES = {"kind": str, "model": dict, "x0": list, "method": str,
+                     "method_options": dict, "tau": (int, float), "t_end": (int, float),
+                     "seed": (int, type(None)), "options": dict, "versions": dict,
+                     "counts": dict, "wall_time": (int, float), "created": str,
+                     "tau_choice": dict, "cpu_time": (int, float, type(None))}
+
+
+def _provenance(d):
+    if not isinstance(d, dict):
+        raise _Invalid("provenance", f"expected a dict, got {type(d).__name__}")
+    names = {f.name for f in dataclasses.fields(Provenance)}
+    for key, value in d.items():
+        if key not in names:
+            raise _Invalid(f"provenance.{key}", "not a field of Provenance (written by another "
+                           "varint version?)")
+        want = _PROVENANCE_TYPES.get(key)
+        if want is not None and (isinstance(value, bool) or not isinstance(value, want)):
+            raise _Invalid(f"provenance.{key}", f"expected {_type_names(want)}, got "
+                           f"{type(value).__name__} {value!r:.60}")
+    missing = [f.name for f in dataclasses.fields(Provenance)
+               if f.name not in d and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise _Invalid(f"provenance.{missing[0]}", "it is missing")
+    counts = d.get("counts", {})
+    bad = [k for k, v in counts.items() if isinstance(v, bool) or not isinstance(v, int) or v < 0]
+    if bad:
+        raise _Invalid(f"provenance.counts.{bad[0]}", f"expected a count >= 0, got "
+                       f"{counts[bad[0]]!r}")
+    return Provenance(**d)
+
+
+def _type_names(types):
+    types = types if isinstance(types, tuple) else (types,)
+    return " or ".join("None" if t is type(None) else t.__name__ for t in types)
+
+
+def _accuracy(d, status):
+    if d is None:
+        return None
+    try:
+        acc = Accuracy.from_dict(d)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise _Invalid("accuracy", f"not a verdict ({type(exc).__name__}: {exc})") from None
+    worst = np.asarray(acc.worst, dtype=float)
+    accurate = np.asarray(acc.accurate)
+    if accurate.shape != worst.shape:
+        raise _Invalid("accuracy.accurate", f"shape {accurate.shape}, its errors' "
+                       f"{worst.shape}")
+    with np.errstate(invalid="ignore"):
+        ok = worst <= acc.energy_tol
+    failed = np.asarray(status) > 0
+    if failed.shape != accurate.shape:
+        failed = np.zeros(accurate.shape, dtype=bool)
+    # The verdict is drawn from the errors: it cannot say accurate where
+    # they exceed the tolerance or the orbit failed.
+    if np.any(accurate & ~(ok & ~failed)):
+        raise _Invalid("accuracy.accurate", "says accurate where the stored errors exceed the "
+                       "tolerance or the orbit failed")
+    return acc
+
+
+def _validated(meta, arrays):
+    """The result ``meta`` and ``arrays`` stand for (see :func:`load_result`)."""
+    if not isinstance(meta, dict):
+        raise _Invalid("__meta__", f"expected a JSON object, got {type(meta).__name__}")
+    meta = dict(meta)
+    name = meta.pop("class", None)
+    if name not in _CLASSES:
+        raise _Invalid("class", f"{name!r} is not a varint result class")
+    cls = _CLASSES[name]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for key, a in arrays.items():
+        if a.dtype.kind not in "biuf":
+            raise _Invalid(key, f"dtype {a.dtype} is not numeric")
+    kwargs = {"provenance": _provenance(meta.pop("provenance", None))}
     acc = meta.pop("accuracy", None)
-    kwargs["accuracy"] = None if acc is None else Accuracy.from_dict(acc)
-    for name, keys in meta.pop("dict_fields", {}).items():
-        kwargs[name] = {int(k) if k.isdigit() else k: arrays.pop(f"{name}__{k}") for k in keys}
+    dict_fields = meta.pop("dict_fields", {})
+    if not isinstance(dict_fields, dict):
+        raise _Invalid("dict_fields", "expected a dict")
+    for field_name, keys in dict_fields.items():
+        if field_name not in fields or not isinstance(keys, list) \
+                or not all(isinstance(k, str) for k in keys):
+            raise _Invalid(f"dict_fields.{field_name}", "not a dict field of " + name)
+        try:
+            kwargs[field_name] = {int(k) if k.isdigit() else k: arrays.pop(f"{field_name}__{k}")
+                                  for k in keys}
+        except KeyError as exc:
+            raise _Invalid(exc.args[0], "it is missing") from None
+    for key in arrays:
+        if key not in fields or key in ("provenance", "accuracy"):
+            raise _Invalid(key, f"not an array field of {name}")
     kwargs.update(arrays)
+    for key, value in meta.items():
+        if key not in fields or key in kwargs:
+            raise _Invalid(key, f"not a field of {name}")
+        if isinstance(value, dict) or (isinstance(value, list) and key != "axes"):
+            raise _Invalid(key, f"expected a number, a string or None, got "
+                           f"{type(value).__name__}")
     kwargs.update(meta)
-    return cls(**kwargs)
+    required = [f for f in fields.values() if f.init and f.default is dataclasses.MISSING
+                and f.default_factory is dataclasses.MISSING and f.name not in kwargs
+                and f.name != "accuracy"]
+    if required:
+        raise _Invalid(required[0].name, "it is missing")
+    _check_shapes(cls, kwargs)
+    kwargs["accuracy"] = _accuracy(acc, kwargs.get("status"))
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise _Invalid(name, str(exc)) from None
+
+
+def _check_shapes(cls, f):
+    """The shapes every result shares: ``t`` a vector of finite times, the
+    status integer per orbit, the final state (…, 2N) with a status per
+    orbit, and a series' energy errors one per output time."""
+    t = np.asarray(f.get("t"))
+    if t.ndim != 1 or t.dtype.kind not in "iuf" or not np.isfinite(t).all():
+        raise _Invalid("t", f"expected a vector of finite times, got shape {t.shape}")
+    status = np.asarray(f.get("status"))
+    if status.dtype.kind not in "iu":
+        raise _Invalid("status", f"expected integer codes, got dtype {status.dtype}")
+    state = np.asarray(f.get("state"))
+    if state.ndim < 1 or state.shape[:-1] != status.shape:
+        raise _Invalid("state", f"shape {state.shape} does not match status {status.shape}")
+    if cls.layout == "series":
+        e = np.asarray(f.get("energy_error"))
+        if e.shape != status.shape + t.shape:
+            raise _Invalid("energy_error", f"shape {e.shape}, expected "
+                           f"{status.shape + t.shape} (orbits, output times)")
+        # A series starts with (orbits, output times); a per-orbit array
+        # (an ensemble's seeds and wall times) is one value per orbit.
+        for key, value in f.items():
+            series = value.values() if isinstance(value, dict) else [value]
+            for v in series:
+                if isinstance(v, np.ndarray) and key not in ("t", "state", "status",
+                                                            "deviations", "energy_error") \
+                        and v.shape[:len(status.shape) + 1] != status.shape + t.shape \
+                        and v.shape != status.shape:
+                    raise _Invalid(key, f"shape {v.shape} does not start with (orbits, output "
+                                   f"times) {status.shape + t.shape}")
+    elif cls.layout == "map":
+        m = status.shape
+        for key in ("values", "t_stop", "energy_error"):
+            v = np.asarray(f.get(key))
+            if v.shape != m:
+                raise _Invalid(key, f"shape {v.shape}, expected {m} (one per orbit)")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import os
+import time
 import warnings
 from typing import Any
 
@@ -264,6 +265,7 @@ class Run:
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
+        ind.check_states(model, self.x0, self.options)
         self.method = check.choice(method, METHODS, "method")
         if tau is None and stepsize.pilots(self.method):
             stepsize.check_options(self.method, method_options)
@@ -297,19 +299,42 @@ class Run:
         with self.clock.part("setup"):
             self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
                                               self.accumulator, **method_options)
+        start = self._start_state()
         if saved is None:
-            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
+            self.state, self.records = start, Records()
+            self.wall_before, self.cpu_before = 0.0, 0.0
         else:
             self.checkpoint.require(saved, self.parameters())
-            self.state, self.records, self.wall_before = (saved.state, saved.records,
-                                                          saved.wall_time)
+            # Nothing from the file reaches a stepper before it is checked.
+            self.checkpoint.validate(saved, start, self.steps, self._template_record(start),
+                                     ind.renorm)
+            self.state, self.records = saved.state, saved.records
+            self.wall_before, self.cpu_before = saved.wall_time, saved.cpu_time
         self.resumed = saved is not None
-        acc = self.accumulator
-        if acc is not None and acc.key not in self.state.extra:
-            self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
-                                                (self.state.n_orbits, self.state.k, 1))
+        self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+
+    def _start_state(self):
+        """The state the run starts from: the orbits, the initial vectors and
+        the indicator's accumulator."""
+        state = RunState.start(self.x0, self.W0)
+        acc = self.accumulator
+        if acc is not None:
+            state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
+                                           (state.n_orbits, state.k, 1))
+        return state
+
+    def _template_record(self, start):
+        """One record of this run (its keys, shapes and dtypes), read off the
+        start state one step on, to check stored records against."""
+        rows = Rows.of(start)
+        rows.step = rows.step + 1
+        with np.errstate(all="ignore"):
+            rec = self.indicator.read(rows, self.model, rows.step * self.tau, self.options)
+            rec.update(self.reference.errors(rows.x, rows.step * self.tau,
+                                             rows.extra.get(TIME_MOMENTUM, 0.0)))
+        return rec
 
     def _check_size(self):
         """Refuse a run whose vectors and records would not fit in memory,
@@ -419,7 +444,7 @@ class Run:
         keep = int(np.searchsorted(self.steps[:n], first))
         return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
-    def drive(self, record=None, decide=None):
+    def drive(self, record=None, decide=None, cancelled=None):
         """Advance to every output time, recording there.
 
         Parameters
@@ -431,6 +456,9 @@ class Run:
         decide : callable, optional
             ``decide(record) -> bool array (M,)``: orbits to stop early (see
             :func:`varint.driver.drive`).
+        cancelled : callable, optional
+            ``cancelled() -> bool``: stop as after Ctrl-C (see
+            :func:`varint.driver.drive`).
 
         Returns
         -------
@@ -438,13 +466,15 @@ class Run:
             As :func:`varint.driver.drive`.
         """
         self._begin_checkpoint()
+        cpu = time.process_time()
         try:
             with self.clock.part("run"):
                 return drive(self.propagator, self.state, self.steps, record or self.record,
                              records=self.records, progress=self.progress,
                              desc=self.indicator.name, errors=self.errors,
                              checkpoint=self.checkpoint, decide=decide,
-                             renorm=self.indicator.renorm)
+                             renorm=self.indicator.renorm,
+                             cancelled=cancelled)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.
@@ -454,11 +484,13 @@ class Run:
                 f"{self.method!r} integrator ({first}); they must be numba functions "
                 "grad(q, par, g), hess(q, par, B), third(q, par, v, B) writing float64 arrays "
                 "in place, see varint.models.base") from exc
+        finally:
+            self.cpu_session = time.process_time() - cpu
 
     def _begin_checkpoint(self):
         if self.checkpoint is None:
             return
-        self.checkpoint.begin(self.parameters(), self.wall_before)
+        self.checkpoint.begin(self.parameters(), self.wall_before, self.cpu_before)
         if self.resumed:
             self.checkpoint.mark_saved(self.state, self.records)
         else:
@@ -538,7 +570,8 @@ class Run:
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
             wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
-            timing=self.timing())
+            timing=self.timing(),
+            cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
 
     def timing(self):
         """Seconds of this session's compilation, pilot, setup and run
