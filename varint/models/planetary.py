@@ -421,8 +421,19 @@ class Planetary(Model):
     def to_rebound(self, x):
         """A ``rebound.Simulation`` with this model's bodies at the state
         ``x`` (barycentric), G and masses; the integrator is left as
-        REBOUND's default."""
-        import rebound  # type: ignore[import-untyped]  # optional, for comparisons
+        REBOUND's default.
+
+        Raises
+        ------
+        ImportError
+            Without REBOUND (an optional dependency: ``pip install
+            "varint[rebound]"``).
+        """
+        try:
+            import rebound  # type: ignore[import-untyped]  # optional, for comparisons
+        except ImportError as exc:
+            raise ImportError('to_rebound needs REBOUND, an optional dependency: pip install '
+                              '"varint[rebound]"') from exc
 
         X, Vb = self.to_cartesian(x)
         sim = rebound.Simulation()
