@@ -213,3 +213,20 @@ def test_close_encounters_stop_orbits():
         assert r.status[0] == want and r.status[1] == 0
         if close:
             assert r.provenance.counts["steps"] < 500
+
+
+def test_close_encounters_are_not_taken_for_escapes_in_a_map():
+    """With an escape_radius (whose test the part stepper runs before the
+    non-finite one) an encounter is still CLOSE_ENCOUNTER, and a real
+    escape (a hyperbolic outer planet) still ESCAPED."""
+    model = Planetary([1.0, 1e-3, 3e-4], close_encounter=3.0)
+    X = np.stack([model.from_elements(e) for e in (
+        [dict(a=1.0, e=0.0), dict(a=1.02, e=0.0, M=0.15)],
+        [dict(a=1.0, e=0.0), dict(a=3.0, e=0.0, M=2.0)],
+        [dict(a=1.0, e=0.0), dict(a=-3.0, e=1.5, f=0.0)])])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = varint.chaos_map(model, X, "megno", t_end=200.0, tau=0.5, escape_radius=8.0,
+                             progress=False)
+    assert r.status.tolist() == [int(varint.Status.CLOSE_ENCOUNTER), 0,
+                                 int(varint.Status.ESCAPED)]

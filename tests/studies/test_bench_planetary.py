@@ -24,7 +24,6 @@ def test_grid_spans_the_tutorials_elements():
     el = np.array([model.to_elements(x)[1] for x in g.states])
     assert np.allclose(el[:, 0], np.tile([7.0, 8.5, 10.0], 3))
     assert np.allclose(el[:, 1], np.repeat([0.0, 0.25, 0.5], 3), atol=1e-12)
-    assert bp.OUTER_PERIOD == pytest.approx(2 * np.pi * 8.5 ** 1.5)
 
 
 def test_slope_is_a_power_law_fit():

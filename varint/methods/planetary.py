@@ -81,16 +81,19 @@ def _apply_word_batch(parts, h, X, W, par, n_work, active, out_X, out_W):
 
 def _name_failures(state, was_active):
     """The planetary flows stop an orbit by a mark in its first coordinate,
-    which the part stepper reports as non-finite: +inf for a close
-    encounter, NaN (the rest finite) for a Kepler drift that could not be
-    solved (:func:`varint.kernels.nbody_unrolled.flows`). Name them."""
-    failed = was_active & (state.status == int(Status.ORBIT_NONFINITE))
+    which the part stepper reports as non-finite — or, with an
+    ``escape_radius``, +inf as escaped (its escape test comes first): +inf
+    for a close encounter, NaN for a Kepler drift that could not be solved,
+    the rest of the state finite (:func:`varint.kernels.nbody_unrolled.flows`).
+    Name them."""
+    failed = was_active & ((state.status == int(Status.ORBIT_NONFINITE))
+                           | (state.status == int(Status.ESCAPED)))
     if not failed.any():
         return
     first = state.x[:, 0]
-    rest_finite = np.isfinite(state.x[:, 1:]).all(axis=1)
-    state.status[failed & (first == np.inf)] = int(Status.CLOSE_ENCOUNTER)
-    state.status[failed & np.isnan(first) & rest_finite] = int(Status.KEPLER_FAILED)
+    marked = failed & np.isfinite(state.x[:, 1:]).all(axis=1)
+    state.status[marked & (first == np.inf)] = int(Status.CLOSE_ENCOUNTER)
+    state.status[marked & np.isnan(first)] = int(Status.KEPLER_FAILED)
 
 
 def _kick_spacing(scheme):
