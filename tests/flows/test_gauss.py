@@ -1,0 +1,89 @@
+"""Gauss–Legendre steps for any H(q, p): the tableaux, measured orders
+against the Taylor reference, the tangent map against finite differences
+of the same step, and its symplecticity."""
+
+import numpy as np
+import pytest
+
+from tests.flows.steppers import (coupled_general, finite_difference, gauss_steps,
+                                  symplectic_form, taylor_reference, tao_example)
+from tests.helpers import fitted_slope
+from varint.flows.gauss import GAUSS, GaussLegendre
+
+
+@pytest.mark.parametrize("name", sorted(GAUSS))
+def test_tableau_order_conditions(name):
+    """B(2s), C(s) and the symplecticity condition b_i a_ij + b_j a_ji =
+    b_i b_j (Hairer, Lubich & Wanner, Thm. VI.4.3) hold to round-off."""
+    g = GAUSS[name]
+    A, b, c, _ = g.arrays
+    s = g.stages
+    for k in range(1, 2 * s + 1):
+        assert abs(b @ c ** (k - 1) - 1 / k) < 5e-16
+    for k in range(1, s + 1):
+        assert np.abs(A @ c ** (k - 1) - c ** k / k).max() < 5e-16
+    M = b[:, None] * A + (b[:, None] * A).T - np.outer(b, b)
+    assert np.abs(M).max() < 5e-16
+
+
+def test_tableau_is_checked():
+    with pytest.raises(ValueError, match="order 4"):
+        GaussLegendre("bad", c=(0.2, 0.8), b=(0.5, 0.5), a=((0.25, 0.0), (0.5, 0.25)), order=6)
+    with pytest.raises(ValueError, match="2 entries"):
+        GaussLegendre("bad", c=(0.2, 0.8), b=(1.0,), a=((0.25, 0.0), (0.5, 0.25)), order=4)
+
+
+@pytest.mark.parametrize("name, steps", [("GL4", (10, 20, 40)), ("GL6", (10, 20, 40)),
+                                         ("GL8", (5, 10, 20))])
+def test_measured_order_orbit_and_tangent(name, steps):
+    """The errors of the orbit and of the tangent map at t = 2 against
+    heyoka's Taylor method on Hamilton's equations fall as τ^(2s)."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
+    ref, M_ref = taylor_reference(model, x0, 2.0, tangent=True)
+    taus = [2.0 / n for n in steps]
+    errors, tangent_errors = [], []
+    for n in steps:
+        x, W = gauss_steps(model, x0, np.eye(4), 2.0 / n, n, name)
+        errors.append(np.abs(x - ref).max())
+        tangent_errors.append(np.abs(W - M_ref).max())
+    order = GAUSS[name].order
+    assert fitted_slope(taus, errors) == pytest.approx(order, abs=0.3)
+    assert fitted_slope(taus, tangent_errors) == pytest.approx(order, abs=0.3)
+
+
+def test_tangent_is_the_derivative_of_the_step():
+    """Central differences of three steps of the same map agree with the
+    tangent map to the differences' own error (ε² ~ 1e-12 relative)."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
+    _, W = gauss_steps(model, x0, np.eye(4), 0.1, 3, "GL6")
+    D = finite_difference(lambda z: gauss_steps(model, z, None, 0.1, 3, "GL6")[0], x0)
+    assert np.abs(D - W).max() < 1e-9
+
+
+@pytest.mark.parametrize("name", sorted(GAUSS))
+def test_tangent_is_symplectic(name):
+    """MᵀJM = J to round-off after 50 steps: the tangent map of the
+    converged implicit step is symplectic."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
+    _, M = gauss_steps(model, x0, np.eye(4), 0.1, 50, name)
+    J = symplectic_form(2)
+    assert np.abs(M.T @ J @ M - J).max() < 1e-13
+
+
+def test_energy_bounded_over_long_times():
+    """Tao's example H = (q² + 1)(p² + 1)/2: a symplectic method's energy
+    error stays bounded (no drift) over 10⁴ steps."""
+    model = tao_example()
+    x0 = np.array([-3.0, -1e-3])
+    e0 = model.energy(x0)
+    errs = []
+    x = x0
+    for _ in range(10):
+        x, _ = gauss_steps(model, x, None, 0.1, 1000, "GL4")
+        errs.append(abs(model.energy(x) - e0) / e0)
+    assert max(errs) < 1e-4
+    # Bounded: the last tenth's error is not an order above the first's.
+    assert errs[-1] < 10 * max(errs[:3])

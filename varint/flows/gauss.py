@@ -1,0 +1,315 @@
+"""Implicit Gauss–Legendre Runge–Kutta steps for any H(q, p), with the
+tangent map of the converged step.
+
+The s-stage Gauss–Legendre method (order 2s) is symplectic for every
+Hamiltonian (its coefficients satisfy b_i a_ij + b_j a_ji = b_i b_j; Hairer,
+Lubich & Wanner 2006, Thm. VI.4.3), so it is the implicit counterpart, for
+non-separable H, of the explicit splittings of H = T + V.
+
+A step of length h from x solves the stage equations for Z_i = Y_i − x,
+
+    Z_i = h Σ_j a_ij f(x + Z_j),     f = J ∇H,
+
+by fixed-point iteration from Z_i = h c_i f(x) until the corrections reach
+round-off, and returns x' = x + Σ_i d_i Z_i with dᵀ = bᵀA⁻¹ (no further
+evaluation of f; Hairer, Lubich & Wanner, Sect. VIII.6). Its tangent map is
+the derivative of that map: differentiating the stage equations at the
+converged stages gives the linear system
+
+    U_i − h Σ_j a_ij Df(Y_j) U_j = δx,     Df = J D²H,
+
+for the stage tangents U_i = δx + δZ_i, solved by one LU factorisation for
+all k deviation vectors at once, and δx' = δx + Σ_i d_i (U_i − δx). The
+tangent map is thus exact for the map actually computed (to the round-off
+of the converged stages), and symplectic with it.
+
+Coefficients are stored to 25 digits (computed from the roots of the
+shifted Legendre polynomials at 40 digits) in :data:`GAUSS`; their order
+conditions are checked in the tests.
+
+References
+----------
+J. C. Butcher, Math. Comp. 18, 50 (1964); E. Hairer, C. Lubich & G. Wanner,
+*Geometric Numerical Integration*, 2nd ed., Springer (2006), Sects. II.1.3,
+VI.4 and VIII.6.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from ..protocol import Status
+
+__all__ = ["GaussLegendre", "GAUSS", "gauss_step", "gauss_work", "MAX_ITERATIONS"]
+
+#: Fixed-point iterations before a step is declared failed.
+MAX_ITERATIONS = 100
+_FAILED = int(Status.INTEGRATOR_FAILED)
+_OK = int(Status.OK)
+_EPS = np.finfo(np.float64).eps
+
+
+@dataclass(frozen=True)
+class GaussLegendre:
+    """The Butcher tableau of an s-stage Gauss–Legendre method.
+
+    Parameters
+    ----------
+    name : str
+        ``"GL4"``, ``"GL6"`` or ``"GL8"`` (the order).
+    c : tuple of float, shape (s,)
+        Nodes: the roots of the shifted Legendre polynomial P_s(2c − 1).
+    b : tuple of float, shape (s,)
+    a : tuple of tuple of float, shape (s, s)
+    order : int
+        2s.
+
+    Raises
+    ------
+    ValueError
+        If the shapes do not agree or the order is not 2s.
+    """
+
+    name: str
+    c: tuple
+    b: tuple
+    a: tuple
+    order: int
+    reference: str = "Butcher, Math. Comp. 18, 50 (1964)"
+    arrays: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        s = len(self.c)
+        if len(self.b) != s or len(self.a) != s or any(len(r) != s for r in self.a):
+            raise ValueError(f"scheme {self.name!r}: c, b and the rows of a must all have "
+                             f"{s} entries")
+        if self.order != 2 * s:
+            raise ValueError(f"scheme {self.name!r}: an {s}-stage Gauss–Legendre method has "
+                             f"order {2 * s}, got {self.order}")
+        A = np.array(self.a, dtype=np.float64)
+        b = np.array(self.b, dtype=np.float64)
+        # x' = x + Σ d_i Z_i, dᵀ = bᵀA⁻¹: the step needs no f at the new stages.
+        d = np.linalg.solve(A.T, b)
+        object.__setattr__(self, "arrays", (A, b, np.array(self.c, dtype=np.float64), d))
+
+    @property
+    def stages(self):
+        return len(self.c)
+
+    def describe(self):
+        return {"name": self.name, "stages": self.stages, "order": self.order,
+                "reference": self.reference}
+
+
+GAUSS = {g.name: g for g in (
+    GaussLegendre(
+        "GL4",
+        c=(0.2113248654051871177454256, 0.7886751345948128822545744),
+        b=(0.5, 0.5),
+        a=((0.25, -0.03867513459481288225457439),
+           (0.5386751345948128822545744, 0.25)),
+        order=4),
+    GaussLegendre(
+        "GL6",
+        c=(0.1127016653792583114820735, 0.5, 0.8872983346207416885179265),
+        b=(0.2777777777777777777777778, 0.4444444444444444444444444,
+           0.2777777777777777777777778),
+        a=((0.1388888888888888888888889, -0.03597666752493890345639547,
+            0.009789444015308326049580042),
+           (0.3002631949808645924380249, 0.2222222222222222222222222,
+            -0.02248541720308681466024717),
+           (0.2679883337624694517281977, 0.4804211119693833479008399,
+            0.1388888888888888888888889)),
+        order=6),
+    GaussLegendre(
+        "GL8",
+        c=(0.06943184420297371238802676, 0.3300094782075718675986671,
+           0.6699905217924281324013329, 0.9305681557970262876119732),
+        b=(0.173927422568726928686532, 0.326072577431273071313468,
+           0.326072577431273071313468, 0.173927422568726928686532),
+        a=((0.08696371128436346434326599, -0.02660418008499879331338513,
+            0.01262746268940472451505688, -0.003555149685795683156910982),
+           (0.1881181174998680716506855, 0.163036288715636535656734,
+            -0.02788042860247089522415111, 0.006735500594538155515398669),
+           (0.1671919219741887731711333, 0.3539530060337439665376191,
+            0.163036288715636535656734, -0.01419069493114114296415357),
+           (0.177482572254522611843443, 0.3134451147418683467984111,
+            0.3526767575162718646268532, 0.08696371128436346434326599)),
+        order=8),
+)}
+
+
+def gauss_work(n_dof, stages, k):
+    """Floats of scratch :func:`gauss_step` needs for N = ``n_dof``, s =
+    ``stages`` and ``k`` vectors."""
+    d = 2 * n_dof
+    sd = stages * d
+    return 2 * sd + 2 * d + d * d + (sd * sd + sd + sd * k if k else 0)
+
+
+@njit(error_model="numpy")
+def _field(y, par, g, out, grad):
+    # out = J ∇H(y)
+    n = y.shape[0] // 2
+    grad(y, par, g)
+    for i in range(n):
+        out[i] = g[n + i]
+        out[n + i] = -g[i]
+
+
+@njit(error_model="numpy")
+def _lu(M, piv, m):
+    """In-place LU factorisation with partial pivoting of M[:m, :m];
+    returns False if M is singular."""
+    for col in range(m):
+        p = col
+        big = abs(M[col, col])
+        for r in range(col + 1, m):
+            if abs(M[r, col]) > big:
+                big = abs(M[r, col])
+                p = r
+        if big == 0.0 or big != big:
+            return False
+        piv[col] = p
+        if p != col:
+            for j in range(m):
+                M[col, j], M[p, j] = M[p, j], M[col, j]
+        inv = 1.0 / M[col, col]
+        for r in range(col + 1, m):
+            f = M[r, col] * inv
+            if f != 0.0:
+                M[r, col] = f
+                for j in range(col + 1, m):
+                    M[r, j] -= f * M[col, j]
+            else:
+                M[r, col] = 0.0
+    return True
+
+
+@njit(error_model="numpy")
+def _lu_solve(M, piv, m, rhs):
+    """Solve in place for the right-hand side ``rhs`` (m,) given the
+    factors of :func:`_lu`."""
+    for i in range(m):
+        p = int(piv[i])
+        if p != i:
+            rhs[i], rhs[p] = rhs[p], rhs[i]
+    for i in range(m):
+        acc = rhs[i]
+        for j in range(i):
+            acc -= M[i, j] * rhs[j]
+        rhs[i] = acc
+    for i in range(m - 1, -1, -1):
+        acc = rhs[i]
+        for j in range(i + 1, m):
+            acc -= M[i, j] * rhs[j]
+        rhs[i] = acc / M[i, i]
+
+
+@njit(error_model="numpy")
+def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
+    """One Gauss–Legendre step of length h, in place on the orbit ``x``
+    (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
+    docstring); ``A``, ``b``, ``c``, ``d`` from :attr:`GaussLegendre.arrays`,
+    ``work`` at least :func:`gauss_work` floats, ``grad(x, par, g)`` = ∇H and
+    ``grad_hess(x, par, g, D)`` = ∇H, D²H the model's kernels.
+
+    Returns
+    -------
+    status : int
+        ``Status.OK``, or ``Status.INTEGRATOR_FAILED`` when the stage
+        equations did not converge in :data:`MAX_ITERATIONS` iterations or
+        their linearisation is singular (``x`` and ``V`` are then left as
+        they were).
+    iterations : int
+        Fixed-point iterations done (each evaluates ∇H at the s stages).
+    """
+    dim = x.shape[0]
+    n = dim // 2
+    s = c.shape[0]
+    sd = s * dim
+    Z = work[:sd]
+    F = work[sd:2 * sd]
+    y = work[2 * sd:2 * sd + dim]
+    g = work[2 * sd + dim:2 * sd + 2 * dim]
+    off = 2 * sd + 2 * dim
+    D = work[off:off + dim * dim].reshape((dim, dim))
+    off += dim * dim
+    # Start from the explicit Euler guess Z_i = h c_i f(x).
+    _field(x, par, g, y, grad)
+    for i in range(s):
+        for m in range(dim):
+            Z[i * dim + m] = h * c[i] * y[m]
+    last = np.inf
+    iterations = 0
+    converged = False
+    while iterations < MAX_ITERATIONS:
+        iterations += 1
+        for j in range(s):
+            for m in range(dim):
+                y[m] = x[m] + Z[j * dim + m]
+            _field(y, par, g, F[j * dim:(j + 1) * dim], grad)
+        delta = 0.0
+        size = 0.0
+        for i in range(s):
+            for m in range(dim):
+                acc = 0.0
+                for j in range(s):
+                    acc += A[i, j] * F[j * dim + m]
+                z = h * acc
+                delta = max(delta, abs(z - Z[i * dim + m]))
+                size = max(size, abs(z))
+                Z[i * dim + m] = z
+        if not (delta == delta):
+            break
+        # Converged at round-off: the corrections reached a few ulps of Z,
+        # or stopped shrinking once they were small (rounding noise).
+        if delta <= 4.0 * _EPS * size or (delta >= last and delta <= 1e-10 * size):
+            converged = True
+            break
+        last = delta
+    if not converged:
+        return _FAILED, iterations
+    if k > 0:
+        # The tangent system I − h (A ⊗ 1) blockdiag(Df(Y_j)) at the converged stages.
+        M = work[off:off + sd * sd].reshape((sd, sd))
+        off += sd * sd
+        piv = work[off:off + sd]
+        off += sd
+        U = work[off:off + sd * k].reshape((k, sd))
+        for r in range(sd):
+            for col in range(sd):
+                M[r, col] = 0.0
+            M[r, r] = 1.0
+        for j in range(s):
+            for m in range(dim):
+                y[m] = x[m] + Z[j * dim + m]
+            grad_hess(y, par, g, D)
+            # Df = J D²H: rows q̇ = (H_pq, H_pp), ṗ = −(H_qq, H_qp).
+            for i in range(s):
+                f = -h * A[i, j]
+                for r in range(n):
+                    for col in range(dim):
+                        M[i * dim + r, j * dim + col] += f * D[n + r, col]
+                        M[i * dim + n + r, j * dim + col] -= f * D[r, col]
+        if not _lu(M, piv, sd):
+            return _FAILED, iterations
+        for v in range(k):
+            for i in range(s):
+                for m in range(dim):
+                    U[v, i * dim + m] = V[v, m]
+            _lu_solve(M, piv, sd, U[v])
+            for m in range(dim):
+                acc = 0.0
+                for i in range(s):
+                    acc += d[i] * (U[v, i * dim + m] - V[v, m])
+                V[v, m] += acc
+    for m in range(dim):
+        acc = 0.0
+        for i in range(s):
+            acc += d[i] * Z[i * dim + m]
+        x[m] += acc
+    return _OK, iterations

@@ -1,0 +1,715 @@
+"""Models from any Hamiltonian H(q, p) (or H(q, p, t)) written in SymPy,
+with the structure that keeps the tangent map exact recognised.
+
+:func:`from_hamiltonian` takes one SymPy expression and finds which of four
+forms it has, in this order:
+
+1. **H = ½ Σ m⁻¹_i p_i² + V(q)** (or V(q, t)): the model is
+   :func:`~varint.models.from_potential`'s, and every method, scheme and
+   corrector of varint applies unchanged.
+2. **H = T(p) + V(q)** with any kinetic energy T (relativistic, a
+   non-quadratic dispersion, a non-diagonal mass): :class:`SeparableHamiltonian`.
+   The drift is the exact flow of T, q ← q + h∇T(p), δq ← δq + h D²T(p) δp
+   (:func:`varint.flows.split.kinetic_drift`), and the kick that of V, so
+   every explicit two-part scheme without corrector and every k-part
+   composition keeps the TM method exact.
+3. **H = A + V(q)** with A quadratic and exactly solvable:
+   ½a|p_⊥|² + ½b|q_⊥|² − Ω(q_u p_v − q_v p_u) in one plane (u, v) plus
+   decoupled ½a_i p_i² + ½b_i q_i² — free motion seen from a rotating frame
+   (the restricted three-body problem, a rotating bar), a uniform magnetic
+   field in the symmetric gauge (the Larmor rotation), with an isotropic
+   oscillator: :class:`IntegrableHamiltonian`. A's flow is a rotation
+   composed with the oscillator's (:func:`varint.flows.split.planar_flow`),
+   linear and so its own tangent map; the schemes are those of form 2.
+   Quadratic terms of q alone in H join A when they make it of this form.
+4. **Anything else** (a magnetic bottle, a non-uniform field, H(q, p, t) not
+   of form 1): :class:`GeneralHamiltonian`, integrated by the implicit
+   Gauss–Legendre methods (:mod:`varint.flows.gauss`) or Tao's explicit
+   extended-phase-space method (:mod:`varint.flows.tao`), whose tangent maps
+   are exact derivatives of their steps.
+
+Every model of forms 2–4 carries compiled ∇H and D²H (the right-hand side
+J∇H and its Jacobian J D²H for the reference methods, and the flows of the
+general methods), and H itself for energies; ``structure=`` forces a form
+(e.g. ``"general"`` to integrate a rotating frame with Gauss–Legendre).
+
+Kernels are generated as in :mod:`varint.models.symbolic` (straight-line
+code, common subexpressions eliminated, cached on disk); the exact
+expression is kept (:meth:`HamiltonianModel.symbolic`) for heyoka's Taylor
+reference, which builds Hamilton's equations from it.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
+
+from ..flows import split as S
+from .base import Model
+from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
+from .symbolic import (SymbolicModel, _assignments, _check_smooth, _coordinates,
+                       _KernelPrinter, _load_kernels, _NONFINITE, _time_symbol)
+
+__all__ = ["SymbolicHamiltonian", "HamiltonianModel", "SeparableHamiltonian",
+           "IntegrableHamiltonian", "GeneralHamiltonian", "from_hamiltonian", "recognise",
+           "STRUCTURES"]
+
+#: The forms :func:`from_hamiltonian` recognises (``structure=``), in the
+#: order it tries them; "auto" tries them all.
+STRUCTURES = ("potential", "separable", "integrable", "general")
+
+
+@dataclass(frozen=True)
+class SymbolicHamiltonian:
+    """A Hamiltonian written out in SymPy, with its recognised structure.
+
+    Attributes
+    ----------
+    H : sympy.Expr
+        The Hamiltonian, in the symbols ``q``, ``p`` (and ``time``).
+    q, p : tuple of sympy.Symbol
+        Coordinates and conjugate momenta, in state order x = (q, p).
+    time : sympy.Symbol or None
+        The time in H(q, p, t), or None.
+    structure : str
+        "separable", "integrable" or "general" (see the module docstring).
+    A : sympy.Expr or None
+        The exactly solvable part: T(p) for "separable", the quadratic A for
+        "integrable"; None for "general".
+    V : sympy.Expr or None
+        H − A, a function of q alone, for the split forms.
+    """
+
+    H: sp.Expr
+    q: tuple
+    p: tuple
+    time: sp.Symbol | None = None
+    structure: str = "general"
+    A: sp.Expr | None = None
+    V: sp.Expr | None = None
+
+
+# -- input ---------------------------------------------------------------------------------
+def _check_hamiltonian(H, q, p, time):
+    if isinstance(H, (int, float)) and not isinstance(H, bool):
+        H = sp.Float(H) if isinstance(H, float) else sp.Integer(H)
+    if not isinstance(H, sp.Expr):
+        raise ValueError(f"H must be a SymPy expression in q and p, got {type(H).__name__} "
+                         f"{H!r}")
+    allowed = set(q) | set(p) | ({time} if time is not None else set())
+    extra = H.free_symbols - allowed
+    if extra:
+        names = ", ".join(sorted(map(str, extra)))
+        hint = "" if time is not None else " (a time-dependent H needs time=<its symbol>)"
+        raise ValueError(f"H contains symbols that are neither coordinates nor momenta: "
+                         f"{names}; substitute numbers for parameters (H.subs(...)){hint}")
+    if H.has(*_NONFINITE):
+        raise ValueError(f"H contains a non-finite constant (oo, zoo or nan): {H}")
+    if H.has(sp.I):
+        raise ValueError(f"H must be real; it contains the imaginary unit: {H}")
+    if not H.free_symbols & set(p):
+        raise ValueError(f"H does not depend on the momenta {[str(s) for s in p]}: nothing "
+                         "moves (a potential alone is from_potential's V)")
+    return H
+
+
+def _momenta(p, q):
+    p = _coordinates(p)
+    if len(p) != len(q):
+        raise ValueError(f"p must name one momentum per coordinate: {len(q)} coordinates "
+                         f"{[str(s) for s in q]}, {len(p)} momenta {[str(s) for s in p]}")
+    shared = set(p) & set(q)
+    if shared:
+        raise ValueError(f"{sorted(map(str, shared))[0]} is both a coordinate and a momentum")
+    return p
+
+
+def _is_zero(e):
+    if e == 0:
+        return True
+    return sp.simplify(e) == 0
+
+
+# -- structure -----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Structure:
+    """What :func:`recognise` found.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`STRUCTURES`.
+    A, V : sympy.Expr or None
+        The solvable part and the potential (see :class:`SymbolicHamiltonian`).
+    inverse_mass : tuple or None
+        For "potential": the diagonal of M⁻¹, exact.
+    planar : dict or None
+        For "integrable": the plane (u, v), a, b, Ω and the other
+        coordinates' (a_i, b_i) (:func:`varint.flows.split.planar_params`).
+    """
+
+    kind: str
+    A: sp.Expr | None = None
+    V: sp.Expr | None = None
+    inverse_mass: tuple | None = None
+    planar: dict | None = None
+
+
+def _separable(H, q, p):
+    """(T, V) if H = T(p) + V(q), else None."""
+    for qi in q:
+        for pj in p:
+            if not _is_zero(sp.diff(H, qi, pj)):
+                return None
+    V = H.xreplace({s: 0 for s in p})
+    T = H - V
+    if T.free_symbols & set(q):
+        T = sp.simplify(T)
+        if T.free_symbols & set(q):
+            return None
+    return T, V
+
+
+def _diagonal_quadratic(T, p):
+    """The diagonal of M⁻¹ if T = ½ Σ m⁻¹_i p_i² with constant m⁻¹_i > 0."""
+    minv = []
+    for i, pi in enumerate(p):
+        c = sp.diff(T, pi, 2)
+        if c.free_symbols or not c.is_number or not float(c) > 0:
+            return None
+        for pj in p[i + 1:]:
+            if not _is_zero(sp.diff(T, pi, pj)):
+                return None
+        minv.append(c)
+    if not _is_zero(T - sum(m * s**2 for m, s in zip(minv, p)) / 2):
+        return None
+    return tuple(minv)
+
+
+def _quadratic_terms(V, q):
+    """The terms of V (at its top level) that are monomials of degree 2 in q
+    with constant coefficients, and the rest."""
+    quad, rest = [], []
+    for term in sp.Add.make_args(sp.expand(V, deep=False)):
+        if term.is_polynomial(*q) and sp.Poly(term, *q).is_homogeneous \
+                and sp.Poly(term, *q).total_degree() == 2:
+            quad.append(term)
+        else:
+            rest.append(term)
+    return sp.Add(*quad), sp.Add(*rest)
+
+
+def _planar(A, q, p):
+    """The parameters of :func:`varint.flows.split.planar_flow` if the
+    quadratic A has its form, else None."""
+    if not A.is_polynomial(*q, *p):
+        return None
+    poly = sp.Poly(A, *q, *p)
+    n = len(q)
+    coeff = {}
+    for monom, c in poly.terms():
+        if sum(monom) == 0:
+            continue             # a constant: no flow
+        if sum(monom) != 2 or not c.is_number:
+            return None
+        idx = [i for i, e in enumerate(monom) for _ in range(e)]
+        coeff[tuple(idx)] = c
+    a = [2 * coeff.get((n + i, n + i), 0) for i in range(n)]
+    b = [2 * coeff.get((i, i), 0) for i in range(n)]
+    if any(not float(ai) > 0 for ai in a):
+        return None
+    mixed = {}
+    for key, c in coeff.items():
+        i, j = key
+        if i == j:
+            continue
+        if i < n <= j:          # q_i p_{j−n}
+            mixed[(i, j - n)] = c
+        else:                   # q_i q_j or p_i p_j with i ≠ j: not of the form
+            return None
+    if not mixed:
+        return None
+    pairs = {tuple(sorted(k)) for k in mixed}
+    if len(pairs) != 1:
+        return None
+    u, v = pairs.pop()
+    if u == v:
+        return None
+    # −Ω (q_u p_v − q_v p_u).
+    omega = -mixed.get((u, v), 0)
+    if not _is_zero(mixed.get((v, u), 0) - omega) or omega == 0:
+        return None
+    if not (_is_zero(a[u] - a[v]) and _is_zero(b[u] - b[v])):
+        return None
+    others = {i: (float(a[i]), float(b[i])) for i in range(n) if i not in (u, v)}
+    return {"plane": (u, v), "a": float(a[u]), "b": float(b[u]), "omega": float(omega),
+            "others": others}
+
+
+def _integrable(H, q, p):
+    """(A, V, planar parameters) if H = A + V(q) with A solvable, else None."""
+    V0 = H.xreplace({s: 0 for s in p})
+    P = H - V0
+    if not P.is_polynomial(*q, *p):
+        return None
+    quad, rest = _quadratic_terms(V0, q)
+    # The quadratic terms of q join A when that gives the solvable form (the
+    # Larmor case), else A is the momentum-dependent part alone.
+    for A, V in ((P + quad, rest), (P, V0)):
+        planar = _planar(sp.expand(A), q, p)
+        if planar is not None:
+            return A, V, planar
+    return None
+
+
+def recognise(H, q, p, time=None):
+    """The structure of H(q, p[, t]) (see the module docstring).
+
+    Returns
+    -------
+    Structure
+    """
+    sep = _separable(H, q, p)
+    if sep is not None:
+        T, V = sep
+        minv = _diagonal_quadratic(T, p)
+        if minv is not None:
+            return Structure("potential", A=T, V=V, inverse_mass=minv)
+        if time is None or time not in H.free_symbols:
+            return Structure("separable", A=T, V=V)
+        return Structure("general")
+    if time is None or time not in H.free_symbols:
+        found = _integrable(H, q, p)
+        if found is not None:
+            A, V, planar = found
+            return Structure("integrable", A=A, V=V, planar=planar)
+    return Structure("general")
+
+
+# -- kernels -------------------------------------------------------------------------------
+def _function(printer, name, args, unpack, targets, exprs, returns=None):
+    lines = ["", "", "@njit(cache=True, error_model='numpy')", f"def {name}({', '.join(args)}):",
+             *unpack]
+    if returns is not None:
+        targets = [*targets, "_r"]
+        exprs = [*exprs, returns]
+    lines += _assignments(printer, targets, exprs)
+    if returns is not None:
+        lines.append("    return _r")
+    return lines
+
+
+def _hessian(expr, xs):
+    g = [sp.diff(expr, s) for s in xs]
+    D = [[sp.diff(g[i], xs[j]) if j >= i else None for j in range(len(xs))]
+         for i in range(len(xs))]
+    return g, D
+
+
+def _grad_hess_lines(printer, name, arg, expr, xs, unpack, with_hessian):
+    """``name(arg, par, g[, D])``: the gradient of ``expr`` in ``xs`` (and its
+    dense Hessian, both triangles)."""
+    g, D = _hessian(expr, xs)
+    _check_smooth(g, "first derivatives", subject="H", need="twice differentiable")
+    targets = [f"g[{i}]" for i in range(len(xs))]
+    exprs = list(g)
+    if with_hessian:
+        flat = [D[i][j] for i in range(len(xs)) for j in range(i, len(xs))]
+        _check_smooth(flat, "second derivatives", subject="H", need="twice differentiable")
+        for i in range(len(xs)):
+            for j in range(i, len(xs)):
+                targets.append(f"D[{i}, {j}]")
+                exprs.append(D[i][j])
+        args = [arg, "par", "g", "D"]
+    else:
+        args = [arg, "par", "g"]
+    lines = _function(printer, name, args, unpack, targets, exprs)
+    if with_hessian:
+        lines += [f"    D[{j}, {i}] = D[{i}, {j}]" for i in range(len(xs))
+                  for j in range(i + 1, len(xs))]
+    return lines
+
+
+def _kernel_source(H, A, V, n, time, structure):
+    """Source of the module of kernels of a Hamiltonian in the standard
+    symbols q_0 … q_{n−1}, p_0 … p_{n−1} (and t, read from ``par[-1]``)."""
+    q = sp.symbols(f"q_0:{n}")
+    p = sp.symbols(f"p_0:{n}")
+    xs = (*q, *p)
+    printer = _KernelPrinter()
+    unpack_x = [f"    q_{i} = x[{i}]" for i in range(n)] + [f"    p_{i} = x[{n + i}]"
+                                                             for i in range(n)]
+    if time:
+        unpack_x.append("    t = par[-1]")
+    lines = ['"""Generated by varint.models.hamiltonian.from_hamiltonian; do not edit."""',
+             "import math", "from numba import njit"]
+    try:
+        lines += _grad_hess_lines(printer, "grad", "x", H, xs, unpack_x, False)
+        lines += _grad_hess_lines(printer, "grad_hess", "x", H, xs, unpack_x, True)
+        if time:
+            dt = sp.diff(H, sp.Symbol("t"))
+            _check_smooth([dt], "time derivative", subject="H", need="differentiable in t")
+            lines += _function(printer, "dtime", ["x", "par"], unpack_x, [], [], returns=dt)
+        if structure == "separable":
+            unpack_p = [f"    p_{i} = p[{i}]" for i in range(n)]
+            lines += _grad_hess_lines(printer, "grad_t", "p", A, p, unpack_p, False)
+            lines += _grad_hess_lines(printer, "grad_hess_t", "p", A, p, unpack_p, True)
+        if structure in ("separable", "integrable"):
+            unpack_q = [f"    q_{i} = q[{i}]" for i in range(n)]
+            lines += _grad_hess_lines(printer, "grad_v", "q", V, q, unpack_q, False)
+            lines += _grad_hess_lines(printer, "grad_hess_v", "q", V, q, unpack_q, True)
+    except PrintMethodNotImplementedError as exc:
+        raise ValueError(f"H uses a function the compiled kernels cannot evaluate: {exc}") \
+            from None
+    return "\n".join(lines) + "\n"
+
+
+# -- models --------------------------------------------------------------------------------
+class HamiltonianModel(Model):
+    """A model H(q, p) that is not ½pᵀM⁻¹p + V(q), generated from SymPy;
+    see :func:`from_hamiltonian`.
+
+    Attributes
+    ----------
+    structure : str
+        "separable", "integrable" or "general".
+    grad_h, grad_hess_h : numba dispatchers
+        ``grad_h(x, par, g)`` writes ∇H(x) (2N,); ``grad_hess_h(x, par, g, D)``
+        also the dense Hessian D²H (2N, 2N). ``par[-1]`` is t for a
+        time-dependent H.
+    dtime_h : numba dispatcher or None
+        ``dtime_h(x, par)`` = ∂_tH, for a time-dependent H.
+    band_kernels : bool
+        False: the band-Hessian kernels of :mod:`varint.models.base` do not
+        exist for such H (methods that need them refuse the model).
+    """
+
+    band_kernels = False
+    structure = "general"
+
+    def __init__(self, H, q, p, time=None, name=None, escape_radius=None, _found=None):
+        q = _coordinates(q)
+        p = _momenta(p, q)
+        time = _time_symbol(time, (*q, *p))
+        H = _check_hamiltonian(H, q, p, time)
+        found = _found if _found is not None else recognise(H, q, p, time)
+        n = len(q)
+        qs, ps = sp.symbols(f"q_0:{n}"), sp.symbols(f"p_0:{n}")
+        t = sp.Symbol("t")
+        std = {**dict(zip(q, qs)), **dict(zip(p, ps)), **({time: t} if time is not None else {})}
+        H_std = H.xreplace(std)
+        A_std = None if found.A is None else found.A.xreplace(std)
+        V_std = None if found.V is None else found.V.xreplace(std)
+        source = _kernel_source(H_std, A_std, V_std, n, time is not None, self.structure)
+        kernels = _load_kernels(source)
+        self.grad_h, self.grad_hess_h = kernels.grad, kernels.grad_hess
+        self.dtime_h = getattr(kernels, "dtime", None)
+        self._take_kernels(kernels)
+        args = (*qs, *ps, *((t,) if time is not None else ()))
+        self._numpy_H = sp.lambdify(args, H_std, modules="numpy")
+        self._numpy_V = None if V_std is None else sp.lambdify(qs, V_std, modules="numpy")
+        self._symbolic = SymbolicHamiltonian(H, q, p, time, self.structure, found.A, found.V)
+        self._found = found
+        super().__init__(n, self._potential_values, no_gradient_kernel, no_band_kernel,
+                         no_third_kernel, bandwidth=0, params=() if time is None else (0.0,),
+                         name=name or f"H = {H}", escape_radius=escape_radius)
+        if time is not None:
+            self.time_dependent = True
+
+    def _take_kernels(self, kernels):
+        """Keep the structure's own kernels of the generated module."""
+
+    # -- values ------------------------------------------------------------------------
+    def _potential_values(self, q, t=0.0):
+        n = self.n_dof
+        if self._numpy_V is not None:
+            return self._numpy_V(*(q[..., i] for i in range(n))) + np.zeros(q.shape[:-1])
+        zeros = np.zeros(q.shape[:-1])
+        args = [q[..., i] for i in range(n)] + [zeros] * n
+        if self.time_dependent:
+            args.append(t)
+        return self._numpy_H(*args) + zeros
+
+    def hamiltonian(self, x, t=0.0):
+        """H(x) (H(x, t) if time-dependent) for states ``x`` of shape
+        (..., 2N)."""
+        x = np.asarray(x, dtype=float)
+        args = [x[..., i] for i in range(self.dim)]
+        if self.time_dependent:
+            args.append(t)
+        return self._numpy_H(*args) + np.zeros(x.shape[:-1])
+
+    def potential(self, q, t=0.0):
+        """V(q) of the split forms; for a general H, H(q, 0) (the energy of
+        a state at rest)."""
+        q = np.asarray(q, dtype=float)
+        return self._potential_values(q, t)
+
+    def kinetic(self, p):
+        """Not defined for H(q, p) that is not T(p) + V(q): the part of the
+        energy that depends on the momenta also depends on q. Use
+        :meth:`energy` (or :meth:`hamiltonian`)."""
+        raise ValueError(f"{self.name} is not of the form T(p) + V(q): its kinetic energy "
+                         "depends on q; use energy(x)")
+
+    def energy(self, x, t=0.0, p_t=0.0):
+        """H(x) for states ``x`` of shape (..., 2N); for a time-dependent H
+        the extended energy K = H(x, t) + p_t."""
+        e = self.hamiltonian(x, t)
+        return e + p_t if self.time_dependent else e
+
+    def energy_scale(self, x):
+        """|H − V| + |V| per state (|H| for a general H), 1 where that is 0:
+        the scale energy errors are relative to (see
+        :meth:`varint.models.base.Model.energy_scale`)."""
+        x = np.asarray(x, dtype=float)
+        h = self.hamiltonian(x)
+        if self._numpy_V is None:
+            scale = np.abs(h)
+        else:
+            v = self.potential(x[..., :self.n_dof])
+            scale = np.abs(h - v) + np.abs(v)
+        return np.where(scale > 0, scale, 1.0)
+
+    def conserved(self, x, t=0.0, p_t=0.0):
+        """The energy H (K = H + p_t for a time-dependent H); subclasses add
+        their own first integrals (e.g. the Jacobi constant)."""
+        return {"energy": self.energy(x, t, p_t)}
+
+    def gradient_h(self, x, t=None):
+        """∇H at the state ``x`` (2N,)."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        g = np.empty(self.dim)
+        self.grad_h(x, self.parameters_at(t), g)
+        return g
+
+    def hessian_h(self, x, t=None):
+        """The dense Hessian D²H at ``x``, shape (2N, 2N)."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        g = np.empty(self.dim)
+        D = np.empty((self.dim, self.dim))
+        self.grad_hess_h(x, self.parameters_at(t), g, D)
+        return D
+
+    def field(self, x, t=None):
+        """The vector field ẋ = J∇H at ``x`` (Hamilton's equations)."""
+        g = self.gradient_h(x, t)
+        n = self.n_dof
+        return np.concatenate([g[n:], -g[:n]])
+
+    def symbolic(self) -> SymbolicHamiltonian:
+        """The Hamiltonian, coordinates, momenta and structure as given."""
+        return self._symbolic
+
+    def describe(self):
+        d = super().describe()
+        s = self._symbolic
+        d.pop("inverse_mass", None)
+        d.update(hamiltonian=sp.srepr(s.H), q=[str(v) for v in s.q], p=[str(v) for v in s.p],
+                 structure=self.structure, escape_radius=self.escape_radius)
+        if s.time is not None:
+            d["time"] = str(s.time)
+        return d
+
+    def __getstate__(self):
+        # The lambdified functions do not pickle; they are rebuilt from H.
+        state = dict(self.__dict__)
+        state.pop("_numpy_H", None)
+        state.pop("_numpy_V", None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        s = self._symbolic
+        n = len(s.q)
+        qs, ps = sp.symbols(f"q_0:{n}"), sp.symbols(f"p_0:{n}")
+        t = sp.Symbol("t")
+        std = {**dict(zip(s.q, qs)), **dict(zip(s.p, ps)),
+               **({s.time: t} if s.time is not None else {})}
+        args = (*qs, *ps, *((t,) if s.time is not None else ()))
+        self._numpy_H = sp.lambdify(args, s.H.xreplace(std), modules="numpy")
+        self._numpy_V = (None if s.V is None
+                         else sp.lambdify(qs, s.V.xreplace(std), modules="numpy"))
+
+
+class _SplitHamiltonian(HamiltonianModel):
+    """H = A + V(q) with both parts exactly solvable: the kernels of V and
+    the part flows the part stepper runs (:class:`~varint.models.lattice.Parts`)."""
+
+    #: The scheme of ``method="tm"`` when none is given.
+    default_scheme = "ABA864"
+
+    def _take_kernels(self, kernels):
+        self.grad_v, self.grad_hess_v = kernels.grad_v, kernels.grad_hess_v
+
+    @property
+    def parts(self):
+        """The two parts (the solvable A, then V) and their fused flows."""
+        n = self.n_dof
+        return Parts(names=self.part_names, apply=self._apply(), field=S.hamiltonian_field(
+            self.grad_h), splits={2: self.part_names}, par=self._part_params(),
+            n_work=n + n * n, default_scheme=self.default_scheme)
+
+
+class SeparableHamiltonian(_SplitHamiltonian):
+    """H = T(p) + V(q) with a kinetic energy T other than ½pᵀM⁻¹p; see
+    :func:`from_hamiltonian`. Parts "T" (drift, the flow of T) and "V"."""
+
+    structure = "separable"
+    part_names = ("T", "V")
+
+    def _take_kernels(self, kernels):
+        super()._take_kernels(kernels)
+        self.grad_t, self.grad_hess_t = kernels.grad_t, kernels.grad_hess_t
+
+    def _apply(self):
+        return S.separable_apply(self.grad_t, self.grad_hess_t, self.grad_v, self.grad_hess_v)
+
+    def _part_params(self):
+        return self.parameters_at(None)
+
+
+class IntegrableHamiltonian(_SplitHamiltonian):
+    """H = A + V(q), A the solvable quadratic of a rotating frame or a
+    uniform magnetic field (module docstring); see :func:`from_hamiltonian`.
+    Parts "A" (its exact linear flow) and "V".
+
+    Attributes
+    ----------
+    planar : dict
+        A's coefficients: the plane (u, v), a, b, Ω and the other
+        coordinates' (a_i, b_i) (:func:`varint.flows.split.planar_params`).
+    """
+
+    structure = "integrable"
+    part_names = ("A", "V")
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.planar = self._found.planar
+
+    def _apply(self):
+        return S.rotating_apply(self.grad_v, self.grad_hess_v)
+
+    def _part_params(self):
+        pl = self.planar
+        return S.planar_params(self.n_dof, pl["plane"], pl["a"], pl["b"], pl["omega"],
+                               pl["others"])
+
+
+class GeneralHamiltonian(HamiltonianModel):
+    """Any H(q, p) (or H(q, p, t)) without a solvable split; see
+    :func:`from_hamiltonian`. Integrated by Gauss–Legendre or Tao's method."""
+
+    structure = "general"
+
+
+_CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,
+            "general": GeneralHamiltonian}
+
+
+def from_hamiltonian(H: sp.Expr, q: Sequence[sp.Symbol], p: Sequence[sp.Symbol],
+                     time: sp.Symbol | None = None, name: str | None = None,
+                     escape_radius: float | None = None, structure: str = "auto"):
+    """A model from a Hamiltonian H(q, p) (or H(q, p, t)) written in SymPy.
+
+    The structure that keeps the tangent map exact is recognised (module
+    docstring): ½pᵀM⁻¹p + V(q) gives :func:`~varint.models.from_potential`'s
+    model; T(p) + V(q) a :class:`SeparableHamiltonian`; a rotating-frame or
+    uniform-field quadratic plus V(q) an :class:`IntegrableHamiltonian`;
+    anything else a :class:`GeneralHamiltonian`.
+
+    Parameters
+    ----------
+    H : sympy.Expr
+        The Hamiltonian; its free symbols must be among ``q``, ``p`` (and
+        ``time``). Real and twice differentiable (no ``Abs``, ``sign``,
+        ``Piecewise``, …); parameters substituted by numbers.
+    q, p : sequence of sympy.Symbol
+        Coordinates and their conjugate momenta, in the order of the state
+        x = (q, p).
+    time : sympy.Symbol, optional
+        The time in a time-dependent H(q, p, t) (integrated in the extended
+        phase space, with the momentum conjugate to time; the conserved
+        quantity is K = H + p_t).
+    name : str, optional
+        Name in results; ``"H = <expression>"`` by default.
+    escape_radius : float, optional
+        Runs stop an orbit once |q| exceeds it.
+    structure : {"auto", "potential", "separable", "integrable", "general"}
+        "auto" recognises it; another value insists on that form (raising
+        if H does not have it), e.g. "general" to integrate a rotating frame
+        with Gauss–Legendre or Tao's method for comparison.
+
+    Returns
+    -------
+    SymbolicModel or HamiltonianModel
+
+    Raises
+    ------
+    ValueError
+        If H has free symbols other than q, p and the time, non-finite
+        constants, non-smooth functions or functions numba cannot compile;
+        if q and p are not sequences of distinct symbols of equal length; if
+        H does not depend on p; if ``structure`` is unknown or does not fit H.
+
+    Examples
+    --------
+    The restricted three-body problem in the synodic frame is recognised as
+    a rotating frame plus a potential:
+
+    >>> import sympy as sp
+    >>> x, y, px, py = sp.symbols("x y p_x p_y")
+    >>> mu = sp.Rational(1, 100)
+    >>> r1 = sp.sqrt((x + mu)**2 + y**2)
+    >>> r2 = sp.sqrt((x - 1 + mu)**2 + y**2)
+    >>> H = (px**2 + py**2) / 2 + y * px - x * py - (1 - mu) / r1 - mu / r2
+    >>> from_hamiltonian(H, [x, y], [px, py]).structure
+    'integrable'
+
+    A relativistic particle, T = √(1 + p²), in a quartic well:
+
+    >>> q1, p1 = sp.symbols("q p")
+    >>> from_hamiltonian(sp.sqrt(1 + p1**2) + q1**4 / 4, [q1], [p1]).structure
+    'separable'
+    """
+    if structure != "auto" and structure not in STRUCTURES:
+        raise ValueError(f"structure must be 'auto' or one of {', '.join(STRUCTURES)}, got "
+                         f"{structure!r}")
+    qs = _coordinates(q)
+    ps = _momenta(p, qs)
+    t = _time_symbol(time, (*qs, *ps))
+    H = _check_hamiltonian(H, qs, ps, t)
+    if escape_radius is not None and not (isinstance(escape_radius, numbers.Real)
+                                          and np.isfinite(escape_radius) and escape_radius > 0):
+        raise ValueError(f"escape_radius must be positive and finite, got {escape_radius!r}")
+    found = recognise(H, qs, ps, t)
+    kind = found.kind if structure == "auto" else structure
+    if kind == "potential":
+        if found.kind != "potential":
+            raise ValueError(f"H is not of the form ½pᵀM⁻¹p + V(q) with a constant diagonal "
+                             f"mass (it is {found.kind}); structure='potential' does not fit")
+        return SymbolicModel(found.V, qs, inverse_mass=found.inverse_mass, name=name,
+                             escape_radius=escape_radius, time=t)
+    if kind != found.kind and kind != "general":
+        if kind == "separable" and found.kind == "potential":
+            found = Structure("separable", A=found.A, V=found.V)
+        elif kind == "integrable":
+            pieces = None if t is not None and t in H.free_symbols else _integrable(H, qs, ps)
+            if pieces is None:
+                raise ValueError(f"H is not a solvable quadratic (rotating frame, uniform "
+                                 f"field) plus V(q) (it is {found.kind}); "
+                                 "structure='integrable' does not fit")
+            found = Structure("integrable", A=pieces[0], V=pieces[1], planar=pieces[2])
+        else:
+            raise ValueError(f"H is not of the form T(p) + V(q) (it is {found.kind}); "
+                             f"structure={structure!r} does not fit")
+    if kind == "general":
+        found = Structure("general")
+    return _CLASSES[kind](H, qs, ps, time=t, name=name, escape_radius=escape_radius,
+                          _found=found)
