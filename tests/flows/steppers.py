@@ -64,7 +64,7 @@ def tao_steps(model, x, W=None, h=0.01, n=1, scheme="ABC2", omega=20.0, copy=Non
     return x, np.ascontiguousarray(V.T), x2, G
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _taylor(symbolic, k):
     import heyoka as hy
 
@@ -103,7 +103,7 @@ def symplectic_form(n):
 
 
 # -- the Hamiltonians the tests share --------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def cr3bp(mu=0.01):
     """The restricted three-body problem in the synodic frame (integrable
     part: the rotating frame)."""
@@ -115,7 +115,7 @@ def cr3bp(mu=0.01):
     return from_hamiltonian(H, [x, y], [px, py], name="CR3BP test")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def relativistic():
     """T = √(1 + |p|²) in the Hénon–Heiles potential (separable, T not
     quadratic)."""
@@ -124,7 +124,7 @@ def relativistic():
     return from_hamiltonian(H, [x, y], [px, py], name="relativistic HH")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def larmor():
     """A charged particle in a uniform magnetic field B = 2 along z
     (symmetric gauge) and a quartic well: the Larmor rotation plus V."""
@@ -135,7 +135,7 @@ def larmor():
     return from_hamiltonian(H, [x, y, z], [px, py, pz], name="Larmor test")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def bottle():
     """A charged particle in a magnetic bottle B_z = 1 + z², vector
     potential (B_z/2)(−y, x, 0) (general, non-separable)."""
@@ -145,14 +145,14 @@ def bottle():
     return from_hamiltonian(H, [x, y, z], [px, py, pz], name="bottle test")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def tao_example():
     """Tao's (2016) first example, H = (q² + 1)(p² + 1)/2 (general)."""
     q, p = sp.symbols("q p")
     return from_hamiltonian((q ** 2 + 1) * (p ** 2 + 1) / 2, [q], [p], name="Tao example")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def coupled_general():
     """A non-integrable, non-separable 2-dof H: Hénon–Heiles plus a
     momentum–position coupling ½ (x p_y)² / 4."""

@@ -147,7 +147,7 @@ def gauss_work(n_dof, stages, k):
     ``stages`` and ``k`` vectors."""
     d = 2 * n_dof
     sd = stages * d
-    return 2 * sd + 2 * d + d * d + (sd * sd + sd + sd * k if k else 0)
+    return 2 * sd + 2 * d + d * d + sd * sd + 2 * sd + sd * k
 
 
 @njit(error_model="numpy")
@@ -210,12 +210,50 @@ def _lu_solve(M, piv, m, rhs):
 
 
 @njit(error_model="numpy")
+def _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess):
+    """M = 1 − h (A ⊗ 1) blockdiag(Df(Y_j)) at the stages Y_j = x + Z_j, and
+    F_j = f(Y_j) (f = J∇H, Df = J D²H)."""
+    n = dim // 2
+    sd = s * dim
+    for r in range(sd):
+        for col in range(sd):
+            M[r, col] = 0.0
+        M[r, r] = 1.0
+    for j in range(s):
+        for m in range(dim):
+            y[m] = x[m] + Z[j * dim + m]
+        grad_hess(y, par, g, D)
+        for m in range(n):
+            F[j * dim + m] = g[n + m]
+            F[j * dim + n + m] = -g[m]
+        # Df = J D²H: rows q̇ = (H_pq, H_pp), ṗ = −(H_qq, H_qp).
+        for i in range(s):
+            f = -h * A[i, j]
+            for r in range(n):
+                for col in range(dim):
+                    M[i * dim + r, j * dim + col] += f * D[n + r, col]
+                    M[i * dim + n + r, j * dim + col] -= f * D[r, col]
+
+
+@njit(error_model="numpy")
+def _converged(delta, last, size):
+    # At round-off: the corrections reached a few ulps of Z, or stopped
+    # shrinking once they were small (rounding noise).
+    return delta <= 4.0 * _EPS * size or (delta >= last and delta <= 1e-10 * size)
+
+
+@njit(error_model="numpy")
 def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
     """One Gauss–Legendre step of length h, in place on the orbit ``x``
     (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
     docstring); ``A``, ``b``, ``c``, ``d`` from :attr:`GaussLegendre.arrays`,
     ``work`` at least :func:`gauss_work` floats, ``grad(x, par, g)`` = ∇H and
     ``grad_hess(x, par, g, D)`` = ∇H, D²H the model's kernels.
+
+    The stage equations are solved by fixed-point iteration while it
+    contracts fast (hL small: cheap, no Jacobian), else by Newton's method
+    with the Jacobian at the current stages (stiff steps: a strong magnetic
+    field, a close approach).
 
     Returns
     -------
@@ -225,10 +263,10 @@ def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
         their linearisation is singular (``x`` and ``V`` are then left as
         they were).
     iterations : int
-        Fixed-point iterations done (each evaluates ∇H at the s stages).
+        Iterations done (each evaluates ∇H, or ∇H and D²H for Newton's, at
+        the s stages).
     """
     dim = x.shape[0]
-    n = dim // 2
     s = c.shape[0]
     sd = s * dim
     Z = work[:sd]
@@ -238,6 +276,12 @@ def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
     off = 2 * sd + 2 * dim
     D = work[off:off + dim * dim].reshape((dim, dim))
     off += dim * dim
+    M = work[off:off + sd * sd].reshape((sd, sd))
+    off += sd * sd
+    piv = work[off:off + sd]
+    off += sd
+    R = work[off:off + sd]      # Newton's residual and correction
+    off += sd
     # Start from the explicit Euler guess Z_i = h c_i f(x).
     _field(x, par, g, y, grad)
     for i in range(s):
@@ -246,55 +290,60 @@ def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
     last = np.inf
     iterations = 0
     converged = False
+    newton = False
     while iterations < MAX_ITERATIONS:
         iterations += 1
-        for j in range(s):
-            for m in range(dim):
-                y[m] = x[m] + Z[j * dim + m]
-            _field(y, par, g, F[j * dim:(j + 1) * dim], grad)
-        delta = 0.0
-        size = 0.0
-        for i in range(s):
-            for m in range(dim):
-                acc = 0.0
-                for j in range(s):
-                    acc += A[i, j] * F[j * dim + m]
-                z = h * acc
-                delta = max(delta, abs(z - Z[i * dim + m]))
-                size = max(size, abs(z))
-                Z[i * dim + m] = z
-        if not (delta == delta):
+        if newton:
+            # Z ← Z − M⁻¹ (Z − h (A ⊗ 1) F), M and F at the current stages.
+            _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess)
+            if not _lu(M, piv, sd):
+                return _FAILED, iterations
+            for i in range(s):
+                for m in range(dim):
+                    acc = 0.0
+                    for j in range(s):
+                        acc += A[i, j] * F[j * dim + m]
+                    R[i * dim + m] = h * acc - Z[i * dim + m]
+            _lu_solve(M, piv, sd, R)
+            delta = 0.0
+            size = 0.0
+            for r in range(sd):
+                Z[r] += R[r]
+                delta = max(delta, abs(R[r]))
+                size = max(size, abs(Z[r]))
+        else:
+            for j in range(s):
+                for m in range(dim):
+                    y[m] = x[m] + Z[j * dim + m]
+                _field(y, par, g, F[j * dim:(j + 1) * dim], grad)
+            delta = 0.0
+            size = 0.0
+            for i in range(s):
+                for m in range(dim):
+                    acc = 0.0
+                    for j in range(s):
+                        acc += A[i, j] * F[j * dim + m]
+                    z = h * acc
+                    delta = max(delta, abs(z - Z[i * dim + m]))
+                    size = max(size, abs(z))
+                    Z[i * dim + m] = z
+        if delta != delta:
             break
-        # Converged at round-off: the corrections reached a few ulps of Z,
-        # or stopped shrinking once they were small (rounding noise).
-        if delta <= 4.0 * _EPS * size or (delta >= last and delta <= 1e-10 * size):
+        if _converged(delta, last, size):
             converged = True
             break
+        if not newton and iterations >= 3 and delta > 0.25 * last:
+            # Contracting slowly or not at all: Newton from here on.
+            newton = True
+            last = np.inf
+            continue
         last = delta
     if not converged:
         return _FAILED, iterations
     if k > 0:
-        # The tangent system I − h (A ⊗ 1) blockdiag(Df(Y_j)) at the converged stages.
-        M = work[off:off + sd * sd].reshape((sd, sd))
-        off += sd * sd
-        piv = work[off:off + sd]
-        off += sd
+        # The tangent system at the converged stages.
         U = work[off:off + sd * k].reshape((k, sd))
-        for r in range(sd):
-            for col in range(sd):
-                M[r, col] = 0.0
-            M[r, r] = 1.0
-        for j in range(s):
-            for m in range(dim):
-                y[m] = x[m] + Z[j * dim + m]
-            grad_hess(y, par, g, D)
-            # Df = J D²H: rows q̇ = (H_pq, H_pp), ṗ = −(H_qq, H_qp).
-            for i in range(s):
-                f = -h * A[i, j]
-                for r in range(n):
-                    for col in range(dim):
-                        M[i * dim + r, j * dim + col] += f * D[n + r, col]
-                        M[i * dim + n + r, j * dim + col] -= f * D[r, col]
+        _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess)
         if not _lu(M, piv, sd):
             return _FAILED, iterations
         for v in range(k):

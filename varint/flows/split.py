@@ -36,7 +36,7 @@ magnetic field).
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 from numba import njit
@@ -138,7 +138,7 @@ def planar_flow(h, x, V, k, par):
     _pair(x, V, k, u, v, cr, sr, -sr)
     _pair(x, V, k, n + u, n + v, cr, sr, -sr)
     for i in range(n):
-        if i == u or i == v:
+        if i in (u, v):
             continue
         a = par[PLANAR_HEADER + 2 * i]
         b = par[PLANAR_HEADER + 2 * i + 1]
@@ -169,7 +169,7 @@ def planar_params(n, plane, a, b, omega, others):
 
 
 # -- the part flows of a model, as the part stepper calls them ---------------------------
-@lru_cache(maxsize=None)
+@cache
 def separable_apply(grad_t, grad_hess_t, grad_v, grad_hess_v):
     """``apply(part, h, x, V, k, par, work)`` of H = T(p) + V(q): part 0 is
     the flow of T, part 1 that of V (:class:`varint.models.lattice.Parts`);
@@ -188,7 +188,7 @@ def separable_apply(grad_t, grad_hess_t, grad_v, grad_hess_v):
     return apply
 
 
-@lru_cache(maxsize=None)
+@cache
 def rotating_apply(grad_v, grad_hess_v):
     """``apply`` of H = A + V(q): part 0 is the flow of A
     (:func:`planar_flow`, whose parameters lead ``par``), part 1 that of V."""
@@ -205,7 +205,7 @@ def rotating_apply(grad_v, grad_hess_v):
     return apply
 
 
-@lru_cache(maxsize=None)
+@cache
 def hamiltonian_field(grad):
     """``field(x, par, out)``: the Hamiltonian vector field ẋ = J∇H from the
     model's kernel ``grad(x, par, g)`` = ∇H (for accumulators that need the

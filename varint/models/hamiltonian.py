@@ -186,7 +186,7 @@ def _diagonal_quadratic(T, p):
             if not _is_zero(sp.diff(T, pi, pj)):
                 return None
         minv.append(c)
-    if not _is_zero(T - sum(m * s**2 for m, s in zip(minv, p)) / 2):
+    if not _is_zero(T - sum(m * s**2 for m, s in zip(minv, p, strict=True)) / 2):
         return None
     return tuple(minv)
 
@@ -370,6 +370,19 @@ def _kernel_source(H, A, V, n, time, structure):
 
 
 # -- models --------------------------------------------------------------------------------
+def _standard_symbols(q, p, time):
+    """The substitution of q, p (and the time) by the kernels' symbols q_i,
+    p_i (and t), the q_i, and the arguments (q_i, p_i[, t]) of H."""
+    n = len(q)
+    qs, ps = sp.symbols(f"q_0:{n}"), sp.symbols(f"p_0:{n}")
+    std = {**dict(zip(q, qs, strict=True)), **dict(zip(p, ps, strict=True))}
+    args = (*qs, *ps)
+    if time is not None:
+        std[time] = sp.Symbol("t")
+        args += (sp.Symbol("t"),)
+    return std, qs, args
+
+
 class HamiltonianModel(Model):
     """A model H(q, p) that is not ½pᵀM⁻¹p + V(q), generated from SymPy;
     see :func:`from_hamiltonian`.
@@ -399,9 +412,7 @@ class HamiltonianModel(Model):
         H = _check_hamiltonian(H, q, p, time)
         found = _found if _found is not None else recognise(H, q, p, time)
         n = len(q)
-        qs, ps = sp.symbols(f"q_0:{n}"), sp.symbols(f"p_0:{n}")
-        t = sp.Symbol("t")
-        std = {**dict(zip(q, qs)), **dict(zip(p, ps)), **({time: t} if time is not None else {})}
+        std, qs, args = _standard_symbols(q, p, time)
         H_std = H.xreplace(std)
         A_std = None if found.A is None else found.A.xreplace(std)
         V_std = None if found.V is None else found.V.xreplace(std)
@@ -410,7 +421,6 @@ class HamiltonianModel(Model):
         self.grad_h, self.grad_hess_h = kernels.grad, kernels.grad_hess
         self.dtime_h = getattr(kernels, "dtime", None)
         self._take_kernels(kernels)
-        args = (*qs, *ps, *((t,) if time is not None else ()))
         self._numpy_H = sp.lambdify(args, H_std, modules="numpy")
         self._numpy_V = None if V_std is None else sp.lambdify(qs, V_std, modules="numpy")
         self._symbolic = SymbolicHamiltonian(H, q, p, time, self.structure, found.A, found.V)
@@ -502,6 +512,61 @@ class HamiltonianModel(Model):
         n = self.n_dof
         return np.concatenate([g[n:], -g[:n]])
 
+    def momentum_from_energy(self, X, energy, index, t=0.0):
+        """The momentum p_index that gives H = ``energy`` at the states ``X``
+        (..., 2N) (their p_index ignored), on the branch with q̇_index =
+        ∂H/∂p_index ≥ 0 (the crossing direction of a section q_index = c).
+
+        H must be a polynomial of degree 1 or 2 in p_index (true of every
+        rotating frame and magnetic field), solved in closed form.
+
+        Returns
+        -------
+        p : ndarray, shape (...)
+            NaN where no real momentum gives the energy (a forbidden region).
+
+        Raises
+        ------
+        ValueError
+            If H is not of degree 1 or 2 in p_index.
+        """
+        coeffs = self._momentum_coefficients(int(index))
+        X = np.asarray(X, dtype=float)
+        args = [X[..., i] for i in range(self.dim)]
+        if self.time_dependent:
+            args.append(t)
+        c = [np.broadcast_to(f(*args), X.shape[:-1]).astype(float) for f in coeffs]
+        if len(c) == 2:                       # β p + γ = E
+            beta, gamma = c
+            with np.errstate(all="ignore"):
+                p = (energy - gamma) / beta
+            # q̇ = β: the direction holds only where β > 0.
+            return np.where(np.isfinite(p) & (beta > 0), p, np.nan)
+        alpha, beta, gamma = c                # α p² + β p + γ = E; ∂H/∂p = 2αp + β ≥ 0
+        with np.errstate(all="ignore"):
+            disc = beta * beta - 4.0 * alpha * (gamma - energy)
+            p = (-beta + np.sign(alpha) * np.sqrt(disc)) / (2.0 * alpha)
+        return np.where(disc >= 0, p, np.nan)
+
+    def _momentum_coefficients(self, index):
+        key = ("_momentum", index)
+        if key not in self.__dict__.setdefault("_memo", {}):
+            s = self._symbolic
+            if not 0 <= index < self.n_dof:
+                raise ValueError(f"index must be a momentum index in 0..{self.n_dof - 1}, "
+                                 f"got {index}")
+            pi = s.p[index]
+            expr = sp.expand(s.H)
+            if not expr.is_polynomial(pi) or sp.degree(expr, pi) not in (1, 2):
+                raise ValueError(f"H is not a polynomial of degree 1 or 2 in {pi}: solve its "
+                                 "momentum from the energy by other means")
+            poly = sp.Poly(expr, pi)
+            coeffs = [poly.coeff_monomial(pi ** d) for d in range(poly.degree(), -1, -1)]
+            std, _, args = _standard_symbols(s.q, s.p, s.time)
+            self._memo[key] = [sp.lambdify(args, c.xreplace(std), modules="numpy")
+                               for c in coeffs]
+        return self._memo[key]
+
     def symbolic(self) -> SymbolicHamiltonian:
         """The Hamiltonian, coordinates, momenta and structure as given."""
         return self._symbolic
@@ -519,19 +584,14 @@ class HamiltonianModel(Model):
     def __getstate__(self):
         # The lambdified functions do not pickle; they are rebuilt from H.
         state = dict(self.__dict__)
-        state.pop("_numpy_H", None)
-        state.pop("_numpy_V", None)
+        for key in ("_numpy_H", "_numpy_V", "_memo"):
+            state.pop(key, None)
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
         s = self._symbolic
-        n = len(s.q)
-        qs, ps = sp.symbols(f"q_0:{n}"), sp.symbols(f"p_0:{n}")
-        t = sp.Symbol("t")
-        std = {**dict(zip(s.q, qs)), **dict(zip(s.p, ps)),
-               **({s.time: t} if s.time is not None else {})}
-        args = (*qs, *ps, *((t,) if s.time is not None else ()))
+        std, qs, args = _standard_symbols(s.q, s.p, s.time)
         self._numpy_H = sp.lambdify(args, s.H.xreplace(std), modules="numpy")
         self._numpy_V = (None if s.V is None
                          else sp.lambdify(qs, s.V.xreplace(std), modules="numpy"))
