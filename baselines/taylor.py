@@ -159,10 +159,12 @@ def heyoka_system(symbolic, fp=np.float64):
 def _hamilton_system(symbolic, names, q, p, fp):
     """:func:`heyoka_system` of any H(q, p[, t]): its derivatives taken by
     SymPy, then written for heyoka."""
-    names = {**names, **dict(zip(symbolic.p, p))}
+    names = {**names, **dict(zip(symbolic.p, p, strict=True))}
     H = symbolic.H
-    system = [(qi, _to_heyoka(sp.diff(H, ps), names, fp)) for qi, ps in zip(q, symbolic.p)]
-    system += [(pi, -_to_heyoka(sp.diff(H, qs), names, fp)) for pi, qs in zip(p, symbolic.q)]
+    system = [(qi, _to_heyoka(sp.diff(H, ps), names, fp))
+              for qi, ps in zip(q, symbolic.p, strict=True)]
+    system += [(pi, -_to_heyoka(sp.diff(H, qs), names, fp))
+               for pi, qs in zip(p, symbolic.q, strict=True)]
     if symbolic.time is None:
         return system, q + p
     pt = hy.expression("p_t")
