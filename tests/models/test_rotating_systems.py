@@ -75,7 +75,10 @@ def test_carlson_integrals_against_scipy():
         assert carlson_rd(x, y, z) == pytest.approx(elliprd(x, y, z), rel=4e-16)
 
 
-def _bar(q, axes2=np.array([36.0, 2.25, 0.36]), gm=0.1):
+_AXES2 = np.array([36.0, 2.25, 0.36])
+
+
+def _bar(q, axes2=_AXES2, gm=0.1):
     g, D = np.zeros(3), np.zeros((3, 3))
     phi = ferrers_grad_hess(np.asarray(q, float), axes2, gm, g, D, True, inside_table(axes2))
     return phi, g, D
