@@ -68,7 +68,7 @@ def tao_steps(model, x, W=None, h=0.01, n=1, scheme="ABC2", omega=20.0, copy=Non
 def _taylor(symbolic, k):
     import heyoka as hy
 
-    from baselines.taylor import heyoka_system
+    from varint.baselines.taylor import heyoka_system
 
     system, variables = heyoka_system(symbolic)
     if k:
