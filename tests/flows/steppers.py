@@ -154,11 +154,12 @@ def tao_example():
 
 @functools.cache
 def coupled_general():
-    """A non-integrable, non-separable 2-dof H: Hénon–Heiles plus a
-    momentum–position coupling ½ (x p_y)² / 4."""
+    """A non-integrable 2-dof H without exploitable structure: Hénon–Heiles
+    plus the couplings (x p_y)²/8 and x y p_x/4 (a coordinate and its own
+    momentum in one term: no part of it is solvable alone)."""
     x, y, px, py = sp.symbols("x y p_x p_y")
     H = ((px ** 2 + py ** 2) / 2 + (x ** 2 + y ** 2) / 2 + x ** 2 * y - y ** 3 / 3
-         + (x * py) ** 2 / 8)
+         + (x * py) ** 2 / 8 + x * y * px / 4)
     return from_hamiltonian(H, [x, y], [px, py], name="coupled general")
 
 

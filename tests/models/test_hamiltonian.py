@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tests.flows.steppers import bottle, cr3bp, larmor, relativistic
+from tests.flows.steppers import (bottle, coupled_general, cr3bp, larmor, relativistic,
+                                  tao_example)
 from varint.models import from_hamiltonian
 from varint.models.hamiltonian import (GeneralHamiltonian, IntegrableHamiltonian,
-                                       SeparableHamiltonian)
+                                       SeparableHamiltonian, TermwiseHamiltonian)
 from varint.models.symbolic import SymbolicModel
 
 x, y, z, px, py, pz, t = sp.symbols("x y z p_x p_y p_z t")
@@ -25,13 +26,18 @@ def test_recognised_structures():
     assert larmor().planar == {"plane": (0, 1), "a": 1.0, "b": 1.0, "omega": 1.0,
                                "others": {2: (1.0, 0.0)}}
     assert isinstance(relativistic(), SeparableHamiltonian)
-    assert isinstance(bottle(), GeneralHamiltonian)
+    # ½|p − A|² with A_x free of x, A_y free of y: a potential and the parts
+    # of p_x, p_y, p_z.
+    assert isinstance(bottle(), TermwiseHamiltonian)
+    assert bottle().part_names == ("V", "p_x", "p_y", "p_z")
+    assert isinstance(coupled_general(), GeneralHamiltonian)
+    assert isinstance(tao_example(), GeneralHamiltonian)
     m = from_hamiltonian((px ** 2 + 2 * py ** 2) / 2 + x ** 4 + y ** 2 * x, [x, y], [px, py])
     assert isinstance(m, SymbolicModel)
     assert m.inverse_mass.tolist() == [1.0, 2.0]
-    # Landau gauge: a uniform field, but not in the solvable rotating form.
+    # Landau gauge: a uniform field, not in the rotating form, but termwise.
     landau = from_hamiltonian(((px + y) ** 2 + py ** 2) / 2 + x ** 4, [x, y], [px, py])
-    assert isinstance(landau, GeneralHamiltonian)
+    assert isinstance(landau, TermwiseHamiltonian)
     # A time-dependent T(p) + V(q, t) with a non-quadratic T: the general form.
     m = from_hamiltonian(sp.sqrt(1 + px ** 2) + x ** 2 * (1 + sp.cos(t)) / 2, [x], [px], time=t)
     assert isinstance(m, GeneralHamiltonian) and m.time_dependent
@@ -47,6 +53,10 @@ def test_forced_structures():
         from_hamiltonian(H, [x, y], [px, py], structure="separable")
     with pytest.raises(ValueError, match="structure='integrable' does not fit"):
         from_hamiltonian(px ** 2 * x ** 2 + x ** 2, [x], [px], structure="integrable")
+    with pytest.raises(ValueError, match="structure='terms' does not fit"):
+        from_hamiltonian(px ** 2 * x ** 2 + x ** 2, [x], [px], structure="terms")
+    terms = from_hamiltonian(H, [x, y], [px, py], structure="terms")
+    assert isinstance(terms, TermwiseHamiltonian) and terms.part_names == ("V", "p_x", "p_y")
     with pytest.raises(ValueError, match="structure must be 'auto' or one of"):
         from_hamiltonian(H, [x, y], [px, py], structure="rotating")
 
@@ -69,7 +79,7 @@ def test_bad_input_is_refused_with_a_clear_message(H, q, p, kwargs, message):
         from_hamiltonian(H, q, p, **kwargs)
 
 
-@pytest.mark.parametrize("build", [cr3bp, relativistic, larmor, bottle])
+@pytest.mark.parametrize("build", [cr3bp, relativistic, larmor, bottle, coupled_general])
 def test_kernels_against_sympy_and_finite_differences(build):
     """∇H from the compiled kernel equals SymPy's derivatives at a random
     state, and D²H equals central differences of ∇H."""

@@ -22,13 +22,21 @@ forms it has, in this order:
    composed with the oscillator's (:func:`varint.flows.split.planar_flow`),
    linear and so its own tangent map; the schemes are those of form 2.
    Quadratic terms of q alone in H join A when they make it of this form.
-4. **Anything else** (a magnetic bottle, a non-uniform field, H(q, p, t) not
-   of form 1): :class:`GeneralHamiltonian`, integrated by the implicit
-   Gauss–Legendre methods (:mod:`varint.flows.gauss`) or Tao's explicit
-   extended-phase-space method (:mod:`varint.flows.tao`), whose tangent maps
-   are exact derivatives of their steps.
+4. **H = V(q) + Σ_i P_i(q, p_i)**, each P_i holding the terms of one
+   momentum p_i and free of q_i — a charged particle ½|p − A(q)|² whose A_i
+   does not depend on q_i (a magnetic bottle in the symmetric gauge):
+   :class:`TermwiseHamiltonian`. Every part's arguments are constant along
+   its flow, so the flow is x ← x + hJ∇P(x) and the tangent map
+   δx ← δx + hJ D²P(x) δx, exact and explicit; the k-part compositions
+   apply.
+5. **Anything else** (H(q, p, t) not of form 1, products of momenta, a
+   coordinate and its momentum in one term): :class:`GeneralHamiltonian`,
+   integrated by the implicit Gauss–Legendre methods
+   (:mod:`varint.flows.gauss`) or Tao's explicit extended-phase-space
+   method (:mod:`varint.flows.tao`), whose tangent maps are exact
+   derivatives of their steps.
 
-Every model of forms 2–4 carries compiled ∇H and D²H (the right-hand side
+Every model of forms 2–5 carries compiled ∇H and D²H (the right-hand side
 J∇H and its Jacobian J D²H for the reference methods, and the flows of the
 general methods), and H itself for energies; ``structure=`` forces a form
 (e.g. ``"general"`` to integrate a rotating frame with Gauss–Legendre).
@@ -56,12 +64,12 @@ from .symbolic import (SymbolicModel, _assignments, _check_smooth, _coordinates,
                        _KernelPrinter, _load_kernels, _NONFINITE, _time_symbol)
 
 __all__ = ["SymbolicHamiltonian", "HamiltonianModel", "SeparableHamiltonian",
-           "IntegrableHamiltonian", "GeneralHamiltonian", "from_hamiltonian", "recognise",
-           "STRUCTURES"]
+           "IntegrableHamiltonian", "TermwiseHamiltonian", "GeneralHamiltonian",
+           "from_hamiltonian", "recognise", "STRUCTURES"]
 
 #: The forms :func:`from_hamiltonian` recognises (``structure=``), in the
 #: order it tries them; "auto" tries them all.
-STRUCTURES = ("potential", "separable", "integrable", "general")
+STRUCTURES = ("potential", "separable", "integrable", "terms", "general")
 
 
 @dataclass(frozen=True)
@@ -151,6 +159,8 @@ class Structure:
     planar : dict or None
         For "integrable": the plane (u, v), a, b, Ω and the other
         coordinates' (a_i, b_i) (:func:`varint.flows.split.planar_params`).
+    terms : tuple of (str, sympy.Expr) or None
+        For "terms": the parts, each a name and its expression.
     """
 
     kind: str
@@ -158,6 +168,7 @@ class Structure:
     V: sp.Expr | None = None
     inverse_mass: tuple | None = None
     planar: dict | None = None
+    terms: tuple | None = None
 
 
 def _separable(H, q, p):
@@ -267,6 +278,30 @@ def _integrable(H, q, p):
     return None
 
 
+def _terms(H, q, p):
+    """H as a sum of parts whose vector fields are constant along their own
+    flows, or None: the terms (after expansion) without momenta form the
+    potential part; those with the single momentum p_i, the part of p_i,
+    which must not depend on q_i. Along such a part's flow every argument
+    of it is constant (q_i and p_j, j ≠ i, move, it depends on neither), so
+    the flow is exactly x + h J∇P(x) and its tangent map 1 + h J D²P(x)."""
+    parts = {}
+    for term in sp.Add.make_args(sp.expand(H)):
+        momenta = [i for i, pi in enumerate(p) if term.has(pi)]
+        if len(momenta) > 1:
+            return None
+        key = momenta[0] if momenta else -1
+        parts[key] = parts.get(key, 0) + term
+    for i, part in parts.items():
+        if i >= 0 and part.has(q[i]):
+            return None
+    if len([i for i in parts if i >= 0]) < 2 and -1 not in parts:
+        return None
+    named = [] if -1 not in parts else [("V", parts[-1])]
+    named += [(str(p[i]), parts[i]) for i in sorted(i for i in parts if i >= 0)]
+    return tuple(named) if len(named) >= 2 else None
+
+
 def recognise(H, q, p, time=None):
     """The structure of H(q, p[, t]) (see the module docstring).
 
@@ -288,6 +323,9 @@ def recognise(H, q, p, time=None):
         if found is not None:
             A, V, planar = found
             return Structure("integrable", A=A, V=V, planar=planar)
+        terms = _terms(H, q, p)
+        if terms is not None:
+            return Structure("terms", terms=terms)
     return Structure("general")
 
 
@@ -335,9 +373,32 @@ def _grad_hess_lines(printer, name, arg, expr, xs, unpack, with_hessian):
     return lines
 
 
-def _kernel_source(H, A, V, n, time, structure):
+def _terms_apply_lines(count):
+    """``apply(part, h, x, V, k, par, work)`` of a "terms" model: part P's
+    flow x ← x + h J∇P(x) and tangent map δx ← δx + h J D²P(x) δx (exact:
+    ∇P is constant along its flow), with the kernels ``term_<P>`` and
+    ``term_grad_<P>``; ``work`` holds 2N + 4N² floats."""
+    lines = ["", "", "@njit(cache=True, error_model='numpy')",
+             "def apply(part, h, x, V, k, par, work):",
+             "    d = x.shape[0]", "    n = d // 2", "    g = work[:d]",
+             "    D = work[d:d + d * d].reshape((d, d))", "    y = work[d + d * d:2 * d + d * d]"]
+    for i in range(count):
+        lines += [f"    {'if' if i == 0 else 'elif'} part == {i}:",
+                  f"        if k == 0:", f"            term_grad_{i}(x, par, g)",
+                  "        else:", f"            term_{i}(x, par, g, D)"]
+    lines += ["    for c in range(k):", "        for i in range(d):", "            acc = 0.0",
+              "            for j in range(d):", "                acc += D[i, j] * V[c, j]",
+              "            y[i] = acc", "        for i in range(n):",
+              "            V[c, i] += h * y[n + i]", "            V[c, n + i] -= h * y[i]",
+              "    for i in range(n):", "        x[i] += h * g[n + i]",
+              "        x[n + i] -= h * g[i]"]
+    return lines
+
+
+def _kernel_source(H, A, V, n, time, structure, terms=()):
     """Source of the module of kernels of a Hamiltonian in the standard
-    symbols q_0 … q_{n−1}, p_0 … p_{n−1} (and t, read from ``par[-1]``)."""
+    symbols q_0 … q_{n−1}, p_0 … p_{n−1} (and t, read from ``par[-1]``);
+    ``terms``: the parts of a "terms" model, in those symbols."""
     q = sp.symbols(f"q_0:{n}")
     p = sp.symbols(f"p_0:{n}")
     xs = (*q, *p)
@@ -363,6 +424,11 @@ def _kernel_source(H, A, V, n, time, structure):
             unpack_q = [f"    q_{i} = q[{i}]" for i in range(n)]
             lines += _grad_hess_lines(printer, "grad_v", "q", V, q, unpack_q, False)
             lines += _grad_hess_lines(printer, "grad_hess_v", "q", V, q, unpack_q, True)
+        for i, term in enumerate(terms):
+            lines += _grad_hess_lines(printer, f"term_grad_{i}", "x", term, xs, unpack_x, False)
+            lines += _grad_hess_lines(printer, f"term_{i}", "x", term, xs, unpack_x, True)
+        if terms:
+            lines += _terms_apply_lines(len(terms))
     except PrintMethodNotImplementedError as exc:
         raise ValueError(f"H uses a function the compiled kernels cannot evaluate: {exc}") \
             from None
@@ -416,7 +482,8 @@ class HamiltonianModel(Model):
         H_std = H.xreplace(std)
         A_std = None if found.A is None else found.A.xreplace(std)
         V_std = None if found.V is None else found.V.xreplace(std)
-        source = _kernel_source(H_std, A_std, V_std, n, time is not None, self.structure)
+        terms = () if found.terms is None else tuple(e.xreplace(std) for _, e in found.terms)
+        source = _kernel_source(H_std, A_std, V_std, n, time is not None, self.structure, terms)
         kernels = _load_kernels(source)
         self.grad_h, self.grad_hess_h = kernels.grad, kernels.grad_hess
         self.dtime_h = getattr(kernels, "dtime", None)
@@ -671,6 +738,57 @@ class IntegrableHamiltonian(_SplitHamiltonian):
                                pl["others"])
 
 
+class TermwiseHamiltonian(HamiltonianModel):
+    """H = P_1 + … + P_k, each part either a potential V(q) or the terms of
+    a single momentum p_i that do not depend on q_i (e.g. ½(p_i − A_i(q))²
+    of a charged particle whose vector potential's A_i does not depend on
+    q_i: a magnetic bottle in the symmetric gauge). Along each part's flow
+    all of its arguments are constant, so the flow is x ← x + h J∇P(x) and
+    its tangent map δx ← δx + h J D²P(x) δx, both exact and explicit: the
+    k-part compositions of :data:`varint.schemes.PART_SCHEMES` and the TM
+    method apply (He, Sun, Liu & Qin, Phys. Lett. A 381, 568 (2017), split
+    charged-particle Hamiltonians so).
+
+    Attributes
+    ----------
+    part_names : tuple of str
+        "V" for the potential, then the momentum of each part.
+    """
+
+    structure = "terms"
+
+    def _take_kernels(self, kernels):
+        self._apply_terms = kernels.apply
+
+    @property
+    def part_names(self):
+        return tuple(name for name, _ in self._found.terms)
+
+    @property
+    def default_scheme(self):
+        """An order-6 composition over the model's parts: s11ABC6 for three
+        parts (Sofroniou & Spaletta's s11odr6 γ), the same γ over k parts
+        otherwise."""
+        k = len(self.part_names)
+        if k == 3:
+            return "s11ABC6"
+        from ..schemes import PART_SCHEMES, CompositionScheme
+
+        base = PART_SCHEMES["S11ABC6"]
+        return CompositionScheme(f"s11odr6 over {k} parts", k, base.gammas, base.order,
+                                 base.reference)
+
+    @property
+    def parts(self):
+        """The parts and their fused explicit flows."""
+        d = self.dim
+        return Parts(names=self.part_names, apply=self._apply_terms,
+                     field=S.hamiltonian_field(self.grad_h),
+                     splits={len(self.part_names): self.part_names},
+                     par=self.parameters_at(None), n_work=2 * d + d * d,
+                     default_scheme=self.default_scheme)
+
+
 class GeneralHamiltonian(HamiltonianModel):
     """Any H(q, p) (or H(q, p, t)) without a solvable split; see
     :func:`from_hamiltonian`. Integrated by Gauss–Legendre or Tao's method."""
@@ -679,7 +797,7 @@ class GeneralHamiltonian(HamiltonianModel):
 
 
 _CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,
-            "general": GeneralHamiltonian}
+            "terms": TermwiseHamiltonian, "general": GeneralHamiltonian}
 
 
 def from_hamiltonian(H: sp.Expr, q: Sequence[sp.Symbol], p: Sequence[sp.Symbol],
@@ -690,8 +808,10 @@ def from_hamiltonian(H: sp.Expr, q: Sequence[sp.Symbol], p: Sequence[sp.Symbol],
     The structure that keeps the tangent map exact is recognised (module
     docstring): ½pᵀM⁻¹p + V(q) gives :func:`~varint.models.from_potential`'s
     model; T(p) + V(q) a :class:`SeparableHamiltonian`; a rotating-frame or
-    uniform-field quadratic plus V(q) an :class:`IntegrableHamiltonian`;
-    anything else a :class:`GeneralHamiltonian`.
+    uniform-field quadratic plus V(q) an :class:`IntegrableHamiltonian`; a
+    potential plus single-momentum parts free of their own coordinate a
+    :class:`TermwiseHamiltonian`; anything else a
+    :class:`GeneralHamiltonian`.
 
     Parameters
     ----------
@@ -710,7 +830,7 @@ def from_hamiltonian(H: sp.Expr, q: Sequence[sp.Symbol], p: Sequence[sp.Symbol],
         Name in results; ``"H = <expression>"`` by default.
     escape_radius : float, optional
         Runs stop an orbit once |q| exceeds it.
-    structure : {"auto", "potential", "separable", "integrable", "general"}
+    structure : {"auto", "potential", "separable", "integrable", "terms", "general"}
         "auto" recognises it; another value insists on that form (raising
         if H does not have it), e.g. "general" to integrate a rotating frame
         with Gauss–Legendre or Tao's method for comparison.
@@ -775,6 +895,13 @@ def from_hamiltonian(H: sp.Expr, q: Sequence[sp.Symbol], p: Sequence[sp.Symbol],
                                  f"field) plus V(q) (it is {found.kind}); "
                                  "structure='integrable' does not fit")
             found = Structure("integrable", A=pieces[0], V=pieces[1], planar=pieces[2])
+        elif kind == "terms":
+            terms = None if t is not None and t in H.free_symbols else _terms(H, qs, ps)
+            if terms is None:
+                raise ValueError(f"H is not a sum of a potential and single-momentum parts "
+                                 f"free of their own coordinate (it is {found.kind}); "
+                                 "structure='terms' does not fit")
+            found = Structure("terms", terms=terms)
         else:
             raise ValueError(f"H is not of the form T(p) + V(q) (it is {found.kind}); "
                              f"structure={structure!r} does not fit")
