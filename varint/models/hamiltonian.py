@@ -384,7 +384,7 @@ def _terms_apply_lines(count):
              "    D = work[d:d + d * d].reshape((d, d))", "    y = work[d + d * d:2 * d + d * d]"]
     for i in range(count):
         lines += [f"    {'if' if i == 0 else 'elif'} part == {i}:",
-                  f"        if k == 0:", f"            term_grad_{i}(x, par, g)",
+                  "        if k == 0:", f"            term_grad_{i}(x, par, g)",
                   "        else:", f"            term_{i}(x, par, g, D)"]
     lines += ["    for c in range(k):", "        for i in range(d):", "            acc = 0.0",
               "            for j in range(d):", "                acc += D[i, j] * V[c, j]",
