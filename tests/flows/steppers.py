@@ -15,25 +15,30 @@ from varint.schemes import part_stages, resolve_scheme
 
 
 @njit
-def _gauss_loop(h, n, x, V, par, A, b, c, d, work, grad, grad_hess):
+def _gauss_loop(h, n, x, V, par, A, b, c, d, E, work, grad, grad_hess, prev):
     for _ in range(n):
-        status, _ = gauss_step(h, x, V, V.shape[0], par, A, b, c, d, work, grad, grad_hess)
+        status, _ = gauss_step(h, x, V, V.shape[0], par, A, b, c, d, E, work, grad, grad_hess,
+                               prev)
         if status != 0:
             return status
     return 0
 
 
-def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6"):
+def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None):
     """``n`` Gauss–Legendre steps from ``x`` (2N,) with the tangent map on
-    the columns of ``W`` (2N, k); returns (x, W)."""
+    the columns of ``W`` (2N, k), from the previous stages ``prev`` (the
+    method's state; None: none); returns (x, W) and leaves the last stages
+    in ``prev`` if given."""
     x = np.array(x, dtype=np.float64)
     W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
     V = np.ascontiguousarray(W.T)
     g = GAUSS[scheme]
-    A, b, c, d = g.arrays
+    A, b, c, d, E = g.arrays
     work = np.empty(gauss_work(model.n_dof, g.stages, V.shape[0]))
-    status = _gauss_loop(float(h), int(n), x, V, model.parameters_at(None), A, b, c, d, work,
-                         model.grad_h, model.grad_hess_h)
+    if prev is None:
+        prev = np.full(g.stages * model.dim, np.nan)
+    status = _gauss_loop(float(h), int(n), x, V, model.parameters_at(None), A, b, c, d, E, work,
+                         model.grad_h, model.grad_hess_h, prev)
     assert status == 0, f"Gauss–Legendre failed with status {status}"
     return x, np.ascontiguousarray(V.T)
 

@@ -16,7 +16,7 @@ def test_tableau_order_conditions(name):
     """B(2s), C(s) and the symplecticity condition b_i a_ij + b_j a_ji =
     b_i b_j (Hairer, Lubich & Wanner, Thm. VI.4.3) hold to round-off."""
     g = GAUSS[name]
-    A, b, c, _ = g.arrays
+    A, b, c, _, _ = g.arrays
     s = g.stages
     for k in range(1, 2 * s + 1):
         assert abs(b @ c ** (k - 1) - 1 / k) < 5e-16
@@ -103,3 +103,27 @@ def test_iterated_tangent_equals_the_factorised_one(name):
         cols = np.eye(4)[:, j:j + FIXED_POINT_VECTORS]
         _, W = gauss_steps(model, x0, cols, 0.1, 50, name)             # iterated
         assert np.abs(W - M[:, j:j + FIXED_POINT_VECTORS]).max() < 1e-13 * np.abs(M).max()
+
+
+def test_extrapolated_start_converges_to_the_same_step():
+    """Started from the previous step's collocation polynomial the
+    iteration reaches the same stages: 200 steps carried on from the
+    previous stages agree with 200 steps each started from Euler's guess to
+    round-off (1e-14)."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
+    carried, _ = gauss_steps(model, x0, None, 0.1, 200, "GL6")
+    fresh = x0
+    for _ in range(200):
+        fresh, _ = gauss_steps(model, fresh, None, 0.1, 1, "GL6")
+    assert np.abs(carried - fresh).max() < 1e-14
+
+
+@pytest.mark.parametrize("name", sorted(GAUSS))
+def test_extrapolation_is_exact_for_the_collocation_polynomial(name):
+    """E reproduces a polynomial of degree s through the nodes: for
+    u(τ) = τ^m (m ≤ s), Z_i = u(c_i), E Z = u(1 + c_j) − u(1)."""
+    c = GAUSS[name].arrays[2]
+    E = GAUSS[name].arrays[4]
+    for m in range(1, len(c) + 1):
+        assert np.abs(E @ c ** m - ((1 + c) ** m - 1)).max() < 1e-12

@@ -10,8 +10,11 @@ A step of length h from x solves the stage equations for Z_i = Y_i − x,
 
     Z_i = h Σ_j a_ij f(x + Z_j),     f = J ∇H,
 
-by fixed-point iteration from Z_i = h c_i f(x) until the corrections reach
-round-off, and returns x' = x + Σ_i d_i Z_i with dᵀ = bᵀA⁻¹ (no further
+by fixed-point iteration — from the previous step's collocation polynomial
+extrapolated (GL8 on the magnetic bottle at h = 0.05: 8.0 iterations per
+step against 10.3 from Euler's guess; GL4: 10.6 against 11.2), or from
+Z_i = h c_i f(x) at the first step — until the corrections reach round-off
+(by Newton's method when it contracts slowly), and returns x' = x + Σ_i d_i Z_i with dᵀ = bᵀA⁻¹ (no further
 evaluation of f; Hairer, Lubich & Wanner, Sect. VIII.6). Its tangent map is
 the derivative of that map: differentiating the stage equations at the
 converged stages gives the linear system
@@ -95,9 +98,10 @@ class GaussLegendre:
                              f"order {2 * s}, got {self.order}")
         A = np.array(self.a, dtype=np.float64)
         b = np.array(self.b, dtype=np.float64)
+        c = np.array(self.c, dtype=np.float64)
         # x' = x + Σ d_i Z_i, dᵀ = bᵀA⁻¹: the step needs no f at the new stages.
         d = np.linalg.solve(A.T, b)
-        object.__setattr__(self, "arrays", (A, b, np.array(self.c, dtype=np.float64), d))
+        object.__setattr__(self, "arrays", (A, b, c, d, _extrapolation(c)))
 
     @property
     def stages(self):
@@ -106,6 +110,23 @@ class GaussLegendre:
     def describe(self):
         return {"name": self.name, "stages": self.stages, "order": self.order,
                 "reference": self.reference}
+
+
+def _extrapolation(c):
+    """E (s, s) with Z_new = E Z_prev: the previous step's collocation
+    polynomial u (u(0) = x_{n−1}, u(c_i h) = x_{n−1} + Z_i) evaluated at the
+    new stages, Z_new_j ≈ u((1 + c_j)h) − u(h) = Σ_i Z_i (ℓ_i(1 + c_j) − ℓ_i(1)),
+    ℓ_i the Lagrange basis on the nodes 0, c_1 … c_s (Hairer, Lubich &
+    Wanner, Sect. VIII.6.1: the starting approximation of the iteration)."""
+    nodes = np.concatenate([[0.0], c])
+
+    def basis(i, t):
+        others = np.delete(nodes, i + 1)
+        return np.prod((t - others) / (nodes[i + 1] - others))
+
+    s = len(c)
+    return np.array([[basis(i, 1 + c[j]) - basis(i, 1.0) for i in range(s)]
+                     for j in range(s)])
 
 
 GAUSS = {g.name: g for g in (
@@ -328,12 +349,18 @@ def _tangent_by_iteration(h, x, V, k, par, A, d, Z, U, H, R, y, g, s, dim, grad_
 
 
 @njit(error_model="numpy")
-def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
+def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
     """One Gauss–Legendre step of length h, in place on the orbit ``x``
     (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
-    docstring); ``A``, ``b``, ``c``, ``d`` from :attr:`GaussLegendre.arrays`,
-    ``work`` at least :func:`gauss_work` floats, ``grad(x, par, g)`` = ∇H and
-    ``grad_hess(x, par, g, D)`` = ∇H, D²H the model's kernels.
+    docstring); ``A``, ``b``, ``c``, ``d``, ``E`` from
+    :attr:`GaussLegendre.arrays`, ``work`` at least :func:`gauss_work`
+    floats, ``grad(x, par, g)`` = ∇H and ``grad_hess(x, par, g, D)`` = ∇H,
+    D²H the model's kernels.
+
+    ``prev`` (s·2N,) holds the stages Z of the previous step of the same
+    length (the method's state: the iteration starts from their
+    extrapolation, ``E``), or NaN in ``prev[0]`` for none (it starts from
+    the explicit Euler guess); it receives this step's stages.
 
     The stage equations are solved by fixed-point iteration while it
     contracts fast (hL small: cheap, no Jacobian), else by Newton's method
@@ -368,11 +395,20 @@ def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
     off += sd
     R = work[off:off + sd]      # Newton's residual and correction
     off += sd
-    # Start from the explicit Euler guess Z_i = h c_i f(x).
-    _field(x, par, g, y, grad)
-    for i in range(s):
-        for m in range(dim):
-            Z[i * dim + m] = h * c[i] * y[m]
+    if prev[0] == prev[0]:
+        # The previous step's collocation polynomial, extrapolated.
+        for j in range(s):
+            for m in range(dim):
+                acc = 0.0
+                for i in range(s):
+                    acc += E[j, i] * prev[i * dim + m]
+                Z[j * dim + m] = acc
+    else:
+        # The explicit Euler guess Z_i = h c_i f(x).
+        _field(x, par, g, y, grad)
+        for i in range(s):
+            for m in range(dim):
+                Z[i * dim + m] = h * c[i] * y[m]
     last = np.inf
     iterations = 0
     converged = False
@@ -441,4 +477,6 @@ def gauss_step(h, x, V, k, par, A, b, c, d, work, grad, grad_hess):
         for i in range(s):
             acc += d[i] * Z[i * dim + m]
         x[m] += acc
+    for r in range(sd):
+        prev[r] = Z[r]
     return _OK, iterations
