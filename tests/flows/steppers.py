@@ -8,27 +8,37 @@ import numpy as np
 import sympy as sp
 from numba import njit
 
-from varint.flows.gauss import GAUSS, gauss_step, gauss_work
+from varint.flows.gauss import (GAUSS, gauss_step, gauss_work, no_dtime,
+                                stage_parameters)
 from varint.flows.tao import tao_step, tao_work
 from varint.models.hamiltonian import from_hamiltonian
 from varint.schemes import part_stages, resolve_scheme
 
 
 @njit
-def _gauss_loop(h, n, x, V, par, A, b, c, d, E, work, grad, grad_hess, prev):
-    for _ in range(n):
-        status, _ = gauss_step(h, x, V, V.shape[0], par, A, b, c, d, E, work, grad, grad_hess,
-                               prev)
+def _gauss_loop(h, n, x, V, pars, A, b, c, d, E, work, grad, grad_hess, prev, timed, dtime, pt):
+    s = c.shape[0]
+    for i in range(n):
+        if timed:
+            # The times of this step's stages and start, from the integer step.
+            t = i * h
+            for j in range(s):
+                pars[j, -1] = t + c[j] * h
+            pars[s, -1] = t
+        status, _ = gauss_step(h, x, V, V.shape[0], pars, A, b, c, d, E, work, grad, grad_hess,
+                               prev, timed, dtime, pt)
         if status != 0:
             return status
     return 0
 
 
-def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None):
+def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None, pt=None):
     """``n`` Gauss–Legendre steps from ``x`` (2N,) with the tangent map on
     the columns of ``W`` (2N, k), from the previous stages ``prev`` (the
     method's state; None: none); returns (x, W) and leaves the last stages
-    in ``prev`` if given."""
+    in ``prev`` if given. A time-dependent model starts at t = 0 with the
+    momentum conjugate to time ``pt`` (1,) (zero if None), advanced in
+    place."""
     x = np.array(x, dtype=np.float64)
     W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
     V = np.ascontiguousarray(W.T)
@@ -37,8 +47,12 @@ def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None):
     work = np.empty(gauss_work(model.n_dof, g.stages, V.shape[0]))
     if prev is None:
         prev = np.full(g.stages * model.dim, np.nan)
-    status = _gauss_loop(float(h), int(n), x, V, model.parameters_at(None), A, b, c, d, E, work,
-                         model.grad_h, model.grad_hess_h, prev)
+    timed = bool(model.time_dependent)
+    pt = np.zeros(1) if pt is None else pt
+    status = _gauss_loop(float(h), int(n), x, V, stage_parameters(model.parameters_at(0.0),
+                                                                     g.stages),
+                         A, b, c, d, E, work, model.grad_h, model.grad_hess_h, prev, timed,
+                         model.dtime_h if timed else no_dtime, pt)
     assert status == 0, f"Gauss–Legendre failed with status {status}"
     return x, np.ascontiguousarray(V.T)
 

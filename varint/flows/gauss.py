@@ -46,7 +46,8 @@ from numba import njit
 
 from ..protocol import Status
 
-__all__ = ["GaussLegendre", "GAUSS", "gauss_step", "gauss_work", "MAX_ITERATIONS"]
+__all__ = ["GaussLegendre", "GAUSS", "gauss_step", "gauss_work", "stage_parameters", "no_dtime",
+           "MAX_ITERATIONS", "FIXED_POINT_VECTORS"]
 
 #: Fixed-point iterations before a step is declared failed.
 MAX_ITERATIONS = 100
@@ -175,6 +176,19 @@ def gauss_work(n_dof, stages, k):
     return 2 * sd + 2 * d + d * d + sd * sd + 2 * sd + sd * k
 
 
+@njit(cache=True)
+def no_dtime(x, par):
+    """The ``dtime`` of :func:`gauss_step` for an autonomous H (not called)."""
+    return 0.0
+
+
+def stage_parameters(par, stages):
+    """``pars`` of :func:`gauss_step` for an autonomous H: ``par`` for every
+    stage and the start."""
+    par = np.asarray(par, dtype=np.float64)
+    return np.ascontiguousarray(np.tile(par, (stages + 1, 1)))
+
+
 @njit(error_model="numpy")
 def _field(y, par, g, out, grad):
     # out = J ∇H(y)
@@ -235,9 +249,9 @@ def _lu_solve(M, piv, m, rhs):
 
 
 @njit(error_model="numpy")
-def _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess):
+def _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess):
     """M = 1 − h (A ⊗ 1) blockdiag(Df(Y_j)) at the stages Y_j = x + Z_j, and
-    F_j = f(Y_j) (f = J∇H, Df = J D²H)."""
+    F_j = f(Y_j) (f = J∇H, Df = J D²H; stage j's parameters ``pars[j]``)."""
     n = dim // 2
     sd = s * dim
     for r in range(sd):
@@ -247,7 +261,7 @@ def _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess):
     for j in range(s):
         for m in range(dim):
             y[m] = x[m] + Z[j * dim + m]
-        grad_hess(y, par, g, D)
+        grad_hess(y, pars[j], g, D)
         for m in range(n):
             F[j * dim + m] = g[n + m]
             F[j * dim + n + m] = -g[m]
@@ -268,12 +282,12 @@ def _converged(delta, last, size):
 
 
 @njit(error_model="numpy")
-def _tangent_by_lu(h, x, V, k, par, A, d, Z, U, M, piv, y, g, D, F, s, dim, grad_hess):
+def _tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s, dim, grad_hess):
     """The stage tangents U from one LU factorisation of the linearised
     stage equations at the converged stages; V ← V + Σ d_i (U_i − V).
     False if the system is singular."""
     sd = s * dim
-    _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess)
+    _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess)
     if not _lu(M, piv, sd):
         return False
     for v in range(k):
@@ -295,7 +309,7 @@ def _update(V, v, U, d, s, dim):
 
 
 @njit(error_model="numpy")
-def _tangent_by_iteration(h, x, V, k, par, A, d, Z, U, H, R, y, g, s, dim, grad_hess):
+def _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s, dim, grad_hess):
     """The stage tangents by fixed-point iteration of U_i = δx + h Σ_j a_ij
     Df(Y_j) U_j to round-off (cheaper than the LU for a few vectors: s d²
     per vector and iteration against (s d)³/3); V ← V + Σ d_i (U_i − V),
@@ -306,7 +320,7 @@ def _tangent_by_iteration(h, x, V, k, par, A, d, Z, U, H, R, y, g, s, dim, grad_
     for j in range(s):
         for m in range(dim):
             y[m] = x[m] + Z[j * dim + m]
-        grad_hess(y, par, g, H[j])
+        grad_hess(y, pars[j], g, H[j])
     for v in range(k):
         for i in range(s):
             for m in range(dim):
@@ -349,13 +363,21 @@ def _tangent_by_iteration(h, x, V, k, par, A, d, Z, U, H, R, y, g, s, dim, grad_
 
 
 @njit(error_model="numpy")
-def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
+def gauss_step(h, x, V, k, pars, A, b, c, d, E, work, grad, grad_hess, prev, timed, dtime,
+               pt):
     """One Gauss–Legendre step of length h, in place on the orbit ``x``
     (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
     docstring); ``A``, ``b``, ``c``, ``d``, ``E`` from
     :attr:`GaussLegendre.arrays`, ``work`` at least :func:`gauss_work`
     floats, ``grad(x, par, g)`` = ∇H and ``grad_hess(x, par, g, D)`` = ∇H,
     D²H the model's kernels.
+
+    ``pars`` (s + 1, P) holds the kernels' parameters at each stage and, in
+    its last row, at the step's start: for a time-dependent H the caller
+    sets their last entries to the times t₀ + c_i h and t₀. Then (``timed``)
+    the momentum conjugate to time ``pt[0]`` is advanced by the same
+    method, p_t ← p_t − h Σ b_i ∂_tH(Y_i, t_i) (``dtime(x, par)`` = ∂_tH), so
+    K = H + p_t is conserved as H is for an autonomous one.
 
     ``prev`` (s·2N,) holds the stages Z of the previous step of the same
     length (the method's state: the iteration starts from their
@@ -405,7 +427,7 @@ def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
                 Z[j * dim + m] = acc
     else:
         # The explicit Euler guess Z_i = h c_i f(x).
-        _field(x, par, g, y, grad)
+        _field(x, pars[s], g, y, grad)
         for i in range(s):
             for m in range(dim):
                 Z[i * dim + m] = h * c[i] * y[m]
@@ -417,7 +439,7 @@ def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
         iterations += 1
         if newton:
             # Z ← Z − M⁻¹ (Z − h (A ⊗ 1) F), M and F at the current stages.
-            _linearisation(h, x, Z, A, M, s, dim, par, y, g, D, F, grad_hess)
+            _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess)
             if not _lu(M, piv, sd):
                 return _FAILED, iterations
             for i in range(s):
@@ -437,7 +459,7 @@ def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
             for j in range(s):
                 for m in range(dim):
                     y[m] = x[m] + Z[j * dim + m]
-                _field(y, par, g, F[j * dim:(j + 1) * dim], grad)
+                _field(y, pars[j], g, F[j * dim:(j + 1) * dim], grad)
             delta = 0.0
             size = 0.0
             for i in range(s):
@@ -467,11 +489,18 @@ def gauss_step(h, x, V, k, par, A, b, c, d, E, work, grad, grad_hess, prev):
         iterate = not newton and k <= FIXED_POINT_VECTORS
         # D²H at the stages for the iteration, in M's room (s·4N² ≤ (s·2N)²).
         H = work[off_m:off_m + s * dim * dim].reshape((s, dim, dim))
-        done = iterate and _tangent_by_iteration(h, x, V, k, par, A, d, Z, U, H, R, y, g, s,
+        done = iterate and _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s,
                                                  dim, grad_hess)
-        if not done and not _tangent_by_lu(h, x, V, k, par, A, d, Z, U, M, piv, y, g, D, F, s,
+        if not done and not _tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s,
                                            dim, grad_hess):
             return _FAILED, iterations
+    if timed:
+        acc = 0.0
+        for j in range(s):
+            for m in range(dim):
+                y[m] = x[m] + Z[j * dim + m]
+            acc += b[j] * dtime(y, pars[j])
+        pt[0] -= h * acc
     for m in range(dim):
         acc = 0.0
         for i in range(s):
