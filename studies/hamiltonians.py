@@ -37,6 +37,28 @@ Parts (``--part``, several separated by commas; all by default):
     accuracy of X1 against a tight reference (varint, ABA864 at τ = 0.005).
     Target: ≥ 3× galpy.
 
+``precision``
+    Work–precision of every method on each system, orbit and one tangent
+    vector (``lyapunov_spectrum`` with one exponent from the same unit
+    vector): the error at t_end is the larger of the orbit's (max norm)
+    and of the vector's accumulated log-stretching, against heyoka's Taylor
+    method in extended precision (long double, tol ε); the cost is the wall
+    time (one thread, interleaved, minimum of the repeats). Systems and
+    contenders: the restricted three-body problem (Sun–Jupiter, a regular
+    orbit, t = 100): the rotating-frame split (SRKN14a, ABA864, s11odr6),
+    the termwise split (s11ABC6), Gauss–Legendre and Tao's method on the
+    same H forced general, heyoka and DOP853; the magnetic bottle (regular
+    orbit): its termwise four-part split, Gauss–Legendre, Tao, heyoka,
+    DOP853; a relativistic T(p) + V(q): s11odr6, SRKN14a, Gauss–Legendre,
+    heyoka; and two general H without exploitable structure (Hénon–Heiles
+    with the couplings (x p_y)²/8 + x y p_x/4, and Tao's (q² + 1)(p² + 1)/2):
+    Gauss–Legendre (GL4, GL6, GL8), Tao (orders 4 and 6), heyoka, DOP853.
+    The general systems answer two questions of issue 29: which of Tao's
+    method and Gauss–Legendre is cheaper at equal accuracy (the default of
+    general models), and the target that varint stays within 2× of heyoka
+    at equal accuracy for errors ≥ 1e-8 (heyoka's cost read off its
+    cost–error front at varint's errors, log–log interpolated).
+
 Usage: ``python studies/hamiltonians.py [--quick] [--out DIR] [--part maps,bar,...]
 [--repeats N]``. State the machine load (``uptime``, recorded in the JSON)
 with every figure.
@@ -58,14 +80,14 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import varint
-from studies.bench_peers import (HeyokaMap, agreement, antimode, chaotic, interleaved,
-                                 seeded_vectors)
+from studies.bench_peers import (HeyokaMap, agreement, antimode, chaotic, cost_at, interleaved,
+                                 pareto, seeded_vectors)
 from studies.common import Claims, parse_args, save_csv, save_json
 from varint.models.bar import BAR_ORBITS, RotatingBar, bar_orbit
 from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, SUN_JUPITER_MU,
                                  cr3bp_orbit)
 
-PARTS = ("published", "maps", "bar")
+PARTS = ("published", "maps", "bar", "precision")
 REPEATS = 3
 #: The map: Sun–Jupiter section y = 0, ẏ > 0 at C = 3.05.
 JACOBI = 3.05
@@ -305,6 +327,153 @@ def _galpy_lyapunov(x0, w0, t_end, rtol):
     return o.lyapunov(ts, pot=pot, dxdv0=w0, rtol=rtol, atol=rtol * 1e-3)[-1]
 
 
+# -- work–precision -----------------------------------------------------------------------
+def _systems(quick):
+    """name → (model, x0, t_end, contenders): contenders are (label, method,
+    options, steps or tolerances)."""
+    import sympy as sp
+
+    from varint.models import bottle_orbit, cr3bp_orbit, from_hamiltonian
+
+    t_scale = 0.2 if quick else 1.0
+    systems = {}
+    cr3bp, x_cr3bp = cr3bp_orbit("sun-jupiter-regular")
+    general_cr3bp = from_hamiltonian(cr3bp.symbolic().H, cr3bp.symbolic().q,
+                                     cr3bp.symbolic().p, structure="general", name="CR3BP general")
+    terms_cr3bp = from_hamiltonian(cr3bp.symbolic().H, cr3bp.symbolic().q, cr3bp.symbolic().p,
+                                   structure="terms", name="CR3BP termwise")
+    taus = (0.2, 0.1, 0.05, 0.025)
+    systems["CR3BP (Sun–Jupiter, regular)"] = (cr3bp, x_cr3bp, 100.0 * t_scale, [
+        ("SRKN14a", "tm", {"scheme": "SRKN14a"}, taus, cr3bp),
+        ("ABA864", "tm", {"scheme": "ABA864"}, taus, cr3bp),
+        ("s11odr6", "tm", {"scheme": "s11odr6"}, taus, cr3bp),
+        ("termwise s11ABC6", "tm", {"scheme": "s11ABC6"}, taus, terms_cr3bp),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, general_cr3bp),
+        ("GL8 (general)", "tm", {"scheme": "GL8"}, taus, general_cr3bp),
+        ("Tao4 (general)", "tm", {"scheme": "TAO4"}, taus, general_cr3bp)])
+    bottle, x_bottle = bottle_orbit("adiabatic")
+    general_bottle = from_hamiltonian(bottle.symbolic().H, bottle.symbolic().q,
+                                      bottle.symbolic().p, structure="general",
+                                      name="bottle general")
+    taus = (0.4, 0.2, 0.1, 0.05)
+    systems["magnetic bottle (adiabatic)"] = (bottle, x_bottle, 100.0 * t_scale, [
+        ("termwise 4-part s11odr6", "tm", {}, taus, bottle),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, general_bottle),
+        ("GL8 (general)", "tm", {"scheme": "GL8"}, taus, general_bottle),
+        ("Tao4 (general)", "tm", {"scheme": "TAO4"}, taus, general_bottle)])
+    x, y, px, py = sp.symbols("x y p_x p_y")
+    hh = (x ** 2 + y ** 2) / 2 + x ** 2 * y - y ** 3 / 3
+    rel = from_hamiltonian(sp.sqrt(1 + px ** 2 + py ** 2) + hh, [x, y], [px, py],
+                           name="relativistic Hénon–Heiles")
+    x_rel = np.array([0.1, 0.1, 0.3, 0.2])
+    taus = (0.4, 0.2, 0.1, 0.05)
+    systems["relativistic T(p) + V(q)"] = (rel, x_rel, 100.0 * t_scale, [
+        ("s11odr6", "tm", {"scheme": "s11odr6"}, taus, rel),
+        ("SRKN14a", "tm", {"scheme": "SRKN14a"}, taus, rel),
+        ("ABA864", "tm", {"scheme": "ABA864"}, taus, rel),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, from_hamiltonian(
+            rel.symbolic().H, [x, y], [px, py], structure="general"))])
+    general = from_hamiltonian((px ** 2 + py ** 2) / 2 + hh + (x * py) ** 2 / 8 + x * y * px / 4,
+                               [x, y], [px, py], name="coupled Hénon–Heiles (general)")
+    x_general = np.array([0.1, 0.05, 0.2, 0.25])
+    q, p = sp.symbols("q p")
+    tao = from_hamiltonian((q ** 2 + 1) * (p ** 2 + 1) / 2, [q], [p], name="Tao's example")
+    x_tao = np.array([-3.0, -1e-3])
+    for name, model, x0, taus in (("general: coupled Hénon–Heiles", general, x_general,
+                                   (0.4, 0.2, 0.1, 0.05)),
+                                  ("general: Tao's (q² + 1)(p² + 1)/2", tao, x_tao,
+                                   (0.1, 0.05, 0.025, 0.0125))):
+        systems[name] = (model, x0, 100.0 * t_scale, [
+            ("GL4", "tm", {"scheme": "GL4"}, taus, model),
+            ("GL6", "tm", {"scheme": "GL6"}, taus, model),
+            ("GL8", "tm", {"scheme": "GL8"}, taus, model),
+            ("Tao4", "tm", {"scheme": "TAO4"}, tuple(t / 2 for t in taus), model),
+            ("Tao6", "tm", {"scheme": "TAO6"}, tuple(t / 2 for t in taus), model)])
+    return systems
+
+
+def _peers(model):
+    """heyoka (tolerances) and DOP853 (rtol) on the same expression."""
+    out = [("heyoka", "taylor", {}, (1e-6, 1e-8, 1e-10, 1e-12, 1e-14), model)]
+    if getattr(model, "symbolic", None) is not None and isinstance(model, RotatingBar):
+        out = []
+    out.append(("DOP853", "dop853", {}, (1e-6, 1e-8, 1e-10, 1e-12), model))
+    return out
+
+
+def _one(model, x0, t_end, method, options, knob):
+    """One run, orbit and one tangent vector from the first unit vector."""
+    w0 = np.eye(model.dim)[:, :1]
+    opts = dict(options)
+    if method == "taylor":
+        opts.update(tol=knob)
+        tau = 1.0
+    elif method == "dop853":
+        opts.update(rtol=knob, atol=knob * 1e-3)
+        tau = 1.0
+    else:
+        tau = knob
+    r = varint.lyapunov_spectrum(model, x0, t_end, tau=tau, method=method, deviations=w0,
+                                 t_out=[t_end], energy_tol=math.inf, progress=False, **opts)
+    return r.state, float(r.exponents[-1, 0]) * t_end
+
+
+def precision_case(quick, repeats):
+    rows, summary = [], {}
+    numba.set_num_threads(1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, (model, x0, t_end, contenders) in _systems(quick).items():
+            ref = varint.lyapunov_spectrum(model, x0, t_end, tau=1.0, method="taylor",
+                                           precision="extended",
+                                           deviations=np.eye(model.dim)[:, :1], t_out=[t_end],
+                                           energy_tol=math.inf, progress=False)
+            x_ref, log_ref = ref.state, float(ref.exponents[-1, 0]) * t_end
+            tasks = {}
+            for label, method, options, knobs, m in contenders + _peers(model):
+                # Compiled before the timing (a short run of the same kind).
+                _one(m, x0, min(t_end, 1.0), method, options, knobs[0])
+                for knob in knobs:
+                    tasks[(label, knob)] = (
+                        lambda m=m, method=method, options=options, knob=knob, x0=x0,
+                        t_end=t_end: _one(m, x0, t_end, method, options, knob))
+            best, outs = interleaved(tasks, 1 if quick else repeats)
+            for (label, knob), seconds in best.items():
+                state, log_growth = outs[(label, knob)]
+                error = max(float(np.abs(state - x_ref).max()), abs(log_growth - log_ref))
+                rows.append({"system": name, "contender": label, "knob": knob,
+                             "seconds": seconds, "error": error, "t_end": t_end})
+            summary[name] = _precision_summary([r for r in rows if r["system"] == name])
+            print(name, summary[name], flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows, summary
+
+
+def _precision_summary(rows, floor=1e-8):
+    """Per contender its cost–error front; for each of varint's fronts, the
+    ratio of heyoka's cost to its own at its errors ≥ ``floor`` (the
+    smallest over those points: "within 2×" asks it to stay ≥ 0.5)."""
+    fronts = {}
+    for r in rows:
+        fronts.setdefault(r["contender"], []).append((r["seconds"], r["error"]))
+    fronts = {k: pareto(v) for k, v in fronts.items()}
+    heyoka = fronts.get("heyoka", [])
+    out = {}
+    for label, front in fronts.items():
+        if label in ("heyoka", "DOP853"):
+            continue
+        ratios = []
+        for cost, err in front:
+            if err < floor:
+                continue
+            theirs, how = cost_at(heyoka, err)
+            if theirs is not None:
+                ratios.append((err, theirs / cost, how))
+        out[label] = {"front": front, "heyoka_over_varint": ratios,
+                      "worst": min((r for _, r, _ in ratios), default=None)}
+    return out
+
+
 # -- claims -------------------------------------------------------------------------------
 def claims(out, result):
     c = Claims("hamiltonians", out, source="own")
@@ -318,8 +487,8 @@ def claims(out, result):
                       ours=f"{r['ours']:.2e}", holds=None)
     if "maps" in result:
         for ind, s in result["maps"]["summary"].items():
-            c.add(f"CR3BP {ind.upper()} map with defaults ≥ 3× heyoka batch 8 per thread at equal "
-                  "agreement with a tight reference (issue 29)", paper="≥ 3×",
+            c.add(f"CR3BP {ind.upper()} map with defaults ≥ 3× heyoka batch 8 per thread at "
+                  "equal agreement with a tight reference (issue 29)", paper="≥ 3×",
                   ours=f"{s['speedup']:.2f}× ({s['heyoka']}: {s['heyoka_seconds']:.3g} s, "
                        f"agreement {s['heyoka_agreement']:.4f}; varint {s['varint_seconds']:.3g}"
                        f" s, agreement {s['varint_agreement']:.4f}); load "
@@ -360,6 +529,13 @@ def main(argv=None):
         save_csv(args.out, "hamiltonians_bar", rows,
                  ["orbit", "contender", "seconds", "x1", "x1_reference", "error", "t_end"])
         result["bar"] = {"rows": rows, "load": start, "load_end": load()}
+    if "precision" in parts:
+        start = load()
+        rows, summary = precision_case(args.quick, args.repeats)
+        save_csv(args.out, "hamiltonians_precision", rows,
+                 ["system", "contender", "knob", "seconds", "error", "t_end"])
+        result["precision"] = {"rows": rows, "summary": summary, "load": start,
+                               "load_end": load()}
     save_json(args.out, "hamiltonians" if parts == list(PARTS) else
               "hamiltonians_" + "_".join(parts), result)
     claims(args.out, result)
