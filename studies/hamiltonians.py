@@ -66,6 +66,7 @@ with every figure.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -581,9 +582,16 @@ def main(argv=None):
                  ["system", "contender", "knob", "seconds", "error", "t_end"])
         result["precision"] = {"rows": rows, "summary": summary, "load": start,
                                "load_end": load()}
-    save_json(args.out, "hamiltonians" if parts == list(PARTS) else
-              "hamiltonians_" + "_".join(parts), result)
-    claims(args.out, result)
+    for part in parts:
+        save_json(args.out, f"hamiltonians_{part}", {"quick": args.quick, part: result[part]})
+    # The claims of every part run so far into this directory (parts may be
+    # run one at a time).
+    every = {}
+    for part in PARTS:
+        path = Path(args.out) / f"hamiltonians_{part}.json"
+        if path.exists():
+            every[part] = json.loads(path.read_text())[part]
+    claims(args.out, every)
     return result
 
 
