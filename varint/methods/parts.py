@@ -30,8 +30,7 @@ __all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
 
 
 def _scheme(model, scheme):
-    parts = model.parts
-    return resolve_scheme(scheme if scheme is not None else parts.default_scheme)
+    return model.parts.resolve(scheme, model.name)
 
 
 def runs_parts(model, scheme=None):

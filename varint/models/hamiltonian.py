@@ -57,6 +57,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
+from ..flows import general as GEN
 from ..flows import split as S
 from .base import Model
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
@@ -791,9 +792,36 @@ class TermwiseHamiltonian(HamiltonianModel):
 
 class GeneralHamiltonian(HamiltonianModel):
     """Any H(q, p) (or H(q, p, t)) without a solvable split; see
-    :func:`from_hamiltonian`. Integrated by Gauss–Legendre or Tao's method."""
+    :func:`from_hamiltonian`. ``method="tm"`` integrates it by implicit
+    Gauss–Legendre steps (schemes GL4, GL6, GL8; :mod:`varint.flows.general`),
+    the reference methods by Hamilton's equations; Tao's explicit method is
+    in :mod:`varint.flows.tao`."""
 
     structure = "general"
+    #: The scheme of ``method="tm"`` when none is given.
+    default_scheme = "GL8"
+
+    @property
+    def parts(self):
+        """The whole-step integrators as the part stepper's flows
+        (:mod:`varint.flows.general`).
+
+        Raises
+        ------
+        ValueError
+            For a time-dependent H: its stages need their times, which the
+            part stepper does not pass to the flows.
+        """
+        if self.time_dependent:
+            raise ValueError(f"{self.name} depends on time and has no solvable split: "
+                             "method='tm' does not run it yet; use method='taylor', 'dop853' "
+                             "or 'cvode'")
+        par = np.ascontiguousarray(self.parameters_at(None), dtype=np.float64)
+        return Parts(names=GEN.INTEGRATORS, apply=GEN.general_apply(
+            self.grad_h, self.grad_hess_h, self.n_dof, par.shape[0]),
+            field=S.hamiltonian_field(self.grad_h), splits={len(GEN.INTEGRATORS): GEN.INTEGRATORS},
+            par=par, n_work=GEN.general_work(self.n_dof, par.shape[0]),
+            default_scheme=self.default_scheme, schemes=GEN.GENERAL_SCHEMES)
 
 
 _CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,
