@@ -5,7 +5,7 @@ methods and indicators.
 
 An entry is a factory with its parameters (name, default, one line of
 documentation) and the names of the model's coordinates. ``kind`` says how
-a model is used: ``"flow"`` (a Hamiltonian H = ½pᵀM⁻¹p + V(q), integrated),
+a model is used: ``"flow"`` (a Hamiltonian, ½pᵀM⁻¹p + V(q) or of another form, integrated),
 ``"map"`` (a symplectic map, iterated) or ``"lattice"`` (a many-body
 lattice whose factory also takes ``shape``, ``boundary`` and the disorder's
 ``seed``). A new model is one :func:`register_model` call.
@@ -24,6 +24,9 @@ from types import MappingProxyType
 from collections.abc import Callable
 from typing import Any
 
+from .bar import RotatingBar
+from .bottle import MagneticBottle
+from .cr3bp import SUN_JUPITER_MU, CR3BP
 from .ddnls import DDNLS
 from .fpu import FPUBeta
 from .fput import FPUT
@@ -236,3 +239,21 @@ register_model(ModelEntry(
     "ddnls", "lattice", DDNLS,
     "the disordered discrete nonlinear Schrödinger lattice (1D or 2D)",
     (Parameter("W", 4.0, "disorder strength"), Parameter("beta", 1.0, "nonlinearity"))))
+register_model(ModelEntry(
+    "cr3bp", "flow", CR3BP,
+    "the planar circular restricted three-body problem in the rotating frame (Jacobi "
+    "constant checked)",
+    (Parameter("mu", SUN_JUPITER_MU, "mass ratio of the secondary (Sun–Jupiter by default)"),),
+    coordinates=("x", "y"), classes=("CR3BP",)))
+register_model(ModelEntry(
+    "rotating-bar", "flow", RotatingBar,
+    "a rotating Ferrers bar, Miyamoto–Nagai disc and Plummer bulge (Skokos, Patsis & "
+    "Athanassoula 2002)",
+    (Parameter("omega", 0.054, "pattern speed of the bar"),),
+    coordinates=("x", "y", "z"), classes=("RotatingBar",)))
+register_model(ModelEntry(
+    "magnetic-bottle", "flow", MagneticBottle,
+    "a charged particle in the mirror field B_z = B0 (1 + z²/L²)",
+    (Parameter("b0", 1.0, "field at the bottle's centre"),
+     Parameter("length", 1.0, "the mirror length L")),
+    coordinates=("x", "y", "z"), classes=("MagneticBottle",)))
