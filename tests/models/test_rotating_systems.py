@@ -162,3 +162,16 @@ def test_bottle_conserves_angular_momentum_and_energy():
     x, _ = gauss_steps(model, x0, None, 0.02, 5000, "GL6")
     assert abs(model.angular_momentum(x) - model.angular_momentum(x0)) < 1e-14
     assert abs(model.energy(x) / model.energy(x0) - 1) < 1e-10
+
+
+def test_registered_for_the_command_line():
+    """The registry builds the three systems with their parameters; its
+    default μ is the module's Sun–Jupiter value."""
+    from varint.models.cr3bp import SUN_JUPITER_MU
+    from varint.models.registry import MODELS
+
+    assert MODELS["cr3bp"].defaults()["mu"] == SUN_JUPITER_MU
+    assert MODELS["cr3bp"].build(mu=0.01).mu == 0.01
+    assert MODELS["rotating-bar"].build(omega=0.05).planar["omega"] == pytest.approx(0.05)
+    bottle = MODELS["magnetic-bottle"].build(b0=2.0)
+    assert bottle.n_dof == 3

@@ -24,9 +24,6 @@ from types import MappingProxyType
 from collections.abc import Callable
 from typing import Any
 
-from .bar import RotatingBar
-from .bottle import MagneticBottle
-from .cr3bp import SUN_JUPITER_MU, CR3BP
 from .ddnls import DDNLS
 from .fpu import FPUBeta
 from .fput import FPUT
@@ -239,20 +236,45 @@ register_model(ModelEntry(
     "ddnls", "lattice", DDNLS,
     "the disordered discrete nonlinear Schrödinger lattice (1D or 2D)",
     (Parameter("W", 4.0, "disorder strength"), Parameter("beta", 1.0, "nonlinearity"))))
+
+
+# The models of any H(q, p) import SymPy: built on first use, so that reading
+# the registry (the command line's help) stays as quick as before.
+def _cr3bp(mu):
+    from .cr3bp import CR3BP
+
+    return CR3BP(mu)
+
+
+def _rotating_bar(omega):
+    from .bar import RotatingBar
+
+    return RotatingBar(omega=omega)
+
+
+def _magnetic_bottle(b0, length):
+    from .bottle import MagneticBottle
+
+    return MagneticBottle(b0, length)
+
+
+#: Sun–Jupiter, as varint.models.cr3bp.SUN_JUPITER_MU (a test checks they agree).
+_SUN_JUPITER_MU = 0.000954
+
 register_model(ModelEntry(
-    "cr3bp", "flow", CR3BP,
+    "cr3bp", "flow", _cr3bp,
     "the planar circular restricted three-body problem in the rotating frame (Jacobi "
     "constant checked)",
-    (Parameter("mu", SUN_JUPITER_MU, "mass ratio of the secondary (Sun–Jupiter by default)"),),
+    (Parameter("mu", _SUN_JUPITER_MU, "mass ratio of the secondary (Sun–Jupiter by default)"),),
     coordinates=("x", "y"), classes=("CR3BP",)))
 register_model(ModelEntry(
-    "rotating-bar", "flow", RotatingBar,
+    "rotating-bar", "flow", _rotating_bar,
     "a rotating Ferrers bar, Miyamoto–Nagai disc and Plummer bulge (Skokos, Patsis & "
     "Athanassoula 2002)",
     (Parameter("omega", 0.054, "pattern speed of the bar"),),
     coordinates=("x", "y", "z"), classes=("RotatingBar",)))
 register_model(ModelEntry(
-    "magnetic-bottle", "flow", MagneticBottle,
+    "magnetic-bottle", "flow", _magnetic_bottle,
     "a charged particle in the mirror field B_z = B0 (1 + z²/L²)",
     (Parameter("b0", 1.0, "field at the bottle's centre"),
      Parameter("length", 1.0, "the mirror length L")),
