@@ -1,5 +1,6 @@
 """The right-hand side of the orbit and k deviation vectors, compiled from a
-model's own kernels.
+model's own kernels (for H = ½pᵀM⁻¹p + V(q) below; for any H(q, p),
+ẋ = J∇H and Ẇ = J D²H W from the model's ∇H and D²H).
 
 For H = ½ pᵀM⁻¹p + V(q) the equations of motion and the variational
 equations (Skokos & Gerlach 2010, eqs. 6 and 7) are
@@ -23,7 +24,7 @@ at (q, t).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 from numba import njit
@@ -117,6 +118,52 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
     return rhs, fun
 
 
+@cache
+def _compiled_hamiltonian(grad_hess, d, par_bytes, dtime=None):
+    """The right-hand side of any H(q, p): ẋ = J∇H, Ẇ = J D²H W (from the
+    model's kernel ``grad_hess(x, par, g, D)``), and the clock (t, p_t) of a
+    time-dependent H, ṫ = 1, ṗ_t = −∂_tH."""
+    par_model = np.frombuffer(par_bytes)
+    n = d // 2
+    c = 0 if dtime is None else CLOCK
+
+    @njit
+    def rhs(t, y, yp):
+        if c:
+            par = par_model.copy()
+            par[-1] = y[y.shape[0] - 2]
+        else:
+            par = par_model
+        x = y[:d].copy()
+        g = np.empty(d)
+        D = np.empty((d, d))
+        grad_hess(x, par, g, D)
+        for i in range(n):
+            yp[i] = g[n + i]
+            yp[n + i] = -g[i]
+        if c:
+            yp[y.shape[0] - 2] = 1.0
+            yp[y.shape[0] - 1] = -dtime(x, par)
+        k = (y.shape[0] - d - c) // d
+        # Row i of W is y[d + i·k : d + (i + 1)·k]; (J D W)_i = (D W)_{n+i}, −(D W)_{i−n}.
+        for i in range(d):
+            src = n + i if i < n else i - n
+            sign = 1.0 if i < n else -1.0
+            for j in range(k):
+                acc = 0.0
+                for m in range(d):
+                    acc += D[src, m] * y[d + m * k + j]
+                yp[d + i * k + j] = sign * acc
+
+    @njit
+    def fun(t, y):
+        yp = np.empty_like(y)
+        rhs(t, y, yp)
+        return yp
+
+    return rhs, fun
+
+
 def tangent_rhs(model):
     """Compiled right-hand sides of the orbit plus deviation vectors.
 
@@ -136,8 +183,16 @@ def tangent_rhs(model):
     Compiled once per model kernels, size and parameters (cached for the
     process), so every propagator built for the same model shares them.
     For a time-dependent V the flat state ends with the clock (t, p_t)
-    (see the module docstring) and ``t`` is not read.
+    (see the module docstring) and ``t`` is not read. A model of any H(q, p)
+    (:class:`~varint.models.hamiltonian.HamiltonianModel`) gives Hamilton's
+    equations ẋ = J∇H and the variational equations Ẇ = J D²H W from its
+    kernel of ∇H and D²H.
     """
+    if callable(getattr(model, "grad_hess_h", None)):
+        return _compiled_hamiltonian(
+            model.grad_hess_h, model.dim,
+            np.ascontiguousarray(model.params, dtype=np.float64).tobytes(),
+            model.dtime_h if model.time_dependent else None)
     return _compiled(model.grad_kernel, model.hess_kernel, model.n_dof, model.bandwidth,
                      np.ascontiguousarray(model.inverse_mass, dtype=np.float64).tobytes(),
                      np.ascontiguousarray(model.params, dtype=np.float64).tobytes(),

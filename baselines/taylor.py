@@ -123,13 +123,16 @@ def _to_heyoka(expr, symbols, fp):
 
 def heyoka_system(symbolic, fp=np.float64):
     """Hamilton's equations of ``symbolic`` (a
-    :class:`~varint.models.SymbolicPotential`) for heyoka.
+    :class:`~varint.models.SymbolicPotential`, or a
+    :class:`~varint.models.hamiltonian.SymbolicHamiltonian` for any H(q, p))
+    for heyoka.
 
     Returns
     -------
     system : list of (variable, expression)
-        q̇ = M⁻¹p, ṗ = −∇V, in state order (q, p); for a time-dependent V
-        (``symbolic.time``, written as ``hy.time``) then ṗ_t = −∂_tV.
+        q̇ = M⁻¹p, ṗ = −∇V (q̇ = ∂H/∂p, ṗ = −∂H/∂q), in state order (q, p);
+        for a time-dependent V or H (``symbolic.time``, written as
+        ``hy.time``) then ṗ_t = −∂_tV (−∂_tH).
     variables : list of heyoka expressions
         q_0 … q_{N−1}, p_0 … p_{N−1} (and p_t for a time-dependent V).
     """
@@ -140,6 +143,8 @@ def heyoka_system(symbolic, fp=np.float64):
     time = getattr(symbolic, "time", None)
     if time is not None:
         names[time] = hy.time
+    if getattr(symbolic, "H", None) is not None:
+        return _hamilton_system(symbolic, names, q, p, fp)
     V = _to_heyoka(symbolic.V, names, fp)
     system = [(qi, pi if mi == 1 else _to_heyoka(mi, {}, fp) * pi)
               for qi, pi, mi in zip(q, p, symbolic.inverse_mass)]
@@ -148,6 +153,22 @@ def heyoka_system(symbolic, fp=np.float64):
         return system, q + p
     pt = hy.expression("p_t")
     system.append((pt, -_to_heyoka(sp.diff(symbolic.V, time), names, fp)))
+    return system, q + p + [pt]
+
+
+def _hamilton_system(symbolic, names, q, p, fp):
+    """:func:`heyoka_system` of any H(q, p[, t]): its derivatives taken by
+    SymPy, then written for heyoka."""
+    names = {**names, **dict(zip(symbolic.p, p, strict=True))}
+    H = symbolic.H
+    system = [(qi, _to_heyoka(sp.diff(H, ps), names, fp))
+              for qi, ps in zip(q, symbolic.p, strict=True)]
+    system += [(pi, -_to_heyoka(sp.diff(H, qs), names, fp))
+               for pi, qs in zip(p, symbolic.q, strict=True)]
+    if symbolic.time is None:
+        return system, q + p
+    pt = hy.expression("p_t")
+    system.append((pt, -_to_heyoka(sp.diff(H, symbolic.time), names, fp)))
     return system, q + p + [pt]
 
 

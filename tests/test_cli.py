@@ -195,7 +195,7 @@ BAD_ARGUMENTS = [
     (["run", "sali", *HH, "--fpu-n", "4", "--x0", "0,0,0,0"], 2,
      "--fpu-n applies to --model fpu-beta only"),
     (["run", "sali", *R1, "--inverse-mass", "1,1"], 2, "--inverse-mass applies to --potential"),
-    (["run", "sali", *R1, "--coords", "x,y"], 2, "--coords applies to --potential only"),
+    (["run", "sali", *R1, "--coords", "x,y"], 2, "--coords applies to --potential and --hamiltonian only"),
     # -- names: empty, unknown, unicode
     (["run", "sali", "--orbit", ""], 2, "unknown paper orbit ''"),
     (["run", "sali", *R1, "--scheme", ""], 2, "unknown scheme ''; expected one of: SABA1"),
@@ -309,7 +309,7 @@ BAD_ARGUMENTS = [
      "--K applies to --map standard only"),
     (["run", "x1", *HH, "--x0", "0,0,0,0", "--K1", "2"], 2, "--K1 applies to --map coupled"),
     (["run", "sali", *R1, "--beta", "2"], 2, "--beta applies to --model fpu-beta and --map"),
-    (["run", "sali", *R1, "--time", "t"], 2, "--time applies to --potential only"),
+    (["run", "sali", *R1, "--time", "t"], 2, "--time applies to --potential and --hamiltonian only"),
     (["run", "sali", "--potential", "-cos(q)*cos(t)", "--coords", "q", "--time", "q", "--x0",
       "0,1"], 2, "--time q is also one of the --coords"),
     (["map", "--map", "standard", "--energy", "1"], 2, "does not apply to a map"),

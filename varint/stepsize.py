@@ -104,9 +104,11 @@ def pilots(method):
 def _default_scheme(model, scheme):
     """The scheme "tm" runs ``model`` with: the given one, a lattice's own
     default (its part split), or the paper's SBAB2C."""
+    parts = getattr(model, "parts", None)
+    if parts is not None and parts.schemes is not None:
+        return parts.resolve(scheme, model.name)
     if scheme is not None:
         return resolve_scheme(scheme)
-    parts = getattr(model, "parts", None)
     if parts is not None and parts.default_scheme is not None:
         return resolve_scheme(parts.default_scheme)
     return get_scheme("SBAB2C")

@@ -43,6 +43,10 @@ METHODS = {
     "two-particle": "varint.methods.two_particle:TwoParticlePropagator",
 }
 
+#: The reference methods, which integrate Hamilton's equations of any H(q, p)
+#: (a model with a ∇H, D²H kernel, ``grad_hess_h``) as well as of T + V.
+REFERENCE_METHODS = ("taylor", "cvode", "dop853")
+
 #: The methods that take map models: ``method=`` name → "module:class".
 MAP_METHODS = {
     "tm": "varint.methods.map:MapPropagator",
@@ -155,7 +159,10 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
         # ("module:Class"; planetary systems: the correctors at outputs).
         own = getattr(model, "parts_propagator", None)
         cls = PartsPropagator if own is None else _resolve(own)
-    elif not getattr(model, "band_kernels", True):
+    elif not getattr(model, "band_kernels", True) and not (
+            _key(method) in REFERENCE_METHODS and callable(getattr(model, "grad_hess_h", None))):
+        # A model of any H(q, p) gives the reference methods Hamilton's
+        # equations from its ∇H, D²H kernel (baselines.rhs) and expression.
         raise ValueError(f"method {method!r} needs the band-Hessian kernels of "
                          f"varint.models.base, which {model.name} does not have (a 2D lattice, "
                          "a ring, or H not of the form T(p) + V(q)); use method='tm'")

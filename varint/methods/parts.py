@@ -23,15 +23,14 @@ from ..kernels import generate as G
 from ..kernels import parts as K
 from ..kernels.tm import no_accumulator, use_parallel
 from ..protocol import REASONS, STATUS_OK, Renorm, Status
-from ..schemes import CORRECTOR, CompositionScheme, part_stages, resolve_scheme, scheme_word
+from ..schemes import CORRECTOR, CompositionScheme, part_stages, scheme_word
 from . import method_options
 
 __all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
 
 
 def _scheme(model, scheme):
-    parts = model.parts
-    return resolve_scheme(scheme if scheme is not None else parts.default_scheme)
+    return model.parts.resolve(scheme, model.name)
 
 
 def runs_parts(model, scheme=None):
