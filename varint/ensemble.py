@@ -38,6 +38,7 @@ from typing import ClassVar
 import numpy as np
 
 from . import _validate as check
+from . import identity
 from .checkpoint import CheckpointError, canonical, differences
 from .files import atomic_file, atomic_write
 from .indicators import resolve
@@ -447,7 +448,9 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
                       method_options=first.propagator.describe(), tau=first.tau,
                       t_end=first.t_end, seed=None, options=options,
                       versions=p.versions if p is not None else package_versions(),
-                      counts=counts, wall_time=wall)
+                      counts=counts, wall_time=wall,
+                      code=p.code if p is not None else identity.code_identity(),
+                      machine=p.machine if p is not None else identity.machine())
     return EnsembleResult(t=t, energy_error=energy, state=state, provenance=prov, status=status,
                           interrupted=interrupted, seeds=np.array(seeds, dtype=np.int64),
                           values=values, wall_times=walls)

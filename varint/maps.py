@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, identity, stepsize
 from .checkpoint import CheckpointError, canonical, differences, digest
 from .files import atomic_write, jsonable
 from .indicators import INDICATORS, Indicator, resolve
@@ -204,7 +204,8 @@ def run_chunk(model, x0, indices, spec):
                   state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
                   counts=dict(state.counts),
                   provenance={"method_options": job.propagator.describe(),
-                              "versions": job.versions()},
+                              "versions": job.versions(), "code": identity.code_identity(),
+                              "machine": job.machine},
                   interrupted=stop == "interrupted")
 
 
@@ -454,7 +455,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "t_check": digest(steps), "method": spec.method,
                   "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,
-                  "versions": package_versions()}
+                  "versions": package_versions(), "code": identity.source_digest()}
     store = None if checkpoint is None else _ChunkStore(checkpoint, parameters)
 
     done = {}
@@ -586,7 +587,9 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
                       method_options=first.get("method_options", {}), tau=spec.tau,
                       t_end=spec.t_end, seed=spec.seed, options=options,
                       versions=first.get("versions", package_versions()), counts=counts,
-                      wall_time=wall, tau_choice=dict(tau_choice))
+                      wall_time=wall, tau_choice=dict(tau_choice),
+                      code=first.get("code", identity.code_identity()),
+                      machine=first.get("machine", identity.machine()))
     failed = is_failure(status)
     with np.errstate(invalid="ignore"):
         accurate = ~failed & (max_error <= energy_tol)

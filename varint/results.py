@@ -85,6 +85,14 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    code : dict
+        The code that ran (:func:`varint.identity.code_identity`): the
+        digest of varint's sources, and the git commit where run from a
+        checkout. Empty in results saved before it was recorded.
+    machine : dict
+        The machine when the run started (:func:`varint.identity.machine`:
+        CPU model, cores, load average). Empty in results saved before it
+        was recorded.
     """
 
     kind: str
@@ -102,6 +110,10 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    # Not filled in by default: a result loaded from an older file must not
+    # be stamped with the code that loads it.
+    code: dict = field(default_factory=dict)
+    machine: dict = field(default_factory=dict)
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
