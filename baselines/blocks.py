@@ -28,7 +28,13 @@ into ``advance`` calls, or resumed from a checkpoint, cannot change a bit.
 A block also ends early, deterministically, once C has become so
 ill-conditioned (condition > :data:`COND_LIMIT`) that the virtual
 renormalisation would lose accuracy in the weakest directions; the rest of
-it is discarded and a new block starts from the renormalised state.
+it is discarded and a new block starts from the renormalised state. The
+next block is then only as long as the part used, and each block used
+whole makes the next a quarter longer, up to the block size
+(:data:`BLOCK_GROWTH`): a chaotic orbit's spectrum cuts blocks after a few
+Lyapunov times, and integrating far beyond that would be wasted. For the
+same reason no block reaches past the run's last interval once the run has
+told the propagator where that is (:meth:`BlockPropagator.set_horizon`).
 """
 
 from __future__ import annotations
@@ -57,6 +63,9 @@ END_BLOCK = -1
 COND_LIMIT = 100.0
 #: Largest block, in float64 numbers stored per orbit (16 MiB).
 MAX_BLOCK_VALUES = 1 << 21
+#: A block used whole makes the next one this much longer (up to the block
+#: size); one cut by COND_LIMIT makes the next as long as the part used.
+BLOCK_GROWTH = 1.25
 
 
 @njit
@@ -212,6 +221,7 @@ class BlockPropagator:
         if block is not None and not (integer and block >= 1):
             raise ValueError(f"block must be a positive integer (intervals of tau), got {block!r}")
         self.options = options
+        self._horizon = np.iinfo(np.int64).max
         self._clock = clock_size(model)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
@@ -238,6 +248,13 @@ class BlockPropagator:
 
     def describe(self):
         return dict(self.options)
+
+    def set_horizon(self, step):
+        """Integrate no block beyond interval ``step`` (the run's last): the
+        intervals a block would integrate past it are never used. The same
+        for every chunking and every resume of the run, so no bit depends
+        on it."""
+        self._horizon = int(step)
 
     # -- the protocol --------------------------------------------------------
     def advance(self, state, n):
@@ -270,6 +287,8 @@ class BlockPropagator:
             self._key("next"): np.zeros(m, dtype=np.int64),
             self._key("filled"): np.zeros(m, dtype=np.int64),
             self._key("failed"): np.zeros(m, dtype=np.int64),
+            # Length of the next block; negative after a cut (see _new_block).
+            self._key("length"): np.full(m, b, dtype=np.int64),
         })
 
     def _advance_orbit(self, state, m, n):
@@ -301,6 +320,7 @@ class BlockPropagator:
             if status == END_BLOCK:
                 # A failure of the integrator beyond this point is moot now.
                 filled[m], failed[m] = j, Status.OK
+                ex[self._key("length")][m] = -max(1, j)
             elif status != Status.OK:
                 return done, int(status)
         return done, Status.OK
@@ -323,7 +343,15 @@ class BlockPropagator:
 
     def _new_block(self, state, m, step):
         ex = state.extra
-        b = ex[self._key("y")].shape[1]
+        cap = ex[self._key("y")].shape[1]
+        length = ex[self._key("length")]
+        # After a cut, as long as the part used; after a block used whole
+        # (not the first), a quarter longer.
+        b = int(length[m])
+        b = -b if b < 0 else (min(cap, int(b * BLOCK_GROWTH) + 1)
+                              if ex[self._key("filled")][m] else b)
+        length[m] = b
+        b = max(1, min(b, self._horizon - step))
         y0 = pack(state.x[m], state.W[m], clock=self.clock(state, m, step))
         ys, status, counts = self._integrate(state, m, y0, b)
         filled = len(ys)

@@ -19,16 +19,27 @@ the TM method (:mod:`varint.kernels.tm`): the flat state ends with the
 conjugate to time for the conserved extended energy K = H + p_t. The
 deviation vectors have δt = 0, so their equations are those above with D²V
 at (q, t).
+
+The Jacobian of this right-hand side (:func:`tangent_jacobian`, for an
+implicit integrator's Newton iteration) is exact and also matrix-free in
+the vectors: with J = ∂ẏ/∂y,
+
+    ∂q̇/∂p = M⁻¹,   ∂ṗ/∂q = −D²V,   ∂δq̇_j/∂δp_j = M⁻¹,   ∂δṗ_j/∂δq_j = −D²V,
+    ∂δṗ_j/∂q = −D³V[δq_j],
+
+the last from the model's third-derivative kernel (D³V[v] = Σ_k v_k
+D²(∂_kV), symmetric), so J·v costs one Hessian and one third-derivative
+evaluation.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 from numba import njit
 
-__all__ = ["tangent_rhs", "pack", "unpack", "clock_size", "CLOCK"]
+__all__ = ["tangent_rhs", "tangent_jacobian", "pack", "unpack", "clock_size", "CLOCK"]
 
 #: Entries of the clock (t, p_t) at the end of the flat state of a
 #: time-dependent model.
@@ -61,7 +72,7 @@ def unpack(y, d, clock=0):
     return y[:d], y[d:len(y) - clock].reshape(d, -1)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
     minv = np.frombuffer(minv_bytes)
     par_model = np.frombuffer(par_bytes)
@@ -142,3 +153,106 @@ def tangent_rhs(model):
                      np.ascontiguousarray(model.inverse_mass, dtype=np.float64).tobytes(),
                      np.ascontiguousarray(model.params, dtype=np.float64).tobytes(),
                      model.time_kernel if model.time_dependent else None)
+
+
+@cache
+def _compiled_jacobian(hess, third, n, bw, minv_bytes, par_bytes):
+    minv = np.frombuffer(minv_bytes)
+    par = np.frombuffer(par_bytes)
+    d = 2 * n
+
+    @njit
+    def jac(t, y, yp, J):
+        k = (y.shape[0] - d) // d
+        J[:, :] = 0.0
+        q = y[:n].copy()
+        B = np.zeros((bw + 1, n))
+        hess(q, par, B)
+        # Block 0 is the orbit, block j + 1 deviation vector j: the same
+        # [[0, M⁻¹], [−D²V, 0]] on the diagonal (row i + n of block b at
+        # index o + i·s + c, with s = 1 for the orbit, s = k for vectors).
+        for blk in range(k + 1):
+            o, s, c = (0, 1, 0) if blk == 0 else (d, k, blk - 1)
+            for i in range(n):
+                J[o + i * s + c, o + (n + i) * s + c] = minv[i]
+            for b in range(bw + 1):
+                for i in range(n - b):
+                    a = B[b, i]
+                    J[o + (n + i) * s + c, o + (i + b) * s + c] -= a
+                    if b:
+                        J[o + (n + i + b) * s + c, o + i * s + c] -= a
+        # ∂δṗ_j/∂q = −D³V[δq_j].
+        v = np.empty(n)
+        T = np.empty((bw + 1, n))
+        for c in range(k):
+            for m in range(n):
+                v[m] = y[d + m * k + c]
+            T[:, :] = 0.0
+            third(q, par, v, T)
+            for b in range(bw + 1):
+                for i in range(n - b):
+                    a = T[b, i]
+                    J[d + (n + i) * k + c, i + b] -= a
+                    if b:
+                        J[d + (n + i + b) * k + c, i] -= a
+
+    @njit
+    def jac_times(t, y, yp, v, Jv):
+        k = (y.shape[0] - d) // d
+        q = y[:n].copy()
+        B = np.zeros((bw + 1, n))
+        hess(q, par, B)
+        T = np.zeros((bw + 1, n))
+        third(q, par, v[:n].copy(), T)
+        for blk in range(k + 1):
+            o, s, c = (0, 1, 0) if blk == 0 else (d, k, blk - 1)
+            for i in range(n):
+                Jv[o + i * s + c] = minv[i] * v[o + (n + i) * s + c]
+                Jv[o + (n + i) * s + c] = 0.0
+            for b in range(bw + 1):
+                for i in range(n - b):
+                    a = B[b, i]
+                    Jv[o + (n + i) * s + c] -= a * v[o + (i + b) * s + c]
+                    if b:
+                        Jv[o + (n + i + b) * s + c] -= a * v[o + i * s + c]
+            if blk:
+                # −D³V[v_q] δq_c: D³V[v_q] δq_c = D³V[δq_c] v_q (symmetry).
+                for b in range(bw + 1):
+                    for i in range(n - b):
+                        a = T[b, i]
+                        Jv[d + (n + i) * k + c] -= a * y[d + (i + b) * k + c]
+                        if b:
+                            Jv[d + (n + i + b) * k + c] -= a * y[d + i * k + c]
+
+    return jac, jac_times
+
+
+def tangent_jacobian(model):
+    """The exact Jacobian ∂ẏ/∂y of :func:`tangent_rhs`'s right-hand side.
+
+    Parameters
+    ----------
+    model : Model
+        Time-independent (a time-dependent V has no kernel for ∂_t∇V).
+
+    Returns
+    -------
+    jac : numba function ``jac(t, y, yp, J)``
+        Fills the dense (len(y), len(y)) matrix ``J`` (the form of
+        scikit-sundae's ``jacfn``).
+    jac_times : numba function ``jac_times(t, y, yp, v, Jv)``
+        Fills ``Jv`` with J·v without forming J (the form of
+        scikit-sundae's ``CVODEJacTimes`` for its iterative solvers).
+
+    Raises
+    ------
+    ValueError
+        For a time-dependent model.
+    """
+    if model.time_dependent:
+        raise ValueError(f"no exact Jacobian for the time-dependent model {model.name!r} "
+                         "(its kernels give no derivative of the force in t)")
+    return _compiled_jacobian(model.hess_kernel, model.third_kernel, model.n_dof,
+                              model.bandwidth,
+                              np.ascontiguousarray(model.inverse_mass, dtype=np.float64).tobytes(),
+                              np.ascontiguousarray(model.params, dtype=np.float64).tobytes())

@@ -132,7 +132,7 @@ import varint
 from studies.accuracy import TAU_REF
 from studies.bench_chaos_map import THRESHOLD, pynamicalsys_loop, section
 from studies.bench_tm import c_program, run_c
-from studies.common import parse_args, save_csv, save_json
+from studies.common import interleaved, parse_args, save_csv, save_json
 from varint.cache import reference
 
 DRIFT, KICK = 0, 1  # the kinds of SplittingScheme.stages()
@@ -194,36 +194,6 @@ def energy_scale(model, x):
 
 
 # -- timing --------------------------------------------------------------------
-
-#: Seconds: a task quicker than this is called repeatedly within its turn
-#: and timed per call (module docstring).
-SHORT = 0.02
-
-
-def interleaved(tasks, repeats, self_timed=()):
-    """Each callable of ``tasks`` (label -> callable) run ``repeats`` times
-    in turn; returns (label -> best seconds per call, label -> last output).
-    Within a turn a task is called until ``SHORT`` seconds have passed (at
-    least once) and its time is the mean per call. The callables named in
-    ``self_timed`` return (seconds, output) measured by themselves (a C
-    loop's own clock, a loop that leaves out a compilation); they are
-    called once per turn."""
-    best, out = dict.fromkeys(tasks, math.inf), {}
-    for _ in range(repeats):
-        for label, task in tasks.items():
-            calls, t0 = 0, time.perf_counter()
-            while True:
-                out[label] = task()
-                calls += 1
-                elapsed = time.perf_counter() - t0
-                if label in self_timed or elapsed >= SHORT:
-                    break
-            seconds = elapsed / calls
-            if label in self_timed:
-                seconds, out[label] = out[label]
-            best[label] = min(best[label], seconds)
-    return best, out
-
 
 def numba_threads(n, fn, *args, **kwargs):
     """``fn(*args, **kwargs)`` with numba on ``n`` threads (1 afterwards)."""

@@ -292,6 +292,9 @@ class Run:
         self._check_size()
         self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
                                           self.accumulator, **method_options)
+        if hasattr(self.propagator, "set_horizon"):
+            # A baseline integrating blocks of intervals ends none past the run.
+            self.propagator.set_horizon(int(self.steps[-1]))
         if saved is None:
             self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
         else:

@@ -195,3 +195,41 @@ def test_resuming_from_a_checkpoint_file_is_bitwise_identical(method, options, c
     resumed = checkpoint.read(tmp_path / "c.ckpt").state
     make_propagator(method, model, 0.05, "qr", **options).advance(resumed, 13)
     assert same_state(whole, resumed)
+
+
+def test_a_cut_block_makes_the_next_as_long_as_the_part_used(c1):
+    """After a block is cut at output j (COND_LIMIT), the next block is j
+    intervals long; a block used whole makes the next BLOCK_GROWTH times
+    longer, never beyond the block size."""
+    from varint.baselines.blocks import BLOCK_GROWTH
+
+    model, x0 = c1
+    cap = 5000
+    prop = make_propagator("taylor", model, 0.05, "qr", block=cap)
+    state = RunState.start(x0[None], initial_deviations(4, 4, 1, seed=0))
+    starts, lengths = [], []
+    integrate = prop._integrate
+
+    def spy(state, m, y0, n_out):
+        lengths.append(n_out)
+        return integrate(state, m, y0, n_out)
+
+    new_block = prop._new_block
+
+    def spy_block(state, m, step):
+        starts.append(step)
+        return new_block(state, m, step)
+
+    prop._integrate, prop._new_block = spy, spy_block
+    prop.advance(state, 40_000)
+    used = np.diff(starts)
+    assert lengths[0] == cap and (used < np.array(lengths[:-1])).sum() >= 5
+    grown = 0
+    for length, part, after in zip(lengths, used, lengths[1:]):
+        if part < length:
+            assert after == part
+        else:
+            # Used whole; cut right at its last output it stays as long.
+            assert after in (length, min(cap, int(length * BLOCK_GROWTH) + 1))
+            grown += after > length
+    assert grown >= 1
