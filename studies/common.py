@@ -38,9 +38,12 @@ from varint import identity
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
-#: The machine when the study started (its load, above all): this module is
-#: imported by every study before it does any work.
+#: The machine when the study started (its load, above all) and the code
+#: that runs: this module is imported by every study before it does any
+#: work (the code identity is not worked out at the end, when the sources
+#: on disk may have changed).
 STARTED = identity.machine()
+CODE = identity.code_identity()
 #: What ``_provenance.times`` says when a study does not say otherwise.
 MEASURED = "measured: wall or CPU time of the runs themselves (see the study's docstring)"
 #: A contender whose call takes less than this many seconds is called again
@@ -84,7 +87,7 @@ def provenance(times=MEASURED):
     ``load_end`` (the load now), ``command``, ``created`` and ``times`` (how
     the times in it were obtained: "measured…", or what was derived and how;
     a dict when fields differ)."""
-    return {"code": identity.code_identity(), "machine": dict(STARTED),
+    return {"code": dict(CODE), "machine": dict(STARTED),
             "load_end": identity.machine()["load"],
             "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
             "created": datetime.datetime.now(datetime.timezone.utc).isoformat(

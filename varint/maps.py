@@ -204,7 +204,7 @@ def run_chunk(model, x0, indices, spec):
                   state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
                   counts=dict(state.counts),
                   provenance={"method_options": job.propagator.describe(),
-                              "versions": job.versions(), "code": identity.code_identity(),
+                              "versions": job.versions(), "code": job.code,
                               "machine": job.machine},
                   interrupted=stop == "interrupted")
 

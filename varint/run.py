@@ -228,8 +228,9 @@ class Run:
                  progress, errors, escape_radius, checkpoint, checkpoint_interval, options,
                  energy_tol=None):
         model = _model(model)
-        # The machine as the run starts (its load, above all).
-        self.machine = identity.machine()
+        # The machine as the run starts (its load, above all), and the code:
+        # worked out once per process, at its first run, not hours later.
+        self.machine, self.code = identity.machine(), identity.code_identity()
         self.indicator, fixed = resolve(indicator)
         ind = self.indicator
         given = {k: v for k, v in options.items() if k in ind.options}
@@ -536,4 +537,4 @@ class Run:
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
             wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
-            code=identity.code_identity(), machine=dict(self.machine))
+            code=dict(self.code), machine=dict(self.machine))
