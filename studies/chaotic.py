@@ -26,11 +26,23 @@ separated anyway.
 
 from __future__ import annotations
 
+import json
+import time
+from pathlib import Path
+
 import numpy as np
 
 import varint
+from studies.common import CODE, STARTED
+from studies.paper_runs import PER_DECADE, CpuLedger
+from varint.state import initial_deviations, output_steps
 
-__all__ = ["SAMPLE", "RADIUS", "SEED", "nearby", "reference_sample"]
+__all__ = ["SAMPLE", "RADIUS", "SEED", "nearby", "reference_sample", "sample_run",
+           "SAMPLE_SCHEME"]
+
+#: The scheme and step of :func:`sample_run`: sixth order, energy error
+#: ~1e-12 on C1, an integrator other than the paper's methods it judges.
+SAMPLE_SCHEME, SAMPLE_TAU = "ABA864", 0.05
 
 #: Orbits in a sample, their distance from the orbit, and the seed of
 #: their displacements.
@@ -56,6 +68,51 @@ def nearby(model, x0, n=SAMPLE, radius=RADIUS, seed=SEED):
             raise ValueError(f"no orbit of energy {e0:g} within {radius:g} of {x0.tolist()}")
         x[N:] *= np.sqrt(kinetic / float(model.kinetic(x[N:])))
     return X
+
+
+def sample_run(out, orbit, t_end, fresh=False):
+    """The Lyapunov spectra of the :data:`SAMPLE` orbits near the paper's
+    ``orbit`` (:func:`nearby`, the vectors of seed 0 as every paper run),
+    by the TM method with :data:`SAMPLE_SCHEME` at τ = 0.05 to ``t_end``,
+    20 outputs per decade: stored in ``out/runs`` as a result and a JSON
+    sidecar with its CPU time, resumable from a checkpoint (as
+    :func:`studies.paper_runs.run`). Returns the result (exponents of shape
+    (SAMPLE, n_out, 2N))."""
+    model, x0 = varint.paper_orbit(orbit)
+    key = (f"sample-{orbit}-tm-{SAMPLE_SCHEME}-tau{SAMPLE_TAU:g}-n{SAMPLE}-r{RADIUS:g}-"
+           f"s{SEED}-t{t_end:g}")
+    store = Path(out) / "runs"
+    path, meta_path = store / f"{key}.npz", store / f"{key}.json"
+    if not fresh and path.exists() and meta_path.exists():
+        return varint.load_result(path)
+    (store / "checkpoints").mkdir(parents=True, exist_ok=True)
+    checkpoint = store / "checkpoints" / f"{key}.ckpt"
+    ledger = CpuLedger(checkpoint.with_suffix(".cpu.json"))
+    if fresh:
+        checkpoint.unlink(missing_ok=True)
+        ledger.path.unlink(missing_ok=True)
+    X = nearby(model, x0)
+    W = np.repeat(initial_deviations(model.dim, model.dim, 1, seed=0), len(X), axis=0)
+    t_out = output_steps(t_end, SAMPLE_TAU, per_decade=PER_DECADE) * SAMPLE_TAU
+    earlier = ledger.sessions() if checkpoint.exists() else []
+    c0 = time.process_time()
+    with ledger.session(earlier, c0):
+        r = varint.lyapunov_spectrum(model, X, t_end, tau=SAMPLE_TAU, scheme=SAMPLE_SCHEME,
+                                     deviations=W, t_out=t_out, checkpoint=checkpoint,
+                                     progress=False)
+    if r.interrupted:
+        raise KeyboardInterrupt(f"sample {key} interrupted; {checkpoint} resumes it")
+    sessions = [*(earlier or []), time.process_time() - c0]
+    r.save(path)
+    meta_path.write_text(json.dumps({
+        "orbit": orbit, "n": len(X), "radius": RADIUS, "seed": SEED, "scheme": SAMPLE_SCHEME,
+        "tau": SAMPLE_TAU, "t_end": t_end, "cpu": sum(sessions),
+        "cpu_basis": "measured" if earlier is not None else "the last session only",
+        "cpu_sessions": sessions, "wall": r.provenance.wall_time, "code": CODE,
+        "machine": STARTED}, indent=1))
+    checkpoint.unlink(missing_ok=True)
+    ledger.path.unlink(missing_ok=True)
+    return r
 
 
 def reference_sample(model, X, W0, t_end, tau=0.05):

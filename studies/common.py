@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import datetime
+import hashlib
 import json
 import math
 import os
@@ -43,7 +44,17 @@ RESULTS = HERE / "results"
 #: work (the code identity is not worked out at the end, when the sources
 #: on disk may have changed).
 STARTED = identity.machine()
-CODE = identity.code_identity()
+
+
+def _studies_digest():
+    # A study's output depends on the studies' code too.
+    h = hashlib.sha256()
+    for path in sorted(HERE.glob("*.py")):
+        h.update(path.name.encode() + path.read_bytes())
+    return h.hexdigest()
+
+
+CODE = {**identity.code_identity(), "studies": _studies_digest()}
 #: What ``_provenance.times`` says when a study does not say otherwise.
 MEASURED = "measured: wall or CPU time of the runs themselves (see the study's docstring)"
 #: A contender whose call takes less than this many seconds is called again
@@ -82,8 +93,9 @@ def _plain(obj):
 
 
 def provenance(times=MEASURED):
-    """What produced a study's output: ``code`` (varint's source digest and
-    git commit), ``machine`` (CPU model, cores, load when the study started),
+    """What produced a study's output: ``code`` (varint's source digest, the
+    git commit, and ``studies``: the digest of the studies' own ``.py``
+    files), ``machine`` (CPU model, cores, load when the study started),
     ``load_end`` (the load now), ``command``, ``created`` and ``times`` (how
     the times in it were obtained: "measured…", or what was derived and how;
     a dict when fields differ)."""

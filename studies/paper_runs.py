@@ -55,7 +55,7 @@ from varint.files import atomic_write  # noqa: E402
 from varint.state import output_steps  # noqa: E402
 
 __all__ = ["PAPER_TAU", "PAPER_DELTA", "SEED", "Stored", "run", "run_key", "method_options",
-           "METHOD_LABELS", "longest_stored", "horizon", "cpu_basis"]
+           "METHOD_LABELS", "longest_stored", "horizon", "cpu_basis", "CpuLedger"]
 
 #: The paper's renormalisation interval τ and DOP853 threshold δ (Sect. VI).
 PAPER_TAU = 0.05
@@ -209,7 +209,7 @@ def run(out, kind, orbit, method, tau, t_end, *, orders=None, delta=None, fresh=
 
     (store / "checkpoints").mkdir(parents=True, exist_ok=True)
     checkpoint = store / "checkpoints" / f"{key}.ckpt"
-    ledger = _Ledger(checkpoint.with_suffix(".cpu.json"))
+    ledger = CpuLedger(checkpoint.with_suffix(".cpu.json"))
     if fresh:
         checkpoint.unlink(missing_ok=True)
         ledger.path.unlink(missing_ok=True)
@@ -262,7 +262,7 @@ def cpu_basis(meta):
         if meta["resumed"] else "measured"
 
 
-class _Ledger:
+class CpuLedger:
     """The CPU seconds of a run's sessions, kept beside its checkpoint so
     that a resumed run's CPU time is measured, not extrapolated: a
     background thread rewrites the current session's CPU every
