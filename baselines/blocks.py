@@ -26,8 +26,9 @@ integrated whole from the state at its start, and its outputs, the matrix C
 and the position in the block live in ``state.extra``: how a run is chunked
 into ``advance`` calls, or resumed from a checkpoint, cannot change a bit.
 A block also ends early, deterministically, once C has become so
-ill-conditioned (condition > :data:`COND_LIMIT`) that the virtual
-renormalisation would lose accuracy in the weakest directions; the rest of
+ill-conditioned (condition > :data:`COND_LIMIT`, or the propagator's own
+``cond_limit``) that the virtual renormalisation would lose accuracy in the
+weakest directions; the rest of
 it is discarded and a new block starts from the renormalised state. The
 next block is then only as long as the part used, and each block used
 whole makes the next a quarter longer, up to the block size
@@ -61,8 +62,10 @@ END_BLOCK = -1
 #: virtual QR matrix C before a block ends early: a larger one amplifies the
 #: integrator's error in the weakest directions by as much.
 COND_LIMIT = 100.0
-#: Largest block, in float64 numbers stored per orbit (16 MiB).
+#: Largest block, in float64 numbers stored per orbit (16 MiB), and for all
+#: the orbits of a run together (128 MiB).
 MAX_BLOCK_VALUES = 1 << 21
+MAX_BLOCK_TOTAL = 1 << 24
 #: A block used whole makes the next one this much longer (up to the block
 #: size); one cut by COND_LIMIT makes the next as long as the part used.
 BLOCK_GROWTH = 1.25
@@ -209,6 +212,8 @@ class BlockPropagator:
     OPTIONS = {}
     #: Time spanned by a block when the ``block`` option is not given.
     BLOCK_SPAN = 0.0
+    #: Condition of the virtual renormalisation at which a block is cut.
+    cond_limit = COND_LIMIT
 
     def _setup(self, model, tau, renorm, options, accumulator=None):
         self.model = model
@@ -240,7 +245,8 @@ class BlockPropagator:
         """Intervals per block for states of dimension ``dim`` with ``k``
         vectors: the ``block`` option if given, else enough for
         :attr:`BLOCK_SPAN` time units; at most :data:`MAX_BLOCK_VALUES`
-        stored numbers per orbit."""
+        stored numbers per orbit (and :data:`MAX_BLOCK_TOTAL` for all the
+        orbits of a run, which ``_prepare`` applies)."""
         block = self.options.get("block")
         if block is None:
             block = max(1, int(round(self.BLOCK_SPAN / self.tau)))
@@ -279,7 +285,8 @@ class BlockPropagator:
         if self._key("next") in state.extra:
             return
         m, d, k = state.W.shape
-        b = self.block_size(d, k)
+        size = d * (1 + k) + self._clock
+        b = max(1, min(self.block_size(d, k), MAX_BLOCK_TOTAL // (m * size)))
         state.extra.update({
             self._key("y"): np.zeros((m, b, d * (1 + k) + self._clock)),
             self._key("C"): np.zeros((m, k, k)),
@@ -307,7 +314,8 @@ class BlockPropagator:
             start = nxt[m]
             status, j = consume(ys[m], C[m], start, min(filled[m], start + n - done), state.x[m],
                                 state.W[m], self._mode, state.acc_m[m], state.acc_e[m],
-                                self._escape_r2, COND_LIMIT, accumulate, aux, model.grad_kernel,
+                                self._escape_r2, self.cond_limit, accumulate, aux,
+                                model.grad_kernel,
                                 model.params, model.inverse_mass, flow,
                                 state.step + done + 1, self.tau, self._clock)
             if self._clock:

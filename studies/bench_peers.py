@@ -87,7 +87,9 @@ reference accuracy" when its sample of X1(t) is that of the same orbits by
 the reference integrator (heyoka in double at its default tolerance, QR
 every 0.05) by the two-sample Kolmogorov–Smirnov test at 1 %
 (:func:`studies.claims.same_law`); the cheapest such runs are compared
-(their time is that of the single run of C1 itself).
+(their time is that of the single run of C1 itself). The spectra are timed
+in CPU time (``time.process_time``: every contender runs on one thread),
+with each ratio's spread over the repeats.
 
 Orbit only
 ----------
@@ -117,7 +119,7 @@ machine; the JSON records the options a run used.
 from __future__ import annotations
 
 import copy
-import itertools
+import json
 import math
 import os
 import sys
@@ -137,8 +139,8 @@ from studies.accuracy import TAU_REF
 from studies.bench_chaos_map import THRESHOLD, pynamicalsys_loop, section
 from studies.bench_tm import c_program, run_c
 from studies.chaotic import nearby, reference_sample
-from studies.claims import same_law
-from studies.common import interleaved, parse_args, save_csv, save_json
+from studies.claims import cost_at, pareto, same_law
+from studies.common import CODE, interleaved, parse_args, save_csv, save_json
 from varint.cache import reference
 
 DRIFT, KICK = 0, 1  # the kinds of SplittingScheme.stages()
@@ -764,31 +766,10 @@ def heyoka_spectrum(model, tol):
     return run, seconds
 
 
-def pareto(points):
-    """The cost–error front of (cost, error) points: each kept point is
-    more accurate than every cheaper one; sorted by cost."""
-    front = []
-    for cost, err in sorted(points):
-        if np.isfinite(err) and (not front or err < front[-1][1]):
-            front.append((cost, err))
-    return front
-
-
-def cost_at(front, error):
-    """Cost of a front at ``error``, log–log interpolated; (cost, how):
-    how = "interpolated", "at most" (the front's cheapest point is already
-    more accurate: its cost bounds it) or "unreachable"."""
-    if not front:
-        return None, "unreachable"
-    if error >= front[0][1]:
-        return front[0][0], "at most"
-    if error < front[-1][1]:
-        return None, "unreachable"
-    for (c0, e0), (c1, e1) in itertools.pairwise(front):
-        if e1 <= error <= e0:
-            f = math.log(error / e0) / math.log(e1 / e0)
-            return math.exp(math.log(c0) + f * math.log(c1 / c0)), "interpolated"
-    return None, "unreachable"
+def _spread(slow, fast):
+    """(smallest, largest) over the turns of the ratio of two rows' times."""
+    ratios = [a / b for a, b in zip(slow["turn_seconds"], fast["turn_seconds"], strict=True)]
+    return [min(ratios), max(ratios)]
 
 
 def spectra_case(quick, repeats, names=("R1", "C1")):
@@ -834,7 +815,8 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
                 tasks[("heyoka", f"QR every {every:g}", tol)] = (
                     lambda run=run, every=every, x0=x0, W0=W0, t_end=t_end:
                     run(x0, W0, t_end, every))
-        best, res = interleaved(tasks, repeats)
+        turns = {}
+        best, res = interleaved(tasks, repeats, clock=time.process_time, turns=turns)
         samples = {}
         if name != "R1":
             # Chaotic: X1 of 64 nearby orbits by each contender against the
@@ -859,7 +841,8 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
                      else f"{series} τ={param:g}" if peer == "varint"
                      else f"{series}, tol {param:g}")
             row = {"orbit": name, "peer": peer, "series": series, "config": label,
-                   "seconds": seconds, "X1": float(X[0]), "X1_error": abs(float(X[0]) - x1_ref)}
+                   "seconds": seconds, "turn_seconds": turns[(peer, series, param)],
+                   "X1": float(X[0]), "X1_error": abs(float(X[0]) - x1_ref)}
             if samples:
                 law = same_law(samples[(peer, series, param)], samples["reference"])
                 row.update(same_law=law.holds, same_law_p=law.value,
@@ -898,7 +881,8 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
                                   "heyoka": row["config"], "heyoka_s": row["seconds"],
                                   "how": "cheapest with the reference's X1 distribution",
                                   "heyoka_over_varint": None if v is None
-                                  else row["seconds"] / v["seconds"]})
+                                  else row["seconds"] / v["seconds"],
+                                  "spread": None if v is None else _spread(row, v)})
         out[name] = {"t_end": t_end, "X1_ref": x1_ref, "spread": spread, "rows": rows,
                      "equal_error": equal, "compile_s": compile_s}
         if samples:
@@ -1270,6 +1254,10 @@ def main(argv=None):
                             help="leave out the maps' two-thread column")
         parser.add_argument("--repeats", type=int, default=None,
                             help=f"repeats per timing (default {REPEATS}; 1 in quick mode)")
+        parser.add_argument("--merge", action="store_true",
+                            help="replace only the cases run in the stored bench_peers.json, "
+                                 "keeping the others (each case records when, on which code "
+                                 "and at which load it was measured)")
 
     args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
@@ -1300,26 +1288,46 @@ def main(argv=None):
         res["orbit"] = orbit_case(args.quick, repeats)
     if "fpu" in cases:
         res["fpu"] = fpu_case(args.quick, repeats)
+    measured = {"code": CODE, "load": [load, os.getloadavg()[0]], "repeats": repeats,
+                "argv": sys.argv[1:] if argv is None else argv,
+                "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    fresh = [case for case in CASES if case in res]
+    res["measured"] = dict.fromkeys(fresh, measured)
+    name = "bench_peers"
+    stored = args.out / f"{name}.json"
+    if args.merge and stored.exists():
+        old = json.loads(stored.read_text())
+        for case in CASES:
+            if case in old and case not in fresh:
+                res[case] = old[case]
+                res["measured"][case] = old.get("measured", {}).get(
+                    case, {"code": "not recorded (measured before code identity was stored)",
+                           "load": old.get("load_average"), "repeats": old.get("repeats"),
+                           "argv": old.get("argv")})
     text = report(res)
     print(text)
     res.update(repeats=repeats, quick=args.quick, argv=sys.argv[1:] if argv is None else argv,
                seconds=time.perf_counter() - start,
                load_average=[load, os.getloadavg()[0]], cpus=os.cpu_count(),
                versions=varint.results.package_versions("heyoka"))
-    name = "bench_peers"
     header = (f"# varint against its peers\n\n`python studies/bench_peers.py "
               f"{' '.join(res['argv'])}`: {res['seconds']:.0f} s, {repeats} repeat(s), "
               f"load average {res['load_average'][0]:.1f} → {res['load_average'][1]:.1f} on "
               f"{res['cpus']} CPUs; " + ", ".join(f"{k} {v}" for k, v in res["versions"].items()))
+    header += "\n\nMeasured: " + "; ".join(
+        f"{case} — " + (f"this run (load {m['load'][0]:.1f} → {m['load'][1]:.1f})"
+                        if case in fresh else
+                        f"an earlier run (`{' '.join(m.get('argv') or [])}`, code not recorded)")
+        for case, m in res["measured"].items())
     (args.out / f"{name}.md").write_text(header + "\n" + report(res, markdown=True) + "\n")
-    if "maps" in res:
+    if "maps" in fresh:
         save_csv(args.out, f"{name}_maps", res["maps"]["rows"], list(res["maps"]["rows"][0]))
-    if "spectra" in res:
+    if "spectra" in fresh:
         rows = [r for sp in res["spectra"].values() for r in sp["rows"]]
         save_csv(args.out, f"{name}_spectra", rows, list(rows[0]))
-    if "orbit" in res:
+    if "orbit" in fresh:
         save_csv(args.out, f"{name}_orbit", res["orbit"]["rows"], list(res["orbit"]["rows"][0]))
-    if "fpu" in res:
+    if "fpu" in fresh:
         save_csv(args.out, f"{name}_fpu", res["fpu"]["rows"], list(res["fpu"]["rows"][0]))
     save_json(args.out, name, res)
     return res

@@ -37,6 +37,7 @@ The measurements themselves (slopes, departure series) are in
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -52,7 +53,8 @@ __all__ = ["Judgement", "verdict", "RATIO_FACTOR", "ABOVE_FACTOR", "SLOPE_TOLERA
            "power_law_decades", "rate_law", "levels_off", "inverse_t", "grows", "departure",
            "same_time", "costs_more", "same_cost", "exponent_law", "EXPONENT_TOLERANCE",
            "EXPONENT_UNRESOLVED", "ACCURACY_NOISE", "ROUNDOFF_ERROR", "dominates",
-           "SAME_LAW_ALPHA", "same_law", "RULES"]
+           "SAME_LAW_ALPHA", "same_law", "pareto", "cost_at", "as_cheap_at_equal_error",
+           "RULES"]
 
 #: Numbers agree within this factor. The paper's numbers come from single
 #: runs of finite-time indicators from one random set of deviation vectors
@@ -351,6 +353,48 @@ def dominates(time_a, error_a, time_b, error_b, what=""):
                      f"{what}{ratio:.2f}× faster, error {error_a:.1e} vs {error_b:.1e}")
 
 
+def pareto(points):
+    """The cost–error front of (cost, error) points: each kept point is
+    more accurate than every cheaper one; sorted by cost."""
+    front = []
+    for cost, err in sorted(points):
+        if np.isfinite(err) and (not front or err < front[-1][1]):
+            front.append((cost, err))
+    return front
+
+
+def cost_at(front, error):
+    """Cost of a front at ``error``, log–log interpolated; (cost, how):
+    how = "interpolated", "at most" (the front's cheapest point is already
+    more accurate: its cost bounds it) or "unreachable"."""
+    if not front:
+        return None, "unreachable"
+    if error >= front[0][1]:
+        return front[0][0], "at most"
+    if error < front[-1][1]:
+        return None, "unreachable"
+    for (c0, e0), (c1, e1) in itertools.pairwise(front):
+        if e1 <= error <= e0:
+            f = math.log(error / e0) / math.log(e1 / e0)
+            return math.exp(math.log(c0) + f * math.log(c1 / c0)), "interpolated"
+    return None, "unreachable"
+
+
+def as_cheap_at_equal_error(front, cost, error, what=""):
+    """Rule: a contender whose cost–error front (:func:`pareto`) is
+    ``front`` reaches ``error`` at no more than (1 + COST_NOISE)·``cost``
+    (read off its front: :func:`cost_at`). The value is ``cost`` over the
+    front's cost at that error (how many times cheaper)."""
+    mine, how = cost_at(front, error)
+    tol = f"front's cost at the error ≤ {1 + COST_NOISE:g}× (log–log interpolated)"
+    if mine is None:
+        return Judgement("as_cheap_at_equal_error", False, None, None, tol,
+                         f"{what}error {error:.1e} not reached")
+    ratio = float(cost) / float(mine)
+    return Judgement("as_cheap_at_equal_error", bool(mine <= (1 + COST_NOISE) * cost), ratio,
+                     None, tol, f"{what}{ratio:.2f}× cheaper at error {error:.1e} ({how})")
+
+
 #: Significance level of :func:`same_law`: a sample is said to differ from
 #: the reference's only when a two-sample test rejects at 1 %, so that of
 #: the many comparisons of a study run few fail by chance.
@@ -451,6 +495,12 @@ RULES = {
                              f"(or both ≤ {ROUNDOFF_ERROR:g})",
                   "as costs_more for time; where steps and restarts fall moves one run's "
                   "error by up to 2× at the same tolerance"),
+    "as_cheap_at_equal_error": (as_cheap_at_equal_error,
+                                f"cost at the same error ≤ {1 + COST_NOISE:g}× (front "
+                                "interpolated in log–log)",
+                                "the global error of an adaptive integrator at a given "
+                                "tolerance moves by factors with where its steps fall: "
+                                "equal accuracy is read off the cost–error front"),
     "same_law": (same_law, f"two-sample Kolmogorov–Smirnov p ≥ {SAME_LAW_ALPHA:g}",
                  "a chaotic orbit's finite-time values scatter with the trajectory: samples "
                  "of nearby orbits are compared, not one run; 1 % so that few of a study's "

@@ -122,7 +122,7 @@ def save_json(out, name, data, times=MEASURED):
     return path
 
 
-def interleaved(tasks, repeats, self_timed=(), clock=time.perf_counter):
+def interleaved(tasks, repeats, self_timed=(), clock=time.perf_counter, turns=None):
     """Each callable of ``tasks`` (label -> callable) run ``repeats`` times
     in turn (a, b, c, a, b, c, …, so that the load of the shared machine
     falls on every contender alike); returns (label -> best seconds per
@@ -135,7 +135,9 @@ def interleaved(tasks, repeats, self_timed=(), clock=time.perf_counter):
     compilation); they are called once per turn. ``clock`` is wall time by
     default; ``time.process_time`` (this process's CPU time) keeps the
     time other jobs of a loaded machine take from a single-threaded
-    contender out of its figure."""
+    contender out of its figure. A dict ``turns`` receives every turn's
+    seconds per call (label -> list), from which :func:`ratio_spread`
+    gives the spread of a ratio over the repeats."""
     best, out = dict.fromkeys(tasks, math.inf), {}
     for _ in range(repeats):
         for label, task in tasks.items():
@@ -150,7 +152,19 @@ def interleaved(tasks, repeats, self_timed=(), clock=time.perf_counter):
             if label in self_timed:
                 seconds, out[label] = out[label]
             best[label] = min(best[label], seconds)
+            if turns is not None:
+                turns.setdefault(label, []).append(seconds)
     return best, out
+
+
+def ratio_spread(turns, a, b):
+    """The ratio of contender ``b``'s time to ``a``'s in each turn of
+    :func:`interleaved` (how many times faster ``a`` is): (smallest,
+    largest) over the turns, or None without per-turn times."""
+    if not turns or a not in turns or b not in turns:
+        return None
+    ratios = [tb / ta for ta, tb in zip(turns[a], turns[b], strict=True)]
+    return min(ratios), max(ratios)
 
 
 def save_csv(out, name, rows, columns):
