@@ -536,7 +536,10 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
               two_threads=True):
     """The map tables (module docstring): ``indicators`` a subset of
     :data:`INDICATORS`; ``n_grid`` the grid's side (default 51, 10 in quick
-    mode); ``two_threads`` False leaves out the two-thread column."""
+    mode); ``two_threads`` False leaves out the two-thread column and times
+    every contender in CPU time (``time.process_time``: all run on one
+    thread then), which a loaded machine disturbs far less than wall
+    time."""
     import heyoka as hy
 
     hy.set_nthreads(1)
@@ -606,7 +609,9 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
                                                                  X[sample], t_end)))
     elif "sali" in indicators:
         print("pynamicalsys: skipped (quick mode; --pynamicalsys to run it)")
-    best, out = interleaved(tasks, repeats, self_timed={py_key})
+    turns = {}
+    best, out = interleaved(tasks, repeats, self_timed={py_key}, turns=turns,
+                            clock=time.perf_counter if two_threads else time.process_time)
 
     rows = []
     for (ind, peer, label, threads), seconds in best.items():
@@ -620,7 +625,8 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
                "orbits_per_s_2_threads": m / best[(ind, peer, label, 2)] if two_threads
                else None,
                "agreement": agreement(ind, values, classes[ind], thresholds[ind][0]),
-               "compile_s": compile_seconds[(ind, peer, label)]}
+               "compile_s": compile_seconds[(ind, peer, label)],
+               "turn_seconds": turns[(ind, peer, label, 1)]}
         rows.append(row)
     for ind, values in zip(("fli", "megno"), out.get(("soa", "numba", "", 1), ())):
         if ind not in indicators:
@@ -649,6 +655,7 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
     variants = map_variants(model, X, W, t_end, classes, thresholds, repeats, quick,
                             [i for i in ("fli", "megno") if i in indicators])
     return {"grid": n_grid, "orbits": m, "t_end": t_end, "rows": rows, "variants": variants,
+            "clock": "wall" if two_threads else "cpu",
             "equal_quality": equal_quality(rows), "thresholds": {k: {"value": v[0], "rule": v[1]} for k, v in thresholds.items()},
             "chaotic_fraction": {k: float(np.mean(v)) for k, v in classes.items()},
             "heyoka": hy.__version__, "simd_size": hy.recommended_simd_size()}
@@ -671,10 +678,14 @@ def equal_quality(rows):
                     "hy_b8_1e6_agreement": None if fixed is None else fixed["agreement"],
                     "varint_over_hy_b8_1e6": None if fixed is None
                     else v["orbits_per_s"] / fixed["orbits_per_s"],
+                    "spread_hy_b8_1e6": None if fixed is None or "turn_seconds" not in v
+                    else _spread(fixed, v),
                     "heyoka_equal": None if best is None else best["config"],
                     "heyoka_equal_agreement": None if best is None else best["agreement"],
                     "varint_over_heyoka_equal": None if best is None
-                    else v["orbits_per_s"] / best["orbits_per_s"]})
+                    else v["orbits_per_s"] / best["orbits_per_s"],
+                    "spread_heyoka_equal": None if best is None or "turn_seconds" not in v
+                    else _spread(best, v)})
     return out
 
 

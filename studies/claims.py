@@ -47,7 +47,7 @@ from varint.departure import departure_time
 
 from studies.laws import decade_slopes, slope
 
-__all__ = ["Judgement", "verdict", "RATIO_FACTOR", "ABOVE_FACTOR", "SLOPE_TOLERANCE",
+__all__ = ["Judgement", "verdict", "EDGE", "RATIO_FACTOR", "ABOVE_FACTOR", "SLOPE_TOLERANCE",
            "LATE_DECADES", "DEPARTURE_FACTOR", "PLOT_FACTOR", "COST_NOISE", "late_window",
            "agrees", "in_band", "at_most", "above", "power_law", "power_tolerance",
            "power_law_decades", "rate_law", "levels_off", "inverse_t", "grows", "departure",
@@ -115,6 +115,11 @@ class Judgement:
         The tolerance, as applied.
     text : str
         The measurement in words, for the "ours" column.
+    edge : float or None
+        How the measured quantity compares with the threshold it is judged
+        by, as their ratio (1 on the threshold; a verdict with an edge
+        within :data:`EDGE` of 1 sits on its threshold and is reported
+        with its margin, :meth:`margin`).
     """
 
     rule: str
@@ -123,12 +128,31 @@ class Judgement:
     window: tuple | None
     tolerance: str
     text: str
+    edge: float | None = None
 
     def record(self):
         """The JSON form stored with a claim."""
-        return {"rule": self.rule, "holds": self.holds, "value": self.value,
-                "window": None if self.window is None else [float(w) for w in self.window],
-                "tolerance": self.tolerance}
+        out = {"rule": self.rule, "holds": self.holds, "value": self.value,
+               "window": None if self.window is None else [float(w) for w in self.window],
+               "tolerance": self.tolerance}
+        if self.edge is not None:
+            out["edge"] = self.edge
+        return out
+
+    def margin(self):
+        """"on its threshold (…)" when the verdict would flip with a change
+        of the measured quantity by less than :data:`EDGE`, else ""."""
+        if self.edge is None or self.holds is None or abs(self.edge - 1) > EDGE:
+            return ""
+        return (f"{self.rule} sits on its threshold: {self.text} against "
+                f"{self.tolerance} (the measured quantity is {self.edge:.3f} of the "
+                f"threshold; a {100 * abs(self.edge - 1):.1f} % change would flip it)")
+
+
+#: A verdict whose measured quantity is within this fraction of its
+#: threshold is stated with its margin: 10 %, the noise allowed for CPU
+#: times and about the spread of two readings of a log-log plot.
+EDGE = 0.10
 
 
 def verdict(judgements):
@@ -158,8 +182,9 @@ def agrees(ours, paper, what=""):
         return Judgement("agrees", None, None, None, tol, f"{what}no value")
     ratio = float(ours) / float(paper)
     holds = bool(ratio > 0 and abs(math.log(ratio)) < math.log(RATIO_FACTOR))
+    edge = max(ratio, 1 / ratio) / RATIO_FACTOR if ratio > 0 else None
     return Judgement("agrees", holds, ratio, None, tol,
-                     f"{what}{float(ours):.2g} (ours/paper {ratio:.2g})")
+                     f"{what}{float(ours):.2g} (ours/paper {ratio:.3g})", edge)
 
 
 def in_band(paper, median, maximum, window=None):
@@ -184,7 +209,7 @@ def at_most(ours, bound, what=""):
         return Judgement("at_most", None, None, None, tol, f"{what}no value")
     ratio = abs(float(ours)) / float(bound)
     return Judgement("at_most", bool(ratio <= RATIO_FACTOR), ratio, None, tol,
-                     f"{what}{abs(float(ours)):.2g}")
+                     f"{what}{abs(float(ours)):.2g}", ratio / RATIO_FACTOR)
 
 
 def above(a, b, what=""):
@@ -195,7 +220,7 @@ def above(a, b, what=""):
         return Judgement("above", None, None, None, tol, f"{what}no value")
     ratio = float(a) / float(b)
     return Judgement("above", bool(ratio > ABOVE_FACTOR), ratio, None, tol,
-                     f"{what}ratio {ratio:.2g}")
+                     f"{what}ratio {ratio:.2g}", ratio / ABOVE_FACTOR)
 
 
 def power_tolerance(power):
@@ -308,8 +333,12 @@ def same_time(found, paper_t, horizon):
     tol = f"within ×{PLOT_FACTOR:.3g}"
     if seen:
         holds = bool(min(seen) / PLOT_FACTOR <= paper_t <= max(seen) * PLOT_FACTOR)
+        # The nearer end of the widened range, as the factor by which the
+        # paper's time lies from it.
+        edge = max(paper_t / (max(seen) * PLOT_FACTOR), min(seen) / PLOT_FACTOR / paper_t)
         return Judgement("same_time", holds, min(seen), None, tol,
-                         f"t ≈ {min(seen):.2g}" + (f"–{max(seen):.2g}" if len(seen) > 1 else ""))
+                         f"t ≈ {min(seen):.3g}" + (f"–{max(seen):.3g}" if len(seen) > 1 else "")
+                         + f" (paper {paper_t:.2g})", edge)
     holds = None if horizon < paper_t * PLOT_FACTOR else False
     return Judgement("same_time", holds, None, None, tol, f"not seen to t = {horizon:.0e}")
 
@@ -318,7 +347,8 @@ def costs_more(a, b, what=""):
     """Rule: CPU time ``a`` exceeds ``b`` when a/b > 1 + :data:`COST_NOISE`."""
     ratio = float(a) / float(b)
     return Judgement("costs_more", bool(ratio > 1 + COST_NOISE), ratio, None,
-                     f"ratio > {1 + COST_NOISE:g}", f"{what}{ratio:.2f}×")
+                     f"ratio > {1 + COST_NOISE:g}", f"{what}{ratio:.3g}×",
+                     (1 + COST_NOISE) / ratio)
 
 
 def same_cost(a, b, what=""):
@@ -326,7 +356,8 @@ def same_cost(a, b, what=""):
     :data:`COST_NOISE`."""
     ratio = float(a) / float(b)
     return Judgement("same_cost", bool(abs(ratio - 1) <= COST_NOISE), ratio, None,
-                     f"|ratio − 1| ≤ {COST_NOISE:g}", f"{what}{ratio:.2f}×")
+                     f"|ratio − 1| ≤ {COST_NOISE:g}", f"{what}{ratio:.3g}×",
+                     abs(ratio - 1) / COST_NOISE if ratio != 1 else None)
 
 
 #: Two global errors of adaptive integrators run at the same tolerance are

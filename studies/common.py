@@ -230,6 +230,10 @@ class Claims:
         """
         if holds is False and not note:
             note = "unexplained"
+        # A verdict that sits on its threshold says so, with its margin.
+        edges = [j.margin() for j in rules if j.margin()]
+        if edges:
+            note = "; ".join([note, *edges] if note else edges)
         item = {"claim": claim, "paper": paper, "ours": ours,
                 "holds": None if holds is None else bool(holds), "figure": figure,
                 "note": note, "rules": [j.record() for j in rules]}
