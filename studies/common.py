@@ -107,14 +107,20 @@ def provenance(times=MEASURED):
             "times": times}
 
 
-def save_json(out, name, data, times=MEASURED):
+def save_json(out, name, data, times=MEASURED, judged_again=False):
     """Write ``data`` as ``out/name.json`` (atomically) and return the path.
 
     A dict gets the key ``_provenance`` (:func:`provenance`, with ``times``);
     a list (a claims file) is written as it is: the study's own JSON
-    beside it carries the provenance."""
+    beside it carries the provenance. With ``judged_again``, ``data`` keeps
+    the ``_provenance`` of the run that measured it, and records this
+    process's under ``judged_again`` (claims re-judged from stored
+    measurements)."""
     path = Path(out) / f"{name}.json"
-    if isinstance(data, dict):
+    if isinstance(data, dict) and judged_again and "_provenance" in data:
+        data = {**data, "_provenance": {**data["_provenance"],
+                                        "judged_again": provenance("no time measured")}}
+    elif isinstance(data, dict):
         data = {**data, "_provenance": provenance(times)}
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(_plain(data), indent=1))
