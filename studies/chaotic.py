@@ -26,19 +26,24 @@ separated anyway.
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-import varint
-from studies.common import CODE, STARTED
-from studies.paper_runs import PER_DECADE, CpuLedger
-from varint.state import initial_deviations, output_steps
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import varint  # noqa: E402
+from studies.common import CODE, RESULTS, STARTED  # noqa: E402
+from studies.paper_runs import PER_DECADE, CpuLedger  # noqa: E402
+from varint.state import initial_deviations, output_steps  # noqa: E402
 
 __all__ = ["SAMPLE", "RADIUS", "SEED", "nearby", "reference_sample", "sample_run",
-           "SAMPLE_SCHEME"]
+           "SAMPLE_SCHEME", "longest_sample", "sample_at"]
 
 #: The scheme and step of :func:`sample_run`: sixth order, energy error
 #: ~1e-12 on C1, an integrator other than the paper's methods it judges.
@@ -115,6 +120,40 @@ def sample_run(out, orbit, t_end, fresh=False):
     return r
 
 
+def longest_sample(out, orbit):
+    """The stored :func:`sample_run` of ``orbit`` with the longest horizon
+    (loaded), or None."""
+    found = sorted(((float(p.stem.rsplit("-t", 1)[1]), p) for p in
+                    (Path(out) / "runs").glob(f"sample-{orbit}-*.npz")
+                    if p.with_suffix(".json").exists()), key=lambda tp: tp[0])
+    return varint.load_result(found[-1][1]) if found else None
+
+
+def sample_at(result, t, spread_from=None):
+    """X1 of a stored sample (:func:`sample_run`) at time ``t``: the sample
+    at its output nearest ``t`` if the run reaches it; beyond its horizon T,
+    the sample at T with its spread about the median narrowed by the law
+    the sample itself shows, spread ∝ t^β (β fitted to the interquartile
+    range over the last ``spread_from`` to T, by default two decades), as
+    the finite-time exponents of a chaotic sea converge. Returns (values,
+    how) with ``how`` saying which."""
+    t_s = result.t
+    x1 = result.exponents[:, :, 0]
+    if t <= t_s[-1] * (1 + 1e-9):
+        j = int(np.argmin(np.abs(np.log(t_s / t))))
+        return x1[:, j], f"the sample at t = {t_s[j]:.3g}"
+    start = spread_from or t_s[-1] / 100
+    window = t_s >= start
+    iqr = np.subtract(*np.percentile(x1[:, window], [75, 25], axis=0))
+    beta = float(np.polyfit(np.log(t_s[window]), np.log(iqr), 1)[0])
+    last = x1[:, -1]
+    median = float(np.median(last))
+    scaled = median + (last - median) * (t / t_s[-1]) ** beta
+    return scaled, (f"the sample at t = {t_s[-1]:.0e} with its spread narrowed to t = {t:.0e} "
+                    f"by its own law (interquartile range ∝ t^{beta:.2f} from t = "
+                    f"{start:.0e})")
+
+
 def reference_sample(model, X, W0, t_end, tau=0.05):
     """X1(t_end) of every orbit of ``X`` (the sample of
     :func:`nearby`), from the deviation vectors ``W0`` (2N, k), by the
@@ -123,3 +162,21 @@ def reference_sample(model, X, W0, t_end, tau=0.05):
     r = varint.lyapunov_spectrum(model, X, t_end, tau=tau, method="taylor", deviations=W,
                                  t_out=[t_end], progress=False)
     return r.exponents[:, -1, 0]
+
+
+def main(argv=None):
+    """Compute (or resume, or load) the stored sample of a paper orbit."""
+    parser = argparse.ArgumentParser(description="64 orbits near a paper orbit, stored.")
+    parser.add_argument("orbit", choices=("R1", "C1", "C2", "R2", "R3"))
+    parser.add_argument("--t-end", type=float, required=True)
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    r = sample_run(args.out, args.orbit, args.t_end)
+    x1 = r.exponents[:, -1, 0]
+    print(f"{args.orbit}: X1(t = {r.t[-1]:g}) of {len(x1)} orbits: median {np.median(x1):.4g}, "
+          f"{x1.min():.4g}–{x1.max():.4g}")
+    return r
+
+
+if __name__ == "__main__":
+    main()

@@ -53,7 +53,7 @@ __all__ = ["Judgement", "verdict", "EDGE", "RATIO_FACTOR", "ABOVE_FACTOR", "SLOP
            "power_law_decades", "rate_law", "levels_off", "inverse_t", "grows", "departure",
            "same_time", "costs_more", "same_cost", "exponent_law", "EXPONENT_TOLERANCE",
            "EXPONENT_UNRESOLVED", "ACCURACY_NOISE", "ROUNDOFF_ERROR", "dominates",
-           "SAME_LAW_ALPHA", "same_law", "pareto", "cost_at", "as_cheap_at_equal_error",
+           "SAME_LAW_ALPHA", "same_law", "in_sample", "pareto", "cost_at", "as_cheap_at_equal_error",
            "RULES"]
 
 #: Numbers agree within this factor. The paper's numbers come from single
@@ -457,6 +457,23 @@ def same_law(sample, reference, what=""):
                           f"D = {test.statistic:.2f}, p = {test.pvalue:.2g}")
 
 
+def in_sample(value, sample, what=""):
+    """Rule: one run's value of a chaotic orbit's finite-time indicator is
+    a draw from the distribution of a sample of nearby orbits (the other
+    form of :func:`same_law`, for one value): it holds when the value lies
+    within the sample's range. For a sample of n an honest draw falls
+    outside it with probability 2/(n + 1) (3 % for 64). The value is the
+    draw's rank in the sample, as a fraction."""
+    s = np.sort(np.asarray(sample, dtype=float))
+    tol = f"within the range of {s.size} nearby orbits"
+    if s.size < 8 or not np.isfinite(s).all() or not _finite(value):
+        return Judgement("in_sample", None, None, None, tol, f"{what}no sample")
+    rank = float(np.searchsorted(s, value) / s.size)
+    return Judgement("in_sample", bool(s[0] <= value <= s[-1]), rank, None, tol,
+                     f"{what}{value:.3g} (sample {s[0]:.3g}–{s[-1]:.3g}, median "
+                     f"{np.median(s):.3g})")
+
+
 #: A disorder-averaged exponent (m₂ ∝ t^a, Λ ∝ t^a of the lattice papers)
 #: agrees with the paper's within this, or within two standard errors of
 #: the mean single-realisation slope if that is larger: half the smallest
@@ -532,6 +549,10 @@ RULES = {
                                 "the global error of an adaptive integrator at a given "
                                 "tolerance moves by factors with where its steps fall: "
                                 "equal accuracy is read off the cost–error front"),
+    "in_sample": (in_sample, "within the range of a sample of nearby orbits",
+                  "one run of a chaotic orbit is one draw of its finite-time exponents: it "
+                  "must look like a draw of the sample (outside its range by chance: "
+                  "2/(n + 1))"),
     "same_law": (same_law, f"two-sample Kolmogorov–Smirnov p ≥ {SAME_LAW_ALPHA:g}",
                  "a chaotic orbit's finite-time values scatter with the trajectory: samples "
                  "of nearby orbits are compared, not one run; 1 % so that few of a study's "
