@@ -19,21 +19,12 @@ def test_nearby_orbits_are_on_the_energy_surface_within_the_radius():
     assert np.array_equal(X, chaotic.nearby(model, x0))  # seeded
 
 
-def test_a_sample_beyond_its_horizon_narrows_by_its_own_law():
-    """With values m + a_i t^-1/2 exactly, the sample carried from T to
-    100 T is m + a_i (100 T)^-1/2: the fitted law is the one put in."""
-    rng = np.random.default_rng(0)
-    a = rng.standard_normal(64)
+def test_a_sample_is_read_only_at_the_times_it_covers():
     t = np.geomspace(1e3, 1e6, 61)
-    x1 = 0.05 + a[:, None] * t[None, :] ** -0.5
+    x1 = np.arange(64)[:, None] + 0 * t[None, :] + t[None, :] * 1e-9
     fake = SimpleNamespace(t=t, exponents=np.stack([x1, 0 * x1], axis=2))
-    values, how = chaotic.sample_at(fake, 1e8)
-    # The median of 64 is the mean of two middle values: carried too.
-    mid = np.median(x1[:, -1])
-    assert np.allclose(values, mid + (x1[:, -1] - mid) * 100 ** -0.5, rtol=0, atol=1e-12)
-    assert "t^-0.50" in how
-    inside, at = chaotic.sample_at(fake, 1e5)
-    assert np.array_equal(inside, x1[:, 40]) and "1e+05" in at
+    assert np.array_equal(chaotic.sample_at(fake, 1e5), x1[:, 40])
+    assert chaotic.sample_at(fake, 1e8) is None
 
 
 def test_one_value_against_a_sample():
