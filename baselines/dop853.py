@@ -20,10 +20,10 @@ Two engines run the same solver. ``engine="compiled"`` (the default) is
 with SciPy's own coefficients and order of arithmetic, the right-hand side
 compiled in, a whole chunk of intervals per orbit in one call. On
 Hénon–Heiles it reproduces ``engine="scipy"`` bit for bit
-(``tests/baselines/test_dop853_compiled.py``) 30–55× faster: on R1 with the
-full spectrum, 0.08 ms per unit time at τ = 0.05, δ = 1e-5, so t = 1e8 takes
-about two hours instead of five days — still 15× the cost of the TM method
-(``studies/bench_dop853.py``). ``engine="scipy"`` drives
+(``tests/baselines/test_dop853_compiled.py``) and runs tens of times faster
+(``studies/bench_dop853.py``, ``studies/bench_baselines.py``; against SciPy
+driven directly, ``studies/bench_libraries.py``), so the paper's runs to
+t = 1e8 take hours instead of days. ``engine="scipy"`` drives
 ``scipy.integrate.DOP853`` itself, which calls Python at every step.
 """
 
