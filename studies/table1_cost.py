@@ -210,7 +210,11 @@ def main(argv=None):
     rows = cost_table(args.out, args.quick, horizons, repeats)
     save_csv(args.out, "table1_cost", rows, COLUMNS)
     save_json(args.out, "table1_cost", {"horizons": horizons, "repeats": repeats,
-                                        "rows": rows, "columns": COLUMNS})
+                                        "rows": rows, "columns": COLUMNS},
+              times={"cpu_short_s, cpu_long_s, stored_cpu_s": "measured (CPU)",
+                     "cpu_per_time, projected_*, remaining_*": "derived from the measured "
+                                                              "ones (the slope between the two "
+                                                              "horizons, see project())"})
     path = Path(args.out) / "table1_cost.md"
     path.write_text(markdown(rows, horizons, repeats))
     return {"rows": rows, "markdown": path}
