@@ -74,3 +74,32 @@ def test_no_exact_jacobian_for_a_time_dependent_model():
     q, t = sp.symbols("q t")
     with pytest.raises(ValueError, match="time-dependent model"):
         tangent_jacobian(from_potential(-sp.cos(q) * (1 + sp.cos(t) / 10), [q], time=t))
+
+
+@pytest.mark.parametrize("model", [HenonHeiles(), ThreeDof(), FPUBeta(6, 1.5)],
+                         ids=["HenonHeiles", "ThreeDof", "FPU6"])
+def test_the_generated_rhs_is_the_kernels_rhs_to_rounding(model):
+    """The right-hand side generated from the SymPy potential and the one
+    built on the model's kernels are two implementations of eqs. 6–7: they
+    agree to a few units of rounding for any k, and tangent_rhs uses the
+    generated one."""
+    from varint.baselines.rhs import generated_rhs, kernel_rhs
+
+    gen, kern = generated_rhs(model), kernel_rhs(model)
+    assert tangent_rhs(model) is gen
+    rng = np.random.default_rng(3)
+    for k in (0, 1, 3):
+        y = pack(rng.uniform(-0.5, 0.5, model.dim), rng.standard_normal((model.dim, k)))
+        a, b = gen[1](0.0, y), kern[1](0.0, y)
+        assert np.allclose(a, b, rtol=1e-15, atol=1e-15 * np.abs(b).max())
+
+
+def test_large_and_time_dependent_models_keep_the_kernel_rhs():
+    import sympy as sp
+
+    from varint.baselines.rhs import GENERATED_MAX_N, generated_rhs
+    from varint.models import from_potential
+
+    q, t = sp.symbols("q t")
+    assert generated_rhs(from_potential(-sp.cos(q) * (1 + sp.cos(t) / 10), [q], time=t)) is None
+    assert generated_rhs(FPUBeta(GENERATED_MAX_N + 1, 1.5)) is None
