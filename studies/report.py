@@ -260,22 +260,32 @@ def changed_section(claims, out):
              f"Against the verdicts stored at commit `{before['commit']}` "
              "(`verdicts_previous.json`): longer runs (the DOP853 runs of C1, C2 to 1e8 and "
              "of R2, R3 to 1e6), the statistical criterion for chaotic orbits and the stated "
-             "margins. A claim new or renamed since then is listed as new.", "",
+             "margins.", "",
              "| study | claim | before | now | ours now | why |", "|---|---|---|---|---|---|"]
-    n = 0
+    n, new = 0, {}
     for name, items in claims.items():
         old = {i["claim"]: i for i in before["claims"].get(name, [])}
         for item in items:
             prev = old.get(item["claim"])
-            was = "new" if prev is None else VERDICT[prev["holds"]]
-            if prev is not None and prev["holds"] == item.get("holds"):
+            if prev is None:
+                new[name] = new.get(name, 0) + 1
+                continue
+            if prev["holds"] == item.get("holds"):
                 continue
             n += 1
-            lines.append(f"| {name} | {_cell(item['claim'])} | {was} | "
+            why = [item.get("note") or ""]
+            if prev.get("checked_to") != item.get("checked_to") and item.get("checked_to"):
+                was = prev.get("checked_to")
+                why.insert(0, f"checked to t = {item['checked_to']:.0e} (before: "
+                              + (f"{was:.0e}" if was else "its full horizon") + ")")
+            lines.append(f"| {name} | {_cell(item['claim'])} | {VERDICT[prev['holds']]} | "
                          f"{verdict_cell(item)} | {_cell(item.get('ours'))} | "
-                         f"{_cell(item.get('note'))} |")
+                         f"{_cell('; '.join(w for w in why if w))} |")
     if not n:
         lines.append("| — | no verdict changed | | | | |")
+    if new:
+        lines += ["", "Claims new since then (or reworded): " + ", ".join(
+            f"{name} {count}" for name, count in new.items()) + "."]
     return lines + [""]
 
 
