@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -249,6 +250,11 @@ def runs_section(out):
     return lines + [""]
 
 
+def _shape(claim):
+    """A claim's wording with its numbers blanked."""
+    return re.sub(r"[-+−]?\d[\d.e+−-]*", "#", claim)
+
+
 def changed_section(claims, out):
     """Every claim whose verdict differs from the one stored before this
     round (``verdicts_previous.json``), with its note: why it changed."""
@@ -265,8 +271,11 @@ def changed_section(claims, out):
     n, new = 0, {}
     for name, items in claims.items():
         old = {i["claim"]: i for i in before["claims"].get(name, [])}
+        # A claim whose wording names its window or horizon is the same
+        # claim with other numbers.
+        loose = {_shape(c): i for c, i in old.items()}
         for item in items:
-            prev = old.get(item["claim"])
+            prev = old.get(item["claim"]) or loose.get(_shape(item["claim"]))
             if prev is None:
                 new[name] = new.get(name, 0) + 1
                 continue
