@@ -835,10 +835,15 @@ def rst_prose(text):
     return "\n".join(out)
 
 
+#: Pages the documentation's build writes (not committed).
+_BUILT = {"sg_execution_times.rst"}
+
+
 def docs_pages():
     """The documentation's reStructuredText pages (the site's prose)."""
     docs = ROOT / "docs"
-    return sorted(p for pattern in ("*.rst", "user_guide/*.rst") for p in docs.glob(pattern))
+    return sorted(p for pattern in ("*.rst", "user_guide/*.rst") for p in docs.glob(pattern)
+                  if p.name not in _BUILT)
 
 
 def main(argv=None):
