@@ -238,6 +238,21 @@ def _peers_measured(R, case):
     return measured_in(d, "bench_peers")
 
 
+def _turn_spread(slow, fast):
+    """The spread of ``slow``'s time over ``fast``'s from two rows' per-turn
+    times, leaving out the first turn when there are three or more: a
+    chaos map's first call on the full grid may still compile its lane
+    kernel (bench_peers' warm-up runs two orbits), which the minimum leaves
+    out too."""
+    a, b = slow.get("turn_seconds"), fast.get("turn_seconds")
+    if not a or not b:
+        return None
+    if len(a) > 2:
+        a, b = a[1:], b[1:]
+    r = [x / y for x, y in zip(a, b, strict=True)]
+    return [min(r), max(r)]
+
+
 def _ratio_cell(value, lo_hi, faster=False):
     text = ratio(value) + ("× faster" if faster else "")
     return text + (f" ({spread(lo_hi)})" if lo_hi else " (one run)")
@@ -739,12 +754,15 @@ def how_fast(R):
         same = ("" if e["heyoka_equal"] is None else
                 f"; the fastest heyoka as good ({e['heyoka_equal']}): "
                 f"{ratio(e['varint_over_heyoka_equal'])}×")
+        hy = next(r for r in maps["rows"] if r["indicator"] == e["indicator"]
+                  and r["config"] == "hand, batch 8, tol 1e-06")
         rows.append((f"{e['indicator'].upper()} map, {maps['orbits']} orbits of the x = 0 "
-                     f"section, t = {maps['t_end']:.0e}, 1 thread, {e['varint']}"
-                     .replace("e+0", "e"),
+                     f"section, t = {power(maps['t_end'])}, 1 thread"
+                     + (" (CPU time)" if maps.get("clock") == "cpu" else "")
+                     + f", {e['varint']}".replace("e+0", "e"),
                      f"{thousands(v['orbits_per_s'])} orbits/s, {100 * v['agreement']:.2f} % "
                      "agreement", fixed + same,
-                     _ratio_cell(e["varint_over_hy_b8_1e6"], e.get("spread_hy_b8_1e6"),
+                     _ratio_cell(e["varint_over_hy_b8_1e6"], _turn_spread(hy, v),
                                  faster=True), where))
     two = [r for r in maps["rows"] if r["peer"] == "varint" and r["config"].startswith(
         "defaults") and r.get("orbits_per_s_2_threads")]
@@ -753,6 +771,10 @@ def how_fast(R):
             thousands(r["orbits_per_s_2_threads"]) for r in two) + " per s", "1 thread",
             " / ".join(ratio(r["orbits_per_s_2_threads"] / r["orbits_per_s"]) for r in two)
             + " (one run)", where))
+    else:
+        rows.append(("FLI / SALI / MEGNO map on 2 threads", "not re-measured", "1 thread",
+                     "—", "wall time of two threads means nothing on a machine this loaded "
+                     "(`bench_peers --cases maps` measures it)"))
     fpu = peers["fpu"]["rows"][-1]
     rows.append((f"FPU-β n = {fpu['n']}, one vector, ABA864",
                  f"{fpu['varint_ns_per_step'] / 1e3:.1f} µs/step",
