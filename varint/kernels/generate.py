@@ -37,11 +37,8 @@ use the generic stepper of :mod:`varint.kernels.tm`.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
-import json
+import re
 import sys
-import tempfile
-import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -51,7 +48,7 @@ import sympy as sp
 
 from numba import njit
 
-from ..files import atomic_write
+from .. import cachedir, codecache
 from ..protocol import TANGENT_LIMIT, Renorm, Status
 from ..schemes import DRIFT
 from .checks import CHECK_EVERY, HUGE_Q2
@@ -140,13 +137,18 @@ class _Expressions:
     q: tuple       # the symbols
 
 
+#: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
+#: q0 … q{N−1}, inverse masses, N). Only ever filled from a model's own
+#: SymPy form, never from a file.
+_FORMS: dict = {}
+
+
 @lru_cache(maxsize=32)
-def _expressions(V_srepr, minv_srepr, n):
-    """The expressions of a potential given by its SymPy ``srepr`` (cached
-    by it: the symbolic work costs far more than the rest)."""
+def _expressions(key):
+    """The expressions of the potential of ``key`` (:func:`_symbolic_key`;
+    cached by it: the symbolic work costs far more than the rest)."""
+    V, minv, n = _FORMS[key]
     q = sp.symbols(f"q0:{n}")
-    V = sp.sympify(V_srepr)
-    minv = tuple(sp.sympify(m) for m in minv_srepr)
     g = tuple(sp.diff(V, qi) for qi in q)
     H = {}
     for i in range(n):
@@ -173,12 +175,17 @@ def _expressions(V_srepr, minv_srepr, n):
 
 @lru_cache(maxsize=256)
 def _symbolic_key(s):
-    """The arguments of :func:`_expressions` for a model's (frozen,
-    hashable) symbolic form: printed once per process, not once per chunk
-    of a chaos map (~0.4 ms each)."""
+    """A name (32 hex digits) for a model's (frozen, hashable) symbolic form:
+    the hash of its exact SymPy text (``srepr``) in the symbols q0 …
+    q{N−1}, worked out once per process, not once per chunk of a chaos map
+    (~0.4 ms each). The form itself is kept in ``_FORMS``: a stepper's
+    source is only ever emitted from a model's own expressions."""
     n = len(s.q)
-    V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"))))
-    return sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n
+    V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
+    text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in s.inverse_mass), str(n)])
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    _FORMS[key] = (V, tuple(s.inverse_mass), n)
+    return key
 
 
 @lru_cache(maxsize=64)
@@ -187,7 +194,7 @@ def _source(key, plan):
     and ``plan``, written once per process: each chunk of a chaos map makes
     its own propagator, and emitting the source (SymPy's common
     subexpressions, printing) costs ~60 ms."""
-    return generated_source(_expressions(*key), plan)
+    return generated_source(_expressions(key), plan)
 
 
 def symbolic_fits(model, k):
@@ -205,8 +212,12 @@ def symbolic_fits(model, k):
 
 
 def _model_key(model):
-    """The arguments of :func:`_expressions` for ``model``."""
+    """The :func:`_symbolic_key` of ``model``'s form."""
     return _facts(model)[1]
+
+
+#: A stored symbolic key: 32 hex digits.
+_KEY = re.compile(r"[0-9a-f]{32}\Z")
 
 
 def _facts(model):
@@ -215,12 +226,14 @@ def _facts(model):
 
     For a built-in model they are kept in the kernels' cache directory,
     named after the model's description (:meth:`~varint.models.base.Model.describe`,
-    "enough to rebuild the model") and the code of ``varint.models``: a new
-    process that runs it on cached steppers then builds no SymPy
-    expression, whose first costs ~0.1 s (SymPy imports its tensor
-    module). Other models are asked directly: one made from an expression
-    (``from_potential``) holds it already, and the code behind a user's
-    own class is not known.
+    "enough to rebuild the model"), the code of ``varint.models`` and
+    SymPy's version: a new process that runs it on cached steppers then
+    builds no SymPy expression, whose first costs ~0.1 s (SymPy imports its
+    tensor module). The file is signed and holds only a flag and a key
+    (:mod:`varint.codecache`): a file that fails its check or holds
+    anything else is discarded. Other models are asked directly: one made
+    from an expression (``from_potential``) holds it already, and the code
+    behind a user's own class is not known.
     """
     from ..models.symbolic import SymbolicModel
 
@@ -230,25 +243,30 @@ def _facts(model):
     name = _description_id(cls, _canonical_description(model))
     if name in _FACTS:
         return _FACTS[name]
-    from ..cache import cache_dir
-
-    path = cache_dir() / "kernels" / f"varint_model_{name}.json"
-    try:
-        fits, key = json.loads(path.read_text())
-        facts = (bool(fits), None if key is None else (key[0], tuple(key[1]), int(key[2])))
-    except (OSError, ValueError, TypeError, IndexError):
+    file = f"varint_model_{name}.json"
+    stored = codecache.read_json("kernels", file, "symbolic facts file")
+    facts = _stored_facts(stored)
+    if facts is None:
         facts = _facts_now(model)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write(path, json.dumps(facts))
-        except OSError:
-            pass            # an unwritable cache costs SymPy's time, not the run
+        # An unwritable cache costs SymPy's time, not the run.
+        codecache.write_json("kernels", file, list(facts))
     _FACTS[name] = facts
     return facts
 
 
+def _stored_facts(value):
+    """``value`` read from a facts file as (fits, key), or None unless it is
+    exactly what :func:`_facts` writes."""
+    if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], bool)):
+        return None
+    fits, key = value
+    if fits and isinstance(key, str) and _KEY.match(key):
+        return True, key
+    return (False, None) if not fits and key is None else None
+
+
 #: :func:`_facts` of the models run in this process, by description id.
-_FACTS = {}
+_FACTS: dict = {}
 
 
 def _facts_now(model):
@@ -279,11 +297,11 @@ def _canonical_description(model):
 @lru_cache(maxsize=256)
 def _description_id(cls, description):
     """A name for a built-in model's symbolic facts: its class and
-    description and the code they come from (``varint.models`` and this
-    module, which prints the key), so that a change of either names new
-    facts."""
+    description and the code they come from (``varint.models``, this
+    module, which names the key, and SymPy, which prints it), so that a
+    change of either names new facts."""
     digest = hashlib.sha256(f"{_generator_id()}|{cls.__module__}.{cls.__qualname__}|"
-                            f"{description}".encode())
+                            f"{sp.__version__}|{description}".encode())
     for path in sorted((Path(__file__).parent.parent / "models").glob("*.py")):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:24]
@@ -538,21 +556,23 @@ class _Emitter:
                 self(f"{a[i][j]} *= inv", f"{b[i][j]} *= inv")
 
     def schedule(self):
-        """The next renormalisation step of the sparse schedule."""
+        """The next renormalisation step of the sparse schedule: the
+        adaptive rule's (:func:`next_interval`), at most ``every`` steps
+        when one is given. Every-step renormalisation (``every == 0``)
+        keeps no schedule (as the lanes do)."""
         k = self.k
         logs = [f"math.log(r{j})" for j in range(k)]
-        self("if every < 0:")
+        self("if every != 0:")
         self.indent()
         self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         if k > 1:
             self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
         else:
             self("spread = 0.0")
-        self("interval = next_interval(max(step - (next_renorm - interval), 1), lmax, spread)")
+        self("interval = next_interval(max(step - (next_renorm - interval), 1), lmax, spread)",
+             "if every > 0 and interval > every:", "    interval = every",
+             "next_renorm = step + interval")
         self.dedent()
-        self("elif every > 0:", "    interval = every")
-        # Every-step renormalisation keeps no schedule (as the lanes do).
-        self("if every != 0:", "    next_renorm = step + interval")
 
     def fli_peak(self, j, pk, pe, ok=None):
         """The largest ‖w_j‖ so far, as the (mantissa, exponent) pair
@@ -721,7 +741,7 @@ class _Emitter:
         self.dedent()
         for name, parallel in (("batch_serial", False), ("batch_parallel", True)):
             self("", "",
-                 f"@njit(cache=True, error_model='numpy', parallel={parallel})",
+                 f"@njit(cache=True, error_model='numpy', parallel={parallel}, nogil=True)",
                  f"def {name}(X, W, acc_m, acc_e, status, done, n_steps, step0, tau, h, hc, "
                  "escape_r2, counters, aux, rsched, outs, snap_x, snap_W, snap_m, snap_e, snap_aux,"
                  " mode, every):",
@@ -884,16 +904,15 @@ class _Emitter:
         self.indent()
         self("for b in range(nb):")
         self.indent()
-        self(f"if F[{self.fr}, b] == 0.0:", "    continue", "if every < 0:")
-        self.indent()
+        self(f"if F[{self.fr}, b] == 0.0:", "    continue")
         self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         if k > 1:
             self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
         else:
             self("spread = 0.0")
-        self(f"itv[b] = next_interval(max(step - (I[{self.inxt}, b] - itv[b]), 1), lmax, spread)")
-        self.dedent()
-        self("else:", "    itv[b] = every", f"I[{self.inxt}, b] = step + itv[b]")
+        self(f"itv[b] = next_interval(max(step - (I[{self.inxt}, b] - itv[b]), 1), lmax, spread)",
+             "if every > 0 and itv[b] > every:", "    itv[b] = every",
+             f"I[{self.inxt}, b] = step + itv[b]")
         self.dedent()
         self.dedent()
 
@@ -1067,7 +1086,7 @@ class _Emitter:
             # numba cannot cache a kernel that calls set_parallel_chunksize
             # (a dynamic global): the parallel one compiles once per process.
             self("", "",
-                 f"@njit(cache={not parallel}, error_model='numpy', parallel={parallel})",
+                 f"@njit(cache={not parallel}, error_model='numpy', parallel={parallel}, nogil=True)",
                  f"def {name}(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, "
                  "escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
             self.indent()
@@ -1108,39 +1127,19 @@ def _generator_id():
 
 # -- loading --------------------------------------------------------------------------
 
-_LOADED = {}
+_LOADED: dict = {}
 
 
 def _load(digest, make_source, extra_globals):
     """Import the generated module ``varint_stepper_<digest>`` with
-    ``extra_globals`` set. Its file in the cache directory is written once,
-    atomically, from ``make_source()``; afterwards the source is not emitted
-    again (the digest names everything it is made from)."""
-    if digest in _LOADED:
-        return _LOADED[digest]
-    from ..cache import cache_dir
-
-    name = f"varint_stepper_{digest}"
-    try:
-        folder = cache_dir() / "kernels"
-        folder.mkdir(parents=True, exist_ok=True)
-        path = folder / f"{name}.py"
-        if not path.exists():
-            atomic_write(path, make_source())
-    except OSError as exc:
-        # An unwritable cache costs the on-disk kernel cache, not the run.
-        warnings.warn(f"cannot write generated kernels to {cache_dir()} ({exc}); compiling "
-                      "them in a temporary directory", RuntimeWarning, stacklevel=4)
-        path = Path(tempfile.mkdtemp(prefix="varint-")) / f"{name}.py"
-        path.write_text(make_source())
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    module.__dict__.update(extra_globals)
-    # numba's on-disk cache finds the kernels' globals by module name.
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    _LOADED[digest] = module
-    return module
+    ``extra_globals`` set (:func:`varint.codecache.load_module`: its file
+    in the cache directory is written once, signed, from ``make_source()``,
+    and verified before every later import; the digest names everything
+    the source is made from, so it is not emitted again)."""
+    if digest not in _LOADED:
+        _LOADED[digest] = codecache.load_module(f"varint_stepper_{digest}", "kernels",
+                                                make_source, extra_globals)
+    return _LOADED[digest]
 
 
 @lru_cache(maxsize=256)
@@ -1188,11 +1187,21 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
                 flow=bool(accumulator is not None and accumulator.needs_flow),
                 inline=_inline_kind(accumulator))
     key = _model_key(model)
-    digest = _digest(key, plan)
     extra = {"next_interval": next_interval}
     if accumulator is not None:
         extra["accumulate"] = accumulator.update
-    return _load(digest, lambda: _source(key, plan), extra)
+
+    def make_source():
+        # The source is only ever emitted from the model's own form, never
+        # from what a file says: the stored facts named it, the model
+        # gives it (the same key: the facts are signed and named after
+        # the code and SymPy's version that made them).
+        if key not in _FORMS and _facts_now(model)[1] != key:
+            raise RuntimeError(f"the cached symbolic facts of {model.name} do not match its "
+                               f"form; delete {cachedir.location()} and run again")
+        return _source(key, plan)
+
+    return _load(_digest(key, plan), make_source, extra)
 
 
 @lru_cache(maxsize=256)
