@@ -19,15 +19,14 @@ that compiles the method's kernels (so it is not counted). The machine is
 shared, so compare CPU times as ratios between rows of one study run; the
 wall time is kept beside it.
 
-A run that stops and resumes is timed over all its sessions: each session
-keeps its CPU time so far in a ledger beside the checkpoint
-(``<key>.cpu.json``, rewritten every :data:`LEDGER_INTERVAL` seconds), and
-the stored CPU is their sum (``cpu_basis`` "measured"; it includes the work
-a killed session did after its last checkpoint, redone by the next, at most
-a minute). Only a run resumed from a checkpoint that has no ledger — one
-written before ledgers were kept — has its CPU extrapolated from the last
-session (``cpu_basis`` says so and by what share). The sidecar also names
-the code that ran and the machine (:mod:`varint.identity`).
+A run that stops and resumes is timed over all its sessions by varint
+itself: each checkpoint carries the CPU time spent so far, measured in
+every session (``provenance.cpu_time``, :mod:`varint.checkpoint`), and the
+sidecar stores that (``cpu_basis`` "measured"). Only sidecars written
+before varint measured it — runs resumed from a checkpoint whose earlier
+sessions were not timed — have their CPU extrapolated from the last
+session, and their ``cpu_basis`` says so and by what share. The sidecar
+also names the code that ran and the machine (:mod:`varint.identity`).
 
 Run one stored run from the command line (resumable: run it again after
 an interruption)::
@@ -40,7 +39,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,12 +49,11 @@ if __package__ in (None, ""):
 import varint  # noqa: E402
 from varint import identity  # noqa: E402
 from varint.checkpoint import read as read_checkpoint  # noqa: E402
-from varint.files import atomic_write  # noqa: E402
 from varint.state import output_steps  # noqa: E402
 
 __all__ = ["PAPER_TAU", "PAPER_DELTA", "SEED", "Stored", "run", "run_key", "stored_key",
            "method_options",
-           "METHOD_LABELS", "longest_stored", "horizon", "cpu_basis", "CpuLedger"]
+           "METHOD_LABELS", "longest_stored", "horizon", "cpu_basis"]
 
 #: The paper's renormalisation interval τ and DOP853 threshold δ (Sect. VI).
 PAPER_TAU = 0.05
@@ -65,8 +62,6 @@ PAPER_DELTA = 1e-5
 SEED = 0
 #: Output times per decade.
 PER_DECADE = 20
-#: Seconds between two writes of a session's CPU time to the run's ledger.
-LEDGER_INTERVAL = 30.0
 
 #: How the paper names the methods.
 METHOD_LABELS = {"dop853": "DOP853", "tdhcc": "TDHcc", "tdhes": "TDHes", "tdheps": "TDHeps",
@@ -106,17 +101,19 @@ class Stored:
     key : str
     result : LyapunovResult or GALIResult
     cpu : float
-        CPU seconds (``time.process_time``) over all sessions.
+        CPU seconds (``time.process_time``) over all sessions
+        (``provenance.cpu_time`` of the result).
     wall : float
         Wall seconds of the whole run (all sessions).
     resumed : bool
         Whether the run took more than one session.
     cpu_basis : str
         "measured", or how ``cpu`` was extrapolated (a run resumed from a
-        checkpoint without a CPU ledger: the last session's CPU divided by
+        checkpoint whose earlier sessions were not timed: the last
+        session's CPU divided by
         the share of the steps it did).
     meta : dict
-        The whole sidecar (code, machine, sessions).
+        The whole sidecar (code, machine, this session's CPU and wall).
     """
 
     key: str
@@ -230,45 +227,39 @@ def run(out, kind, orbit, method, tau, t_end, *, orders=None, delta=None, fresh=
 
     (store / "checkpoints").mkdir(parents=True, exist_ok=True)
     checkpoint = store / "checkpoints" / f"{key}.ckpt"
-    ledger = CpuLedger(checkpoint.with_suffix(".cpu.json"))
     if fresh:
         checkpoint.unlink(missing_ok=True)
-        ledger.path.unlink(missing_ok=True)
     t_out = output_steps(t_end, tau, per_decade=PER_DECADE) * tau
     start = read_checkpoint(checkpoint).state.step if checkpoint.exists() else 0
-    earlier = ledger.sessions() if start else []
     code, machine = identity.code_identity(), identity.machine()
     # Compile the kernels first, so the CPU time is that of the integration.
     _call(kind, model, x0, 20 * tau, tau, method, orders, None, False, None, options)
     c0, w0 = time.process_time(), time.perf_counter()
-    with ledger.session(earlier, c0):
-        result = _call(kind, model, x0, t_end, tau, method, orders, t_out, progress,
-                       checkpoint, options)
-    cpu, wall_session = time.process_time() - c0, time.perf_counter() - w0
+    result = _call(kind, model, x0, t_end, tau, method, orders, t_out, progress, checkpoint,
+                   options)
+    session, wall_session = time.process_time() - c0, time.perf_counter() - w0
     if result.interrupted:
         raise KeyboardInterrupt(f"run {key} interrupted at t = {result.t[-1]:g}; its "
                                 f"checkpoint {checkpoint} resumes it when the study is "
                                 "started again")
     wall = float(result.provenance.wall_time)
-    if start and earlier is None:
-        # Resumed from a checkpoint without a ledger: the earlier sessions'
-        # CPU is unknown, so this session's is scaled by its share of steps.
+    cpu = result.provenance.cpu_time
+    if cpu is None:
+        # Resumed from a checkpoint whose earlier sessions were not timed:
+        # this session's CPU is scaled by its share of the steps.
         total = result.provenance.counts["steps"]
         share = (total - start) / total
-        sessions, cpu = [cpu], cpu / share
-        basis = (f"extrapolated: the last session's CPU over the {share:.0%} of the steps "
-                 "it did")
+        cpu, basis = session / share, (f"extrapolated: the last session's CPU over the "
+                                       f"{share:.0%} of the steps it did")
     else:
-        sessions = [*earlier, cpu]
-        cpu, basis = float(sum(sessions)), "measured"
+        cpu, basis = float(cpu), "measured"
     result.save(path)
     meta = {"kind": kind, "orbit": orbit, "method": method, "options": options, "tau": tau,
-            "t_end": t_end, "cpu": cpu, "cpu_basis": basis, "cpu_sessions": sessions,
+            "t_end": t_end, "cpu": cpu, "cpu_basis": basis, "cpu_session": session,
             "wall": wall, "wall_session": wall_session, "resumed": bool(start),
             "code": code, "machine": machine}
     meta_path.write_text(json.dumps(meta, indent=1))
     checkpoint.unlink(missing_ok=True)
-    ledger.path.unlink(missing_ok=True)
     return Stored(key, result, cpu, wall, bool(start), basis, meta)
 
 
@@ -281,61 +272,6 @@ def cpu_basis(meta):
         return meta["cpu_basis"]
     return "extrapolated: the last session's CPU over its share of the steps" \
         if meta["resumed"] else "measured"
-
-
-class CpuLedger:
-    """The CPU seconds of a run's sessions, kept beside its checkpoint so
-    that a resumed run's CPU time is measured, not extrapolated: a
-    background thread rewrites the current session's CPU every
-    :data:`LEDGER_INTERVAL` seconds, so a killed session loses at most that
-    much."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-
-    def sessions(self):
-        """The CPU seconds of the earlier sessions, or None without a
-        readable ledger."""
-        try:
-            data = json.loads(self.path.read_text())
-        except (OSError, ValueError):
-            return None
-        sessions = data.get("sessions") if isinstance(data, dict) else None
-        if not isinstance(sessions, list) or not all(
-                isinstance(c, (int, float)) and c >= 0 for c in sessions):
-            return None
-        return [float(c) for c in sessions]
-
-    def _write(self, sessions):
-        atomic_write(self.path, json.dumps({"sessions": sessions}))
-
-    class _Session:
-        def __init__(self, ledger, earlier, c0):
-            self.ledger, self.earlier, self.c0 = ledger, list(earlier or []), c0
-            self.stop = threading.Event()
-            self.thread = threading.Thread(target=self._loop, daemon=True)
-
-        def _now(self):
-            self.ledger._write([*self.earlier, time.process_time() - self.c0])
-
-        def _loop(self):
-            while not self.stop.wait(LEDGER_INTERVAL):
-                self._now()
-
-        def __enter__(self):
-            self._now()
-            self.thread.start()
-            return self
-
-        def __exit__(self, *exc):
-            self.stop.set()
-            self.thread.join()
-            self._now()
-            return False
-
-    def session(self, earlier, c0):
-        """Context manager timing one session from CPU time ``c0``."""
-        return self._Session(self, earlier, c0)
 
 
 def main(argv=None):

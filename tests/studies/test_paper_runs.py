@@ -8,6 +8,7 @@ import signal
 import pytest
 
 from studies import paper_runs
+from varint.checkpoint import read as read_checkpoint
 from tests.helpers import hook_advance
 
 
@@ -21,24 +22,26 @@ def test_tm_runs_renormalise_every_interval_under_the_old_key():
 
 def test_a_resumed_run_counts_the_cpu_of_every_session(tmp_path, monkeypatch):
     """Interrupted after a few chunks and run again, the stored CPU time is
-    the sum of both sessions' (measured), which each session's ledger
-    recorded; the sidecar names the code and the machine."""
-    monkeypatch.setattr(paper_runs, "LEDGER_INTERVAL", 0.01)
+    varint's own measure over both sessions (provenance.cpu_time, summed in
+    the checkpoint): more than the second session's alone, which did only
+    part of the work; the sidecar names the code and the machine."""
     with monkeypatch.context() as patch:
         hook_advance(patch, "tm", 3, lambda: os.kill(os.getpid(), signal.SIGINT))
         with pytest.raises(KeyboardInterrupt), pytest.warns(RuntimeWarning):
             paper_runs.run(tmp_path, "lyapunov", "R1", "tm", 0.05, 2e3)
     key = paper_runs.stored_key("lyapunov", "R1", "tm", 0.05, 2e3)
-    ledger = tmp_path / "runs" / "checkpoints" / f"{key}.cpu.json"
-    first = json.loads(ledger.read_text())["sessions"]
-    assert len(first) == 1 and first[0] > 0
+    checkpoint = tmp_path / "runs" / "checkpoints" / f"{key}.ckpt"
+    before = read_checkpoint(checkpoint).cpu_time
+    assert before > 0
     s = paper_runs.run(tmp_path, "lyapunov", "R1", "tm", 0.05, 2e3)
     meta = json.loads((tmp_path / "runs" / f"{key}.json").read_text())
-    assert s.resumed and s.cpu_basis == "measured" and len(meta["cpu_sessions"]) == 2
-    assert meta["cpu_sessions"][0] == first[0]
-    assert s.cpu == pytest.approx(sum(meta["cpu_sessions"]))
+    assert s.resumed and s.cpu_basis == "measured"
+    assert s.cpu == s.result.provenance.cpu_time == meta["cpu"]
+    # The second session's integration lies inside what this study timed
+    # around its call.
+    assert before < s.cpu <= before + meta["cpu_session"] + 1e-6
     assert meta["code"]["source"] and meta["machine"]["cores"] >= 1
-    assert not ledger.exists()  # removed with the checkpoint
+    assert not checkpoint.exists()  # removed once the result is stored
 
 
 def test_a_sidecar_from_before_sessions_were_timed_says_extrapolated():
