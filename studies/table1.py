@@ -421,7 +421,9 @@ def same_session_ratio(out, row_a, row_b):
     data = json.loads(path.read_text())
     by = {r["row"]: r for r in data["rows"]}
     prov = data.get("_provenance", {})
-    where = ("studies/table1_cost.py" + (f", code {prov['code']['source'][:7]}, load "
+    code = prov.get("code", {})
+    where = ("studies/table1_cost.py" + (f", source digest {code['source'][:7]}, commit "
+                                         f"{(code.get('commit') or 'unknown')[:7]}, load "
                                          f"{prov['machine']['load']:.1f}" if prov else
                                          ", code not recorded"))
     return {"ratio": by[row_a]["cpu_per_time"] / by[row_b]["cpu_per_time"], "where": where}
