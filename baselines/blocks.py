@@ -26,9 +26,16 @@ integrated whole from the state at its start, and its outputs, the matrix C
 and the position in the block live in ``state.extra``: how a run is chunked
 into ``advance`` calls, or resumed from a checkpoint, cannot change a bit.
 A block also ends early, deterministically, once C has become so
-ill-conditioned (condition > :data:`COND_LIMIT`) that the virtual
-renormalisation would lose accuracy in the weakest directions; the rest of
-it is discarded and a new block starts from the renormalised state.
+ill-conditioned (condition > :data:`COND_LIMIT`, or the propagator's own
+``cond_limit``) that the virtual renormalisation would lose accuracy in the
+weakest directions; the rest of
+it is discarded and a new block starts from the renormalised state. The
+next block is then only as long as the part used, and each block used
+whole makes the next a quarter longer, up to the block size
+(:data:`BLOCK_GROWTH`): a chaotic orbit's spectrum cuts blocks after a few
+Lyapunov times, and integrating far beyond that would be wasted. For the
+same reason no block reaches past the run's last interval once the run has
+told the propagator where that is (:meth:`BlockPropagator.set_horizon`).
 """
 
 from __future__ import annotations
@@ -55,8 +62,13 @@ END_BLOCK = -1
 #: virtual QR matrix C before a block ends early: a larger one amplifies the
 #: integrator's error in the weakest directions by as much.
 COND_LIMIT = 100.0
-#: Largest block, in float64 numbers stored per orbit (16 MiB).
+#: Largest block, in float64 numbers stored per orbit (16 MiB), and for all
+#: the orbits of a run together (128 MiB).
 MAX_BLOCK_VALUES = 1 << 21
+MAX_BLOCK_TOTAL = 1 << 24
+#: A block used whole makes the next one this much longer (up to the block
+#: size); one cut by COND_LIMIT makes the next as long as the part used.
+BLOCK_GROWTH = 1.25
 
 
 @njit
@@ -200,6 +212,8 @@ class BlockPropagator:
     OPTIONS = {}
     #: Time spanned by a block when the ``block`` option is not given.
     BLOCK_SPAN = 0.0
+    #: Condition of the virtual renormalisation at which a block is cut.
+    cond_limit = COND_LIMIT
 
     def _setup(self, model, tau, renorm, options, accumulator=None):
         self.model = model
@@ -212,6 +226,7 @@ class BlockPropagator:
         if block is not None and not (integer and block >= 1):
             raise ValueError(f"block must be a positive integer (intervals of tau), got {block!r}")
         self.options = options
+        self._horizon = np.iinfo(np.int64).max
         self._clock = clock_size(model)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
@@ -230,7 +245,8 @@ class BlockPropagator:
         """Intervals per block for states of dimension ``dim`` with ``k``
         vectors: the ``block`` option if given, else enough for
         :attr:`BLOCK_SPAN` time units; at most :data:`MAX_BLOCK_VALUES`
-        stored numbers per orbit."""
+        stored numbers per orbit (and :data:`MAX_BLOCK_TOTAL` for all the
+        orbits of a run, which ``_prepare`` applies)."""
         block = self.options.get("block")
         if block is None:
             block = max(1, int(round(self.BLOCK_SPAN / self.tau)))
@@ -238,6 +254,13 @@ class BlockPropagator:
 
     def describe(self):
         return dict(self.options)
+
+    def set_horizon(self, step):
+        """Integrate no block beyond interval ``step`` (the run's last): the
+        intervals a block would integrate past it are never used. The same
+        for every chunking and every resume of the run, so no bit depends
+        on it."""
+        self._horizon = int(step)
 
     # -- the protocol --------------------------------------------------------
     def advance(self, state, n):
@@ -262,7 +285,8 @@ class BlockPropagator:
         if self._key("next") in state.extra:
             return
         m, d, k = state.W.shape
-        b = self.block_size(d, k)
+        size = d * (1 + k) + self._clock
+        b = max(1, min(self.block_size(d, k), MAX_BLOCK_TOTAL // (m * size)))
         state.extra.update({
             self._key("y"): np.zeros((m, b, d * (1 + k) + self._clock)),
             self._key("C"): np.zeros((m, k, k)),
@@ -270,6 +294,8 @@ class BlockPropagator:
             self._key("next"): np.zeros(m, dtype=np.int64),
             self._key("filled"): np.zeros(m, dtype=np.int64),
             self._key("failed"): np.zeros(m, dtype=np.int64),
+            # Length of the next block; negative after a cut (see _new_block).
+            self._key("length"): np.full(m, b, dtype=np.int64),
         })
 
     def _advance_orbit(self, state, m, n):
@@ -288,7 +314,8 @@ class BlockPropagator:
             start = nxt[m]
             status, j = consume(ys[m], C[m], start, min(filled[m], start + n - done), state.x[m],
                                 state.W[m], self._mode, state.acc_m[m], state.acc_e[m],
-                                self._escape_r2, COND_LIMIT, accumulate, aux, model.grad_kernel,
+                                self._escape_r2, self.cond_limit, accumulate, aux,
+                                model.grad_kernel,
                                 model.params, model.inverse_mass, flow,
                                 state.step + done + 1, self.tau, self._clock)
             if self._clock:
@@ -301,6 +328,7 @@ class BlockPropagator:
             if status == END_BLOCK:
                 # A failure of the integrator beyond this point is moot now.
                 filled[m], failed[m] = j, Status.OK
+                ex[self._key("length")][m] = -max(1, j)
             elif status != Status.OK:
                 return done, int(status)
         return done, Status.OK
@@ -323,7 +351,15 @@ class BlockPropagator:
 
     def _new_block(self, state, m, step):
         ex = state.extra
-        b = ex[self._key("y")].shape[1]
+        cap = ex[self._key("y")].shape[1]
+        length = ex[self._key("length")]
+        # After a cut, as long as the part used; after a block used whole
+        # (not the first), a quarter longer.
+        b = int(length[m])
+        b = -b if b < 0 else (min(cap, int(b * BLOCK_GROWTH) + 1)
+                              if ex[self._key("filled")][m] else b)
+        length[m] = b
+        b = max(1, min(b, self._horizon - step))
         y0 = pack(state.x[m], state.W[m], clock=self.clock(state, m, step))
         ys, status, counts = self._integrate(state, m, y0, b)
         filled = len(ys)

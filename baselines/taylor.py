@@ -241,13 +241,15 @@ class TaylorPropagator(BlockPropagator):
         6 vectors compiles in 6 s in long double, FPU n = 8 with 16 vectors
         in 43 s in double).
     block : int, optional
-        Intervals per block in double precision (default: 5 time units);
-        always 1 in extended precision.
+        Longest block in double precision, in intervals (default: 50 time
+        units, over which heyoka's fixed cost per block
+        vanishes, ``studies/bench_baselines.py``); always 1 in extended
+        precision.
     """
 
     method = "taylor"
     OPTIONS = {"precision": "double", "tol": None, "compact_mode": None, "block": None}
-    BLOCK_SPAN = 5.0
+    BLOCK_SPAN = 50.0
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = self._options(options)

@@ -86,6 +86,14 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    code : dict
+        The code that ran (:func:`varint.identity.code_identity`): the
+        digest of varint's sources, and the git commit where run from a
+        checkout. Empty in results saved before it was recorded.
+    machine : dict
+        The machine when the run started (:func:`varint.identity.machine`:
+        CPU model, cores, load average). Empty in results saved before it
+        was recorded.
     timing : dict
         Seconds of this session by part, each without the numba
         compilations inside it: ``compile`` (their sum), ``pilot`` (the
@@ -117,6 +125,10 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    # Not filled in by default: a result loaded from an older file must not
+    # be stamped with the code that loads it.
+    code: dict = field(default_factory=dict)
+    machine: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     cpu_time: float | None = None
 
@@ -654,8 +666,8 @@ _PROVENANCE_TYPES = {"kind": str, "model": dict, "x0": list, "method": str,
                      "method_options": dict, "tau": (int, float), "t_end": (int, float),
                      "seed": (int, type(None)), "options": dict, "versions": dict,
                      "counts": dict, "wall_time": (int, float), "created": str,
-                     "tau_choice": dict, "cpu_time": (int, float, type(None)),
-                     "timing": dict}
+                     "tau_choice": dict, "code": dict, "machine": dict, "timing": dict,
+                     "cpu_time": (int, float, type(None))}
 
 
 def _provenance(d):

@@ -35,6 +35,7 @@ from .kernels import tm as K
 from .models.base import Model
 from .protocol import COUNTERS, STATUS_OK, Renorm, Status
 from . import _validate as check
+from . import identity
 from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
 from .schemes import SplittingScheme, get_scheme, stage_arrays
@@ -246,7 +247,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     counts = np.zeros((m, len(COUNTERS)), dtype=np.int64)
     buf = np.empty((m, _BUFFER, d + 1))
     found = [[] for _ in range(m)]
-    start = time.perf_counter()
+    start, machine, code = time.perf_counter(), identity.machine(), identity.code_identity()
     while True:
         kernel(x, done, n_steps, kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
                model.grad_kernel, model.hess_kernel, model.third_kernel,
@@ -280,7 +281,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
                  "max_points": max_points, "escape_radius": radius},
         versions=dict(package_versions(), numba=numba.__version__),
         counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total)))),
-        wall_time=time.perf_counter() - start)
+        wall_time=time.perf_counter() - start, code=code, machine=machine)
     sq = (lambda a: a[0]) if single else (lambda a: a)
     verdict = assess(times, {"energy_error": energy_error}, status, energy_tol, tau, single)
     warn(verdict, "tm", what="the surface of section")
