@@ -6,7 +6,7 @@ dict of its results. Full runs write into ``studies/results/`` (committed);
 ``--quick`` runs write into ``--out`` (default ``studies/results/quick/``,
 not committed) and are what the test suite runs.
 
-A *claim* is one line of the paper's (paper-targets.md) or of our own
+A *claim* is one line of the paper's (its figures and tables) or of our own
 questions, with the paper's figure, ours, whether it holds, and the rules
 of :mod:`studies.claims` that decided it. Each study saves its claims as
 ``<name>.claims.json``; ``studies/report.py`` assembles them into
@@ -108,7 +108,7 @@ class Claims:
         Parameters
         ----------
         claim : str
-            What is asserted (paper-targets.md wording where it exists).
+            What is asserted (in the paper's words where it states it).
         paper, ours : str
             The paper's figure and ours, as text with numbers.
         holds : bool or None

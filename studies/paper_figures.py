@@ -1,5 +1,5 @@
 """Figs. 2–11 of Skokos & Gerlach (2010), re-drawn from our runs, with one
-claim line per claim of the paper (paper-targets.md).
+claim line per claim of the paper (its text, figures and Table I).
 
 ==========  =====================================================  ========
 figure      content                                                horizon

@@ -24,6 +24,7 @@ never with ``progress=False``.
 
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import json
 import math
@@ -33,7 +34,7 @@ import time
 
 from numba.core import event
 
-from .cache import cache_dir
+from .cachedir import private_dir
 from .files import atomic_write
 
 __all__ = ["Clock", "compile_seconds", "ANNOUNCE_AFTER"]
@@ -181,14 +182,20 @@ class _Part:
 
 
 def _store():
-    return cache_dir() / _TIMES
+    """The store in the private cache directory (never one another user
+    could write: :func:`varint.cachedir.private_dir`), or None."""
+    base = private_dir()
+    return None if base is None else base / _TIMES
 
 
 def _read():
     """The measured compile times: a list of positive finite numbers (an
     unreadable or foreign file counts as none; it only sets a message)."""
+    path = _store()
+    if path is None:
+        return []
     try:
-        values = json.loads(_store().read_text())
+        values = json.loads(path.read_text())
     except (OSError, ValueError):
         return []
     if not isinstance(values, list):
@@ -210,9 +217,8 @@ def _remember(seconds):
     skipped silently, since it only refines a message."""
     if seconds <= ANNOUNCE_AFTER:
         return
-    try:
-        path = _store()
-        path.parent.mkdir(parents=True, exist_ok=True)
+    path = _store()
+    if path is None:
+        return
+    with contextlib.suppress(OSError):
         atomic_write(path, json.dumps((_read() + [round(seconds, 3)])[-_KEEP:]))
-    except OSError:
-        pass

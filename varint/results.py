@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import datetime
 import json
+import math
 import os
 import platform
 from dataclasses import dataclass, field
@@ -653,7 +654,8 @@ _PROVENANCE_TYPES = {"kind": str, "model": dict, "x0": list, "method": str,
                      "method_options": dict, "tau": (int, float), "t_end": (int, float),
                      "seed": (int, type(None)), "options": dict, "versions": dict,
                      "counts": dict, "wall_time": (int, float), "created": str,
-                     "tau_choice": dict, "cpu_time": (int, float, type(None))}
+                     "tau_choice": dict, "cpu_time": (int, float, type(None)),
+                     "timing": dict}
 
 
 def _provenance(d):
@@ -678,6 +680,12 @@ def _provenance(d):
     if bad:
         raise _Invalid(f"provenance.counts.{bad[0]}", f"expected a count >= 0, got "
                        f"{counts[bad[0]]!r}")
+    timing = d.get("timing", {})
+    bad = [k for k, v in timing.items() if isinstance(v, bool) or not isinstance(v, (int, float))
+           or not 0 <= v < math.inf]
+    if bad:
+        raise _Invalid(f"provenance.timing.{bad[0]}", f"expected seconds >= 0, got "
+                       f"{timing[bad[0]]!r:.60}")
     return Provenance(**d)
 
 
