@@ -400,6 +400,40 @@ register_scheme(SplittingScheme.from_composition(
                 0.11728560432865935385403585669136, 0.50405474843802736404832781714239),
     order=6, reference=_KL))
 
+# Orders 8 and 10: symmetric compositions of the leapfrog with the smallest
+# max|γ| known for their stage counts (Hairer, Lubich & Wanner, Geometric
+# Numerical Integration, 2nd ed., Sect. V.3.2, eqs. 3.13, 3.14 and the
+# p10s35 table). The digits agree with two further public tables, and the odd
+# power sums Σγ³, Σγ⁵ (Σγ⁷, Σγ⁹ for order 10) vanish to round-off
+# (tests/test_schemes.py); the orders are measured there and against the
+# Taylor reference.
+register_scheme(SplittingScheme.from_composition(
+    "s15odr8", (0.74167036435061295344822780, -0.40910082580003159399730010,
+                0.19075471029623837995387626, -0.57386247111608226665638773,
+                0.29906418130365592384446354, 0.33462491824529818378495798,
+                0.31529309239676659663205666, -0.79688793935291635401978884),
+    order=8, reference="McLachlan, SIAM J. Sci. Comput. 16, 151 (1995); in " + _KL))
+register_scheme(SplittingScheme.from_composition(
+    "s17odr8", (0.13020248308889008087881763, 0.56116298177510838456196441,
+                -0.38947496264484728640807860, 0.15884190655515560089621075,
+                -0.39590389413323757733623154, 0.18453964097831570709183254,
+                0.25837438768632204729397911, 0.29501172360931029887096624,
+                -0.60550853383003451169892108),
+    order=8, reference=_KL + " (s17odr8a)"))
+register_scheme(SplittingScheme.from_composition(
+    "s35odr10", (0.07879572252168641926390768, 0.31309610341510852776481247,
+                 0.02791838323507806610952027, -0.22959284159390709415121340,
+                 0.13096206107716486317465686, -0.26973340565451071434460973,
+                 0.07497334315589143566613711, 0.11199342399981020488957508,
+                 0.36613344954622675119314812, -0.39910563013603589787862981,
+                 0.10308739852747107731580277, 0.41143087395589023782070412,
+                 -0.00486636058313526176219566, -0.39203335370863990644808194,
+                 0.05194250296244964703718290, 0.05066509075992449633587434,
+                 0.04967437063972987905456880, 0.04931773575959453791768001),
+    order=10, reference="Sofroniou & Spaletta, Optim. Methods Softw. 20, 597 (2005) "
+                        "(s35odr10; Kahan & Li's own order-10 compositions have 31 and 33 "
+                        "stages)"))
+
 # Blanes & Moan (2002), SRKN_14^a (order 6).
 _srkn_a = (0.037859319840611600, 0.10263563310243500, -0.025867888266558700,
            0.31424140307144700, -0.13014445951741500, 0.10641770036954300,
