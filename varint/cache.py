@@ -21,14 +21,13 @@ import contextlib
 import functools
 import hashlib
 import io
-import os
 import warnings
 from pathlib import Path
 
 import numpy as np
-import platformdirs
 
 from .files import atomic_write, canonical_json
+from .paths import cache_dir
 from .results import load_result, package_versions
 
 __all__ = ["cache_dir", "cache_key", "cached", "reference", "CacheWarning"]
@@ -41,22 +40,7 @@ class CacheWarning(UserWarning):
     """A cache entry was unreadable and is being recomputed."""
 
 
-def cache_dir() -> Path:
-    """The per-user cache directory (not created here).
-
-    ``$VARINT_CACHE_DIR`` if set; otherwise the platform's convention, from
-    :func:`platformdirs.user_cache_dir`: ``$XDG_CACHE_HOME/varint`` or
-    ``~/.cache/varint`` on Linux, ``~/Library/Caches/varint`` on macOS,
-    ``%LOCALAPPDATA%\\varint\\Cache`` on Windows.
-    """
-    path = os.environ.get("VARINT_CACHE_DIR")
-    if path:
-        return Path(path).expanduser()
-    # appauthor=False: no vendor folder above "varint" on Windows.
-    return Path(platformdirs.user_cache_dir("varint", appauthor=False))
-
-
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _source_digest():
     # Results depend on varint's code as well as on its version number, which
     # does not change with every edit: hash the sources themselves.

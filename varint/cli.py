@@ -458,7 +458,7 @@ def _write_csv(path, cols, flag="--csv"):
         with open(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
-            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
+            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()], strict=True))
     except OSError as exc:
         raise OSError(f"cannot write {flag} {path}: {exc.strerror or exc}") from exc
     print(f"table written to {path}")
@@ -500,19 +500,19 @@ class _Interrupted(Exception):
 
 # -- subcommands -------------------------------------------------------------------
 def _cmd_schemes(args):
-    from .schemes import SCHEMES
+    from .schemes import registered
 
     _check_outputs(args)
     cols = {"name": [], "order": [], "nominal": [], "forces/step": [], "corrector": [],
             "reference": []}
-    for s in SCHEMES.values():
+    for s in registered(2):
         for key, value in zip(cols, (s.name, s.order, s.nominal_order or "-",
                                      s.force_evaluations, "yes" if s.corrector else "no",
-                                     s.reference.split(",")[0] or "-")):
+                                     s.reference.split(",")[0] or "-"), strict=True):
             cols[key].append(value)
     print(f"{'name':10} {'order':>5} {'nominal':>9} {'forces/step':>11} {'corrector':>9}  "
           "reference")
-    for row in zip(*cols.values()):
+    for row in zip(*cols.values(), strict=True):
         print(f"{row[0]:10} {row[1]:>5} {row[2]:>9} {row[3]:>11} {row[4]:>9}  {row[5]}")
     print("order: of the energy error for H = p^2/2 + V(q); forces/step: gradient "
           "evaluations per step in a long run (the cost)")
@@ -891,7 +891,7 @@ def _plot_lattice(r, names, path):
     fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2),
                              layout="constrained", squeeze=False)
     try:
-        for ax, name in zip(axes[0], names):
+        for ax, name in zip(axes[0], names, strict=True):
             mean, std, _ = r.log_mean(name)
             ax.loglog(r.t, 10 ** mean)
             ax.fill_between(r.t, 10 ** (mean - std), 10 ** (mean + std), alpha=0.3)

@@ -1,6 +1,7 @@
 """Files written safely, and JSON written canonically: the two helpers every
 writer in varint uses (checkpoints, chaos-map chunks, the reference cache,
-generated kernels, the studies' results).
+generated kernels, the studies' results); and the import of generated
+source (:func:`import_generated`).
 
 :func:`atomic_file` writes to a temporary file in the target's directory,
 flushes it to disk (``fsync``), moves it over the target with
@@ -16,13 +17,18 @@ compare equal, and hash equal, whichever way they were built.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import json
 import os
+import sys
 import tempfile
+import warnings
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_file", "atomic_write", "canonical", "canonical_json", "jsonable"]
+__all__ = ["atomic_file", "atomic_write", "canonical", "canonical_json", "jsonable",
+           "import_generated"]
 
 
 def jsonable(obj):
@@ -131,3 +137,36 @@ def _fsync_directory(directory):
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def import_generated(folder, name, source, extra_globals=None, module=None, stacklevel=3):
+    """Import the generated module ``name`` (or ``module``) from
+    ``folder/name.py``.
+
+    The file is written (atomically) when it is missing — and, when
+    ``source`` is the text itself rather than a function that makes it,
+    when it holds anything else — so a new process imports the file an
+    earlier one wrote, and numba finds the kernels it cached beside it
+    (by module name: the module is entered in ``sys.modules``).
+    ``extra_globals`` are set in the module before it runs. A folder that
+    cannot be written costs the on-disk caches, not the run: a warning, and
+    a temporary folder (the warning points ``stacklevel`` frames up).
+    """
+    text = source if isinstance(source, str) else None
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        path = Path(folder) / f"{name}.py"
+        # Rewriting an identical file would only invalidate numba's cache.
+        if not path.exists() or (text is not None and path.read_text() != text):
+            atomic_write(path, text if text is not None else source())
+    except OSError as exc:
+        warnings.warn(f"cannot write generated kernels to {folder} ({exc}); compiling them in a "
+                      "temporary directory", RuntimeWarning, stacklevel=stacklevel)
+        path = Path(tempfile.mkdtemp(prefix="varint-")) / f"{name}.py"
+        path.write_text(text if text is not None else source())
+    spec = importlib.util.spec_from_file_location(module or name, path)
+    loaded = importlib.util.module_from_spec(spec)
+    loaded.__dict__.update(extra_globals or {})
+    sys.modules[spec.name] = loaded
+    spec.loader.exec_module(loaded)
+    return loaded

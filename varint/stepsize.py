@@ -56,7 +56,7 @@ from .accuracy import AccuracyWarning, Reference
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
-from .schemes import get_scheme, resolve_scheme
+from .schemes import DEFAULT_SCHEME, get_scheme
 from .state import RunState, initial_deviations
 
 __all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
@@ -105,11 +105,11 @@ def _default_scheme(model, scheme):
     """The scheme "tm" runs ``model`` with: the given one, a lattice's own
     default (its part split), or the paper's SBAB2C."""
     if scheme is not None:
-        return resolve_scheme(scheme)
+        return get_scheme(scheme)
     parts = getattr(model, "parts", None)
     if parts is not None and parts.default_scheme is not None:
-        return resolve_scheme(parts.default_scheme)
-    return get_scheme("SBAB2C")
+        return get_scheme(parts.default_scheme)
+    return get_scheme(DEFAULT_SCHEME)
 
 
 def check_options(method, options):
@@ -239,10 +239,7 @@ def _not_shrinking(tried, j):
     """Whether halving the step (or more) has not halved the error: the
     error is not the scheme's truncation error."""
     e = tried[j]
-    for k, v in tried.items():
-        if k >= j + RUNGS and not (e <= v / 2):
-            return True
-    return False
+    return any(k >= j + RUNGS and not (e <= v / 2) for k, v in tried.items())
 
 
 def _divide(t_end, tau):

@@ -26,7 +26,7 @@ and its tangent map DF, derived symbolically, into a
 The Hessian's bandwidth is read off its symbolic sparsity, so a lattice with
 nearest-neighbour coupling gets bandwidth 1. Kernels are straight-line code
 with common subexpressions eliminated; their source goes to
-``<cache dir>/models/`` (see :func:`varint.cache.cache_dir`), never the
+``<cache dir>/models/`` (see :func:`varint.paths.cache_dir`), never the
 source tree, and numba caches their compilation beside it. Generated code
 grows with N² (the Hessian) and N³ for dense third derivatives: fine up to a
 few dozen degrees of freedom; long lattices want hand-written O(N) kernels
@@ -36,13 +36,8 @@ like :class:`~varint.models.FPUBeta`.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
-import sys
-import tempfile
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,11 +45,13 @@ import sympy as sp
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from sympy.printing.pycode import PythonCodePrinter
 
-from ..files import atomic_write
+from ..files import import_generated
+from ..paths import cache_dir
 from .base import Model
 from .maps import MapModel
 
-__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map"]
+__all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map",
+           "KernelPrinter"]
 
 #: Functions whose presence in V or its first three derivatives means V is
 #: not smooth enough (the corrector needs third derivatives everywhere).
@@ -169,7 +166,7 @@ def _inverse_mass(inverse_mass, n):
     return tuple(out)
 
 
-class _KernelPrinter(PythonCodePrinter):
+class KernelPrinter(PythonCodePrinter):
     """Python source for numba: ``math`` functions, float literals."""
 
     def __init__(self):
@@ -180,7 +177,7 @@ def _assignments(printer, targets, exprs):
     """Source lines computing ``targets[i] = exprs[i]`` with CSE."""
     temps, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols("_t"))
     lines = [f"    {s} = {printer.doprint(e)}" for s, e in temps]
-    lines += [f"    {t} = {printer.doprint(e)}" for t, e in zip(targets, reduced)]
+    lines += [f"    {t} = {printer.doprint(e)}" for t, e in zip(targets, reduced, strict=True)]
     return lines
 
 
@@ -202,7 +199,7 @@ def _kernel_source(V, n, time=False):
         terms = [sp.diff(H[i, i + b], q[m]) for m in range(n)] if i + b < n else []
         _check_smooth(terms, "third derivatives")
         third.append(sp.Add(*[v[m] * t for m, t in enumerate(terms)]))
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     unpack_q = [f"    q_{i} = q[{i}]" for i in range(n)]
     if time:
         unpack_q.append("    t = par[-1]")
@@ -237,38 +234,15 @@ def _kernel_source(V, n, time=False):
 _LOADED = {}
 
 
-def _write_source(folder, digest, source):
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"potential_{digest}.py"
-    if not path.exists() or path.read_text() != source:
-        # Rewriting an identical file would only invalidate numba's cache.
-        atomic_write(path, source)
-    return path
-
-
 def _load_kernels(source):
     """Import the generated module (written once, atomically, to the cache
     directory). One module object per source in a process, so equal
     potentials share kernels and the TM stepper compiled for them."""
     digest = hashlib.sha256(source.encode()).hexdigest()[:20]
-    if digest in _LOADED:
-        return _LOADED[digest]
-    from ..cache import cache_dir
-
-    try:
-        path = _write_source(cache_dir() / "models", digest, source)
-    except OSError as exc:
-        # An unwritable cache costs numba's on-disk caching, not the model.
-        warnings.warn(f"cannot write generated kernels to {cache_dir()} ({exc}); using a "
-                      "temporary directory", RuntimeWarning, stacklevel=4)
-        path = _write_source(Path(tempfile.mkdtemp(prefix="varint-")), digest, source)
-    spec = importlib.util.spec_from_file_location(f"varint_potential_{digest}", path)
-    module = importlib.util.module_from_spec(spec)
-    # numba's on-disk cache finds the kernels' globals by module name.
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    _LOADED[digest] = module
-    return module
+    if digest not in _LOADED:
+        _LOADED[digest] = import_generated(cache_dir() / "models", f"potential_{digest}", source,
+                                           module=f"varint_potential_{digest}", stacklevel=5)
+    return _LOADED[digest]
 
 
 class SymbolicModel(Model):
@@ -282,7 +256,7 @@ class SymbolicModel(Model):
         n = len(q)
         qs = sp.symbols(f"q_0:{n}")
         t = sp.Symbol("t")
-        V_std = V.xreplace({**dict(zip(q, qs)), **({time: t} if time is not None else {})})
+        V_std = V.xreplace({**dict(zip(q, qs, strict=True)), **({time: t} if time is not None else {})})
         source, bw = _kernel_source(V_std, n, time=time is not None)
         kernels = _load_kernels(source)
         if time is None:
@@ -399,7 +373,7 @@ def _map_source(F, n):
     J = [[sp.diff(f, xi) for xi in x] for f in F]
     _check_smooth([e for row in J for e in row], "first derivatives", subject="the map",
                   need="differentiable")
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     unpack = [f"    x_{i} = x[{i}]" for i in range(n)]
     try:
         body_f = _assignments(printer, [f"out[{i}]" for i in range(n)], F)
@@ -434,7 +408,7 @@ def _map_periods(periods, coords):
             raise ValueError(f"periods must have {len(coords)} entries (one per coordinate, 0 "
                              f"for none), got {len(values)}")
     out = []
-    for c, v in zip(coords, values):
+    for c, v in zip(coords, values, strict=True):
         try:
             value = float(sp.sympify(v))
         except (sp.SympifyError, TypeError, ValueError):
@@ -461,13 +435,13 @@ class SymbolicMap(MapModel):
             raise ValueError(f"exprs must give the image of each of the {n} coordinates, got "
                              f"{len(exprs)} expressions")
         xs = sp.symbols(f"x_0:{n}")
-        F = [e.xreplace(dict(zip(coords, xs))) for e in exprs]
+        F = [e.xreplace(dict(zip(coords, xs, strict=True))) for e in exprs]
         kernels = _load_kernels(_map_source(F, n))
         self._symbolic = (tuple(exprs), coords)
         super().__init__(n, kernels.iterate, kernels.jacobian,
                          periods=_map_periods(periods, coords),
                          name=name or "map " + ", ".join(f"{c}' = {e}" for c, e in
-                                                         zip(coords, exprs)),
+                                                         zip(coords, exprs, strict=True)),
                          escape_radius=escape_radius, variables=[str(c) for c in coords])
 
     def symbolic(self):
