@@ -10,6 +10,8 @@ VARINT_DOCS_QUICK=1 the examples run shorter integrations and coarser maps
 """
 
 import os
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -39,7 +41,7 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "README.md", "**/GALLERY_HEADER.rst", "auto_examples/*.ipynb",
+exclude_patterns = ["_build", "_mathjax", "README.md", "**/GALLERY_HEADER.rst", "auto_examples/*.ipynb",
                     "auto_examples/*.py", "auto_examples/*.zip"]
 templates_path = ["_templates"]
 default_role = "code"
@@ -82,10 +84,40 @@ sphinx_gallery_conf = {
     "capture_repr": (),
 }
 
+# -- Math, offline ------------------------------------------------------------
+# MathJax ships with the site (no CDN: pages must read right on a machine
+# without internet). The build installs the npm package once into
+# docs/_mathjax (ignored by git) and copies its browser bundle into _static.
+MATHJAX_VERSION = "3.2.2"
+MATHJAX = HERE / "_mathjax"
+
+
+def _local_mathjax():
+    """The folder whose ``mathjax/tex-chtml.js`` the pages load."""
+    bundle = MATHJAX / "node_modules" / "mathjax" / "es5"
+    static = MATHJAX / f"static-{MATHJAX_VERSION}"
+    if (static / "mathjax" / "tex-chtml.js").is_file():
+        return static
+    if not (bundle / "tex-chtml.js").is_file():
+        npm = shutil.which("npm")
+        if npm is None:
+            raise RuntimeError(
+                "the documentation ships MathJax for offline reading and installs it with npm, "
+                "which is not on PATH: install Node.js (e.g. apt-get install npm), or run "
+                f"'npm install --prefix docs/_mathjax mathjax@{MATHJAX_VERSION}' elsewhere and "
+                "copy docs/_mathjax here")
+        subprocess.run([npm, "install", "--no-audit", "--no-fund", "--silent", "--prefix",
+                        str(MATHJAX), f"mathjax@{MATHJAX_VERSION}"], check=True)
+    shutil.copytree(bundle, static / "mathjax", dirs_exist_ok=True)
+    return static
+
+
+mathjax_path = "mathjax/tex-chtml.js"
+
 # -- HTML -------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
 html_title = f"varint {version}"
-html_static_path = ["_static"]
+html_static_path = ["_static", str(_local_mathjax())]
 html_css_files = ["varint.css"]
 html_show_sourcelink = False
 html_theme_options = {
@@ -94,10 +126,13 @@ html_theme_options = {
     "show_toc_level": 2,
     "navigation_with_keys": False,
     "header_links_before_dropdown": 6,
-    "secondary_sidebar_items": ["page-toc"],
+    # The report's wide tables take the whole width; its sections are in
+    # the left navigation column.
+    "secondary_sidebar_items": {"**": ["page-toc"], "report": []},
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version", "theme-version"],
 }
 # Pages without sub-pages: no empty navigation column, wider tables.
-html_sidebars = {page: [] for page in ("index", "getting_started", "report", "citing",
+html_sidebars = {page: [] for page in ("index", "getting_started", "citing",
                                        "changelog", "contributing")}
+html_sidebars["report"] = ["page-toc"]

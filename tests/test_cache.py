@@ -116,9 +116,22 @@ def test_reference_runs_the_extended_taylor_integration_once(tmp_cache, monkeypa
 
 
 def test_an_unwritable_cache_still_returns_the_result(tmp_path, monkeypatch, small_result):
+    """A cache directory that cannot be made costs the cache, not the
+    result: a private fallback is used or, if none can be, nothing is
+    cached (one warning says which)."""
+    from varint import cachedir
+
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
     monkeypatch.setenv("VARINT_CACHE_DIR", str(blocker / "c"))
+    monkeypatch.setattr(cachedir, "_WARNED", set())
+    monkeypatch.setattr(cachedir, "_FALLBACK", {"dir": None})
     compute = Counter(small_result)
-    with pytest.warns(CacheWarning, match="could not write"):
+    with pytest.warns(cachedir.CacheDirWarning, match="cannot be created.*nothing is cached"):
         assert cached({"a": 1}, compute) is small_result
+    assert cached({"a": 1}, compute) is small_result and compute.calls == 2
+    monkeypatch.setattr(cachedir, "_FALLBACK", {"dir": tmp_path / "fallback"})
+    (tmp_path / "fallback").mkdir(mode=0o700)
+    assert cached({"a": 1}, compute) is small_result and compute.calls == 3
+    assert cached({"a": 1}, compute).provenance == small_result.provenance
+    assert compute.calls == 3 and len(list((tmp_path / "fallback" / "results").iterdir())) == 1

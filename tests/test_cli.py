@@ -135,9 +135,9 @@ BAD_ARGUMENTS = [
     (["run", "lyapunov", *R1, "--k", "2.5"], 2, "--k must be an integer in 1..4, got '2.5'"),
     (["run", "lyapunov", *R1, "--k", "0"], 2, "--k must be an integer in 1..4, got '0'"),
     (["run", "lyapunov", *R1, "--k", ""], 2, "--k is empty"),
-    (["run", "gali", *R1, "--k", "2,3.5"], 2, "--k must be integers in 2..4, got '3.5'"),
-    (["run", "gali", *R1, "--k", "1,2"], 2, "--k must be integers in 2..4, got '1'"),
-    (["run", "sali", *R1, "--k", "2"], 2, "--k applies to lyapunov and gali, not sali"),
+    (["run", "gali", *R1, "--k", "2,3.5"], 2, "--k must be integers in 1..4, got '3.5'"),
+    (["run", "gali", *R1, "--k", "1,2"], 2, "--k: GALI order"),
+    (["run", "sali", *R1, "--k", "2"], 2, "--k applies to gali, local_exponents, lyapunov, not sali"),
     (["run", "sali", *R1, "--t-out", "2.5"], 2, "--t-out: expected a positive integer, got '2.5'"),
     (["run", "sali", *R1, "--t-out", "0"], 2, "--t-out: expected a positive integer, got '0'"),
     (["run", "sali", *R1, "--t-end", "1", "--t-out", "1000", "--tau", "0.05"], 2,
@@ -148,7 +148,7 @@ BAD_ARGUMENTS = [
     (["run", "sali", *R1, "--seed", "1.5"], 2, "--seed: expected an integer >= 0, got '1.5'"),
     (["run", "sali", *R1, "--seed", "-1"], 2, "--seed: expected an integer >= 0, got '-1'"),
     (["run", "sali", "--model", "fpu-beta", "--fpu-n", "3.7"], 2,
-     "--fpu-n: expected an integer >= 2 (moving particles), got '3.7'"),
+     "--fpu-n: expected a positive integer, got '3.7'"),
     (["run", "sali", "--model", "fpu-beta", "--fpu-n", "1000000000000", "--x0", "0"], 2,
      "model FPUBeta(n=1000000000000, beta=1.5) (1000000000000 degrees of freedom) needs about"),
     (["run", "lyapunov", "--model", "fpu-beta", "--fpu-n", "100000", "--energy", "1"], 2,
@@ -186,7 +186,10 @@ BAD_ARGUMENTS = [
     (["run", "sali", *HH, "--energy", "0.125", "--q", "0,0.1,3"], 2, "--q needs 2 numbers, got 3"),
     (["run", "sali", *HH, "--x0", "0,0,0.1,0", "--energy", "0.1"], 2,
      "give either --x0 or --energy"),
-    (["run", "sali", *R1, "--q", "-1,0.1"], 2, "--q goes with --energy"),
+    (["run", "sali", *HH, "--q", "-1,0.1", "--x0", "0,0,0,0"], 2, "--q goes with --energy"),
+    # A paper orbit is its initial state: another is refused, not silently used.
+    (["run", "sali", *R1, "--energy", "0.1"], 2, "--energy does not apply to --orbit R1"),
+    (["run", "sali", *R1, "--x0", "0,0.1,0.1,0"], 2, "--x0 does not apply to --orbit R1"),
     (["run", "sali", "--model", "fpu-beta", "--beta", "nan", "--x0", "0"], 2,
      "--beta: expected a finite number, got 'nan'"),
     (["run", "sali", *HH, "--fpu-n", "4", "--x0", "0,0,0,0"], 2,
@@ -406,11 +409,13 @@ def test_run_an_indicator_of_a_potential(capsys, tmp_path):
     code, out, err = _run(capsys, argv)
     assert code == 0, err
     rows = _rows(tmp_path / "r.csv")
-    assert rows[0] == ["t", "energy_error", "sali"]
+    assert rows[0] == ["t", "energy_error", "sali", "method", "scheme", "tau", "seed"]
     # The same run through the API, on the built-in model: same values.
     model, x0 = varint.paper_orbit("R1")
     ref = varint.sali(model, x0, 5.0)  # the automatic step, as the command's
     assert np.allclose([float(r[2]) for r in rows[1:]], ref.sali, rtol=1e-12)
+    # The CSV says what ran: the step the pilot chose, not a default.
+    assert {tuple(r[3:]) for r in rows[1:]} == {("tm", "SBAB2C", repr(ref.provenance.tau), "0")}
     assert (tmp_path / "r.png").stat().st_size > 1000
 
 
@@ -451,6 +456,53 @@ def test_map(capsys, tmp_path):
     rows = _rows(tmp_path / "m.csv")
     assert rows[0][:5] == ["orbit", "q0", "q1", "p0", "p1"] and len(rows) > 10
     assert (tmp_path / "m.png").exists() and (tmp_path / "ck" / "map.json").exists()
+
+
+def test_a_map_says_which_scheme_and_step_ran(capsys, tmp_path):
+    """Issue 32: the help named SBAB2C while the map ran SRKN14a at the
+    pilot's step, and neither the summary nor the CSV said so."""
+    from varint.maps import MAP_SCHEME
+
+    help_text = " ".join(cli.build_parser()._subparsers._group_actions[0].choices["map"]
+                         .format_help().split())
+    assert f"default {MAP_SCHEME} when the step is chosen automatically" in help_text
+    argv = ["map", *HH, "--energy", "0.125", "--u", "-0.4:0.6:4", "--v=-0.3:0.3:3",
+            "--t-end", "5", "--csv", str(tmp_path / "m.csv")]
+    code, out, err = _run(capsys, argv)
+    assert code == 0, err
+    rows = _rows(tmp_path / "m.csv")
+    head = rows[0]
+    scheme, tau = {r[head.index("scheme")] for r in rows[1:]}, {r[head.index("tau")]
+                                                              for r in rows[1:]}
+    assert scheme == {MAP_SCHEME} and len(tau) == 1
+    assert f"scheme {MAP_SCHEME}, tau = {float(tau.pop()):g} (chosen by a pilot" in out
+    code, out, err = _run(capsys, [*argv, "--tau", "0.05", "--scheme", "ABA864"])
+    assert code == 0, err
+    assert "scheme ABA864, tau = 0.05 (given)" in out
+
+
+def test_run_resumes_from_its_checkpoint(capsys, monkeypatch, tmp_path):
+    """--checkpoint: the run is saved, and the same command again returns
+    the same values (bitwise) from the file."""
+    argv = ["run", "lyapunov", *R1, "--t-end", "20", "--tau", "0.05", "--checkpoint",
+            str(tmp_path / "r.ckpt"), "--csv", str(tmp_path / "a.csv")]
+    code, _, err = _run(capsys, argv)
+    assert code == 0, err
+    assert (tmp_path / "r.ckpt").stat().st_size > 0
+    first = (tmp_path / "a.csv").read_text()
+    steps = hook_advance(monkeypatch, "tm", 10 ** 9, lambda: None)
+    code, _, err = _run(capsys, argv)
+    assert code == 0, err
+    assert steps == [] and (tmp_path / "a.csv").read_text() == first
+    code, _, err = _run(capsys, [*argv[:-4], "--tau", "0.1", *argv[-4:]])
+    assert code == 2 and "checkpoint" in _one_line(err)
+
+
+def test_select_explains_its_columns(capsys):
+    code, out, err = _run(capsys, ["select", "--orbit", "R1", "--target", "1e-6", "--t-end",
+                                   "1"])
+    assert code == 0, err
+    assert "growth a" in out and "the error grows as t^a" in out
 
 
 def test_run_and_map_a_symplectic_map(capsys, tmp_path):
@@ -501,7 +553,7 @@ def test_two_particle_method_with_its_separation(capsys, tmp_path):
 
     tm = x1()
     assert abs(x1("--method", "two-particle", "--d0", "1e-8") - tm) < 1e-6
-    assert abs(x1("--method", "two-particle", "--d0", "1e-3") - tm) > 1e-5
+    assert abs(x1("--method", "two-particle", "--d0", "4e-4") - tm) > 1e-5
     code, out, err = _run(capsys, ["map", "--map", "standard", "--K", "1.2", "--u", "0:6:4",
                                    "--v", "-3:3:3", "--t-end", "500", "--method",
                                    "two-particle", "--d0", "1e-9", "--d-max", "1e-6"])
@@ -526,6 +578,57 @@ def test_study_list(capsys):
     code, out, err = _run(capsys, ["study", "--list"])
     assert code == 0
     assert "sections" in out and "bench_chaos_map" in out
+    # Each description is a whole sentence, not a docstring's first line.
+    described = cli._study_names(ROOT)
+    assert len(described) >= 20
+    for name, doc in described.items():
+        assert doc.endswith((".", "?", "!")) and "``" not in doc and ":mod:" not in doc, name
+
+
+@pytest.mark.parametrize("returned, status", [({"rows": []}, 0), (None, 0), (0, 0), (1, 1),
+                                              (3, 3), (True, 0), ("done", 0)])
+def test_a_study_that_returns_its_results_exits_0(capsys, monkeypatch, tmp_path, returned,
+                                                  status):
+    """Issue 32: most studies' main() returns their results (a dict), which
+    the command took for an exit status (1); only an integer is one."""
+    root = _checkout(tmp_path / "repo")
+    (root / "studies" / "gives.py").write_text(
+        f'"""Returns something."""\n\n\ndef main(argv=None):\n    return {returned!r}\n')
+    monkeypatch.chdir(root)
+    monkeypatch.delitem(sys.modules, "studies", raising=False)
+    monkeypatch.delitem(sys.modules, "studies.gives", raising=False)
+    monkeypatch.setattr(sys, "path", [str(root), *sys.path])
+    assert _run(capsys, ["study", "gives", "--quick"])[0] == status
+
+
+STUDIES = sorted(cli._study_names(ROOT))
+
+
+@pytest.mark.parametrize("name", STUDIES)
+def test_every_study_answers_help_through_the_command(capsys, monkeypatch, name):
+    """Every study of studies/ is found, imports and parses its options
+    when run as 'varint study NAME' (exit 0)."""
+    monkeypatch.chdir(ROOT)
+    code, out, err = _run(capsys, ["study", name, "--help"])
+    assert code == 0, err
+    assert out.startswith("usage:")
+
+
+def test_the_readme_study_command_exits_0(tmp_path):
+    """README's 'varint study sections --quick', as a user runs it."""
+    out = subprocess.run([sys.executable, "-m", "varint.cli", "study", "sections", "--quick",
+                          "--out", str(tmp_path)], capture_output=True, text=True, timeout=600,
+                         cwd=ROOT, env=_env())
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+
+
+@pytest.mark.slow  # every study's quick mode: tens of minutes
+@pytest.mark.parametrize("name", [s for s in STUDIES if s not in ("sections", "fingerprints")])
+def test_every_study_quick_mode_exits_0_through_the_command(tmp_path, name):
+    out = subprocess.run([sys.executable, "-m", "varint.cli", "study", name, "--quick",
+                          "--out", str(tmp_path)], capture_output=True, text=True,
+                         timeout=3600, cwd=ROOT, env=_env())
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
 
 
 def _checkout(folder):

@@ -1,12 +1,13 @@
-"""Every ```python block of README.md runs, in order and in one namespace
-(later blocks use what earlier ones defined), in a temporary directory, so
-the README cannot drift from the code.
+"""Every ```python block of README.md runs alone (in a fresh namespace, in a
+temporary directory, as a reader pastes it), so the README cannot drift
+from the code and no block leans on names an earlier one defined.
 
 Blocks whose horizons or grids would take minutes run with the reductions
 of REDUCED; the README says so beside each of them. Every reduction must
 apply, so a README edit that drops its target fails here instead of
 silently running the long version. Doctest-style lines (">>> ", "... ")
-run as code."""
+run as code. The Dask block (a local cluster) is slow; its quick
+counterpart is the same map run here without the cluster."""
 
 import re
 import warnings
@@ -38,6 +39,10 @@ REDUCED = [
     # The same map as the local one above: a cluster changes no bit.
     ('t_end=1e4, client=client, checkpoint="hh_map_dask")',
      't_end=100.0, tau=0.05, client=client, checkpoint="hh_map_dask")'),
+    ('grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.7, 200),\n'
+     '                           np.linspace(-0.45, 0.45, 200))',
+     'grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.7, 20),\n'
+     '                           np.linspace(-0.45, 0.45, 20))'),
     ('r = varint.lyapunov_spectrum(model, x0, 1000.0, tau=0.05, method=method, **options)',
      'r = varint.lyapunov_spectrum(model, x0, 50.0, tau=0.05, method=method, **options)'),
     ('d = varint.departure(model, x0, "tdhcc", tau=0.05, t_end=2e4)',
@@ -63,39 +68,56 @@ def reduced(code):
     return code, used
 
 
-@pytest.mark.slow  # a Dask cluster and a dozen runs: about a minute
-def test_every_python_block_of_the_readme_runs(tmp_path, monkeypatch):
-    pytest.importorskip("distributed")
+def _run_block(i, tmp_path, monkeypatch):
+    """README block ``i`` (reduced) alone; its namespace."""
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path / "cache"))
-    code = blocks(README.read_text())
-    assert len(code) >= 6
+    block, used = reduced(BLOCKS[i])
     namespace = {"__name__": "readme"}
-    applied, maps = set(), []
-    try:
-        for i, block in enumerate(code):
-            block, used = reduced(block)
-            applied |= used
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", DeprecationWarning)
-                try:
-                    exec(compile(block, f"README.md python block {i + 1}", "exec"), namespace)
-                except Exception as exc:  # say which block, then fail
-                    pytest.fail(f"README python block {i + 1} failed: {type(exc).__name__}: "
-                                f"{exc}\n{block}")
-            # Later blocks reuse the name r: keep each map as it is made.
-            if isinstance(namespace.get("r"), varint.ChaosMapResult) and (
-                    not maps or namespace["r"] is not maps[-1]):
-                maps.append(namespace["r"])
-    finally:
-        client = namespace.get("client")
-        if client is not None:
-            client.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        try:
+            exec(compile(block, f"README.md python block {i + 1}", "exec"), namespace)
+        except Exception as exc:  # say which block, then fail
+            pytest.fail(f"README python block {i + 1} failed alone: {type(exc).__name__}: "
+                        f"{exc}\n{block}")
+    return namespace, used
+
+
+BLOCKS = blocks(README.read_text())
+#: Blocks that start a Dask cluster.
+DASK = [i for i, b in enumerate(BLOCKS) if "dask" in b]
+
+
+def test_the_blocks_are_found_and_every_reduction_applies():
+    assert len(BLOCKS) >= 10 and len(DASK) == 1
+    applied = set()
+    for block in BLOCKS:
+        applied |= reduced(block)[1]
     missing = [REDUCED[i][0] for i in range(len(REDUCED)) if i not in applied]
     assert not missing, f"README no longer contains these reduced lines: {missing}"
-    # What the blocks promise, checked on what they computed.
-    assert len(maps) == 2  # the local map and the Dask map, bitwise equal
-    for r in maps:
-        assert r.values.shape == (len(namespace["grid"]),)
+
+
+@pytest.mark.parametrize("i", [i for i in range(len(BLOCKS)) if i not in DASK],
+                         ids=lambda i: f"block{i + 1}")
+def test_every_python_block_of_the_readme_runs_alone(i, tmp_path, monkeypatch):
+    namespace, _ = _run_block(i, tmp_path, monkeypatch)
+    # What some blocks promise, checked on what they computed.
+    if "out" in namespace and hasattr(namespace["out"], "state"):
+        assert np.isfinite(namespace["out"].state).all()
+    if isinstance(namespace.get("r"), varint.ChaosMapResult):
+        assert namespace["r"].values.shape == (len(namespace["grid"]),)
+
+
+@pytest.mark.slow  # a Dask cluster: about a minute
+def test_the_dask_block_runs_alone_and_matches_the_local_map(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    local = next(i for i, b in enumerate(BLOCKS) if 'checkpoint="hh_map")' in b)
+    maps = []
+    for i in (local, DASK[0]):
+        (tmp_path / str(i)).mkdir()
+        namespace, _ = _run_block(i, tmp_path / str(i), monkeypatch)
+        maps.append(namespace["r"])
+        if namespace.get("client") is not None:
+            namespace["client"].close()
+    # A cluster changes no bit.
     assert maps[0].values.tobytes() == maps[1].values.tobytes()
-    assert np.isfinite(namespace["out"].state).all()

@@ -79,12 +79,18 @@ def test_every_result_plots(results, name):
     plt.close("all")
 
 
-def test_batch_plots_need_an_orbit(results):
+def test_batch_plots_overlay_their_orbits(results):
     import matplotlib.pyplot as plt
 
-    with pytest.raises(ValueError, match="pass orbit= to plot one"):
-        results["sali_batch"].plot()
-    ax = results["sali_batch"].plot(orbit=1)
+    batch = results["sali_batch"]
+    ax = batch.plot()
+    assert len(ax.lines) == len(batch.status)
+    for m, line in enumerate(ax.lines):
+        assert np.array_equal(line.get_ydata(), batch.sali[m])
+    assert [t.get_text() for t in ax.get_legend().get_texts()][:2] == ["orbit 0: SALI",
+                                                                    "orbit 1: SALI"]
+    plt.close("all")
+    ax = batch.plot(orbit=1)
     assert np.array_equal(ax.lines[0].get_ydata(), results["sali_batch"].sali[1])
     plt.close("all")
 

@@ -90,6 +90,10 @@ from .run import run  # noqa: E402
 from .schemes import SCHEMES, SplittingScheme, get_scheme, register_scheme  # noqa: E402
 from .sections import section_grid, surface_of_section  # noqa: E402
 from .selection import select_scheme  # noqa: E402
+from .codecache import tolerate_full_disks  # noqa: E402
+
+# A full disk when numba caches a kernel costs a warning, not the run.
+tolerate_full_disks()
 
 __all__ = [
     "models", "paper_orbit", "solve_momentum",

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import is_device_path
+
 
 def positive_float(value, name):
     """``value`` as a float that is finite and > 0."""
@@ -335,7 +337,7 @@ _MEMO_STATES = 1 << 16
 #: The states (q, as bytes) where :func:`kernels` found the kernels finite,
 #: per model and (kernels, parameters); beside the model, not in it: a model
 #: must stay picklable.
-_FINITE_AT = weakref.WeakKeyDictionary()
+_FINITE_AT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def kernels(model, X, what="the initial state"):
@@ -397,7 +399,7 @@ def kernels(model, X, what="the initial state"):
             raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
                              f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: "
                              f"{type(exc).__name__}: {exc}") from None
-        for label, values in zip(labels, (G, H, T)):
+        for label, values in zip(labels, (G, H, T), strict=True):
             bad = np.flatnonzero(~np.isfinite(values.reshape(len(Q), -1)).all(axis=1))
             if bad.size:
                 i = int(bad[0])
@@ -498,7 +500,10 @@ def output_file(path, name="output file"):
     """Check, before any work, that ``path`` can be written at the end.
 
     The directory must exist, and the file must either be creatable there
-    or exist and open for writing (without being changed). Files of virtual
+    or exist and open for writing (without being changed). A symbolic link
+    is refused (outside ``/dev``): it is replaced, never written through
+    (:func:`varint.files.output_file`), so a link planted at the path by
+    someone else cannot redirect the output onto another file. Files of virtual
     file systems such as ``/proc`` and ``/sys`` are kernel interfaces that
     refuse data or act on it, even for root: they are refused. Devices and
     pipes (``/dev/null``, ``/dev/stdout``) are accepted.
@@ -520,6 +525,10 @@ def output_file(path, name="output file"):
     if "\0" in text:
         raise ValueError(f"{name} must be a file path, got {text!r} (it contains a NUL byte)")
     p = Path(text)
+    if p.is_symlink() and not is_device_path(p):
+        raise ValueError(f"{name} {text} is a symbolic link (to {os.readlink(p)}); varint does "
+                         "not write through links, whose target someone else may have chosen: "
+                         "remove it or choose another path")
     try:
         if p.is_dir():
             raise ValueError(f"{name} {text} is a directory; expected a file path")

@@ -47,6 +47,8 @@ of interest) at 0, or override ``energy_scale``.
 
 from __future__ import annotations
 
+import os
+import sys
 import warnings
 from dataclasses import dataclass, field
 
@@ -55,7 +57,7 @@ import numpy as np
 from .protocol import STATUS_OK, Status
 
 __all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
-           "Reference", "assess", "warn", "flag_nonfinite"]
+           "Reference", "assess", "annotate", "warn", "flag_nonfinite", "NO_MAP_VERDICT"]
 
 #: Largest relative error of a conserved quantity at which indicators are
 #: still trusted (see the module docstring for the measurements).
@@ -223,14 +225,21 @@ class Accuracy:
 
     @property
     def verdict(self):
-        """One line: "accurate" or what exceeded the tolerance."""
+        """One line: "accurate" or what exceeded the tolerance, and what
+        the verdict does not check (:func:`annotate`): a map has no energy,
+        and some methods' deviation vectors owe nothing to the orbit's
+        energy."""
+        if "no_verdict" in self.notes:
+            return self.notes["no_verdict"]
         over = self.over
         if not over.any():
-            return (f"accurate: relative energy error {np.nanmax(np.atleast_1d(self.worst)):.2g}"
+            line = (f"accurate: relative energy error {np.nanmax(np.atleast_1d(self.worst)):.2g}"
                     f" <= energy_tol = {self.energy_tol:g}"
                     if np.isfinite(self.worst).any() else "no output recorded")
-        return (f"inaccurate: {int(over.sum())} of {over.size} orbits above energy_tol = "
-                f"{self.energy_tol:g} (largest error {np.nanmax(self.worst):.2g})")
+        else:
+            line = (f"inaccurate: {int(over.sum())} of {over.size} orbits above energy_tol = "
+                    f"{self.energy_tol:g} (largest error {np.nanmax(self.worst):.2g})")
+        return line + (f"; {self.notes['tangent']}" if "tangent" in self.notes else "")
 
     def to_dict(self):
         return {"energy_error": np.asarray(self.energy_error).tolist(),
@@ -250,6 +259,26 @@ class Accuracy:
                    t_worst=arr(d["t_worst"]), energy_tol=float(d["energy_tol"]),
                    accurate=np.array(d["accurate"], dtype=bool), tau=float(d.get("tau", "nan")),
                    notes=dict(d.get("notes", {})))
+
+
+#: The verdict of a map model's result: iterating a map has no
+#: truncation error and no energy to measure one by.
+NO_MAP_VERDICT = ("no verdict: a map has no energy to check (its energy_error is 0 by "
+                  "definition); it is iterated exactly, up to round-off")
+
+
+def annotate(verdict, model, propagator=None):
+    """Record in ``verdict.notes`` what the verdict cannot check, so that
+    it says so: a map model has no energy (``no_verdict``), and a
+    propagator whose class declares ``TANGENT_NOTE`` integrates the
+    deviation vectors apart from the orbit, so the energy says nothing of
+    their error (``tangent``). Returns ``verdict``."""
+    if getattr(model, "kind", "flow") == "map":
+        verdict.notes["no_verdict"] = NO_MAP_VERDICT
+    note = getattr(propagator, "TANGENT_NOTE", None)
+    if note:
+        verdict.notes["tangent"] = note
+    return verdict
 
 
 def assess(t, errors, status, energy_tol, tau, single):
@@ -308,9 +337,27 @@ def advice(tau, method="tm"):
             "varint.select_scheme(model, x0, target_error, t_end=...) choose both")
 
 
-def warn(accuracy, method="tm", what="the run", stacklevel=3):
-    """Warn (:class:`AccuracyWarning`) if any orbit of ``accuracy`` is over
-    its tolerance: the figure, when, and what to do."""
+#: Folders whose frames a warning skips to reach the user's line: the
+#: package and, in a source checkout, the baselines installed as
+#: varint.baselines.
+_OWN = (os.path.dirname(os.path.abspath(__file__)),
+        os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "baselines"))
+
+
+def user_stacklevel():
+    """The ``stacklevel`` that makes a warning issued by the caller of
+    this function point at the first frame outside varint: the user's own
+    line (``r = varint.gali(...)``), however deep inside varint the warning
+    is raised (Python 3.12's ``skip_file_prefixes``, for any Python)."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(_OWN):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+def warn(accuracy, method="tm", what="the run"):
+    """Warn (:class:`AccuracyWarning`, at the user's line) if any orbit of
+    ``accuracy`` is over its tolerance: the figure, when, and what to do."""
     over = accuracy.over
     if not over.any():
         return
@@ -329,4 +376,4 @@ def warn(accuracy, method="tm", what="the run", stacklevel=3):
         f"{what} is not accurate enough to trust its indicators ({who}relative {quantity} "
         f"error {worst[m]:.3g}{at}, above energy_tol = {accuracy.energy_tol:g}): regular "
         f"orbits may look chaotic and chaotic ones' exponents be off; "
-        + advice(accuracy.tau, method), AccuracyWarning, stacklevel=stacklevel + 1)
+        + advice(accuracy.tau, method), AccuracyWarning, stacklevel=user_stacklevel())

@@ -6,13 +6,18 @@ method with its options, every other argument, and the versions of the
 packages and of varint's own source. Change any of them and the key changes.
 
 Entries are written atomically (:func:`varint.files.atomic_file`), so a
-reader never sees half a file. Each entry carries the SHA-256 of its payload;
-an entry that is truncated or corrupt fails that check, is reported with a
-warning naming the file, deleted and recomputed — never used.
+reader never sees half a file, and each carries the key it was stored
+under and an HMAC of that key and its content by the user's secret
+(:mod:`varint.cachedir`). An entry is used only if its MAC verifies, its key
+is the one asked for and it loads as a valid result
+(:func:`varint.results.load_result`); any other entry (truncated, corrupt,
+edited, moved from another key's name, written by another user) is
+reported with a warning naming the file, deleted and recomputed — never
+used.
 
-The cache lives in ``$VARINT_CACHE_DIR`` if set, else in the platform's
-per-user cache directory (:func:`cache_dir`). Deleting the directory is
-always safe.
+The cache lives in the private cache directory (:func:`cache_dir`, checked
+by :func:`varint.cachedir.private_dir`). Deleting the directory is always
+safe.
 """
 
 from __future__ import annotations
@@ -21,23 +26,30 @@ import contextlib
 import functools
 import hashlib
 import io
+import re
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from . import cachedir
+from .cachedir import CacheDirWarning
 from .files import atomic_write, canonical_json
-from .paths import cache_dir
 from .results import load_result, package_versions
 
 __all__ = ["cache_dir", "cache_key", "cached", "reference", "CacheWarning"]
 
-_MAGIC = b"varint-cache-1\n"
+_MAGIC = b"varint-cache-2\n"
 _KINDS = ("integrate", "lyapunov_spectrum", "gali", "sali")
+_KEY = re.compile(rb"[0-9a-f]{64}\Z")
+
+#: The configured cache directory (:func:`varint.cachedir.location`).
+cache_dir = cachedir.location
 
 
-class CacheWarning(UserWarning):
-    """A cache entry was unreadable and is being recomputed."""
+class CacheWarning(CacheDirWarning):
+    """A cache entry was unreadable and is being recomputed, or could not
+    be written."""
 
 
 @functools.cache
@@ -93,31 +105,44 @@ def cache_key(parts) -> str:
 
 
 def _entry(key):
-    return cache_dir() / "results" / f"{key}.bin"
+    folder = cachedir.subdir("results")
+    return None if folder is None else folder / f"{key}.bin"
 
 
-def _read(path):
-    """The result stored at ``path``; None if absent or unreadable; raises
-    ValueError if the entry is damaged."""
+def _label(path):
+    return f"results/{path.name}"
+
+
+def _read(path, key=None):
+    """The result stored at ``path`` for ``key`` (by default the one its
+    name says); None if absent or unreadable; raises ValueError (saying
+    why) if the entry is damaged, foreign or another key's."""
+    key = path.stem if key is None else key
     try:
         blob = path.read_bytes()
     except OSError:  # absent, or the cache cannot be read at all
         return None
-    header, sep, rest = blob.partition(b"\n")
-    if not blob.startswith(_MAGIC) or not sep:
-        raise ValueError("not a varint cache entry")
-    digest, sep, payload = rest.partition(b"\n")
-    if not sep or hashlib.sha256(payload).hexdigest().encode() != digest:
-        raise ValueError("checksum mismatch (truncated or corrupt)")
+    if not blob.startswith(_MAGIC):
+        raise ValueError("not a varint cache entry" if blob else "it is empty")
+    mac, sep, rest = blob[len(_MAGIC):].partition(b"\n")
+    if not sep or not cachedir.verify(_label(path), rest, mac):
+        raise ValueError("its signature does not match (truncated, corrupt, edited, or "
+                         "written by another user)")
+    stored, sep, payload = rest.partition(b"\n")
+    if not sep or not _KEY.match(stored):
+        raise ValueError("it holds no key")
+    if stored.decode() != key:
+        raise ValueError(f"it holds the result of another call (key {stored.decode()[:12]}…, "
+                         f"not {key[:12]}…)")
     return load_result(io.BytesIO(payload))
 
 
-def _write(path, result):
+def _write(path, key, result):
     buf = io.BytesIO()
     result.save(buf)
-    payload = buf.getvalue()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, _MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+    rest = key.encode() + b"\n" + buf.getvalue()
+    mac = cachedir.sign(_label(path), rest)
+    atomic_write(path, _MAGIC + mac.encode() + b"\n" + rest)
 
 
 def cached(parts, compute):
@@ -136,22 +161,25 @@ def cached(parts, compute):
         When an entry is damaged (it is deleted and recomputed), or cannot
         be written (the result is returned all the same).
     """
-    path = _entry(cache_key(parts))
-    try:
-        result = _read(path)
-    except Exception as exc:  # a damaged entry must never be used
-        warnings.warn(f"varint cache entry {path} is unreadable ({exc}); recomputing it",
-                      CacheWarning, stacklevel=2)
-        with contextlib.suppress(OSError):
-            path.unlink()
-        result = None
+    key = cache_key(parts)
+    path = _entry(key)
+    result = None
+    if path is not None:
+        try:
+            result = _read(path, key)
+        except Exception as exc:  # a damaged entry must never be used
+            warnings.warn(f"varint cache entry {path} is unreadable ({exc}); recomputing it",
+                          CacheWarning, stacklevel=2)
+            with contextlib.suppress(OSError):
+                path.unlink()
     if result is None:
         result = compute()
-        try:
-            _write(path, result)
-        except OSError as exc:  # a read-only or full disk costs speed, not the result
-            warnings.warn(f"could not write varint cache entry {path} ({exc})", CacheWarning,
-                          stacklevel=2)
+        if path is not None:
+            try:
+                _write(path, key, result)
+            except OSError as exc:  # a read-only or full disk costs speed, not the result
+                warnings.warn(f"could not write varint cache entry {path} ({exc})",
+                              CacheWarning, stacklevel=2)
     return result
 
 

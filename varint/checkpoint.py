@@ -23,6 +23,21 @@ size or checksum test and is reported, never used: :class:`CheckpointError`
 names the file and tells the user to delete it to start over (a damaged
 checkpoint is not silently discarded, since it may stand for hours of work
 that the user can still recover from a backup).
+
+The checksum only catches accidents: anyone can edit a checkpoint and
+compute a new one. So nothing read back is used before it is validated
+against the call that resumes it (:meth:`Checkpoint.validate`): its
+parameters (the canonical key of the call: model, orbits, method and its
+options, times, seed, versions), the archive's members (stored, numeric,
+no pickles), the state's shapes, dtypes and values
+(:meth:`varint.state.RunState.problems`), the step against the records, and
+each record's keys, shapes, dtypes and finiteness. A checkpoint that fails
+is refused with a :class:`CheckpointError` naming the file and the field;
+nothing from it reaches a compiled stepper.
+
+The CPU time of every session (:func:`time.process_time`) is measured and
+summed in the checkpoint, so a resumed run reports the CPU it took, never
+an extrapolation.
 """
 
 from __future__ import annotations
@@ -32,6 +47,7 @@ import glob
 import hashlib
 import io
 import json
+import math
 import os
 import re
 import time
@@ -41,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .files import atomic_file, canonical as _canonical
+from .files import atomic_file, canonical as _canonical, temporary_owner
 from .records import Records
 from .state import RunState
 
@@ -75,12 +91,17 @@ class Snapshot:
         :class:`~varint.records.Records`).
     wall_time : float
         Seconds spent on the run so far, summed over sessions.
+    cpu_time : float or None
+        CPU seconds (process time) spent on the run so far, measured in
+        every session and summed; None if a session's was not measured (a
+        checkpoint written before varint recorded it).
     """
 
     parameters: dict
     state: RunState
     records: Records | list
     wall_time: float = 0.0
+    cpu_time: float | None = 0.0
 
 
 def canonical(parameters):
@@ -165,7 +186,8 @@ def _arrays_and_meta(snapshot):
     meta = {"parameters": canonical(snapshot.parameters), "step": int(s.step),
             "counts": {k: int(v) for k, v in s.counts.items()}, "extra": list(s.extra),
             "records": keys, "n_records": len(snapshot.records),
-            "wall_time": float(snapshot.wall_time)}
+            "wall_time": float(snapshot.wall_time),
+            "cpu_time": None if snapshot.cpu_time is None else float(snapshot.cpu_time)}
     bad = [k for k, a in arrays.items() if a.dtype.hasobject]
     if bad:
         raise TypeError(f"cannot checkpoint {bad[0]}: it is not a numeric array "
@@ -237,25 +259,76 @@ def read(path):
                               f"{advice}")
     try:
         return _decode(body[len(MAGIC):])
-    except (ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
-        # The checksum passed, so the writer itself produced this: a format
-        # from another varint version.
+    except (ValueError, KeyError, TypeError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        # The checksum passed: the file was edited, or another varint
+        # version wrote it.
         raise CheckpointError(f"checkpoint {path} cannot be decoded by this varint version "
-                              f"({exc}); {advice}") from exc
+                              f"({exc}); it was edited or written by another version; "
+                              f"{advice}") from exc
+
+
+class _Malformed(ValueError):
+    """A checksummed checkpoint whose structure is not what :func:`write`
+    writes (an edited file, or another varint version's format)."""
 
 
 def _decode(payload):
+    archive = zipfile.ZipFile(io.BytesIO(payload))
+    for info in archive.infolist():
+        # write() stores members uncompressed: a compressed one is foreign
+        # (and could expand to any size).
+        if info.compress_type != zipfile.ZIP_STORED:
+            raise _Malformed(f"member {info.filename} is compressed")
     with np.load(io.BytesIO(payload), allow_pickle=False) as z:
+        if "__meta__" not in z.files:
+            raise _Malformed("it has no __meta__ entry")
         meta = json.loads(str(z["__meta__"][()]))
         arrays = {k: np.require(z[k], requirements=["C", "W"]) for k in z.files
                   if k != "__meta__"}
-    state = RunState(**{name: arrays[f"state__{name}"] for name in STATE_ARRAYS},
-                     step=int(meta["step"]), counts=dict(meta["counts"]),
-                     extra={k: arrays[f"extra__{k}"] for k in meta["extra"]})
+    if not isinstance(meta, dict):
+        raise _Malformed("__meta__ is not a JSON object")
+    for key, a in arrays.items():
+        if a.dtype.kind not in "biuf":
+            raise _Malformed(f"{key} is not a numeric array (dtype {a.dtype})")
+    _need(meta, "parameters", dict)
+    _need(meta, "counts", dict)
+    for key in ("step", "n_records"):
+        _need(meta, key, int)
+    for key in ("extra", "records"):
+        if not isinstance(meta.get(key), list) or not all(isinstance(k, str) for k in meta[key]):
+            raise _Malformed(f"{key} is not a list of names")
+    wall, cpu = meta.get("wall_time"), meta.get("cpu_time")
+    for key, value in (("wall_time", wall), ("cpu_time", cpu)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                  or not 0 <= value < math.inf):
+            raise _Malformed(f"{key} is {value!r}, not a number of seconds")
+    if wall is None:
+        raise _Malformed("wall_time is missing")
+    named = ({f"state__{n}" for n in STATE_ARRAYS} | {f"extra__{k}" for k in meta["extra"]}
+             | {f"records__{k}" for k in meta["records"]})
+    if set(arrays) != named:
+        odd = sorted(set(arrays) ^ named)[0]
+        raise _Malformed(f"array {odd} is {'missing' if odd in named else 'not listed'}")
+    n = meta["n_records"]
     stacked = {k: arrays[f"records__{k}"] for k in meta["records"]}
-    records = Records.from_stacked(stacked, int(meta["n_records"]))
+    for key, a in stacked.items():
+        if a.ndim == 0 or a.shape[0] != n:
+            raise _Malformed(f"records of {key} hold {a.shape[0] if a.ndim else 0} outputs, "
+                             f"not {n}")
+    if n < 0 or (n and not stacked):
+        raise _Malformed(f"n_records = {n} with records {sorted(stacked)}")
+    state = RunState(**{name: arrays[f"state__{name}"] for name in STATE_ARRAYS},
+                     step=meta["step"], counts=dict(meta["counts"]),
+                     extra={k: arrays[f"extra__{k}"] for k in meta["extra"]})
+    records = Records.from_stacked(stacked, n)
     return Snapshot(parameters=meta["parameters"], state=state, records=records,
-                    wall_time=float(meta["wall_time"]))
+                    wall_time=float(wall), cpu_time=None if cpu is None else float(cpu))
+
+
+def _need(meta, key, kind):
+    value = meta.get(key)
+    if isinstance(value, bool) or not isinstance(value, kind):
+        raise _Malformed(f"{key} is {value!r:.60}, not {'an integer' if kind is int else 'a dict'}")
 
 
 # -- a run's checkpoint --------------------------------------------------------
@@ -298,7 +371,9 @@ class Checkpoint:
                                   f"{directory} {what}")
         self.parameters = None
         self._wall_before = 0.0
+        self._cpu_before = 0.0
         self._clock = self._last_write = time.perf_counter()
+        self._cpu_clock = time.process_time()
         self._saved = None  # _mark() of what the file holds
 
     def read(self):
@@ -318,20 +393,45 @@ class Checkpoint:
                 + "; ".join(diff) + ". Pass the same arguments to resume it, or another "
                 "checkpoint= path (or delete the file) to start a new run")
 
-    def begin(self, parameters, wall_before=0.0):
+    def validate(self, snapshot, like, steps, record, renorm):
+        """Raise :class:`CheckpointError` naming the file and the field
+        unless ``snapshot`` (already :meth:`require`-d to have this call's
+        parameters) can continue the run: its state fits ``like`` (the state
+        the call starts from, see :meth:`varint.state.RunState.problems`),
+        its step lies between the last recorded output step and the next of
+        ``steps``, and its records have the keys, shapes and dtypes of
+        ``record`` (one record of the call, (M, ...) per key) and finite
+        values wherever the orbit was running."""
+        state, records = snapshot.state, snapshot.records
+        n = len(records)
+        problems = state.problems(like, renorm, int(steps[-1]))
+        if not problems:
+            if n > len(steps):
+                problems = [("records", f"{n} outputs, but the run has {len(steps)}")]
+            elif (n and state.step < steps[n - 1]) or (n < len(steps) and state.step > steps[n]):
+                problems = [("step", f"{state.step} does not follow the {n} outputs recorded "
+                             f"(the next output step is {steps[min(n, len(steps) - 1)]})")]
+        if not problems and n:
+            problems = _record_problems(records.stacked(), record, state, steps[:n])
+        if problems:
+            field, why = problems[0]
+            raise CheckpointError(
+                f"checkpoint {self.path} cannot resume this run: {field}: {why}; it was edited "
+                "or damaged after its checksum was made; delete it to start the run over")
+
+    def begin(self, parameters, wall_before=0.0, cpu_before=0.0):
         """Start a session: later writes carry ``parameters`` and the wall
-        time spent so far plus this session's."""
+        and CPU time spent so far plus this session's (``cpu_before`` None:
+        not measured before, so the total stays unknown)."""
         self.parameters = parameters
         self._wall_before = float(wall_before)
+        self._cpu_before = None if cpu_before is None else float(cpu_before)
         self._clock = self._last_write = time.perf_counter()
-        self._remove_stale_temporaries()
-
-    def _remove_stale_temporaries(self):
-        # Left by a process killed while writing (the checkpoint itself is
-        # intact, see write()); harmless but they would pile up.
-        pattern = os.path.join(os.path.dirname(self.path),
-                               f".{glob.escape(os.path.basename(self.path))}.*.tmp")
-        for stale in glob.glob(pattern):
+        self._cpu_clock = time.process_time()
+        for stale in stale_temporaries(self.path):
+            # Left by a process killed while writing (the checkpoint itself
+            # is intact, see write()); harmless but they would pile up. A
+            # live writer's are not touched.
             with contextlib.suppress(OSError):
                 os.unlink(stale)
 
@@ -342,6 +442,13 @@ class Checkpoint:
     def wall_time(self):
         """Seconds spent on the run, over all sessions."""
         return self._wall_before + time.perf_counter() - self._clock
+
+    def cpu_time(self):
+        """CPU seconds (process time) spent on the run, over all sessions,
+        each measured; None if an earlier session's was not."""
+        if self._cpu_before is None:
+            return None
+        return self._cpu_before + time.process_time() - self._cpu_clock
 
     def save(self, state, records, strict=False):
         """Write the run's state and records.
@@ -357,7 +464,7 @@ class Checkpoint:
         mark = _mark(state, records)
         if mark == self._saved:
             return True
-        snapshot = Snapshot(self.parameters, state, records, self.wall_time())
+        snapshot = Snapshot(self.parameters, state, records, self.wall_time(), self.cpu_time())
         try:
             write(self.path, snapshot)
         except OSError as exc:
@@ -378,6 +485,44 @@ class Checkpoint:
         """Note that ``state`` and ``records`` are what the file holds (after
         a resume), so an unchanged run is not rewritten."""
         self._saved = _mark(state, records)
+
+
+def _record_problems(stacked, record, state, steps):
+    """(field, reason) pairs for stored records ``stacked`` (n, M, ...)
+    that do not match one fresh ``record`` (M, ...) of the call, or hold a
+    non-finite number for an orbit running at that output (in a field that
+    is finite in ``record``: some are undefined at first, such as a local
+    exponent before its first window closes)."""
+    if set(stacked) != set(record):
+        odd = sorted(set(stacked) ^ set(record))[0]
+        return [(f"records.{odd}", "missing" if odd in record else "not a record of this run")]
+    running = (state.status[None, :] == 0) | (state.fail_step[None, :] > steps[:, None])
+    for key, ref in record.items():
+        a, ref = stacked[key], np.asarray(ref)
+        if a.shape[1:] != ref.shape or a.dtype.kind != ref.dtype.kind:
+            return [(f"records.{key}", f"{a.dtype}{list(a.shape[1:])} per output, expected "
+                     f"{ref.dtype}{list(ref.shape)}")]
+        if a.dtype.kind == "f" and np.isfinite(ref).all():
+            finite = np.isfinite(a.reshape(a.shape[:2] + (-1,))).all(axis=2)
+            bad = running & ~finite
+            if bad.any():
+                r, m = np.argwhere(bad)[0]
+                return [(f"records.{key}", f"not finite at output {r} (step {steps[r]}) of "
+                         f"orbit {m}, which was running")]
+    return []
+
+
+def stale_temporaries(path):
+    """Temporary files of ``path`` (:func:`varint.files.atomic_file`) whose
+    writer is gone: written on this host by a process that no longer runs.
+    Those of live processes, of other hosts (a shared file system) and of
+    unknown writers are left alone."""
+    pattern = os.path.join(os.path.dirname(os.fspath(path)),
+                           f".{glob.escape(os.path.basename(os.fspath(path)))}.*.tmp")
+    for candidate in glob.glob(pattern):
+        owner = temporary_owner(candidate, path)
+        if owner is not None and not owner.alive():
+            yield candidate
 
 
 def _mark(state, records):

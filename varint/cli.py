@@ -14,7 +14,11 @@
     varint study stress --quick             a study of studies/ (source checkout)
     varint demo                             R1 and C1, as ``python -m varint``
 
-Results are printed as a table; ``--csv`` and ``--png`` write them to files.
+Results are printed as a table; ``--csv`` and ``--png`` write them to files
+(every CSV also records the method, scheme, tau and seed that ran). The
+command keeps no lists of its own: models, indicators, methods and schemes
+come from their registries (:mod:`varint.models.registry`,
+:data:`varint.INDICATORS`, :data:`varint.METHODS`, :data:`varint.SCHEMES`).
 Bad arguments and failed runs end with a one-line error (exit status 2 for
 arguments, 1 for a failed run or an internal error, 130 after Ctrl-C);
 ``varint --traceback COMMAND ...`` also prints the traceback.
@@ -36,13 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate as check
+from .files import output_file
 
 __all__ = ["main", "build_parser"]
 
-INDICATORS = ("lyapunov", "x1", "gali", "sali", "megno", "fli", "integrate")
-MODELS = ("henon-heiles", "three-dof", "fpu-beta")
-#: Built-in map models (``--map``).
-MAPS = ("standard", "coupled")
 #: Most steps (t_end / tau) one orbit of a command may take: 50 times the
 #: paper's longest run (2e9 steps), about three hours at 100 ns a step.
 MAX_STEPS = 10 ** 11
@@ -119,11 +120,6 @@ def _count(text):
 def _natural(text):
     """argparse type: an integer >= 0."""
     return _integer(text, 0, "an integer >= 0")
-
-
-def _fpu_size(text):
-    """argparse type: an integer >= 2."""
-    return _integer(text, 2, "an integer >= 2 (moving particles)")
 
 
 def _items(text, name):
@@ -214,16 +210,47 @@ def _horizon(t_end, tau, t_name="--t-end", tau_name="--tau"):
 
 
 # -- models and initial states -------------------------------------------------
+def _registered(maps):
+    """The registered models the command takes: flows, and maps with ``maps``."""
+    from .models.registry import MODELS
+
+    kinds = ("flow", "map") if maps else ("flow",)
+    return [e for e in MODELS.values() if e.kind in kinds]
+
+
+def _parameter_options(entries):
+    """Each model parameter's option (``--beta``) → [(entry, parameter)]
+    of the models that take it."""
+    out = {}
+    for entry in entries:
+        for par in entry.parameters:
+            out.setdefault(par.option, []).append((entry, par))
+    return out
+
+
+def _source(entry):
+    """How a registered model is chosen on the command line."""
+    return f"--{'map' if entry.kind == 'map' else 'model'} {entry.name}"
+
+
 def _add_model_arguments(p, orbit=True, maps=False):
+    from .models import PAPER_ORBITS
+
+    entries = _registered(maps)
     group = p.add_argument_group("model (one of)")
     if orbit:
-        group.add_argument("--orbit", help="a paper orbit: R1, C1, C2, R2 or R3 (model and x0)")
-    group.add_argument("--model", choices=MODELS,
-                       help="a built-in model (fpu-beta: with --fpu-n and --beta)")
+        group.add_argument("--orbit", help="a paper orbit, which fixes the model and the "
+                           f"initial state: {', '.join(PAPER_ORBITS)}")
+    flows = [e for e in entries if e.kind == "flow"]
+    group.add_argument("--model", choices=[e.name for e in flows],
+                       help="a built-in model: " + "; ".join(f"{e.name}: {e.summary}"
+                                                             for e in flows))
     if maps:
-        group.add_argument("--map", choices=MAPS, help="a symplectic map: the standard map "
-                           "(with --K; state x,p) or two coupled standard maps (with --K1, "
-                           "--K2, --beta; state x1,x2,x3,x4); t counts iterations")
+        iterated = [e for e in entries if e.kind == "map"]
+        group.add_argument("--map", choices=[e.name for e in iterated],
+                           help="a symplectic map (t counts iterations): " + "; ".join(
+                               f"{e.name}: {e.summary}, state {','.join(e.coordinates)}"
+                               for e in iterated))
     group.add_argument("--potential", metavar="EXPR",
                        help="V(q) as a formula in the --coords, e.g. "
                        "'(x**2+y**2)/2 + x**2*y - y**3/3': numbers, + - * / ** ^, parentheses, "
@@ -236,16 +263,11 @@ def _add_model_arguments(p, orbit=True, maps=False):
         group.add_argument("--time", metavar="NAME", help="the time variable of a "
                            "time-dependent --potential V(q, t), e.g. t (integrated in the "
                            "extended phase space from t = 0)")
-    group.add_argument("--fpu-n", type=_fpu_size, help="FPU particles (default 8)")
-    group.add_argument("--beta", type=_finite, help="FPU beta (default 1.5), or the coupling "
-                       "of --map coupled (default 0.1)")
-    if maps:
-        group.add_argument("--K", type=_finite, help="kick strength of --map standard "
-                           "(default 1.2)")
-        group.add_argument("--K1", type=_finite, help="--map coupled: first kick strength "
-                           "(default 1.5)")
-        group.add_argument("--K2", type=_finite, help="--map coupled: second kick strength "
-                           "(default 1.5)")
+    # One option per parameter of the registered models (varint.models.registry).
+    for option, users in _parameter_options(entries).items():
+        integer = all(par.integer for _, par in users)
+        group.add_argument(option, type=_count if integer else _finite, help="; ".join(
+            f"{_source(entry)}: {par.doc} (default {par.default:g})" for entry, par in users))
 
 
 def _add_state_arguments(p):
@@ -268,37 +290,33 @@ def _refuse_unused(args, names, why):
 
 
 def _model(args):
-    from . import models
+    """(model, x0 or None) from the model options: a paper orbit, a
+    registered model with its parameters, or a potential."""
+    from .models import paper_orbit
+    from .models.registry import get_model
 
     sources = [a for a in ("orbit", "model", "potential", "map") if hasattr(args, a)]
     given = _given(args, *sources)
     if len(given) != 1:
         raise ValueError("give exactly one of " + ", ".join(f"--{a}" for a in sources)
                          + (f" (got {', '.join('--' + g for g in given)})" if given else ""))
-    if args.model != "fpu-beta":
-        _refuse_unused(args, ("fpu_n",), "applies to --model fpu-beta only")
-        if getattr(args, "map", None) != "coupled":
-            _refuse_unused(args, ("beta",), "applies to --model fpu-beta and --map coupled only")
+    entry = get_model(getattr(args, given[0])) if given[0] in ("model", "map") else None
+    values = {}
+    for option, users in _parameter_options(_registered(hasattr(args, "map"))).items():
+        value = getattr(args, option[2:].replace("-", "_"))
+        if value is None:
+            continue
+        takes = [par for e, par in users if e is entry]
+        if not takes:
+            raise ValueError(f"{option} applies to "
+                             f"{' and '.join(_source(e) for e, _ in users)} only")
+        values[takes[0].name] = value
     if given[0] != "potential":
         _refuse_unused(args, ("coords", "inverse_mass", "time"), "applies to --potential only")
-    if getattr(args, "map", None) != "standard":
-        _refuse_unused(args, ("K",), "applies to --map standard only")
-    if getattr(args, "map", None) != "coupled":
-        _refuse_unused(args, ("K1", "K2"), "applies to --map coupled only")
-    if given[0] == "map":
-        if args.map == "standard":
-            return models.StandardMap(1.2 if args.K is None else args.K), None
-        return models.CoupledStandardMaps(1.5 if args.K1 is None else args.K1,
-                                          1.5 if args.K2 is None else args.K2,
-                                          0.1 if args.beta is None else args.beta), None
     if given[0] == "orbit":
-        return models.paper_orbit(args.orbit)
-    if given[0] == "model":
-        if args.model == "fpu-beta":
-            n = 8 if args.fpu_n is None else args.fpu_n
-            return models.FPUBeta(n, 1.5 if args.beta is None else args.beta), None
-        built_in = {"henon-heiles": models.HenonHeiles, "three-dof": models.ThreeDof}
-        return built_in[args.model](), None
+        return paper_orbit(args.orbit)
+    if entry is not None:
+        return entry.build(**values), None
     return _potential_model(args), None
 
 
@@ -334,6 +352,12 @@ def _potential_model(args):
 def _state(args, model, x0):
     from .models import solve_momentum
 
+    if x0 is not None:
+        # A paper orbit is its initial state: any other would silently
+        # replace it by something that is not the orbit the user named.
+        _refuse_unused(args, ("x0", "energy", "q", "p"), f"does not apply to --orbit "
+                       f"{getattr(args, 'orbit', '')}, which fixes the initial state; use "
+                       "--model for another state")
     if args.x0 is not None and args.energy is not None:
         raise ValueError("give either --x0 or --energy (with --q/--p), not both")
     if _is_map(model) and args.energy is not None:
@@ -455,7 +479,7 @@ def _cell(v):
 
 def _write_csv(path, cols, flag="--csv"):
     try:
-        with open(path, "w", newline="") as f:
+        with output_file(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
             w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()], strict=True))
@@ -475,12 +499,33 @@ def _save_plot(result, path, **kwargs):
     fig, ax = plt.subplots(figsize=(6, 4.5), layout="constrained")
     try:
         plot(result, ax, **kwargs)
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:
         plt.close(fig)
     print(f"plot written to {path}")
+
+
+def _identity(result):
+    """What ran, as constant CSV columns (a CSV that lost its command line
+    still says how it was made): method, scheme (empty for a method
+    without one), τ and seed."""
+    p = result.provenance
+    scheme = p.method_options.get("scheme")
+    n = len(result.values) if result.layout == "map" else len(result.t)
+    return {"method": [p.method] * n,
+            "scheme": [scheme.get("name", "") if isinstance(scheme, dict) else ""] * n,
+            "tau": [p.tau] * n, "seed": ["" if p.seed is None else p.seed] * n}
+
+
+def _savefig(fig, path):
+    """Save ``fig`` to ``path`` in the format its suffix names (PNG without
+    one), through :func:`varint.files.output_file` (no symbolic link
+    followed)."""
+    fmt = Path(path).suffix[1:].lower() or "png"
+    with output_file(path, "wb") as f:
+        fig.savefig(f, format=fmt, dpi=130)
 
 
 def _outputs(result, args, **plot_kwargs):
@@ -489,7 +534,7 @@ def _outputs(result, args, **plot_kwargs):
     cols = columns(result)
     _print_table(cols)
     if args.csv is not None:
-        _write_csv(args.csv, cols)
+        _write_csv(args.csv, {**cols, **_identity(result)})
     if args.png is not None:
         _save_plot(result, args.png, **plot_kwargs)
 
@@ -526,32 +571,45 @@ def _method_options(args):
     # the TDH methods); the method refuses a scheme it does not take.
     if args.scheme is not None:
         out["scheme"] = args.scheme
-    # The two-particle method's separation and renormalisation rule; no
-    # other method has them.
+    # Options of some methods only (the two-particle method's separation
+    # and renormalisation rule): each goes to the methods whose propagator
+    # lists it in OPTIONS (varint.METHODS), and is refused for the others.
+    from .methods import METHODS, propagator_class
+
     for name in ("d0", "d_max"):
         value = getattr(args, name)
         if value is None:
             continue
-        if args.method != "two-particle":
-            raise ValueError(f"--{name.replace('_', '-')} applies to --method two-particle "
-                             f"only, not {args.method}")
+        takers = [m for m in METHODS if name in propagator_class(m).OPTIONS]
+        if args.method not in takers:
+            raise ValueError(f"--{name.replace('_', '-')} applies to "
+                             f"{', '.join('--method ' + m for m in takers)} only, not "
+                             f"{args.method}")
         out[name] = value
     return out
 
 
-def _vectors(args, model):
-    """k of each run kind: the number of deviation vectors it carries and
-    what it is passed as."""
-    dim = model.dim
-    if args.indicator == "lyapunov":
-        k = dim if args.k is None else _ints(args.k, "--k", 1, 1, dim)[0]
-        return k, {"n_exponents": None if args.k is None else k}
-    if args.indicator == "gali":
-        orders = (2, dim) if args.k is None else tuple(_ints(args.k, "--k", None, 2, dim))
-        return max(orders), {"k": orders}
+def _indicator_options(args, model):
+    """The indicator's options from --k, and the number of deviation
+    vectors the run carries (the indicator's own count, for the memory
+    check). --k goes to the indicator's option ``k`` (GALI orders) or to
+    the option that states its number of vectors (``n_exponents``)."""
+    from .indicators import INDICATORS, resolve
+
+    indicator, fixed = resolve(args.indicator)
+    options = {}
     if args.k is not None:
-        raise ValueError(f"--k applies to lyapunov and gali, not {args.indicator}")
-    return (0 if args.indicator == "integrate" else 2), {}
+        name = "k" if "k" in indicator.options else indicator.count_option
+        if name is None or name in fixed:
+            takers = [n for n, i in INDICATORS.items() if "k" in i.options or i.count_option]
+            raise ValueError(f"--k applies to {', '.join(takers)}, not {args.indicator}")
+        values = _ints(args.k, "--k", None if name == "k" else 1, 1, model.dim)
+        options[name] = values[0] if len(values) == 1 else tuple(values)
+    try:
+        configured = indicator.configure(model, {**fixed, **options})
+    except ValueError as exc:
+        raise ValueError(f"--k: {exc}" if options else str(exc)) from None
+    return options, indicator.vectors(model, configured, None)
 
 
 def _cmd_run(args):
@@ -565,11 +623,12 @@ def _cmd_run(args):
     steps = _steps(args, tau)
     x0 = _state(args, model, x0)
     _check_kernels(model, x0)
-    k, kind_options = _vectors(args, model)
+    kind_options, k = _indicator_options(args, model)
     n_out = args.t_out or 10 * math.ceil(math.log10(steps) + 1)
     _check_run_size(model, k, n_out, f"a run of {k} vectors of {model.name} with {n_out} "
                     "outputs")
-    opts = dict(_method_options(args), t_out=args.t_out, progress=None)
+    opts = dict(_method_options(args), t_out=args.t_out, progress=None,
+                checkpoint=args.checkpoint)
     if args.indicator != "integrate":
         opts["seed"] = args.seed
     # A pilot that finds no step warns; if the run then fails, its error
@@ -588,7 +647,9 @@ def _cmd_run(args):
     if r.interrupted:
         raise _Interrupted(f"interrupted at t = {float(r.t[-1]):g}: the {len(r.t)} outputs "
                            "computed so far are shown" + (" and written" if args.csv or args.png
-                                                         else ""))
+                                                         else "")
+                           + (f"; run the same command again to resume from {args.checkpoint}"
+                              if args.checkpoint else ""))
 
 
 def _steps(args, tau):
@@ -697,9 +758,13 @@ def _cmd_map(args):
         finite = r.values[np.isfinite(r.values)]
     where = (f"on q{grid.plane} = 0 at H = {args.energy:g}" if grid.plane is not None else
              f"on the plane of state components {grid.axes[0]}, {grid.axes[1]}")
+    p = r.provenance
+    scheme = p.method_options.get("scheme")
     print(f"{r.indicator} map of {model.name} {where}: "
           f"{len(r.values)} orbits ({grid.mask.size} grid points), t_end = {t_end:g}, "
-          f"{r.provenance.wall_time:.3g} s")
+          f"method {p.method}" + (f", scheme {scheme['name']}" if isinstance(scheme, dict)
+                                  else "")
+          + f", tau = {p.tau:g} ({_tau_rule(p)}), {p.wall_time:.3g} s")
     print(f"decided early: {int(r.decided.sum())}, failed: {int((r.status > 0).sum())}"
           + (f", below {r.threshold:g}: {int((finite < r.threshold).sum())}"
              if r.threshold is not None else "")
@@ -708,13 +773,23 @@ def _cmd_map(args):
     if args.csv is not None:
         from .tables import columns
 
-        _write_csv(args.csv, columns(r))
+        _write_csv(args.csv, {**columns(r), **_identity(r)})
     if args.png is not None:
         _save_plot(r, args.png)
     if r.interrupted:
         raise _Interrupted("interrupted: the chunks finished so far are shown"
                            + (f"; run the same command again to resume from {args.checkpoint}"
                               if args.checkpoint else ""))
+
+
+def _tau_rule(provenance):
+    """How τ was chosen, in a few words."""
+    choice = provenance.tau_choice or {}
+    rule = choice.get("rule", "given")
+    if rule == "pilot":
+        return f"chosen by a pilot to energy error {choice['tolerance']:.0e}"
+    return {"given": "given", "fixed": "the method's default",
+            "fallback": "the fallback: no step met the pilot's tolerance"}.get(rule, rule)
 
 
 def _check_directory(value, flag):
@@ -774,9 +849,6 @@ def _pilot_t(args):
 
 
 # -- lattices ----------------------------------------------------------------------
-LATTICES = ("kg", "fput", "ddnls")
-
-
 def _lattice_shape(text):
     """argparse type: N (a chain) or NXxNY (a square lattice)."""
     parts = text.lower().split("x")
@@ -800,26 +872,30 @@ def _seed_list(text):
 
 
 def _lattice_model(args):
-    """The model class and its parameters from the lattice options."""
-    from . import models
+    """The registered lattice (:mod:`varint.models.registry`) and its
+    parameters from the lattice options; the factory takes ``seed=``."""
+    from .models.registry import get_model
 
-    unused = {"kg": ("alpha", "beta"), "fput": ("W",), "ddnls": ("alpha",)}[args.model]
-    for name in unused:
-        if getattr(args, name) is not None:
-            raise ValueError(f"--{name} does not apply to --model {args.model}")
-    common = {"shape": args.sites, "boundary": args.boundary}
-    if args.model == "kg":
-        return models.DisorderedKG, dict(common, W=4.0 if args.W is None else args.W)
-    if args.model == "ddnls":
-        return models.DDNLS, dict(common, W=4.0 if args.W is None else args.W,
-                                  beta=1.0 if args.beta is None else args.beta)
-    if not isinstance(args.sites, int):
+    entry = get_model(args.model)
+    values = {}
+    for option, users in _parameter_options(_lattices()).items():
+        value = getattr(args, option[2:].replace("-", "_"))
+        takes = [par for e, par in users if e is entry]
+        if value is not None and not takes:
+            raise ValueError(f"{option} does not apply to --model {args.model}")
+        if takes:
+            values[takes[0].name] = takes[0].default if value is None else value
+    params = {"shape": args.sites, "boundary": args.boundary, **values}
+    if args.model == "fput" and not isinstance(args.sites, int):
         raise ValueError(f"--model fput is a chain: --sites must be one integer, got "
                          f"{args.sites[0]}x{args.sites[1]}")
-    return (lambda shape, boundary, alpha, beta, seed: models.FPUT(
-        shape, alpha, beta, boundary=boundary)), \
-        dict(common, alpha=0.25 if args.alpha is None else args.alpha,
-             beta=1.0 if args.beta is None else args.beta)
+    return entry.factory, params
+
+
+def _lattices():
+    from .models.registry import MODELS
+
+    return [e for e in MODELS.values() if e.kind == "lattice"]
 
 
 def _cmd_lattice(args):
@@ -872,7 +948,7 @@ def _cmd_lattice(args):
     if args.csv is not None:
         _write_csv(args.csv, cols)
     if args.png is not None:
-        _plot_lattice(r, names, args.png)
+        _plot_lattice(r, args.png)
     if r.interrupted:
         raise _Interrupted(f"interrupted: {int((r.status != -2).sum())} of {len(seeds)} "
                            "realisations finished" + (f"; run the same command again to "
@@ -880,24 +956,19 @@ def _cmd_lattice(args):
                                                       if args.checkpoint else ""))
 
 
-def _plot_lattice(r, names, path):
-    """⟨log₁₀⟩ of each series against t, log–log, with its spread over the
-    realisations shaded."""
+def _plot_lattice(r, path):
+    """The ensemble's panels (:func:`varint.plotting.plot_ensemble`):
+    ⟨log₁₀⟩ of each series against t, log–log, its spread shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2),
-                             layout="constrained", squeeze=False)
+    from .plotting import plot_ensemble
+
+    fig = plot_ensemble(r)[0].figure
     try:
-        for ax, name in zip(axes[0], names, strict=True):
-            mean, std, _ = r.log_mean(name)
-            ax.loglog(r.t, 10 ** mean)
-            ax.fill_between(r.t, 10 ** (mean - std), 10 ** (mean + std), alpha=0.3)
-            ax.set_xlabel("t")
-            ax.set_title(name)
-        fig.savefig(path, dpi=130)
+        _savefig(fig, path)
     except OSError as exc:
         raise OSError(f"cannot write --png {path}: {exc.strerror or exc}") from exc
     finally:
@@ -916,16 +987,16 @@ def _add_lattice_parser(sub):
                        "spread over the realisations, and the exponents over the last two "
                        "decades.")
     p.add_argument("indicator", choices=("spreading", "dvd"), help="what to compute")
-    p.add_argument("--model", choices=LATTICES, required=True,
-                   help="kg: disordered Klein-Gordon; fput: FPUT chain; ddnls: disordered "
-                   "discrete nonlinear Schroedinger")
+    lattices = _lattices()
+    p.add_argument("--model", choices=[e.name for e in lattices], required=True,
+                   help="; ".join(f"{e.name}: {e.summary}" for e in lattices))
     p.add_argument("--sites", type=_lattice_shape, required=True,
                    help="N (a chain) or NXxNY (a square lattice; kg and ddnls)")
     p.add_argument("--boundary", choices=("fixed", "periodic"), default="fixed",
                    help="ends (default fixed)")
-    p.add_argument("--W", type=_finite, help="disorder strength (default 4)")
-    p.add_argument("--beta", type=_finite, help="nonlinearity of ddnls and fput (default 1)")
-    p.add_argument("--alpha", type=_finite, help="cubic term of fput (default 0.25)")
+    for option, users in _parameter_options(lattices).items():
+        p.add_argument(option, type=_finite, help="; ".join(
+            f"{entry.name}: {par.doc} (default {par.default:g})" for entry, par in users))
     p.add_argument("--seeds", type=_seed_list, default=[1],
                    help="disorder realisations: S, S1,S2,... or FIRST:LAST (default 1)")
     p.add_argument("--block", type=_count, default=1,
@@ -982,9 +1053,30 @@ def _study_names(root):
         text = path.read_text(errors="replace")
         if "def main(" not in text:
             continue
-        doc = text.split('"""')[1].strip().splitlines()[0] if text.startswith('"""') else ""
-        out[path.stem] = doc
+        out[path.stem] = _first_sentence(text.split('"""')[1] if text.startswith('"""') else "")
     return out
+
+
+def _first_sentence(doc):
+    """The first sentence of a docstring's first paragraph, whole (a
+    listing that cuts at the end of a line stops mid-sentence)."""
+    paragraph = " ".join(doc.strip().split("\n\n")[0].split())
+    # reST roles and literals read as plain words in a terminal.
+    paragraph = re.sub(r":\w+:`~?([^`]+)`", r"\1", paragraph).replace("``", "")
+    # A sentence ends at . ! or ? before a capital letter or the end, not
+    # after an abbreviation ("Figs. 2-11").
+    found = re.search(r"^(.+?[.!?])(?=\s+[A-Z]|$)", paragraph)
+    return found.group(1) if found else paragraph
+
+
+def study_status(returned):
+    """The exit status of a study whose ``main`` returned ``returned``:
+    an integer is a status (``fingerprints --check`` returns 1 when a bit
+    changed); anything else (most studies return their results, a dict)
+    or None means it ran to the end: 0."""
+    if isinstance(returned, (int, np.integer)) and not isinstance(returned, bool):
+        return int(returned)
+    return 0
 
 
 def _cmd_study(args):
@@ -996,17 +1088,33 @@ def _cmd_study(args):
     if not names:
         raise ValueError(f"no studies in {root / 'studies'}")
     if args.name is None or args.list:
+        import textwrap
+
+        width = max(map(len, names)) + 2
         for name, doc in names.items():
-            print(f"{name:18} {doc}")
+            print(textwrap.fill(doc, 100, initial_indent=f"{name:{width}}",
+                                subsequent_indent=" " * width))
         return
     if args.name not in names:
         raise ValueError(f"unknown study {args.name!r}; expected one of: {', '.join(names)}")
     if str(root) not in sys.path:
         sys.path.insert(0, str(root))
+    _forget_other_studies(root / "studies")
     module = importlib.import_module(f"studies.{args.name}")
-    status = module.main(args.study_args)
+    status = study_status(module.main(args.study_args))
     if status:
         raise SystemExit(status)
+
+
+def _forget_other_studies(folder):
+    """Drop a ``studies`` package imported from another folder (another
+    checkout, in the same process): the study must come from ``folder``."""
+    loaded = sys.modules.get("studies")
+    paths = [Path(p).resolve() for p in getattr(loaded, "__path__", [])]
+    if loaded is None or Path(folder).resolve() in paths:
+        return
+    for name in [n for n in sys.modules if n == "studies" or n.startswith("studies.")]:
+        del sys.modules[name]
 
 
 def _cmd_demo(args):
@@ -1018,16 +1126,22 @@ def _cmd_demo(args):
     run(t_end, tau, args.scheme, args.out)
 
 
-def _add_run_options(p, t_end=1e4):
+def _add_run_options(p, t_end=1e4, chaos_map=False):
     p.add_argument("--t-end", type=_positive, default=t_end,
                    help=f"final time (default {t_end:g})")
     p.add_argument("--tau", type=_positive, default=None, help="step / renormalisation "
                    "interval (default: for tm, the largest step whose energy error over a "
                    "short pilot run meets the tolerance; 0.05 for the other methods; for a "
                    "map, iterations per interval, default 1)")
-    p.add_argument("--method", default="tm", help="integration method: tm (default), taylor, "
-                   "cvode, dop853, tdhcc, tdhes, tdheps, two-particle (maps: tm, two-particle)")
-    p.add_argument("--scheme", help="splitting scheme (default SBAB2C); see 'varint schemes'")
+    from .maps import MAP_SCHEME
+    from .methods import MAP_METHODS, METHODS
+
+    p.add_argument("--method", default="tm", help=f"integration method: {', '.join(METHODS)} "
+                   f"(default tm; a symplectic map: {', '.join(MAP_METHODS)})")
+    default = (f"{MAP_SCHEME} when the step is chosen automatically (no --tau), else SBAB2C"
+               if chaos_map else "SBAB2C, or a lattice's own split")
+    p.add_argument("--scheme", help=f"splitting scheme (default {default}); see "
+                   "'varint schemes'")
     p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "
                    "each neighbour after it is put back (default 1e-8)")
     p.add_argument("--d-max", type=_positive, default=None, help="two-particle: put a "
@@ -1039,6 +1153,8 @@ def _add_run_options(p, t_end=1e4):
 
 def build_parser():
     """The argument parser of the ``varint`` command."""
+    from .indicators import indicator_names
+
     parser = _Parser(prog="varint", description=__doc__,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--traceback", action="store_true",
@@ -1055,13 +1171,18 @@ def build_parser():
                        description="Run an indicator for a paper orbit or a model, print its "
                        "values at up to 12 of the output times, and optionally write them "
                        "all (CSV) and a plot (PNG).")
-    p.add_argument("indicator", choices=INDICATORS, help="what to compute")
+    p.add_argument("indicator", choices=indicator_names(), help="what to compute: any "
+                   "registered indicator (varint.INDICATORS); x1 is the largest Lyapunov "
+                   "exponent alone")
     _add_model_arguments(p, maps=True)
     _add_state_arguments(p)
     _add_run_options(p)
     p.add_argument("--k", help="lyapunov: number of exponents; gali: orders, e.g. 2,3,4")
     p.add_argument("--t-out", type=_count, default=None, help="number of output times "
                    "(default: log-spaced, 10 per decade)")
+    p.add_argument("--checkpoint", metavar="FILE", help="save the run to FILE every minute "
+                   "and when it stops (Ctrl-C included); the same command again resumes it, "
+                   "bit for bit")
     p.add_argument("--csv", metavar="FILE", help="write every output to FILE")
     p.add_argument("--png", metavar="FILE", help="plot to FILE")
     p.set_defaults(handler=_cmd_run)
@@ -1086,7 +1207,7 @@ def build_parser():
                    "(default -0.45:0.45:100; a built-in map's whole range)")
     p.add_argument("--indicator", default="sali", help="sali (default), gali, gali_K, x1, "
                    "megno, fli, ofli")
-    _add_run_options(p, t_end=1e3)
+    _add_run_options(p, t_end=1e3, chaos_map=True)
     p.add_argument("--threshold", help="early-stopping threshold, or 'none' (default: the "
                    "indicator's, 1e-8 for SALI)")
     p.add_argument("--chunk-size", type=_count, default=None, help="orbits per chunk")

@@ -19,6 +19,7 @@ import warnings
 
 import numpy as np
 
+from .accuracy import user_stacklevel
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .records import Records
 from .state import Rows
@@ -103,7 +104,7 @@ def _progress_bar(progress, done, total, desc):
 
 
 def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="varint",
-          errors="raise", checkpoint=None, decide=None, renorm=0):
+          errors="raise", checkpoint=None, decide=None, renorm=0, cancelled=None):
     """Advance ``state`` to each step of ``out_steps`` and record there.
 
     A propagator that takes snapshots (``prop.takes_snapshots(state)``: it copies
@@ -144,6 +145,10 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     renorm : Renorm
         How snapshots taken between renormalisations are renormalised
         before they are read.
+    cancelled : callable, optional
+        ``cancelled() -> bool``, asked between chunks: True stops the run
+        as Ctrl-C does (a chunk of a chaos map on a Dask worker whose task
+        was cancelled, where no signal reaches the thread that runs it).
 
     Returns
     -------
@@ -191,7 +196,8 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                     todo = todo[1:]
             if bar is not None:
                 bar.update(n)
-            if stop is None and interrupted.is_set():
+            if stop is None and (interrupted.is_set()
+                                 or (cancelled is not None and cancelled())):
                 stop = "interrupted"
             if stop is None and checkpoint is not None and checkpoint.due():
                 checkpoint.save(state, records)
@@ -202,7 +208,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
                  if saved else "")
         warnings.warn(f"interrupted at t = {state.step * prop.tau:g}: returning the "
                       f"{len(records)} outputs recorded so far{where}", RuntimeWarning,
-                      stacklevel=4)
+                      stacklevel=user_stacklevel())
     return records.stacked(), stop, time.perf_counter() - start
 
 

@@ -15,36 +15,39 @@ nothing depends on the order in which realisations run, on the worker, or
 on resuming.
 
 Resuming: with ``checkpoint=DIR`` every finished realisation is written to
-``DIR/seed_<s>.npz`` (with its run parameters in ``seed_<s>.json``) as
-soon as it arrives, and a realisation in progress keeps a run checkpoint
-``DIR/seed_<s>.ckpt`` (:func:`varint.run`'s, bitwise resumable). The same
-call again loads the finished realisations, resumes the one in progress and
-runs the rest; a stored realisation whose parameters differ from this
-call's is refused with a :class:`~varint.CheckpointError` naming them.
+``DIR/seed_<s>.npz`` (:class:`varint.store.Store`: the result with the key
+and parameters of its run) as soon as it arrives, and a realisation in
+progress keeps a run checkpoint ``DIR/seed_<s>.ckpt`` (:func:`varint.run`'s,
+bitwise resumable). The same call again loads the finished realisations,
+resumes the one in progress and runs the rest; a stored realisation whose
+parameters differ from this call's is refused with a
+:class:`~varint.CheckpointError` naming them, and one that is damaged or
+edited (not a valid result of this ensemble's run for its seed) is reported
+and run again. A full or unwritable directory costs one warning: the
+ensemble goes on without keeping what it cannot write.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
+import io
 import math
 import numbers
 import time
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
 from . import _validate as check
-from .checkpoint import CheckpointError, canonical, differences
-from .files import atomic_file, atomic_write
+from .checkpoint import CheckpointError, canonical
 from .indicators import resolve
-from .maps import _bar, _cluster_threads, _worker_threads
+from .maps import _bar, _cluster_threads, _total_cpu, _worker_threads
 from .protocol import REASONS, is_failure
 from .results import Provenance, _Result, load_result, package_versions
 from .run import prepare
+from .store import Invalid, Store
 
 __all__ = ["ensemble", "EnsembleResult"]
 
@@ -74,7 +77,7 @@ class EnsembleResult(_Result):
         Seconds each realisation took.
     """
 
-    plot_kind: ClassVar[str] = "series"
+    plot_kind: ClassVar[str] = "ensemble"
 
     seeds: np.ndarray = None
     values: dict = None
@@ -191,55 +194,88 @@ class _Spec:
 
 
 def _realise(spec, seed, checkpoint):
-    """One realisation, run to the end (or interrupted): its result and the
-    parameters that determine it."""
+    """One realisation, run to the end (or interrupted): its result, the
+    parameters that determine it, and why its run checkpoint could not be
+    kept (or None)."""
     with _worker_threads(), warnings.catch_warnings():
         # Failures are counted by the ensemble, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
-        job = spec.job(seed, checkpoint)
-        result = job.execute()
-    return result, canonical(job.parameters())
+        note = None
+        try:
+            job = spec.job(seed, checkpoint)
+            result = job.execute()
+        except CheckpointError as exc:
+            # A full or unwritable directory costs the checkpoint, not the
+            # realisation (a damaged checkpoint is still refused).
+            if checkpoint is None or not isinstance(exc.__cause__, OSError):
+                raise
+            note = str(exc)
+            job = spec.job(seed)
+            result = job.execute()
+    return result, canonical(job.parameters()), note
 
 
-class _Store:
+def _name(seed):
+    return f"seed_{int(seed)}"
+
+
+def _load_realisation(store, seed, expected, first):
+    """The stored result of realisation ``seed`` if it is there, of these
+    ``expected`` run parameters and valid (:func:`_checked_realisation`);
+    None if not there (a damaged one is reported and recomputed).
+
+    Raises
+    ------
+    CheckpointError
+        If it belongs to an ensemble with other parameters (naming them).
+    """
+    piece = store.load(_name(seed), expected, foreign="refuse")
+    if piece is None:
+        return None
+    try:
+        return _checked_realisation(piece, seed, first)
+    except (Invalid, ValueError) as exc:
+        store.discard(store.file(_name(seed)), exc)
+        return None
+
+
+def _checked_realisation(piece, seed, first):
+    """The result a stored piece holds, after checking that it is what the
+    run ``first`` (of this ensemble) makes for ``seed``: a valid result
+    (:func:`varint.results.load_result`) of the indicator's class, finished,
+    of this seed, at these output times, with one state of this model."""
+    if set(piece.arrays) != {"result"} or piece.arrays["result"].dtype != np.uint8:
+        raise Invalid("it holds no result")
+    result = load_result(io.BytesIO(piece.arrays["result"].tobytes()))
+    t = first.steps * first.tau
+    if type(result) is not first.indicator.result:
+        raise Invalid(f"it holds a {type(result).__name__}, not a "
+                      f"{first.indicator.result.__name__}")
+    if result.interrupted or result.provenance.seed != seed:
+        raise Invalid("it holds an unfinished run, or another seed's")
+    if result.t.shape != t.shape or not np.array_equal(result.t, t):
+        raise Invalid("its output times are not this ensemble's")
+    if np.shape(result.state) != (first.model.dim,) or np.ndim(result.status) != 0:
+        raise Invalid(f"its state has shape {np.shape(result.state)}, not "
+                      f"({first.model.dim},)")
+    return result
+
+
+class _Store(Store):
     """The checkpoint directory of an ensemble (see the module docstring)."""
 
     def __init__(self, path):
-        self.path = Path(path)
-        if self.path.exists() and not self.path.is_dir():
-            raise ValueError(f"checkpoint must be a directory, {self.path} is a file")
-        self.path.mkdir(parents=True, exist_ok=True)
-
-    def _file(self, seed, suffix):
-        return self.path / f"seed_{int(seed)}{suffix}"
+        super().__init__(path, "ensemble")
 
     def run_checkpoint(self, seed):
-        return self._file(seed, ".ckpt")
+        return self.path / f"{_name(seed)}.ckpt"
 
-    def load(self, seed, expected):
-        """The stored result of ``seed`` if finished, checked against the
-        ``expected`` run parameters; None if not there."""
-        result_file, meta_file = self._file(seed, ".npz"), self._file(seed, ".json")
-        if not (result_file.exists() and meta_file.exists()):
-            return None
-        stored = json.loads(meta_file.read_text())
-        diff = differences(stored, expected)
-        if diff:
-            raise CheckpointError(
-                f"{result_file} holds realisation {seed} of an ensemble with other parameters: "
-                + "; ".join(diff) + ". Use another directory, or delete it to start over")
-        try:
-            return load_result(result_file)
-        except Exception as exc:  # a damaged file must never be used
-            warnings.warn(f"ensemble file {result_file} is unreadable ({exc}); recomputing it",
-                          RuntimeWarning, stacklevel=3)
-            return None
-
-    def save(self, seed, result, parameters):
-        atomic_write(self._file(seed, ".json"), json.dumps(parameters, indent=1))
-        with atomic_file(self._file(seed, ".npz")) as f:
-            result.save(f)
-        self.run_checkpoint(seed).unlink(missing_ok=True)
+    def keep(self, seed, result, parameters):
+        buf = io.BytesIO()
+        result.save(buf)
+        if self.save(_name(seed), {"result": np.frombuffer(buf.getvalue(), dtype=np.uint8)},
+                     {}, parameters):
+            self.run_checkpoint(seed).unlink(missing_ok=True)
 
 
 def _seeds(seeds):
@@ -336,7 +372,7 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
     if store is not None:
         for s in seeds:
             expected = canonical(spec.job(s).parameters())
-            found = store.load(s, expected)
+            found = _load_realisation(store, s, expected, first)
             if found is not None:
                 results[s], parameters[s] = found, expected
     resumed = len(results)
@@ -348,10 +384,14 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
                      time.perf_counter() - start)
 
 
-def _keep(seed, result, params, results, parameters, store, bar):
+def _keep(seed, outcome, results, parameters, store, bar):
+    result, params, note = outcome
     results[seed], parameters[seed] = result, params
+    if note is not None:
+        warnings.warn(f"{note}; realisation {seed} was run without a checkpoint",
+                      RuntimeWarning, stacklevel=4)
     if store is not None:
-        store.save(seed, result, params)
+        store.keep(seed, result, params)
     if bar is not None:
         bar.update(1)
 
@@ -362,11 +402,11 @@ def _run_local(client, spec, todo, results, parameters, store, bar):
     checkpoint, if any)."""
     try:
         for s in todo:
-            ckpt = None if store is None else store.run_checkpoint(s)
-            result, params = _realise(spec, s, ckpt)
-            if result.interrupted:
+            ckpt = None if store is None or store.unwritable else store.run_checkpoint(s)
+            outcome = _realise(spec, s, ckpt)
+            if outcome[0].interrupted:
                 return True
-            _keep(s, result, params, results, parameters, store, bar)
+            _keep(s, outcome, results, parameters, store, bar)
     except KeyboardInterrupt:
         return True
     return False
@@ -381,8 +421,7 @@ def _run_dask(client, spec, todo, results, parameters, store, bar):
                              pure=False): s for s in todo}
     try:
         for future in as_completed(futures):
-            result, params = future.result()
-            _keep(futures[future], result, params, results, parameters, store, bar)
+            _keep(futures[future], future.result(), results, parameters, store, bar)
     except KeyboardInterrupt:
         client.cancel(list(futures))
         return True
@@ -430,7 +469,8 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
     failed = is_failure(status)
     if failed.any():
         codes = "; ".join(f"{int(n)}: {REASONS.get(int(c), f'status {int(c)}')}"
-                          for c, n in zip(*np.unique(status[failed], return_counts=True)))
+                          for c, n in zip(*np.unique(status[failed], return_counts=True),
+                                          strict=True))
         warnings.warn(f"{int(failed.sum())} of {r_count} realisations failed ({codes}); their "
                       "later values are NaN", RuntimeWarning, stacklevel=3)
     if interrupted:
@@ -447,7 +487,8 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
                       method_options=first.propagator.describe(), tau=first.tau,
                       t_end=first.t_end, seed=None, options=options,
                       versions=p.versions if p is not None else package_versions(),
-                      counts=counts, wall_time=wall)
+                      counts=counts, wall_time=wall,
+                      cpu_time=_total_cpu(r.provenance.cpu_time for r in results.values()))
     return EnsembleResult(t=t, energy_error=energy, state=state, provenance=prov, status=status,
                           interrupted=interrupted, seeds=np.array(seeds, dtype=np.int64),
                           values=values, wall_times=walls)

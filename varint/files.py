@@ -1,13 +1,18 @@
 """Files written safely, and JSON written canonically: the two helpers every
 writer in varint uses (checkpoints, chaos-map chunks, the reference cache,
-generated kernels, the studies' results); and the import of generated
-source (:func:`import_generated`).
+generated kernels, the studies' results, the command line's outputs).
 
 :func:`atomic_file` writes to a temporary file in the target's directory,
 flushes it to disk (``fsync``), moves it over the target with
 :func:`os.replace` and syncs the directory, so at every instant the path
 holds either the old complete file or the new one — never half of one,
-even if the process is killed or the machine loses power.
+even if the process is killed or the machine loses power. The temporary
+file's name says who writes it (host and process id, then a random part:
+:func:`temporary_owner`), so a writer never takes another's file for the
+debris of a dead one. Moving a file over the path replaces a symbolic link
+planted there instead of writing through it; :func:`output_file` opens a
+user's output file that way (devices and pipes, such as ``/dev/stdout``,
+are written directly).
 
 :func:`canonical` is the one JSON form of parameters (sorted keys; NumPy
 arrays and scalars as lists and numbers): two descriptions of the same run
@@ -17,18 +22,19 @@ compare equal, and hash equal, whichever way they were built.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
+import errno
 import json
 import os
-import sys
+import re
+import socket
+import stat
 import tempfile
-import warnings
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = ["atomic_file", "atomic_write", "canonical", "canonical_json", "jsonable",
-           "import_generated"]
+           "output_file", "is_device_path", "temporary_owner", "DEVICE_DIRS"]
 
 
 def jsonable(obj):
@@ -95,27 +101,84 @@ def _plain(obj):
     return _NOT_PLAIN
 
 
+def _host():
+    # Letters, digits, '-' only: the name is parsed back by temporary_owner.
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:64] or "host"
+
+
+@dataclass(frozen=True)
+class Owner:
+    """Who writes a temporary file: a host and a process id there."""
+
+    host: str
+    pid: int
+
+    def alive(self):
+        """Whether the writer may still run (True unless it is a process of
+        this host that no longer exists)."""
+        if self.host != _host():
+            return True
+        try:
+            os.kill(self.pid, 0)
+        except ProcessLookupError:
+            return False
+        except OSError:       # exists, owned by someone else
+            return True
+        return True
+
+
+def temporary_owner(name, path):
+    """The :class:`Owner` encoded in the name of a temporary file of
+    ``path`` made by :func:`atomic_file`, or None if it is not one."""
+    base = re.escape(os.path.basename(os.fspath(path)))
+    match = re.fullmatch(rf"\.{base}\.([A-Za-z0-9-]+)\.(\d+)\.[^.]+\.tmp",
+                         os.path.basename(os.fspath(name)))
+    return None if match is None else Owner(match.group(1), int(match.group(2)))
+
+
 @contextlib.contextmanager
-def atomic_file(path, mode="wb"):
+def atomic_file(path, mode="wb", permissions=None, newline=None):
     """Open a temporary file that replaces ``path`` when the block ends
     without an exception (see the module docstring); on an exception the
     temporary file is removed and ``path`` is left as it was.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+    mode : str
+        ``"wb"`` or ``"w"``.
+    permissions : int, optional
+        Mode bits of the new file; by default 0600 (private: checkpoints,
+        the cache). :func:`output_file` gives a user's outputs the usual
+        ones (0666 less the umask).
+    newline : str, optional
+        As for :func:`open`, in text mode.
+
     Raises
     ------
     OSError
-        If the directory cannot be written.
+        If the directory cannot be written, or if the temporary file
+        vanished before it could be moved into place (another process
+        deleted it): the message says so.
     """
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp",
-                               dir=directory)
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.{_host()}.{os.getpid()}.",
+                               suffix=".tmp", dir=directory)
     try:
-        with os.fdopen(fd, mode) as f:
+        if permissions is not None:
+            os.fchmod(fd, permissions)
+        with os.fdopen(fd, mode, newline=newline) as f:
             yield f
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except FileNotFoundError as exc:
+            if os.path.isdir(directory):
+                raise OSError(exc.errno, f"its temporary file {tmp} was deleted by another "
+                              "process before it could be moved into place") from None
+            raise
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -139,34 +202,49 @@ def _fsync_directory(directory):
             os.close(fd)
 
 
-def import_generated(folder, name, source, extra_globals=None, module=None, stacklevel=3):
-    """Import the generated module ``name`` (or ``module``) from
-    ``folder/name.py``.
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
-    The file is written (atomically) when it is missing — and, when
-    ``source`` is the text itself rather than a function that makes it,
-    when it holds anything else — so a new process imports the file an
-    earlier one wrote, and numba finds the kernels it cached beside it
-    (by module name: the module is entered in ``sys.modules``).
-    ``extra_globals`` are set in the module before it runs. A folder that
-    cannot be written costs the on-disk caches, not the run: a warning, and
-    a temporary folder (the warning points ``stacklevel`` frames up).
-    """
-    text = source if isinstance(source, str) else None
+
+#: Directories of device files: a path there (``/dev/stdout``, a link to
+#: ``/proc/self/fd/1``) is written directly, never replaced.
+DEVICE_DIRS = ("/dev", "/proc")
+
+
+def is_device_path(path):
+    """Whether ``path`` lies in :data:`DEVICE_DIRS` or is itself a character
+    device or a pipe (not following a link)."""
+    absolute = os.path.abspath(os.fspath(path))
+    if any(absolute == d or absolute.startswith(d + os.sep) for d in DEVICE_DIRS):
+        return True
     try:
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        path = Path(folder) / f"{name}.py"
-        # Rewriting an identical file would only invalidate numba's cache.
-        if not path.exists() or (text is not None and path.read_text() != text):
-            atomic_write(path, text if text is not None else source())
-    except OSError as exc:
-        warnings.warn(f"cannot write generated kernels to {folder} ({exc}); compiling them in a "
-                      "temporary directory", RuntimeWarning, stacklevel=stacklevel)
-        path = Path(tempfile.mkdtemp(prefix="varint-")) / f"{name}.py"
-        path.write_text(text if text is not None else source())
-    spec = importlib.util.spec_from_file_location(module or name, path)
-    loaded = importlib.util.module_from_spec(spec)
-    loaded.__dict__.update(extra_globals or {})
-    sys.modules[spec.name] = loaded
-    spec.loader.exec_module(loaded)
-    return loaded
+        st = os.lstat(absolute)
+    except OSError:
+        return False
+    return stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode)
+
+
+@contextlib.contextmanager
+def output_file(path, mode="w", newline=None):
+    """Open a user's output file (``--csv``, ``--png``) for writing, without
+    following a symbolic link planted at ``path``: the path is replaced
+    atomically by a new file with the usual permissions (0666 less the
+    umask), so whatever a link there pointed to is never written. A device
+    or a pipe (``/dev/null``, ``/dev/stdout``: :func:`is_device_path`) is
+    written directly.
+
+    Raises
+    ------
+    OSError
+        If it cannot be written.
+    """
+    if is_device_path(path):
+        with open(path, mode, newline=newline) as f:
+            yield f
+        return
+    if os.path.isdir(path) and not os.path.islink(path):
+        raise OSError(errno.EISDIR, f"{os.fspath(path)} is a directory")
+    with atomic_file(path, mode, permissions=0o666 & ~_umask(), newline=newline) as f:
+        yield f

@@ -25,44 +25,45 @@ nothing more; its value is the one at the check time that decided it, and
 ``t_stop`` says when.
 
 Resuming: with ``checkpoint=DIR`` each finished chunk is written to ``DIR``
-(atomically) as soon as it arrives; the same call again loads the finished
-chunks and computes only the others, so a map interrupted at 90 % resumes at
-90 %. A directory written by a map with other parameters is refused with a
-:class:`~varint.CheckpointError` naming them; an unreadable chunk file is
-reported and recomputed (a chunk is a deterministic, cheap-to-redo piece of
-the map, unlike a run checkpoint that may stand for days).
+(atomically, :class:`varint.store.Store`) as soon as it arrives; the same
+call again loads the finished chunks and computes only the others, so a map
+interrupted at 90 % resumes at 90 %. A directory written by a map with other
+parameters (``map.json``) is refused with a :class:`~varint.CheckpointError`
+naming them. Each chunk file carries the key of its map and its orbits, and
+is checked before use (:func:`_checked_chunk`): an unreadable, edited or
+foreign chunk (copied from another map, or left by one after ``map.json``
+was lost) is reported and recomputed (a chunk is a deterministic,
+cheap-to-redo piece of the map, unlike a run checkpoint that may stand for
+days). A full or unwritable directory costs one warning: the map goes on.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
-import io
-import json
 import math
 import numbers
 import os
 import time
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
-from .checkpoint import CheckpointError, canonical, differences, digest
-from .files import atomic_write, jsonable
+from . import accuracy, compiling, stepsize
+from .checkpoint import digest
 from .indicators import INDICATORS, Indicator, resolve
-from .methods import METHODS
+from .methods import METHODS, propagator_class
 from .models.base import Model
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import default_tau, prepare
 from .sections import SectionGrid
 from .state import initial_deviations, output_steps
+from .store import Invalid, Store
 
 __all__ = ["chaos_map", "MAP_SCHEME", "MAP_PILOT_TOL", "pilot_tolerance"]
 
@@ -130,28 +131,50 @@ class _Chunk:
     counts: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     interrupted: bool = False
+    #: CPU seconds the chunk took (None on a Dask worker, whose process
+    #: runs other tasks at the same time).
+    cpu_time: float | None = None
 
 
 @contextlib.contextmanager
 def _worker_threads():
     """On a Dask worker, run numba on as many threads as the worker has
     (numba's setting is per calling thread), so workers sharing a machine
-    do not oversubscribe it."""
+    do not oversubscribe it; yields the task's :func:`_cancel_check` there,
+    None elsewhere."""
     try:
         from distributed import get_worker
 
-        n = get_worker().state.nthreads
+        worker = get_worker()
+        n = worker.state.nthreads
     except (ImportError, ValueError, AttributeError):
-        yield
+        yield None
         return
     import numba
 
     before = numba.get_num_threads()
     numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
     try:
-        yield
+        yield _cancel_check(worker)
     finally:
         numba.set_num_threads(before)
+
+
+def _cancel_check(worker):
+    """A function telling whether the Dask task running in this thread was
+    cancelled (the map was interrupted): its run then stops at its next
+    chunk (~0.2 s) instead of finishing, so an interrupted map leaves no
+    worker busy for minutes and a cluster closes at once."""
+    try:
+        key = worker.get_current_task()
+    except Exception:  # not inside a task
+        return lambda: False
+
+    def cancelled():
+        task = worker.state.tasks.get(key)
+        return task is None or task.state in ("cancelled", "released", "forgotten")
+
+    return cancelled
 
 
 def run_chunk(model, x0, indices, spec):
@@ -159,7 +182,8 @@ def run_chunk(model, x0, indices, spec):
     map) as one batch run, stopping early at the check times ``spec.steps``.
     """
     ind = spec.indicator
-    with _worker_threads(), warnings.catch_warnings():
+    cpu = time.process_time()
+    with _worker_threads() as cancelled, warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         W0 = initial_deviations(model.dim, spec.k, len(x0), spec.seed, indices)
@@ -178,7 +202,8 @@ def run_chunk(model, x0, indices, spec):
         def decide(rec):
             return ind.settled(rec["value"], spec.threshold)
 
-        records, stop, _ = job.drive(record, None if spec.threshold is None else decide)
+        records, stop, _ = job.drive(record, None if spec.threshold is None else decide,
+                                     cancelled)
     state = job.state
     n_done = 0 if records is None or not records else len(records["value"])
     # Read each orbit at the last output it was active at: where it was
@@ -205,61 +230,102 @@ def run_chunk(model, x0, indices, spec):
                   counts=dict(state.counts),
                   provenance={"method_options": job.propagator.describe(),
                               "versions": job.versions()},
-                  interrupted=stop == "interrupted")
+                  interrupted=stop == "interrupted",
+                  cpu_time=None if cancelled is not None else time.process_time() - cpu)
 
 
-class _ChunkStore:
-    """Finished chunks of one map in a directory: ``map.json`` (the map's
-    parameters) and ``chunk_<c>.npz`` per chunk, each written atomically."""
+#: A map chunk's per-orbit arrays and their dtype kinds.
+_CHUNK_ARRAYS = {"values": "f", "t_stop": "f", "status": "i", "energy_error": "f", "state": "f",
+                 "max_energy_error": "f", "max_error": "f"}
 
-    def __init__(self, path, parameters):
-        self.path = Path(path)
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise CheckpointError(f"cannot use {self.path} as a chaos map checkpoint "
-                                  f"directory: {exc}") from exc
-        meta = self.path / "map.json"
-        if meta.exists():
-            try:
-                stored = json.loads(meta.read_text())
-            except (OSError, ValueError) as exc:
-                raise CheckpointError(f"{meta} is not readable ({exc}); delete the directory "
-                                      "to start the map over") from exc
-            diff = differences(stored, parameters)
-            if diff:
-                raise CheckpointError(
-                    f"{self.path} holds a chaos map with other parameters: " + "; ".join(diff)
-                    + ". Use another directory, or delete this one to start over")
-        else:
-            atomic_write(meta, json.dumps(canonical(parameters), indent=1))
 
-    def _file(self, c):
-        return self.path / f"chunk_{c:06d}.npz"
+def _chunk_name(c):
+    return f"chunk_{c:06d}"
 
-    def load(self, c):
-        """Chunk ``c`` if finished and readable, else None."""
-        path = self._file(c)
-        if not path.exists():
-            return None
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                meta = json.loads(str(data["__meta__"]))
-                arrays = {k: data[k] for k in ("values", "t_stop", "status", "energy_error",
-                                               "state", "max_energy_error", "max_error")}
-            return _Chunk(**arrays, counts=meta["counts"], provenance=meta["provenance"])
-        except Exception as exc:  # a damaged chunk must never be used
-            warnings.warn(f"chaos map chunk file {path} is unreadable ({exc}); recomputing it",
-                          RuntimeWarning, stacklevel=3)
-            return None
 
-    def save(self, c, chunk):
-        buf = io.BytesIO()
-        meta = json.dumps(jsonable({"counts": chunk.counts, "provenance": chunk.provenance}))
-        np.savez(buf, __meta__=np.array(meta), values=chunk.values, t_stop=chunk.t_stop,
-                 status=chunk.status, energy_error=chunk.energy_error, state=chunk.state,
-                 max_energy_error=chunk.max_energy_error, max_error=chunk.max_error)
-        atomic_write(self._file(c), buf.getvalue())
+def _save_chunk(store, c, idx, chunk):
+    """Keep chunk ``c`` (orbits ``idx``) in the store."""
+    arrays = {name: getattr(chunk, name) for name in _CHUNK_ARRAYS}
+    store.save(_chunk_name(c), {**arrays, "orbits": np.asarray(idx, dtype=np.int64)},
+               {"counts": chunk.counts, "provenance": chunk.provenance,
+                "cpu_time": chunk.cpu_time})
+
+
+def _load_chunk(store, c, idx, spec, dim):
+    """Chunk ``c`` of this map from the store if it is there and valid
+    (:func:`_checked_chunk`), else None (a damaged or foreign file is
+    reported and recomputed)."""
+    piece = store.load(_chunk_name(c))
+    if piece is None:
+        return None
+    try:
+        return _checked_chunk(piece, idx, spec, dim)
+    except Invalid as exc:
+        store.discard(store.file(_chunk_name(c)), exc)
+        return None
+
+
+def _checked_chunk(piece, idx, spec, dim):
+    """The :class:`_Chunk` a stored piece stands for, after checking that
+    it is one this map would have computed for the orbits ``idx``: the
+    same orbits, one value per orbit of the right dtype, known status
+    codes, stop times on the map's grid, finite values, errors and states
+    for every orbit that did not fail, and non-negative counts.
+
+    Raises
+    ------
+    Invalid
+        Naming the field and why.
+    """
+    a, meta = piece.arrays, piece.meta
+    if set(a) != set(_CHUNK_ARRAYS) | {"orbits"}:
+        odd = sorted(set(a) ^ (set(_CHUNK_ARRAYS) | {"orbits"}))[0]
+        raise Invalid(f"array {odd} is {'missing' if odd not in a else 'not a chunk array'}")
+    if a["orbits"].shape != idx.shape or not np.array_equal(a["orbits"], idx):
+        raise Invalid("it holds other orbits than this chunk's")
+    m = len(idx)
+    for name, kind in _CHUNK_ARRAYS.items():
+        shape = (m, dim) if name == "state" else (m,)
+        if a[name].shape != shape or a[name].dtype.kind != kind:
+            raise Invalid(f"{name} is {a[name].dtype}{list(a[name].shape)}, expected "
+                          f"{'float64' if kind == 'f' else 'int64'}{list(shape)}")
+    status = a["status"]
+    known = {int(s) for s in Status}
+    if not set(np.unique(status).tolist()) <= known:
+        raise Invalid(f"status holds an unknown code {sorted(set(status.tolist()) - known)[0]}")
+    fine = ~is_failure(status)
+    checks = [(name, np.isfinite(a[name]) if name != "state" else np.isfinite(a[name]).all(1))
+              for name in ("values", "energy_error", "max_energy_error", "max_error", "state")]
+    for name, finite in checks:
+        bad = fine & ~finite
+        if bad.any():
+            raise Invalid(f"{name} is not finite for orbit {int(idx[np.argmax(bad)])}, which "
+                          "did not fail")
+    t_end, checks_at = spec.t_end, spec.steps * spec.tau
+    t = a["t_stop"]
+    ok = np.where(status == STATUS_OK, t == spec.steps[-1] * spec.tau,
+                  np.where(status == int(Status.DECIDED), np.isin(t, checks_at),
+                           (t > 0) & (t <= t_end * (1 + 1e-12))))
+    if not ok.all():
+        raise Invalid(f"t_stop of orbit {int(idx[np.argmin(ok)])} is {t[np.argmin(ok)]!r}, not "
+                      "a time its status allows")
+    with np.errstate(invalid="ignore"):
+        negative = fine & ((a["energy_error"] < 0) | (a["max_energy_error"] < 0)
+                           | (a["max_error"] < 0))
+    if negative.any():
+        raise Invalid("an energy error is negative")
+    counts, prov, cpu = meta.get("counts"), meta.get("provenance"), meta.get("cpu_time")
+    if not isinstance(counts, dict) or not all(
+            isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in counts.values()):
+        raise Invalid("counts are not non-negative integers")
+    if not (isinstance(prov, dict) and isinstance(prov.get("method_options"), dict)
+            and isinstance(prov.get("versions"), dict)):
+        raise Invalid("provenance is not the chunk's method options and versions")
+    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, (int, float))
+                            or not 0 <= cpu < math.inf):
+        raise Invalid(f"cpu_time is {cpu!r}")
+    return _Chunk(**{name: a[name] for name in _CHUNK_ARRAYS}, counts=counts, provenance=prov,
+                  cpu_time=cpu)
 
 
 def _default_chunk_size(m, workers):
@@ -386,8 +452,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              f"got shape {np.shape(initial_conditions)}")
     m = len(X)
     # The map's per-orbit results (values, times, status, errors, states).
+    model_name = model.name
     check.check_memory(check.array_bytes((m, 2 * X.shape[1] + 8)),
-                       f"a chaos map of {m} orbits of {model.name}")
+                       f"a chaos map of {m} orbits of {model_name}")
     if getattr(model, "kind", "flow") == "map":
         tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
     elif getattr(model, "band_kernels", True):
@@ -406,6 +473,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                       if k not in ind.options and not (k == "scheme" and v is None)}
     # Checked here, before any chunk runs, with the chunks' own rules.
     configured = ind.configure(model, ind_options)
+    ind.check_states(model, X, configured)
     k = ind.vectors(model, configured, None)
     if isinstance(threshold, str) and threshold == "default":
         threshold = ind.default_threshold(model, configured)
@@ -432,10 +500,12 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
     tau_choice = {"rule": "given"}
+    clock = compiling.Clock(f"the {ind.name} map of {model_name} by {method}", progress)
     if tau is None:
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-        tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
-                                       t_check, escape_radius, ind, configured, k, seed)
+        with clock.part("pilot"):
+            tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
+                                           t_check, escape_radius, ind, configured, k, seed)
     t_end, tau = check.horizon(t_end, tau)
     steps = output_steps(t_end, tau, t_check)
     if t_check is None:
@@ -455,22 +525,25 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,
                   "versions": package_versions()}
-    store = None if checkpoint is None else _ChunkStore(checkpoint, parameters)
-
+    store = None
     done = {}
-    if store is not None:
+    if checkpoint is not None:
+        store = Store(checkpoint, "chaos map", parameters)
+        store.manifest("map.json")
         for c in range(len(chunks)):
-            chunk = store.load(c)
+            chunk = _load_chunk(store, c, chunks[c], spec, X.shape[1])
             if chunk is not None:
                 done[c] = chunk
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
     runner = _run_local if client is None else _run_dask
-    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar:
+    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar, clock.part("run"):
         interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
     result = _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
                        interrupted, store is not None, time.perf_counter() - start, client,
                        energy_tol, tau_choice)
+    # This process's compilations (a cluster's workers compile on their own).
+    result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, method, what="the chaos map")
     return result
 
@@ -522,7 +595,7 @@ def _run_local(client, model, X, chunks, todo, spec, done, store, bar):
             chunk = run_chunk(model, X[idx], idx, spec)
             if chunk.interrupted:
                 return True
-            _finish(c, chunk, done, store, bar)
+            _finish(c, chunks[c], chunk, done, store, bar)
     except KeyboardInterrupt:
         return True
     return False
@@ -536,19 +609,26 @@ def _run_dask(client, model, X, chunks, todo, spec, done, store, bar):
                              pure=False): c for c in todo}
     try:
         for future in as_completed(futures):
-            _finish(futures[future], future.result(), done, store, bar)
+            c = futures[future]
+            _finish(c, chunks[c], future.result(), done, store, bar)
     except KeyboardInterrupt:
         client.cancel(list(futures))
         return True
     return False
 
 
-def _finish(c, chunk, done, store, bar):
+def _finish(c, idx, chunk, done, store, bar):
     done[c] = chunk
     if store is not None:
-        store.save(c, chunk)
+        _save_chunk(store, c, idx, chunk)
     if bar is not None:
         bar.update(len(chunk.values))
+
+
+def _total_cpu(times):
+    """The sum of measured CPU times; None if one was not measured."""
+    times = list(times)
+    return None if any(t is None for t in times) else float(sum(times))
 
 
 def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, interrupted, kept,
@@ -569,13 +649,15 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
     failed = is_failure(status)
     if failed.any():
         codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
-                          for s, n in zip(*np.unique(status[failed], return_counts=True)))
+                          for s, n in zip(*np.unique(status[failed], return_counts=True),
+                                          strict=True))
         warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
-                      "NaN", RuntimeWarning, stacklevel=3)
+                      "NaN", RuntimeWarning, stacklevel=accuracy.user_stacklevel())
     if interrupted:
         warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
                       + ("; they are kept in the checkpoint directory, call again to resume"
-                         if kept else ""), RuntimeWarning, stacklevel=3)
+                         if kept else ""), RuntimeWarning,
+                      stacklevel=accuracy.user_stacklevel())
     first = next(iter(done.values())).provenance if done else {}
     options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
                "threshold": spec.threshold, "x0": parameters["x0"],
@@ -586,7 +668,8 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
                       method_options=first.get("method_options", {}), tau=spec.tau,
                       t_end=spec.t_end, seed=spec.seed, options=options,
                       versions=first.get("versions", package_versions()), counts=counts,
-                      wall_time=wall, tau_choice=dict(tau_choice))
+                      wall_time=wall, tau_choice=dict(tau_choice),
+                      cpu_time=_total_cpu(chunk.cpu_time for chunk in done.values()))
     failed = is_failure(status)
     with np.errstate(invalid="ignore"):
         accurate = ~failed & (max_error <= energy_tol)
@@ -595,9 +678,11 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         conserved["conserved quantities"] = max_error
     # When an orbit's error was largest is not kept (only the largest, up to
     # the time it was read at).
-    verdict = accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
-                                t_worst=np.full(m, np.nan), energy_tol=energy_tol,
-                                accurate=accurate, tau=spec.tau)
+    verdict = accuracy.annotate(
+        accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
+                          t_worst=np.full(m, np.nan), energy_tol=energy_tol,
+                          accurate=accurate, tau=spec.tau),
+        model, propagator_class(spec.method, model))
     empty = np.empty(0)
     return ChaosMapResult(
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,

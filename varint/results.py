@@ -30,10 +30,10 @@ __all__ = ["Provenance", "IntegrationResult", "LyapunovResult", "GALIResult", "S
 
 #: Result classes by name, for :func:`load_result` (every subclass of
 #: ``_Result`` is added when it is defined, wherever that is).
-_CLASSES = {}
+_CLASSES: dict = {}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def package_versions(*extra):
     """Versions of Python, varint and the numerical packages a run used
     (cached: reading package metadata takes milliseconds)."""
@@ -85,6 +85,20 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    timing : dict
+        Seconds of this session by part, each without the numba
+        compilations inside it: ``compile`` (their sum), ``pilot`` (the
+        automatic step's pilot), ``setup`` and ``run``
+        (:mod:`varint.compiling`). ``wall_time`` holds them all: compare
+        methods by ``timing["run"]``, which a first call's compilation does
+        not inflate.
+    cpu_time : float or None
+        CPU seconds (:func:`time.process_time`, every thread of the process)
+        the integration took: measured in every session of a resumed run
+        and summed (kept in its checkpoint), never extrapolated; None where
+        a session's was not measured (a checkpoint from before varint
+        recorded it) or cannot be told apart from other work (a chaos map
+        on a cluster).
     """
 
     kind: str
@@ -102,6 +116,8 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    cpu_time: float | None = None
 
     def to_dict(self):
         return jsonable(dataclasses.asdict(self))
@@ -126,6 +142,10 @@ class _Result:
 
     layout: ClassVar[str] = "series"
     plot_kind: ClassVar[str] = "energy_error"
+    #: Labels of series in summaries (field or key → label).
+    _labels: ClassVar[dict] = {"mean_megno": "mean MEGNO", "megno": "MEGNO", "sali": "SALI",
+                               "fli": "FLI", "ofli": "OFLI", "participation": "P",
+                               "dvd_participation": "DVD P", "dvd_m2": "DVD m2"}
     #: Names of the trailing dimensions of fields, for :meth:`to_xarray`
     #: (beyond those of :data:`varint.tables.DIMS`), e.g.
     #: ``{"local": ("exponent",)}``; unnamed ones are ``{field}_dim{i}``.
@@ -134,6 +154,10 @@ class _Result:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         _CLASSES[cls.__name__] = cls
+        # The summary below, not the dataclass's dump of every array: set
+        # in the class itself before @dataclass runs, which then keeps it.
+        if "__repr__" not in cls.__dict__:
+            cls.__repr__ = _Result.__repr__
 
     t: np.ndarray
     energy_error: np.ndarray
@@ -207,9 +231,108 @@ class _Result:
     def summary(self):
         """One-line description for logs and the command line."""
         p = self.provenance
-        return (f"{p.kind} of {p.model.get('name')} by {p.method} "
-                f"({p.method_options.get('scheme', {}).get('name', '')}) tau={p.tau:g} "
-                f"to t={float(np.max(self.t)):g} in {p.wall_time:.3g} s")
+        scheme = p.method_options.get("scheme")
+        scheme = f" ({scheme.get('name', '')})" if isinstance(scheme, dict) else ""
+        t = np.asarray(self.t, dtype=float)
+        end = f" to t={float(np.nanmax(t)):g}" if t.size and np.isfinite(t).any() else ""
+        return (f"{p.kind} of {p.model.get('name')} by {p.method}{scheme} tau={p.tau:g}"
+                f"{end} in {p.wall_time:.3g} s")
+
+    def headline(self):
+        """The values a reader looks at first, as (label, value) pairs: the
+        last output of each series (per orbit for a batch: median and
+        range)."""
+        out = []
+        for name, value in self._series():
+            v = np.asarray(value, dtype=float)
+            if v.ndim == 0 or v.shape[-1 if self._batch() else 0] == 0:
+                continue
+            last = v[..., -1] if self._batch() else v[-1]
+            out.append((name, last))
+        return out
+
+    def _batch(self):
+        return np.ndim(self.status) == 1
+
+    def _series(self):
+        """(name, array ([M,] n_out)) of every per-output series with one
+        value per output time (columns of wider ones are named name[i])."""
+        skip = {"t", "energy_error", "state", "status", "deviations", "provenance", "accuracy",
+                "interrupted", "states"}
+        n_out = len(np.atleast_1d(self.t))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name in skip or value is None:
+                continue
+            items = value.items() if isinstance(value, dict) else [(f.name, value)]
+            for key, arr in items:
+                arr = np.asarray(arr)
+                if arr.dtype.kind != "f" or arr.ndim == 0:
+                    continue
+                lead = 1 if self._batch() else 0
+                if arr.ndim <= lead or arr.shape[lead] != n_out:
+                    continue
+                label = f"GALI_{key}" if f.name == "gali" else self._labels.get(key, str(key))
+                if arr.ndim == lead + 1:
+                    yield label, arr
+                elif arr.ndim == lead + 2 and arr.shape[-1] <= 8:
+                    for j in range(arr.shape[-1]):
+                        yield (f"X{j + 1}" if label == "exponents" else f"{label}[{j}]"), \
+                            arr[..., j]
+
+    def __repr__(self):
+        """A summary, not the arrays: what ran, the headline values, the
+        accuracy verdict, and the fields that hold the rest."""
+        p = self.provenance
+        lines = [f"{type(self).__name__}: {self.summary()}"]
+        t = np.atleast_1d(np.asarray(self.t, dtype=float))
+        orbits = (f"{len(self.status)} orbits" if self._batch()
+                  else f"x0 = {_short(p.x0)}" if p.x0 else "")
+        if self.layout != "series":     # a map's t holds check times; a section's, ends
+            times = f"t_end = {p.t_end:g}"
+        elif t.size > 1 and np.isfinite(t).all():
+            times = f"{t.size} outputs, t = {t[0]:g} … {t[-1]:g}"
+        else:
+            times = f"{t.size} output(s)"
+        lines.append(f"  {orbits}; {times}" if orbits else f"  {times}")
+        pairs = self.headline()
+        if pairs:
+            at = f"at t = {t[-1]:g}" if self.layout == "series" and t.size else "values"
+            shown = ", ".join(f"{name} = {_value(v)}" for name, v in pairs[:8])
+            more = f" (+{len(pairs) - 8} more)" if len(pairs) > 8 else ""
+            lines.append(f"  {at}: {shown}{more}")
+        if self.accuracy is not None:
+            lines.append(f"  accuracy: {self.accuracy.verdict}")
+        if np.any(np.asarray(self.status) > 0):
+            lines.append(f"  failed: {int(np.sum(np.asarray(self.status) > 0))} orbit(s) "
+                         "(status > 0)")
+        if self.interrupted:
+            lines.append("  interrupted: the outputs so far")
+        arrays = [f"{f.name} {np.shape(getattr(self, f.name))}" for f in dataclasses.fields(self)
+                  if isinstance(getattr(self, f.name), np.ndarray)]
+        dicts = [f"{f.name}[{', '.join(map(repr, getattr(self, f.name)))}]"
+                 for f in dataclasses.fields(self) if isinstance(getattr(self, f.name), dict)]
+        lines.append("  fields: " + ", ".join(arrays + dicts) + "; .provenance, .accuracy")
+        return "\n".join(lines)
+
+
+def _value(v):
+    """A headline value: one number, or median and range over orbits."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim == 0:
+        return f"{float(v):.4g}"
+    finite = v[np.isfinite(v)]
+    if not finite.size:
+        return "nan"
+    return (f"{np.median(finite):.4g} (median of {v.size}; {finite.min():.3g} … "
+            f"{finite.max():.3g})")
+
+
+def _short(x0):
+    x = np.asarray(x0, dtype=float).ravel()
+    if x.size <= 6:
+        return "[" + ", ".join(f"{v:.6g}" for v in x) + "]"
+    return f"[{', '.join(f'{v:.6g}' for v in x[:3])}, … ({x.size} values)]"
 
 
 @dataclass
@@ -383,6 +506,9 @@ class SectionResult(_Result):
     layout: ClassVar[str] = "section"
     plot_kind: ClassVar[str] = "section"
 
+    def headline(self):
+        return [("crossings", np.asarray(self.n_points))]
+
     points: np.ndarray = None
     times: np.ndarray = None
     n_points: np.ndarray = None
@@ -433,6 +559,17 @@ class ChaosMapResult(_Result):
     v: np.ndarray = None
     mask: np.ndarray = None
 
+    def headline(self):
+        values = np.asarray(self.values, dtype=float)
+        out = [(self.indicator.upper(), values)]
+        if self.threshold is not None:
+            below = int(np.sum(self.decided))
+            out.append(("decided early", np.asarray(float(below))))
+        return out
+
+    def _batch(self):
+        return True
+
     def image(self):
         """``values`` on the grid, shape (len(v), len(u)), NaN where no
         orbit was started (a grid map only)."""
@@ -452,6 +589,18 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
     """Read a result written by ``save``: the same class, arrays and
     provenance.
 
+    Everything is checked before a result is built (:func:`_validated`):
+    the archive holds numeric arrays only (no pickles), every field belongs
+    to the result class and has its type, the provenance and accuracy
+    verdict have theirs, the arrays' shapes agree with each other, and the
+    verdict agrees with the errors it is drawn from.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the field, for a file that is not a varint
+        result or whose content is inconsistent (a damaged or edited file).
+
     Examples
     --------
     >>> import io, varint
@@ -463,15 +612,188 @@ def load_result(path: str | os.PathLike[str] | IO[bytes]) -> _Result:
     >>> type(back).__name__, bool((back.sali == r.sali).all()), back.provenance == r.provenance
     ('SALIResult', True, True)
     """
-    with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["__meta__"]))
-        arrays = {k: data[k] for k in data.files if k != "__meta__"}
-    cls = _CLASSES[meta.pop("class")]
-    kwargs = {"provenance": Provenance(**meta.pop("provenance"))}
+    where = (f"result file {os.fspath(path)}" if isinstance(path, (str, os.PathLike))
+             else "the result")
+    try:
+        if isinstance(path, (str, os.PathLike)):
+            with open(path, "rb") as f:
+                head = f.read(4)
+        else:
+            head = path.read(4)
+            path.seek(-len(head), 1)
+        if head != b"PK\x03\x04":
+            raise _Invalid(None, "it is not an .npz archive")
+        with np.load(path, allow_pickle=False) as data:
+            if "__meta__" not in data.files:
+                raise _Invalid(None, "it has no __meta__ entry")
+            meta = json.loads(str(data["__meta__"][()]))
+            arrays = {k: data[k] for k in data.files if k != "__meta__"}
+    except _Invalid as exc:
+        raise ValueError(f"{where} is not a varint result: {exc}") from None
+    except FileNotFoundError:
+        raise
+    except Exception as exc:     # not an .npz, a pickle, truncated, bad JSON
+        raise ValueError(f"{where} is not a varint result ({type(exc).__name__}: {exc})"
+                         ) from None
+    try:
+        return _validated(meta, arrays)
+    except _Invalid as exc:
+        raise ValueError(f"{where} is damaged or was edited: {exc}") from None
+
+
+class _Invalid(Exception):
+    """A field of a stored result that is not what ``save`` writes."""
+
+    def __init__(self, field, why):
+        super().__init__(why if field is None else f"field {field!r}: {why}")
+
+
+#: Provenance fields and the JSON types they hold.
+_PROVENANCE_TYPES = {"kind": str, "model": dict, "x0": list, "method": str,
+                     "method_options": dict, "tau": (int, float), "t_end": (int, float),
+                     "seed": (int, type(None)), "options": dict, "versions": dict,
+                     "counts": dict, "wall_time": (int, float), "created": str,
+                     "tau_choice": dict, "cpu_time": (int, float, type(None))}
+
+
+def _provenance(d):
+    if not isinstance(d, dict):
+        raise _Invalid("provenance", f"expected a dict, got {type(d).__name__}")
+    names = {f.name for f in dataclasses.fields(Provenance)}
+    for key, value in d.items():
+        if key not in names:
+            raise _Invalid(f"provenance.{key}", "not a field of Provenance (written by another "
+                           "varint version?)")
+        want = _PROVENANCE_TYPES.get(key)
+        if want is not None and (isinstance(value, bool) or not isinstance(value, want)):
+            raise _Invalid(f"provenance.{key}", f"expected {_type_names(want)}, got "
+                           f"{type(value).__name__} {value!r:.60}")
+    missing = [f.name for f in dataclasses.fields(Provenance)
+               if f.name not in d and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise _Invalid(f"provenance.{missing[0]}", "it is missing")
+    counts = d.get("counts", {})
+    bad = [k for k, v in counts.items() if isinstance(v, bool) or not isinstance(v, int) or v < 0]
+    if bad:
+        raise _Invalid(f"provenance.counts.{bad[0]}", f"expected a count >= 0, got "
+                       f"{counts[bad[0]]!r}")
+    return Provenance(**d)
+
+
+def _type_names(types):
+    types = types if isinstance(types, tuple) else (types,)
+    return " or ".join("None" if t is type(None) else t.__name__ for t in types)
+
+
+def _accuracy(d, status):
+    if d is None:
+        return None
+    try:
+        acc = Accuracy.from_dict(d)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise _Invalid("accuracy", f"not a verdict ({type(exc).__name__}: {exc})") from None
+    worst = np.asarray(acc.worst, dtype=float)
+    accurate = np.asarray(acc.accurate)
+    if accurate.shape != worst.shape:
+        raise _Invalid("accuracy.accurate", f"shape {accurate.shape}, its errors' "
+                       f"{worst.shape}")
+    with np.errstate(invalid="ignore"):
+        ok = worst <= acc.energy_tol
+    failed = np.asarray(status) > 0
+    if failed.shape != accurate.shape:
+        failed = np.zeros(accurate.shape, dtype=bool)
+    # The verdict is drawn from the errors: it cannot say accurate where
+    # they exceed the tolerance or the orbit failed.
+    if np.any(accurate & ~(ok & ~failed)):
+        raise _Invalid("accuracy.accurate", "says accurate where the stored errors exceed the "
+                       "tolerance or the orbit failed")
+    return acc
+
+
+def _validated(meta, arrays):
+    """The result ``meta`` and ``arrays`` stand for (see :func:`load_result`)."""
+    if not isinstance(meta, dict):
+        raise _Invalid("__meta__", f"expected a JSON object, got {type(meta).__name__}")
+    meta = dict(meta)
+    name = meta.pop("class", None)
+    if name not in _CLASSES:
+        raise _Invalid("class", f"{name!r} is not a varint result class")
+    cls = _CLASSES[name]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for key, a in arrays.items():
+        if a.dtype.kind not in "biuf":
+            raise _Invalid(key, f"dtype {a.dtype} is not numeric")
+    kwargs = {"provenance": _provenance(meta.pop("provenance", None))}
     acc = meta.pop("accuracy", None)
-    kwargs["accuracy"] = None if acc is None else Accuracy.from_dict(acc)
-    for name, keys in meta.pop("dict_fields", {}).items():
-        kwargs[name] = {int(k) if k.isdigit() else k: arrays.pop(f"{name}__{k}") for k in keys}
+    dict_fields = meta.pop("dict_fields", {})
+    if not isinstance(dict_fields, dict):
+        raise _Invalid("dict_fields", "expected a dict")
+    for field_name, keys in dict_fields.items():
+        if field_name not in fields or not isinstance(keys, list) \
+                or not all(isinstance(k, str) for k in keys):
+            raise _Invalid(f"dict_fields.{field_name}", "not a dict field of " + name)
+        try:
+            kwargs[field_name] = {int(k) if k.isdigit() else k: arrays.pop(f"{field_name}__{k}")
+                                  for k in keys}
+        except KeyError as exc:
+            raise _Invalid(exc.args[0], "it is missing") from None
+    for key in arrays:
+        if key not in fields or key in ("provenance", "accuracy"):
+            raise _Invalid(key, f"not an array field of {name}")
     kwargs.update(arrays)
+    for key, value in meta.items():
+        if key not in fields or key in kwargs:
+            raise _Invalid(key, f"not a field of {name}")
+        if isinstance(value, dict) or (isinstance(value, list) and key != "axes"):
+            raise _Invalid(key, f"expected a number, a string or None, got "
+                           f"{type(value).__name__}")
     kwargs.update(meta)
-    return cls(**kwargs)
+    required = [f for f in fields.values() if f.init and f.default is dataclasses.MISSING
+                and f.default_factory is dataclasses.MISSING and f.name not in kwargs
+                and f.name != "accuracy"]
+    if required:
+        raise _Invalid(required[0].name, "it is missing")
+    _check_shapes(cls, kwargs)
+    kwargs["accuracy"] = _accuracy(acc, kwargs.get("status"))
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise _Invalid(name, str(exc)) from None
+
+
+def _check_shapes(cls, f):
+    """The shapes every result shares: ``t`` a vector of finite times, the
+    status integer per orbit, the final state (…, 2N) with a status per
+    orbit, and a series' energy errors one per output time."""
+    t = np.asarray(f.get("t"))
+    if t.ndim != 1 or t.dtype.kind not in "iuf" or not np.isfinite(t).all():
+        raise _Invalid("t", f"expected a vector of finite times, got shape {t.shape}")
+    status = np.asarray(f.get("status"))
+    if status.dtype.kind not in "iu":
+        raise _Invalid("status", f"expected integer codes, got dtype {status.dtype}")
+    state = np.asarray(f.get("state"))
+    if state.ndim < 1 or state.shape[:-1] != status.shape:
+        raise _Invalid("state", f"shape {state.shape} does not match status {status.shape}")
+    if cls.layout == "series":
+        e = np.asarray(f.get("energy_error"))
+        if e.shape != status.shape + t.shape:
+            raise _Invalid("energy_error", f"shape {e.shape}, expected "
+                           f"{status.shape + t.shape} (orbits, output times)")
+        # A series starts with (orbits, output times); a per-orbit array
+        # (an ensemble's seeds and wall times) is one value per orbit.
+        for key, value in f.items():
+            series = value.values() if isinstance(value, dict) else [value]
+            for v in series:
+                if isinstance(v, np.ndarray) and key not in ("t", "state", "status",
+                                                            "deviations", "energy_error") \
+                        and v.shape[:len(status.shape) + 1] != status.shape + t.shape \
+                        and v.shape != status.shape:
+                    raise _Invalid(key, f"shape {v.shape} does not start with (orbits, output "
+                                   f"times) {status.shape + t.shape}")
+    elif cls.layout == "map":
+        m = status.shape
+        for key in ("values", "t_stop", "energy_error"):
+            v = np.asarray(f.get(key))
+            if v.shape != m:
+                raise _Invalid(key, f"shape {v.shape}, expected {m} (one per orbit)")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import os
+import time
 import warnings
 from typing import Any
 
@@ -24,7 +25,7 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, compiling, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
@@ -264,6 +265,7 @@ class Run:
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
         self.options = ind.configure(model, {**fixed, **given})
+        ind.check_states(model, self.x0, self.options)
         self.method = check.choice(method, METHODS, "method")
         if tau is None and stepsize.pilots(self.method):
             stepsize.check_options(self.method, method_options)
@@ -275,34 +277,64 @@ class Run:
             self.options[ind.count_option] = self.W0.shape[2]
         self.accumulator = ind.accumulator_for(self.options)
         self.tau_choice = stepsize.StepChoice(rule="given")
+        scheme = method_options.get("scheme")
+        self.clock = compiling.Clock(
+            f"{ind.name} of {model.name} by {self.method}"
+            + (f" ({getattr(scheme, 'name', scheme)})" if scheme is not None else ""),
+            self.progress)
         if tau is None:
             # Even the largest step the pilot may choose must fit the counter.
             check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-            tau, self.tau_choice = stepsize.choose_step(
-                model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
-                method=self.method, scheme=method_options.get("scheme"),
-                cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
-                W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+            with self.clock.part("pilot"):
+                tau, self.tau_choice = stepsize.choose_step(
+                    model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
+                    method=self.method, scheme=scheme,
+                    cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
+                    W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
         self.t_end, self.tau = check.horizon(t_end, tau)
         if t_out is None and ind.output_times is not None:
             t_out = ind.output_times(self.t_end, self.tau, self.options)
         self.steps = output_steps(self.t_end, self.tau, t_out)
         self._check_size()
-        self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
-                                          self.accumulator, **method_options)
+        with self.clock.part("setup"):
+            self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
+                                              self.accumulator, **method_options)
+        start = self._start_state()
         if saved is None:
-            self.state, self.records, self.wall_before = RunState.start(self.x0, self.W0), Records(), 0.0
+            self.state, self.records = start, Records()
+            self.wall_before, self.cpu_before = 0.0, 0.0
         else:
             self.checkpoint.require(saved, self.parameters())
-            self.state, self.records, self.wall_before = (saved.state, saved.records,
-                                                          saved.wall_time)
+            # Nothing from the file reaches a stepper before it is checked.
+            self.checkpoint.validate(saved, start, self.steps, self._template_record(start),
+                                     ind.renorm)
+            self.state, self.records = saved.state, saved.records
+            self.wall_before, self.cpu_before = saved.wall_time, saved.cpu_time
         self.resumed = saved is not None
-        acc = self.accumulator
-        if acc is not None and acc.key not in self.state.extra:
-            self.state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
-                                                (self.state.n_orbits, self.state.k, 1))
+        self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+
+    def _start_state(self):
+        """The state the run starts from: the orbits, the initial vectors and
+        the indicator's accumulator."""
+        state = RunState.start(self.x0, self.W0)
+        acc = self.accumulator
+        if acc is not None:
+            state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
+                                           (state.n_orbits, state.k, 1))
+        return state
+
+    def _template_record(self, start):
+        """One record of this run (its keys, shapes and dtypes), read off the
+        start state one step on, to check stored records against."""
+        rows = Rows.of(start)
+        rows.step = rows.step + 1
+        with np.errstate(all="ignore"):
+            rec = self.indicator.read(rows, self.model, rows.step * self.tau, self.options)
+            rec.update(self.reference.errors(rows.x, rows.step * self.tau,
+                                             rows.extra.get(TIME_MOMENTUM, 0.0)))
+        return rec
 
     def _check_size(self):
         """Refuse a run whose vectors and records would not fit in memory,
@@ -412,7 +444,7 @@ class Run:
         keep = int(np.searchsorted(self.steps[:n], first))
         return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
-    def drive(self, record=None, decide=None):
+    def drive(self, record=None, decide=None, cancelled=None):
         """Advance to every output time, recording there.
 
         Parameters
@@ -424,6 +456,9 @@ class Run:
         decide : callable, optional
             ``decide(record) -> bool array (M,)``: orbits to stop early (see
             :func:`varint.driver.drive`).
+        cancelled : callable, optional
+            ``cancelled() -> bool``: stop as after Ctrl-C (see
+            :func:`varint.driver.drive`).
 
         Returns
         -------
@@ -431,12 +466,15 @@ class Run:
             As :func:`varint.driver.drive`.
         """
         self._begin_checkpoint()
+        cpu = time.process_time()
         try:
-            return drive(self.propagator, self.state, self.steps, record or self.record,
-                         records=self.records, progress=self.progress,
-                         desc=self.indicator.name, errors=self.errors,
-                         checkpoint=self.checkpoint, decide=decide,
-                         renorm=self.indicator.renorm)
+            with self.clock.part("run"):
+                return drive(self.propagator, self.state, self.steps, record or self.record,
+                             records=self.records, progress=self.progress,
+                             desc=self.indicator.name, errors=self.errors,
+                             checkpoint=self.checkpoint, decide=decide,
+                             renorm=self.indicator.renorm,
+                             cancelled=cancelled)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.
@@ -446,11 +484,13 @@ class Run:
                 f"{self.method!r} integrator ({first}); they must be numba functions "
                 "grad(q, par, g), hess(q, par, B), third(q, par, v, B) writing float64 arrays "
                 "in place, see varint.models.base") from exc
+        finally:
+            self.cpu_session = time.process_time() - cpu
 
     def _begin_checkpoint(self):
         if self.checkpoint is None:
             return
-        self.checkpoint.begin(self.parameters(), self.wall_before)
+        self.checkpoint.begin(self.parameters(), self.wall_before, self.cpu_before)
         if self.resumed:
             self.checkpoint.mark_saved(self.state, self.records)
         else:
@@ -470,8 +510,9 @@ class Run:
         for key in errors:
             fields.pop(key)
         t = self.steps[:n_done] * self.tau
-        verdict = accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
-                                  self.single)
+        verdict = accuracy.annotate(
+            accuracy.assess(t, errors, self.state.status, self.energy_tol, self.tau,
+                            self.single), self.model, self.propagator)
         fields = self.indicator.finish(fields, self.options)
         cls = self.indicator.result
         if "deviations" in getattr(cls, "__dataclass_fields__", {}):
@@ -503,7 +544,7 @@ class Run:
             raise IntegrationError(msg, partial=result, **info)
         warnings.warn(f"{int(failed.sum())} of {failed.size} orbits failed and were frozen "
                       f"(their status is non-zero, their later outputs NaN); first: {msg}",
-                      RuntimeWarning, stacklevel=4)
+                      RuntimeWarning, stacklevel=accuracy.user_stacklevel())
 
     def _escape_hint(self, orbit):
         # Hénon–Heiles above 1/6 (any model with an escape energy): say why.
@@ -528,4 +569,11 @@ class Run:
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice))
+            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
+            timing=self.timing(),
+            cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
+
+    def timing(self):
+        """Seconds of this session's compilation, pilot, setup and run
+        (each without the compilations inside it; :mod:`varint.compiling`)."""
+        return {k: round(v, 6) for k, v in self.clock.timing.items()}

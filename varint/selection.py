@@ -112,8 +112,8 @@ class SchemeChoice:
         return _pandas().DataFrame(self.table)
 
     def __str__(self):
-        head = (f"{'method':7} {'scheme':9} {'tau':>7} {'err(T/4)':>9} {'err(T)':>9} {'a':>5} "
-                f"{'err(t_end)':>10} {'sec(t_end)':>10}  ok")
+        head = (f"{'method':7} {'scheme':9} {'tau':>7} {'err(T/4)':>9} {'err(T)':>9} "
+                f"{'growth a':>8} {'err(t_end)':>10} {'sec(t_end)':>10}  ok")
         lines = [f"select_scheme: {self.metric} error <= {self.target_error:g} at t_end = "
                  f"{self.t_end:g} (pilot to {self.pilot_t:g})", head, "-" * len(head)]
         for r in self.table:
@@ -121,8 +121,13 @@ class SchemeChoice:
                 self.method, self.scheme, self.tau) else " "
             verdict = ("yes" if r["meets"] else "no") + (" (unreliable)" if r["unreliable"] else "")
             lines.append(f"{r['method']:7} {r['scheme'] or '-':9} {r['tau']:7.3g} "
-                         f"{r['error_quarter']:9.2e} {r['error_pilot']:9.2e} {r['growth']:5.2f} "
+                         f"{r['error_quarter']:9.2e} {r['error_pilot']:9.2e} {r['growth']:8.2f} "
                          f"{r['error']:10.2e} {r['seconds']:10.3g} {mark}{verdict}")
+        lines.append(f"err(T/4), err(T): the pilot's error at T/4 and T = {self.pilot_t:g}; "
+                     "growth a: the error grows as t^a between them (a > "
+                     f"{_UNRELIABLE:g}: exponential, the extrapolation is unreliable); "
+                     f"err(t_end) = err(T) (t_end/T)^a; sec(t_end): predicted wall time; "
+                     "*: the choice")
         return "\n".join(lines)
 
 

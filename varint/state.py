@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _validate as check
 from .kernels.checks import renormalized_rows
-from .protocol import TIME_MOMENTUM, Renorm
+from .protocol import TIME_MOMENTUM, Renorm, Status
 from .seeds import standard_normals
 
 __all__ = ["RunState", "Rows", "Snapshots", "initial_deviations", "output_steps",
@@ -103,6 +103,84 @@ class RunState:
             return rows
         W, acc_m, acc_e = renormalized_copy(self.W, self.acc_m, self.acc_e, renorm)
         return Rows(x=rows.x, W=W, acc_m=acc_m, acc_e=acc_e, step=rows.step, extra=rows.extra)
+
+    def problems(self, like, renorm, last_step):
+        """Why this state (read back from a file) cannot continue the run
+        that starts at ``like``, as ``(field, reason)`` pairs; empty if it
+        can.
+
+        A state handed to a compiled stepper must have the shapes and dtypes
+        the stepper was built for (a wrong shape makes it write out of
+        bounds), and numbers a run can reach: the orbits and vectors of a
+        running orbit finite, the stretching mantissas finite and positive
+        (their logarithm is the exponents), the binary exponents multiples
+        of 500 (:mod:`varint.kernels.checks` rescales by 2^±500 only), codes
+        that exist, failure steps within the run, and for a Lyapunov
+        spectrum (``renorm`` QR) independent vectors.
+
+        Parameters
+        ----------
+        like : RunState
+            The state the same call starts from (shapes and dtypes; its
+            ``extra`` holds what the run adds before any work).
+        renorm : Renorm
+        last_step : int
+            The run's last step.
+        """
+        out = []
+        for name in ("x", "W", "acc_m", "acc_e", "status", "fail_step"):
+            a, b = getattr(self, name), getattr(like, name)
+            if not isinstance(a, np.ndarray) or a.shape != b.shape or a.dtype != b.dtype:
+                got = (f"{a.dtype}{list(a.shape)}" if isinstance(a, np.ndarray)
+                       else type(a).__name__)
+                out.append((name, f"{got}, expected {b.dtype}{list(b.shape)}"))
+        if out:
+            return out
+        if isinstance(self.step, bool) or not isinstance(self.step, int) \
+                or not 0 <= self.step <= last_step:
+            return [("step", f"{self.step!r}, expected an integer in 0..{last_step}")]
+        known = {int(s) for s in Status}
+        codes = set(np.unique(self.status).tolist())
+        if not codes <= known:
+            return [("status", f"unknown code {sorted(codes - known)[0]}")]
+        running = self.status == int(Status.OK)
+        fs = self.fail_step
+        if np.any(running & (fs != -1)) or np.any(~running & ((fs < 1) | (fs > self.step))):
+            out.append(("fail_step", f"not -1 for a running orbit and 1..{self.step} for a "
+                        "stopped one"))
+        checks = (("x", ~np.isfinite(self.x).all(axis=1)),
+                  ("W", ~np.isfinite(self.W).all(axis=(1, 2))),
+                  ("acc_m", ~((self.acc_m > 0) & np.isfinite(self.acc_m)).all(axis=1)),
+                  ("acc_e", (self.acc_e % 500 != 0).any(axis=1)))
+        for name, bad in checks:
+            bad &= running
+            if bad.any():
+                out.append((name, f"impossible values for running orbit {int(np.argmax(bad))}"))
+        if renorm == Renorm.QR and self.k > 1 and running.any() and not out:
+            W = self.W[running]
+            s = np.linalg.svd(W / np.linalg.norm(W, axis=1, keepdims=True), compute_uv=False)
+            if not (s[:, -1] > 1e-12 * s[:, 0]).all():
+                out.append(("W", "the deviation vectors of a running orbit are dependent"))
+        counts = self.counts
+        if not isinstance(counts, dict) or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 0
+                for v in counts.values()):
+            out.append(("counts", "expected non-negative integer counts"))
+        missing = sorted(set(like.extra) - set(self.extra))
+        if missing:
+            out.append((f"extra.{missing[0]}", "missing"))
+        for key, a in self.extra.items():
+            if not isinstance(a, np.ndarray) or a.dtype.kind not in "biuf" \
+                    or a.ndim == 0 or a.shape[0] != self.n_orbits:
+                out.append((f"extra.{key}", "not a numeric array with one row per orbit"))
+                continue
+            ref = like.extra.get(key)
+            if ref is not None and (a.shape != ref.shape or a.dtype != ref.dtype):
+                out.append((f"extra.{key}", f"{a.dtype}{list(a.shape)}, expected "
+                            f"{ref.dtype}{list(ref.shape)}"))
+            elif a.dtype.kind == "f" and not np.isfinite(a[running]).all():
+                out.append((f"extra.{key}", "not finite for a running orbit"))
+        return out
 
     def add_counts(self, **counts):
         for key, value in counts.items():

@@ -52,7 +52,7 @@ import warnings
 import numpy as np
 
 from . import _validate as check
-from .accuracy import AccuracyWarning, Reference
+from .accuracy import AccuracyWarning, Reference, user_stacklevel
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
@@ -227,7 +227,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
             f"tau = {rung(smallest):.3g} and does not shrink with the step, so the "
             "orbit probably runs into a singularity of the potential or escapes; running with "
             f"tau = {tau:g} (pass tau= to choose the step yourself)", AccuracyWarning,
-            stacklevel=4)
+            stacklevel=user_stacklevel())
         info.update(rule="fallback", tau=tau)
         return tau, info
     tau = _divide(t_end, rung(best))

@@ -232,6 +232,25 @@ class SchemesDirective(_Generated):
                        "corrector", "reference"], rows, widths=[2, 1, 2, 2, 1, 6])
 
 
+class ModelsDirective(_Generated):
+    """The table of registered built-in models
+    (:data:`varint.models.registry.MODELS`)."""
+
+    sections = False
+
+    def lines(self):
+        from varint.models.registry import MODELS
+
+        kinds = {"flow": "flow", "map": "symplectic map", "lattice": "lattice"}
+        rows = [[f"``{e.name}``", kinds[e.kind], _inline(e.summary),
+                 ", ".join(f"``{p.name}`` = {p.default:g}: {_inline(p.doc)}"
+                           for p in e.parameters) or "—",
+                 ", ".join(e.coordinates) if e.coordinates else "—"]
+                for e in MODELS.values()]
+        return _table(["name", "kind", "what", "parameters (default)", "coordinates"], rows,
+                      widths=[2, 2, 6, 5, 2])
+
+
 class CLIDirective(_Generated):
     """``varint --help`` and every sub-command's help."""
 
@@ -317,6 +336,7 @@ def setup(app):
     app.add_directive("varint-methods", MethodsDirective)
     app.add_directive("varint-schemes", SchemesDirective)
     app.add_directive("varint-cli", CLIDirective)
+    app.add_directive("varint-models", ModelsDirective)
     return {"parallel_read_safe": True, "parallel_write_safe": True, "version": "1"}
 
 

@@ -7,12 +7,15 @@ The symbolic work costs far more than anything else in building a stepper,
 so it is cached: the expressions per potential and process, and for a
 built-in model even whether it fits and the key of its potential, on disk
 beside the steppers (a new process then builds no SymPy expression).
+That file is signed and holds only a flag and a key (:mod:`varint.codecache`);
+the expressions are only ever built from a model's own SymPy form, never
+from text read back from disk.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -20,12 +23,12 @@ from pathlib import Path
 import numpy as np
 import sympy as sp  # type: ignore[import-untyped]
 
-from ..files import atomic_write, canonical_json
+from .. import cachedir, codecache
+from ..files import canonical_json
 from ..models.symbolic import SymbolicModel
-from ..paths import cache_dir
 
-__all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "SYMBOLIC_MAX_N",
-           "SYMBOLIC_MAX_VALUES"]
+__all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_form",
+           "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
 
 #: Largest N and largest 2N(1 + k) (orbit and vectors held in local
 #: variables) for which straight-line code is generated; beyond, the generic
@@ -49,13 +52,18 @@ class Expressions:
     q: tuple       # the symbols
 
 
+#: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
+#: q0 … q{N−1}, inverse masses, N). Only ever filled from a model's own
+#: SymPy form, never from a file.
+_FORMS: dict = {}
+
+
 @lru_cache(maxsize=32)
-def expressions(V_srepr, minv_srepr, n):
-    """The expressions of a potential given by its SymPy ``srepr`` (cached
-    by it: the symbolic work costs far more than the rest)."""
+def expressions(key):
+    """The expressions of the potential of ``key`` (:func:`model_key`;
+    cached by it: the symbolic work costs far more than the rest)."""
+    V, minv, n = _FORMS[key]
     q = sp.symbols(f"q0:{n}")
-    V = sp.sympify(V_srepr)
-    minv = tuple(sp.sympify(m) for m in minv_srepr)
     g = tuple(sp.diff(V, qi) for qi in q)
     H = {}
     for i in range(n):
@@ -82,12 +90,17 @@ def expressions(V_srepr, minv_srepr, n):
 
 @lru_cache(maxsize=256)
 def _symbolic_key(s):
-    """The arguments of :func:`expressions` for a model's (frozen,
-    hashable) symbolic form: printed once per process, not once per chunk
-    of a chaos map (~0.4 ms each)."""
+    """A name (32 hex digits) for a model's (frozen, hashable) symbolic form:
+    the hash of its exact SymPy text (``srepr``) in the symbols q0 …
+    q{N−1}, worked out once per process, not once per chunk of a chaos map
+    (~0.4 ms each). The form itself is kept in ``_FORMS``: a stepper's
+    source is only ever emitted from a model's own expressions."""
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
-    return sp.srepr(V), tuple(sp.srepr(m) for m in s.inverse_mass), n
+    text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in s.inverse_mass), str(n)])
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    _FORMS[key] = (V, tuple(s.inverse_mass), n)
+    return key
 
 
 def symbolic_fits(model, k):
@@ -105,8 +118,28 @@ def symbolic_fits(model, k):
 
 
 def model_key(model):
-    """The arguments of :func:`expressions` for ``model``."""
+    """The :func:`_symbolic_key` of ``model``'s form (the argument of
+    :func:`expressions`)."""
     return _facts(model)[1]
+
+
+def ensure_form(model, key):
+    """Make sure the form of ``key`` is known in this process, from
+    ``model``'s own SymPy form (the stored facts named the key; the model
+    must give the same one).
+
+    Raises
+    ------
+    RuntimeError
+        If the model's form has another key than its cached facts say.
+    """
+    if key not in _FORMS and _facts_now(model)[1] != key:
+        raise RuntimeError(f"the cached symbolic facts of {model.name} do not match its form; "
+                           f"delete {cachedir.location()} and run again")
+
+
+#: A stored symbolic key: 32 hex digits.
+_KEY = re.compile(r"[0-9a-f]{32}\Z")
 
 
 def _facts(model):
@@ -115,12 +148,14 @@ def _facts(model):
 
     For a built-in model they are kept in the kernels' cache directory,
     named after the model's description (:meth:`~varint.models.base.Model.describe`,
-    "enough to rebuild the model") and the code of ``varint.models``: a new
-    process that runs it on cached steppers then builds no SymPy
-    expression, whose first costs ~0.1 s (SymPy imports its tensor
-    module). Other models are asked directly: one made from an expression
-    (``from_potential``) holds it already, and the code behind a user's
-    own class is not known.
+    "enough to rebuild the model"), the code of ``varint.models`` and
+    SymPy's version: a new process that runs it on cached steppers then
+    builds no SymPy expression, whose first costs ~0.1 s (SymPy imports its
+    tensor module). The file is signed and holds only a flag and a key
+    (:mod:`varint.codecache`): a file that fails its check or holds
+    anything else is discarded. Other models are asked directly: one made
+    from an expression (``from_potential``) holds it already, and the code
+    behind a user's own class is not known.
     """
     cls = type(model)
     if isinstance(model, SymbolicModel) or not cls.__module__.startswith("varint.models."):
@@ -128,19 +163,25 @@ def _facts(model):
     name = _description_id(cls, canonical_json(model.describe()))
     if name in _FACTS:
         return _FACTS[name]
-    path = cache_dir() / "kernels" / f"varint_model_{name}.json"
-    try:
-        fits, key = json.loads(path.read_text())
-        facts = (bool(fits), None if key is None else (key[0], tuple(key[1]), int(key[2])))
-    except (OSError, ValueError, TypeError, IndexError):
+    file = f"varint_model_{name}.json"
+    facts = _stored_facts(codecache.read_json("kernels", file, "symbolic facts file"))
+    if facts is None:
         facts = _facts_now(model)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write(path, json.dumps(facts))
-        except OSError:
-            pass            # an unwritable cache costs SymPy's time, not the run
+        # An unwritable cache costs SymPy's time, not the run.
+        codecache.write_json("kernels", file, list(facts))
     _FACTS[name] = facts
     return facts
+
+
+def _stored_facts(value):
+    """``value`` read from a facts file as (fits, key), or None unless it is
+    exactly what :func:`_facts` writes."""
+    if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], bool)):
+        return None
+    fits, key = value
+    if fits and isinstance(key, str) and _KEY.match(key):
+        return True, key
+    return (False, None) if not fits and key is None else None
 
 
 #: :func:`_facts` of the models run in this process, by description id.
@@ -168,10 +209,11 @@ def _facts_of(s, n_dof, inverse_mass):
 @lru_cache(maxsize=256)
 def _description_id(cls, description):
     """A name for a built-in model's symbolic facts: its class and
-    description and the code they come from (``varint.models`` and this
-    module, which prints the key), so that a change of either names new
-    facts."""
-    digest = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}|{description}".encode())
+    description and the code they come from (``varint.models``, this
+    module, which names the key, and SymPy, which prints it), so that a
+    change of either names new facts."""
+    digest = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}|{sp.__version__}|"
+                            f"{description}".encode())
     digest.update(Path(__file__).read_bytes())
     for path in sorted((Path(__file__).parent.parent / "models").glob("*.py")):
         digest.update(path.read_bytes())

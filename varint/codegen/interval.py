@@ -454,16 +454,17 @@ class Interval:
         src(f"accumulate({aux}, rbuf, xbuf, Wbuf, flowbuf, step * tau)")
 
     def schedule(self):
-        """The next renormalisation of the sparse schedule (every ≠ 0)."""
+        """The next renormalisation of the sparse schedule (every ≠ 0): the
+        adaptive rule's (:func:`~varint.kernels.interval.next_interval`), at
+        most ``every`` steps when one is given."""
         src, v, k = self.src, self.t.value, self.k
         logs = [f"math.log({v(f'r{j}')})" for j in range(k)]
         nxt, itv = v("next_renorm"), v("interval")
-        with src.block("if every < 0:"):
-            src(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
-            src(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0" if k > 1
-                else "spread = 0.0")
-            src(f"{itv} = next_interval(max(step - ({nxt} - {itv}), 1), lmax, spread)")
-        with src.block("else:"):
+        src(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
+        src(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0" if k > 1
+            else "spread = 0.0")
+        src(f"{itv} = next_interval(max(step - ({nxt} - {itv}), 1), lmax, spread)")
+        with src.block(f"if every > 0 and {itv} > every:"):
             src(f"{itv} = every")
         src(f"{nxt} = step + {itv}")
 
@@ -662,7 +663,8 @@ class Interval:
             # (a dynamic global): the parallel lanes compile once per process.
             cache = one or not parallel
             args = f"{items}, setup, call, outputs" + (", status, done" if one else "")
-            src("", "", f"@njit(cache={cache}, error_model='numpy', parallel={parallel})",
+            src("", "", f"@njit(cache={cache}, error_model='numpy', parallel={parallel}, "
+                "nogil=True)",
                 f"def {name}({args}):")
             with src.block():
                 if parallel and not one:

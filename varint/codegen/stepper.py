@@ -10,8 +10,10 @@ inside the loop (:mod:`varint.codegen.interval`), as one orbit and as SIMD
 lanes.
 
 The source goes to ``<cache dir>/kernels/`` under a name that hashes the
-generator's code, the model's potential and the plan, and numba caches its
-compilation beside it, so a new process (or a new varint version, or
+generator's code, the model's potential and the plan, signed, and is
+verified before every later import and executed from the verified bytes
+(:func:`varint.codecache.load_module`); numba caches its compilation beside
+it (signed too), so a new process (or a new varint version, or
 another model) finds or builds exactly the kernel it needs; the first run
 in a new process loads it instead of compiling it, without emitting the
 source again.
@@ -26,10 +28,9 @@ from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
 
-from ..files import import_generated
-from ..paths import cache_dir
+from .. import codecache
 from .accumulators import rule_text
-from .expressions import expressions, model_key
+from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
 from .tm import TMBody
 
@@ -120,7 +121,7 @@ def _source(key, plan, accumulator):
     ``accumulator``, written once per process: each chunk of a chaos map
     makes its own propagator, and emitting the source (SymPy's common
     subexpressions, printing) costs ~60 ms."""
-    return generated_source(expressions(*key), plan, accumulator)
+    return generated_source(expressions(key), plan, accumulator)
 
 
 def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
@@ -154,9 +155,17 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
         # An update without a rule is called: the module finds it by name.
         extra = {} if accumulator is None or accumulator.rule is not None else {
             "accumulate": accumulator.update}
-        _LOADED[digest] = import_generated(
-            cache_dir() / "kernels", f"varint_stepper_{digest}",
-            lambda: _source(key, plan, accumulator), extra, stacklevel=4)
+
+        def make_source():
+            # The source is only ever emitted from the model's own form,
+            # never from what a file says: the stored facts named it, the
+            # model gives it (the same key: the facts are signed and named
+            # after the code and SymPy's version that made them).
+            ensure_form(model, key)
+            return _source(key, plan, accumulator)
+
+        _LOADED[digest] = codecache.load_module(f"varint_stepper_{digest}", "kernels",
+                                                make_source, extra)
     return _LOADED[digest]
 
 

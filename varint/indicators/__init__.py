@@ -11,7 +11,7 @@ Built in: ``"lyapunov"`` (alias ``"x1"`` for X_1 alone), ``"gali"`` (and
 from . import alignment, lattice, local_exponents, lyapunov, megno, orbit  # noqa: F401  (registers them)
 from .alignment import gali_from_vectors, sali_from_vectors
 from .base import (INDICATORS, Field, Indicator, Option, as_values, get_indicator,
-                   register_indicator, resolve)
+                   indicator_names, register_indicator, resolve)
 
 __all__ = ["INDICATORS", "Indicator", "Option", "Field", "register_indicator", "get_indicator",
-           "resolve", "as_values", "gali_from_vectors", "sali_from_vectors"]
+           "indicator_names", "resolve", "as_values", "gali_from_vectors", "sali_from_vectors"]

@@ -36,7 +36,7 @@ from ..protocol import Accumulator, Renorm
 from ..results import IndicatorResult
 
 __all__ = ["Indicator", "Option", "INDICATORS", "register_indicator", "get_indicator",
-           "resolve", "as_values", "Field"]
+           "indicator_names", "resolve", "as_values", "Field"]
 
 
 @dataclass(frozen=True)
@@ -151,6 +151,11 @@ class Indicator:
         step for this indicator, if its classification needs a tighter one
         than :data:`varint.maps.MAP_PILOT_TOL` (measured in
         ``studies/map_defaults.py``); None: the maps' default.
+    states : callable or None
+        ``states(model, x0, options)``: raises ``ValueError`` (naming the
+        orbit) for initial states (M, 2N) where the indicator is not
+        defined — e.g. a lattice's distribution over sites at zero energy —
+        before any work; None: defined everywhere.
     """
 
     name: str
@@ -172,6 +177,7 @@ class Indicator:
     laws: str = ""
     references: tuple = ()
     map_tolerance: float | None = None
+    states: Callable | None = None
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and re.fullmatch(r"[a-z][a-z0-9_]*", self.name)):
@@ -221,6 +227,12 @@ class Indicator:
                             f"options: {', '.join(self.options) or 'none'}")
         return {name: opt.check(model, given.get(name, opt.default))
                 for name, opt in self.options.items()}
+
+    def check_states(self, model, x0, options):
+        """Raise ``ValueError`` for initial states ``x0`` (M, 2N) where the
+        indicator is undefined (see ``states``)."""
+        if self.states is not None:
+            self.states(model, x0, options)
 
     def accumulator_for(self, options):
         """The :class:`Accumulator` of a run with these options, or None."""
@@ -274,6 +286,12 @@ def register_indicator(indicator: Indicator,
     for alias, fixed in (aliases or {}).items():
         _ALIASES[alias] = (indicator.name, dict(fixed))
     return indicator
+
+
+def indicator_names() -> list:
+    """Every name :func:`resolve` takes: the registered indicators and
+    their shorthands ("x1"), without the "gali_k" pattern."""
+    return list(_REGISTRY) + [a for a in _ALIASES if a not in _REGISTRY]
 
 
 def get_indicator(name: str | Indicator) -> Indicator:

@@ -105,6 +105,23 @@ def _packet(state, model, options):
     return out
 
 
+def _packet_defined(model, x0, options):
+    """Refuse initial states whose conserved quantity sums to zero (or is not
+    finite) over the sites: z_l = h_l / Σh, hence m₂ and P, are 0/0 there
+    (e.g. a Klein–Gordon lattice at rest), and would be NaN at every output."""
+    total = np.sum(_lattice(model).densities(x0), axis=-1)
+    bad = np.flatnonzero(~(np.isfinite(total) & (total > 0)))
+    if bad.size:
+        m = int(bad[0])
+        where = "" if len(x0) == 1 else f" of orbit {m}"
+        quantity = getattr(model, "density_of", "energy")
+        raise ValueError(
+            f"the total {quantity} of the initial state{where} over the lattice's sites is "
+            f"{float(total[m])!r}: its distribution z_l = h_l / Σh (and so m₂ and P) is "
+            f"undefined; start from a state with a positive {quantity} (e.g. "
+            "model.initial_block(...))")
+
+
 def _spreading_vectors(model, options, given):
     _lattice(model)
     return 0 if given is None else given
@@ -126,6 +143,7 @@ SPREADING = register_indicator(Indicator(
                                 "also keep the site distribution z_l at every output time")},
     finish=as_values,
     scalar=Field("m2"),
+    states=_packet_defined,
     log_scale=True,
     laws="sub-diffusion m₂ ∝ t^a: a = 1/3 (weak chaos), 1/2 (strong chaos) in 1D; 1/5 and 1/3 "
          "in 2D; P ∝ √m₂ for a thermalised packet",
@@ -166,6 +184,7 @@ DVD = register_indicator(Indicator(
                                 "time")},
     finish=as_values,
     scalar=Field("x1"),
+    states=_packet_defined,
     log_scale=True,
     laws="Λ ∝ t^{−0.25} (weak) and t^{−0.3} (strong chaos) in 1D, t^{−0.37} and t^{−0.46} in "
          "2D; Λ ∝ t^{−1} for regular motion; the DVD is localised in meandering chaotic spots",

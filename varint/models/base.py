@@ -138,7 +138,10 @@ class Model:
                 f"inverse_mass must be positive and finite; got {float(minv[bad][0])!r} "
                 f"at index {int(np.flatnonzero(bad)[0])}")
         self.inverse_mass = minv
-        if escape_radius is not None and not (np.isfinite(escape_radius) and escape_radius > 0):
+        if escape_radius is not None and (
+                isinstance(escape_radius, (bool, np.bool_))
+                or not isinstance(escape_radius, numbers.Real)
+                or not (np.isfinite(escape_radius) and escape_radius > 0)):
             raise ValueError(f"escape_radius must be positive and finite, got {escape_radius!r}")
         self.escape_radius = escape_radius
 

@@ -26,7 +26,7 @@ and its tangent map DF, derived symbolically, into a
 The Hessian's bandwidth is read off its symbolic sparsity, so a lattice with
 nearest-neighbour coupling gets bandwidth 1. Kernels are straight-line code
 with common subexpressions eliminated; their source goes to
-``<cache dir>/models/`` (see :func:`varint.paths.cache_dir`), never the
+``<cache dir>/models/`` (see :func:`varint.cache.cache_dir`), never the
 source tree, and numba caches their compilation beside it. Generated code
 grows with N² (the Hessian) and N³ for dense third derivatives: fine up to a
 few dozen degrees of freedom; long lattices want hand-written O(N) kernels
@@ -36,6 +36,8 @@ like :class:`~varint.models.FPUBeta`.
 from __future__ import annotations
 
 import hashlib
+import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -45,12 +47,12 @@ import sympy as sp
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from sympy.printing.pycode import PythonCodePrinter
 
-from ..files import import_generated
-from ..paths import cache_dir
+from .. import codecache
 from .base import Model
 from .maps import MapModel
 
 __all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map",
+           "NonSymplecticWarning",
            "KernelPrinter"]
 
 #: Functions whose presence in V or its first three derivatives means V is
@@ -153,12 +155,7 @@ def _inverse_mass(inverse_mass, n):
             f"inverse_mass must have {n} entries (one per coordinate), got {len(values)}")
     out = []
     for i, m in enumerate(values):
-        try:
-            e = sp.sympify(m, strict=True) if not isinstance(m, float) else sp.Float(m)
-        except (sp.SympifyError, TypeError):
-            raise ValueError(f"inverse_mass[{i}] must be a number, got {m!r}") from None
-        if not (isinstance(e, sp.Expr) and e.is_number):
-            raise ValueError(f"inverse_mass[{i}] must be a number, got {m!r}")
+        e = _exact_number(m, f"inverse_mass[{i}]")
         value = float(e)
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"inverse_mass[{i}] must be positive and finite, got {m!r}")
@@ -166,11 +163,59 @@ def _inverse_mass(inverse_mass, n):
     return tuple(out)
 
 
+def _exact_number(value, name):
+    """``value`` (a Python, NumPy or SymPy number, such as ``sympy.sqrt(2)``)
+    as an exact SymPy number. Text is refused, never parsed: SymPy would
+    evaluate it as Python code (``sympify`` calls ``eval``)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ValueError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    if isinstance(value, float):
+        return sp.Float(value)
+    try:
+        e = sp.sympify(value, strict=True)   # strict: numbers and SymPy objects only
+    except (sp.SympifyError, TypeError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not (isinstance(e, sp.Expr) and e.is_number and not e.free_symbols):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    return e
+
+
+#: The largest integer numba types as a literal (int64).
+_INT64_MAX = 2 ** 63 - 1
+
+
 class KernelPrinter(PythonCodePrinter):
-    """Python source for numba: ``math`` functions, float literals."""
+    """Python source for numba: ``math`` functions, float literals.
+
+    An integer or a fraction whose parts are beyond int64 (numba cannot
+    compile such a literal: a parameter such as ``FPUT(alpha=1e300)`` is
+    the exact integer 10³⁰⁰ to SymPy) is written as the nearest double; one
+    beyond the range of a double is refused with a ``ValueError`` naming it.
+    """
 
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "strict": True})
+
+    def _print_Integer(self, expr):
+        if abs(expr.p) <= _INT64_MAX:
+            return super()._print_Integer(expr)
+        return _double(expr)
+
+    def _print_Rational(self, expr):
+        if abs(expr.p) <= _INT64_MAX and expr.q <= _INT64_MAX:
+            return super()._print_Rational(expr)
+        return _double(expr)
+
+
+def _double(number):
+    """``number`` (an exact SymPy number) as a float literal."""
+    value = float(number)
+    if not math.isfinite(value):
+        digits = len(str(abs(sp.Integer(number.p)))) - len(str(number.q)) + 1
+        raise ValueError(f"a coefficient of the model's derivatives is about 10^{digits}, "
+                         "beyond the range of a double (1.8e308): its parameters are too large "
+                         "to compute with")
+    return repr(value)
 
 
 def _assignments(printer, targets, exprs):
@@ -231,17 +276,19 @@ def _kernel_source(V, n, time=False):
     return "\n".join(lines), bw
 
 
-_LOADED = {}
+_LOADED: dict = {}
 
 
 def _load_kernels(source):
-    """Import the generated module (written once, atomically, to the cache
-    directory). One module object per source in a process, so equal
-    potentials share kernels and the TM stepper compiled for them."""
+    """Import the generated module (written once, signed, to
+    ``<cache dir>/models`` and verified before every later import:
+    :func:`varint.codecache.load_module`). One module object per source in
+    a process, so equal potentials share kernels and the TM stepper
+    compiled for them."""
     digest = hashlib.sha256(source.encode()).hexdigest()[:20]
     if digest not in _LOADED:
-        _LOADED[digest] = import_generated(cache_dir() / "models", f"potential_{digest}", source,
-                                           module=f"varint_potential_{digest}", stacklevel=5)
+        _LOADED[digest] = codecache.load_module(f"varint_potential_{digest}", "models",
+                                                lambda: source)
     return _LOADED[digest]
 
 
@@ -410,9 +457,10 @@ def _map_periods(periods, coords):
     out = []
     for c, v in zip(coords, values, strict=True):
         try:
-            value = float(sp.sympify(v))
-        except (sp.SympifyError, TypeError, ValueError):
-            raise ValueError(f"the period of {c} must be a number, got {v!r}") from None
+            value = float(_exact_number(v, f"the period of {c}"))
+        except (TypeError, ValueError):
+            raise ValueError(f"the period of {c} must be a number, got "
+                             f"{type(v).__name__} {v!r}") from None
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"the period of {c} must be finite and >= 0 (0: none), got {v!r}")
         out.append(value)
@@ -438,8 +486,10 @@ class SymbolicMap(MapModel):
         F = [e.xreplace(dict(zip(coords, xs, strict=True))) for e in exprs]
         kernels = _load_kernels(_map_source(F, n))
         self._symbolic = (tuple(exprs), coords)
+        periods = _map_periods(periods, coords)
+        _warn_unless_symplectic(F, xs, periods)
         super().__init__(n, kernels.iterate, kernels.jacobian,
-                         periods=_map_periods(periods, coords),
+                         periods=periods,
                          name=name or "map " + ", ".join(f"{c}' = {e}" for c, e in
                                                          zip(coords, exprs, strict=True)),
                          escape_radius=escape_radius, variables=[str(c) for c in coords])
@@ -453,6 +503,57 @@ class SymbolicMap(MapModel):
         exprs, coords = self._symbolic
         d.update(map=[sp.srepr(e) for e in exprs], coords=[str(c) for c in coords])
         return d
+
+
+#: Points at which :func:`_warn_unless_symplectic` checks a map.
+SYMPLECTIC_SAMPLES = 16
+
+
+def _warn_unless_symplectic(F, xs, periods):
+    """Warn (:class:`NonSymplecticWarning`) if the map ``F`` (expressions in
+    ``xs`` = (q, p)) is not symplectic: DFᵀ J DF = J, J = [[0, I], [−I, 0]],
+    fails beyond round-off at one of :data:`SYMPLECTIC_SAMPLES` seeded points
+    (uniform in [−1, 1] per coordinate, in [0, period) for a periodic one;
+    points where DF is not finite are skipped). A map that is not
+    symplectic is still iterated, but the laws the indicators rest on
+    (exponents in pairs X_i + X_{2N−i+1} = 0, the GALI power laws) do not
+    hold for it: a map with det DF = 2 gives X1 + X2 = ln 2."""
+    n = len(xs)
+    half = n // 2
+    J = np.block([[np.zeros((half, half)), np.eye(half)],
+                  [-np.eye(half), np.zeros((half, half))]])
+    try:
+        jac = sp.lambdify(xs, sp.Matrix(F).jacobian(xs), modules="numpy")
+    except Exception:      # a form NumPy cannot evaluate: nothing to check
+        return
+    rng = np.random.default_rng(2010)
+    lo = np.full(n, -1.0)
+    hi = np.array([p if p else 1.0 for p in (periods or [0.0] * n)])
+    lo[hi != 1.0] = 0.0
+    worst, where = 0.0, None
+    for point in rng.uniform(lo, hi, (SYMPLECTIC_SAMPLES, n)):
+        with np.errstate(all="ignore"):
+            try:
+                D = np.array(jac(*point), dtype=float)
+            except (ArithmeticError, TypeError, ValueError):
+                continue
+        if D.shape != (n, n) or not np.isfinite(D).all():
+            continue
+        defect = np.abs(D.T @ J @ D - J).max()
+        tol = 1e3 * n * np.finfo(float).eps * (1.0 + np.abs(D).max() ** 2)
+        if defect > tol and defect > worst:
+            worst, where = defect, point
+    if where is not None:
+        warnings.warn(
+            f"the map is not symplectic: max |DFᵀ J DF − J| = {worst:.3g} at x = "
+            f"{np.round(where, 6).tolist()} (coordinates taken as q then p); it is iterated, "
+            "but its Lyapunov exponents do not come in pairs X_i + X_(2N−i+1) = 0 and the GALI "
+            "and SALI laws of symplectic maps do not hold for it", NonSymplecticWarning,
+            stacklevel=4)
+
+
+class NonSymplecticWarning(UserWarning):
+    """A map given to :func:`from_map` is not symplectic (DFᵀ J DF ≠ J)."""
 
 
 def _check_map_expr(e, coords, i):
@@ -486,8 +587,10 @@ def from_map(exprs, coords, periods=None, name=None, escape_radius=None):
         substitution: ``p1 = p + K*sin(x); exprs = [x + p1, p1]``.
     coords : sequence of sympy.Symbol
         The coordinates, in state order (an even number: a symplectic map).
-        Symplecticity is not checked; the laws of the indicators (paired
-        exponents, GALI power laws) assume it.
+        Symplecticity (DFᵀ J DF = J) is checked at a sample of points
+        (:func:`_warn_unless_symplectic`): a map that fails is iterated all
+        the same, with a :class:`NonSymplecticWarning`, since the laws of the
+        indicators (paired exponents, GALI power laws) assume it.
     periods : dict or sequence, optional
         Periods of coordinates taken modulo them after every iteration
         (e.g. ``{x: 2*sympy.pi}``); 0 or absent: unbounded.

@@ -7,8 +7,8 @@ Skokos & Gerlach (2010), Sect. V.B, and to measure where they lose accuracy
 (:mod:`varint.departure`); for production runs the TM method (``"tm"``) is
 both faster and accurate.
 
-Equation numbers count the equations of the paper's LaTeX source
-(/work/shared/paper): the TDH is eq. (9), the TDHes diagonalisation eqs.
+Equation numbers count the equations of the paper's LaTeX source (its
+preprint): the TDH is eq. (9), the TDHes diagonalisation eqs.
 (28)–(29), the extended phase space eqs. (30)–(37), the schemes usable there
 eqs. (38)–(40), and Appendix A eqs. (A.10) and (A.15)–(A.18) for
 Hénon–Heiles.

@@ -98,6 +98,11 @@ class _TDHPropagator:
     _mode: int | None = None
     #: Options every TDH method takes; subclasses add their own.
     OPTIONS: tuple[str, ...] = ("scheme", "parallel")
+    #: What the accuracy verdict, measured on the orbit, does not check.
+    TANGENT_NOTE = ("the verdict checks the orbit only: the TDH methods integrate the "
+                    "deviation vectors apart from it, with an error of order 1 (TDHcc, TDHes) "
+                    "or 2-4 (TDHeps) in tau that the energy does not show; "
+                    "varint.departure measures it")
 
     def __init__(self, model, tau, renorm, accumulator, options, n_sub):
         self.model = model

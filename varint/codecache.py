@@ -1,0 +1,405 @@
+"""Generated code and data in the cache directory, verified before use.
+
+varint writes Python source it generated (steppers, model kernels) and
+small JSON facts to the private cache directory (:mod:`varint.cachedir`),
+and numba writes its compiled copies beside the source. All of it is read
+back by later processes, so all of it is signed here and checked before
+anything runs:
+
+* a file is written as one header line ``# varint-signed <HMAC>`` and its
+  content (a comment to Python, so a generated module's line numbers stay
+  those of its file); the HMAC covers the file's folder, name and content
+  (:func:`varint.cachedir.sign`);
+* a generated module is executed from the very bytes that were verified
+  (never re-read from disk, never from a ``.pyc``), and only after the check;
+* numba's cache files of a generated module (``*.nbi``, ``*.nbc``: pickles
+  that numba loads) are written signed by :class:`_SignedCache` and
+  unpickled only after their MAC verifies;
+* a file that fails its check (tampered, truncated, written by another user
+  or with another secret) is discarded with one :class:`CacheDirWarning`
+  and rebuilt; an unpickling error of a verified file (another numba) is a
+  discard and a recompilation, never an error of the run;
+* a cache that cannot be written (full disk, read-only, no private
+  directory) costs the cache, not the run: the module is compiled in memory
+  (numba's on-disk caching off) after one warning.
+
+What the signature protects against, and what not, is in
+:mod:`varint.cachedir`.
+"""
+
+from __future__ import annotations
+
+import ast
+import contextlib
+import io
+import json
+import os
+import pickle
+import sys
+import threading
+import types
+from pathlib import Path
+
+from numba.core import caching
+from numba.core.dispatcher import Dispatcher
+
+from . import cachedir
+from .cachedir import CacheDirWarning, warn_once
+from .files import atomic_write
+
+__all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
+           "tolerate_full_disks", "HEADER", "CacheDirWarning"]
+
+#: One generated module is loaded at a time: threads of one process (a Dask
+#: worker's) ask for the same kernels at once, and CPython 3.11's AST
+#: conversion is not thread-safe (two such threads raised SystemError).
+_LOAD_LOCK = threading.RLock()
+
+#: First bytes of every signed file; the hex HMAC and a newline follow.
+HEADER = b"# varint-signed "
+_MAC_LEN = 64
+
+
+def _label(path):
+    """What a file's MAC covers besides its content: its folder and name."""
+    path = Path(path)
+    return f"{path.parent.name}/{path.name}"
+
+
+def write_signed(path, content, key=None):
+    """Write ``content`` (str or bytes) to ``path`` atomically, signed with
+    ``key`` (by default the cache directory's secret).
+
+    Raises
+    ------
+    OSError
+        If it cannot be written or no secret can be kept.
+    """
+    data = content.encode() if isinstance(content, str) else content
+    mac = cachedir.sign(_label(path), data, key)
+    atomic_write(path, HEADER + mac.encode() + b"\n" + data)
+
+
+def read_signed(path, what="cache file", key=None):
+    """The content (bytes) of the signed file ``path`` if it verifies with
+    ``key`` (by default the cache directory's secret); None if there is
+    none, or if it fails (then it is deleted with one warning naming it:
+    it is rebuilt by the caller)."""
+    try:
+        blob = Path(path).read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        _discard(path, what, f"it cannot be read ({exc.strerror or exc})", delete=False)
+        return None
+    head, sep, data = blob.partition(b"\n")
+    mac = head[len(HEADER):]
+    if not (sep and head.startswith(HEADER) and len(mac) == _MAC_LEN):
+        why = "it is empty" if not blob else "it has no valid signature line"
+        _discard(path, what, why)
+        return None
+    if not cachedir.verify(_label(path), data, mac, key):
+        _discard(path, what, "its signature does not match its content (edited, damaged, "
+                 "truncated, or written by another user or with another secret)")
+        return None
+    return data
+
+
+def _discard(path, what, why, delete=True):
+    warn_once(("discard", str(path), why),
+              f"varint {what} {path} is not used: {why}; it is "
+              + ("deleted and rebuilt" if delete else "rebuilt in memory"), stacklevel=5)
+    if delete:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+
+
+def _unwritable(where, exc):
+    warn_once(("unwritable", str(where)),
+              f"cannot write varint's cache in {where} ({exc.strerror or exc}); generated "
+              "kernels are compiled in memory, so later processes compile them again",
+              stacklevel=5)
+
+
+# -- JSON facts ------------------------------------------------------------------
+
+def read_json(folder, name, what="cache file"):
+    """The JSON value signed in ``<cache>/<folder>/<name>``, or None (absent,
+    failed its check, or not JSON: then deleted with a warning)."""
+    directory = cachedir.subdir(folder)
+    if directory is None:
+        return None
+    path = directory / name
+    data = read_signed(path, what)
+    if data is None:
+        return None
+    try:
+        return json.loads(data)
+    except ValueError as exc:
+        _discard(path, what, f"it is not JSON ({exc})")
+        return None
+
+
+def write_json(folder, name, value):
+    """Sign and write ``value`` as JSON to ``<cache>/<folder>/<name>``;
+    returns False (after one warning) if the cache cannot be written."""
+    directory = cachedir.subdir(folder)
+    if directory is None:
+        return False
+    try:
+        write_signed(directory / name, json.dumps(value))
+    except OSError as exc:
+        _unwritable(directory, exc)
+        return False
+    return True
+
+
+# -- generated modules -----------------------------------------------------------------
+
+def load_module(name, folder, make_source, extra_globals=None):
+    """Import the generated module ``name`` from ``<cache>/<folder>/<name>.py``.
+
+    Parameters
+    ----------
+    name : str
+        Module name; it must name everything the source is made from (a
+        hash), since a verified file of that name is used as it is.
+    folder : str
+        Subdirectory of the cache directory.
+    make_source : callable
+        Returns the source (str) when the file is absent or discarded.
+    extra_globals : dict, optional
+        Set in the module before its code runs.
+
+    Returns
+    -------
+    module
+        Registered in ``sys.modules`` under ``name`` (numba's cache finds a
+        kernel's globals by module name).
+    """
+    with _LOAD_LOCK:
+        tolerate_full_disks()
+        return _load(name, folder, make_source, extra_globals)
+
+
+def _load(name, folder, make_source, extra_globals):
+    directory = cachedir.subdir(folder)
+    # The secret of the directory the files are in, kept by the module's
+    # kernels for numba's files, whatever the cache directory later is.
+    key = None if directory is None else cachedir.secret()
+    path = None if key is None else directory / f"{name}.py"
+    data = None if path is None else read_signed(path, "generated kernel file", key)
+    if data is None:
+        # numba's files of a discarded module are kept: they are verified on
+        # their own, and numba uses them only for the source they were
+        # compiled from (its stamp), which is what is written again.
+        data = make_source().encode()
+        if path is not None:
+            try:
+                write_signed(path, data, key)
+            except OSError as exc:
+                _unwritable(path.parent, exc)
+                path = None
+        elif directory is not None:
+            _unwritable(directory, OSError("no secret can be kept to sign it"))
+        # (directory None: cachedir has said why, once.)
+    return _execute(name, data, path, extra_globals, key)
+
+
+def _execute(name, data, path, extra_globals, key=None):
+    """Run the source ``data`` (bytes) as the module ``name``: from the
+    bytes given, never re-read from disk nor from a ``.pyc``. ``path``: the
+    verified file they came from, whose kernels numba caches signed (the
+    code is compiled one line down, as it stands in the file below its
+    signature line; ``key`` signs numba's files); None: compiled in memory,
+    numba's disk caching off."""
+    module = types.ModuleType(name)
+    module.__dict__.update(extra_globals or {})
+    if path is None:
+        tree = _without_disk_cache(ast.parse(data, filename=f"<varint {name}>"))
+        code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
+    else:
+        module.__file__ = str(path)
+        # One blank line for the signature line above the code in the file.
+        code = compile(b"\n" + data, str(path), "exec", dont_inherit=True)
+    sys.modules[name] = module
+    try:
+        exec(code, module.__dict__)  # verified above, or generated in this process
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
+    if path is not None:
+        _sign_numba_caches(module, key)
+    return module
+
+
+def _without_disk_cache(tree):
+    """``tree`` with every ``cache=True`` keyword of a decorator call set to
+    False: numba cannot cache code that has no file."""
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for deco in node.decorator_list:
+                if isinstance(deco, ast.Call):
+                    for kw in deco.keywords:
+                        if kw.arg == "cache":
+                            kw.value = ast.Constant(False)
+    return ast.fix_missing_locations(tree)
+
+
+# -- numba's cache of varint's own kernels ---------------------------------------------
+
+_SWEPT: set = set()
+
+
+def tolerate_full_disks():
+    """Make a failure to write numba's cache of varint's own (package)
+    kernels a warning, not an error of the run: numba raises the raw
+    ``OSError`` of a full or read-only disk from inside a compilation.
+    Applies to every varint module imported so far (cheap: each kernel's
+    cache is wrapped once, :class:`_TolerantCache`)."""
+    for name, module in list(sys.modules.items()):
+        if not (name == "varint" or name.startswith(("varint.", "varint_"))) or name in _SWEPT:
+            continue
+        _SWEPT.add(name)
+        for value in list(vars(module).values()):
+            if isinstance(value, Dispatcher) and \
+                    isinstance(getattr(value, "_cache", None), caching.FunctionCache) and \
+                    not isinstance(value._cache, _SignedCache):
+                value._cache = _TolerantCache(value._cache)
+
+
+class _TolerantCache:
+    """numba's cache of one kernel, whose failures to write cost a warning."""
+
+    def __init__(self, cache):
+        self._inner = cache
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+    def save_overload(self, sig, data):
+        try:
+            self._inner.save_overload(sig, data)
+        except OSError as exc:
+            _unwritable(self._inner.cache_path, exc)
+
+
+# -- numba's cache of generated modules -------------------------------------------------
+
+#: The parts of numba's cache that :class:`_SignedCacheFile` replaces: with
+#: another numba that lacks one, generated kernels are not cached on disk
+#: (numba itself would then read signed files as plain pickles).
+_NUMBA_HOOKS = ("_load_index", "_save_index", "_load_data", "_save_data", "_open_for_write",
+                "_dump", "_data_path")
+
+
+def _numba_hooks_present():
+    return (all(hasattr(caching.IndexDataCacheFile, name) for name in _NUMBA_HOOKS)
+            and hasattr(caching.FunctionCache, "load_overload"))
+
+
+def _sign_numba_caches(module, key):
+    """Give every cached kernel defined in ``module`` a :class:`_SignedCache`
+    (signing with ``key``) before it is first called (numba loads its cache
+    at the first call); if this numba's cache is not the one
+    :class:`_SignedCacheFile` knows, switch its disk cache off."""
+    usable = _numba_hooks_present()
+    for value in vars(module).values():
+        if not isinstance(value, Dispatcher):
+            continue
+        if getattr(value.py_func, "__module__", None) != module.__name__:
+            continue            # a kernel of varint's package, passed in
+        if isinstance(getattr(value, "_cache", None), caching.FunctionCache):
+            try:
+                if not usable:
+                    raise NotImplementedError("another numba cache layout")
+                value._cache = _SignedCache(value.py_func, key)
+            except Exception:   # no usable location: compile in memory
+                value._cache = caching.NullCache()
+
+
+class _SignedCache(caching.FunctionCache):
+    """numba's per-function cache, with files signed by varint's secret and
+    every failure to read or write one turned into a recompilation or a
+    warning."""
+
+    def __init__(self, py_func, key):
+        super().__init__(py_func)
+        self._cache_file = _SignedCacheFile(
+            cache_path=self._cache_path, filename_base=self._impl.filename_base,
+            source_stamp=self._impl.locator.get_source_stamp())
+        self._cache_file.key = key
+
+    def load_overload(self, sig, target_context):
+        try:
+            return super().load_overload(sig, target_context)
+        except Exception as exc:   # verified, but not loadable by this numba
+            self._cache_file.discard(self._cache_file._index_path,
+                                     f"numba could not load it ({type(exc).__name__}: {exc})")
+            return None
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except OSError as exc:
+            _unwritable(self._cache_path, exc)
+
+
+class _SignedCacheFile(caching.IndexDataCacheFile):
+    """numba's index and data files, each written as ``HEADER``, the HMAC
+    of its name and content, and numba's own bytes; read back only when the
+    HMAC verifies."""
+
+    #: The secret that signs them (set by :class:`_SignedCache`).
+    key = None
+
+    def _read(self, path):
+        """The verified content of ``path``; FileNotFoundError if absent or
+        discarded."""
+        data = read_signed(path, "numba cache file", self.key)
+        if data is None:
+            raise FileNotFoundError(path)
+        return data
+
+    def discard(self, path, why):
+        _discard(path, "numba cache file", why)
+
+    def _load_index(self):
+        try:
+            data = self._read(self._index_path)
+        except FileNotFoundError:
+            return {}
+        try:
+            stream = io.BytesIO(data)
+            version = pickle.load(stream)
+            if version != self._version:
+                return {}
+            stamp, overloads = pickle.loads(stream.read())
+        except Exception as exc:  # verified: written by us, by another numba
+            self.discard(self._index_path, f"it cannot be read ({type(exc).__name__})")
+            return {}
+        return overloads if stamp == self._source_stamp else {}
+
+    def _save_index(self, overloads):
+        stream = io.BytesIO()
+        pickle.dump(self._version, stream, protocol=-1)
+        stream.write(self._dump((self._source_stamp, overloads)))
+        self._write(self._index_path, stream.getvalue())
+
+    def _load_data(self, name):
+        path = self._data_path(name)
+        data = self._read(path)
+        try:
+            return pickle.loads(data)
+        except Exception as exc:
+            self.discard(path, f"it cannot be read ({type(exc).__name__})")
+            raise FileNotFoundError(path) from None
+
+    def _save_data(self, name, data):
+        self._write(self._data_path(name), self._dump(data))
+
+    def _write(self, path, data):
+        mac = cachedir.sign(_label(path), data, self.key)
+        with self._open_for_write(path) as f:
+            f.write(HEADER + mac.encode() + b"\n" + data)
+
