@@ -4,6 +4,7 @@ end-of-interval contract (checks, record, renormalisation with its
 bookkeeping, accumulator, overflow checks, failures) holds for it exactly
 as stated, against values worked out by hand."""
 
+import pickle
 from collections import namedtuple
 
 import numpy as np
@@ -158,3 +159,22 @@ def test_borrowed_records_write_through_to_their_owner():
     """A borrowed record (views without reference counting) is the same
     memory as its owner, also when passed to inlined functions in a loop."""
     assert _borrowed_writes(4) == 3.0 + 2.0
+
+
+def test_every_orbit_record_is_found_by_name_where_it_is_defined():
+    """numba's on-disk cache keys a kernel by its argument types and pickles
+    a record's class: one not importable by name is pickled by value, a new
+    class in every process, so a cached kernel (the generated steppers'
+    StepperOrbit) was compiled again in every new process."""
+    from baselines.blocks import BlockOrbit
+    from baselines.dop853_kernel import DOPOrbit
+    from varint.codegen.interval import StepperOrbit
+    from varint.kernels.map_stepper import MapOrbit
+    from varint.kernels.parts import PartsOrbit
+    from varint.kernels.tm import TMOrbit
+    from varint.kernels.two_particle import TPOrbit
+    from varint.tdh._kernels import TDHOrbit
+
+    for cls in (StepperOrbit, TMOrbit, PartsOrbit, MapOrbit, TPOrbit, TDHOrbit, BlockOrbit,
+                DOPOrbit):
+        assert pickle.loads(pickle.dumps(cls)) is cls, cls.__module__

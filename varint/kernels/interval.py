@@ -53,6 +53,7 @@ end-of-interval check is one edit here.
 
 from __future__ import annotations
 
+import sys
 from collections import namedtuple
 from dataclasses import dataclass
 from functools import cache
@@ -112,8 +113,12 @@ ORBIT_FIELDS = ("x", "W", "acc_m", "acc_e", "aux", "counters")
 
 def orbit_record(name, fields=()):
     """A namedtuple class for a method's orbit record: :data:`ORBIT_FIELDS`
-    and then ``fields``."""
-    return namedtuple(name, ORBIT_FIELDS + tuple(fields))
+    and then ``fields``, defined in the calling module (the class must be
+    found there by name: numba's on-disk cache keys a kernel by its argument
+    types, and pickles a class it cannot import by value, which makes a new
+    class, and so a cache miss, in every process)."""
+    module = sys._getframe(1).f_globals["__name__"]
+    return namedtuple(name, ORBIT_FIELDS + tuple(fields), module=module)
 
 
 @njit(cache=True)
@@ -271,7 +276,7 @@ def orbit_loop(body, accumulate=no_accumulator, flow=False, record=False):
         # in the loop. Their owners live until the keep() at the end.
         state, setup, ws = borrow(state_owner), borrow(setup_owner), borrow(ws_owner)
         d, k, xe = ws.d, ws.k, ws.xe
-        if OWN:
+        if OWN:  # noqa: SIM108 (a statement numba prunes before it inlines)
             W = state.W
         else:
             W = vectors(state, ws)
@@ -299,7 +304,7 @@ def orbit_loop(body, accumulate=no_accumulator, flow=False, record=False):
                             accumulate(aux, r, xe, W, out, (call.step0 + s + 1) * call.tau)
                     elif k > 0 and s % every == every - 1 and tangent_overflow(W):
                         status = _OVERFLOW
-                if AFTER:
+                if AFTER:  # noqa: SIM102 (pruned before inlining, as above)
                     if status == _OK:
                         status = after(state, setup, ws, s, call)
                 if status != _OK:
