@@ -39,11 +39,11 @@ import numpy as np
 import scipy
 from scipy.integrate import DOP853
 
-from varint.kernels.tm import no_accumulator
+from varint.kernels.interval import no_accumulator, orbit_loop
 from varint.protocol import Status
 from varint._validate import choice, positive_float
 
-from .blocks import BlockPropagator
+from .blocks import BlockPropagator, output_body
 from .dop853_kernel import COUNTS, POWERS, RTOL_MIN, advance_orbit
 from .dop853_lanes import LANES, advance_lanes
 from .rhs import tangent_rhs
@@ -135,7 +135,11 @@ class DOP853Propagator(BlockPropagator):
         active = np.flatnonzero(state.status == Status.OK)
         acc = self.accumulator
         d, k = state.W.shape[1:]
-        flow = np.empty(d if acc is not None and acc.needs_flow else 0)
+        # The one-orbit kernel that takes each lane's output (renormalise,
+        # accumulate, check) on the stepping skeleton.
+        take = orbit_loop(output_body(self.model.grad_kernel),
+                          acc.update if acc is not None else no_accumulator,
+                          acc is not None and acc.needs_flow)
         model, steps, total = self.model, 0, np.zeros(len(COUNTS), dtype=np.int64)
         h_all = state.extra["dop853_h"]
         for first in range(0, len(active), LANES):
@@ -151,9 +155,8 @@ class DOP853Propagator(BlockPropagator):
             counts = np.zeros((L, len(COUNTS)), dtype=np.int64)
             advance_lanes(self._rhs, X, W, acc_m, acc_e, h, status, done, int(n), self.tau,
                           self.options["rtol"], self.options["atol"], POWERS, self._mode,
-                          self._escape_r2, counts, acc.update if acc is not None
-                          else no_accumulator, aux, model.grad_kernel, model.params,
-                          model.inverse_mass, flow, state.step, clock)
+                          self._escape_r2, counts, take, aux, model.params,
+                          model.inverse_mass, state.step, clock)
             state.x[idx], state.W[idx] = X, W
             state.acc_m[idx], state.acc_e[idx], h_all[idx] = acc_m, acc_e, h
             if acc is not None:

@@ -31,7 +31,9 @@ from numba import njit
 
 from varint.protocol import Status
 
-from .blocks import COND_LIMIT, END_BLOCK, consume
+from varint.kernels.interval import Call
+
+from .blocks import COND_LIMIT, END_BLOCK, BlockOrbit, BlockSetup
 from .dop853_kernel import (A, B, C, COUNTS, E3, E5, MAX_FACTOR, MIN_FACTOR, N_STAGES, SAFETY,
                             initial_step)
 
@@ -158,7 +160,7 @@ def _interval(rhs, Y, h_abs, tau, rtol, atol, powers, going, counts, K, Ys, Ynew
 
 @njit
 def advance_lanes(rhs, X, W, acc_m, acc_e, h, status, done, n, tau, rtol, atol, powers, mode,
-                  escape_r2, counts, accumulate, aux, grad, par, minv, flow, step0, clock):
+                  escape_r2, counts, take, aux, par, minv, step0, clock):
     """Advance L orbits (one per lane) by ``n`` intervals τ each, restarting
     DOP853 every τ from the renormalised state (the paper's scheme).
 
@@ -185,9 +187,14 @@ def advance_lanes(rhs, X, W, acc_m, acc_e, h, status, done, n, tau, rtol, atol, 
     escape_r2 : float
     counts : ndarray of int64, shape (L, 4)
         :data:`~varint.baselines.dop853_kernel.COUNTS` per lane, incremented.
-    accumulate, aux, grad, par, minv, flow :
-        As for :func:`varint.baselines.blocks.consume`; ``aux`` has one
-        array per lane, shape (L, ...).
+    take : numba function
+        The one-orbit kernel that takes an output
+        (:func:`varint.kernels.interval.orbit_loop` of
+        :func:`varint.baselines.blocks.output_body`, with the indicator's
+        accumulator).
+    aux, par, minv :
+        The accumulator's arrays, one per lane, shape (L, ...); the model's
+        parameters and inverse masses.
     step0 : int
         The run's interval count at the start.
     clock : ndarray, shape (L, 2) or (L, 0)
@@ -258,9 +265,10 @@ def advance_lanes(rhs, X, W, acc_m, acc_e, h, status, done, n, tau, rtol, atol, 
             for a in range(k):
                 for b in range(k):
                     Cv[a, b] = 1.0 if a == b else 0.0
-            st, _ = consume(yrow, Cv, 0, 1, X[lane], W[lane], mode, acc_m[lane], acc_e[lane],
-                            escape_r2, COND_LIMIT, accumulate, aux[lane], grad, par, minv, flow,
-                            step0 + j + 1, tau, c)
+            st, _ = take(BlockOrbit(X[lane], W[lane], acc_m[lane], acc_e[lane], aux[lane],
+                                    np.zeros(0, dtype=np.int64), Cv),
+                         BlockSetup(yrow, 0, COND_LIMIT, par, minv, c),
+                         Call(1, step0 + j, tau, mode, escape_r2))
             if c:
                 clock[lane, 0] = yrow[0, size - 2]
                 clock[lane, 1] = yrow[0, size - 1]

@@ -26,7 +26,7 @@ freedom (the paper's orbits), the right-hand side is *generated*
 (:func:`generated_rhs`): ∇V and D²V as straight-line expressions of q with
 common subexpressions eliminated, no array allocated, the vectors' loop
 summing in the band kernels' order — the code the TM stepper gets
-(:mod:`varint.kernels.generate`). It is the same function; on Hénon–Heiles
+(:mod:`varint.codegen`). It is the same function; on Hénon–Heiles
 it gives the kernels' bits and costs a sixth of their time (no scratch
 arrays), which makes a DOP853 interval of the paper's configuration
 measurably cheaper (``studies/bench_baselines.py``).
@@ -51,7 +51,7 @@ import numpy as np
 import sympy as sp
 from numba import njit
 
-from varint.models.symbolic import _KernelPrinter
+from varint.models.symbolic import KernelPrinter
 
 __all__ = ["tangent_rhs", "tangent_jacobian", "generated_rhs", "kernel_rhs", "pack", "unpack", "clock_size",
            "CLOCK", "GENERATED_MAX_N"]
@@ -200,7 +200,7 @@ def _generated_source(V, n, minv):
     H = {(i, j): sp.diff(g[i], q[j]) for i in range(n) for j in range(i, n)}
     H = {ij: e for ij, e in H.items() if e != 0}
     bw = max((j - i for i, j in H), default=0)
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     d = 2 * n
     lines = ["def rhs(t, y, yp):"]
     lines += [f"    q{i} = y[{i}]" for i in range(n)]

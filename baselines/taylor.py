@@ -139,7 +139,7 @@ def heyoka_system(symbolic, fp=np.float64):
     n = len(symbolic.q)
     q = [hy.expression(f"q{i}") for i in range(n)]
     p = [hy.expression(f"p{i}") for i in range(n)]
-    names = dict(zip(symbolic.q, q))
+    names = dict(zip(symbolic.q, q, strict=True))
     time = getattr(symbolic, "time", None)
     if time is not None:
         names[time] = hy.time
@@ -147,8 +147,8 @@ def heyoka_system(symbolic, fp=np.float64):
         return _hamilton_system(symbolic, names, q, p, fp)
     V = _to_heyoka(symbolic.V, names, fp)
     system = [(qi, pi if mi == 1 else _to_heyoka(mi, {}, fp) * pi)
-              for qi, pi, mi in zip(q, p, symbolic.inverse_mass)]
-    system += [(pi, -hy.diff(V, qi)) for qi, pi in zip(q, p)]
+              for qi, pi, mi in zip(q, p, symbolic.inverse_mass, strict=True)]
+    system += [(pi, -hy.diff(V, qi)) for qi, pi in zip(q, p, strict=True)]
     if time is None:
         return system, q + p
     pt = hy.expression("p_t")
@@ -357,9 +357,12 @@ class TaylorPropagator(BlockPropagator):
         return n, Status.OK
 
     def _check(self, x, W, acc_m, acc_e, accumulate, aux, flow, t):
-        """The end-of-interval checks every stepper shares
-        (:mod:`varint.kernels.checks`, on the state rounded to double), the
-        renormalisation in long double, and the accumulator's update."""
+        """The end of an interval in long double: the stepping skeleton's
+        contract (:mod:`varint.kernels.interval`), which numba cannot
+        compile for long double, written out here — the checks of
+        :mod:`varint.kernels.checks` on the state rounded to double, the
+        renormalisation in long double, and the accumulator's update (with
+        the flow if ``flow``)."""
         xd = x.astype(np.float64)
         status = orbit_status(xd, xd.shape[0] // 2, self._escape_r2)
         if status != Status.OK:
@@ -371,8 +374,9 @@ class TaylorPropagator(BlockPropagator):
             return Status.TANGENT_DEGENERATE
         if aux.shape[0]:
             n = self.model.n_dof
-            if flow.shape[0]:
-                g = self.model.gradient(xd[:n], t)
-                flow[:n], flow[n:] = self.model.inverse_mass * xd[n:], -g
-            accumulate(aux, r, xd, W.astype(np.float64), flow, t)
+            velocity = np.empty(2 * n if flow else 0)
+            if flow:
+                velocity[:n] = self.model.inverse_mass * xd[n:]
+                velocity[n:] = -self.model.gradient(xd[:n], t)
+            accumulate(aux, r, xd, W.astype(np.float64), velocity, t)
         return Status.OK

@@ -26,6 +26,7 @@ import numpy as np
 
 import varint
 from varint.methods import make_propagator
+from varint.schemes import registered
 from varint.state import RunState
 
 C_LOOP = r"""
@@ -171,7 +172,7 @@ def main(argv=None):
         xb = np.concatenate([0.1 * np.sin(np.linspace(0, np.pi, 1024)), np.zeros(1024)])
         cases.append(("FPU n=1024", big, xb))
     schemes = (["SBAB2C", "SABA2", "ABA864", "SRKN14a"] if args.quick
-               else [s.name for s in varint.SCHEMES.values()])
+               else [s.name for s in registered(2)])
     rows = []
     print("\n# ns per step, default (adaptive) renormalisation; k = number of deviation "
           "vectors (0: orbit only)")

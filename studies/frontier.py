@@ -32,7 +32,7 @@ the wall time and this process's CPU time are kept: on an oversubscribed
 machine the CPU time leaves out the time other jobs hold the cores. For
 each target error the cost of each scheme (and of heyoka) is read off its
 own cost–error Pareto front, log–log interpolated
-(:func:`studies.bench_peers.cost_at`; "at most" where even its cheapest
+(:func:`studies.claims.cost_at`; "at most" where even its cheapest
 point is more accurate), and the cheapest scheme of a group counts; the
 ratio is heyoka's cost over varint's (> 1: varint is faster), for the best
 old scheme and the best scheme overall; the verdicts on the issue's targets
@@ -61,9 +61,10 @@ if __package__ in (None, ""):
 import numba  # noqa: E402
 
 import varint  # noqa: E402
-from studies.bench_peers import (SHORT, cost_at, derived_system, pareto,  # noqa: E402
-                                 seeded_vectors)
-from studies.common import Claims, figure, parse_args, save_csv, save_json  # noqa: E402
+from studies.bench_peers import derived_system, seeded_vectors  # noqa: E402
+from studies.claims import cost_at, pareto  # noqa: E402
+from studies.common import (SHORT, Claims, figure, parse_args, save_csv,  # noqa: E402
+                            save_json)
 from varint.cache import reference  # noqa: E402
 
 ORBITS = ("R1", "C2")
@@ -184,7 +185,7 @@ def orbit_case(name, t_end, schemes, tols, repeats):
 def group_cost(rows, target, clock):
     """The cheapest cost at ``target`` over the configurations in ``rows``:
     each scheme's (or heyoka's) own cost–error front, log–log interpolated
-    (:func:`studies.bench_peers.cost_at`), the best of them; returns (cost,
+    (:func:`studies.claims.cost_at`), the best of them; returns (cost,
     how, which) or (None, "unreachable", None)."""
     best = (None, "unreachable", None)
     for key in dict.fromkeys(r.get("scheme") or "heyoka" for r in rows):

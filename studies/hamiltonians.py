@@ -86,7 +86,7 @@ import varint
 from studies.bench_peers import (HeyokaMap, agreement, antimode, chaotic, cost_at, interleaved,
                                  pareto, seeded_vectors)
 from studies.common import Claims, parse_args, save_csv, save_json
-from varint.schemes import part_stages, resolve_scheme
+from varint.schemes import get_scheme, part_stages
 from varint.flows.tao import tao_step, tao_work
 from varint.models.bar import BAR_ORBITS, RotatingBar, bar_orbit
 from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, SUN_JUPITER_MU,
@@ -436,7 +436,7 @@ def _tao(model, x0, t_end, scheme, h):
     x2 = x.copy()
     G = np.eye(model.dim)
     V = np.ascontiguousarray(np.eye(model.dim)[:1])
-    parts, hs = part_stages(resolve_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
+    parts, hs = part_stages(get_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
     work = np.empty(tao_work(model.n_dof, 1))
     status, log_growth = _tao_loop(round(t_end / h), parts, hs, TAO_OMEGA, x, x2, V, G,
                                    model.parameters_at(None), work, model.grad_hess_h)

@@ -547,7 +547,7 @@ def _write_csv(path, cols, flag="--csv"):
         with output_file(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
-            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
+            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()], strict=True))
     except OSError as exc:
         raise OSError(f"cannot write {flag} {path}: {exc.strerror or exc}") from exc
     print(f"table written to {path}")
@@ -610,19 +610,19 @@ class _Interrupted(Exception):
 
 # -- subcommands -------------------------------------------------------------------
 def _cmd_schemes(args):
-    from .schemes import SCHEMES
+    from .schemes import registered
 
     _check_outputs(args)
     cols = {"name": [], "order": [], "nominal": [], "forces/step": [], "corrector": [],
             "reference": []}
-    for s in SCHEMES.values():
+    for s in registered(2):
         for key, value in zip(cols, (s.name, s.order, s.nominal_order or "-",
                                      s.force_evaluations, "yes" if s.corrector else "no",
-                                     s.reference.split(",")[0] or "-")):
+                                     s.reference.split(",")[0] or "-"), strict=True):
             cols[key].append(value)
     print(f"{'name':10} {'order':>5} {'nominal':>9} {'forces/step':>11} {'corrector':>9}  "
           "reference")
-    for row in zip(*cols.values()):
+    for row in zip(*cols.values(), strict=True):
         print(f"{row[0]:10} {row[1]:>5} {row[2]:>9} {row[3]:>11} {row[4]:>9}  {row[5]}")
     print("order: of the energy error for H = p^2/2 + V(q); forces/step: gradient "
           "evaluations per step in a long run (the cost)")

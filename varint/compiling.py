@@ -2,7 +2,7 @@
 
 The first run of a new model, method or scheme compiles its kernels with
 numba, which takes seconds (cached on disk for the next process, see
-:mod:`varint.kernels.generate`); later runs take milliseconds. So that
+:mod:`varint.codegen.stepper`); later runs take milliseconds. So that
 neither the wait nor the timings mislead:
 
 * every compilation is timed through numba's event API
@@ -24,7 +24,6 @@ never with ``progress=False``.
 
 from __future__ import annotations
 
-import contextlib
 import contextvars
 import json
 import math
@@ -34,7 +33,7 @@ import time
 
 from numba.core import event
 
-from .cachedir import private_dir
+from . import cachedir
 from .files import atomic_write
 
 __all__ = ["Clock", "compile_seconds", "ANNOUNCE_AFTER"]
@@ -182,9 +181,10 @@ class _Part:
 
 
 def _store():
-    """The store in the private cache directory (never one another user
-    could write: :func:`varint.cachedir.private_dir`), or None."""
-    base = private_dir()
+    """The store's path in the private cache directory
+    (:func:`varint.cachedir.private_dir`: never a directory that others
+    could write, which is refused for everything else too), or None."""
+    base = cachedir.private_dir()
     return None if base is None else base / _TIMES
 
 
@@ -220,5 +220,8 @@ def _remember(seconds):
     path = _store()
     if path is None:
         return
-    with contextlib.suppress(OSError):
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, json.dumps((_read() + [round(seconds, 3)])[-_KEEP:]))
+    except OSError:
+        pass

@@ -31,10 +31,10 @@ Schemes over k ≥ 2 named parts
 A Hamiltonian split into k integrable parts H = P_1 + … + P_k (the DDNLS's
 on-site part A and its two hopping parts B and C, [S14]_) is integrated by
 :class:`CompositionScheme`: a symmetric composition of the symmetric
-second-order map S2 (ABC² for k = 3). Those live in :data:`PART_SCHEMES`
-(the two-part registry :data:`SCHEMES` is unchanged). Both kinds become a
-*word* (:func:`scheme_word`): the ordered flows, each a slot (which part),
-a coefficient and the power of τ of its length, which the part stepper
+second-order map S2 (ABC² for k = 3). Both kinds live in one registry,
+:data:`SCHEMES`, resolved by :func:`get_scheme`, and both become a *word*
+(:func:`scheme_word`): the ordered flows, each a slot (which part), a
+coefficient and the power of τ of its length, which the part stepper
 (:mod:`varint.kernels.parts`) runs.
 """
 
@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme", "stage_arrays",
-           "stage_times", "CompositionScheme", "PART_SCHEMES", "register_part_scheme",
-           "resolve_scheme", "scheme_word", "CORRECTOR"]
+__all__ = ["SplittingScheme", "CompositionScheme", "SCHEMES", "DEFAULT_SCHEME", "get_scheme",
+           "register_scheme", "registered", "stage_arrays", "stage_times", "scheme_word",
+           "part_stages", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -125,12 +125,12 @@ class SplittingScheme:
             kinds.append(outer if i % 2 == 0 else inner)
         kinds = kinds + kinds[-2::-1]
         for kind, label in ((DRIFT, "drift"), (KICK, "kick")):
-            total = math.fsum(c for c, k in zip(full, kinds) if k == kind)
+            total = math.fsum(c for c, k in zip(full, kinds, strict=True) if k == kind)
             if not abs(total - 1.0) <= 1e-14:
                 raise ValueError(
                     f"scheme {self.name!r}: the {label} coefficients sum to {total!r}, expected 1"
                 )
-        object.__setattr__(self, "_stages", tuple(zip(kinds, full)))
+        object.__setattr__(self, "_stages", tuple(zip(kinds, full, strict=True)))
 
     def _check_fields(self):
         """Check every field's type and value, and store the coefficients
@@ -176,6 +176,12 @@ class SplittingScheme:
         return self._stages
 
     @property
+    def n_parts(self) -> int:
+        """2: the drift A = ½pᵀM⁻¹p and the kick B = V(q) (the corrector
+        C = {B, {B, A}} is made of the same two)."""
+        return 2
+
+    @property
     def n_kicks(self) -> int:
         """Kick stages in one step (force evaluations without reuse)."""
         return sum(1 for k, _ in self._stages if k == KICK)
@@ -207,7 +213,7 @@ class SplittingScheme:
             "reference": self.reference,
         }
 
-    def corrected(self, g: float, name: str | None = None) -> "SplittingScheme":
+    def corrected(self, g: float, name: str | None = None) -> SplittingScheme:
         """This scheme wrapped in the corrector of constant ``g`` (order 4 for
         H = T(p) + V(q) when the uncorrected scheme is O(τ^{2n}ε + τ²ε²))."""
         order = min(4, int(self.nominal_order.strip("()").split(",")[0])) if self.nominal_order else 4
@@ -269,24 +275,176 @@ class SplittingScheme:
                    order=order, reference=reference, nominal_order=f"({order})")
 
 
-SCHEMES: dict[str, SplittingScheme] = {}
+# --------------------------------------------------------------------------
+# Words: a scheme as the ordered flows it applies.
+
+#: The slot of the corrector flow e^{h L_C}, C = {B,{B,A}}, in a word.
+CORRECTOR = -1
 
 
-def register_scheme(scheme: SplittingScheme) -> SplittingScheme:
+def scheme_word(scheme):
+    """The flows of one step of ``scheme``, in order of application.
+
+    Parameters
+    ----------
+    scheme : SplittingScheme or CompositionScheme
+
+    Returns
+    -------
+    tuple of (slot, coefficient, power)
+        Flow e^{c τ^power L_slot}. For a two-part scheme slot 0 is the drift
+        (A = ½pᵀM⁻¹p), slot 1 the kick (B = V), and :data:`CORRECTOR` the
+        corrector, whose length is −gτ³/2 on each side of the step
+        (Skokos & Gerlach 2010, eq. 22); for a k-part composition the slots
+        are the parts 0 … k−1.
+    """
+    if isinstance(scheme, CompositionScheme):
+        return tuple((slot, c, 1) for slot, c in scheme.word())
+    if not isinstance(scheme, SplittingScheme):
+        raise ValueError(f"scheme_word needs a SplittingScheme or CompositionScheme, got "
+                         f"{type(scheme).__name__} {scheme!r}")
+    word = tuple((0 if kind == DRIFT else 1, c, 1) for kind, c in scheme.stages())
+    if scheme.corrector is not None:
+        # Both correctors act on p at the q of the outer stage, so for a BAB
+        # layout they commute with the first and last kick, and for an ABA
+        # layout they sit outside the first and last drift, as in eq. 22.
+        end = ((CORRECTOR, -scheme.corrector / 2, 3),)
+        word = end + word + end
+    return word
+
+
+def _merge(word):
+    """Adjacent flows of the same part composed into one (exact: they are
+    the flow of one autonomous Hamiltonian); zero-length flows dropped."""
+    out = []
+    for slot, c in word:
+        if out and out[-1][0] == slot:
+            out[-1] = (slot, out[-1][1] + c)
+        else:
+            out.append((slot, c))
+    return tuple((s, c) for s, c in out if c != 0.0)
+
+
+def strang_word(n_parts):
+    """S2(h) for H = P_0 + … + P_{k−1}: e^{h/2 L_0} … e^{h L_{k−1}} … e^{h/2 L_0},
+    the symmetric second-order map (ABC² of [S14]_ for k = 3), as
+    (slot, coefficient) pairs."""
+    half = [(slot, 0.5) for slot in range(n_parts - 1)]
+    return tuple(half + [(n_parts - 1, 1.0)] + half[::-1])
+
+
+
+@dataclass(frozen=True)
+class CompositionScheme:
+    """A symmetric composition Π_i S2(γ_i τ) of the second-order map
+    S2 = :func:`strang_word` over ``n_parts`` parts, adjacent flows of the
+    same part merged (Yoshida 1990; Kahan & Li 1997; McLachlan 1995).
+
+    Parameters
+    ----------
+    name : str
+        Literature name, e.g. ``"s9ABC6"``; the key in :data:`SCHEMES`.
+    n_parts : int
+        The number of parts k ≥ 2 of the split it composes.
+    gammas : tuple of float
+        The independent half of the palindromic γ_1 … γ_s, centre last
+        (s = 2·len − 1 stages), as published; Σγ = 1.
+    order : int
+        Order of the energy error.
+    reference : str
+        Where the coefficients come from.
+
+    Raises
+    ------
+    ValueError
+        If a field has the wrong type, the γ do not sum to 1, or n_parts < 2.
+    """
+
+    name: str
+    n_parts: int
+    gammas: tuple
+    order: int
+    reference: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"a scheme's name must be a non-empty string, got {self.name!r}")
+        where = f"scheme {self.name!r}"
+        if isinstance(self.n_parts, bool) or not isinstance(self.n_parts, numbers.Integral) \
+                or self.n_parts < 2:
+            raise ValueError(f"{where}: n_parts must be an integer >= 2, got {self.n_parts!r}")
+        if isinstance(self.order, bool) or not isinstance(self.order, numbers.Integral) \
+                or self.order < 1:
+            raise ValueError(f"{where}: order must be a positive integer, got {self.order!r}")
+        g = self.gammas
+        if isinstance(g, (str, bytes)) or not hasattr(g, "__len__") or len(g) == 0:
+            raise ValueError(f"{where}: gammas must be a non-empty sequence of numbers, got {g!r}")
+        for i, c in enumerate(g):
+            if isinstance(c, bool) or not isinstance(c, numbers.Real) or not math.isfinite(c):
+                raise ValueError(f"{where}: gammas[{i}] must be a finite real number, got {c!r}")
+        object.__setattr__(self, "gammas", tuple(float(c) for c in g))
+        object.__setattr__(self, "n_parts", int(self.n_parts))
+        object.__setattr__(self, "order", int(self.order))
+        total = math.fsum(self.stage_gammas())
+        if not abs(total - 1.0) <= 1e-14:
+            raise ValueError(f"{where}: the composition coefficients sum to {total!r}, expected 1")
+
+    def stage_gammas(self):
+        """The full palindrome γ_1 … γ_s."""
+        g = list(self.gammas)
+        return tuple(g + g[-2::-1])
+
+    @property
+    def stages(self):
+        """s, the number of S2 maps per step."""
+        return 2 * len(self.gammas) - 1
+
+    def word(self):
+        """The merged (slot, coefficient) flows of one step."""
+        base = strang_word(self.n_parts)
+        return _merge([(slot, g * c) for g in self.stage_gammas() for slot, c in base])
+
+    def flows_per_step(self):
+        """Flows of each part in one step: (count of part 0, …)."""
+        counts = [0] * self.n_parts
+        for slot, _ in self.word():
+            counts[slot] += 1
+        return tuple(counts)
+
+    def describe(self) -> dict:
+        """JSON-serialisable description (for result provenance)."""
+        return {"name": self.name, "parts": self.n_parts, "stages": self.stages,
+                "order": self.order, "flows_per_step": list(self.flows_per_step()),
+                "reference": self.reference}
+
+
+#: Every registered scheme, two-part (:class:`SplittingScheme`) and k-part
+#: (:class:`CompositionScheme`), by upper-cased name, in registration order.
+SCHEMES: dict[str, SplittingScheme | CompositionScheme] = {}
+
+#: The scheme of the TM method and the TDH methods when none is given: the
+#: paper's S_B2^c (Skokos & Gerlach 2010), SBAB2 with corrector.
+DEFAULT_SCHEME = "SBAB2C"
+
+
+def register_scheme(scheme: SplittingScheme | CompositionScheme):
     """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name.
 
     Raises
     ------
     ValueError
-        If ``scheme`` is not a :class:`SplittingScheme` (a name is not
-        enough: the registry holds coefficients) or its name is taken.
+        If ``scheme`` is not a :class:`SplittingScheme` or
+        :class:`CompositionScheme` (a name is not enough: the registry holds
+        coefficients) or its name is taken.
     """
-    if not isinstance(scheme, SplittingScheme):
+    if not isinstance(scheme, (SplittingScheme, CompositionScheme)):
         known = (f"; {scheme!r} is already registered, get it with get_scheme({scheme!r})"
                  if isinstance(scheme, str) and scheme.upper() in SCHEMES else "")
         raise ValueError(
-            f"register_scheme needs a SplittingScheme, got {type(scheme).__name__} {scheme!r}; "
-            "build one with SplittingScheme(name, drift_first, drifts, kicks, order)" + known)
+            f"register_scheme needs a SplittingScheme or CompositionScheme, got "
+            f"{type(scheme).__name__} {scheme!r}; build one with SplittingScheme(name, "
+            "drift_first, drifts, kicks, order) or CompositionScheme(name, n_parts, gammas, "
+            "order)" + known)
     key = scheme.name.upper()
     if key in SCHEMES:
         raise ValueError(f"a scheme named {scheme.name!r} is already registered")
@@ -294,26 +452,49 @@ def register_scheme(scheme: SplittingScheme) -> SplittingScheme:
     return scheme
 
 
-def get_scheme(scheme: str | SplittingScheme) -> SplittingScheme:
-    """Resolve a scheme name (case-insensitive) or pass a scheme through.
+def get_scheme(scheme: str | SplittingScheme | CompositionScheme, n_parts: int | None = None):
+    """The registered scheme of a name (case-insensitive), or a scheme
+    passed through.
+
+    Parameters
+    ----------
+    scheme : str, SplittingScheme or CompositionScheme
+    n_parts : int, optional
+        The split the caller integrates: 2 for the drift and kick of
+        H = T + V (a :class:`SplittingScheme`, which the TM stepper, the
+        TDH methods, the two-particle method and the section finder run);
+        None for any.
 
     Raises
     ------
     ValueError
-        For an unknown name; the message lists the valid names.
+        For an unknown name (the message lists the valid ones), or a scheme
+        over another number of parts than ``n_parts`` (the message says
+        which models it runs on).
     """
-    if isinstance(scheme, SplittingScheme):
-        return scheme
     if isinstance(scheme, str) and scheme.upper() in SCHEMES:
-        return SCHEMES[scheme.upper()]
-    if isinstance(scheme, (str, CompositionScheme)) and _part_key(scheme) in PART_SCHEMES:
-        s = PART_SCHEMES[_part_key(scheme)]
+        scheme = SCHEMES[scheme.upper()]
+    elif not isinstance(scheme, (SplittingScheme, CompositionScheme)):
+        raise ValueError(f"unknown scheme {scheme!r}; expected one of: "
+                         f"{', '.join(s.name for s in SCHEMES.values())}")
+    if n_parts == 2 and not isinstance(scheme, SplittingScheme):
         raise ValueError(
-            f"scheme {s.name!r} composes the flows of {s.n_parts} parts; it runs on models that "
-            f"declare a {s.n_parts}-part split (e.g. varint.models.DDNLS) with method='tm'")
-    raise ValueError(
-        f"unknown scheme {scheme!r}; expected one of: {', '.join(s.name for s in SCHEMES.values())}"
-    )
+            f"scheme {scheme.name!r} composes the flows of {scheme.n_parts} parts; it runs on "
+            f"models that declare a {scheme.n_parts}-part split (e.g. varint.models.DDNLS) with "
+            "method='tm'")
+    return scheme
+
+
+def registered(n_parts: int | None = None):
+    """The registered schemes in registration order; with ``n_parts = 2``
+    the two-part ones (:class:`SplittingScheme`), with another number the
+    compositions over that many parts."""
+    if n_parts is None:
+        return tuple(SCHEMES.values())
+    if n_parts == 2:
+        return tuple(s for s in SCHEMES.values() if isinstance(s, SplittingScheme))
+    return tuple(s for s in SCHEMES.values()
+                 if isinstance(s, CompositionScheme) and s.n_parts == n_parts)
 
 
 # --------------------------------------------------------------------------
@@ -505,203 +686,14 @@ def stage_times(scheme: SplittingScheme):
     ndarray of float64, shape (n_stages,)
     """
     kinds, h, _ = stage_arrays(scheme, 1.0)
-    out, before = [], []
-    for kind, c in zip(kinds, h):
+    out: list[float] = []
+    before: list[float] = []
+    for kind, c in zip(kinds, h, strict=True):
         total = math.fsum(before)
         out.append(1.0 if abs(total - 1.0) <= 1e-14 else total)
         if kind == DRIFT:
             before.append(float(c))
     return np.array(out, dtype=np.float64)
-
-
-# --------------------------------------------------------------------------
-# Words: a scheme as the ordered flows it applies.
-
-#: The slot of the corrector flow e^{h L_C}, C = {B,{B,A}}, in a word.
-CORRECTOR = -1
-
-
-def scheme_word(scheme):
-    """The flows of one step of ``scheme``, in order of application.
-
-    Parameters
-    ----------
-    scheme : SplittingScheme or CompositionScheme
-
-    Returns
-    -------
-    tuple of (slot, coefficient, power)
-        Flow e^{c τ^power L_slot}. For a two-part scheme slot 0 is the drift
-        (A = ½pᵀM⁻¹p), slot 1 the kick (B = V), and :data:`CORRECTOR` the
-        corrector, whose length is −gτ³/2 on each side of the step
-        (Skokos & Gerlach 2010, eq. 22); for a k-part composition the slots
-        are the parts 0 … k−1.
-    """
-    if isinstance(scheme, CompositionScheme):
-        return tuple((slot, c, 1) for slot, c in scheme.word())
-    if not isinstance(scheme, SplittingScheme):
-        raise ValueError(f"scheme_word needs a SplittingScheme or CompositionScheme, got "
-                         f"{type(scheme).__name__} {scheme!r}")
-    word = tuple((0 if kind == DRIFT else 1, c, 1) for kind, c in scheme.stages())
-    if scheme.corrector is not None:
-        # Both correctors act on p at the q of the outer stage, so for a BAB
-        # layout they commute with the first and last kick, and for an ABA
-        # layout they sit outside the first and last drift, as in eq. 22.
-        end = ((CORRECTOR, -scheme.corrector / 2, 3),)
-        word = end + word + end
-    return word
-
-
-def _merge(word):
-    """Adjacent flows of the same part composed into one (exact: they are
-    the flow of one autonomous Hamiltonian); zero-length flows dropped."""
-    out = []
-    for slot, c in word:
-        if out and out[-1][0] == slot:
-            out[-1] = (slot, out[-1][1] + c)
-        else:
-            out.append((slot, c))
-    return tuple((s, c) for s, c in out if c != 0.0)
-
-
-def strang_word(n_parts):
-    """S2(h) for H = P_0 + … + P_{k−1}: e^{h/2 L_0} … e^{h L_{k−1}} … e^{h/2 L_0},
-    the symmetric second-order map (ABC² of [S14]_ for k = 3), as
-    (slot, coefficient) pairs."""
-    half = [(slot, 0.5) for slot in range(n_parts - 1)]
-    return tuple(half + [(n_parts - 1, 1.0)] + half[::-1])
-
-
-@dataclass(frozen=True)
-class CompositionScheme:
-    """A symmetric composition Π_i S2(γ_i τ) of the second-order map
-    S2 = :func:`strang_word` over ``n_parts`` parts, adjacent flows of the
-    same part merged (Yoshida 1990; Kahan & Li 1997; McLachlan 1995).
-
-    Parameters
-    ----------
-    name : str
-        Literature name, e.g. ``"s9ABC6"``; the key in :data:`PART_SCHEMES`.
-    n_parts : int
-        The number of parts k ≥ 2 of the split it composes.
-    gammas : tuple of float
-        The independent half of the palindromic γ_1 … γ_s, centre last
-        (s = 2·len − 1 stages), as published; Σγ = 1.
-    order : int
-        Order of the energy error.
-    reference : str
-        Where the coefficients come from.
-
-    Raises
-    ------
-    ValueError
-        If a field has the wrong type, the γ do not sum to 1, or n_parts < 2.
-    """
-
-    name: str
-    n_parts: int
-    gammas: tuple
-    order: int
-    reference: str = ""
-
-    def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name.strip():
-            raise ValueError(f"a scheme's name must be a non-empty string, got {self.name!r}")
-        where = f"scheme {self.name!r}"
-        if isinstance(self.n_parts, bool) or not isinstance(self.n_parts, numbers.Integral) \
-                or self.n_parts < 2:
-            raise ValueError(f"{where}: n_parts must be an integer >= 2, got {self.n_parts!r}")
-        if isinstance(self.order, bool) or not isinstance(self.order, numbers.Integral) \
-                or self.order < 1:
-            raise ValueError(f"{where}: order must be a positive integer, got {self.order!r}")
-        g = self.gammas
-        if isinstance(g, (str, bytes)) or not hasattr(g, "__len__") or len(g) == 0:
-            raise ValueError(f"{where}: gammas must be a non-empty sequence of numbers, got {g!r}")
-        for i, c in enumerate(g):
-            if isinstance(c, bool) or not isinstance(c, numbers.Real) or not math.isfinite(c):
-                raise ValueError(f"{where}: gammas[{i}] must be a finite real number, got {c!r}")
-        object.__setattr__(self, "gammas", tuple(float(c) for c in g))
-        object.__setattr__(self, "n_parts", int(self.n_parts))
-        object.__setattr__(self, "order", int(self.order))
-        total = math.fsum(self.stage_gammas())
-        if not abs(total - 1.0) <= 1e-14:
-            raise ValueError(f"{where}: the composition coefficients sum to {total!r}, expected 1")
-
-    def stage_gammas(self):
-        """The full palindrome γ_1 … γ_s."""
-        g = list(self.gammas)
-        return tuple(g + g[-2::-1])
-
-    @property
-    def stages(self):
-        """s, the number of S2 maps per step."""
-        return 2 * len(self.gammas) - 1
-
-    def word(self):
-        """The merged (slot, coefficient) flows of one step."""
-        base = strang_word(self.n_parts)
-        return _merge([(slot, g * c) for g in self.stage_gammas() for slot, c in base])
-
-    def flows_per_step(self):
-        """Flows of each part in one step: (count of part 0, …)."""
-        counts = [0] * self.n_parts
-        for slot, _ in self.word():
-            counts[slot] += 1
-        return tuple(counts)
-
-    def describe(self) -> dict:
-        """JSON-serialisable description (for result provenance)."""
-        return {"name": self.name, "parts": self.n_parts, "stages": self.stages,
-                "order": self.order, "flows_per_step": list(self.flows_per_step()),
-                "reference": self.reference}
-
-
-#: Schemes over k ≥ 2 named parts, by upper-cased name.
-PART_SCHEMES: dict[str, CompositionScheme] = {}
-
-
-def _part_key(scheme):
-    return (scheme.name if isinstance(scheme, CompositionScheme) else scheme).upper()
-
-
-def register_part_scheme(scheme):
-    """Add a :class:`CompositionScheme` to :data:`PART_SCHEMES`.
-
-    Raises
-    ------
-    ValueError
-        If it is not a CompositionScheme or its name is taken (in either
-        registry).
-    """
-    if not isinstance(scheme, CompositionScheme):
-        raise ValueError(f"register_part_scheme needs a CompositionScheme, got "
-                         f"{type(scheme).__name__} {scheme!r}")
-    key = scheme.name.upper()
-    if key in PART_SCHEMES or key in SCHEMES:
-        raise ValueError(f"a scheme named {scheme.name!r} is already registered")
-    PART_SCHEMES[key] = scheme
-    return scheme
-
-
-def resolve_scheme(scheme):
-    """A two-part :class:`SplittingScheme` or a :class:`CompositionScheme`
-    from itself or its name (case-insensitive).
-
-    Raises
-    ------
-    ValueError
-        For an unknown name; the message lists the names of both registries.
-    """
-    if isinstance(scheme, (SplittingScheme, CompositionScheme)):
-        return scheme
-    if isinstance(scheme, str):
-        key = scheme.upper()
-        if key in SCHEMES:
-            return SCHEMES[key]
-        if key in PART_SCHEMES:
-            return PART_SCHEMES[key]
-    names = [s.name for s in SCHEMES.values()] + [s.name for s in PART_SCHEMES.values()]
-    raise ValueError(f"unknown scheme {scheme!r}; expected one of: {', '.join(names)}")
 
 
 def part_stages(scheme, tau, slots):
@@ -778,4 +770,4 @@ _ABC = [
                  -0.38263596012643665350944670744040), 8, _SS05 + " (s21odr8)"),
 ]
 for _name, _half, _order, _ref in _ABC:
-    register_part_scheme(CompositionScheme(_name, 3, _half, _order, _ref))
+    register_scheme(CompositionScheme(_name, 3, _half, _order, _ref))

@@ -12,7 +12,7 @@ from varint.flows.gauss import (GAUSS, gauss_step, gauss_work, no_dtime,
                                 stage_parameters)
 from varint.flows.tao import tao_step, tao_work
 from varint.models.hamiltonian import from_hamiltonian
-from varint.schemes import part_stages, resolve_scheme
+from varint.schemes import get_scheme, part_stages
 
 
 @njit
@@ -75,7 +75,7 @@ def tao_steps(model, x, W=None, h=0.01, n=1, scheme="ABC2", omega=20.0, copy=Non
     G = np.eye(model.dim) if G is None else np.array(G, dtype=np.float64)
     W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
     V = np.ascontiguousarray(W.T)
-    parts, hs = part_stages(resolve_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
+    parts, hs = part_stages(get_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
     work = np.empty(tao_work(model.n_dof, V.shape[0]))
     status = _tao_loop(int(n), parts, hs, float(omega), x, x2, V, G, model.parameters_at(None),
                        work, model.grad_hess_h)

@@ -14,7 +14,7 @@ from varint.correctors import WHT_ORDERS, corrector_word
 from varint.kernels import nbody
 from varint.kernels.banded import band_to_dense
 from varint.models import Planetary
-from varint.schemes import part_stages, resolve_scheme
+from varint.schemes import get_scheme, part_stages
 
 from tests.helpers import fitted_slope
 
@@ -204,7 +204,7 @@ def test_vector_field_is_hamiltons(system):
 
 # -- schemes: the measured error laws -------------------------------------------------
 def _word(model, scheme, tau):
-    s = resolve_scheme(scheme)
+    s = get_scheme(scheme)
     n_parts = s.n_parts if hasattr(s, "n_parts") else 2
     return part_stages(s, tau, model.parts.slots(n_parts))
 

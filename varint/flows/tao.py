@@ -14,7 +14,7 @@ unchanged. On the diagonal (q, p) = (x, y) the exact flow of H̄ is that of
 H in each copy, and the binding ω H_C keeps the two numerical copies close.
 Symmetric compositions of the second-order map
 e^{h/2 A} e^{h/2 B} e^{h ωC} e^{h/2 B} e^{h/2 A} give any even order: they
-are the compositions of :data:`varint.schemes.PART_SCHEMES` over three
+are the compositions of :data:`varint.schemes.SCHEMES` over three
 parts (ABC2 is Tao's second-order map, ABC4_Y and ABC6_Y his triple jumps).
 The orbit is the first copy (q, p), as in Tao's paper; the second copy is
 carried from step to step, never reset (no mixing).

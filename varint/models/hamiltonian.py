@@ -62,7 +62,7 @@ from ..flows import split as S
 from .base import Model
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
 from .symbolic import (SymbolicModel, _assignments, _check_smooth, _coordinates,
-                       _KernelPrinter, _load_kernels, _NONFINITE, _time_symbol)
+                       KernelPrinter, _load_kernels, _NONFINITE, _time_symbol)
 
 __all__ = ["SymbolicHamiltonian", "HamiltonianModel", "SeparableHamiltonian",
            "IntegrableHamiltonian", "TermwiseHamiltonian", "GeneralHamiltonian",
@@ -403,7 +403,7 @@ def _kernel_source(H, A, V, n, time, structure, terms=()):
     q = sp.symbols(f"q_0:{n}")
     p = sp.symbols(f"p_0:{n}")
     xs = (*q, *p)
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     unpack_x = [f"    q_{i} = x[{i}]" for i in range(n)] + [f"    p_{i} = x[{n + i}]"
                                                              for i in range(n)]
     if time:
@@ -746,7 +746,7 @@ class TermwiseHamiltonian(HamiltonianModel):
     q_i: a magnetic bottle in the symmetric gauge). Along each part's flow
     all of its arguments are constant, so the flow is x ← x + h J∇P(x) and
     its tangent map δx ← δx + h J D²P(x) δx, both exact and explicit: the
-    k-part compositions of :data:`varint.schemes.PART_SCHEMES` and the TM
+    k-part compositions of :data:`varint.schemes.SCHEMES` and the TM
     method apply (He, Sun, Liu & Qin, Phys. Lett. A 381, 568 (2017), split
     charged-particle Hamiltonians so).
 
@@ -773,9 +773,9 @@ class TermwiseHamiltonian(HamiltonianModel):
         k = len(self.part_names)
         if k == 3:
             return "s11ABC6"
-        from ..schemes import PART_SCHEMES, CompositionScheme
+        from ..schemes import CompositionScheme, get_scheme
 
-        base = PART_SCHEMES["S11ABC6"]
+        base = get_scheme("S11ABC6")
         return CompositionScheme(f"s11odr6 over {k} parts", k, base.gammas, base.order,
                                  base.reference)
 

@@ -9,7 +9,7 @@ with its exact flow *fused* with the flow's tangent map — one compiled pass
 over the sites moves the orbit and every deviation vector (Skokos & Gerlach
 2010, Sect. V.C, applied to each part). ``method="tm"`` then runs any
 two-part scheme of :data:`varint.SCHEMES` or k-part composition of
-:data:`varint.schemes.PART_SCHEMES` on them (:mod:`varint.methods.parts`).
+:data:`varint.schemes.SCHEMES` on them (:mod:`varint.methods.parts`).
 
 Geometry
 --------
@@ -48,7 +48,7 @@ from typing import Any, Callable
 import numpy as np
 from numba import njit
 
-from ..schemes import resolve_scheme
+from ..schemes import get_scheme
 from .base import Model
 
 __all__ = ["LatticeModel", "Parts", "BOUNDARIES", "lattice_shape"]
@@ -345,7 +345,7 @@ class Parts:
         """
         chosen = scheme if scheme is not None else self.default_scheme
         if self.schemes is None:
-            return resolve_scheme(chosen)
+            return get_scheme(chosen)
         # A model with schemes of its own (a general H(q, p)) takes only those.
         key = chosen.upper() if isinstance(chosen, str) else getattr(chosen, "name", "").upper()
         if key not in self.schemes:

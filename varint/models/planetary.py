@@ -16,7 +16,7 @@ Laskar & Robutel 2001, H = A + εB with ε the planet-to-star mass ratio):
 * ``coordinates="democratic"``: heliocentric positions and barycentric
   momenta, H = H_K + H_I + H_J (Duncan, Levison & Lee 1998), three parts;
   only ``method="tm"`` runs it, with the compositions of three parts
-  (:data:`varint.schemes.PART_SCHEMES`; "ABC2" is the map of Duncan et al.).
+  (:data:`varint.schemes.SCHEMES`; "ABC2" is the map of Duncan et al.).
 
 The flows of the parts and their tangent maps are in
 :mod:`varint.kernels.nbody` and :mod:`varint.kernels.kepler`. The energy and
