@@ -3,8 +3,8 @@ design choice of :mod:`baselines` measured: blocks with virtual
 renormalisation versus restarting every τ, and their length; CVODE's
 Jacobian (exact, from the model's Hessian and third derivatives, versus
 SUNDIALS' finite differences) and linear solver; k deviation vectors versus
-the full 2N × 2N variational matrix in heyoka. (Each baseline against its
-library driven directly: ``studies/bench_libraries.py``.)
+the full 2N × 2N variational matrix in heyoka. Each baseline against its
+library driven directly is ``studies/bench_libraries.py``.
 
 Set-up: Hénon–Heiles R1, τ = 0.05, t = 1000 (10 with ``--quick``), QR every
 τ, k = 1 and k = 4 vectors; CVODE's linear solvers on R3 (FPU-β, N = 8,
