@@ -102,12 +102,16 @@ class CVODEPropagator(BlockPropagator):
             opts["linsolver"] = choice(opts["linsolver"], _LINSOLVERS, "linsolver")
         if opts["jacobian"] is not None:
             opts["jacobian"] = choice(opts["jacobian"], _JACOBIANS, "jacobian")
-        if opts["jacobian"] == "exact" and model.time_dependent:
-            raise ValueError(f"jacobian='exact' needs a time-independent model; "
-                             f"{model.name!r} depends on t: use jacobian='differences'")
+        # The exact Jacobian needs the band kernels of H = T(p) + V(q) (a
+        # model of any H(q, p) has only its ∇H, D²H kernel).
+        banded = getattr(model, "band_kernels", True)
+        if opts["jacobian"] == "exact" and (model.time_dependent or not banded):
+            raise ValueError(f"jacobian='exact' needs a time-independent model of the form "
+                             f"T(p) + V(q) with band kernels; {model.name!r} is not: use "
+                             "jacobian='differences'")
         self._setup(model, tau, renorm, opts, accumulator)
         self._rhs, _ = tangent_rhs(model)
-        self._jac = None if model.time_dependent else tangent_jacobian(model)
+        self._jac = None if model.time_dependent or not banded else tangent_jacobian(model)
         self._solvers = {}
 
     def versions(self):

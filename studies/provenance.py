@@ -17,6 +17,7 @@ Usage: ``python studies/provenance.py``
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -98,7 +99,9 @@ def build(folder=RESULTS):
             for rel in stored_files(folder)}
 
 
-def main():
+def main(argv=None):
+    """Rewrite the manifest (``--help`` is its only option)."""
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args(argv)
     manifest = build()
     MANIFEST.write_text(json.dumps(
         {"note": "the code of every stored result: 'code' its own record (varint's source "

@@ -243,11 +243,11 @@ CASES = [
      ValueError, "bandwidth must be an integer >= 0, got -1"),
     # -- splitting schemes
     ("register a name, not a scheme", lambda p: varint.register_scheme("SBAB9"), ValueError,
-     "register_scheme needs a SplittingScheme, got str 'SBAB9'; build one with"),
+     "register_scheme needs a SplittingScheme or CompositionScheme, got str 'SBAB9'; build one with"),
     ("register a registered name", lambda p: varint.register_scheme("sbab2c"), ValueError,
      "'sbab2c' is already registered, get it with get_scheme"),
     ("register None", lambda p: varint.register_scheme(None), ValueError,
-     "register_scheme needs a SplittingScheme, got NoneType None"),
+     "register_scheme needs a SplittingScheme or CompositionScheme, got NoneType None"),
     ("scheme coefficient NaN", lambda p: scheme(drifts=(np.nan,)), ValueError,
      r"scheme 'LF': drifts\[0\] must be a finite real number, got nan"),
     ("scheme coefficients NaN summing to NaN",

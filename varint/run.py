@@ -570,14 +570,18 @@ class Run:
 
     def provenance(self, wall):
         """The :class:`~varint.results.Provenance` of the run after ``wall``
-        seconds of this session."""
+        seconds of this session (with a checkpoint, its clock: it started
+        before the session's first write, so the result never reports less
+        time than its checkpoint does)."""
+        total = (self.wall_before + wall if self.checkpoint is None
+                 else max(self.wall_before + wall, self.checkpoint.wall_time()))
         return Provenance(
             kind=self.indicator.name, model=self.model.describe(),
             x0=self.squeeze(self.x0).tolist(), method=self.method,
             method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
-            wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
+            wall_time=total, tau_choice=dict(self.tau_choice),
             code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
             cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
 

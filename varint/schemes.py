@@ -427,7 +427,8 @@ SCHEMES: dict[str, SplittingScheme | CompositionScheme] = {}
 DEFAULT_SCHEME = "SBAB2C"
 
 
-def register_scheme(scheme: SplittingScheme | CompositionScheme):
+def register_scheme(scheme: SplittingScheme | CompositionScheme
+                    ) -> SplittingScheme | CompositionScheme:
     """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name.
 
     Raises
@@ -452,7 +453,8 @@ def register_scheme(scheme: SplittingScheme | CompositionScheme):
     return scheme
 
 
-def get_scheme(scheme: str | SplittingScheme | CompositionScheme, n_parts: int | None = None):
+def get_scheme(scheme: str | SplittingScheme | CompositionScheme, n_parts: int | None = None
+               ) -> SplittingScheme | CompositionScheme:
     """The registered scheme of a name (case-insensitive), or a scheme
     passed through.
 

@@ -7,6 +7,7 @@ import pytest
 import sympy as sp
 
 import varint
+from varint.cachedir import CacheDirWarning
 from varint.kernels.banded import band_to_dense
 from varint.models import FPUBeta, HenonHeiles, ThreeDof, from_potential
 from varint.models.symbolic import SymbolicModel
@@ -116,7 +117,7 @@ def test_generated_code_goes_to_the_cache_directory(tmp_path, monkeypatch):
     monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path))
     m = from_potential(x**4 + x * y**2 + sp.Rational(3, 11) * y**6, [x, y])
     assert m.gradient([1.0, 1.0]).tolist() == pytest.approx([5.0, 2 + 18 / 11])
-    files = list((tmp_path / "models").glob("potential_*.py"))
+    files = list((tmp_path / "models").glob("varint_potential_*.py"))
     assert len(files) == 1 and "def third(" in files[0].read_text()
 
 
@@ -124,7 +125,7 @@ def test_an_unwritable_cache_directory_falls_back_to_a_temporary_one(tmp_path, m
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
     monkeypatch.setenv("VARINT_CACHE_DIR", str(blocker))
-    with pytest.warns(RuntimeWarning, match="temporary directory"):
+    with pytest.warns(CacheDirWarning, match="it is not a directory"):
         m = from_potential(x**4 / 4 + x**2 * y**4 + sp.Rational(2, 13) * y**2, [x, y])
     assert m.gradient([1.0, 1.0]).tolist() == pytest.approx([3.0, 4 + 4 / 13])
 

@@ -88,7 +88,7 @@ class CR3BP(IntegrableHamiltonian):
     >>> from varint.models import CR3BP
     >>> m = CR3BP(0.01215)
     >>> round(float(m.jacobi_at(*m.lagrange_points()["L4"])), 6)   # 3 − μ(1 − μ)
-    2.988
+    2.987998
     """
 
     def __init__(self, mu: float, spatial: bool = False,

@@ -121,7 +121,7 @@ class Planetary(Model):
     >>> x0 = model.from_elements([dict(a=1.0, e=0.05), dict(a=1.6, e=0.02, M=2.0)])
     >>> x0.shape
     (12,)
-    >>> [round(v, 12) for v in model.to_elements(x0)[1][:2]]
+    >>> [round(float(v), 12) for v in model.to_elements(x0)[1][:2]]
     [1.6, 0.02]
     """
 
