@@ -67,22 +67,27 @@ def advance_cuda(prop, module, state, n, snaps, active):
              "acc_e": state.acc_e[active]}
     extra_start = {key: arr[active] for key, arr in state.extra.items()}
     aux = prop._accumulator(state)
-    lane_aux = np.ascontiguousarray(aux[active]) if aux.size else np.zeros((a, 0, 0))
+    # Arrays the kernel does not touch (no accumulator columns, no output
+    # steps: the sentinel −1 lies before every call) get one element, not
+    # none: a zero-size array is not allocated on every device alike.
+    lane_aux = np.ascontiguousarray(aux[active]) if aux.size else np.zeros((a, 1, 1))
     s = len(snaps.steps)
+    outs = np.ascontiguousarray(snaps.steps, np.int64) if s else np.array([-1], np.int64)
     host = {"X": _soa(start["x"]), "W": _soa(start["W"]), "am": _soa(start["acc_m"]),
             "ae": _soa(start["acc_e"]), "st": np.zeros(a, np.int64), "fs": np.zeros(a, np.int64),
             "nxt": np.ascontiguousarray(sched[active, 0]),
             "itv": np.ascontiguousarray(sched[active, 1]), "aux": lane_aux}
     dev = {name: cuda.to_device(arr) for name, arr in host.items()}
-    snap = {"x": cuda.device_array((s, d, a)), "W": cuda.device_array((s, d, k, a)),
-            "m": cuda.device_array((s, k, a)), "e": cuda.device_array((s, k, a), np.int64),
-            "aux": cuda.device_array((s,) + lane_aux.shape)}
+    rows = max(s, 1)
+    snap = {"x": cuda.device_array((rows, d, a)), "W": cuda.device_array((rows, d, k, a)),
+            "m": cuda.device_array((rows, k, a)), "e": cuda.device_array((rows, k, a), np.int64),
+            "aux": cuda.device_array((rows,) + lane_aux.shape)}
     t1 = time.perf_counter()
     kernel.launch(a, dev["X"], dev["W"], dev["am"], dev["ae"], dev["st"], dev["fs"], dev["nxt"],
                   dev["itv"], int(n), int(state.step), prop.tau,
                   cuda.to_device(prop._h), cuda.to_device(prop._hc), prop._escape_r2,
                   int(prop.renorm), prop.sparse, dev["aux"],
-                  cuda.to_device(np.ascontiguousarray(snaps.steps, np.int64)),
+                  cuda.to_device(outs),
                   snap["x"], snap["W"], snap["m"], snap["e"], snap["aux"])
     cuda.synchronize()
     t2 = time.perf_counter()
