@@ -151,6 +151,36 @@ def timed(fn):
     return time.perf_counter() - t, r
 
 
+def table(res):
+    """The Markdown table of a result of :func:`main` (also of one that was
+    stopped before its end: ``python studies/bench_gpu.py --table FILE``)."""
+    from varint.maps import MAP_SCHEME
+
+    flops = res["flops_per_step_fli"]
+    lines = [f"# bench_gpu: {res['gpu']['name'] if res['gpu'] else 'no GPU'}, "
+             f"{res['machine']['cpus']} CPU cores, load {res['machine']['load']}", "",
+             f"FLI step of Hénon–Heiles ({MAP_SCHEME}): {flops} flops (fma = 2)", "",
+             "| orbits | GPU orbits/s | all cores orbits/s | 1 core orbits/s | GPU/all | GPU/1 "
+             "| GPU TFLOP/s (map) | of peak | kernel s / map s | TFLOP/s (kernel) | of peak |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def f(v, fmt):
+        return format(v, fmt) if isinstance(v, float) else "—"
+
+    for r in res["speed"]:
+        lines.append(f"| {r['orbits']} | {f(r.get('gpu_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('cpu_all_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('cpu_1_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('gpu_over_cpu_all'), '.1f')} | {f(r.get('gpu_over_cpu_1'), '.1f')} | "
+                     f"{f(r.get('gpu_tflops'), '.2f')} | {f(r.get('gpu_fraction_of_peak'), '.1%')} | "
+                     f"{f(r.get('gpu_kernel_s'), '.3g')} / {f(r.get('gpu_s'), '.3g')} | "
+                     f"{f(r.get('kernel_tflops'), '.2f')} | "
+                     f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
+    lines += ["", "Agreement: " + json.dumps(res["agreement"]),
+              "Errors: " + json.dumps(res["errors"])]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="small sizes (seconds)")
@@ -158,7 +188,13 @@ def main(argv=None):
     p.add_argument("--budget", type=float, default=180.0,
                    help="seconds for the speed part, all contenders together")
     p.add_argument("--t-end", type=float, default=1000.0)
+    p.add_argument("--table", type=Path, default=None,
+                   help="only print the table of this bench_gpu.json")
     args = p.parse_args(argv)
+    if args.table is not None:
+        text = table(json.loads(args.table.read_text()))
+        print(text)
+        return text
     args.out.mkdir(parents=True, exist_ok=True)
     from varint.gpu import device
 
@@ -302,28 +338,7 @@ def main(argv=None):
         res["gpu_best_over_cpu_all_best"] = max(gpu_rates) / max(cpu_rates)
     res["machine"]["load_after"] = os.getloadavg()
     save()
-    lines = [f"# bench_gpu: {res['gpu']['name'] if res['gpu'] else 'no GPU'}, "
-             f"{res['machine']['cpus']} CPU cores, load {res['machine']['load']}", "",
-             f"FLI step of Hénon–Heiles ({MAP_SCHEME}): {flops} flops (fma = 2)", "",
-             "| orbits | GPU orbits/s | all cores orbits/s | 1 core orbits/s | GPU/all | GPU/1 "
-             "| GPU TFLOP/s (map) | of peak | kernel s / map s | TFLOP/s (kernel) | of peak |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-
-    def f(v, fmt):
-        return format(v, fmt) if isinstance(v, float) else "—"
-
-    for r in res["speed"]:
-        lines.append(f"| {r['orbits']} | {f(r.get('gpu_orbits_per_s'), '.4g')} | "
-                     f"{f(r.get('cpu_all_orbits_per_s'), '.4g')} | "
-                     f"{f(r.get('cpu_1_orbits_per_s'), '.4g')} | "
-                     f"{f(r.get('gpu_over_cpu_all'), '.1f')} | {f(r.get('gpu_over_cpu_1'), '.1f')} | "
-                     f"{f(r.get('gpu_tflops'), '.2f')} | {f(r.get('gpu_fraction_of_peak'), '.1%')} | "
-                     f"{f(r.get('gpu_kernel_s'), '.3g')} / {f(r.get('gpu_s'), '.3g')} | "
-                     f"{f(r.get('kernel_tflops'), '.2f')} | "
-                     f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
-    lines += ["", "Agreement: " + json.dumps(res["agreement"]),
-              "Errors: " + json.dumps(res["errors"])]
-    text = "\n".join(lines) + "\n"
+    text = table(res)
     (args.out / "bench_gpu.md").write_text(text)
     print(text, flush=True)
     return res
