@@ -11,8 +11,8 @@ NVVM contracts a separate multiply and add into one fused multiply–add
 unless told not to (its ``-fma=1`` default, which numba-cuda keeps). The
 CPU steppers write their fused operations explicitly and round every other
 product (:mod:`varint.kernels.fma`), so the kernels are compiled with
-``-fma=0``: the explicit fma stay fused, nothing else is, and a step gives
-the CPU's bits.
+``-fma=0``: the explicit fma stay fused and nothing else is, as on the
+CPU.
 """
 
 from __future__ import annotations

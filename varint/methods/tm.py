@@ -77,8 +77,10 @@ class TangentMapPropagator:
         accumulator is not FLI's or MEGNO's); "auto" on the GPU where one
         is present and at least
         :data:`~varint.gpu.device.AUTO_MIN_ORBITS` orbits are active,
-        else on the CPU. Bitwise the CPU's results for a polynomial
-        potential.
+        else on the CPU. The same arithmetic as the CPU's stepper: bitwise
+        its results on numba's CUDA simulator; on an H100 the Hénon–Heiles
+        FLI map differed by up to 1e-11 relative at t = 100 (not yet
+        explained; ``studies/results/bench_gpu_h100.md``).
     """
 
     method = "tm"
@@ -186,9 +188,8 @@ class TangentMapPropagator:
             return None
         snaps = self._snapshots(state, outputs)
         active = np.flatnonzero(state.status == STATUS_OK)
-        # Many orbits run as SIMD lanes or on the GPU; both give bitwise the
-        # results of the one-orbit stepper for a polynomial potential (to
-        # the last place of exp, log, ... otherwise, on the GPU).
+        # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
+        # on the GPU (the same arithmetic; see the ``backend`` option).
         if len(active) and device.use_gpu(self.backend, len(active)) \
                 and (self.backend == "cuda" or emittable(self.accumulator)):
             advance_cuda(self, module, state, n, snaps, active)
