@@ -45,7 +45,7 @@ import re
 import types
 from functools import lru_cache
 
-from sympy.printing.precedence import precedence
+import sympy as sp
 
 from ..kernels import generate as G
 from ..models.symbolic import _KernelPrinter
@@ -80,7 +80,8 @@ class _Printer(_KernelPrinter):
 
     def _print_Pow(self, expr, rational=False):
         if expr.exp.is_Integer and 2 <= int(expr.exp) <= 64:
-            return _power(self.parenthesize(expr.base, precedence(expr)), int(expr.exp))
+            return _power(self.parenthesize(expr.base, sp.printing.precedence.precedence(expr)),
+                          int(expr.exp))
         return super()._print_Pow(expr, rational=rational)
 
 
