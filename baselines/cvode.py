@@ -6,13 +6,25 @@ the right-hand side compiled from the model's kernels
 (:mod:`varint.baselines.rhs`).
 
 A multistep method loses its history at every restart (scikit-sundae can
-change the state only through ``CVodeReInit``): restarting every τ measured
-5× slower and 10–100× *less* accurate than taking the τ outputs from CVODE's
-own interpolant and renormalising virtually, so this baseline integrates
-blocks of ``block`` intervals (10 time units by default) and restarts only at
-block ends (:mod:`varint.baselines.blocks`). The nonlinear solver is scikit-sundae's
-Newton iteration (it offers no fixed-point iteration) with a finite-difference
-Jacobian.
+change the state only through ``CVodeReInit``): restarting every τ is an
+order of magnitude slower and less accurate than taking the τ outputs from
+CVODE's own interpolant and renormalising virtually, so this baseline
+integrates blocks of ``block`` intervals (1000 time units by default,
+shorter where the renormalisation cuts them, never past the run's end;
+:mod:`varint.baselines.blocks`) and restarts only at block ends: each
+restart costs accuracy as well as time.
+
+The Newton iteration of the implicit Adams corrector (scikit-sundae offers
+no fixed-point iteration) gets the exact Jacobian of the variational
+system from the model's Hessian and third derivatives
+(:func:`varint.baselines.rhs.tangent_jacobian`) instead of SUNDIALS'
+difference quotients, which cost one right-hand side per equation at every
+Jacobian update. Small systems use the dense linear solver; above
+:attr:`CVODEPropagator.DENSE_MAX` equations matrix-free GMRES, where
+products J·v by one difference of the right-hand side proved cheaper than
+the exact product. ``studies/bench_baselines.py`` measures each of these
+choices against its alternatives, and ``studies/bench_libraries.py`` this
+baseline against one scikit-sundae solve of the same problem.
 
 Counts: ``rhs_evaluations`` is CVODE's own count, which leaves out the
 evaluations spent on difference quotients for the Newton iteration (a dense
@@ -24,17 +36,18 @@ from __future__ import annotations
 import numba
 import numpy as np
 from importlib import metadata
-from sksundae.cvode import CVODE
+from sksundae.cvode import CVODE, CVODEJacTimes
 
 from varint.protocol import Status
 from varint._validate import choice, positive_float
 
 from .blocks import BlockPropagator
-from .rhs import tangent_rhs
+from .rhs import tangent_jacobian, tangent_rhs
 
 __all__ = ["CVODEPropagator"]
 
 _LINSOLVERS = ("dense", "gmres")
+_JACOBIANS = ("exact", "differences")
 
 
 class CVODEPropagator(BlockPropagator):
@@ -52,19 +65,33 @@ class CVODEPropagator(BlockPropagator):
         CVODE's relative and absolute tolerances (local error per step,
         weighted per component by rtol·|y_i| + atol).
     block : int, optional
-        Intervals integrated between restarts; 10 time units by default.
+        Longest block: intervals integrated between restarts; 1000 time
+        units by default (fewer where the block would hold more than 16 MiB
+        per orbit, 128 MiB in all).
     linsolver : {"dense", "gmres"}, optional
-        Linear solver of the Newton iteration: a dense finite-difference
-        Jacobian for small systems, matrix-free GMRES (Jacobian–vector
-        products by differences) when the flat state (orbit and vectors)
-        has more than 100 numbers. Measured on FPU chains: GMRES 3.5× faster
-        at 272 numbers, 50× at 2048; on Hénon–Heiles (8–20 numbers) dense is
-        as fast or faster.
+        Linear solver of the Newton iteration: dense for small systems,
+        matrix-free GMRES when the flat state (orbit and vectors) has more
+        than :attr:`DENSE_MAX` numbers (on FPU chains GMRES is several times
+        faster from a few hundred numbers on; on Hénon–Heiles, 8–20 numbers,
+        dense is as fast or faster).
+    jacobian : {"exact", "differences"}, optional
+        The Jacobian of the Newton iteration: exact (from the model's
+        Hessian and third derivatives) or SUNDIALS' difference quotients.
+        By default exact with the dense solver and differences with GMRES
+        (each the faster, ``studies/bench_baselines.py``); always
+        differences for a time-dependent V, whose kernels give no ∂_t∇V.
     """
 
     method = "cvode"
-    OPTIONS = {"rtol": 1e-10, "atol": 1e-10, "block": None, "linsolver": None}
-    BLOCK_SPAN = 10.0
+    OPTIONS = {"rtol": 1e-10, "atol": 1e-10, "block": None, "linsolver": None,
+               "jacobian": None}
+    BLOCK_SPAN = 1000.0
+    #: Every restart costs a multistep method accuracy (it starts again at
+    #: order one): on R1 to t = 1000 (k = 1) 100 blocks gave an orbit error
+    #: of 1.8e-5, 20 blocks 8.1e-6, one block 1.4e-7. So blocks are long,
+    #: and cut only at a condition of 1e4 (with 100, R1's k = 4 blocks were
+    #: cut every ~150 time units and its error was twice as large).
+    cond_limit = 1e4
     DENSE_MAX = 100
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
@@ -73,8 +100,14 @@ class CVODEPropagator(BlockPropagator):
         opts["atol"] = positive_float(opts["atol"], "atol")
         if opts["linsolver"] is not None:
             opts["linsolver"] = choice(opts["linsolver"], _LINSOLVERS, "linsolver")
+        if opts["jacobian"] is not None:
+            opts["jacobian"] = choice(opts["jacobian"], _JACOBIANS, "jacobian")
+        if opts["jacobian"] == "exact" and model.time_dependent:
+            raise ValueError(f"jacobian='exact' needs a time-independent model; "
+                             f"{model.name!r} depends on t: use jacobian='differences'")
         self._setup(model, tau, renorm, opts, accumulator)
         self._rhs, _ = tangent_rhs(model)
+        self._jac = None if model.time_dependent else tangent_jacobian(model)
         self._solvers = {}
 
     def versions(self):
@@ -86,9 +119,15 @@ class CVODEPropagator(BlockPropagator):
         if size not in self._solvers:
             linsolver = self.options["linsolver"] or (
                 "dense" if size <= self.DENSE_MAX else "gmres")
+            exact = self.options["jacobian"] or (
+                "exact" if linsolver == "dense" and self._jac is not None else "differences")
+            jac = {}
+            if exact == "exact":
+                jac = ({"jacfn": self._jac[0]} if linsolver == "dense"
+                       else {"jactimes": CVODEJacTimes(None, self._jac[1])})
             self._solvers[size] = CVODE(self._rhs, method="Adams", rtol=self.options["rtol"],
                                         atol=self.options["atol"], linsolver=linsolver,
-                                        max_num_steps=100_000)
+                                        max_num_steps=100_000, **jac)
         return self._solvers[size]
 
     def _integrate(self, state, m, y0, n_out):

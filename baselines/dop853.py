@@ -20,11 +20,14 @@ Two engines run the same solver. ``engine="compiled"`` (the default) is
 with SciPy's own coefficients and order of arithmetic, the right-hand side
 compiled in, a whole chunk of intervals per orbit in one call. On
 Hénon–Heiles it reproduces ``engine="scipy"`` bit for bit
-(``tests/baselines/test_dop853_compiled.py``) 30–55× faster: on R1 with the
-full spectrum, 0.08 ms per unit time at τ = 0.05, δ = 1e-5, so t = 1e8 takes
-about two hours instead of five days — still 15× the cost of the TM method
-(``studies/bench_dop853.py``). ``engine="scipy"`` drives
+(``tests/baselines/test_dop853_compiled.py``) and runs tens of times faster
+(``studies/bench_dop853.py``, ``studies/bench_baselines.py``; against SciPy
+driven directly, ``studies/bench_libraries.py``), so the paper's runs to
+t = 1e8 take hours instead of days. ``engine="scipy"`` drives
 ``scipy.integrate.DOP853`` itself, which calls Python at every step.
+``engine="lanes"`` (:mod:`varint.baselines.dop853_lanes`) integrates the
+orbits of a batch together in SIMD lanes, the same method in plain loops:
+not SciPy's bits, but the same bits for an orbit alone or in any batch.
 """
 
 from __future__ import annotations
@@ -36,17 +39,19 @@ import numpy as np
 import scipy
 from scipy.integrate import DOP853
 
+from varint.kernels.interval import no_accumulator, orbit_loop
 from varint.protocol import Status
 from varint._validate import choice, positive_float
 
-from .blocks import BlockPropagator
+from .blocks import BlockPropagator, output_body
 from .dop853_kernel import COUNTS, POWERS, RTOL_MIN, advance_orbit
+from .dop853_lanes import LANES, advance_lanes
 from .rhs import tangent_rhs
 
 __all__ = ["DOP853Propagator", "ENGINES"]
 
 #: Values of the ``engine`` option.
-ENGINES = ("compiled", "scipy")
+ENGINES = ("compiled", "scipy", "lanes")
 
 
 class DOP853Propagator(BlockPropagator):
@@ -67,8 +72,10 @@ class DOP853Propagator(BlockPropagator):
     rtol, atol : float, optional
         Explicit tolerances instead of ``delta``. As in SciPy, an rtol below
         100 ε is raised to 100 ε, with a warning.
-    engine : {"compiled", "scipy"}, optional
-        The compiled copy of SciPy's solver (default) or SciPy's solver.
+    engine : {"compiled", "scipy", "lanes"}, optional
+        The compiled copy of SciPy's solver (default), SciPy's solver, or
+        the same method over the orbits of a batch in SIMD lanes
+        (:mod:`varint.baselines.dop853_lanes`; not SciPy's bits).
 
     Notes
     -----
@@ -112,11 +119,61 @@ class DOP853Propagator(BlockPropagator):
         return {"scipy": scipy.__version__, "numba": numba.__version__}
 
     def _prepare(self, state):
-        # The compiled engine keeps no block outputs: with blocks of one
+        # The compiled engines keep no block outputs: with blocks of one
         # interval none is ever pending between calls.
         if self.options["engine"] == "scipy":
             super()._prepare(state)
         state.extra.setdefault("dop853_h", np.full(state.n_orbits, np.nan))
+
+    def advance(self, state, n):
+        """Advance every active orbit by ``n`` intervals τ (the ``lanes``
+        engine: :data:`~varint.baselines.dop853_lanes.LANES` orbits at a
+        time)."""
+        if self.options["engine"] != "lanes":
+            return super().advance(state, n)
+        self._prepare(state)
+        active = np.flatnonzero(state.status == Status.OK)
+        acc = self.accumulator
+        d, k = state.W.shape[1:]
+        # The one-orbit kernel that takes each lane's output (renormalise,
+        # accumulate, check) on the stepping skeleton.
+        take = orbit_loop(output_body(self.model.grad_kernel),
+                          acc.update if acc is not None else no_accumulator,
+                          acc is not None and acc.needs_flow)
+        model, steps, total = self.model, 0, np.zeros(len(COUNTS), dtype=np.int64)
+        h_all = state.extra["dop853_h"]
+        for first in range(0, len(active), LANES):
+            idx = active[first:first + LANES]
+            L = len(idx)
+            X, W = state.x[idx], state.W[idx]
+            acc_m, acc_e, h = state.acc_m[idx], state.acc_e[idx], h_all[idx]
+            aux = (state.extra[acc.key][idx] if acc is not None else np.empty((L, 0, 0)))
+            clock = (np.stack([np.array(self.clock(state, m, state.step)) for m in idx])
+                     if self._clock else np.empty((L, 0)))
+            status = np.empty(L, dtype=np.int64)
+            done = np.empty(L, dtype=np.int64)
+            counts = np.zeros((L, len(COUNTS)), dtype=np.int64)
+            advance_lanes(self._rhs, X, W, acc_m, acc_e, h, status, done, int(n), self.tau,
+                          self.options["rtol"], self.options["atol"], POWERS, self._mode,
+                          self._escape_r2, counts, take, aux, model.params,
+                          model.inverse_mass, state.step, clock)
+            state.x[idx], state.W[idx] = X, W
+            state.acc_m[idx], state.acc_e[idx], h_all[idx] = acc_m, acc_e, h
+            if acc is not None:
+                state.extra[acc.key][idx] = aux
+            if self._clock:
+                state.time_momentum()[idx] = clock[:, 1]
+            for lane, m in enumerate(idx):
+                steps += int(done[lane])
+                if status[lane] != Status.OK:
+                    state.status[m] = status[lane]
+                    state.fail_step[m] = state.step + done[lane] + 1
+                    steps += 1
+            total += counts.sum(axis=0)
+        state.step += int(n)
+        if total[COUNTS.index("blocks")]:
+            state.add_counts(**dict(zip(COUNTS, total.tolist(), strict=True)))
+        state.add_counts(steps=steps)
 
     def _advance_orbit(self, state, m, n):
         if self.options["engine"] == "scipy":

@@ -50,28 +50,33 @@ same bits:
 Where SciPy would loop for ever — a NaN step size, which it never finds
 below its minimum — the kernel gives up instead.
 
-The model's right-hand side (:func:`baselines.rhs.tangent_rhs`) is passed to
-the kernels as a numba dispatcher and compiled into them, and
-:func:`advance_orbit` integrates and renormalises a whole chunk of
-intervals of one orbit in one call. ``studies/bench_dop853.py`` measures the
+The model's right-hand side (:func:`baselines.rhs.tangent_rhs`) is compiled
+into the kernels, and :func:`advance_orbit` integrates and renormalises a
+whole chunk of intervals of one orbit in one call: :func:`dop853_body`, one
+interval, is a step body of the stepping skeleton
+(:mod:`varint.kernels.interval`). ``studies/bench_dop853.py`` measures the
 speed against SciPy's solver and the TM method.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+from functools import cache
 
 import numpy as np
 from numba import njit
 from scipy.integrate import DOP853
 from scipy.integrate._ivp import common, rk
 
+from varint.kernels.checks import orbit_status
+from varint.kernels.interval import Call, StepBody, orbit_loop, orbit_record
 from varint.protocol import Status
 
-from .blocks import COND_LIMIT, END_BLOCK, consume
+from .blocks import output_flow, take_output
 
-__all__ = ["advance_orbit", "integrate_interval", "initial_step", "try_step", "COUNTS",
-           "POWERS", "RTOL_MIN"]
+__all__ = ["advance_orbit", "dop853_body", "integrate_interval", "initial_step", "try_step",
+           "COUNTS", "POWERS", "RTOL_MIN"]
 
 _OK = int(Status.OK)
 _NONFINITE = int(Status.ORBIT_NONFINITE)
@@ -162,10 +167,7 @@ def initial_step(rhs, y0, f0, tau, rtol, atol, root_n, powers, scale, y1, f1):
     for i in range(y0.size):
         y1[i] = f0[i] / scale[i]
     d1 = _rms_norm(y1, root_n)
-    if d0 < 1e-5 or d1 < 1e-5:
-        h0 = 1e-6
-    else:
-        h0 = 0.01 * d0 / d1
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h0 = _pymin(h0, tau)
     for i in range(y0.size):
         y1[i] = y0[i] + h0 * f0[i]
@@ -343,11 +345,90 @@ def integrate_interval(rhs, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, 
     return (_OK if ok else _FAILED), h_abs
 
 
-@njit
+#: One orbit's record (:mod:`varint.kernels.interval`): ``counters`` are
+#: :data:`COUNTS`; ``h`` (1,), the step proposed at the end of the previous
+#: interval (NaN before the first); ``clock`` (2,), (t, p_t) of the orbit for
+#: a time-dependent V ((0,) otherwise).
+DOPOrbit = orbit_record("DOPOrbit", ("h", "clock"))
+
+#: What a call reads: tolerances, :data:`POWERS`, and the model's parameters
+#: and inverse masses (for the accumulator's flow).
+DOPSetup = namedtuple("DOPSetup", ("rtol", "atol", "powers", "par", "minv"))
+
+_Work = namedtuple("_Work", ("n", "k", "d", "xe", "size", "c", "y", "Ks", "y_new", "work", "C",
+                             "q", "g", "pl"))
+
+
+@cache
+def dop853_body(rhs, grad):
+    """The step body of the compiled DOP853 baseline: one interval τ
+    integrated from the renormalised state, restarting DOP853 every τ (the
+    paper's scheme; :mod:`varint.baselines.dop853`). ``rhs(t, y, yp)`` is
+    :func:`baselines.rhs.tangent_rhs`, ``grad`` the model's gradient kernel
+    (for the accumulator's flow).
+
+    A failed integration leaves x, W as they were at the interval's start;
+    the end of the interval is the stepping skeleton's, as for the TM
+    method, with the integrated vectors taken as a block of one output
+    (:func:`varint.baselines.blocks.take_output`, C = I)."""
+
+    @njit(inline="always")
+    def begin(state, setup, call):
+        d, k = state.W.shape
+        c = state.clock.shape[0]
+        size = d * (1 + k) + c
+        C = np.zeros((k, k))
+        for a in range(k):
+            C[a, a] = 1.0
+        return _Work(d // 2, k, d, state.x, size, c, np.empty(size),
+                     np.empty((N_STAGES + 1, size)), np.empty(size), np.empty((5, size)), C,
+                     np.empty(d // 2), np.empty(d // 2), setup.par.copy()), 0
+
+    @njit(inline="always")
+    def step(state, setup, ws, carry, s, call):
+        x, W, clock, counts, y = state.x, state.W, state.clock, state.counters, ws.y
+        d, k, c, size = ws.d, ws.k, ws.c, ws.size
+        # The layout of baselines.rhs.pack. Element loops, not slice
+        # assignments: those doubled numba's compile time (8 s → 4 s).
+        for i in range(d):
+            y[i] = x[i]
+            for a in range(k):
+                y[d + i * k + a] = W[i, a]
+        if c:
+            # From the integer step, as every method's time.
+            y[size - 2] = (call.step0 + s) * call.tau
+            y[size - 1] = clock[1]
+        counts[_BLOCKS] += 1
+        status, h_next = integrate_interval(rhs, y, state.h[0], call.tau, setup.rtol,
+                                            setup.atol, setup.powers, ws.Ks, ws.y_new, ws.work,
+                                            counts)
+        if status != _OK:
+            return status, carry
+        state.h[0] = h_next
+        take_output(y, ws.C, x, W, d, k)
+        if c:
+            clock[0] = y[size - 2]
+            clock[1] = y[size - 1]
+        return _OK, carry
+
+    @njit(inline="always")
+    def check(state, setup, ws, xe, call):
+        return orbit_status(xe, ws.n, call.escape_r2)
+
+    @njit(inline="always")
+    def flow(state, setup, ws, carry, xe, s, call, out):
+        output_flow(grad, ws.y, ws.c, xe, ws.pl, setup.minv, ws.q, ws.g, out)
+        return carry
+
+    # Raw vectors are checked for overflow after every interval.
+    return StepBody(begin=begin, step=step, check=check, flow=flow, check_every=1)
+
+
 def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, escape_r2,
                   counts, accumulate, aux, grad, par, minv, flow, step0, clock=None):
     """Advance one orbit by ``n`` intervals τ, restarting DOP853 every τ
-    from the renormalised state (the paper's scheme; :mod:`varint.baselines.dop853`).
+    from the renormalised state (:func:`dop853_body` on the stepping
+    skeleton).
 
     Parameters
     ----------
@@ -371,8 +452,8 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
     counts : ndarray of int64
         :data:`COUNTS`, incremented.
     accumulate, aux, grad, par, minv, flow :
-        The indicator's accumulator and what it needs, as for
-        :func:`varint.baselines.blocks.consume`.
+        The indicator's accumulator, its array, and what its flow needs, as
+        for :func:`varint.baselines.blocks.consume`.
     step0 : int
         The run's interval count at the start.
     clock : ndarray, shape (2,), optional
@@ -386,44 +467,12 @@ def advance_orbit(rhs, x, W, acc_m, acc_e, h, n, tau, rtol, atol, powers, mode, 
         Intervals completed.
     status : int
         ``OK`` after ``n`` intervals, else why interval ``done + 1``
-        failed: the integrator's status (x, W unchanged) or that of
-        :func:`varint.baselines.blocks.consume` (x, W hold the failing state).
+        failed: the integrator's status (x, W unchanged) or that of the end
+        of the interval (x, W hold the failing state).
     """
-    d, k = W.shape
-    c = 0 if clock is None else clock.shape[0]
-    size = d * (1 + k) + c
-    ys = np.empty((1, size))
-    y = ys[0]
-    Ks = np.empty((N_STAGES + 1, size))
-    y_new = np.empty(size)
-    work = np.empty((5, size))
-    Cv = np.empty((k, k))
-    for j in range(n):
-        # The layout of baselines.rhs.pack. Element loops here and below, not
-        # slice assignments: those doubled numba's compile time (8 s → 4 s).
-        for i in range(d):
-            y[i] = x[i]
-            for a in range(k):
-                y[d + i * k + a] = W[i, a]
-        if c:
-            # From the integer step, as every method's time.
-            y[size - 2] = (step0 + j) * tau
-            y[size - 1] = clock[1]
-        counts[_BLOCKS] += 1
-        status, h_next = integrate_interval(rhs, y, h[0], tau, rtol, atol, powers, Ks, y_new,
-                                            work, counts)
-        if status != _OK:
-            return j, status
-        h[0] = h_next
-        # The renormalisation of a block of one interval (C = I).
-        for a in range(k):
-            for b in range(k):
-                Cv[a, b] = 1.0 if a == b else 0.0
-        status, _ = consume(ys, Cv, 0, 1, x, W, mode, acc_m, acc_e, escape_r2, COND_LIMIT,
-                            accumulate, aux, grad, par, minv, flow, step0 + j + 1, tau, c)
-        if c:
-            clock[0] = y[size - 2]
-            clock[1] = y[size - 1]
-        if status != _OK and status != END_BLOCK:
-            return j, status
-    return n, _OK
+    orbit = orbit_loop(dop853_body(rhs, grad), accumulate, bool(flow))
+    status, done = orbit(
+        DOPOrbit(x, W, acc_m, acc_e, aux, counts, h, np.zeros(0) if clock is None else clock),
+        DOPSetup(float(rtol), float(atol), powers, par, minv),
+        Call(int(n), int(step0), float(tau), int(mode), float(escape_r2)))
+    return done, status

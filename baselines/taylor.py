@@ -123,31 +123,52 @@ def _to_heyoka(expr, symbols, fp):
 
 def heyoka_system(symbolic, fp=np.float64):
     """Hamilton's equations of ``symbolic`` (a
-    :class:`~varint.models.SymbolicPotential`) for heyoka.
+    :class:`~varint.models.SymbolicPotential`, or a
+    :class:`~varint.models.hamiltonian.SymbolicHamiltonian` for any H(q, p))
+    for heyoka.
 
     Returns
     -------
     system : list of (variable, expression)
-        q̇ = M⁻¹p, ṗ = −∇V, in state order (q, p); for a time-dependent V
-        (``symbolic.time``, written as ``hy.time``) then ṗ_t = −∂_tV.
+        q̇ = M⁻¹p, ṗ = −∇V (q̇ = ∂H/∂p, ṗ = −∂H/∂q), in state order (q, p);
+        for a time-dependent V or H (``symbolic.time``, written as
+        ``hy.time``) then ṗ_t = −∂_tV (−∂_tH).
     variables : list of heyoka expressions
         q_0 … q_{N−1}, p_0 … p_{N−1} (and p_t for a time-dependent V).
     """
     n = len(symbolic.q)
     q = [hy.expression(f"q{i}") for i in range(n)]
     p = [hy.expression(f"p{i}") for i in range(n)]
-    names = dict(zip(symbolic.q, q))
+    names = dict(zip(symbolic.q, q, strict=True))
     time = getattr(symbolic, "time", None)
     if time is not None:
         names[time] = hy.time
+    if getattr(symbolic, "H", None) is not None:
+        return _hamilton_system(symbolic, names, q, p, fp)
     V = _to_heyoka(symbolic.V, names, fp)
     system = [(qi, pi if mi == 1 else _to_heyoka(mi, {}, fp) * pi)
-              for qi, pi, mi in zip(q, p, symbolic.inverse_mass)]
-    system += [(pi, -hy.diff(V, qi)) for qi, pi in zip(q, p)]
+              for qi, pi, mi in zip(q, p, symbolic.inverse_mass, strict=True)]
+    system += [(pi, -hy.diff(V, qi)) for qi, pi in zip(q, p, strict=True)]
     if time is None:
         return system, q + p
     pt = hy.expression("p_t")
     system.append((pt, -_to_heyoka(sp.diff(symbolic.V, time), names, fp)))
+    return system, q + p + [pt]
+
+
+def _hamilton_system(symbolic, names, q, p, fp):
+    """:func:`heyoka_system` of any H(q, p[, t]): its derivatives taken by
+    SymPy, then written for heyoka."""
+    names = {**names, **dict(zip(symbolic.p, p, strict=True))}
+    H = symbolic.H
+    system = [(qi, _to_heyoka(sp.diff(H, ps), names, fp))
+              for qi, ps in zip(q, symbolic.p, strict=True)]
+    system += [(pi, -_to_heyoka(sp.diff(H, qs), names, fp))
+               for pi, qs in zip(p, symbolic.q, strict=True)]
+    if symbolic.time is None:
+        return system, q + p
+    pt = hy.expression("p_t")
+    system.append((pt, -_to_heyoka(sp.diff(H, symbolic.time), names, fp)))
     return system, q + p + [pt]
 
 
@@ -220,13 +241,15 @@ class TaylorPropagator(BlockPropagator):
         6 vectors compiles in 6 s in long double, FPU n = 8 with 16 vectors
         in 43 s in double).
     block : int, optional
-        Intervals per block in double precision (default: 5 time units);
-        always 1 in extended precision.
+        Longest block in double precision, in intervals (default: 50 time
+        units, over which heyoka's fixed cost per block
+        vanishes, ``studies/bench_baselines.py``); always 1 in extended
+        precision.
     """
 
     method = "taylor"
     OPTIONS = {"precision": "double", "tol": None, "compact_mode": None, "block": None}
-    BLOCK_SPAN = 5.0
+    BLOCK_SPAN = 50.0
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = self._options(options)
@@ -334,9 +357,12 @@ class TaylorPropagator(BlockPropagator):
         return n, Status.OK
 
     def _check(self, x, W, acc_m, acc_e, accumulate, aux, flow, t):
-        """The end-of-interval checks every stepper shares
-        (:mod:`varint.kernels.checks`, on the state rounded to double), the
-        renormalisation in long double, and the accumulator's update."""
+        """The end of an interval in long double: the stepping skeleton's
+        contract (:mod:`varint.kernels.interval`), which numba cannot
+        compile for long double, written out here — the checks of
+        :mod:`varint.kernels.checks` on the state rounded to double, the
+        renormalisation in long double, and the accumulator's update (with
+        the flow if ``flow``)."""
         xd = x.astype(np.float64)
         status = orbit_status(xd, xd.shape[0] // 2, self._escape_r2)
         if status != Status.OK:
@@ -348,8 +374,9 @@ class TaylorPropagator(BlockPropagator):
             return Status.TANGENT_DEGENERATE
         if aux.shape[0]:
             n = self.model.n_dof
-            if flow.shape[0]:
-                g = self.model.gradient(xd[:n], t)
-                flow[:n], flow[n:] = self.model.inverse_mass * xd[n:], -g
-            accumulate(aux, r, xd, W.astype(np.float64), flow, t)
+            velocity = np.empty(2 * n if flow else 0)
+            if flow:
+                velocity[:n] = self.model.inverse_mass * xd[n:]
+                velocity[n:] = -self.model.gradient(xd[:n], t)
+            accumulate(aux, r, xd, W.astype(np.float64), velocity, t)
         return Status.OK

@@ -55,6 +55,7 @@ from varint.indicators import gali_from_vectors  # noqa: E402
 from varint.methods import make_propagator  # noqa: E402
 from varint.state import RunState, initial_deviations, output_steps  # noqa: E402
 from varint.protocol import Renorm  # noqa: E402
+from varint.schemes import registered  # noqa: E402
 
 ORBITS = ("R1", "C1", "C2", "R2", "R3")
 #: Restart grid of the references; every τ used is TAU_REF·2^j (see above).
@@ -106,7 +107,7 @@ class Config:
 
 
 def tm_configs(schemes=None):
-    names = [s.name for s in varint.SCHEMES.values()] if schemes is None else schemes
+    names = [s.name for s in registered(2)] if schemes is None else schemes
     return [Config(f"TM {s}", "tm", (("scheme", s),), "TM") for s in names]
 
 

@@ -81,9 +81,15 @@ R1: the error of X1 against the extended-precision Taylor reference
 varint's points is read off the other's cost–error curve (its Pareto front,
 interpolated in log–log). C1 is chaotic: beyond t ~ 40/χ₁ every run,
 the reference included, follows its own trajectory, so X1 differences are
-statistical. There a run "reaches reference accuracy" if |X1 − X1,ref| is
-within the spread of X1,ref(t) over the last half of the run, and the
-cheapest such runs are compared.
+statistical (:mod:`studies.chaotic`). There every contender also runs the
+64 orbits started within 1e-7 of C1 on its energy surface, and "reaches
+reference accuracy" when its sample of X1(t) is that of the same orbits by
+the reference integrator (heyoka in double at its default tolerance, QR
+every 0.05) by the two-sample Kolmogorov–Smirnov test at 1 %
+(:func:`studies.claims.same_law`); the cheapest such runs are compared
+(their time is that of the single run of C1 itself). The spectra are timed
+in CPU time (``time.process_time``: every contender runs on one thread),
+with each ratio's spread over the repeats.
 
 Orbit only
 ----------
@@ -113,7 +119,7 @@ machine; the JSON records the options a run used.
 from __future__ import annotations
 
 import copy
-import itertools
+import json
 import math
 import os
 import sys
@@ -132,7 +138,9 @@ import varint
 from studies.accuracy import TAU_REF
 from studies.bench_chaos_map import THRESHOLD, pynamicalsys_loop, section
 from studies.bench_tm import c_program, run_c
-from studies.common import parse_args, save_csv, save_json
+from studies.chaotic import nearby, reference_sample
+from studies.claims import cost_at, pareto, same_law
+from studies.common import CODE, interleaved, parse_args, save_csv, save_json
 from varint.cache import reference
 
 DRIFT, KICK = 0, 1  # the kinds of SplittingScheme.stages()
@@ -194,36 +202,6 @@ def energy_scale(model, x):
 
 
 # -- timing --------------------------------------------------------------------
-
-#: Seconds: a task quicker than this is called repeatedly within its turn
-#: and timed per call (module docstring).
-SHORT = 0.02
-
-
-def interleaved(tasks, repeats, self_timed=()):
-    """Each callable of ``tasks`` (label -> callable) run ``repeats`` times
-    in turn; returns (label -> best seconds per call, label -> last output).
-    Within a turn a task is called until ``SHORT`` seconds have passed (at
-    least once) and its time is the mean per call. The callables named in
-    ``self_timed`` return (seconds, output) measured by themselves (a C
-    loop's own clock, a loop that leaves out a compilation); they are
-    called once per turn."""
-    best, out = dict.fromkeys(tasks, math.inf), {}
-    for _ in range(repeats):
-        for label, task in tasks.items():
-            calls, t0 = 0, time.perf_counter()
-            while True:
-                out[label] = task()
-                calls += 1
-                elapsed = time.perf_counter() - t0
-                if label in self_timed or elapsed >= SHORT:
-                    break
-            seconds = elapsed / calls
-            if label in self_timed:
-                seconds, out[label] = out[label]
-            best[label] = min(best[label], seconds)
-    return best, out
-
 
 def numba_threads(n, fn, *args, **kwargs):
     """``fn(*args, **kwargs)`` with numba on ``n`` threads (1 afterwards)."""
@@ -558,7 +536,10 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
               two_threads=True):
     """The map tables (module docstring): ``indicators`` a subset of
     :data:`INDICATORS`; ``n_grid`` the grid's side (default 51, 10 in quick
-    mode); ``two_threads`` False leaves out the two-thread column."""
+    mode); ``two_threads`` False leaves out the two-thread column and times
+    every contender in CPU time (``time.process_time``: all run on one
+    thread then), which a loaded machine disturbs far less than wall
+    time."""
     import heyoka as hy
 
     hy.set_nthreads(1)
@@ -628,7 +609,9 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
                                                                  X[sample], t_end)))
     elif "sali" in indicators:
         print("pynamicalsys: skipped (quick mode; --pynamicalsys to run it)")
-    best, out = interleaved(tasks, repeats, self_timed={py_key})
+    turns = {}
+    best, out = interleaved(tasks, repeats, self_timed={py_key}, turns=turns,
+                            clock=time.perf_counter if two_threads else time.process_time)
 
     rows = []
     for (ind, peer, label, threads), seconds in best.items():
@@ -642,7 +625,8 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
                "orbits_per_s_2_threads": m / best[(ind, peer, label, 2)] if two_threads
                else None,
                "agreement": agreement(ind, values, classes[ind], thresholds[ind][0]),
-               "compile_s": compile_seconds[(ind, peer, label)]}
+               "compile_s": compile_seconds[(ind, peer, label)],
+               "turn_seconds": turns[(ind, peer, label, 1)]}
         rows.append(row)
     for ind, values in zip(("fli", "megno"), out.get(("soa", "numba", "", 1), ())):
         if ind not in indicators:
@@ -671,6 +655,7 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
     variants = map_variants(model, X, W, t_end, classes, thresholds, repeats, quick,
                             [i for i in ("fli", "megno") if i in indicators])
     return {"grid": n_grid, "orbits": m, "t_end": t_end, "rows": rows, "variants": variants,
+            "clock": "wall" if two_threads else "cpu",
             "equal_quality": equal_quality(rows), "thresholds": {k: {"value": v[0], "rule": v[1]} for k, v in thresholds.items()},
             "chaotic_fraction": {k: float(np.mean(v)) for k, v in classes.items()},
             "heyoka": hy.__version__, "simd_size": hy.recommended_simd_size()}
@@ -693,10 +678,14 @@ def equal_quality(rows):
                     "hy_b8_1e6_agreement": None if fixed is None else fixed["agreement"],
                     "varint_over_hy_b8_1e6": None if fixed is None
                     else v["orbits_per_s"] / fixed["orbits_per_s"],
+                    "spread_hy_b8_1e6": None if fixed is None or "turn_seconds" not in v
+                    else _spread(fixed, v),
                     "heyoka_equal": None if best is None else best["config"],
                     "heyoka_equal_agreement": None if best is None else best["agreement"],
                     "varint_over_heyoka_equal": None if best is None
-                    else v["orbits_per_s"] / best["orbits_per_s"]})
+                    else v["orbits_per_s"] / best["orbits_per_s"],
+                    "spread_heyoka_equal": None if best is None or "turn_seconds" not in v
+                    else _spread(best, v)})
     return out
 
 
@@ -788,31 +777,10 @@ def heyoka_spectrum(model, tol):
     return run, seconds
 
 
-def pareto(points):
-    """The cost–error front of (cost, error) points: each kept point is
-    more accurate than every cheaper one; sorted by cost."""
-    front = []
-    for cost, err in sorted(points):
-        if np.isfinite(err) and (not front or err < front[-1][1]):
-            front.append((cost, err))
-    return front
-
-
-def cost_at(front, error):
-    """Cost of a front at ``error``, log–log interpolated; (cost, how):
-    how = "interpolated", "at most" (the front's cheapest point is already
-    more accurate: its cost bounds it) or "unreachable"."""
-    if not front:
-        return None, "unreachable"
-    if error >= front[0][1]:
-        return front[0][0], "at most"
-    if error < front[-1][1]:
-        return None, "unreachable"
-    for (c0, e0), (c1, e1) in itertools.pairwise(front):
-        if e1 <= error <= e0:
-            f = math.log(error / e0) / math.log(e1 / e0)
-            return math.exp(math.log(c0) + f * math.log(c1 / c0)), "interpolated"
-    return None, "unreachable"
+def _spread(slow, fast):
+    """(smallest, largest) over the turns of the ratio of two rows' times."""
+    ratios = [a / b for a, b in zip(slow["turn_seconds"], fast["turn_seconds"], strict=True)]
+    return [min(ratios), max(ratios)]
 
 
 def spectra_case(quick, repeats, names=("R1", "C1")):
@@ -839,23 +807,42 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
             return lambda: varint.lyapunov_spectrum(model, x0, t_end, deviations=W0,
                                                     t_out=[t_end], progress=False, **opts)
 
-        tasks = {("varint", "defaults", None): vt()}
+        configs = {("varint", "defaults", None): {}}
         for tau in taus:
-            tasks[("varint", "SBAB2C", tau)] = vt(scheme="SBAB2C", tau=tau)
+            configs[("varint", "SBAB2C", tau)] = {"scheme": "SBAB2C", "tau": tau}
         # What an expert after speed would pick: a sixth-order scheme at
         # large steps (the maps' default scheme).
         for tau in high_taus:
-            tasks[("varint", "SRKN14a", tau)] = vt(scheme="SRKN14a", tau=tau)
+            configs[("varint", "SRKN14a", tau)] = {"scheme": "SRKN14a", "tau": tau}
+        tasks = {key: vt(**opts) for key, opts in configs.items()}
         compile_s = {}
         compile_s["varint"], _ = timed(varint.lyapunov_spectrum, model, x0, 1.0,
                                        deviations=W0, progress=False)
+        runs = {}
         for tol in tols:
             run, compile_s[f"heyoka tol {tol:g}"] = heyoka_spectrum(model, tol)
             for every in everies:
+                runs[("heyoka", f"QR every {every:g}", tol)] = (run, every)
                 tasks[("heyoka", f"QR every {every:g}", tol)] = (
                     lambda run=run, every=every, x0=x0, W0=W0, t_end=t_end:
                     run(x0, W0, t_end, every))
-        best, res = interleaved(tasks, repeats)
+        turns = {}
+        best, res = interleaved(tasks, repeats, clock=time.process_time, turns=turns)
+        samples = {}
+        if name != "R1":
+            # Chaotic: X1 of 64 nearby orbits by each contender against the
+            # reference integrator's (studies.chaotic).
+            X = nearby(model, x0)
+            Ws = np.repeat(W0[None], len(X), axis=0)
+            samples["reference"] = reference_sample(model, X, W0, t_end)
+            for key in tasks:
+                if key[0] == "varint":
+                    samples[key] = varint.lyapunov_spectrum(
+                        model, X, t_end, deviations=Ws, t_out=[t_end], progress=False,
+                        **configs[key]).exponents[:, -1, 0]
+                else:
+                    run, every = runs[key]
+                    samples[key] = np.array([run(x, W0, t_end, every)[0] for x in X])
         rows = []
         for (peer, series, param), seconds in best.items():
             X = res[(peer, series, param)]
@@ -864,10 +851,14 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
             label = (f"defaults ({config})" if param is None and peer == "varint"
                      else f"{series} τ={param:g}" if peer == "varint"
                      else f"{series}, tol {param:g}")
-            rows.append({"orbit": name, "peer": peer, "series": series, "config": label,
-                         "seconds": seconds, "X1": float(X[0]),
-                         "X1_error": abs(float(X[0]) - x1_ref),
-                         "within_spread": abs(float(X[0]) - x1_ref) <= spread})
+            row = {"orbit": name, "peer": peer, "series": series, "config": label,
+                   "seconds": seconds, "turn_seconds": turns[(peer, series, param)],
+                   "X1": float(X[0]), "X1_error": abs(float(X[0]) - x1_ref)}
+            if samples:
+                law = same_law(samples[(peer, series, param)], samples["reference"])
+                row.update(same_law=law.holds, same_law_p=law.value,
+                           sample_median=float(np.median(samples[(peer, series, param)])))
+            rows.append(row)
         fronts = {}
         for row in rows:
             fronts.setdefault((row["peer"], row["series"]), []).append(
@@ -889,8 +880,8 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
             cheapest = {}
             for row in rows:
                 key = "varint" if row["peer"] == "varint" else f"heyoka {row['series']}"
-                if row["within_spread"] and (key not in cheapest
-                                             or row["seconds"] < cheapest[key]["seconds"]):
+                if row["same_law"] and (key not in cheapest
+                                        or row["seconds"] < cheapest[key]["seconds"]):
                     cheapest[key] = row
             v = cheapest.get("varint")
             for key, row in cheapest.items():
@@ -899,11 +890,17 @@ def spectra_case(quick, repeats, names=("R1", "C1")):
                                   "X1_error": row["X1_error"],
                                   "varint_s": None if v is None else v["seconds"],
                                   "heyoka": row["config"], "heyoka_s": row["seconds"],
-                                  "how": "cheapest within the spread",
+                                  "how": "cheapest with the reference's X1 distribution",
                                   "heyoka_over_varint": None if v is None
-                                  else row["seconds"] / v["seconds"]})
+                                  else row["seconds"] / v["seconds"],
+                                  "spread": None if v is None else _spread(row, v)})
         out[name] = {"t_end": t_end, "X1_ref": x1_ref, "spread": spread, "rows": rows,
                      "equal_error": equal, "compile_s": compile_s}
+        if samples:
+            ref_sample = samples["reference"]
+            out[name]["reference_sample"] = {
+                "n": len(ref_sample), "median": float(np.median(ref_sample)),
+                "min": float(ref_sample.min()), "max": float(ref_sample.max())}
     return out
 
 
@@ -1199,16 +1196,21 @@ def report(res, markdown=False):
                  ("orbits_per_s", "orbits/s", 9, ".0f"), ("agreement", "agree", 7, ".2%")]))
     if "spectra" in res:
         for name, sp in res["spectra"].items():
-            parts.append(tab(
-                f"\nSpectrum {name} to t = {sp['t_end']:g}: X1,ref = {sp['X1_ref']:.6e}, "
-                f"spread of X1,ref over the last half {sp['spread']:.2e}",
-                [dict(r, label=f"{r['peer']}: {r['config']}") for r in sp["rows"]],
-                [("label", "contender", 44, ""), ("seconds", "seconds", 9, ".3f"),
-                 ("X1", "X1", 13, ".6e"), ("X1_error", "|ΔX1|", 9, ".2e"),
-                 ("within_spread", "in spread", 9, "")]))
+            sample = sp.get("reference_sample")
+            columns = [("label", "contender", 44, ""), ("seconds", "seconds", 9, ".3f"),
+                       ("X1", "X1", 13, ".6e"), ("X1_error", "|ΔX1|", 9, ".2e")]
+            title = f"\nSpectrum {name} to t = {sp['t_end']:g}: X1,ref = {sp['X1_ref']:.6e}"
+            if sample:
+                columns += [("sample_median", "median X1", 10, ".4f"),
+                            ("same_law_p", "KS p", 7, ".2g"), ("same_law", "same law", 8, "")]
+                title += (f"; X1 of {sample['n']} nearby orbits by the reference: median "
+                          f"{sample['median']:.4f} ({sample['min']:.4f}–{sample['max']:.4f})")
+            parts.append(tab(title, [dict(r, label=f"{r['peer']}: {r['config']}")
+                                     for r in sp["rows"]], columns))
             parts.append(tab(
                 f"\n{name}: heyoka's cost at varint's X1 error"
-                if name == "R1" else f"\n{name}: cheapest runs within the spread",
+                if name == "R1" else f"\n{name}: cheapest runs with the reference's X1 "
+                "distribution (KS p ≥ 0.01)",
                 sp["equal_error"],
                 [("varint", "varint", 26, ""), ("X1_error", "|ΔX1|", 9, ".2e"),
                  ("varint_s", "varint s", 9, ".3f"), ("heyoka", "heyoka", 22, ""),
@@ -1263,6 +1265,10 @@ def main(argv=None):
                             help="leave out the maps' two-thread column")
         parser.add_argument("--repeats", type=int, default=None,
                             help=f"repeats per timing (default {REPEATS}; 1 in quick mode)")
+        parser.add_argument("--merge", action="store_true",
+                            help="replace only the cases run in the stored bench_peers.json, "
+                                 "keeping the others (each case records when, on which code "
+                                 "and at which load it was measured)")
 
     args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
@@ -1293,26 +1299,46 @@ def main(argv=None):
         res["orbit"] = orbit_case(args.quick, repeats)
     if "fpu" in cases:
         res["fpu"] = fpu_case(args.quick, repeats)
+    measured = {"code": CODE, "load": [load, os.getloadavg()[0]], "repeats": repeats,
+                "argv": sys.argv[1:] if argv is None else argv,
+                "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    fresh = [case for case in CASES if case in res]
+    res["measured"] = dict.fromkeys(fresh, measured)
+    name = "bench_peers"
+    stored = args.out / f"{name}.json"
+    if args.merge and stored.exists():
+        old = json.loads(stored.read_text())
+        for case in CASES:
+            if case in old and case not in fresh:
+                res[case] = old[case]
+                res["measured"][case] = old.get("measured", {}).get(
+                    case, {"code": "not recorded (measured before code identity was stored)",
+                           "load": old.get("load_average"), "repeats": old.get("repeats"),
+                           "argv": old.get("argv")})
     text = report(res)
     print(text)
     res.update(repeats=repeats, quick=args.quick, argv=sys.argv[1:] if argv is None else argv,
                seconds=time.perf_counter() - start,
                load_average=[load, os.getloadavg()[0]], cpus=os.cpu_count(),
                versions=varint.results.package_versions("heyoka"))
-    name = "bench_peers"
     header = (f"# varint against its peers\n\n`python studies/bench_peers.py "
               f"{' '.join(res['argv'])}`: {res['seconds']:.0f} s, {repeats} repeat(s), "
               f"load average {res['load_average'][0]:.1f} → {res['load_average'][1]:.1f} on "
               f"{res['cpus']} CPUs; " + ", ".join(f"{k} {v}" for k, v in res["versions"].items()))
+    header += "\n\nMeasured: " + "; ".join(
+        f"{case} — " + (f"this run (load {m['load'][0]:.1f} → {m['load'][1]:.1f})"
+                        if case in fresh else
+                        f"an earlier run (`{' '.join(m.get('argv') or [])}`, code not recorded)")
+        for case, m in res["measured"].items())
     (args.out / f"{name}.md").write_text(header + "\n" + report(res, markdown=True) + "\n")
-    if "maps" in res:
+    if "maps" in fresh:
         save_csv(args.out, f"{name}_maps", res["maps"]["rows"], list(res["maps"]["rows"][0]))
-    if "spectra" in res:
+    if "spectra" in fresh:
         rows = [r for sp in res["spectra"].values() for r in sp["rows"]]
         save_csv(args.out, f"{name}_spectra", rows, list(rows[0]))
-    if "orbit" in res:
+    if "orbit" in fresh:
         save_csv(args.out, f"{name}_orbit", res["orbit"]["rows"], list(res["orbit"]["rows"][0]))
-    if "fpu" in res:
+    if "fpu" in fresh:
         save_csv(args.out, f"{name}_fpu", res["fpu"]["rows"], list(res["fpu"]["rows"][0]))
     save_json(args.out, name, res)
     return res

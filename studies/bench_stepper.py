@@ -1,7 +1,11 @@
 """Speed of the generated TM stepper against plain compiled loops of the same
 algorithm, and the taxes around it (issue 12's targets).
 
-Printed, one run, interleaved, minimum of repeats (the machine is shared):
+One run, interleaved, minimum of repeats, CPU time (varint's
+``time.process_time``, the C loops' ``CLOCK_PROCESS_CPUTIME_ID``: the
+machine is shared); each ratio with its spread over the repeats (the ratio
+within each turn, smallest to largest); printed and stored as
+``bench_stepper.json``:
 
 1. orbit only, Hénon–Heiles, ABA864, τ = 0.05: varint against a C loop of
    the same 15 stages (``gcc -O3 -march=native``);
@@ -13,17 +17,17 @@ Printed, one run, interleaved, minimum of repeats (the machine is shared):
    t = 1e3 (``chaos_map`` defaults, SIMD lanes): orbits per second on 1 and
    2 threads.
 
-Usage: ``python studies/bench_stepper.py [--quick] [--csv FILE]``
+Usage: ``python studies/bench_stepper.py [--quick] [--out DIR] [--csv FILE]``
 """
 
 from __future__ import annotations
 
-import argparse
 import os
 import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -33,10 +37,11 @@ from varint.methods import make_propagator
 from varint.schemes import DRIFT, stage_arrays
 from varint.state import RunState
 
-try:
-    from bench_tm import C_LOOP as C_SPECTRUM, c_program, run_c
-except ImportError:  # imported as studies.bench_stepper
-    from .bench_tm import C_LOOP as C_SPECTRUM, c_program, run_c
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from studies.bench_tm import C_LOOP as C_SPECTRUM, c_program, run_c  # noqa: E402
+from studies.common import STARTED, interleaved, parse_args, ratio_spread, save_json  # noqa: E402
 
 TAU = 0.05
 
@@ -46,7 +51,7 @@ def orbit_c_source(scheme, tau):
     stage coefficients written in as constants (what a person would write)."""
     kinds, h, _ = stage_arrays(varint.get_scheme(scheme), tau)
     body = []
-    for kind, c in zip(kinds, h):
+    for kind, c in zip(kinds, h, strict=True):
         c = float(c)                      # repr: a C literal, not "np.float64(...)"
         if kind == DRIFT:
             body.append(f"q0 += {c!r}*p0; q1 += {c!r}*p1;")
@@ -60,11 +65,11 @@ def orbit_c_source(scheme, tau):
             long n = atol(argv[1]);
             double q0 = 0.0, q1 = 0.558, p0 = atof(argv[2]), p1 = 0.0;
             struct timespec a, b;
-            clock_gettime(CLOCK_MONOTONIC, &a);
+            clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &a);
             for (long s = 0; s < n; s++) {
                 %s
             }
-            clock_gettime(CLOCK_MONOTONIC, &b);
+            clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &b);
             double sec = (b.tv_sec - a.tv_sec) + 1e-9*(b.tv_nsec - a.tv_nsec);
             printf("%%.6f %%.17e\\n", sec, q1);
             return 0;
@@ -73,20 +78,20 @@ def orbit_c_source(scheme, tau):
 
 
 def varint_ns_per_step(prop, x0, k, n_steps):
-    """ns/step of one advance() of a compiled propagator."""
+    """ns/step (CPU) of one advance() of a compiled propagator."""
     W0 = np.eye(x0.size)[:, :k][None]
     state = RunState.start(x0[None], W0)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     prop.advance(state, n_steps)
-    return (time.perf_counter() - t0) / n_steps * 1e9, state
+    return (time.process_time() - t0) / n_steps * 1e9, state
 
 
 def first_run_seconds(repeats=2):
-    """Seconds of an R1 spectrum to t = 100 in a fresh process (import
+    """CPU seconds of an R1 spectrum to t = 100 in a fresh process (import
     excluded), after an earlier process compiled and cached the kernels."""
-    code = ("import time, varint; m, x = varint.paper_orbit('R1'); t = time.perf_counter(); "
+    code = ("import time, varint; m, x = varint.paper_orbit('R1'); t = time.process_time(); "
             "varint.lyapunov_spectrum(m, x, t_end=100.0, tau=0.05); "
-            "print(time.perf_counter() - t)")
+            "print(time.process_time() - t)")
     env = dict(os.environ)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
@@ -96,18 +101,19 @@ def first_run_seconds(repeats=2):
     return times[0], min(times[1:])
 
 
-def outputs_ratio(n_steps, repeats):
-    """Time of R1's spectrum with 1000 outputs over that with 2, same steps."""
+def outputs_tasks(n_steps):
+    """R1's spectrum with 1000 outputs and with 2, the same steps (compiled
+    first)."""
     model, x0 = varint.paper_orbit("R1")
     t_end = n_steps * TAU
-    grids = {2: np.array([t_end / 2, t_end]), 1000: np.linspace(t_end / 1000, t_end, 1000)}
-    best = {n: np.inf for n in grids}
-    for _ in range(repeats + 1):          # the first round compiles
-        for n, grid in grids.items():
-            t0 = time.perf_counter()
-            varint.lyapunov_spectrum(model, x0, t_end=t_end, tau=TAU, t_out=grid)
-            best[n] = min(best[n], time.perf_counter() - t0)
-    return best[1000] / best[2], best
+    grids = {"1000 outputs": np.linspace(t_end / 1000, t_end, 1000),
+             "2 outputs": np.array([t_end / 2, t_end])}
+    tasks = {name: (lambda grid=grid: varint.lyapunov_spectrum(
+        model, x0, t_end=t_end, tau=TAU, t_out=grid, progress=False)) for name, grid in
+        grids.items()}
+    for task in tasks.values():
+        task()
+    return tasks
 
 
 def fli_map_rate(n_side, t_end, threads):
@@ -132,13 +138,20 @@ def fli_map_rate(n_side, t_end, threads):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="small sizes")
-    parser.add_argument("--csv", help="also write the table to this CSV file")
-    args = parser.parse_args(argv)
+    def extra(parser):
+        parser.add_argument("--csv", help="also write the table to this CSV file")
+
+    args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     n_steps = 20_000 if args.quick else 2_000_000
     repeats = 2 if args.quick else 5
     rows = []
+
+    def row(case, a, b, unit, target, turns=None):
+        spread = ratio_spread(turns, b, a) if turns else None
+        va, vb = (best[a], best[b]) if turns else (a, b)
+        rows.append({"case": case, "varint": va, "reference": vb, "unit": unit,
+                     "ratio": va / vb, "spread": None if spread is None else list(spread),
+                     "target": target})
 
     model, x0 = varint.paper_orbit("R1")
     with c_program(orbit_c_source("ABA864", TAU)) as c_orbit, \
@@ -148,33 +161,41 @@ def main(argv=None):
         sparse = make_propagator("tm", model, TAU, "qr", scheme="SBAB2C")
         for p, k in ((orbit, 0), (every, 4), (sparse, 4)):
             varint_ns_per_step(p, x0, k, 100)          # compile
-        best = {key: np.inf for key in ("orbit", "c_orbit", "every", "sparse", "c_spec")}
-        for _ in range(repeats):
-            best["orbit"] = min(best["orbit"], varint_ns_per_step(orbit, x0, 0, n_steps)[0])
-            best["every"] = min(best["every"], varint_ns_per_step(every, x0, 4, n_steps)[0])
-            best["sparse"] = min(best["sparse"], varint_ns_per_step(sparse, x0, 4, n_steps)[0])
-            if c_orbit is not None:
-                for key, exe in (("c_orbit", c_orbit), ("c_spec", c_spec)):
-                    seconds = run_c(exe, n_steps, repr(float(x0[2])))[0]
-                    best[key] = min(best[key], seconds / n_steps * 1e9)
-    print(f"# ns per step, best of {repeats} interleaved ({n_steps} steps)")
+        tasks = {"orbit": lambda: varint_ns_per_step(orbit, x0, 0, n_steps),
+                 "every": lambda: varint_ns_per_step(every, x0, 4, n_steps),
+                 "sparse": lambda: varint_ns_per_step(sparse, x0, 4, n_steps)}
+        if c_orbit is not None:
+            for key, exe in (("c_orbit", c_orbit), ("c_spec", c_spec)):
+                tasks[key] = (lambda exe=exe: (run_c(exe, n_steps, repr(float(x0[2])))[0]
+                                               / n_steps * 1e9, None))
+        turns = {}
+        best, _ = interleaved(tasks, repeats, self_timed=set(tasks), turns=turns)
+    print(f"# ns per step (CPU), best of {repeats} interleaved ({n_steps} steps); load "
+          f"{STARTED['load']} at the start")
     print(f"{'case':46}{'varint':>10}{'C loop':>10}{'ratio':>8}{'target':>8}")
-    for label, v, c, target in (
-            ("HH orbit only, ABA864", best["orbit"], best["c_orbit"], 1.15),
-            ("R1 spectrum SBAB2C, QR every step", best["every"], best["c_spec"], 0.9),
-            ("R1 spectrum SBAB2C, sparse renormalisation", best["sparse"], best["c_spec"], 0.9)):
-        print(f"{label:46}{v:10.1f}{c:10.1f}{v / c:8.2f}{target:8.2f}")
-        rows.append((label, v, c, v / c, target))
+    if c_orbit is not None:
+        for label, a, b, target in (
+                ("HH orbit only, ABA864", "orbit", "c_orbit", 1.15),
+                ("R1 spectrum SBAB2C, QR every step", "every", "c_spec", 0.9),
+                ("R1 spectrum SBAB2C, sparse renormalisation", "sparse", "c_spec", 0.9)):
+            row(label, a, b, "ns/step", target, turns)
+            r = rows[-1]
+            print(f"{label:46}{r['varint']:10.1f}{r['reference']:10.1f}{r['ratio']:8.2f}"
+                  f"{target:8.2f}")
 
-    ratio, times = outputs_ratio(n_steps // 10, repeats)
-    print(f"\n1000 outputs / 2 outputs over {n_steps // 10} steps: {ratio:.2f} "
-          f"({times[1000]:.3f} s / {times[2]:.3f} s; target <= 1.2)")
-    rows.append(("1000 outputs / 2 outputs", times[1000], times[2], ratio, 1.2))
+    turns = {}
+    best, _ = interleaved(outputs_tasks(n_steps // 10), repeats, clock=time.process_time,
+                          turns=turns)
+    row("1000 outputs / 2 outputs", "1000 outputs", "2 outputs", "s", 1.2, turns)
+    r = rows[-1]
+    print(f"\n1000 outputs / 2 outputs over {n_steps // 10} steps: {r['ratio']:.2f} "
+          f"({r['varint']:.3f} s / {r['reference']:.3f} s; target <= 1.2)")
 
     cold, warm = first_run_seconds(1 if args.quick else 2)
     print(f"first R1 spectrum (t = 100) in a new process, kernels cached: {warm:.2f} s "
           f"(the process that filled the cache: {cold:.2f} s; target <= 0.5 s)")
-    rows.append(("first run in a new process (s)", warm, cold, warm, 0.5))
+    rows.append({"case": "first run in a new process (s)", "varint": warm, "reference": cold,
+                 "unit": "s", "ratio": warm, "spread": None, "target": 0.5})
 
     side = 6 if args.quick else 45                 # 45 x 45 grid: about 1990 orbits
     t_map = 20.0 if args.quick else 1e3
@@ -182,12 +203,17 @@ def main(argv=None):
     r2, _ = fli_map_rate(side, t_map, 2)
     print(f"\nFLI map, {n} orbits of the x = 0 section, t = {t_map:g}: {r1:.0f} orbits/s "
           f"on 1 thread, {r2:.0f} on 2 ({r2 / r1:.2f}x; target >= 1.0 under load)")
-    rows.append(("FLI map orbits/s, 1 thread", r1, r2, r2 / r1, 1.0))
+    rows.append({"case": "FLI map orbits/s, 1 thread", "varint": r1, "reference": r2,
+                 "unit": "orbits/s (wall)", "ratio": r2 / r1, "spread": None, "target": 1.0})
 
     if args.csv:
         with open(args.csv, "w") as f:
             f.write("case,varint,reference,ratio,target\n")
-            f.writelines(f"{a},{b:.4g},{c:.4g},{d:.3f},{e}\n" for a, b, c, d, e in rows)
+            f.writelines(f"{r['case']},{r['varint']:.4g},{r['reference']:.4g},"
+                         f"{r['ratio']:.3f},{r['target']}\n" for r in rows)
+    save_json(args.out, "bench_stepper", {"n_steps": n_steps, "repeats": repeats, "rows": rows},
+              times="CPU (process_time; the C loops' CLOCK_PROCESS_CPUTIME_ID), except the "
+                    "rows whose unit says wall")
     return 0
 
 

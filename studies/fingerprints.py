@@ -91,8 +91,8 @@ def cases():
 
     import varint
     from varint.models import (DDNLS, FPUT, CoupledStandardMaps, DisorderedKG, FPUBeta,
-                               HenonHeiles, StandardMap, ThreeDof, from_map, from_potential)
-    from varint.schemes import PART_SCHEMES
+                               StandardMap, from_map, from_potential)
+    from varint.schemes import registered
 
     out = []
     add = out.append
@@ -107,7 +107,7 @@ def cases():
 
     # TM: every two-part scheme on the generated stepper (HH, 3-dof) and the
     # generic one (FPU-beta n = 20), the spectrum (QR) and GALI (normalise).
-    for name in varint.SCHEMES:
+    for name in (s.name.upper() for s in registered(2)):
         add((f"tm/{name}/HH/lyapunov", lambda s=name: varint.lyapunov_spectrum(
             hh, c1, 50.0, tau=0.05, scheme=s)))
         add((f"tm/{name}/ThreeDof/gali", lambda s=name: varint.gali(
@@ -173,7 +173,7 @@ def cases():
             m, x, "megno", 5.0, 0.1, scheme="ABA864")))
     for name, model, x0 in (("DDNLS32", dd, dd.initial_block(4, 1.0)),
                             ("DDNLS6x6", dd2, dd2.initial_block(2, 1.0))):
-        for s in PART_SCHEMES:
+        for s in (s.name.upper() for s in registered(3)):
             add((f"tm/{s}/{name}/spreading", lambda m=model, x=x0, s=s: varint.run(
                 m, x, "dvd", 3.0, 0.1, scheme=s)))
         add((f"tm/ABA864/{name}/two-part", lambda m=model, x=x0: varint.run(

@@ -18,21 +18,42 @@ CPU time is ``time.process_time()`` of the run, after a short warm-up run
 that compiles the method's kernels (so it is not counted). The machine is
 shared, so compare CPU times as ratios between rows of one study run; the
 wall time is kept beside it.
+
+A run that stops and resumes is timed over all its sessions by varint
+itself: each checkpoint carries the CPU time spent so far, measured in
+every session (``provenance.cpu_time``, :mod:`varint.checkpoint`), and the
+sidecar stores that (``cpu_basis`` "measured"). Only sidecars written
+before varint measured it — runs resumed from a checkpoint whose earlier
+sessions were not timed — have their CPU extrapolated from the last
+session, and their ``cpu_basis`` says so and by what share. The sidecar
+also names the code that ran and the machine (:mod:`varint.identity`).
+
+Run one stored run from the command line (resumable: run it again after
+an interruption)::
+
+    python -m studies.paper_runs lyapunov C1 dop853 --tau 0.05 --t-end 1e8
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import varint
-from varint.checkpoint import read as read_checkpoint
-from varint.state import output_steps
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-__all__ = ["PAPER_TAU", "PAPER_DELTA", "SEED", "Stored", "run", "run_key", "method_options",
-           "METHOD_LABELS", "longest_stored", "horizon"]
+import varint  # noqa: E402
+from varint import identity  # noqa: E402
+from varint.checkpoint import read as read_checkpoint  # noqa: E402
+from varint.state import output_steps  # noqa: E402
+
+__all__ = ["PAPER_TAU", "PAPER_DELTA", "SEED", "Stored", "run", "run_key", "stored_key",
+           "method_options",
+           "METHOD_LABELS", "longest_stored", "horizon", "cpu_basis"]
 
 #: The paper's renormalisation interval τ and DOP853 threshold δ (Sect. VI).
 PAPER_TAU = 0.05
@@ -50,13 +71,25 @@ METHOD_LABELS = {"dop853": "DOP853", "tdhcc": "TDHcc", "tdhes": "TDHes", "tdheps
 def method_options(method, orbit, delta=None):
     """The paper's settings of ``method`` on ``orbit``: SBAB2C for the
     symplectic methods (the default of varint's), the closed-form
-    transformation (paper eq. A.10) for TDHes on Hénon–Heiles, and
-    δ = ``delta`` (1e-5 by default) for DOP853."""
+    transformation (paper eq. A.10) for TDHes on Hénon–Heiles, δ = ``delta``
+    (1e-5 by default) for DOP853, and for TM the vectors renormalised every
+    τ as in the paper (``renormalize_every=1``; varint's default
+    renormalises adaptively, which gives the same exponents to round-off at
+    a fraction of the cost, but Table I compares methods that all
+    renormalise every τ)."""
     if method == "dop853":
         return {"delta": PAPER_DELTA if delta is None else delta}
     if method == "tdhes" and orbit in ("R1", "C1", "C2"):
         return {"eigensolver": "analytic"}
+    if method == "tm":
+        return {"renormalize_every": 1}
     return {}
+
+
+#: Options every stored run's key leaves out: they are the paper's and were
+#: varint's only behaviour when the first runs were stored (TM renormalised
+#: every τ before ``renormalize_every`` existed).
+_IMPLIED = ("renormalize_every",)
 
 
 @dataclass
@@ -68,12 +101,19 @@ class Stored:
     key : str
     result : LyapunovResult or GALIResult
     cpu : float
-        CPU seconds (``time.process_time``); for a run resumed from a
-        checkpoint, the CPU time of the last session divided by the share of
-        the steps it did (``resumed`` is then True).
+        CPU seconds (``time.process_time``) over all sessions
+        (``provenance.cpu_time`` of the result).
     wall : float
         Wall seconds of the whole run (all sessions).
     resumed : bool
+        Whether the run took more than one session.
+    cpu_basis : str
+        "measured", or how ``cpu`` was extrapolated (a run resumed from a
+        checkpoint whose earlier sessions were not timed: the last
+        session's CPU divided by
+        the share of the steps it did).
+    meta : dict
+        The whole sidecar (code, machine, this session's CPU and wall).
     """
 
     key: str
@@ -81,6 +121,8 @@ class Stored:
     cpu: float
     wall: float
     resumed: bool
+    cpu_basis: str = "measured"
+    meta: dict = field(default_factory=dict)
 
     @property
     def t(self):
@@ -94,12 +136,20 @@ def run_key(kind, orbit, method, tau, t_end, options):
     return f"{kind}-{orbit}-{method}{opts}-tau{tau:g}-t{t_end:g}"
 
 
+def stored_key(kind, orbit, method, tau, t_end, delta=None, orders=None):
+    """The file name stem under which :func:`run` stores this run."""
+    model, _ = varint.paper_orbit(orbit)
+    _, _, key_options = _key_options(kind, model, method, orbit, delta, orders)
+    return run_key(kind, orbit, method, tau, t_end, key_options)
+
+
 def _key_options(kind, model, method, orbit, delta, orders):
     options = method_options(method, orbit, delta)
+    key = {k: v for k, v in options.items() if k not in _IMPLIED}
     if kind == "gali":
         orders = tuple(range(2, model.dim + 1)) if orders is None else tuple(orders)
-        return options, orders, dict(options, k="_".join(map(str, orders)))
-    return options, orders, options
+        return options, orders, dict(key, k="_".join(map(str, orders)))
+    return options, orders, key
 
 
 def longest_stored(out, kind, orbit, method, tau, *, orders=None, delta=None):
@@ -172,36 +222,75 @@ def run(out, kind, orbit, method, tau, t_end, *, orders=None, delta=None, fresh=
     path, meta_path = store / f"{key}.npz", store / f"{key}.json"
     if not fresh and path.exists() and meta_path.exists():
         meta = json.loads(meta_path.read_text())
-        return Stored(key, varint.load_result(path), meta["cpu"], meta["wall"], meta["resumed"])
+        return Stored(key, varint.load_result(path), meta["cpu"], meta["wall"], meta["resumed"],
+                      cpu_basis(meta), meta)
 
     (store / "checkpoints").mkdir(parents=True, exist_ok=True)
     checkpoint = store / "checkpoints" / f"{key}.ckpt"
-    if fresh and checkpoint.exists():
-        checkpoint.unlink()
+    if fresh:
+        checkpoint.unlink(missing_ok=True)
     t_out = output_steps(t_end, tau, per_decade=PER_DECADE) * tau
-    # Where a checkpoint resumes the run: the CPU time of earlier sessions is
-    # not recorded, so this session's is scaled by the share of the steps it
-    # did.
     start = read_checkpoint(checkpoint).state.step if checkpoint.exists() else 0
+    code, machine = identity.code_identity(), identity.machine()
     # Compile the kernels first, so the CPU time is that of the integration.
     _call(kind, model, x0, 20 * tau, tau, method, orders, None, False, None, options)
     c0, w0 = time.process_time(), time.perf_counter()
     result = _call(kind, model, x0, t_end, tau, method, orders, t_out, progress, checkpoint,
                    options)
-    cpu, wall_session = time.process_time() - c0, time.perf_counter() - w0
+    session, wall_session = time.process_time() - c0, time.perf_counter() - w0
     if result.interrupted:
         raise KeyboardInterrupt(f"run {key} interrupted at t = {result.t[-1]:g}; its "
                                 f"checkpoint {checkpoint} resumes it when the study is "
                                 "started again")
     wall = float(result.provenance.wall_time)
-    resumed = start > 0
-    if resumed:
+    cpu = result.provenance.cpu_time
+    if cpu is None:
+        # Resumed from a checkpoint whose earlier sessions were not timed:
+        # this session's CPU is scaled by its share of the steps.
         total = result.provenance.counts["steps"]
-        cpu *= total / (total - start)
+        share = (total - start) / total
+        cpu, basis = session / share, (f"extrapolated: the last session's CPU over the "
+                                       f"{share:.0%} of the steps it did")
+    else:
+        cpu, basis = float(cpu), "measured"
     result.save(path)
-    meta_path.write_text(json.dumps({"kind": kind, "orbit": orbit, "method": method,
-                                     "options": options, "tau": tau, "t_end": t_end,
-                                     "cpu": cpu, "wall": wall, "wall_session": wall_session,
-                                     "resumed": resumed}, indent=1))
+    meta = {"kind": kind, "orbit": orbit, "method": method, "options": options, "tau": tau,
+            "t_end": t_end, "cpu": cpu, "cpu_basis": basis, "cpu_session": session,
+            "wall": wall, "wall_session": wall_session, "resumed": bool(start),
+            "code": code, "machine": machine}
+    meta_path.write_text(json.dumps(meta, indent=1))
     checkpoint.unlink(missing_ok=True)
-    return Stored(key, result, cpu, wall, resumed)
+    return Stored(key, result, cpu, wall, bool(start), basis, meta)
+
+
+def cpu_basis(meta):
+    """How a stored run's CPU time was obtained: its sidecar's
+    ``cpu_basis``, or for a sidecar written before it was recorded,
+    "extrapolated" when the run was resumed (its CPU was then scaled from
+    the last session) and "measured" otherwise."""
+    if "cpu_basis" in meta:
+        return meta["cpu_basis"]
+    return "extrapolated: the last session's CPU over its share of the steps" \
+        if meta["resumed"] else "measured"
+
+
+def main(argv=None):
+    """Compute (or resume, or load) one stored run; print its CPU time."""
+    parser = argparse.ArgumentParser(description="One of the paper's stored runs.")
+    parser.add_argument("kind", choices=("lyapunov", "gali"))
+    parser.add_argument("orbit", choices=("R1", "C1", "C2", "R2", "R3"))
+    parser.add_argument("method", choices=tuple(METHOD_LABELS))
+    parser.add_argument("--tau", type=float, default=PAPER_TAU)
+    parser.add_argument("--t-end", type=float, required=True)
+    parser.add_argument("--delta", type=float, default=None)
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results")
+    parser.add_argument("--fresh", action="store_true")
+    args = parser.parse_args(argv)
+    s = run(args.out, args.kind, args.orbit, args.method, args.tau, args.t_end,
+            delta=args.delta, fresh=args.fresh)
+    print(f"{s.key}: t = {s.t[-1]:g}, CPU {s.cpu:.1f} s ({s.cpu_basis}), wall {s.wall:.1f} s")
+    return s
+
+
+if __name__ == "__main__":
+    main()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -24,6 +25,7 @@ if __package__ in (None, ""):
 
 from studies.claims import RULES  # noqa: E402
 from studies.common import parse_args  # noqa: E402
+from studies.paper_runs import PAPER_DELTA, PAPER_TAU, longest_stored  # noqa: E402
 
 #: Sections in this order first (the paper's), then any other claims file
 #: alphabetically. Name -> heading.
@@ -47,6 +49,10 @@ KNOWN = {
     "stress": "Stress",
     "bench_baselines": "Benchmark: the reference integrators (studies/bench_baselines.py)",
     "bench_chaos_map": "Benchmark: chaos maps (studies/bench_chaos_map.py)",
+    "planetary": "Planetary systems: the Kepler tangent map and the Wisdom–Holman error laws "
+                 "(studies/planetary.py)",
+    "bench_planetary": "Benchmark: MEGNO stability maps of planetary systems against REBOUND "
+                       "(studies/bench_planetary.py)",
     "two_particle": "The two-particle method the paper left out (studies/two_particle.py)",
     "lattices": "Many-body lattices: the scheme ranking of Danieli et al. 2019 and the speed "
                 "targets (studies/lattices.py)",
@@ -125,7 +131,8 @@ def table1_section(out):
         if r["method"] != "DOP853":
             e_ours += (f" (last decade: {_num(r['energy_error_median_last_decade'])}–"
                        f"{_num(r['energy_error_max_last_decade'])})")
-        cpu = _duration(float(r["cpu_s"])) + (" (resumed)" if r["resumed"] == "True" else "")
+        basis = r.get("cpu_basis") or ("extrapolated" if r["resumed"] == "True" else "measured")
+        cpu = _duration(float(r["cpu_s"])) + (f" ({basis})" if basis != "measured" else "")
         # A table written before the compiled DOP853 engine: its DOP853 rows
         # stop short of 1e8, their CPU ratio is projected to 1e8.
         dagger = "†" * (r.get("cpu_projected") == "True")
@@ -149,8 +156,10 @@ def table1_section(out):
               "fills over the last decade, median/3 to 3 × max: the error oscillates, so one "
               "value at t = 1e8 is a sample), that of DOP853, which drifts, by `agrees` at "
               "t = 1e8. CPU: `time.process_time()` of each run itself, after a warm-up that "
-              "compiles its kernels (a run resumed from a checkpoint: its last session's CPU "
-              "time per step times all its steps); DOP853 with the compiled engine "
+              "compiles its kernels, summed over the sessions of a run resumed from a "
+              "checkpoint as varint measured each (`provenance.cpu_time`); only rows marked "
+              "*extrapolated*, resumed before sessions were timed, scale their last session's "
+              "CPU time per step to all their steps; DOP853 with the compiled engine "
               "(`engine=\"compiled\"`, SciPy's method bit for bit). The machine has 2 cores "
               "shared with other jobs, so absolute times vary between sessions: compare the "
               "ratios to the TM row with τ = 0.05 (the paper's: AMD Athlon 1 GHz).", ""]
@@ -226,18 +235,92 @@ def rules_section():
 
 
 def runs_section(out):
-    """The stored runs of the paper's studies with their cost."""
+    """The stored runs of the paper's studies with their cost, how the CPU
+    time was obtained and the code that made them."""
     metas = sorted((Path(out) / "runs").glob("*.json"))
     if not metas:
         return []
     lines = ["## The runs behind Table I and the figures", "",
              "Stored in `runs/` (result `.npz` with provenance, sidecar `.json` with CPU "
-             "time). CPU: `time.process_time()`, shared machine.", "",
-             "| run | CPU s | wall s |", "|---|---|---|"]
+             "time). CPU: `time.process_time()` over all the sessions of a run, on a shared "
+             "machine; *extrapolated* where a run was resumed before sessions were timed "
+             "(its last session's CPU per step times all its steps). Code: the digest of "
+             "varint's sources that made the run (*not recorded* for runs stored before "
+             "it was; `PROVENANCE.json` names the commit that stored each file).", "",
+             "| run | CPU s | CPU | wall s | code |", "|---|---|---|---|---|"]
     for p in metas:
         m = json.loads(p.read_text())
-        resumed = " (resumed)" if m.get("resumed") else ""
-        lines.append(f"| `{p.stem}` | {m['cpu']:.4g}{resumed} | {m['wall']:.4g} |")
+        basis = m.get("cpu_basis") or ("extrapolated" if m.get("resumed") else "measured")
+        code = (m.get("code") or {}).get("source")
+        lines.append(f"| `{p.stem}` | {m['cpu']:.4g} | {basis.split(':')[0]} | "
+                     f"{m['wall']:.4g} | {code[:12] if code else 'not recorded'} |")
+    return lines + [""]
+
+
+def _shape(claim):
+    """A claim's wording with its numbers blanked."""
+    return re.sub(r"[-+−]?\d[\d.e+−-]*", "#", claim)
+
+
+#: The paper's DOP853 runs beyond Table I and the paper's horizons.
+_PAPER_DOP853 = (("lyapunov", "C1", 1e8), ("lyapunov", "C2", 1e8), ("gali", "C2", 1e8),
+                 ("lyapunov", "R2", 1e6), ("gali", "R2", 1e6), ("gali", "R3", 1e6))
+
+
+def _dop853_horizons(out):
+    """Where the stored DOP853 runs of C1, C2, R2 and R3 end, against the
+    paper's horizons: read from the run files, so the report never says a
+    run reached a horizon it did not."""
+    parts = []
+    for kind, orbit, paper in _PAPER_DOP853:
+        tau = 0.02 if orbit == "R3" else PAPER_TAU
+        t = longest_stored(out, kind, orbit, "dop853", tau, delta=PAPER_DELTA)
+        name = f"DOP853 {'spectrum' if kind == 'lyapunov' else 'GALIs'} of {orbit}"
+        parts.append(f"{name} to {t:.0e}" + ("" if t is not None and t >= paper
+                                             else f", not the paper's {paper:.0e}")
+                     if t is not None else f"{name}: not stored")
+    return "; ".join(parts)
+
+
+def changed_section(claims, out):
+    """Every claim whose verdict differs from the one stored before this
+    round (``verdicts_previous.json``), with its note: why it changed."""
+    path = Path(out) / "verdicts_previous.json"
+    if not path.exists():
+        return []
+    before = json.loads(path.read_text())
+    lines = ["## Verdicts changed since the previous round", "",
+             f"Against the verdicts stored at commit `{before['commit']}` "
+             f"(`verdicts_previous.json`): longer runs ({_dop853_horizons(out)}), the "
+             "statistical criterion for chaotic orbits and the stated margins.", "",
+             "| study | claim | before | now | ours now | why |", "|---|---|---|---|---|---|"]
+    n, new = 0, {}
+    for name, items in claims.items():
+        old = {i["claim"]: i for i in before["claims"].get(name, [])}
+        # A claim whose wording names its window or horizon is the same
+        # claim with other numbers.
+        loose = {_shape(c): i for c, i in old.items()}
+        for item in items:
+            prev = old.get(item["claim"]) or loose.get(_shape(item["claim"]))
+            if prev is None:
+                new[name] = new.get(name, 0) + 1
+                continue
+            if prev["holds"] == item.get("holds"):
+                continue
+            n += 1
+            why = [item.get("note") or ""]
+            if prev.get("checked_to") != item.get("checked_to") and item.get("checked_to"):
+                was = prev.get("checked_to")
+                why.insert(0, f"checked to t = {item['checked_to']:.0e} (before: "
+                              + (f"{was:.0e}" if was else "its full horizon") + ")")
+            lines.append(f"| {name} | {_cell(item['claim'])} | {VERDICT[prev['holds']]} | "
+                         f"{verdict_cell(item)} | {_cell(item.get('ours'))} | "
+                         f"{_cell('; '.join(w for w in why if w))} |")
+    if not n:
+        lines.append("| — | no verdict changed | | | | |")
+    if new:
+        lines += ["", "Claims new since then (or reworded): " + ", ".join(
+            f"{name} {count}" for name, count in new.items()) + "."]
     return lines + [""]
 
 
@@ -296,6 +379,7 @@ def build(out):
     missing = [k for k in PAPER if k not in claims]
     if missing:
         lines += ["Missing: " + ", ".join(f"`{k}.claims.json`" for k in missing), ""]
+    lines += changed_section(claims, out)
     lines += ["## Table I — R1 to t = 1e8", ""] + table1_section(out)
     for name, items in claims.items():
         lines += claims_section(name, items, out)

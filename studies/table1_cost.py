@@ -36,7 +36,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from studies.common import parse_args, save_csv, save_json  # noqa: E402
-from studies.paper_runs import METHOD_LABELS, method_options, run, run_key  # noqa: E402
+from studies.paper_runs import METHOD_LABELS, run, stored_key  # noqa: E402
 from studies.table1 import PAPER_TABLE, T_END  # noqa: E402
 from varint.checkpoint import read as read_checkpoint  # noqa: E402
 
@@ -88,7 +88,7 @@ def progress_of(out, spec):
     """(stored horizon or None, its CPU seconds or None, checkpoint t or
     None, checkpoint wall seconds or None) of the row's runs in ``out``."""
     _, method, tau, delta, *_ = spec
-    key = run_key("lyapunov", "R1", method, tau, T_END, method_options(method, "R1", delta))
+    key = stored_key("lyapunov", "R1", method, tau, T_END, delta=delta)
     runs = Path(out) / "runs"
     stored_t = stored_cpu = ckpt_t = ckpt_wall = None
     meta = runs / f"{key}.json"
@@ -210,7 +210,11 @@ def main(argv=None):
     rows = cost_table(args.out, args.quick, horizons, repeats)
     save_csv(args.out, "table1_cost", rows, COLUMNS)
     save_json(args.out, "table1_cost", {"horizons": horizons, "repeats": repeats,
-                                        "rows": rows, "columns": COLUMNS})
+                                        "rows": rows, "columns": COLUMNS},
+              times={"cpu_short_s, cpu_long_s, stored_cpu_s": "measured (CPU)",
+                     "cpu_per_time, projected_*, remaining_*": "derived from the measured "
+                                                              "ones (the slope between the two "
+                                                              "horizons, see project())"})
     path = Path(args.out) / "table1_cost.md"
     path.write_text(markdown(rows, horizons, repeats))
     return {"rows": rows, "markdown": path}

@@ -20,7 +20,8 @@ import sympy as sp
 import varint
 from varint import cache, cachedir, codecache
 from varint.cachedir import CacheDirWarning
-from varint.kernels import generate as G
+from varint.codegen import expressions as X
+from varint.codegen import stepper as G
 from varint.models import HenonHeiles, from_map, from_potential
 from varint.models import symbolic as S
 
@@ -42,7 +43,7 @@ def private(tmp_path, monkeypatch):
 def new_process(monkeypatch):
     """Forget the kernels and facts loaded in this process."""
     monkeypatch.setattr(G, "_LOADED", {})
-    monkeypatch.setattr(G, "_FACTS", {})
+    monkeypatch.setattr(X, "_FACTS", {})
     monkeypatch.setattr(S, "_LOADED", {})
     monkeypatch.setattr(cachedir, "_WARNED", set())
 

@@ -150,9 +150,8 @@ def test_auto_without_gpu_is_the_cpu():
 def test_an_accumulator_compiled_for_the_cpu_is_not_emitted():
     import dataclasses
 
-    # FLI's update under other columns: not the generator's rule, so called.
-    acc = dataclasses.replace(varint.indicators.megno.FLI_ACCUMULATOR, name="mine",
-                              columns=("a",), initial=(0.0,))
+    # FLI's compiled update without its rule: called, not written out.
+    acc = dataclasses.replace(varint.indicators.megno.FLI_ACCUMULATOR, name="mine", rule=None)
     assert not emit.emittable(acc)
     with pytest.raises(ValueError, match="compiled for the CPU only"):
         emit.cuda_source(varint.models.HenonHeiles(), [1, 0, 1], [False] * 3, 1, acc)

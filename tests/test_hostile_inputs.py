@@ -204,6 +204,22 @@ def test_csv_and_png_never_write_through_a_planted_link(tmp_path, capsys):
     assert oct(link.stat().st_mode & 0o777) == oct(0o666 & ~_umask())
 
 
+def test_the_demo_plot_never_writes_through_a_planted_link(tmp_path, capsys):
+    """``varint demo --out`` as --png: a link at the path is refused before
+    the run, and one planted during it is replaced, never followed."""
+    from varint import demo
+
+    victim = tmp_path / "victim"
+    victim.write_text("precious\n")
+    link = tmp_path / "demo.png"
+    link.symlink_to(victim)
+    code = cli.main(["demo", "--t-end", "1", "--out", str(link)])
+    assert code == 2 and "symbolic link" in capsys.readouterr().err
+    demo.run(t_end=1.0, out=str(link))
+    assert victim.read_text() == "precious\n" and not link.is_symlink()
+    assert link.read_bytes().startswith(b"\x89PNG")
+
+
 def _umask():
     mask = os.umask(0o022)
     os.umask(mask)

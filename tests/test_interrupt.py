@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -124,3 +125,47 @@ def test_progress_bar_only_on_a_terminal_or_when_asked(progress, terminal, shown
     assert ("step" in err) == shown
     if not shown:
         assert err == ""
+
+
+def test_an_interrupted_dask_map_cancels_the_chunks_still_running(monkeypatch):
+    """Ctrl-C while a Dask map's chunks run: the map returns at once with
+    what finished (nothing here), and the chunks still running on the
+    workers stop at their next sub-chunk, because their tasks are cancelled
+    and they poll that (``varint.maps._cancel_check``). Before, a worker ran
+    its chunk to its end and closing the cluster waited for it; this chunk
+    is ~10^10 steps (hours), so a worker that goes idle at all shows the
+    chunk stopped."""
+    distributed = pytest.importorskip("distributed")
+    hh = varint.models.HenonHeiles()
+    grid = varint.section_grid(hh, 0.125, np.linspace(-0.2, 0.2, 2), np.linspace(-0.2, 0.2, 2))
+
+    def wait_for(condition, what, seconds=600):
+        # A bound on a hang, not a timing: the chunk would run for hours.
+        deadline = time.monotonic() + seconds
+        while not condition():
+            assert time.monotonic() < deadline, f"{what} after {seconds} s"
+            time.sleep(0.02)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                           dashboard_address=None)
+    with cluster, distributed.Client(cluster) as client:
+        worker = next(iter(cluster.workers.values()))
+
+        def ctrl_c_once_running(futures):
+            # The Ctrl-C reaches the loop that waits for the chunks.
+            wait_for(lambda: worker.state.executing_count > 0, "the chunk did not start")
+            raise KeyboardInterrupt
+            yield  # a generator, as distributed.as_completed is iterated
+
+        monkeypatch.setattr(distributed, "as_completed", ctrl_c_once_running)
+        # Not pytest.warns: the chunk's worker thread shares this process's
+        # warning filters (warnings.catch_warnings is not thread-safe).
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            r = varint.chaos_map(hh, grid, "sali", t_end=1e9, tau=0.05, client=client,
+                                 progress=False, threshold=None)
+        assert r.interrupted and np.isnan(r.values).all()
+        wait_for(lambda: worker.state.executing_count == 0,
+                 "the cancelled chunk still runs on its worker")

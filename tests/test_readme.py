@@ -47,6 +47,12 @@ REDUCED = [
      'r = varint.lyapunov_spectrum(model, x0, 50.0, tau=0.05, method=method, **options)'),
     ('d = varint.departure(model, x0, "tdhcc", tau=0.05, t_end=2e4)',
      'd = varint.departure(model, x0, "tdhcc", tau=0.05, t_end=2e3)'),
+    # The lattice block: the same calls on shorter times and fewer realisations.
+    ('"dvd", 1e4, 0.2, scheme="ABA864")', '"dvd", 20.0, 0.2, scheme="ABA864")'),
+    ('"spreading", 1e3, 0.1, scheme="s9ABC6")', '"spreading", 5.0, 0.1, scheme="s9ABC6")'),
+    ('varint.ensemble(DDNLS, range(1, 21),', 'varint.ensemble(DDNLS, range(1, 3),'),
+    ('"dvd", 1e5, 0.2, params={"shape": 512,', '"dvd", 100.0, 0.2, params={"shape": 64,'),
+    ('e.exponent("x1", (1e3, 1e5))', 'e.exponent("x1", (10.0, 100.0))'),
 ]
 
 

@@ -8,24 +8,59 @@ import numpy as np
 import pytest
 
 import varint
-from varint.schemes import DRIFT, KICK, SplittingScheme, stage_arrays
 from varint.methods.tm import tangent_map_steps
+from varint.schemes import (DEFAULT_SCHEME, DRIFT, KICK, CompositionScheme, SplittingScheme,
+                            register_scheme, registered, scheme_word, stage_arrays)
 
 from tests.helpers import fitted_slope
 
-NAMES = [s.name for s in varint.SCHEMES.values()]
+NAMES = [s.name for s in registered(2)]
 
 
 def test_registry_has_the_literature_schemes():
     expected = {f"{f}{n}{c}" for f in ("SABA", "SBAB") for n in range(1, 5) for c in ("", "C")}
     expected |= {"ABA864", "ABAH864", "FR4", "s9odr6", "s11odr6", "SRKN14a"}
+    expected |= {"s15odr8", "s17odr8", "s35odr10"}
     assert expected <= set(NAMES)
+
+
+@pytest.mark.parametrize("name", ["FR4", "s9odr6", "s11odr6", "s15odr8", "s17odr8", "s35odr10"])
+def test_compositions_meet_their_odd_power_conditions(name):
+    """A symmetric composition Π S2(γ_i τ) of order p needs Σγ_i = 1 and
+    Σγ_i^k = 0 for every odd k < p (Hairer, Lubich & Wanner, Geometric
+    Numerical Integration, Sect. V.3.2: the trees with one vertex); the next
+    odd power sum does not vanish. A single wrong digit of a published γ
+    breaks these sums far above round-off."""
+    s = varint.get_scheme(name)
+    half = list(s.kicks)  # the kicks of a leapfrog composition are its γ
+    full = half + half[-2::-1]
+    assert math.fsum(full) == pytest.approx(1.0, abs=1e-15)
+    for k in range(3, s.order, 2):
+        assert abs(math.fsum(g ** k for g in full)) < 1e-15, k
+    assert abs(math.fsum(g ** (s.order + 1) for g in full)) > 1e-6
 
 
 def test_lookup_is_case_insensitive_and_errors_list_names():
     assert varint.get_scheme("sbab2c") is varint.get_scheme("SBAB2C")
-    with pytest.raises(ValueError, match="unknown scheme 'RK4'.*SABA1.*SRKN14a"):
+    with pytest.raises(ValueError, match="unknown scheme 'RK4'.*SABA1.*SRKN14a.*s21ABC8"):
         varint.get_scheme("RK4")
+
+
+def test_one_registry_resolves_two_and_k_part_schemes():
+    """One registry and one resolver for every scheme: a composition over
+    three parts resolves like a two-part scheme, and is refused (naming the
+    models it runs on) where the drift and kick of H = T + V are needed."""
+    abc2 = varint.get_scheme("abc2")
+    assert isinstance(abc2, CompositionScheme) and abc2 is varint.SCHEMES["ABC2"]
+    assert varint.get_scheme(abc2) is abc2
+    assert varint.get_scheme("SBAB2C", n_parts=2).n_parts == 2
+    with pytest.raises(ValueError, match="'ABC2' composes the flows of 3 parts.*DDNLS"):
+        varint.get_scheme("ABC2", n_parts=2)
+    assert set(registered()) == set(registered(2)) | set(registered(3))
+    assert not set(registered(2)) & set(registered(3))
+    assert DEFAULT_SCHEME in varint.SCHEMES and varint.get_scheme(DEFAULT_SCHEME).name == "SBAB2C"
+    with pytest.raises(ValueError, match="already registered"):
+        register_scheme(CompositionScheme("abc2", 3, (1.0,), 2))
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -36,7 +71,7 @@ def test_coefficients_sum_to_one_and_layout_is_palindromic(name):
     assert math.isclose(math.fsum(c for k, c in stages if k == KICK), 1.0, abs_tol=1e-15)
     assert list(stages) == list(stages)[::-1]
     kinds = [k for k, _ in stages]
-    assert all(a != b for a, b in zip(kinds, kinds[1:])), "drifts and kicks alternate"
+    assert all(a != b for a, b in zip(kinds[:-1], kinds[1:], strict=True)), "drifts and kicks alternate"
     assert kinds[0] == (DRIFT if s.drift_first else KICK)
 
 
@@ -69,7 +104,11 @@ def test_measured_order_of_energy_error(name, c1):
     H = 1/8) equals the documented order ± 0.3."""
     s = varint.get_scheme(name)
     # Sixth-order schemes reach round-off at τ = 0.05; measure them earlier.
-    taus = (0.4, 0.2, 0.1) if s.order >= 6 else (0.2, 0.1, 0.05)
+    # The order-10 s35odr10 goes from pre-asymptotic (slope 13 at τ ≥ 0.6)
+    # to round-off (1e-14 at τ = 0.2) within a factor 3 of τ: measured on
+    # a finer ladder in between (slope 10.3).
+    taus = ((0.5, 0.4, 0.3125, 0.25) if s.order >= 10 else
+            (0.4, 0.2, 0.1) if s.order >= 6 else (0.2, 0.1, 0.05))
     errs = [_max_energy_error(*c1, tau, name) for tau in taus]
     assert abs(fitted_slope(taus, errs) - s.order) < 0.3, errs
 
@@ -159,15 +198,14 @@ def test_scheme_fields_are_normalised_and_checked():
 
 def test_register_scheme_refuses_what_is_not_a_scheme():
     before = dict(varint.SCHEMES)
-    with pytest.raises(ValueError, match="register_scheme needs a SplittingScheme, got str"):
+    with pytest.raises(ValueError, match="register_scheme needs a SplittingScheme or "
+                                         "CompositionScheme, got str"):
         varint.register_scheme("SBAB9")
-    assert varint.SCHEMES == before
+    assert before == varint.SCHEMES
 
 
 # -- schemes over k parts (the lattices) ---------------------------------------
-from varint.schemes import PART_SCHEMES, CompositionScheme, scheme_word  # noqa: E402
-
-PART_NAMES = [s.name for s in PART_SCHEMES.values()]
+PART_NAMES = [s.name for s in registered(3)]
 
 
 def test_part_registry_holds_the_verified_compositions():
@@ -176,19 +214,19 @@ def test_part_registry_holds_the_verified_compositions():
     assert expected == set(PART_NAMES)
     # Danieli et al. 2019 name s19ABC8, but its 19-stage table was not found:
     # it is not registered, and no other table stands in for it.
-    assert "S19ABC8" not in PART_SCHEMES
+    assert "S19ABC8" not in varint.SCHEMES
     with pytest.raises(ValueError, match="composes the flows of 3 parts"):
-        varint.get_scheme("s9ABC6")
+        varint.get_scheme("s9ABC6", n_parts=2)
 
 
 @pytest.mark.parametrize("name", PART_NAMES)
 def test_compositions_are_palindromic_and_consistent(name):
-    s = PART_SCHEMES[name.upper()]
+    s = varint.get_scheme(name)
     word = s.word()
     assert word == word[::-1]
     for part in range(3):
         assert math.isclose(math.fsum(c for p, c in word if p == part), 1.0, abs_tol=1e-14)
-    assert all(a[0] != b[0] for a, b in zip(word, word[1:])), "adjacent flows merged"
+    assert all(a[0] != b[0] for a, b in zip(word[:-1], word[1:], strict=True)), "adjacent flows merged"
     # A's merge across stages: s + 1 A flows, 2s B flows, s C flows.
     assert s.flows_per_step() == (s.stages + 1, 2 * s.stages, s.stages)
 
@@ -236,7 +274,7 @@ def ddnls_cases():
 def test_measured_order_of_three_part_schemes(name, ddnls_cases):
     """Energy-error slope against τ on the DDNLS (1D, 16 sites, and 2D,
     4 × 4; W = 4, β = 1, random q, p in [−1, 1]) within 0.2 of the order."""
-    s = PART_SCHEMES[name.upper()]
+    s = varint.get_scheme(name)
     for model, x0 in ddnls_cases:
         errs = [_rms_energy_error(model, x0, tau, name) for tau in LADDER]
         assert abs(fitted_slope(LADDER, errs) - s.order) < 0.2, (model.name, errs)

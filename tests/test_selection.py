@@ -85,3 +85,27 @@ def test_the_default_pilot_fits_any_candidate_steps():
     assert default_pilot(10.0, [0.05, 0.2]) == pytest.approx(9.6)
     with pytest.raises(ValueError, match="shorter than the shortest pilot, 0.8"):
         default_pilot(0.5, [0.05, 0.2])
+
+
+def test_the_high_order_candidates_keep_the_default_pilot_and_win_at_tight_targets(r1):
+    """The orders 8 and 10 join the default candidates at steps of
+    DEFAULT_TAUS, so the default pilot horizon is the one of the old
+    candidates for every t_end; at a tangent error of 1e-11 at t = 1e3 on R1
+    the order-10 s35odr10 at τ = 0.2 meets the target (8e-13 predicted,
+    studies/frontier.py measures 1.5e-12) where the order-6 SRKN14a at the same
+    step misses it by more than a hundredfold (its error is O(τ⁶))."""
+    from varint.selection import (DEFAULT_SCHEMES, DEFAULT_TAUS, HIGH_ORDER_CANDIDATES,
+                                  _candidates, default_pilot)
+
+    assert set(HIGH_ORDER_CANDIDATES) <= set(_candidates(None))
+    assert {s for _, s, _ in HIGH_ORDER_CANDIDATES} == {"s17odr8", "s35odr10"}
+    for t_end in (2.0, 10.0, 1e3):
+        assert (default_pilot(t_end, [t for _, _, t in _candidates(None)])
+                == default_pilot(t_end, DEFAULT_TAUS)), t_end
+    assert len(_candidates(None)) == len(DEFAULT_SCHEMES) * len(DEFAULT_TAUS) + 4
+    model, x0 = r1
+    choice = varint.select_scheme(model, x0, 1e-11, metric="tangent", t_end=1e3,
+                                  candidates=[("tm", "s35odr10", 0.2), ("tm", "SRKN14a", 0.2)])
+    rows = {r["scheme"]: r for r in choice.table}
+    assert choice.scheme == "s35odr10" and rows["s35odr10"]["meets"]
+    assert rows["SRKN14a"]["error"] > 100 * rows["s35odr10"]["error"]

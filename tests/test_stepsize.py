@@ -161,3 +161,20 @@ def test_options_are_checked_before_the_pilot_naming_the_methods_that_take_them(
         varint.sali(model, x0, 10.0, rtol=1e-9)
     with pytest.raises(ValueError, match="method 'taylor' takes no scheme"):
         varint.sali(model, x0, 10.0, method="taylor", scheme="ABA864")
+
+
+@pytest.mark.parametrize("scheme", ["s15odr8", "s17odr8", "s35odr10"])
+def test_the_orders_8_and_10_get_an_automatic_step_that_meets_the_tolerance(scheme):
+    """The pilot's ladder predicts the next rung from the scheme's order, so
+    the new orders need nothing of their own: on R1 their step is the
+    largest rung (≤ TAU_MAX) whose pilot met energy_tol / PILOT_MARGIN, and
+    the run's energy error stays below energy_tol."""
+    model, x0 = varint.paper_orbit("R1")
+    r = varint.lyapunov_spectrum(model, x0, 200.0, scheme=scheme)
+    choice = r.provenance.tau_choice
+    assert choice["rule"] == "pilot" and choice["scheme"] == scheme
+    assert 0.5 < choice["tau"] <= stepsize.TAU_MAX
+    passing = [e for t, e in choice["tried"] if t >= choice["tau"] * (1 - 1e-12)
+               and e <= choice["tolerance"]]
+    assert passing, choice["tried"]
+    assert r.energy_error.max() <= choice["tolerance"] * stepsize.PILOT_MARGIN

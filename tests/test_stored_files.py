@@ -451,6 +451,10 @@ RESULT_EDITS = {
         lambda m: m["provenance"].update({"shell": "rm"})), "provenance.shell"),
     "provenance counts negative": (_meta_edit(
         lambda m: m["provenance"]["counts"].update({"steps": -4})), "provenance.counts.steps"),
+    "provenance timing not seconds": (_meta_edit(
+        lambda m: m["provenance"].update({"timing": {"run": "1"}})), "provenance.timing.run"),
+    "provenance timing negative": (_meta_edit(
+        lambda m: m["provenance"].update({"timing": {"run": -1.0}})), "provenance.timing.run"),
     "a field unknown": (_meta_edit(lambda m: m.update({"__init__": 1})), "__init__"),
     "verdict flipped to accurate": (_meta_edit(lambda m: m["accuracy"].update(
         {"energy_error": 0.5, "conserved": {"energy": 0.5}, "accurate": True})),

@@ -8,6 +8,7 @@ import pytest
 import varint
 from varint.kernels import tm as K
 from varint.kernels.checks import renormalize_block
+from varint.kernels.interval import Call
 from varint.protocol import Renorm, Status
 from varint.methods import make_propagator
 from varint.state import RunState
@@ -115,14 +116,16 @@ def test_specialised_and_run_time_sized_kernels_agree_bitwise(c1):
 
     kinds, h, hc = stage_arrays(varint.get_scheme("SABA3C"), 0.05)
     results = []
-    for kernel in (K.tm_batch(2, 4, 1, False), K.tm_batch(-1, -1, -1, False)):
+    kernels = K.model_kernels(model)
+    for kernel in (K.tm_batch(2, 4, 1, False, kernels), K.tm_batch(-1, -1, -1, False, kernels)):
         X, W = x0[None].copy(), np.eye(4)[None].copy()
         acc_m, acc_e = np.ones((1, 4)), np.zeros((1, 4), dtype=np.int64)
-        kernel(X, W, acc_m, acc_e, 500, kinds, h, hc, model.inverse_mass, model.params,
-               model.bandwidth, model.grad_kernel, model.hess_kernel, model.third_kernel,
-               int(Renorm.QR), np.inf, np.zeros((1, 4), dtype=np.int64),
-               np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), K.no_accumulator,
-               np.empty((1, 0, 0)), 0, 0.05)
+        kernel(K.TMOrbit(X, W, acc_m, acc_e, np.empty((1, 0, 0)), np.zeros((1, 4), dtype=np.int64),
+                         np.empty((1, 0)), np.empty((1, 0, 0))),
+               K.TMSetup(kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
+                         np.empty(0)),
+               Call(500, 0, 0.05, int(Renorm.QR), np.inf), np.zeros(1, dtype=np.int64),
+               np.zeros(1, dtype=np.int64))
         results.append((X, W, acc_m))
-    for a, b in zip(*results):
+    for a, b in zip(*results, strict=True):
         assert np.array_equal(a, b)

@@ -76,6 +76,7 @@ from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
 from .checkpoint import CheckpointError  # noqa: E402
 from .departure import Departure, departure  # noqa: E402
 from .driver import IntegrationError  # noqa: E402
+from .element_grid import element_grid  # noqa: E402
 from .grids import PhaseGrid, phase_grid  # noqa: E402
 from .ensemble import EnsembleResult, ensemble  # noqa: E402
 from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
@@ -105,6 +106,7 @@ __all__ = [
     "IndicatorResult", "load_result", "Status", "Renorm",
     "IntegrationError", "CheckpointError", "departure", "Departure",
     "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid", "ensemble",
-    "EnsembleResult", "phase_grid", "PhaseGrid", "SectionResult", "select_scheme",
+    "EnsembleResult", "phase_grid", "PhaseGrid", "element_grid", "SectionResult",
+    "select_scheme",
     "Accuracy", "AccuracyWarning",
 ]

@@ -525,11 +525,12 @@ def output_file(path, name="output file"):
     if "\0" in text:
         raise ValueError(f"{name} must be a file path, got {text!r} (it contains a NUL byte)")
     p = Path(text)
-    if p.is_symlink() and not is_device_path(p):
-        raise ValueError(f"{name} {text} is a symbolic link (to {os.readlink(p)}); varint does "
-                         "not write through links, whose target someone else may have chosen: "
-                         "remove it or choose another path")
     try:
+        # Inside: a name the system refuses (too long) fails lstat too.
+        if p.is_symlink() and not is_device_path(p):
+            raise ValueError(f"{name} {text} is a symbolic link (to {os.readlink(p)}); varint "
+                             "does not write through links, whose target someone else may have "
+                             "chosen: remove it or choose another path")
         if p.is_dir():
             raise ValueError(f"{name} {text} is a directory; expected a file path")
         parent = p.parent

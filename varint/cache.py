@@ -23,18 +23,17 @@ safe.
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
 import io
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from . import cachedir
 from .cachedir import CacheDirWarning
 from .files import atomic_write, canonical_json
+from .identity import source_digest
 from .results import load_result, package_versions
 
 __all__ = ["cache_dir", "cache_key", "cached", "reference", "CacheWarning"]
@@ -52,21 +51,6 @@ class CacheWarning(CacheDirWarning):
     be written."""
 
 
-@functools.cache
-def _source_digest():
-    # Results depend on varint's code as well as on its version number, which
-    # does not change with every edit: hash the sources themselves.
-    from . import baselines
-
-    h = hashlib.sha256()
-    for name, folder in (("varint", Path(__file__).resolve().parent),
-                         ("varint.baselines", Path(baselines.__file__).resolve().parent)):
-        for path in sorted(folder.rglob("*.py")):
-            if name == "varint" and "baselines" in path.relative_to(folder).parts:
-                continue  # an installed copy, hashed as varint.baselines
-            h.update(f"{name}/{path.relative_to(folder)}".encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()
 
 
 def _canonical(obj):
@@ -100,7 +84,7 @@ def cache_key(parts) -> str:
         as objects: their ``describe()`` is used).
     """
     versions = package_versions("heyoka", "scikit-sundae")
-    payload = {"parts": _canonical(parts), "versions": versions, "source": _source_digest()}
+    payload = {"parts": _canonical(parts), "versions": versions, "source": source_digest()}
     return hashlib.sha256(canonical_json(payload).encode()).hexdigest()
 
 

@@ -1,7 +1,7 @@
 """The per-user cache directory: where it is, that it is private, and the
 secret with which varint signs what it keeps there.
 
-varint keeps generated code (the steppers of :mod:`varint.kernels.generate`
+varint keeps generated code (the steppers of :mod:`varint.codegen.stepper`
 and the kernels of :func:`varint.models.from_potential`), numba's compiled
 copies of it, the symbolic facts of built-in models and cached reference
 results in one directory (:func:`location`). Code found there is imported

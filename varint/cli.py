@@ -6,6 +6,9 @@
     varint run x1 --map standard --K 10     a symplectic map (iterations)
     varint run sali --potential "-cos(q)*(1+0.2*cos(1.5*t))" --coords q --time t
                                             a periodically driven system
+    varint run fli --hamiltonian "..." --coords x,y --momenta px,py
+                                            any H(q, p): rotating frames,
+                                            magnetic fields, general H
     varint map --energy 0.125 ...           a chaos map of a surface of section
     varint map --map standard --K 1.2 ...   a chaos map of a map's phase space
     varint select --orbit R1 --target 1e-8  the cheapest scheme and step
@@ -255,14 +258,20 @@ def _add_model_arguments(p, orbit=True, maps=False):
                        help="V(q) as a formula in the --coords, e.g. "
                        "'(x**2+y**2)/2 + x**2*y - y**3/3': numbers, + - * / ** ^, parentheses, "
                        "pi, E and sin, cos, tan, exp, log, sqrt, sinh, ..., atan2")
+    group.add_argument("--hamiltonian", metavar="EXPR",
+                       help="H(q, p) as a formula in the --coords and --momenta (same syntax as "
+                       "--potential), e.g. '(px**2+py**2)/2 + y*px - x*py - 1/sqrt(x**2+y**2)': "
+                       "its structure is recognised (varint.models.from_hamiltonian)")
     group.add_argument("--coords", metavar="NAMES",
-                       help="the coordinates of --potential in order, e.g. x,y")
+                       help="the coordinates of --potential or --hamiltonian in order, e.g. x,y")
+    group.add_argument("--momenta", metavar="NAMES",
+                       help="the momenta of --hamiltonian in order, e.g. px,py")
     group.add_argument("--inverse-mass", metavar="M", help="diagonal of M^-1 for --potential "
                        "(default all 1)")
     if maps:
         group.add_argument("--time", metavar="NAME", help="the time variable of a "
-                           "time-dependent --potential V(q, t), e.g. t (integrated in the "
-                           "extended phase space from t = 0)")
+                           "time-dependent --potential V(q, t) or --hamiltonian H(q, p, t), e.g. "
+                           "t (integrated in the extended phase space from t = 0)")
     # One option per parameter of the registered models (varint.models.registry).
     for option, users in _parameter_options(entries).items():
         integer = all(par.integer for _, par in users)
@@ -271,7 +280,7 @@ def _add_model_arguments(p, orbit=True, maps=False):
 
 
 def _add_state_arguments(p):
-    group = p.add_argument_group("initial state (with --model or --potential)")
+    group = p.add_argument_group("initial state (with --model, --potential or --hamiltonian)")
     group.add_argument("--x0", metavar="Q,P", help="the full state q then p, comma-separated")
     group.add_argument("--energy", type=_finite, help="solve p[0] >= 0 from this energy, "
                        "with --q and --p giving the rest")
@@ -295,7 +304,8 @@ def _model(args):
     from .models import paper_orbit
     from .models.registry import get_model
 
-    sources = [a for a in ("orbit", "model", "potential", "map") if hasattr(args, a)]
+    sources = [a for a in ("orbit", "model", "potential", "hamiltonian", "map")
+               if hasattr(args, a)]
     given = _given(args, *sources)
     if len(given) != 1:
         raise ValueError("give exactly one of " + ", ".join(f"--{a}" for a in sources)
@@ -311,21 +321,27 @@ def _model(args):
             raise ValueError(f"{option} applies to "
                              f"{' and '.join(_source(e) for e, _ in users)} only")
         values[takes[0].name] = value
+    if given[0] not in ("potential", "hamiltonian"):
+        _refuse_unused(args, ("coords", "time"), "applies to --potential and --hamiltonian only")
     if given[0] != "potential":
-        _refuse_unused(args, ("coords", "inverse_mass", "time"), "applies to --potential only")
+        _refuse_unused(args, ("inverse_mass",), "applies to --potential only")
+    if given[0] != "hamiltonian":
+        _refuse_unused(args, ("momenta",), "applies to --hamiltonian only")
     if given[0] == "orbit":
         return paper_orbit(args.orbit)
     if entry is not None:
         return entry.build(**values), None
+    if given[0] == "hamiltonian":
+        return _hamiltonian_model(args), None
     return _potential_model(args), None
 
 
-def _potential_model(args):
-    from .formula import coordinate_symbols, parse_formula
-    from .models import from_potential
+def _symbols(args, option):
+    """The --coords of ``option`` (and --time), checked: (symbols, time)."""
+    from .formula import coordinate_symbols
 
     if args.coords is None:
-        raise ValueError("--potential needs --coords naming its coordinates, e.g. --coords x,y")
+        raise ValueError(f"{option} needs --coords naming its coordinates, e.g. --coords x,y")
     names = [c.strip() for c in args.coords.split(",")]
     if len(names) > MAX_COORDS:
         raise ValueError(f"--coords names {len(names)} coordinates; at most {MAX_COORDS} (the "
@@ -337,7 +353,36 @@ def _potential_model(args):
         time = coordinate_symbols([time.strip()], "--time")[0]
         if time.name in names:
             raise ValueError(f"--time {time.name} is also one of the --coords")
-    variables = [s.name for s in symbols] + ([] if time is None else [time.name])
+    return symbols, time
+
+
+def _hamiltonian_model(args):
+    from .formula import coordinate_symbols, parse_formula
+    from .models import from_hamiltonian
+
+    q, time = _symbols(args, "--hamiltonian")
+    if args.momenta is None:
+        raise ValueError("--hamiltonian needs --momenta naming the momenta of the --coords in "
+                         "order, e.g. --momenta px,py")
+    p = coordinate_symbols([m.strip() for m in args.momenta.split(",")], "--momenta")
+    if len(p) != len(q):
+        raise ValueError(f"--momenta names {len(p)} momenta for {len(q)} --coords")
+    clash = sorted({s.name for s in p} & {s.name for s in q} | (
+        {time.name} & {s.name for s in p} if time is not None else set()))
+    if clash:
+        raise ValueError(f"{clash[0]} is both a momentum and a coordinate (or the time)")
+    variables = [s.name for s in (*q, *p)] + ([] if time is None else [time.name])
+    H = parse_formula(args.hamiltonian, variables, "--hamiltonian")
+    return from_hamiltonian(H, q, p, time=time, name=" ".join(args.hamiltonian.split()))
+
+
+def _potential_model(args):
+    from .formula import parse_formula
+    from .models import from_potential
+
+    symbols, time = _symbols(args, "--potential")
+    names = [s.name for s in symbols]
+    variables = names + ([] if time is None else [time.name])
     V = parse_formula(args.potential, variables, "--potential")
     minv = None
     if args.inverse_mass is not None:
@@ -372,7 +417,7 @@ def _state(args, model, x0):
         q = _floats(args.q, "--q", n) if args.q is not None else [0.0] * n
         p = _floats(args.p, "--p", n) if args.p is not None else [0.0] * n
         with np.errstate(over="ignore"):
-            x = solve_momentum(model, q, p, args.energy)
+            x = _solve_momentum(model, q, p, args.energy, solve_momentum)
         if not np.isfinite(x).all():
             raise ValueError(f"--energy {args.energy:g} gives a momentum p[0] = {x[n]:g} beyond "
                              "the range of a double")
@@ -381,6 +426,20 @@ def _state(args, model, x0):
         raise ValueError("give the initial state: --x0, or --energy with --q/--p "
                          "(or use --orbit)")
     return x0
+
+
+def _solve_momentum(model, q, p, energy, solve_momentum):
+    """(q, p) with p[0] solved from the energy: ``solve_momentum`` for
+    ½pᵀM⁻¹p + V(q), the model's own solver for any H(q, p) (on the branch
+    q̇_0 ≥ 0)."""
+    if not callable(getattr(model, "momentum_from_energy", None)):
+        return solve_momentum(model, q, p, energy)
+    x = np.concatenate([q, p]).astype(float)
+    x[model.n_dof] = model.momentum_from_energy(x, energy, 0)
+    if not np.isfinite(x[model.n_dof]):
+        raise ValueError(f"no real momentum p[0] gives energy {energy!r} at q = {list(q)} "
+                         "with the other momenta given (with q̇_0 >= 0)")
+    return x
 
 
 def _is_map(model):
@@ -401,7 +460,13 @@ def _check_kernels(model, x, what="the initial state"):
         return
     q = np.ascontiguousarray(np.asarray(x, dtype=float)[:model.n_dof])
     try:
-        values = (model.gradient(q), model.hessian_band(q), model.third_band(q, np.ones_like(q)))
+        if callable(getattr(model, "hessian_h", None)):
+            # Any H(q, p): its gradient and Hessian in (q, p).
+            state = np.ascontiguousarray(x, dtype=float)
+            values = (model.gradient_h(state), model.hessian_h(state))
+        else:
+            values = (model.gradient(q), model.hessian_band(q),
+                      model.third_band(q, np.ones_like(q)))
     except NumbaError as exc:
         reason = _first_line(exc)
         if reason.startswith("Int value is too large"):
@@ -482,7 +547,7 @@ def _write_csv(path, cols, flag="--csv"):
         with output_file(path, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(list(cols))
-            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()]))
+            w.writerows(zip(*[np.asarray(c).tolist() for c in cols.values()], strict=True))
     except OSError as exc:
         raise OSError(f"cannot write {flag} {path}: {exc.strerror or exc}") from exc
     print(f"table written to {path}")
@@ -545,19 +610,19 @@ class _Interrupted(Exception):
 
 # -- subcommands -------------------------------------------------------------------
 def _cmd_schemes(args):
-    from .schemes import SCHEMES
+    from .schemes import registered
 
     _check_outputs(args)
     cols = {"name": [], "order": [], "nominal": [], "forces/step": [], "corrector": [],
             "reference": []}
-    for s in SCHEMES.values():
+    for s in registered(2):
         for key, value in zip(cols, (s.name, s.order, s.nominal_order or "-",
                                      s.force_evaluations, "yes" if s.corrector else "no",
-                                     s.reference.split(",")[0] or "-")):
+                                     s.reference.split(",")[0] or "-"), strict=True):
             cols[key].append(value)
     print(f"{'name':10} {'order':>5} {'nominal':>9} {'forces/step':>11} {'corrector':>9}  "
           "reference")
-    for row in zip(*cols.values()):
+    for row in zip(*cols.values(), strict=True):
         print(f"{row[0]:10} {row[1]:>5} {row[2]:>9} {row[3]:>11} {row[4]:>9}  {row[5]}")
     print("order: of the energy error for H = p^2/2 + V(q); forces/step: gradient "
           "evaluations per step in a long run (the cost)")

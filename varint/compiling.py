@@ -2,7 +2,7 @@
 
 The first run of a new model, method or scheme compiles its kernels with
 numba, which takes seconds (cached on disk for the next process, see
-:mod:`varint.kernels.generate`); later runs take milliseconds. So that
+:mod:`varint.codegen.stepper`); later runs take milliseconds. So that
 neither the wait nor the timings mislead:
 
 * every compilation is timed through numba's event API
@@ -33,7 +33,7 @@ import time
 
 from numba.core import event
 
-from .cache import cache_dir
+from . import cachedir
 from .files import atomic_write
 
 __all__ = ["Clock", "compile_seconds", "ANNOUNCE_AFTER"]
@@ -181,14 +181,21 @@ class _Part:
 
 
 def _store():
-    return cache_dir() / _TIMES
+    """The store's path in the private cache directory
+    (:func:`varint.cachedir.private_dir`: never a directory that others
+    could write, which is refused for everything else too), or None."""
+    base = cachedir.private_dir()
+    return None if base is None else base / _TIMES
 
 
 def _read():
     """The measured compile times: a list of positive finite numbers (an
     unreadable or foreign file counts as none; it only sets a message)."""
+    path = _store()
+    if path is None:
+        return []
     try:
-        values = json.loads(_store().read_text())
+        values = json.loads(path.read_text())
     except (OSError, ValueError):
         return []
     if not isinstance(values, list):
@@ -210,8 +217,10 @@ def _remember(seconds):
     skipped silently, since it only refines a message."""
     if seconds <= ANNOUNCE_AFTER:
         return
+    path = _store()
+    if path is None:
+        return
     try:
-        path = _store()
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, json.dumps((_read() + [round(seconds, 3)])[-_KEEP:]))
     except OSError:

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from .api import gali, lyapunov_spectrum
+from .files import output_file
 from .models import paper_orbit
 
 
@@ -60,7 +62,12 @@ def run(t_end=1e5, tau=0.05, scheme="SBAB2C", out="varint_demo.png", progress=No
             axes[row, 0].set_title(f"{name}: finite-time Lyapunov exponents")
             plot_gali(gl, axes[row, 1], guide=name == "R1")
             axes[row, 1].set_title(f"{name}: GALIs")
-        fig.savefig(out, dpi=120)
+        # As --png: a symbolic link planted at ``out`` is replaced, never
+        # written through.
+        fmt = Path(out).suffix[1:].lower() or "png"
+        with output_file(out, "wb") as f:
+            fig.savefig(f, format=fmt, dpi=120)
+        plt.close(fig)
         print(f"plot saved to {out}")
     return results
 

@@ -41,6 +41,7 @@ from typing import ClassVar
 import numpy as np
 
 from . import _validate as check
+from . import identity
 from .checkpoint import CheckpointError, canonical
 from .indicators import resolve
 from .maps import _bar, _cluster_threads, _total_cpu, _worker_threads
@@ -488,6 +489,8 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
                       t_end=first.t_end, seed=None, options=options,
                       versions=p.versions if p is not None else package_versions(),
                       counts=counts, wall_time=wall,
+                      code=p.code if p is not None else identity.code_identity(),
+                      machine=p.machine if p is not None else identity.machine(),
                       cpu_time=_total_cpu(r.provenance.cpu_time for r in results.values()))
     return EnsembleResult(t=t, energy_error=energy, state=state, provenance=prov, status=status,
                           interrupted=interrupted, seeds=np.array(seeds, dtype=np.int64),

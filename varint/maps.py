@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, stepsize
+from . import accuracy, compiling, identity, stepsize
 from .checkpoint import digest
 from .indicators import INDICATORS, Indicator, resolve
 from .methods import METHODS, propagator_class
@@ -229,7 +229,8 @@ def run_chunk(model, x0, indices, spec):
                   state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
                   counts=dict(state.counts),
                   provenance={"method_options": job.propagator.describe(),
-                              "versions": job.versions()},
+                              "versions": job.versions(), "code": job.code,
+                              "machine": job.machine},
                   interrupted=stop == "interrupted",
                   cpu_time=None if cancelled is not None else time.process_time() - cpu)
 
@@ -524,7 +525,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "t_check": digest(steps), "method": spec.method,
                   "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,
-                  "versions": package_versions()}
+                  "versions": package_versions(), "code": identity.source_digest()}
     store = None
     done = {}
     if checkpoint is not None:
@@ -669,6 +670,8 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
                       t_end=spec.t_end, seed=spec.seed, options=options,
                       versions=first.get("versions", package_versions()), counts=counts,
                       wall_time=wall, tau_choice=dict(tau_choice),
+                      code=first.get("code", identity.code_identity()),
+                      machine=first.get("machine", identity.machine()),
                       cpu_time=_total_cpu(chunk.cpu_time for chunk in done.values()))
     failed = is_failure(status)
     with np.errstate(invalid="ignore"):

@@ -9,7 +9,7 @@
   method, checkpoints resume bitwise and failures are reported alike).
 * :class:`Accumulator` — a quantity an indicator accumulates after every
   interval (MEGNO, FLI, …), computed by the same compiled code inside every
-  method.
+  method, with its :class:`UpdateRule` for the generated steppers.
 
 Nothing here imports the rest of varint: every other module may import it.
 """
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 __all__ = ["Status", "Renorm", "REASONS", "TANGENT_LIMIT", "COUNTERS", "TIME_MOMENTUM",
-           "Propagator", "Accumulator", "is_failure", "STATUS_OK"]
+           "Propagator", "Accumulator", "UpdateRule", "is_failure", "STATUS_OK"]
 
 
 class Status(enum.IntEnum):
@@ -51,6 +51,12 @@ class Status(enum.IntEnum):
     #: where the orbit is (e.g. log x at x < 0). Found by the run when it
     #: records, not by the stepper.
     POTENTIAL_NONFINITE = 9
+    #: Two planets came closer than the close-encounter distance
+    #: (:class:`varint.models.Planetary`, in mutual Hill radii).
+    CLOSE_ENCOUNTER = 10
+    #: A Kepler drift could not be solved (a planet on the star or a
+    #: degenerate state: :mod:`varint.kernels.kepler`).
+    KEPLER_FAILED = 11
 
 
 #: ``Status.OK`` as a plain int, for comparisons with status arrays: NumPy
@@ -82,6 +88,11 @@ REASONS = {
     Status.POTENTIAL_NONFINITE: ("the potential is not finite at the orbit's position (it is "
                                  "singular or not real there) although its derivatives were, "
                                  "so the energy is undefined; found at this output time"),
+    Status.CLOSE_ENCOUNTER: ("two planets came closer than the model's close-encounter "
+                             "distance (close_encounter, in mutual Hill radii): the "
+                             "Wisdom-Holman map does not resolve an encounter"),
+    Status.KEPLER_FAILED: ("a planet's Kepler drift could not be solved (the planet is on the "
+                           "star or its state is degenerate)"),
 }
 
 #: Unrenormalised deviation vectors larger than this are reported as overflow.
@@ -125,6 +136,47 @@ class Renorm(enum.IntEnum):
 
 
 @dataclass(frozen=True)
+class UpdateRule:
+    """An accumulator's update written as source, which a generated stepper
+    (:mod:`varint.codegen`) writes into its loop — and into its SIMD lanes,
+    where calling a compiled update per orbit and step would keep the loop
+    over orbits scalar.
+
+    The statements are Python, one assignment each, without branches
+    (choose with ``a if c else b``): after each renormalisation they run for
+    every vector, reading
+
+    * the live columns, by name (their values so far);
+    * ``r``, the vector's stretching over the interval; ``t``, the time;
+    * ``am`` and ``ae``, its stretching so far as a mantissa and a binary
+      exponent (:mod:`varint.kernels.checks`), including this interval's;
+    * ``dot(a, b)`` for ``a``, ``b`` among ``x`` (the state), ``w`` (the
+      renormalised vector) and ``f`` (the phase-space velocity, when the
+      accumulator ``needs_flow``), summed from 0.0 in the order of the
+      components;
+    * ``math``, ``np``, ``abs``, ``float``, ``int``, ``max``, ``min``, and
+      the constants ``ACC_BIG``, ``ACC_SMALL`` (2^±500) and ``LN2``;
+
+    and assigning live columns and names of their own (temporaries).
+
+    Attributes
+    ----------
+    live : tuple of str
+        The columns carried from one interval to the next.
+    step : tuple of str
+        The statements run after each renormalisation.
+    readout : tuple of str
+        Statements that give the other columns (from the live ones, ``am``
+        and ``ae``) when the state is copied out; none when every column is
+        live.
+    """
+
+    live: tuple
+    step: tuple
+    readout: tuple = ()
+
+
+@dataclass(frozen=True)
 class Accumulator:
     """Quantities accumulated per deviation vector after every interval.
 
@@ -152,6 +204,13 @@ class Accumulator:
     needs_flow : bool
         Whether ``update`` reads ``flow``. Maps have none: they pass an
         empty ``flow`` (and the OFLI indicator refuses map models).
+    rule : UpdateRule, optional
+        The update as source, for the generated steppers, which then write
+        it into their loops instead of calling ``update``. The same
+        arithmetic as ``update`` gives the same bits
+        (:func:`varint.codegen.accumulators.compile_update` compiles
+        ``update`` from the rule); a rule of its own (FLI's) agrees with
+        ``update`` to round-off.
     """
 
     name: str
@@ -159,11 +218,16 @@ class Accumulator:
     initial: tuple
     update: Any
     needs_flow: bool = False
+    rule: UpdateRule | None = None
 
     def __post_init__(self):
         if len(self.columns) != len(self.initial) or not self.columns:
             raise ValueError(f"accumulator {self.name!r}: columns and initial values must "
                              "be equally long and not empty")
+        if self.rule is not None and not set(self.rule.live) <= set(self.columns):
+            raise ValueError(f"accumulator {self.name!r}: the live columns of its rule "
+                             f"{tuple(self.rule.live)} are not all among its columns "
+                             f"{tuple(self.columns)}")
 
     @property
     def key(self):

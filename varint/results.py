@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import datetime
 import json
+import math
 import os
 import platform
 from dataclasses import dataclass, field
@@ -85,6 +86,14 @@ class Provenance:
         How τ was chosen: ``{"rule": "given"}``, or the pilot that chose it
         (:mod:`varint.stepsize`: ``rule``, ``scheme``, ``tolerance``,
         ``tried`` steps and their errors, ``counts`` of the pilot's work).
+    code : dict
+        The code that ran (:func:`varint.identity.code_identity`): the
+        digest of varint's sources, and the git commit where run from a
+        checkout. Empty in results saved before it was recorded.
+    machine : dict
+        The machine when the run started (:func:`varint.identity.machine`:
+        CPU model, cores, load average). Empty in results saved before it
+        was recorded.
     timing : dict
         Seconds of this session by part, each without the numba
         compilations inside it: ``compile`` (their sum), ``pilot`` (the
@@ -116,6 +125,10 @@ class Provenance:
     created: str = field(default_factory=lambda: datetime.datetime.now(
         datetime.timezone.utc).isoformat(timespec="seconds"))
     tau_choice: dict = field(default_factory=dict)
+    # Not filled in by default: a result loaded from an older file must not
+    # be stamped with the code that loads it.
+    code: dict = field(default_factory=dict)
+    machine: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     cpu_time: float | None = None
 
@@ -653,7 +666,8 @@ _PROVENANCE_TYPES = {"kind": str, "model": dict, "x0": list, "method": str,
                      "method_options": dict, "tau": (int, float), "t_end": (int, float),
                      "seed": (int, type(None)), "options": dict, "versions": dict,
                      "counts": dict, "wall_time": (int, float), "created": str,
-                     "tau_choice": dict, "cpu_time": (int, float, type(None))}
+                     "tau_choice": dict, "code": dict, "machine": dict, "timing": dict,
+                     "cpu_time": (int, float, type(None))}
 
 
 def _provenance(d):
@@ -678,6 +692,12 @@ def _provenance(d):
     if bad:
         raise _Invalid(f"provenance.counts.{bad[0]}", f"expected a count >= 0, got "
                        f"{counts[bad[0]]!r}")
+    timing = d.get("timing", {})
+    bad = [k for k, v in timing.items() if isinstance(v, bool) or not isinstance(v, (int, float))
+           or not 0 <= v < math.inf]
+    if bad:
+        raise _Invalid(f"provenance.timing.{bad[0]}", f"expected seconds >= 0, got "
+                       f"{timing[bad[0]]!r:.60}")
     return Provenance(**d)
 
 

@@ -25,7 +25,7 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, stepsize
+from . import accuracy, compiling, identity, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
@@ -229,6 +229,9 @@ class Run:
                  progress, errors, escape_radius, checkpoint, checkpoint_interval, options,
                  energy_tol=None):
         model = _model(model)
+        # The machine as the run starts (its load, above all), and the code:
+        # worked out once per process, at its first run, not hours later.
+        self.machine, self.code = identity.machine(), identity.code_identity()
         self.indicator, fixed = resolve(indicator)
         ind = self.indicator
         given = {k: v for k, v in options.items() if k in ind.options}
@@ -299,6 +302,9 @@ class Run:
         with self.clock.part("setup"):
             self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
                                               self.accumulator, **method_options)
+        if hasattr(self.propagator, "set_horizon"):
+            # A baseline integrating blocks of intervals ends none past the run.
+            self.propagator.set_horizon(int(self.steps[-1]))
         start = self._start_state()
         if saved is None:
             self.state, self.records = start, Records()
@@ -391,15 +397,17 @@ class Run:
 
     def parameters(self):
         """Everything that determines the result, as JSON: what a checkpoint
-        must match to be resumed (package versions included, since a
-        different NumPy or numba may change the last bits)."""
+        must match to be resumed (package versions and the digest of
+        varint's sources included, since a different NumPy, numba or varint
+        may change the last bits)."""
         x0 = self.x0.tolist() if self.x0.size <= _SHOWN_X0 else digest(self.x0)
         return {"kind": self.indicator.name, "model": self.model.describe(), "x0": x0,
                 "t_end": self.t_end, "tau": self.tau, "t_out": digest(self.steps),
                 "method": self.method, "method_options": self.propagator.describe(),
                 "seed": self.seed,
                 "deviations": None if self.seed is not None else digest(self.W0),
-                "options": {**self.options, **self.run_options}, "versions": self.versions()}
+                "options": {**self.options, **self.run_options}, "versions": self.versions(),
+                "code": identity.source_digest()}
 
     def versions(self):
         """Versions of the packages the run depends on."""
@@ -570,7 +578,7 @@ class Run:
             seed=self.seed, options=canonical({**self.options, **self.run_options}),
             versions=self.versions(), counts=dict(self.state.counts),
             wall_time=self.wall_before + wall, tau_choice=dict(self.tau_choice),
-            timing=self.timing(),
+            code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
             cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
 
     def timing(self):

@@ -31,10 +31,10 @@ Schemes over k ≥ 2 named parts
 A Hamiltonian split into k integrable parts H = P_1 + … + P_k (the DDNLS's
 on-site part A and its two hopping parts B and C, [S14]_) is integrated by
 :class:`CompositionScheme`: a symmetric composition of the symmetric
-second-order map S2 (ABC² for k = 3). Those live in :data:`PART_SCHEMES`
-(the two-part registry :data:`SCHEMES` is unchanged). Both kinds become a
-*word* (:func:`scheme_word`): the ordered flows, each a slot (which part),
-a coefficient and the power of τ of its length, which the part stepper
+second-order map S2 (ABC² for k = 3). Both kinds live in one registry,
+:data:`SCHEMES`, resolved by :func:`get_scheme`, and both become a *word*
+(:func:`scheme_word`): the ordered flows, each a slot (which part), a
+coefficient and the power of τ of its length, which the part stepper
 (:mod:`varint.kernels.parts`) runs.
 """
 
@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SplittingScheme", "SCHEMES", "get_scheme", "register_scheme", "stage_arrays",
-           "stage_times", "CompositionScheme", "PART_SCHEMES", "register_part_scheme",
-           "resolve_scheme", "scheme_word", "CORRECTOR"]
+__all__ = ["SplittingScheme", "CompositionScheme", "SCHEMES", "DEFAULT_SCHEME", "get_scheme",
+           "register_scheme", "registered", "stage_arrays", "stage_times", "scheme_word",
+           "part_stages", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -125,12 +125,12 @@ class SplittingScheme:
             kinds.append(outer if i % 2 == 0 else inner)
         kinds = kinds + kinds[-2::-1]
         for kind, label in ((DRIFT, "drift"), (KICK, "kick")):
-            total = math.fsum(c for c, k in zip(full, kinds) if k == kind)
+            total = math.fsum(c for c, k in zip(full, kinds, strict=True) if k == kind)
             if not abs(total - 1.0) <= 1e-14:
                 raise ValueError(
                     f"scheme {self.name!r}: the {label} coefficients sum to {total!r}, expected 1"
                 )
-        object.__setattr__(self, "_stages", tuple(zip(kinds, full)))
+        object.__setattr__(self, "_stages", tuple(zip(kinds, full, strict=True)))
 
     def _check_fields(self):
         """Check every field's type and value, and store the coefficients
@@ -176,6 +176,12 @@ class SplittingScheme:
         return self._stages
 
     @property
+    def n_parts(self) -> int:
+        """2: the drift A = ½pᵀM⁻¹p and the kick B = V(q) (the corrector
+        C = {B, {B, A}} is made of the same two)."""
+        return 2
+
+    @property
     def n_kicks(self) -> int:
         """Kick stages in one step (force evaluations without reuse)."""
         return sum(1 for k, _ in self._stages if k == KICK)
@@ -207,7 +213,7 @@ class SplittingScheme:
             "reference": self.reference,
         }
 
-    def corrected(self, g: float, name: str | None = None) -> "SplittingScheme":
+    def corrected(self, g: float, name: str | None = None) -> SplittingScheme:
         """This scheme wrapped in the corrector of constant ``g`` (order 4 for
         H = T(p) + V(q) when the uncorrected scheme is O(τ^{2n}ε + τ²ε²))."""
         order = min(4, int(self.nominal_order.strip("()").split(",")[0])) if self.nominal_order else 4
@@ -222,6 +228,40 @@ class SplittingScheme:
             nominal_order=self.nominal_order.replace(",2)", ",4)") if self.nominal_order else "",
         )
 
+    def repeated(self, m: int) -> SplittingScheme:
+        """S(τ/m)^m as one scheme of step τ: m steps of this one per
+        interval τ, the flows of the same part at the joints merged (exact:
+        they are one flow). With ``renorm`` every τ this runs m steps per
+        renormalisation, and the drifts of a drift-first scheme cost m + 1
+        flows per τ instead of 2m — the Kepler drifts of a Wisdom–Holman
+        map, which dominate its cost.
+
+        Raises
+        ------
+        ValueError
+            If m is not a positive integer, or the scheme has a corrector
+            (its correctors would sit at every joint).
+        """
+        if isinstance(m, (bool, np.bool_)) or not isinstance(m, numbers.Integral) or m < 1:
+            raise ValueError(f"m must be a positive integer (steps per interval), got {m!r}")
+        if self.corrector is not None:
+            raise ValueError(f"scheme {self.name!r} has a corrector; repeat the scheme without "
+                             "it (its correctors would act at every joint)")
+        merged: list[list] = []
+        for _ in range(int(m)):
+            for kind, c in self._stages:
+                if merged and merged[-1][0] == kind:
+                    merged[-1][1] += c / m
+                else:
+                    merged.append([kind, c / m])
+        half = merged[:(len(merged) + 1) // 2]
+        return SplittingScheme(
+            name=f"{self.name}x{m}", drift_first=self.drift_first,
+            drifts=tuple(c for k, c in half if k == DRIFT),
+            kicks=tuple(c for k, c in half if k == KICK), order=self.order,
+            reference=f"{self.reference}; {m} steps of τ/{m} per interval τ",
+            nominal_order=self.nominal_order)
+
     @classmethod
     def from_composition(cls, name, gammas, order, reference=""):
         """A symmetric composition Π_i S2(γ_i τ) of the leapfrog
@@ -233,203 +273,6 @@ class SplittingScheme:
         drifts = [g[0] / 2] + [(g[i] + g[i + 1]) / 2 for i in range(len(g) - 1)]
         return cls(name=name, drift_first=True, drifts=tuple(drifts), kicks=tuple(g),
                    order=order, reference=reference, nominal_order=f"({order})")
-
-
-SCHEMES: dict[str, SplittingScheme] = {}
-
-
-def register_scheme(scheme: SplittingScheme) -> SplittingScheme:
-    """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name.
-
-    Raises
-    ------
-    ValueError
-        If ``scheme`` is not a :class:`SplittingScheme` (a name is not
-        enough: the registry holds coefficients) or its name is taken.
-    """
-    if not isinstance(scheme, SplittingScheme):
-        known = (f"; {scheme!r} is already registered, get it with get_scheme({scheme!r})"
-                 if isinstance(scheme, str) and scheme.upper() in SCHEMES else "")
-        raise ValueError(
-            f"register_scheme needs a SplittingScheme, got {type(scheme).__name__} {scheme!r}; "
-            "build one with SplittingScheme(name, drift_first, drifts, kicks, order)" + known)
-    key = scheme.name.upper()
-    if key in SCHEMES:
-        raise ValueError(f"a scheme named {scheme.name!r} is already registered")
-    SCHEMES[key] = scheme
-    return scheme
-
-
-def get_scheme(scheme: str | SplittingScheme) -> SplittingScheme:
-    """Resolve a scheme name (case-insensitive) or pass a scheme through.
-
-    Raises
-    ------
-    ValueError
-        For an unknown name; the message lists the valid names.
-    """
-    if isinstance(scheme, SplittingScheme):
-        return scheme
-    if isinstance(scheme, str) and scheme.upper() in SCHEMES:
-        return SCHEMES[scheme.upper()]
-    if isinstance(scheme, (str, CompositionScheme)) and _part_key(scheme) in PART_SCHEMES:
-        s = PART_SCHEMES[_part_key(scheme)]
-        raise ValueError(
-            f"scheme {s.name!r} composes the flows of {s.n_parts} parts; it runs on models that "
-            f"declare a {s.n_parts}-part split (e.g. varint.models.DDNLS) with method='tm'")
-    raise ValueError(
-        f"unknown scheme {scheme!r}; expected one of: {', '.join(s.name for s in SCHEMES.values())}"
-    )
-
-
-# --------------------------------------------------------------------------
-# Laskar & Robutel (2001): SABA_n (drift first) and SBAB_n (kick first).
-# Halves centre last; g is the corrector constant of each scheme.
-_LR = "Laskar & Robutel, Celest. Mech. Dyn. Astron. 80, 39 (2001)"
-_s3, _s5, _s15, _s21, _s30 = (math.sqrt(v) for v in (3, 5, 15, 21, 30))
-_saba4_p, _saba4_m = math.sqrt(525 + 70 * _s30), math.sqrt(525 - 70 * _s30)
-
-_LASKAR_ROBUTEL = [
-    # name, drift_first, drifts, kicks, n, g
-    ("SABA1", True, (0.5,), (1.0,), 1, 1 / 12),
-    ("SABA2", True, (0.5 - _s3 / 6, _s3 / 3), (0.5,), 2, (2 - _s3) / 24),
-    ("SABA3", True, (0.5 - _s15 / 10, _s15 / 10), (5 / 18, 4 / 9), 3, (54 - 13 * _s15) / 648),
-    ("SABA4", True,
-     (0.5 - _saba4_p / 70, (_saba4_p - _saba4_m) / 70, _saba4_m / 35),
-     (0.25 - _s30 / 72, 0.25 + _s30 / 72), 4, 0.0033967750482086013315321577834921),
-    ("SBAB1", False, (1.0,), (0.5,), 1, -1 / 24),
-    ("SBAB2", False, (0.5,), (1 / 6, 2 / 3), 2, 1 / 72),
-    ("SBAB3", False, (0.5 - _s5 / 10, 1 / _s5), (1 / 12, 5 / 12), 3, (13 - 5 * _s5) / 288),
-    ("SBAB4", False, (0.5 - _s21 / 14, _s21 / 14), (1 / 20, 49 / 180, 16 / 45), 4,
-     0.0036447936001532493022971399654498),
-]
-
-for _name, _df, _d, _k, _n, _g in _LASKAR_ROBUTEL:
-    _base = register_scheme(SplittingScheme(
-        _name, _df, _d, _k, order=2, reference=_LR, nominal_order=f"({2 * _n},2)"))
-    register_scheme(_base.corrected(_g))
-
-# Blanes, Casas, Farrés, Laskar, Makazaga & Murua (2013).
-_BCF = "Blanes, Casas, Farrés, Laskar, Makazaga & Murua, Appl. Numer. Math. 68, 58 (2013)"
-_aba864_b = (0.183083687472197221961703757166430291072,
-             0.310782859898574869507522291054262796375,
-             -0.0265646185119588006972121379164987592663)
-register_scheme(SplittingScheme(
-    "ABA864", True,
-    drifts=(0.0711334264982231177779387300061549964174,
-            0.241153427956640098736487795326289649618,
-            0.521411761772814789212136078067994229991,
-            -0.333698616227678005726562603400438876027),
-    # Centre kick from the sum rule: one public table drops a digit.
-    kicks=_aba864_b + (1 - 2 * math.fsum(_aba864_b),),
-    order=4, reference=_BCF, nominal_order="(8,6,4)"))
-register_scheme(SplittingScheme(
-    "ABAH864", True,
-    drifts=(0.06810235651658372084723976682061164571212,
-            0.2511360387221033233072829580455350680082,
-            -0.07507264957216562516006821767601620052338,
-            -0.009544719701745007811488218957217113269121,
-            0.5307579480704471776340674235341732001443),
-    kicks=(0.1684432593618954534310382697756917558148,
-           0.4243177173742677224300351657407231801453,
-           -0.5858109694681756812309015355404036521923,
-           0.4930499927320125053698281000239887162321),
-    order=4, reference=_BCF, nominal_order="(8,6,4)"))
-
-# Compositions of the leapfrog.
-_x1 = 1 / (2 - 2 ** (1 / 3))
-register_scheme(SplittingScheme.from_composition(
-    "FR4", (_x1, -(2 ** (1 / 3)) * _x1), order=4,
-    reference="Forest & Ruth, Physica D 43, 105 (1990); Yoshida, Phys. Lett. A 150, 262 (1990)"))
-_KL = "Kahan & Li, Math. Comp. 66, 1089 (1997)"
-register_scheme(SplittingScheme.from_composition(
-    "s9odr6", (0.39216144400731413927925056, 0.33259913678935943859974864,
-               -0.70624617255763935980996482, 0.08221359629355080023149045,
-               0.79854399093482996339895035), order=6, reference=_KL))
-register_scheme(SplittingScheme.from_composition(
-    "s11odr6", (0.21375583945878254555518066964857, 0.18329381407425713911385974425217,
-                0.17692819473098943794898811709929, -0.44329082681170215849622829626258,
-                0.11728560432865935385403585669136, 0.50405474843802736404832781714239),
-    order=6, reference=_KL))
-
-# Blanes & Moan (2002), SRKN_14^a (order 6).
-_srkn_a = (0.037859319840611600, 0.10263563310243500, -0.025867888266558700,
-           0.31424140307144700, -0.13014445951741500, 0.10641770036954300,
-           -0.0087942431285105800)
-_srkn_b = (0.091719152624461650, 0.18398317000500600, -0.056534365832888270,
-           0.0049146887747128540, 0.14376112716835800, 0.32856769374680400,
-           -0.19641146648645423)
-register_scheme(SplittingScheme(
-    "SRKN14a", True,
-    # Centre drift from the sum rule (published as 0.2073050690568954).
-    drifts=_srkn_a + (1 - 2 * math.fsum(_srkn_a),),
-    kicks=_srkn_b, order=6,
-    reference="Blanes & Moan, J. Comput. Appl. Math. 142, 313 (2002)", nominal_order="(6)"))
-
-
-def stage_arrays(scheme: SplittingScheme, tau: float):
-    """Stage tables for the compiled stepper, already scaled by τ.
-
-    Returns
-    -------
-    kinds : ndarray of int64, shape (n_stages,)
-        ``DRIFT`` (0) or ``KICK`` (1).
-    h : ndarray of float64, shape (n_stages,)
-        Drift length ``a_i τ`` or kick length ``b_i τ``.
-    hc : ndarray of float64, shape (n_stages,)
-        Corrector length on kick stages: ``−gτ³/2`` on the first and last
-        stage, 0 elsewhere. Correctors act on p only, like kicks, so a
-        corrector next to a kick at the same q is fused with it; for ABA
-        layouts a kick stage of zero length carries it.
-    """
-    # New arrays every call: callers may keep and change them.
-    return tuple(a.copy() for a in _stage_arrays(scheme, float(tau)))
-
-
-@functools.lru_cache(maxsize=64)
-def _stage_arrays(scheme, tau):
-    st = list(scheme.stages())
-    h_c = 0.0 if scheme.corrector is None else -scheme.corrector * tau ** 3 / 2
-    kinds, h, hc = [], [], []
-    for kind, c in st:
-        kinds.append(kind)
-        h.append(c * tau)
-        hc.append(0.0)
-    if h_c != 0.0:
-        if scheme.drift_first:
-            kinds = [KICK] + kinds + [KICK]
-            h = [0.0] + h + [0.0]
-            hc = [h_c] + hc + [h_c]
-        else:
-            hc[0] = hc[-1] = h_c
-    return (np.array(kinds, dtype=np.int64), np.array(h, dtype=np.float64),
-            np.array(hc, dtype=np.float64))
-
-
-def stage_times(scheme: SplittingScheme):
-    """The time of each stage of :func:`stage_arrays` in units of τ from the
-    start of its step, for a time-dependent V integrated in the extended
-    phase space (A = ½pᵀM⁻¹p + p_t drifts t by its length, B = V(q, t)
-    kicks at fixed t; :mod:`varint.kernels.tm`).
-
-    Stage s acts at c_s = the sum of the drift coefficients before it
-    (summed exactly, :func:`math.fsum`). A value within 1e-14 of 1 (the
-    last kick of a BAB scheme) is exactly 1, so that kick and the first
-    kick of the next step are at the same time, bit for bit, and the
-    stepper can reuse the force between them.
-
-    Returns
-    -------
-    ndarray of float64, shape (n_stages,)
-    """
-    kinds, h, _ = stage_arrays(scheme, 1.0)
-    out, before = [], []
-    for kind, c in zip(kinds, h):
-        total = math.fsum(before)
-        out.append(1.0 if abs(total - 1.0) <= 1e-14 else total)
-        if kind == DRIFT:
-            before.append(float(c))
-    return np.array(out, dtype=np.float64)
 
 
 # --------------------------------------------------------------------------
@@ -490,6 +333,7 @@ def strang_word(n_parts):
     return tuple(half + [(n_parts - 1, 1.0)] + half[::-1])
 
 
+
 @dataclass(frozen=True)
 class CompositionScheme:
     """A symmetric composition Π_i S2(γ_i τ) of the second-order map
@@ -499,7 +343,7 @@ class CompositionScheme:
     Parameters
     ----------
     name : str
-        Literature name, e.g. ``"s9ABC6"``; the key in :data:`PART_SCHEMES`.
+        Literature name, e.g. ``"s9ABC6"``; the key in :data:`SCHEMES`.
     n_parts : int
         The number of parts k ≥ 2 of the split it composes.
     gammas : tuple of float
@@ -574,52 +418,282 @@ class CompositionScheme:
                 "reference": self.reference}
 
 
-#: Schemes over k ≥ 2 named parts, by upper-cased name.
-PART_SCHEMES: dict[str, CompositionScheme] = {}
+#: Every registered scheme, two-part (:class:`SplittingScheme`) and k-part
+#: (:class:`CompositionScheme`), by upper-cased name, in registration order.
+SCHEMES: dict[str, SplittingScheme | CompositionScheme] = {}
+
+#: The scheme of the TM method and the TDH methods when none is given: the
+#: paper's S_B2^c (Skokos & Gerlach 2010), SBAB2 with corrector.
+DEFAULT_SCHEME = "SBAB2C"
 
 
-def _part_key(scheme):
-    return (scheme.name if isinstance(scheme, CompositionScheme) else scheme).upper()
-
-
-def register_part_scheme(scheme):
-    """Add a :class:`CompositionScheme` to :data:`PART_SCHEMES`.
+def register_scheme(scheme: SplittingScheme | CompositionScheme):
+    """Add ``scheme`` to :data:`SCHEMES` under its upper-cased name.
 
     Raises
     ------
     ValueError
-        If it is not a CompositionScheme or its name is taken (in either
-        registry).
+        If ``scheme`` is not a :class:`SplittingScheme` or
+        :class:`CompositionScheme` (a name is not enough: the registry holds
+        coefficients) or its name is taken.
     """
-    if not isinstance(scheme, CompositionScheme):
-        raise ValueError(f"register_part_scheme needs a CompositionScheme, got "
-                         f"{type(scheme).__name__} {scheme!r}")
+    if not isinstance(scheme, (SplittingScheme, CompositionScheme)):
+        known = (f"; {scheme!r} is already registered, get it with get_scheme({scheme!r})"
+                 if isinstance(scheme, str) and scheme.upper() in SCHEMES else "")
+        raise ValueError(
+            f"register_scheme needs a SplittingScheme or CompositionScheme, got "
+            f"{type(scheme).__name__} {scheme!r}; build one with SplittingScheme(name, "
+            "drift_first, drifts, kicks, order) or CompositionScheme(name, n_parts, gammas, "
+            "order)" + known)
     key = scheme.name.upper()
-    if key in PART_SCHEMES or key in SCHEMES:
+    if key in SCHEMES:
         raise ValueError(f"a scheme named {scheme.name!r} is already registered")
-    PART_SCHEMES[key] = scheme
+    SCHEMES[key] = scheme
     return scheme
 
 
-def resolve_scheme(scheme):
-    """A two-part :class:`SplittingScheme` or a :class:`CompositionScheme`
-    from itself or its name (case-insensitive).
+def get_scheme(scheme: str | SplittingScheme | CompositionScheme, n_parts: int | None = None):
+    """The registered scheme of a name (case-insensitive), or a scheme
+    passed through.
+
+    Parameters
+    ----------
+    scheme : str, SplittingScheme or CompositionScheme
+    n_parts : int, optional
+        The split the caller integrates: 2 for the drift and kick of
+        H = T + V (a :class:`SplittingScheme`, which the TM stepper, the
+        TDH methods, the two-particle method and the section finder run);
+        None for any.
 
     Raises
     ------
     ValueError
-        For an unknown name; the message lists the names of both registries.
+        For an unknown name (the message lists the valid ones), or a scheme
+        over another number of parts than ``n_parts`` (the message says
+        which models it runs on).
     """
-    if isinstance(scheme, (SplittingScheme, CompositionScheme)):
-        return scheme
-    if isinstance(scheme, str):
-        key = scheme.upper()
-        if key in SCHEMES:
-            return SCHEMES[key]
-        if key in PART_SCHEMES:
-            return PART_SCHEMES[key]
-    names = [s.name for s in SCHEMES.values()] + [s.name for s in PART_SCHEMES.values()]
-    raise ValueError(f"unknown scheme {scheme!r}; expected one of: {', '.join(names)}")
+    if isinstance(scheme, str) and scheme.upper() in SCHEMES:
+        scheme = SCHEMES[scheme.upper()]
+    elif not isinstance(scheme, (SplittingScheme, CompositionScheme)):
+        raise ValueError(f"unknown scheme {scheme!r}; expected one of: "
+                         f"{', '.join(s.name for s in SCHEMES.values())}")
+    if n_parts == 2 and not isinstance(scheme, SplittingScheme):
+        raise ValueError(
+            f"scheme {scheme.name!r} composes the flows of {scheme.n_parts} parts; it runs on "
+            f"models that declare a {scheme.n_parts}-part split (e.g. varint.models.DDNLS) with "
+            "method='tm'")
+    return scheme
+
+
+def registered(n_parts: int | None = None):
+    """The registered schemes in registration order; with ``n_parts = 2``
+    the two-part ones (:class:`SplittingScheme`), with another number the
+    compositions over that many parts."""
+    if n_parts is None:
+        return tuple(SCHEMES.values())
+    if n_parts == 2:
+        return tuple(s for s in SCHEMES.values() if isinstance(s, SplittingScheme))
+    return tuple(s for s in SCHEMES.values()
+                 if isinstance(s, CompositionScheme) and s.n_parts == n_parts)
+
+
+# --------------------------------------------------------------------------
+# Laskar & Robutel (2001): SABA_n (drift first) and SBAB_n (kick first).
+# Halves centre last; g is the corrector constant of each scheme.
+_LR = "Laskar & Robutel, Celest. Mech. Dyn. Astron. 80, 39 (2001)"
+_s3, _s5, _s15, _s21, _s30 = (math.sqrt(v) for v in (3, 5, 15, 21, 30))
+_saba4_p, _saba4_m = math.sqrt(525 + 70 * _s30), math.sqrt(525 - 70 * _s30)
+
+_LASKAR_ROBUTEL = [
+    # name, drift_first, drifts, kicks, n, g
+    ("SABA1", True, (0.5,), (1.0,), 1, 1 / 12),
+    ("SABA2", True, (0.5 - _s3 / 6, _s3 / 3), (0.5,), 2, (2 - _s3) / 24),
+    ("SABA3", True, (0.5 - _s15 / 10, _s15 / 10), (5 / 18, 4 / 9), 3, (54 - 13 * _s15) / 648),
+    ("SABA4", True,
+     (0.5 - _saba4_p / 70, (_saba4_p - _saba4_m) / 70, _saba4_m / 35),
+     (0.25 - _s30 / 72, 0.25 + _s30 / 72), 4, 0.0033967750482086013315321577834921),
+    ("SBAB1", False, (1.0,), (0.5,), 1, -1 / 24),
+    ("SBAB2", False, (0.5,), (1 / 6, 2 / 3), 2, 1 / 72),
+    ("SBAB3", False, (0.5 - _s5 / 10, 1 / _s5), (1 / 12, 5 / 12), 3, (13 - 5 * _s5) / 288),
+    ("SBAB4", False, (0.5 - _s21 / 14, _s21 / 14), (1 / 20, 49 / 180, 16 / 45), 4,
+     0.0036447936001532493022971399654498),
+]
+
+for _name, _df, _d, _k, _n, _g in _LASKAR_ROBUTEL:
+    _base = register_scheme(SplittingScheme(
+        _name, _df, _d, _k, order=2, reference=_LR, nominal_order=f"({2 * _n},2)"))
+    register_scheme(_base.corrected(_g))
+
+# Blanes, Casas, Farrés, Laskar, Makazaga & Murua (2013).
+_BCF = "Blanes, Casas, Farrés, Laskar, Makazaga & Murua, Appl. Numer. Math. 68, 58 (2013)"
+_aba864_b = (0.183083687472197221961703757166430291072,
+             0.310782859898574869507522291054262796375,
+             -0.0265646185119588006972121379164987592663)
+register_scheme(SplittingScheme(
+    "ABA864", True,
+    drifts=(0.0711334264982231177779387300061549964174,
+            0.241153427956640098736487795326289649618,
+            0.521411761772814789212136078067994229991,
+            -0.333698616227678005726562603400438876027),
+    # Centre kick from the sum rule: one public table drops a digit.
+    kicks=_aba864_b + (1 - 2 * math.fsum(_aba864_b),),
+    order=4, reference=_BCF, nominal_order="(8,6,4)"))
+register_scheme(SplittingScheme(
+    "ABAH864", True,
+    drifts=(0.06810235651658372084723976682061164571212,
+            0.2511360387221033233072829580455350680082,
+            -0.07507264957216562516006821767601620052338,
+            -0.009544719701745007811488218957217113269121,
+            0.5307579480704471776340674235341732001443),
+    kicks=(0.1684432593618954534310382697756917558148,
+           0.4243177173742677224300351657407231801453,
+           -0.5858109694681756812309015355404036521923,
+           0.4930499927320125053698281000239887162321),
+    order=4, reference=_BCF, nominal_order="(8,6,4)"))
+# ABA(10,6,4): 8 kicks, for H = A + εB with A integrable (a Kepler drift):
+# O(ε τ¹⁰ + ε² τ⁶ + ε³ τ⁴).
+register_scheme(SplittingScheme(
+    "ABA1064", True,
+    drifts=(0.03809449742241219545697532230863756534060,
+            0.1452987161169137492940200726606637497442,
+            0.2076276957255412507162056113249882065158,
+            0.4359097036515261592231548624010651844006,
+            -0.6538612258327867093807117373907094120024),
+    kicks=(0.09585888083707521061077150377145884776921,
+           0.2044461531429987806805077839164344779763,
+           0.2170703479789911017143385924306336714532,
+           -0.01737538195906509300561788011852699719871),
+    order=4, reference=_BCF, nominal_order="(10,6,4)"))
+
+# Compositions of the leapfrog.
+_x1 = 1 / (2 - 2 ** (1 / 3))
+register_scheme(SplittingScheme.from_composition(
+    "FR4", (_x1, -(2 ** (1 / 3)) * _x1), order=4,
+    reference="Forest & Ruth, Physica D 43, 105 (1990); Yoshida, Phys. Lett. A 150, 262 (1990)"))
+_KL = "Kahan & Li, Math. Comp. 66, 1089 (1997)"
+register_scheme(SplittingScheme.from_composition(
+    "s9odr6", (0.39216144400731413927925056, 0.33259913678935943859974864,
+               -0.70624617255763935980996482, 0.08221359629355080023149045,
+               0.79854399093482996339895035), order=6, reference=_KL))
+register_scheme(SplittingScheme.from_composition(
+    "s11odr6", (0.21375583945878254555518066964857, 0.18329381407425713911385974425217,
+                0.17692819473098943794898811709929, -0.44329082681170215849622829626258,
+                0.11728560432865935385403585669136, 0.50405474843802736404832781714239),
+    order=6, reference=_KL))
+
+# Orders 8 and 10: symmetric compositions of the leapfrog with the smallest
+# max|γ| known for their stage counts (Hairer, Lubich & Wanner, Geometric
+# Numerical Integration, 2nd ed., Sect. V.3.2, eqs. 3.13, 3.14 and the
+# p10s35 table). The digits agree with two further public tables, and the odd
+# power sums Σγ³, Σγ⁵ (Σγ⁷, Σγ⁹ for order 10) vanish to round-off
+# (tests/test_schemes.py); the orders are measured there and against the
+# Taylor reference.
+register_scheme(SplittingScheme.from_composition(
+    "s15odr8", (0.74167036435061295344822780, -0.40910082580003159399730010,
+                0.19075471029623837995387626, -0.57386247111608226665638773,
+                0.29906418130365592384446354, 0.33462491824529818378495798,
+                0.31529309239676659663205666, -0.79688793935291635401978884),
+    order=8, reference="McLachlan, SIAM J. Sci. Comput. 16, 151 (1995); in " + _KL))
+register_scheme(SplittingScheme.from_composition(
+    "s17odr8", (0.13020248308889008087881763, 0.56116298177510838456196441,
+                -0.38947496264484728640807860, 0.15884190655515560089621075,
+                -0.39590389413323757733623154, 0.18453964097831570709183254,
+                0.25837438768632204729397911, 0.29501172360931029887096624,
+                -0.60550853383003451169892108),
+    order=8, reference=_KL + " (s17odr8a)"))
+register_scheme(SplittingScheme.from_composition(
+    "s35odr10", (0.07879572252168641926390768, 0.31309610341510852776481247,
+                 0.02791838323507806610952027, -0.22959284159390709415121340,
+                 0.13096206107716486317465686, -0.26973340565451071434460973,
+                 0.07497334315589143566613711, 0.11199342399981020488957508,
+                 0.36613344954622675119314812, -0.39910563013603589787862981,
+                 0.10308739852747107731580277, 0.41143087395589023782070412,
+                 -0.00486636058313526176219566, -0.39203335370863990644808194,
+                 0.05194250296244964703718290, 0.05066509075992449633587434,
+                 0.04967437063972987905456880, 0.04931773575959453791768001),
+    order=10, reference="Sofroniou & Spaletta, Optim. Methods Softw. 20, 597 (2005) "
+                        "(s35odr10; Kahan & Li's own order-10 compositions have 31 and 33 "
+                        "stages)"))
+
+# Blanes & Moan (2002), SRKN_14^a (order 6).
+_srkn_a = (0.037859319840611600, 0.10263563310243500, -0.025867888266558700,
+           0.31424140307144700, -0.13014445951741500, 0.10641770036954300,
+           -0.0087942431285105800)
+_srkn_b = (0.091719152624461650, 0.18398317000500600, -0.056534365832888270,
+           0.0049146887747128540, 0.14376112716835800, 0.32856769374680400,
+           -0.19641146648645423)
+register_scheme(SplittingScheme(
+    "SRKN14a", True,
+    # Centre drift from the sum rule (published as 0.2073050690568954).
+    drifts=_srkn_a + (1 - 2 * math.fsum(_srkn_a),),
+    kicks=_srkn_b, order=6,
+    reference="Blanes & Moan, J. Comput. Appl. Math. 142, 313 (2002)", nominal_order="(6)"))
+
+
+def stage_arrays(scheme: SplittingScheme, tau: float):
+    """Stage tables for the compiled stepper, already scaled by τ.
+
+    Returns
+    -------
+    kinds : ndarray of int64, shape (n_stages,)
+        ``DRIFT`` (0) or ``KICK`` (1).
+    h : ndarray of float64, shape (n_stages,)
+        Drift length ``a_i τ`` or kick length ``b_i τ``.
+    hc : ndarray of float64, shape (n_stages,)
+        Corrector length on kick stages: ``−gτ³/2`` on the first and last
+        stage, 0 elsewhere. Correctors act on p only, like kicks, so a
+        corrector next to a kick at the same q is fused with it; for ABA
+        layouts a kick stage of zero length carries it.
+    """
+    # New arrays every call: callers may keep and change them.
+    return tuple(a.copy() for a in _stage_arrays(scheme, float(tau)))
+
+
+@functools.lru_cache(maxsize=64)
+def _stage_arrays(scheme, tau):
+    st = list(scheme.stages())
+    h_c = 0.0 if scheme.corrector is None else -scheme.corrector * tau ** 3 / 2
+    kinds, h, hc = [], [], []
+    for kind, c in st:
+        kinds.append(kind)
+        h.append(c * tau)
+        hc.append(0.0)
+    if h_c != 0.0:
+        if scheme.drift_first:
+            kinds = [KICK] + kinds + [KICK]
+            h = [0.0] + h + [0.0]
+            hc = [h_c] + hc + [h_c]
+        else:
+            hc[0] = hc[-1] = h_c
+    return (np.array(kinds, dtype=np.int64), np.array(h, dtype=np.float64),
+            np.array(hc, dtype=np.float64))
+
+
+def stage_times(scheme: SplittingScheme):
+    """The time of each stage of :func:`stage_arrays` in units of τ from the
+    start of its step, for a time-dependent V integrated in the extended
+    phase space (A = ½pᵀM⁻¹p + p_t drifts t by its length, B = V(q, t)
+    kicks at fixed t; :mod:`varint.kernels.tm`).
+
+    Stage s acts at c_s = the sum of the drift coefficients before it
+    (summed exactly, :func:`math.fsum`). A value within 1e-14 of 1 (the
+    last kick of a BAB scheme) is exactly 1, so that kick and the first
+    kick of the next step are at the same time, bit for bit, and the
+    stepper can reuse the force between them.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_stages,)
+    """
+    kinds, h, _ = stage_arrays(scheme, 1.0)
+    out: list[float] = []
+    before: list[float] = []
+    for kind, c in zip(kinds, h, strict=True):
+        total = math.fsum(before)
+        out.append(1.0 if abs(total - 1.0) <= 1e-14 else total)
+        if kind == DRIFT:
+            before.append(float(c))
+    return np.array(out, dtype=np.float64)
 
 
 def part_stages(scheme, tau, slots):
@@ -696,4 +770,4 @@ _ABC = [
                  -0.38263596012643665350944670744040), 8, _SS05 + " (s21odr8)"),
 ]
 for _name, _half, _order, _ref in _ABC:
-    register_part_scheme(CompositionScheme(_name, 3, _half, _order, _ref))
+    register_scheme(CompositionScheme(_name, 3, _half, _order, _ref))

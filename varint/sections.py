@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import numbers
 import time
+from collections import namedtuple
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import numba
@@ -32,9 +33,11 @@ from numba import njit, prange
 from numpy.typing import ArrayLike
 
 from .kernels import tm as K
+from .kernels.interval import Call
 from .models.base import Model
 from .protocol import COUNTERS, STATUS_OK, Renorm, Status
 from . import _validate as check
+from . import identity
 from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
 from .schemes import SplittingScheme, get_scheme, stage_arrays
@@ -50,29 +53,35 @@ _MAX_NEWTON = 60
 _BUFFER = 4096
 
 
-@njit(inline="always")
-def _scaled_step(y, frac, kinds, h, hc, hs, hcs, minv, par, bw, grad, hess, third, orbit,
-                 W, am, ae, ctr, rec, aux):
-    """One step of length frac·τ from ``y`` (in place): drifts and kicks
-    scale with the step, the corrector with its cube (see
-    :func:`varint.schemes.stage_arrays`)."""
-    for i in range(h.shape[0]):
-        hs[i] = h[i] * frac
-        hcs[i] = hc[i] * frac ** 3
-    return orbit(y, W, am, ae, 1, kinds, hs, hcs, minv, par, bw, grad, hess, third,
-                 _NONE, np.inf, ctr, rec, K.no_accumulator, aux, 0, 0.0)
+#: What the section finder reads besides the orbits and the scheme: the
+#: steps to go, the squared escape radius, the section q_plane = value and
+#: its direction, the crossings wanted per orbit, τ.
+_Section = namedtuple("_Section", ("n_steps", "escape_r2", "plane", "value", "direction",
+                                   "max_points", "tau"))
 
 
-@lru_cache(maxsize=None)
-def _section_kernel(n, bw):
+@njit
+def _scaled_step(orbit, state, frac, setup, scaled):
+    """One step of length frac·τ of the orbit record ``state`` (in place) by
+    ``orbit``: drifts and kicks scale with the step, the corrector with its
+    cube (see :func:`varint.schemes.stage_arrays`); ``scaled`` is the
+    TMSetup whose ``h`` and ``hc`` receive them. Not inlined: numba (0.68)
+    loses writes to the arrays of a record an inlined function receives
+    inside a ``prange`` loop."""
+    for i in range(setup.h.shape[0]):
+        scaled.h[i] = setup.h[i] * frac
+        scaled.hc[i] = setup.hc[i] * frac ** 3
+    return orbit(state, scaled, Call(1, 0, 0.0, _NONE, np.inf))
+
+
+@cache
+def _section_kernel(n, bw, kernels):
     """The batch section finder for N = ``n`` and bandwidth ``bw`` (−1:
-    sizes read at run time)."""
-    orbit = K.orbit_kernel(n, bw)
+    sizes read at run time) of the model ``kernels``."""
+    orbit = K.orbit_kernel(n, bw, kernels)
 
     @njit(parallel=True)
-    def sections(X, done, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third,
-                 escape_r2, plane, value, direction, max_points, n_found, points, tau,
-                 counts, status):
+    def sections(X, done, status, counts, n_found, points, setup, find):
         """Advance orbit m from step done[m] towards n_steps in blocks of
         steps, writing each crossing into a free row of points[m] as
         (state, time in steps); a row with a NaN time is free. Returns to
@@ -80,6 +89,8 @@ def _section_kernel(n, bw):
         d = X.shape[1]
         nd = d // 2
         block = 256
+        n_steps, plane, value, direction = find.n_steps, find.plane, find.value, find.direction
+        max_points = find.max_points
         for m in prange(X.shape[0]):
             points[m, :, d] = np.nan
             if status[m] != _OK:
@@ -87,24 +98,25 @@ def _section_kernel(n, bw):
             x = X[m]
             start = np.empty(d)
             y = np.empty(d)
-            rec = np.empty((block, d))
-            one = np.empty((1, d))
-            W = np.empty((d, 0))
-            am = np.ones(0)
-            ae = np.zeros(0, dtype=np.int64)
-            hs = np.empty(h.shape[0])
-            hcs = np.empty(h.shape[0])
-            no_aux = np.empty((0, 0))  # no MEGNO/FLI accumulators (k = 0)
-            ctr = counts[m]
+            # No vectors, no accumulator (k = 0): the orbit through a block,
+            # and the one step of Newton's iteration from y.
+            no_W, no_m, no_e = np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64)
+            record = K.TMOrbit(x, no_W, no_m, no_e, np.empty((0, 0)), counts[m], np.empty(0),
+                               np.empty((block, d)))
+            newton = K.TMOrbit(y, no_W, no_m, no_e, np.empty((0, 0)), counts[m], np.empty(0),
+                               np.empty((1, d)))
+            scaled = K.TMSetup(setup.kinds, np.empty(setup.h.shape[0]),
+                               np.empty(setup.h.shape[0]), setup.minv, setup.par, setup.bw,
+                               setup.ctime)
+            rec = record.record
+            minv = setup.minv
             found = 0
             while (done[m] < n_steps and n_found[m] < max_points
                    and points.shape[1] - found >= block):
                 nb = min(block, n_steps - done[m])
                 for i in range(d):
                     start[i] = x[i]
-                st, ok = orbit(x, W, am, ae, nb, kinds, h, hc, minv, par, bw_rt, grad, hess,
-                               third, _NONE, escape_r2, ctr, rec, K.no_accumulator, no_aux,
-                               0, 0.0)
+                st, ok = orbit(record, setup, Call(nb, 0, 0.0, _NONE, find.escape_r2))
                 for j in range(ok):
                     prev = start if j == 0 else rec[j - 1]
                     f0 = prev[plane] - value
@@ -125,8 +137,7 @@ def _section_kernel(n, bw):
                     for _ in range(_MAX_NEWTON):
                         for i in range(d):
                             y[i] = prev[i]
-                        _scaled_step(y, s, kinds, h, hc, hs, hcs, minv, par, bw_rt, grad,
-                                     hess, third, orbit, W, am, ae, ctr, one, no_aux)
+                        _scaled_step(orbit, newton, s, setup, scaled)
                         g = y[plane] - value
                         if abs(g) <= tol or hi - lo <= 1e-16:
                             break
@@ -134,7 +145,7 @@ def _section_kernel(n, bw):
                             lo, glo = s, g
                         else:
                             hi = s
-                        rate = minv[plane] * y[nd + plane] * tau
+                        rate = minv[plane] * y[nd + plane] * find.tau
                         s_new = s - g / rate if rate != 0.0 else -1.0
                         # Outside the bracket Newton is not to be trusted: bisect.
                         s = s_new if lo < s_new < hi else 0.5 * (lo + hi)
@@ -227,7 +238,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     radius = model.escape_radius if escape_radius is None else check.positive_float(
         escape_radius, "escape_radius")
     energy_tol = energy_tolerance(energy_tol)
-    sch = get_scheme(scheme)
+    sch = get_scheme(scheme, n_parts=2)
     kinds, h, hc = stage_arrays(sch, tau)
     n_steps = check.step_count(t_end, tau)
     m, d = X.shape
@@ -239,19 +250,21 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     reference = Reference(model, X)
     x = X.copy()
     small = model.n_dof <= K.SPECIALISE_N
-    kernel = _section_kernel(model.n_dof if small else -1, model.bandwidth if small else -1)
+    kernel = _section_kernel(model.n_dof if small else -1, model.bandwidth if small else -1,
+                             K.model_kernels(model))
     done = np.zeros(m, dtype=np.int64)
     n_found = np.zeros(m, dtype=np.int64)
     status = np.zeros(m, dtype=np.int64)
     counts = np.zeros((m, len(COUNTERS)), dtype=np.int64)
     buf = np.empty((m, _BUFFER, d + 1))
     found = [[] for _ in range(m)]
-    start = time.perf_counter()
+    start, machine, code = time.perf_counter(), identity.machine(), identity.code_identity()
     while True:
-        kernel(x, done, n_steps, kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
-               model.grad_kernel, model.hess_kernel, model.third_kernel,
-               np.inf if radius is None else float(radius) ** 2, int(plane), float(value),
-               int(direction), limit, n_found, buf, tau, counts, status)
+        kernel(x, done, status, counts, n_found, buf,
+               K.TMSetup(kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
+                         np.empty(0)),
+               _Section(n_steps, np.inf if radius is None else float(radius) ** 2, int(plane),
+                        float(value), int(direction), limit, float(tau)))
         for j in range(m):
             rows = buf[j][~np.isnan(buf[j, :, d])]
             if len(rows):
@@ -279,8 +292,8 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
         options={"plane": int(plane), "value": float(value), "direction": int(direction),
                  "max_points": max_points, "escape_radius": radius},
         versions=dict(package_versions(), numba=numba.__version__),
-        counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total)))),
-        wall_time=time.perf_counter() - start)
+        counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total), strict=True))),
+        wall_time=time.perf_counter() - start, code=code, machine=machine)
     sq = (lambda a: a[0]) if single else (lambda a: a)
     verdict = assess(times, {"energy_error": energy_error}, status, energy_tol, tau, single)
     warn(verdict, "tm", what="the surface of section")
@@ -395,7 +408,7 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
         raise ValueError(f"energy must be a finite number, got {energy!r}")
     energy = float(energy)
     grids = [check.real_array(a, name).reshape(-1) for a, name in ((u, "u"), (v, "v"))]
-    for g, name in zip(grids, ("u", "v")):
+    for g, name in zip(grids, ("u", "v"), strict=True):
         if g.size == 0 or not np.isfinite(g).all():
             raise ValueError(f"{name} must be a non-empty array of finite values")
     base = np.zeros(2 * n) if base is None else check.real_array(base, "base").reshape(-1)

@@ -56,7 +56,7 @@ from .accuracy import AccuracyWarning, Reference, user_stacklevel
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
-from .schemes import get_scheme, resolve_scheme
+from .schemes import DEFAULT_SCHEME, get_scheme
 from .state import RunState, initial_deviations
 
 __all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
@@ -104,12 +104,14 @@ def pilots(method):
 def _default_scheme(model, scheme):
     """The scheme "tm" runs ``model`` with: the given one, a lattice's own
     default (its part split), or the paper's SBAB2C."""
-    if scheme is not None:
-        return resolve_scheme(scheme)
     parts = getattr(model, "parts", None)
+    if parts is not None and parts.schemes is not None:
+        return parts.resolve(scheme, model.name)
+    if scheme is not None:
+        return get_scheme(scheme)
     if parts is not None and parts.default_scheme is not None:
-        return resolve_scheme(parts.default_scheme)
-    return get_scheme("SBAB2C")
+        return get_scheme(parts.default_scheme)
+    return get_scheme(DEFAULT_SCHEME)
 
 
 def check_options(method, options):
@@ -239,10 +241,7 @@ def _not_shrinking(tried, j):
     """Whether halving the step (or more) has not halved the error: the
     error is not the scheme's truncation error."""
     e = tried[j]
-    for k, v in tried.items():
-        if k >= j + RUNGS and not (e <= v / 2):
-            return True
-    return False
+    return any(k >= j + RUNGS and not (e <= v / 2) for k, v in tried.items())
 
 
 def _divide(t_end, tau):

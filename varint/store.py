@@ -95,7 +95,8 @@ class Store:
         self.parameters = None if parameters is None else canonical(parameters)
         self._unwritable = None
         if self.path.exists() and not self.path.is_dir():
-            raise CheckpointError(f"checkpoint must be a directory, {self.path} is a file")
+            raise CheckpointError(f"cannot use {self.path} as a {what} checkpoint directory: it "
+                                  "is a file (checkpoint must be a directory)")
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:

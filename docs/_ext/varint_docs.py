@@ -18,6 +18,13 @@ Directives (each takes no argument):
 ``.. varint-cli::``
     ``varint --help`` and the help of every sub-command, as the parser
     prints them.
+
+Role:
+
+``:q:`NAME```
+    A measured figure, rendered when the site is built from the results
+    stored under ``studies/results/`` by the quote ``NAME`` of
+    ``studies/quotes.py`` (no measured number is typed into a page).
 """
 
 from __future__ import annotations
@@ -329,7 +336,20 @@ def escape_plain_math(app, what, name, obj, options, lines):
     return lines
 
 
+def quote_role(name, rawtext, text, lineno, inliner, options=None, content=()):
+    """``:q:`NAME```: the text of the quote NAME (``studies/quotes.py``) from
+    the stored results; an unknown quote or a missing result is an error."""
+    from studies.quotes import render
+
+    try:
+        return [nodes.Text(render(text.strip()))], []
+    except (KeyError, LookupError, FileNotFoundError) as exc:
+        msg = inliner.reporter.error(f"quote {text!r}: {exc}", line=lineno)
+        return [inliner.problematic(rawtext, rawtext, msg)], [msg]
+
+
 def setup(app):
+    app.add_role("q", quote_role)
     # Before numpydoc (priority 500) turns the sections into markup.
     app.connect("autodoc-process-docstring", escape_plain_math, priority=400)
     app.add_directive("varint-indicators", IndicatorsDirective)

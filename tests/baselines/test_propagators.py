@@ -17,8 +17,8 @@ from varint.state import RunState, initial_deviations
 #: Every baseline configuration with its own code path; CVODE with a short
 #: block so that block ends fall inside the chunks below.
 CONFIGS = [("taylor", {}), ("taylor", {"precision": "extended"}), ("cvode", {"block": 7}),
-           ("dop853", {}), ("dop853", {"engine": "scipy"})]
-CONFIG_IDS = ["taylor", "taylor-extended", "cvode", "dop853", "dop853-scipy"]
+           ("dop853", {}), ("dop853", {"engine": "scipy"}), ("dop853", {"engine": "lanes"})]
+CONFIG_IDS = ["taylor", "taylor-extended", "cvode", "dop853", "dop853-scipy", "dop853-lanes"]
 
 
 def start(c1, r1, k=3):
@@ -195,3 +195,66 @@ def test_resuming_from_a_checkpoint_file_is_bitwise_identical(method, options, c
     resumed = checkpoint.read(tmp_path / "c.ckpt").state
     make_propagator(method, model, 0.05, "qr", **options).advance(resumed, 13)
     assert same_state(whole, resumed)
+
+
+def test_a_cut_block_makes_the_next_as_long_as_the_part_used(c1):
+    """After a block is cut at output j (COND_LIMIT), the next block is j
+    intervals long; a block used whole makes the next BLOCK_GROWTH times
+    longer, never beyond the block size."""
+    from varint.baselines.blocks import BLOCK_GROWTH
+
+    model, x0 = c1
+    cap = 5000
+    prop = make_propagator("taylor", model, 0.05, "qr", block=cap)
+    state = RunState.start(x0[None], initial_deviations(4, 4, 1, seed=0))
+    starts, lengths = [], []
+    integrate = prop._integrate
+
+    def spy(state, m, y0, n_out):
+        lengths.append(n_out)
+        return integrate(state, m, y0, n_out)
+
+    new_block = prop._new_block
+
+    def spy_block(state, m, step):
+        starts.append(step)
+        return new_block(state, m, step)
+
+    prop._integrate, prop._new_block = spy, spy_block
+    prop.advance(state, 40_000)
+    used = np.diff(starts)
+    assert lengths[0] == cap and (used < np.array(lengths[:-1])).sum() >= 5
+    grown = 0
+    for length, part, after in zip(lengths, used, lengths[1:]):
+        if part < length:
+            assert after == part
+        else:
+            # Used whole; cut right at its last output it stays as long.
+            assert after in (length, min(cap, int(length * BLOCK_GROWTH) + 1))
+            grown += after > length
+    assert grown >= 1
+
+
+def test_dop853_lanes_is_the_same_method_and_an_orbit_keeps_its_bits_in_any_batch(c1, r1):
+    """The lanes engine integrates the paper's DOP853 in plain loops: it
+    agrees with the compiled engine (SciPy's arithmetic) to rounding on a
+    regular orbit, does the same work, and an orbit alone and in a batch of
+    ten with others gives the same bits."""
+    W0 = initial_deviations(4, 4, 1, seed=0)
+    states = {}
+    for engine in ("compiled", "lanes"):
+        state = RunState.start(r1[1][None], W0)
+        make_propagator("dop853", r1[0], 0.05, "qr", engine=engine).advance(state, 2000)
+        states[engine] = state
+    a, b = states["compiled"], states["lanes"]
+    assert np.abs(a.x - b.x).max() < 1e-12 and np.abs(a.W - b.W).max() < 1e-11
+    assert a.counts == b.counts
+    X = np.stack([c1[1], r1[1]] * 5)
+    W = initial_deviations(4, 4, 10, seed=2)
+    batch = RunState.start(X, W)
+    prop = make_propagator("dop853", c1[0], 0.05, "qr", engine="lanes")
+    prop.advance(batch, 500)
+    for m in (0, 3, 9):
+        alone = RunState.start(X[m:m + 1], W[m:m + 1])
+        prop.advance(alone, 500)
+        assert np.array_equal(alone.x[0], batch.x[m]) and np.array_equal(alone.W[0], batch.W[m])

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import varint
-from varint.kernels.parts import parts_batch
-from varint.kernels.tm import no_accumulator
+from varint.kernels.interval import Call
+from varint.kernels.parts import PartsOrbit, PartsSetup, parts_batch
 from varint.methods.parts import parts_steps
 from varint.methods.tm import tangent_map_steps
 from varint.models import DDNLS, FPUT, DisorderedKG, FPUBeta
@@ -27,10 +27,10 @@ def one_flow(model, part, h, x, v=None):
     W = np.ascontiguousarray(W)
     status, done = np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64)
     parts_batch(parts.apply, parts.field, k, False)(
-        x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), 1,
-        np.array([parts.index(part)]), np.array([float(h)]), par, n_work, 0, np.inf,
-        np.zeros((1, len(parts.names)), dtype=np.int64), status, done, no_accumulator,
-        np.empty((1, 0, 0)), 0, 1.0)
+        PartsOrbit(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), np.empty((1, 0, 0)),
+                   np.zeros((1, len(parts.names)), dtype=np.int64)),
+        PartsSetup(np.array([parts.index(part)]), np.array([float(h)]), par, n_work),
+        Call(1, 0, 1.0, 0, np.inf), status, done)
     assert status[0] == 0
     return x[0], W[0, :, 0] if k else None
 
@@ -228,9 +228,10 @@ def test_fused_fput_is_bitwise_the_generic_stepper(monkeypatch):
     band kernels in the same order: both steppers give the same bits (so
     FPUBeta's results did not change when it became FPUT with α = 0). The
     generic stepper, not the one generated for small symbolic models."""
-    from varint.kernels import generate
+    from varint.methods import parts, tm
 
-    monkeypatch.setattr(generate, "symbolic_fits", lambda model, k: False)
+    for module in (tm, parts):
+        monkeypatch.setattr(module, "symbolic_fits", lambda model, k: False)
     for model in (FPUBeta(9, 1.5), FPUT(9, 0.3, 1.0)):
         x0 = state(model, 0.3)
         W0 = np.linalg.qr(RNG.standard_normal((model.dim, 3)))[0]

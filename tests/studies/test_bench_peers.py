@@ -237,3 +237,18 @@ def test_pynamicalsys_absent_is_skipped_with_a_message(monkeypatch, capsys):
     res = bp.maps_case(True, 1, True, ("sali",), 6, False)
     assert "pynamicalsys is not installed" in capsys.readouterr().out
     assert all(r["peer"] != "pynamicalsys" for r in res["rows"])
+
+
+@pytest.mark.slow
+def test_c1_accuracy_is_the_reference_distribution(monkeypatch):
+    """On the chaotic orbit a contender reaches reference accuracy when its
+    X1 over 64 nearby orbits has the reference integrator's distribution:
+    some contenders do; with the reference's sample moved by 0.05 (its
+    median is ~0.05) none does, and nothing is compared at equal accuracy."""
+    true = bp.spectra_case(True, 1, ("C1",))["C1"]
+    assert any(r["same_law"] for r in true["rows"]) and true["equal_error"]
+    assert true["reference_sample"]["n"] == 64
+    sample = bp.reference_sample
+    monkeypatch.setattr(bp, "reference_sample", lambda *a, **k: sample(*a, **k) + 0.05)
+    moved = bp.spectra_case(True, 1, ("C1",))["C1"]
+    assert not any(r["same_law"] for r in moved["rows"]) and not moved["equal_error"]

@@ -126,3 +126,21 @@ def test_verdict_and_records():
     rec = rules.levels_off(T, np.ones_like(T)).record()
     assert rec["rule"] == "levels_off" and rec["window"] == pytest.approx([1e6, 1e8])
     assert set(rules.RULES) >= {"agrees", "above", "levels_off", "inverse_t", "departure"}
+
+
+def test_a_verdict_on_its_threshold_is_stated_with_its_margin(tmp_path):
+    """A ratio of 3.24 against the factor 3 differs, but by 8 %: the claim's
+    note says so; at 2 (a third inside) nothing is added. A CPU ratio of
+    1.108 against 1.10 holds by 0.7 %."""
+    from studies.common import Claims
+
+    near, far = rules.agrees(3.24e-5, 1e-5), rules.agrees(2e-5, 1e-5)
+    assert near.holds is False and abs(near.edge - 1.08) < 1e-12 and "8.0 %" in near.margin()
+    assert far.margin() == ""
+    cpu = rules.costs_more(1.108, 1.0)
+    assert cpu.holds and "0.7 %" in cpu.margin()
+    claims = Claims("t", tmp_path)
+    claims.add("c", "1e-5", "3.24e-5", near.holds, note="why", rules=[near])
+    claims.add("d", "1e-5", "2e-5", far.holds, rules=[far])
+    assert claims.items[0]["note"].startswith("why; agrees sits on its threshold")
+    assert claims.items[1]["note"] == "" and claims.items[0]["rules"][0]["edge"] == near.edge

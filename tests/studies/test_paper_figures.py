@@ -66,18 +66,25 @@ def test_tdh_methods_leave_the_regular_law_on_r1(quick):
         assert dep.holds and dep.value < 1e4, m
 
 
-def test_a_longer_stored_dop853_run_replaces_the_default(quick, tmp_path):
-    # A stored run longer than the default horizon is used (e.g. C2's DOP853
-    # to 1e8, once run); in quick mode the default stays.
+def test_the_longest_stored_dop853_run_is_used(quick, tmp_path):
+    """The longest stored DOP853 run (C2's to 1e8 once run, else a shorter
+    one, whose claims say how far they were checked); without any, the
+    paper's horizon; --dop853-t-end asks for one; in quick mode the quick
+    default stays."""
     _, ctx = quick
     runs = tmp_path / "runs"
     runs.mkdir()
     key = "lyapunov-C2-dop853-delta1e-05-tau0.05-t"
-    for t_end in ("100000", "1e+08"):
-        for ext in ("npz", "json"):
-            (runs / f"{key}{t_end}.{ext}").write_text("")
     full = paper_figures.Context(tmp_path, quick=False, fresh=False)
+    assert full.horizon("lyapunov", "C2", "dop853") == paper_figures.DOP853_T_END["C2"][0]
+    for ext in ("npz", "json"):
+        (runs / f"{key}100000.{ext}").write_text("")
+    assert full.horizon("lyapunov", "C2", "dop853", delta=1e-5) == 1e5
+    for ext in ("npz", "json"):
+        (runs / f"{key}1e+08.{ext}").write_text("")
     assert full.horizon("lyapunov", "C2", "dop853", delta=1e-5) == 1e8
+    asked = paper_figures.Context(tmp_path, quick=False, fresh=False, dop853_t_end=3e8)
+    assert asked.horizon("lyapunov", "C2", "dop853", delta=1e-5) == 3e8
     assert full.horizon("gali", "C2", "dop853") == paper_figures.DOP853_T_END["C2"][0]
     assert ctx.horizon("lyapunov", "C2", "dop853") == paper_figures.DOP853_T_END["C2"][1]
 

@@ -52,3 +52,24 @@ def test_report_counts_by_source_and_marks_short_horizons(tmp_path):
 def test_report_names_missing_studies(tmp_path):
     text = report.build(tmp_path)
     assert "table1.csv is missing" in text and "paper_fig02.claims.json" in text
+
+
+def test_the_report_lists_every_verdict_that_changed_and_why(tmp_path):
+    """Against verdicts_previous.json: a claim whose verdict changed is a
+    row (with the horizon it is now checked to, and its note); one that did
+    not change is not; a new claim is counted apart."""
+    before = {"commit": "abc1234", "claims": {"paper_fig09": [
+        {"claim": "law", "holds": False, "checked_to": 1e5},
+        {"claim": "same", "holds": True, "checked_to": None}]}}
+    (tmp_path / "verdicts_previous.json").write_text(json.dumps(before))
+    now = [{"claim": "law", "paper": "", "ours": "slope -1", "holds": True, "note": "why",
+            "rules": [], "checked_to": 1e6, "horizon": 1e6},
+           {"claim": "same", "paper": "", "ours": "", "holds": True, "note": "", "rules": []},
+           {"claim": "fresh", "paper": "", "ours": "", "holds": True, "note": "", "rules": []}]
+    (tmp_path / "paper_fig09.claims.json").write_text(json.dumps(now))
+    lines = report.changed_section(report.load_claims(tmp_path), tmp_path)
+    rows = [line for line in lines if line.startswith("| paper_fig09")]
+    assert len(rows) == 1 and "| law |" in rows[0] and "**differs** | holds" in rows[0]
+    assert "checked to t = 1e+06 (before: 1e+05); why" in rows[0]
+    assert any("paper_fig09 1" in line for line in lines)
+    assert report.changed_section({}, tmp_path / "nowhere") == []

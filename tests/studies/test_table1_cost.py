@@ -8,7 +8,7 @@ import pytest
 
 import varint
 from studies import table1, table1_cost
-from studies.paper_runs import SEED, method_options, run_key
+from studies.paper_runs import SEED, stored_key
 
 
 def test_projection_scales_only_the_part_proportional_to_t():
@@ -28,8 +28,7 @@ def test_projection_scales_only_the_part_proportional_to_t():
 
 def _key(spec):
     _, method, tau, delta, *_ = spec
-    return run_key("lyapunov", "R1", method, tau, table1.T_END,
-                   method_options(method, "R1", delta))
+    return stored_key("lyapunov", "R1", method, tau, table1.T_END, delta=delta)
 
 
 def test_progress_reads_stored_runs_and_checkpoints(tmp_path):

@@ -1,31 +1,30 @@
 """The CUDA target of the generated tangent-map steppers: one orbit per thread.
 
-The same emitter that writes the CPU steppers (:mod:`varint.kernels.generate`)
-writes the step here; only the frame around it differs. The CPU's ``lanes``
-kernel holds a block of orbits with the orbit index innermost and does the
-whole step of one orbit per pass of its loop over lanes, branch-free; on a
-GPU that pass is one thread. So the CUDA kernel is ``lanes`` with the loop
-over lanes replaced by the thread index:
+The code-generation layer (:mod:`varint.codegen`) writes a stepper as a
+step body (:class:`varint.codegen.tm.TMBody`) inside an emitted stepping
+skeleton (:class:`varint.codegen.interval.Interval`) whose *target* says
+where the state lives and how control flows. This module adds a third
+target beside ``OneOrbit`` and ``Lanes``: :class:`Thread`, one orbit per
+CUDA thread. The step and the end of every step are written by the very
+methods that write the CPU steppers, so a thread does the CPU's arithmetic
+in the CPU's order:
 
+* as for one orbit, the state is in locals (registers) for the whole loop,
+  a failure leaves the loop, and work is done where it is due (the
+  renormalisation, its sparse schedule, the overflow check and the copies
+  at output steps, all inside the thread);
 * the caller's arrays keep the orbit index innermost (structure of arrays):
-  thread ``m`` reads ``X[i, m]``, so a warp's 32 loads of one quantity are
-  one coalesced transaction;
-* the lane's work arrays ``F`` and ``I`` become thread-local arrays of one
-  column indexed only by constants, which the compiler keeps in registers;
-* the step — drifts and kicks as explicit fused multiply–adds, ∇V, D²V and
-  the corrector as straight-line expressions with common subexpressions
-  eliminated, the end-of-step checks, the renormalisation with its
-  mantissa/exponent bookkeeping, FLI's and MEGNO's accumulators written out
-  — is emitted by the very methods that emit ``lanes``, so it is the same
-  arithmetic in the same order;
-* the schedule of sparse renormalisation, the overflow check and the copies
-  at output steps, which ``lanes`` runs in loops of their own, run in the
-  thread;
-* a thread whose orbit fails (escape, non-finite state, a singular
-  derivative, degenerate vectors) stops at once; as with ``lanes``, the
-  caller recomputes that orbit with the CPU's one-orbit stepper from the
-  call's start (:mod:`varint.gpu.advance`), so a failed orbit is left
-  exactly as the CPU leaves it.
+  thread ``m`` reads and writes column ``m``, ``X[i, m]``, so a warp's 32
+  loads of one quantity are one coalesced transaction;
+* drifts and kicks keep their explicit fused multiply–adds, integer powers
+  are written as the products numba's CPU target computes, and the
+  schedule's :func:`~varint.kernels.interval.next_interval` is written out
+  (a kernel cannot call the CPU's compiled function);
+* an orbit that fails (escape, non-finite state, a singular derivative,
+  degenerate vectors) stops; as after the CPU's SIMD lanes, the caller
+  recomputes it with the CPU's one-orbit stepper from the call's start
+  (:mod:`varint.gpu.advance`), so a failed orbit is left exactly as the CPU
+  leaves it.
 
 Compiled with contraction of separate multiplies and adds switched off
 (:mod:`varint.gpu.device`), every operation of the kernel is rounded as the
@@ -33,9 +32,12 @@ CPU's (its PTX has only ``.rn`` additions, multiplications, fused
 multiply–adds, square roots and reciprocals); ``exp``, ``log`` and the like
 come from libdevice on the GPU and from the C library on the CPU and may
 differ in the last place. On numba's CUDA simulator the kernel gives the
-CPU's bits (``tests/test_gpu.py``); on an H100 the Hénon–Heiles FLI map
-differed from the CPU's by up to 1e-11 relative at t = 100, a difference
-not explained yet (``studies/results/bench_gpu_h100.md``).
+CPU's bits (``tests/test_gpu.py``). On an H100, the kernel as emitted
+before this module moved onto :mod:`varint.codegen` (the same frame around
+the old generator's step) gave a Hénon–Heiles FLI map that differed from
+the CPU's by up to 1e-11 relative at t = 100, a difference not explained
+yet (``studies/results/bench_gpu_h100.md``); the ported kernel has not
+been run on a GPU.
 """
 
 from __future__ import annotations
@@ -45,17 +47,29 @@ import re
 import types
 from functools import lru_cache
 
-import sympy as sp
+import sympy as sp  # type: ignore[import-untyped]
 
-from ..kernels import generate as G
-from ..models.symbolic import _KernelPrinter
-from ..schemes import DRIFT
+from ..codegen.expressions import ensure_form, expressions, model_key
+from ..codegen.interval import Interval, OneOrbit
+from ..codegen.stepper import Plan, _accumulator_id, _generator_id
+from ..codegen.tm import TMBody
+from ..kernels.checks import CHECK_EVERY, HUGE_Q2
+from ..kernels.interval import (EARLY, SPARSE_COND_LOG, SPARSE_MAX_STEPS, SPARSE_NORM_LOG,
+                                SPARSE_QR_MAX_STEPS)
+from ..models.symbolic import KernelPrinter
+from ..protocol import TANGENT_LIMIT, Renorm
 from . import device
 
-__all__ = ["cuda_source", "cuda_stepper", "emittable"]
+__all__ = ["Thread", "CudaInterval", "cuda_source", "cuda_stepper", "emittable"]
 
 
 _FMA = re.compile(r"(?<![\w.])fma\(")
+
+#: The arguments of ``thread``, in the order :mod:`varint.gpu.advance`
+#: launches it with.
+ARGUMENTS = ("X", "W", "am", "ae", "st", "fs", "nxt", "itv", "n_steps", "step0", "tau", "h",
+             "hc", "escape_r2", "mode", "every", "aux", "outs", "snap_x", "snap_W", "snap_m",
+             "snap_e", "snap_aux")
 
 
 def _power(base, n):
@@ -75,7 +89,7 @@ def _power(base, n):
     return f"({result})"
 
 
-class _Printer(_KernelPrinter):
+class _Printer(KernelPrinter):
     """The CPU kernels' printer, with integer powers written as products."""
 
     def _print_Pow(self, expr, rational=False):
@@ -85,196 +99,136 @@ class _Printer(_KernelPrinter):
         return super()._print_Pow(expr, rational=rational)
 
 
-class CudaEmitter(G._Emitter):
-    """Writes ``thread``: the step of ``lanes`` (:class:`~varint.kernels.generate._Emitter`)
-    for one orbit per CUDA thread."""
+class Thread(OneOrbit):
+    """The third target of the emitted skeleton (beside
+    :class:`~varint.codegen.interval.OneOrbit` and
+    :class:`~varint.codegen.interval.Lanes`): one orbit per CUDA thread.
 
-    def __init__(self, E, plan, simulated):
-        super().__init__(E, plan)
-        self.printer = _Printer()
-        # The fused multiply–adds are CUDA's on a GPU (the CPU's is an LLVM
-        # intrinsic of numba's CPU target); the simulator's cuda.fma rounds
-        # twice, so there they stay a global given by the loader.
-        self.fma = "fma(" if simulated else "cuda.fma("
+    As for one orbit, the state is in locals (registers) and a failure
+    records its code and leaves the loop; the work is not counted (the
+    caller counts it from the scheme, :func:`varint.codegen.tm.step_counts`).
+    The state is loaded from and stored to column ``m`` (the thread's
+    orbit) of arrays with the orbit index innermost, and so are the
+    snapshots: a warp's 32 loads of one quantity are one transaction.
+    """
 
-    def __call__(self, *lines):
-        super().__call__(*(_FMA.sub(self.fma, line) for line in lines))
+    counts = False
 
-    def next_interval(self, target, interval, growth, spread):
-        """``target = next_interval(interval, growth, spread)``
-        (:func:`varint.kernels.generate.next_interval`), written out with
-        its arithmetic in its order: a kernel cannot call the CPU's
-        compiled function, and a device function would need a GPU to be
-        compiled at all (the tests compile this kernel's PTX without one)."""
-        self(f"allowed = {interval} * 2.0",
-             f"if {growth} > 0.0:",
-             f"    allowed = min(allowed, {interval} * NORM_LOG / {growth})",
-             f"if {spread} > 0.0:",
-             f"    allowed = min(allowed, {interval} * COND_LOG / {spread}, QR_MAX_STEPS)",
-             f"{target} = int(max(1.0, min(allowed, MAX_STEPS)))")
+    def snap(self, array, *index):
+        return f"{array}[jo, {', '.join(map(str, index))}, m]"
 
-    def thread_schedule(self):
-        """The sparse schedule of this thread's orbit, when it was
-        renormalised in this step (``lanes``' :meth:`lane_schedule`, for one
-        lane)."""
-        k = self.k
-        logs = [f"math.log(F[{self.fr + j}, b])" for j in range(k)]
-        self(f"if every != 0 and F[{self.fr}, b] != 0.0:")
-        self.indent()
-        self(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
-        if k > 1:
-            self(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0")
-        else:
-            self("spread = 0.0")
-        self(f"done = max(step - (I[{self.inxt}, b] - iv), 1)")
-        self.next_interval("iv", "done", "lmax", "spread")
-        self("if every > 0 and iv > every:", "    iv = every",
-             f"I[{self.inxt}, b] = step + iv")
-        self.dedent()
+    def snap_aux(self, j, c):
+        return f"snap_aux[jo, m, {j}, {c}]"
 
-    def source(self):
-        plan, n, k = self.plan, self.n, self.k
-        kinds = plan.kinds
-        self.lane_layout()
-        inline = bool(plan.inline)
-        rows = self.lane_rows()
-        big = " or ".join(f"not (abs(F[{self.fw + c}, b]) < TANGENT_LIMIT)"
-                          for c in range(2 * n * k))
-        self('"""Generated by varint.gpu.emit; do not edit."""',
-             "import math", "import numpy as np", "",
-             f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
-             f"TANGENT_LIMIT = {G.TANGENT_LIMIT!r}", f"EARLY = {G._EARLY!r}",
-             f"HUGE = {G.HUGE_Q2!r}", f"CHECK_EVERY = {G.CHECK_EVERY}", f"LN2 = {G._LN2!r}",
-             f"NONE, QR = {int(G.Renorm.NONE)}, {int(G.Renorm.QR)}",
-             f"NORM_LOG, COND_LOG = {G._NORM_LOG!r}, {G._COND_LOG!r}",
-             f"MAX_STEPS, QR_MAX_STEPS = {G._MAX_STEPS!r}, {G._QR_MAX_STEPS!r}", "", "",
-             # cuda, float64 and int64 are given by the loader (device or
-             # simulator).
-             "def thread(X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc, escape_r2,"
-             " mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):")
-        self.indent()
-        self("m = cuda.grid(1)", "if m >= X.shape[1]:", "    return", "b = 0",
-             f"F = cuda.local.array(({self.nf}, 1), float64)",
-             f"I = cuda.local.array(({self.ni}, 1), int64)",
-             f"for c in range({self.nf}):", "    F[c, 0] = 0.0",
-             f"for c in range({self.ni}):", "    I[c, 0] = 0")
-        for stage in range(len(kinds)):
-            self(f"h{stage} = h[{stage}]")
-            if plan.corrected[stage]:
-                self(f"hc{stage} = hc[{stage}]")
-        self("renorm = mode != NONE", "s = 0", "step = step0")
-        # In: the caller's column m into F and I.
-        for i in range(2 * n):
-            self(f"F[{i}, b] = X[{i}, m]")
-            for j in range(k):
-                self(f"F[{self.fw + i * k + j}, b] = W[{i}, {j}, m]")
+
+class CudaInterval(Interval):
+    """Writes ``thread``: the skeleton of :class:`~varint.codegen.interval.Interval`
+    with the :class:`Thread` target around the same step body."""
+
+    def schedule(self):
+        """The sparse schedule's next renormalisation
+        (:meth:`Interval.schedule`) with
+        :func:`~varint.kernels.interval.next_interval` written out, its
+        arithmetic in its order: a kernel cannot call the CPU's compiled
+        function."""
+        src = self.src
+        logs = [f"math.log(r{j})" for j in range(self.k)]
+        src(f"lmax = max({', '.join(logs)})" if self.k > 1 else f"lmax = {logs[0]}")
+        src(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0" if self.k > 1
+            else "spread = 0.0")
+        src("done = max(step - (next_renorm - interval), 1)", "allowed = done * 2.0")
+        with src.block("if lmax > 0.0:"):
+            src("allowed = min(allowed, done * NORM_LOG / lmax)")
+        with src.block("if spread > 0.0:"):
+            src("allowed = min(allowed, done * COND_LOG / spread, QR_MAX_STEPS)")
+        src("interval = int(max(1.0, min(allowed, MAX_STEPS)))")
+        with src.block("if every > 0 and interval > every:"):
+            src("interval = every")
+        src("next_renorm = step + interval")
+
+    def orbit_columns(self):
+        """(local, where column ``m`` holds it) of the state."""
+        n, k, body = self.n, self.k, self.body
+        out = [(body.coordinate(i), f"X[{i}, m]") for i in range(2 * n)]
+        out += [(body.component(i, j), f"W[{i}, {j}, m]") for i in range(2 * n)
+                for j in range(k)]
         for j in range(k):
-            self(f"F[{self.fam + j}, b] = am[{j}, m]", f"I[{self.iae + j}, b] = ae[{j}, m]")
-            for c in range(self.ncols):
-                self(f"F[{self.faux + j * self.ncols + c}, b] = aux[m, {j}, {c}]")
-        self("I[0, b] = st[m]", "I[1, b] = fs[m]", f"I[{self.inxt}, b] = nxt[m]", "iv = itv[m]")
-        if self.reuse:
-            for i in range(n):
-                self(f"q{i} = F[{i}, b]")
-            self("code = I[0, b]", "fstep = I[1, b]")
-            self.derivatives(0, self.needs(plan.corrected[0]), lane=True)
-            for c, name in enumerate(self.reuse):
-                self(f"F[{self.fd + c}, b] = {name}")
-            self("I[0, b] = code", "I[1, b] = fstep")
-        self("jo = 0", "while jo < outs.shape[0] and outs[jo] <= step0:", "    jo += 1",
-             "for s in range(n_steps):")
-        self.indent()
-        self("if I[0, b] != 0:", "    break",   # failed: recomputed by the caller
-             "step = step0 + s + 1", "chk = step % CHECK_EVERY == 0")
-        if inline:
-            self("t = step * tau")
-        for local, row in rows:
-            self(f"{local} = {row}")
-        for stage, kind in enumerate(kinds):
-            if kind == DRIFT:
-                self.drift(stage)
-                continue
-            corrected = plan.corrected[stage]
-            if not (stage == 0 and self.reuse):
-                self.derivatives(stage, self.needs(corrected), lane=True)
-            self.kick(stage, corrected, count=False)
-        self("rq = " + " + ".join(f"{v} * {v}" for v in self.q),
-             "rp = " + " + ".join(f"{v} * {v}" for v in self.p))
-        self.lane_fail("rq > escape_r2", G._ESCAPED)
-        self.lane_fail("not (rq + rp < np.inf)", G._NONFINITE)
-        if k:
-            self.lane_renormalize()
-            if inline:
-                self.lane_inline(kinds)
-        for local, row in rows:
-            self(f"{row} = {local}")
-        if k:
-            self("if renorm:")
-            self.indent()
-            self.thread_schedule()
-            self.dedent()
-            self("elif chk:", f"    if ({big}) and I[0, b] == 0:",
-                 f"        I[0, b] = {G._OVERFLOW}", "        I[1, b] = s")
-        self("if jo < outs.shape[0] and step == outs[jo]:")
-        self.indent()
-        if k:
-            self(f"if mode == NONE and ({big}) and I[0, b] == 0:",
-                 f"    I[0, b] = {G._OVERFLOW}", "    I[1, b] = s")
-        for i in range(2 * n):
-            self(f"snap_x[jo, {i}, m] = F[{i}, b]")
+            out += [(f"am{j}", f"am[{j}, m]"), (f"ae{j}", f"ae[{j}, m]")]
+        return out + [("next_renorm", "nxt[m]"), ("interval", "itv[m]")]
+
+    def module(self, accumulator_id):
+        """The kernel's source: ``thread`` and the constants it reads
+        (``cuda``, ``float64``, ``int64`` and, on the simulator, ``fma`` are
+        given by the loader)."""
+        src, body, k = self.src, self.body, self.k
+        self.t = Thread()
+        src('"""Generated by varint.gpu.emit; do not edit."""',
+            f"# accumulator: {accumulator_id or 'none'}",
+            "import math", "import numpy as np", "",
+            f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
+            f"TANGENT_LIMIT = {TANGENT_LIMIT!r}", f"EARLY = {EARLY!r}", f"HUGE = {HUGE_Q2!r}",
+            f"CHECK_EVERY = {CHECK_EVERY}", f"LN2 = {0.6931471805599453!r}",
+            f"NONE, QR = {int(Renorm.NONE)}, {int(Renorm.QR)}",
+            f"NORM_LOG, COND_LOG = {SPARSE_NORM_LOG!r}, {SPARSE_COND_LOG!r}",
+            f"MAX_STEPS, QR_MAX_STEPS = {float(SPARSE_MAX_STEPS)!r}, "
+            f"{float(SPARSE_QR_MAX_STEPS)!r}",
+            "", "", f"def thread({', '.join(ARGUMENTS)}):")
+        with src.block():
+            src("m = cuda.grid(1)", "if m >= X.shape[1]:", "    return")
+            body.prologue(src)
+            for local, where in self.orbit_columns() + self.live_columns(
+                    lambda j, c: f"aux[m, {j}, {c}]"):
+                src(f"{local} = {where}")
             for j in range(k):
-                self(f"snap_W[jo, {i}, {j}, m] = F[{self.fw + i * k + j}, b]")
-        for j in range(k):
-            self(f"snap_m[jo, {j}, m] = F[{self.fam + j}, b]",
-                 f"snap_e[jo, {j}, m] = I[{self.iae + j}, b]")
-            self.lane_aux_out(j, "snap_aux[jo, m, {}, {}]")
-        self("jo += 1")
-        self.dedent()
-        self.dedent()
-        # Out: F and I back into column m.
-        for i in range(2 * n):
-            self(f"X[{i}, m] = F[{i}, b]")
+                src(f"r{j} = 1.0")
+            body.defaults(src)
+            src("status = 0", "s = 0")
+            self.loop()
+            for local, where in self.orbit_columns():
+                src(f"{where} = {local}")
             for j in range(k):
-                self(f"W[{i}, {j}, m] = F[{self.fw + i * k + j}, b]")
-        for j in range(k):
-            self(f"am[{j}, m] = F[{self.fam + j}, b]", f"ae[{j}, m] = I[{self.iae + j}, b]")
-            self.lane_aux_out(j, "aux[m, {}, {}]")
-        self("st[m] = I[0, b]", "fs[m] = I[1, b]", f"nxt[m] = I[{self.inxt}, b]", "itv[m] = iv")
-        self.dedent()
-        return "\n".join(self.lines) + "\n"
+                self.columns_out(j, lambda j, c: f"aux[m, {j}, {c}]")
+            # A failed orbit is recomputed by the caller on the CPU.
+            src("st[m] = status", "fs[m] = s if status != 0 else n_steps")
+        return src.text()
 
 
 def emittable(accumulator):
     """Whether a run with ``accumulator`` can be emitted for CUDA: none
     (SALI, GALI, Lyapunov exponents read the stretching and the vectors),
-    or one that the generator writes out (FLI, MEGNO and OFLI). Any other
-    is a compiled CPU function, which a GPU thread cannot call."""
-    return accumulator is None or bool(G._inline_kind(accumulator))
+    or one with an update rule that the generator writes out (FLI, MEGNO,
+    OFLI). Any other is a compiled CPU function, which a GPU thread cannot
+    call."""
+    return accumulator is None or accumulator.rule is not None
 
 
 def cuda_source(model, kinds, corrected, k, accumulator=None):
     """The CUDA kernel's Python source for ``model`` (one that
-    :func:`~varint.kernels.generate.symbolic_fits`), the scheme's stages
+    :func:`~varint.codegen.expressions.symbolic_fits`), the scheme's stages
     and ``k`` vectors."""
     if not emittable(accumulator):
-        raise ValueError(f"backend='cuda' runs indicators without an accumulator or with "
-                         f"FLI's or MEGNO's; this one's accumulator ({accumulator.key!r}) is "
+        raise ValueError(f"backend='cuda' runs indicators without an accumulator or with an "
+                         f"update rule; this one's accumulator ({accumulator.name!r}) is "
                          "compiled for the CPU only")
-    plan = G.Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
-                  k=int(k), accumulator="" if accumulator is None else accumulator.key,
-                  flow=bool(accumulator is not None and accumulator.needs_flow),
-                  inline=G._inline_kind(accumulator))
-    key = G._model_key(model)
-    if key not in G._FORMS and G._facts_now(model)[1] != key:
-        # As the CPU's loader: source only from the model's own form.
-        raise RuntimeError(f"the cached symbolic facts of {model.name} do not match its form")
-    return _source(key, plan, device.simulated())
+    plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
+                k=int(k), accumulator=_accumulator_id(accumulator))
+    key = model_key(model)
+    # As the CPU's loader: the source only from the model's own form.
+    ensure_form(model, key)
+    return _source(key, plan, accumulator, device.simulated())
 
 
 @lru_cache(maxsize=64)
-def _source(key, plan, simulated):
-    return (f"# varint CUDA generator {G._generator_id()}\n"
-            + CudaEmitter(G._expressions(key), plan, simulated).source())
+def _source(key, plan, accumulator, simulated):
+    body = TMBody(expressions(key), plan.kinds, plan.corrected, plan.k)
+    body.printer = _Printer()
+    source = CudaInterval(body, plan.k, accumulator).module(plan.accumulator)
+    # The fused multiply–adds are CUDA's on a GPU (the CPU's is an LLVM
+    # intrinsic of numba's CPU target); the simulator's cuda.fma rounds
+    # twice, so there they stay a global given by the loader.
+    if not simulated:
+        source = _FMA.sub("cuda.fma(", source)
+    return f"# varint CUDA generator {_generator_id()}\n" + source
 
 
 def cuda_stepper(model, kinds, corrected, k, accumulator=None):

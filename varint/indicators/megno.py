@@ -17,8 +17,9 @@ the interval ending at t_i = iτ:
 Quadrature
 ----------
 All three need the stretching of every interval, so they are accumulated
-after every renormalisation by :data:`MEGNO_ACCUMULATOR`, the same compiled
-code for every method (rule 9 of :class:`varint.protocol.Propagator`). With
+after every renormalisation by :data:`MEGNO_ACCUMULATOR`, whose update is
+written once (:data:`MEGNO_RULE`) and is the same arithmetic in every method
+(rule 9 of :class:`varint.protocol.Propagator`). With
 ln δ(t_i) = Σ_{j≤i} ln r_j exact at the grid times, the integral is the
 Riemann–Stieltjes sum on the renormalisation grid,
 
@@ -41,39 +42,34 @@ import math
 import numpy as np
 from numba import njit
 
-from ..protocol import Accumulator, Renorm
+from ..codegen.accumulators import compile_update
+from ..protocol import Accumulator, Renorm, UpdateRule
 from ..results import IndicatorResult, MEGNOResult
 from .base import Field, Indicator, as_values, register_indicator
 
-__all__ = ["MEGNO", "FLI", "OFLI", "MEGNO_ACCUMULATOR", "FLI_ACCUMULATOR"]
+__all__ = ["MEGNO", "FLI", "OFLI", "MEGNO_ACCUMULATOR", "FLI_ACCUMULATOR", "MEGNO_RULE",
+           "FLI_RULE"]
 
 #: Columns of the accumulator array of each vector.
 LOG, WEIGHTED, MEGNO_SUM, FLI_MAX, OFLI_MAX = range(5)
 
 
-@njit(error_model="numpy")
-def _update_megno(aux, r, x, W, flow, t):
-    ff = 0.0
-    for i in range(flow.shape[0]):
-        ff += flow[i] * flow[i]
-    for j in range(aux.shape[0]):
-        lr = math.log(r[j])
-        s = aux[j, LOG] + lr
-        aux[j, LOG] = s
-        aux[j, WEIGHTED] += t * lr
-        aux[j, MEGNO_SUM] += 2.0 * aux[j, WEIGHTED] / t
-        if s > aux[j, FLI_MAX]:
-            aux[j, FLI_MAX] = s
-        # ‖w_⊥‖ = ‖w‖ ‖ŵ_⊥‖ with ŵ the renormalised vector: ln‖w_⊥‖ = S + ½ ln‖ŵ_⊥‖².
-        wf = 0.0
-        for i in range(flow.shape[0]):
-            wf += W[i, j] * flow[i]
-        perp = 1.0 - wf * wf / ff if ff > 0.0 else 1.0
-        if perp > 0.0:
-            o = s + 0.5 * math.log(perp)
-            if o > aux[j, OFLI_MAX]:
-                aux[j, OFLI_MAX] = o
-
+#: MEGNO's update, written once: generated steppers write it into their
+#: loops, and every other stepper calls it compiled (:func:`compile_update`),
+#: with the same operations in the same order. ‖w_⊥‖ = ‖w‖ ‖ŵ_⊥‖ with ŵ
+#: the renormalised vector: ln‖w_⊥‖ = S + ½ ln‖ŵ_⊥‖².
+MEGNO_RULE = UpdateRule(
+    live=("log", "weighted", "megno_sum", "fli", "ofli"),
+    step=("lr = math.log(r)",
+          "log = log + lr",
+          "weighted = weighted + t * lr",
+          "megno_sum = megno_sum + 2.0 * weighted / t",
+          "fli = log if log > fli else fli",
+          "wf = dot(w, f)",
+          "ff = dot(f, f)",
+          "perp = 1.0 - wf * wf / ff if ff > 0.0 else 1.0",
+          "o = log + 0.5 * math.log(perp)",
+          "ofli = o if perp > 0.0 and o > ofli else ofli"))
 
 @njit(error_model="numpy")
 def _update_fli(aux, r, x, W, flow, t):
@@ -84,22 +80,39 @@ def _update_fli(aux, r, x, W, flow, t):
             aux[j, 1] = s
 
 
+_MEGNO_COLUMNS = ("log", "weighted", "megno_sum", "fli", "ofli")
+
 #: MEGNO's sums, FLI and OFLI of each vector (see the module docstring).
 #: At t = 0: ln‖w‖ = 0, so FLI = 0; OFLI is a maximum over t ≥ τ.
 MEGNO_ACCUMULATOR = Accumulator(
-    name="megno", columns=("log", "weighted", "megno_sum", "fli", "ofli"),
-    initial=(0.0, 0.0, 0.0, 0.0, -math.inf), update=_update_megno, needs_flow=True)
+    name="megno", columns=_MEGNO_COLUMNS, initial=(0.0, 0.0, 0.0, 0.0, -math.inf),
+    update=compile_update(MEGNO_RULE, _MEGNO_COLUMNS), needs_flow=True, rule=MEGNO_RULE)
+
+#: FLI in a generated stepper: the largest ‖w‖ kept as a mantissa and
+#: exponent ("peak", "peak_exp": the accumulated stretching at the step of
+#: the supremum), compared exactly with the current (am, ae): the exponents
+#: are multiples of 500, so am · 2^(ae − peak_exp) is exact where it matters
+#: and otherwise decides by its exponent alone. FLI = ln peak + peak_exp ln 2
+#: is taken only when the state is copied out — no logarithm per step, so
+#: the loop over SIMD lanes vectorises (the arithmetic of Froeschlé et al.'s
+#: sup, not of :func:`_update_fli`'s running sum).
+FLI_RULE = UpdateRule(
+    live=("peak", "peak_exp"),
+    step=("d = ae - peak_exp",
+          "v = am if d == 0.0 else (am * ACC_BIG if d == 500.0 else (am * ACC_SMALL if "
+          "d == -500.0 else (np.inf if d > 0.0 else 0.0)))",
+          "up = v > peak",
+          "peak = am if up else peak",
+          "peak_exp = float(ae) if up else peak_exp"),
+    readout=("log = math.log(am) + ae * LN2",
+             "fli = math.log(peak) + peak_exp * LN2"))
 
 #: FLI alone: ln‖w‖ and its supremum; needs no flow (so no extra force
 #: evaluation in schemes that end on a drift). ``update`` keeps them as a
-#: running sum of ln r; the generated stepper
-#: (:mod:`varint.kernels.generate`) keeps instead the largest ‖w‖ as a
-#: mantissa and exponent ("peak", "peak_exp": the product of the stretchings
-#: at the step of the supremum) and takes one logarithm when the state is
-#: copied out, which lets its loop over orbits vectorise. The two agree to
-#: round-off; each is deterministic.
+#: running sum of ln r; a generated stepper follows :data:`FLI_RULE`. The
+#: two agree to round-off; each is deterministic.
 FLI_ACCUMULATOR = Accumulator(name="fli", columns=("log", "fli", "peak", "peak_exp"),
-                              initial=(0.0, 0.0, 1.0, 0.0), update=_update_fli)
+                              initial=(0.0, 0.0, 1.0, 0.0), update=_update_fli, rule=FLI_RULE)
 
 
 def _one_vector(model, options, given):

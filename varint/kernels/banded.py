@@ -15,8 +15,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .inlining import into_kernels
 
-@njit(inline="always")
+
+@njit(inline=into_kernels)
 def band_matvec(B, x, y, n, bw):
     """``y = A x`` for the band-stored symmetric ``A``."""
     for i in range(n):
@@ -27,7 +29,7 @@ def band_matvec(B, x, y, n, bw):
             y[i + b] += B[b, i] * x[i]
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def band_kick_block(B, W, n, k, bw):
     """``δp −= A δq`` for deviation vectors ``W = (δq; δp)`` of shape
     (2N, k), in place: the tangent part of a kick with kick matrix ``A``.
@@ -47,7 +49,7 @@ def band_kick_block(B, W, n, k, bw):
                 W[n + i + b, j] -= a * W[i, j]
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def band_square_add(B, d, T, S, n, bw, bws):
     """``S = 2 (A diag(d) A + T)`` for band-stored symmetric ``A`` and ``T``
     of bandwidth ``bw``; ``S`` has bandwidth ``bws = min(2 bw, N − 1)``.

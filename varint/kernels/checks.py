@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from ..protocol import Renorm, Status, TANGENT_LIMIT
+from .inlining import into_kernels
 
 __all__ = ["orbit_status", "state_status", "renormalize", "renormalize_block",
            "renormalized_rows",
@@ -47,7 +48,7 @@ CHECK_EVERY = 16
 HUGE_Q2 = 1e100
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def orbit_status(x, n, escape_r2):
     """``Status.ESCAPED`` if |q|² > ``escape_r2``, ``ORBIT_NONFINITE`` if
     the state ``x`` (2N,) holds a NaN or infinity, else ``OK``."""
@@ -63,7 +64,7 @@ def orbit_status(x, n, escape_r2):
     return _OK
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def state_status(x, d, escape_r2):
     """:func:`orbit_status` for a map's state ``x`` (d,), whose components
     need not split into positions and momenta: ``ESCAPED`` if |x|² >
@@ -78,7 +79,7 @@ def state_status(x, d, escape_r2):
     return _OK
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def all_finite(a, n):
     """Whether the first ``n`` entries of the 1-D ``a`` are finite (one sum:
     a NaN or infinity anywhere makes it non-finite)."""
@@ -88,7 +89,7 @@ def all_finite(a, n):
     return s - s == 0.0
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def derivative_status(q, n, status):
     """``status`` (a derivative kernel was not finite at q), or
     ``ORBIT_NONFINITE`` if |q|² > :data:`HUGE_Q2`."""
@@ -98,7 +99,7 @@ def derivative_status(q, n, status):
     return status if rq < HUGE_Q2 else _NONFINITE
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def renormalize(W, mode, acc_m, acc_e, r, d, k):
     """Renormalise the k columns of ``W`` (d, k) in place and return
     ``Status.OK``, or ``TANGENT_DEGENERATE`` if a column is zero or not

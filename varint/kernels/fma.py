@@ -3,7 +3,7 @@ with one rounding, LLVM's ``llvm.fma`` intrinsic (one instruction on every
 x86-64 CPU with FMA3 and on ARMv8; elsewhere a call to the C library's
 ``fma``, as exact and slower).
 
-The generated steppers (:mod:`varint.kernels.generate`) write their drifts
+The generated steppers (:mod:`varint.codegen`) write their drifts
 and kicks with it. A step is a chain of dependent multiply–adds, and the
 fused ones halve its latency (the Hénon–Heiles orbit under ABA864: 43 →
 35 ns per step, as fast as gcc -O3's loop of the same stages, which

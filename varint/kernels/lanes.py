@@ -1,7 +1,7 @@
 """Moving orbits between the run state's layout and SIMD lanes.
 
 The run state holds one row per orbit, (M, ...); the lane steppers of
-:mod:`~varint.kernels.generate` want blocks with the orbit index innermost,
+:mod:`~varint.codegen.interval` want blocks with the orbit index innermost,
 (blocks, ..., lanes). A chaos map with early stopping converts its state
 both ways at every check time, for a handful of arrays: in NumPy (fancy
 index, moveaxis, copy) that cost ~8 µs per array and direction, as much as

@@ -5,12 +5,10 @@ every model that declares its parts (:class:`varint.models.lattice.Parts`).
 A step applies the scheme's flows in order; each flow is the model's exact
 flow of one part, fused with its tangent map, so one pass over the sites
 moves the orbit and every deviation vector (the TM method of Skokos &
-Gerlach 2010, Sect. V.C, for any number of parts). After every step the
-orbit is checked, the vectors are renormalised and the indicator's
-accumulator is updated, with the same compiled functions as the generic
-stepper (:mod:`varint.kernels.checks`, :mod:`varint.kernels.tm`), so an
-orbit fails for the same reasons with the same status codes whatever
-stepper advanced it.
+Gerlach 2010, Sect. V.C, for any number of parts). This module is that
+step body (:func:`parts_body`); the loop over steps and the end of every
+step are the stepping skeleton's (:mod:`varint.kernels.interval`), as for
+every other method.
 
 Speed comes from three choices, measured in studies/bench_lattices.py:
 
@@ -25,112 +23,91 @@ Speed comes from three choices, measured in studies/bench_lattices.py:
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections import namedtuple
+from functools import cache
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from ..protocol import Renorm, Status
-from .checks import CHECK_EVERY, orbit_status, renormalize, tangent_overflow
+from .checks import orbit_status
+from .interval import StepBody, batch_loop, no_accumulator, orbit_record
 
-__all__ = ["parts_batch", "SPECIALISE_K"]
-
-_OK = int(Status.OK)
-_OVERFLOW = int(Status.TANGENT_OVERFLOW)
-_NONE = int(Renorm.NONE)
+__all__ = ["parts_body", "parts_batch", "PartsOrbit", "PartsSetup", "SPECIALISE_K"]
 
 #: Largest number of deviation vectors compiled as a constant.
 SPECIALISE_K = 8
 
+#: One orbit's record (:mod:`varint.kernels.interval`); ``counters`` counts
+#: the flows of each part.
+PartsOrbit = orbit_record("PartsOrbit")
 
-def _make_orbit_kernel(apply, field, K_C, FLOW):
-    """The one-orbit stepper of the model whose flows are ``apply`` (and
-    vector field ``field``); ``K_C`` ≥ 0 fixes the number of vectors at
-    compile time, −1 reads it from ``W``. With ``FLOW`` the phase-space
-    velocity at the end of each step is passed to the accumulator."""
+#: What a call reads: the word of flows (part index ``parts`` and length
+#: ``h`` of each), the model's parameters and the scratch it needs.
+PartsSetup = namedtuple("PartsSetup", ("parts", "h", "par", "n_work"))
 
-    @njit
-    def steps(x, V, acc_m, acc_e, n_steps, parts, h, par, work, renorm, escape_r2,
-              counters, accumulate, aux, step0, tau):
-        n = x.shape[0] // 2
-        d = 2 * n
-        k = K_C if K_C >= 0 else V.shape[0]
-        W = V.T  # the (2N, k) view the checks and accumulators read
-        r = np.empty(k if aux.shape[0] > 0 else 0)   # stretching, for the accumulator
-        flow = np.empty(d if FLOW else 0)
-        tangent = k > 0
-        for s in range(n_steps):
-            for st in range(parts.shape[0]):
-                apply(parts[st], h[st], x, V, k, par, work)
-                counters[parts[st]] += 1
-            status = orbit_status(x, n, escape_r2)
-            if status != _OK:
-                return status, s
-            if renorm != _NONE:
-                status = renormalize(W, renorm, acc_m, acc_e, r, d, k)
-                if status != _OK:
-                    return status, s
-                if aux.shape[0] > 0:
-                    if FLOW:
-                        field(x, par, flow)
-                    # The time from the integer step, so it does not depend on chunking.
-                    accumulate(aux, r, x, W, flow, (step0 + s + 1) * tau)
-            elif tangent and s % CHECK_EVERY == CHECK_EVERY - 1:
-                if tangent_overflow(W):
-                    return _OVERFLOW, s
-        if renorm == _NONE and tangent and tangent_overflow(W):
-            return _OVERFLOW, n_steps - 1
-        return _OK, n_steps
-
-    @njit
-    def parts_orbit(x, W, acc_m, acc_e, n_steps, parts, h, par, n_work, renorm, escape_r2,
-                    counters, accumulate, aux, step0, tau):
-        # Each deviation vector as one contiguous row while the steps run
-        # (the site loops of the flows then vectorise), back at the end.
-        V = np.ascontiguousarray(W.T)
-        work = np.empty(n_work)
-        out = steps(x, V, acc_m, acc_e, n_steps, parts, h, par, work, renorm, escape_r2,
-                    counters, accumulate, aux, step0, tau)
-        W[:, :] = V.T
-        return out
-
-    return parts_orbit
+# Work space: sizes, the orbit (the end point), the vectors as rows, scratch.
+_Work = namedtuple("_Work", ("n", "k", "d", "xe", "V", "work"))
 
 
-@lru_cache(maxsize=None)
-def _batch(apply, field, K_C, parallel, flow):
-    parts_orbit = _make_orbit_kernel(apply, field, K_C, flow)
+@cache
+def parts_body(apply, field, K_C):
+    """The step body of the model whose flows are ``apply`` (and vector
+    field ``field``); ``K_C`` ≥ 0 fixes the number of vectors at compile
+    time, −1 reads it from ``W``.
 
-    @njit(parallel=parallel)
-    def batch(X, W, acc_m, acc_e, n_steps, parts, h, par, n_work, renorm, escape_r2, counters,
-              status, done, accumulate, aux, step0, tau):
-        for m in prange(X.shape[0]):
-            if status[m] != _OK:
-                done[m] = 0
-                continue
-            st, steps = parts_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, parts, h, par,
-                                    n_work, renorm, escape_r2, counters[m], accumulate, aux[m],
-                                    step0, tau)
-            status[m] = st
-            done[m] = steps
+    Each deviation vector is held as one contiguous row of ``V`` (k, 2N)
+    while the steps run (the site loops of the flows then vectorise) and
+    written back to ``W`` (2N, k) at the end of the call.
+    """
 
-    return batch
+    @njit(inline="always")
+    def begin(state, setup, call):
+        n = state.x.shape[0] // 2
+        k = K_C if K_C >= 0 else state.W.shape[1]
+        V = np.ascontiguousarray(state.W.T)
+        return _Work(n, k, 2 * n, state.x, V, np.empty(setup.n_work)), 0
+
+    @njit(inline="always")
+    def step(state, setup, ws, carry, s, call):
+        parts, h, counters = setup.parts, setup.h, state.counters
+        for st in range(parts.shape[0]):
+            apply(parts[st], h[st], state.x, ws.V, ws.k, setup.par, ws.work)
+            counters[parts[st]] += 1
+        return 0, carry
+
+    @njit(inline="always")
+    def check(state, setup, ws, xe, call):
+        return orbit_status(xe, ws.n, call.escape_r2)
+
+    @njit(inline="always")
+    def flow(state, setup, ws, carry, xe, s, call, out):
+        field(xe, setup.par, out)
+        return carry
+
+    @njit(inline="always")
+    def vectors(state, ws):
+        return ws.V.T   # the (2N, k) view the checks and accumulators read
+
+    @njit(inline="always")
+    def end(state, ws):
+        state.W[:, :] = ws.V.T
+
+    return StepBody(begin=begin, step=step, check=check, flow=flow, vectors=vectors, end=end)
 
 
-def parts_batch(apply, field, k, parallel, flow=False):
+def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False):
     """The batch stepper of a model's flows ``apply`` (and vector field
     ``field``) for ``k`` deviation vectors, compiled once per model class,
-    k (up to :data:`SPECIALISE_K`) and options.
+    k (up to :data:`SPECIALISE_K`), accumulator and options:
+    ``batch(states, setup, call, status, done)``
+    (:func:`varint.kernels.interval.batch_loop`) with a batch of
+    :class:`PartsOrbit` and a :class:`PartsSetup`.
 
-    The returned function advances every orbit of ``X`` (M, 2N) whose
-    ``status`` is OK by ``n_steps`` steps of the word (``parts``, ``h``):
-    flow ``st`` is ``apply(parts[st], h[st], x, V, k, par, work)`` (V: the
-    vectors as rows, ``work``: ``n_work`` floats of scratch per orbit).
-    ``done[m]`` receives the steps orbit m completed, ``status[m]`` its
-    status and ``counters[m, part]`` the flows of each part it ran.
-    ``accumulate`` updates ``aux[m]`` after every step (pass
-    :func:`varint.kernels.tm.no_accumulator` and an empty ``aux`` (M, 0, 0)
-    for none); with ``flow`` it is given ``field(x, par, out)``, the
-    phase-space velocity.
+    Flow ``st`` of a step is ``apply(parts[st], h[st], x, V, k, par,
+    work)`` (V: the vectors as rows, ``work``: ``n_work`` floats of scratch
+    per orbit); ``counters[m, part]`` receives the flows of each part orbit
+    m ran. ``accumulate`` updates ``aux[m]`` after every step; with
+    ``flow`` it is given ``field(x, par, out)``, the phase-space velocity.
     """
-    return _batch(apply, field, k if k <= SPECIALISE_K else -1, bool(parallel), bool(flow))
+    body = parts_body(apply, field, k if k <= SPECIALISE_K else -1)
+    return batch_loop(body, bool(parallel), accumulate, bool(flow))

@@ -27,286 +27,263 @@ extended energy K = H + p_t (``time=True`` steppers; see
 :func:`_make_orbit_kernel`). Every scheme stays symplectic in the extended
 space, and the deviation vectors, with δt = 0, follow the same formulas.
 
-After every step the orbit is checked and the deviation vectors are
-renormalised (:mod:`varint.kernels.checks`); an indicator's accumulator
-(:class:`varint.protocol.Accumulator`) is then updated. A derivative kernel
+This module is the TM method's step body (:func:`tm_body`): one step of
+the scheme's stages. The loop over steps and the end of every step (the
+orbit's checks, renormalisation, the accumulator of an indicator) are the
+stepping skeleton's (:mod:`varint.kernels.interval`). A derivative kernel
 that returns a non-finite value at a finite position (a potential singular
 on the orbit) stops the orbit before that kick, with the position kept.
 
 Speed comes from two choices, both measured (studies/bench_tm.py):
 
-* the model's kernels are numba dispatchers passed as arguments, so numba
-  compiles them into the stepper (inlined, not called through a pointer);
+* the model's kernels (:func:`model_kernels`) are compiled into the
+  stepper (inlined, not called through a pointer);
 * for small systems the sizes N, k and the bandwidth are compile-time
-  constants of a stepper built by :func:`tm_batch`, so the many short loops
-  unroll; large systems fix only k (≤ 8) and the bandwidth
-  (:func:`specialised_sizes`).
+  constants of the stepper, so the many short loops unroll; large systems
+  fix only k (≤ 8) and the bandwidth (:func:`specialised_sizes`).
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections import namedtuple
+from functools import cache
 
 import numpy as np
-import numba
-from numba import njit, prange
+from numba import njit
 
-from ..protocol import Renorm, Status
+from ..protocol import Status
 from .banded import band_kick_block, band_matvec, band_square_add
-from .checks import (CHECK_EVERY, all_finite, derivative_status, orbit_status, renormalize,
-                     tangent_overflow)
+from .checks import all_finite, derivative_status, orbit_status
+from .interval import StepBody, batch_loop, no_accumulator, orbit_loop, orbit_record
 
-__all__ = ["tm_batch", "orbit_kernel", "batch_kernel", "specialised_sizes", "use_parallel",
-           "no_accumulator", "SPECIALISE_N"]
+__all__ = ["tm_body", "tm_batch", "orbit_kernel", "batch_kernel", "specialised_sizes",
+           "model_kernels", "TMOrbit", "TMSetup", "SPECIALISE_N"]
 
 _OK = int(Status.OK)
 _GRAD = int(Status.GRADIENT_NONFINITE)
 _HESS = int(Status.HESSIAN_NONFINITE)
 _THIRD = int(Status.THIRD_NONFINITE)
-_OVERFLOW = int(Status.TANGENT_OVERFLOW)
-_NONE = int(Renorm.NONE)
 
 #: Largest N and k for which the stepper is specialised to constant sizes,
 #: and largest k specialised when N is too large to be a constant.
 SPECIALISE_N, SPECIALISE_K, SPECIALISE_K_LARGE_N = 16, 32, 8
 
+#: One orbit's record (:mod:`varint.kernels.interval`): ``pt`` (1,) its
+#: momentum conjugate to time (a time-dependent V; (0,) otherwise) and
+#: ``record`` (≥ n_steps, 2N), where a recording stepper writes the orbit.
+TMOrbit = orbit_record("TMOrbit", ("pt", "record"))
 
-@njit
-def no_accumulator(aux, r, x, W, flow, t):
-    """The accumulator of indicators that accumulate nothing."""
+#: What a call of the stepper reads: the stage tables of
+#: :func:`varint.schemes.stage_arrays` (``kinds``, ``h``, ``hc``), the
+#: inverse masses, the model's parameters, its bandwidth and, for a
+#: time-dependent V, the stage times ``ctime`` (:func:`varint.schemes.stage_times`).
+TMSetup = namedtuple("TMSetup", ("kinds", "h", "hc", "minv", "par", "bw", "ctime"))
+
+# The step body's work space (sizes, derivative buffers, band matrices).
+_Work = namedtuple("_Work", ("n", "k", "d", "xe", "bw", "bwc", "q", "g", "gc", "mg", "H", "T",
+                             "HC", "Kb", "pl", "gt"))
 
 
-def _make_orbit_kernel(N_C, K_C, BW_C, RECORD=False, FLOW=False, TIME=False):
-    """The one-orbit stepper; sizes are constants when ≥ 0, else read from
+def model_kernels(model):
+    """The compiled kernels of ``model`` the stepper is built with:
+    ``(grad, hess, third, dtime)`` (``dtime`` None unless V depends on t)."""
+    dtime = model.time_kernel if model.time_dependent else None
+    return model.grad_kernel, model.hess_kernel, model.third_kernel, dtime
+
+
+@cache
+def tm_body(N_C, K_C, BW_C, kernels, TIME=False):
+    """The TM method's step body for the model ``kernels``
+    (:func:`model_kernels`); sizes are constants when ≥ 0, else read from
     the arrays.
 
-    With ``RECORD`` (a compile-time constant, so the TM method's stepper
-    has no such code) the orbit after every step is written to
-    ``record[step]``, of shape (≥ n_steps, 2N): the TDH methods
-    (:mod:`varint.tdh`) integrate their orbit with this stepper (k = 0) and
-    read D²V at the grid points from the record.
+    One step applies the scheme's stages: drifts, and kicks fused with a
+    corrector at the same q (see the module docstring). Forces, Hessians and
+    third derivatives are reused while q (and, with ``TIME``, t) is bitwise
+    unchanged: the carry holds which are valid.
 
-    With ``FLOW`` (likewise) the phase-space velocity (M⁻¹p, −∇V) at the end
-    of each step is passed to the accumulator.
-
-    With ``TIME`` (likewise) V depends on t (see the module docstring), and
-    three more arguments are read: ``ctime`` (n_stages,), the time of each
-    stage in units of τ from the step's start (:func:`varint.schemes.stage_times`);
-    ``dtime``, the model's kernel ``dtime(q, par, gt) -> ∂_tV`` that also
-    writes ``gt = ∂_t∇V``; and ``pt`` (1,), the orbit's p_t, updated in
-    place. The kick of stage s of step ``step0 + i`` evaluates ∇V, D²V and
-    the third derivatives at t = (step0 + i + ctime[s])·τ, written to the
-    last entry of a private copy of ``par``: the time depends only on the
-    step and stage, so chunking never changes a bit, and forces are reused
-    between stages only when both q and t are bitwise unchanged. The time
-    derivatives are evaluated with every gradient (and counted with it).
+    With ``TIME`` V depends on t: the kick of stage s of step ``step0 + i``
+    evaluates ∇V, D²V and the third derivatives at t = (step0 + i +
+    ctime[s])·τ, written to the last entry of a private copy of ``par``
+    (the time depends only on the step and stage, so chunking never changes
+    a bit); ``dtime(q, par, gt) -> ∂_tV`` (also writing gt = ∂_t∇V) is
+    evaluated with every gradient and counted with it, and the orbit's p_t
+    (``state.pt[0]``) is kicked by −h ∂_tV − h_c ∂_tC.
     """
+    grad, hess, third, dtime = kernels
 
-    @njit
-    def tm_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
-                 grad, hess, third, renorm, escape_r2, counters, record, accumulate, aux,
-                 step0, tau, ctime=None, dtime=None, pt=None):
-        n = N_C if N_C >= 0 else x.shape[0] // 2
-        k = K_C if K_C >= 0 else W.shape[1]
-        bw = BW_C if BW_C >= 0 else bw_rt
-        d = 2 * n
+    @njit(inline="always")
+    def begin(state, setup, call):
+        n = N_C if N_C >= 0 else state.x.shape[0] // 2
+        k = K_C if K_C >= 0 else state.W.shape[1]
+        bw = BW_C if BW_C >= 0 else setup.bw
         bwc = min(2 * bw, n - 1)
-        q = np.empty(n)      # contiguous copy of the positions for the model
-        g = np.empty(n)      # ∇V
-        gc = np.empty(n)     # ∇C
-        mg = np.empty(n)     # M⁻¹∇V
-        H = np.zeros((bw + 1, n))
-        T = np.zeros((bw + 1, n))
-        HC = np.zeros((bwc + 1, n))
-        Kb = np.zeros((bwc + 1, n))
-        r = np.empty(k if aux.shape[0] > 0 else 0)   # stretching, for the accumulator
-        flow = np.empty(d if FLOW else 0)
+        pl = setup.par.copy() if TIME else setup.par    # pl[-1] = t of this orbit's kicks
+        ws = _Work(n, k, 2 * n, state.x, bw, bwc,
+                   np.empty(n),                 # q: contiguous copy of the positions
+                   np.empty(n),                 # ∇V
+                   np.empty(n),                 # ∇C
+                   np.empty(n),                 # M⁻¹∇V
+                   np.zeros((bw + 1, n)), np.zeros((bw + 1, n)),
+                   np.zeros((bwc + 1, n)), np.zeros((bwc + 1, n)),
+                   pl, np.empty(n if TIME else 0))   # ∂_t∇V
+        # Which of g, H, ∇C and D²C hold at the current q; the time of
+        # them (NaN: none); ∂_tV.
+        return ws, (False, False, False, False, np.nan, 0.0)
+
+    @njit(inline="always")
+    def step(state, setup, ws, carry, s, call):
+        x, W, counters = state.x, state.W, state.counters
+        kinds, h, hc, minv = setup.kinds, setup.h, setup.hc, setup.minv
+        n, k, bw, bwc = ws.n, ws.k, ws.bw, ws.bwc
+        q, g, gc, mg, H, T, HC, Kb, pl, gt = (ws.q, ws.g, ws.gc, ws.mg, ws.H, ws.T, ws.HC,
+                                              ws.Kb, ws.pl, ws.gt)
+        have_g, have_h, have_c, have_hc, t_have, dv = carry
         tangent = k > 0
-        have_g = have_h = have_c = have_hc = False
-        if TIME:
-            pl = par.copy()          # par[-1] = t of this orbit's kicks
-            last = pl.shape[0] - 1
-            gt = np.empty(n)         # ∂_t∇V
-            dv = 0.0                 # ∂_tV
-            t_have = np.nan          # the time of g, H, ∇C and D²C
-        else:
-            pl = par
-        for s in range(n_steps):
-            for st in range(kinds.shape[0]):
-                hs = h[st]
-                if kinds[st] == 0:
-                    # Drift e^{h L_AV}.
-                    for i in range(n):
-                        a = hs * minv[i]
-                        x[i] += a * x[n + i]
-                        for j in range(k):
-                            W[i, j] += a * W[n + i, j]
+        for st in range(kinds.shape[0]):
+            hs = h[st]
+            if kinds[st] == 0:
+                # Drift e^{h L_AV}.
+                for i in range(n):
+                    a = hs * minv[i]
+                    x[i] += a * x[n + i]
+                    for j in range(k):
+                        W[i, j] += a * W[n + i, j]
+                have_g = have_h = have_c = have_hc = False
+                continue
+            # Kick e^{h L_BV}, fused with a corrector e^{hc L_CV} at the same q.
+            hcs = hc[st]
+            if TIME:
+                tk = (float(call.step0 + s) + setup.ctime[st]) * call.tau
+                if tk != t_have:
                     have_g = have_h = have_c = have_hc = False
-                    continue
-                # Kick e^{h L_BV}, fused with a corrector e^{hc L_CV} at the same q.
-                hcs = hc[st]
+                    pl[pl.shape[0] - 1] = tk
+                    t_have = tk
+            if not have_g:
+                for i in range(n):
+                    q[i] = x[i]
+                grad(q, pl, g)
+                counters[0] += 1
                 if TIME:
-                    tk = (float(step0 + s) + ctime[st]) * tau
-                    if tk != t_have:
-                        have_g = have_h = have_c = have_hc = False
-                        pl[last] = tk
-                        t_have = tk
-                if not have_g:
+                    dv = dtime(q, pl, gt)
+                    if not (all_finite(gt, n) and dv - dv == 0.0):
+                        return _GRAD, (have_g, have_h, have_c, have_hc, t_have, dv)
+                if not all_finite(g, n):
+                    return (derivative_status(q, n, _GRAD),
+                            (have_g, have_h, have_c, have_hc, t_have, dv))
+                have_g = True
+            if (tangent or hcs != 0.0) and not have_h:
+                hess(q, pl, H)
+                counters[1] += 1
+                if not all_finite(H.ravel(), (bw + 1) * n):
+                    return (derivative_status(q, n, _HESS),
+                            (have_g, have_h, have_c, have_hc, t_have, dv))
+                have_h = True
+            if hcs != 0.0:
+                if not have_c:
                     for i in range(n):
-                        q[i] = x[i]
-                    grad(q, pl, g)
-                    counters[0] += 1
-                    if TIME:
-                        dv = dtime(q, pl, gt)
-                        if not (all_finite(gt, n) and dv - dv == 0.0):
-                            return _GRAD, s
-                    if not all_finite(g, n):
-                        return derivative_status(q, n, _GRAD), s
-                    have_g = True
-                if (tangent or hcs != 0.0) and not have_h:
-                    hess(q, pl, H)
-                    counters[1] += 1
-                    if not all_finite(H.ravel(), (bw + 1) * n):
-                        return derivative_status(q, n, _HESS), s
-                    have_h = True
-                if hcs != 0.0:
-                    if not have_c:
-                        for i in range(n):
-                            mg[i] = minv[i] * g[i]
-                        band_matvec(H, mg, gc, n, bw)
-                        for i in range(n):
-                            gc[i] *= 2.0  # ∇C = 2 D²V M⁻¹∇V
-                        have_c = True
+                        mg[i] = minv[i] * g[i]
+                    band_matvec(H, mg, gc, n, bw)
                     for i in range(n):
-                        x[n + i] -= hs * g[i] + hcs * gc[i]
-                    if TIME:
-                        # ∂_tC = 2 (M⁻¹∇V)·∂_t∇V
-                        ct = 0.0
-                        for i in range(n):
-                            ct += minv[i] * g[i] * gt[i]
-                        pt[0] -= hs * dv + hcs * 2.0 * ct
-                else:
+                        gc[i] *= 2.0  # ∇C = 2 D²V M⁻¹∇V
+                    have_c = True
+                for i in range(n):
+                    x[n + i] -= hs * g[i] + hcs * gc[i]
+                if TIME:
+                    # ∂_tC = 2 (M⁻¹∇V)·∂_t∇V
+                    ct = 0.0
                     for i in range(n):
-                        x[n + i] -= hs * g[i]
-                    if TIME:
-                        pt[0] -= hs * dv
-                if not tangent:
-                    continue
-                counters[3] += 1
-                if hcs == 0.0:
-                    for b in range(bw + 1):
-                        for i in range(n):
-                            Kb[b, i] = hs * H[b, i]
-                    band_kick_block(Kb, W, n, k, bw)
-                    continue
-                if not have_hc:
-                    third(q, pl, mg, T)
-                    counters[2] += 1
-                    if not all_finite(T.ravel(), (bw + 1) * n):
-                        return derivative_status(q, n, _THIRD), s
-                    band_square_add(H, minv, T, HC, n, bw, bwc)
-                    have_hc = True
-                for b in range(bwc + 1):
-                    for i in range(n):
-                        Kb[b, i] = hcs * HC[b, i]
+                        ct += minv[i] * g[i] * gt[i]
+                    state.pt[0] -= hs * dv + hcs * 2.0 * ct
+            else:
+                for i in range(n):
+                    x[n + i] -= hs * g[i]
+                if TIME:
+                    state.pt[0] -= hs * dv
+            if not tangent:
+                continue
+            counters[3] += 1
+            if hcs == 0.0:
                 for b in range(bw + 1):
                     for i in range(n):
-                        Kb[b, i] += hs * H[b, i]
-                band_kick_block(Kb, W, n, k, bwc)
-            status = orbit_status(x, n, escape_r2)
-            if status != _OK:
-                return status, s
-            if RECORD:
-                for i in range(d):
-                    record[s, i] = x[i]
-            if renorm != _NONE:
-                status = renormalize(W, renorm, acc_m, acc_e, r, d, k)
-                if status != _OK:
-                    return status, s
-                if aux.shape[0] > 0:
-                    if FLOW:
-                        if TIME:
-                            te = float(step0 + s + 1) * tau
-                            if te != t_have:
-                                have_g = have_h = have_c = have_hc = False
-                                pl[last] = te
-                                t_have = te
-                        if not have_g:  # the flow at the current q needs ∇V
-                            for i in range(n):
-                                q[i] = x[i]
-                            grad(q, pl, g)
-                            counters[0] += 1
-                            if TIME:
-                                dv = dtime(q, pl, gt)
-                            have_g = True
-                        for i in range(n):
-                            flow[i] = minv[i] * x[n + i]
-                            flow[n + i] = -g[i]
-                    # The time from the integer step, so it does not depend on chunking.
-                    accumulate(aux, r, x, W, flow, (step0 + s + 1) * tau)
-            elif tangent and s % CHECK_EVERY == CHECK_EVERY - 1:
-                if tangent_overflow(W):
-                    return _OVERFLOW, s
-        if renorm == _NONE and tangent and tangent_overflow(W):
-            return _OVERFLOW, n_steps - 1
-        return _OK, n_steps
-
-    return tm_orbit
-
-
-@lru_cache(maxsize=None)
-def orbit_kernel(n, bw, time=False):
-    """The one-orbit stepper without deviation vectors (k = 0) for N = ``n``
-    and bandwidth ``bw`` (−1 for both: sizes read at run time), with the
-    ``record`` of :func:`_make_orbit_kernel` written: how the TDH methods
-    integrate their orbit by the same machinery as the TM method. With
-    ``time``, for a time-dependent V (its arguments as in
-    :func:`_make_orbit_kernel`)."""
-    return _make_orbit_kernel(n, 0, bw, RECORD=True, TIME=time)
-
-
-@lru_cache(maxsize=None)
-def tm_batch(n, k, bw, parallel, flow=False, time=False):
-    """The batch stepper for N = ``n``, ``k`` vectors and bandwidth ``bw``
-    (pass −1 for all three to get the run-time-sized one).
-
-    The returned function advances every orbit of ``X`` (M, 2N) whose
-    ``status`` is OK by ``n_steps`` steps, in parallel over orbits if
-    ``parallel``; ``done[m]`` receives the steps orbit m completed and
-    ``status[m]`` its status. A failed step leaves the state as it was when
-    the failure was detected (for a singular kernel: before that kick).
-    ``accumulate`` updates ``aux[m]`` (k, columns) after every step
-    (``step0``: the step count at the start, ``tau``: the step); pass :func:`no_accumulator` and an
-    empty ``aux`` (M, 0, 0) for none. With ``flow`` the accumulator is given
-    the phase-space velocity. With ``time`` (a time-dependent V) three more
-    arguments follow ``tau``: ``ctime`` (n_stages,) and the model's
-    ``dtime`` kernel (see :func:`_make_orbit_kernel`) and ``pt`` (M,), the
-    orbits' momenta conjugate to time, updated in place.
-    """
-    tm_orbit = _make_orbit_kernel(n, k, bw, FLOW=flow, TIME=time)
-
-    @njit(parallel=parallel)
-    def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, minv, par, bw_rt,
-              grad, hess, third, renorm, escape_r2, counters, status, done, accumulate, aux,
-              step0, tau, ctime=None, dtime=None, pt=None):
-        for m in prange(X.shape[0]):
-            if status[m] != _OK:
-                done[m] = 0
+                        Kb[b, i] = hs * H[b, i]
+                band_kick_block(Kb, W, n, k, bw)
                 continue
-            if time:
-                st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
-                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
-                                     counters[m], np.empty((0, 0)), accumulate, aux[m], step0,
-                                     tau, ctime, dtime, pt[m:m + 1])
-            else:
-                st, steps = tm_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
-                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2,
-                                     counters[m], np.empty((0, 0)), accumulate, aux[m], step0,
-                                     tau)
-            status[m] = st
-            done[m] = steps
+            if not have_hc:
+                third(q, pl, mg, T)
+                counters[2] += 1
+                if not all_finite(T.ravel(), (bw + 1) * n):
+                    return (derivative_status(q, n, _THIRD),
+                            (have_g, have_h, have_c, have_hc, t_have, dv))
+                band_square_add(H, minv, T, HC, n, bw, bwc)
+                have_hc = True
+            for b in range(bwc + 1):
+                for i in range(n):
+                    Kb[b, i] = hcs * HC[b, i]
+            for b in range(bw + 1):
+                for i in range(n):
+                    Kb[b, i] += hs * H[b, i]
+            band_kick_block(Kb, W, n, k, bwc)
+        return _OK, (have_g, have_h, have_c, have_hc, t_have, dv)
 
-    return batch
+    @njit(inline="always")
+    def check(state, setup, ws, xe, call):
+        return orbit_status(ws.xe, ws.n, call.escape_r2)
+
+    @njit(inline="always")
+    def flow(state, setup, ws, carry, xe, s, call, out):
+        """(M⁻¹p, −∇V) at the end of step s, with ∇V of the last kick if q
+        (and t) did not move since."""
+        n = ws.n
+        have_g, have_h, have_c, have_hc, t_have, dv = carry
+        if TIME:
+            te = float(call.step0 + s + 1) * call.tau
+            if te != t_have:
+                have_g = have_h = have_c = have_hc = False
+                ws.pl[ws.pl.shape[0] - 1] = te
+                t_have = te
+        if not have_g:
+            for i in range(n):
+                ws.q[i] = xe[i]
+            grad(ws.q, ws.pl, ws.g)
+            state.counters[0] += 1
+            if TIME:
+                dv = dtime(ws.q, ws.pl, ws.gt)
+            have_g = True
+        for i in range(n):
+            out[i] = setup.minv[i] * xe[n + i]
+            out[n + i] = -ws.g[i]
+        return have_g, have_h, have_c, have_hc, t_have, dv
+
+    return StepBody(begin=begin, step=step, check=check, flow=flow)
+
+
+@cache
+def orbit_kernel(n, bw, kernels, time=False):
+    """The one-orbit stepper without deviation vectors (k = 0) for N =
+    ``n`` and bandwidth ``bw`` (−1 for both: read at run time) that writes
+    the orbit after every step to ``state.record``: how the TDH methods,
+    the two-particle method and the section finder integrate their orbit by
+    the same machinery as the TM method. ``orbit(state, setup, call) ->
+    (status, steps)`` with a :class:`TMOrbit`, a :class:`TMSetup` and a
+    :class:`~varint.kernels.interval.Call`."""
+    return orbit_loop(tm_body(n, 0, bw, kernels, time), record=True)
+
+
+@cache
+def tm_batch(n, k, bw, parallel, kernels, accumulate=no_accumulator, flow=False, time=False):
+    """The batch stepper for N = ``n``, ``k`` vectors and bandwidth ``bw``
+    (−1 for all three: read at run time) of the model ``kernels``
+    (:func:`model_kernels`): ``batch(states, setup, call, status, done)``
+    (:func:`varint.kernels.interval.batch_loop`) with a batch of
+    :class:`TMOrbit` (``record`` unused) and a :class:`TMSetup`.
+    ``accumulate`` updates ``states.aux[m]`` after every step; with
+    ``flow`` it is given the phase-space velocity. With ``time`` V depends
+    on t (see :func:`tm_body`). A failed step leaves the state as it was
+    when the failure was detected (for a singular kernel: before that kick).
+    """
+    body = tm_body(n, k, bw, kernels, time)
+    return batch_loop(body, parallel, accumulate, flow)
 
 
 def specialised_sizes(n, k, bw):
@@ -325,14 +302,7 @@ def specialised_sizes(n, k, bw):
     return -1, -1, -1
 
 
-def use_parallel(parallel, n_orbits):
-    """Whether a batch runs its orbits on all cores: as asked, or by default
-    when there is more than one orbit and more than one numba thread."""
-    if parallel is None:
-        return n_orbits > 1 and numba.get_num_threads() > 1
-    return bool(parallel)
-
-
-def batch_kernel(n, k, bw, parallel, flow=False, time=False):
+def batch_kernel(n, k, bw, parallel, kernels, accumulate=no_accumulator, flow=False,
+                 time=False):
     """:func:`tm_batch` for the sizes of :func:`specialised_sizes`."""
-    return tm_batch(*specialised_sizes(n, k, bw), parallel, flow, time)
+    return tm_batch(*specialised_sizes(n, k, bw), parallel, kernels, accumulate, flow, time)

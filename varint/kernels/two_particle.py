@@ -13,10 +13,11 @@ the deviation vectors,
 with s_j = |y_j − x| at the interval's start and c_j the vector's length
 there (1 for renormalised vectors; the raw length when nothing is
 renormalised). They are then renormalised, their stretching accumulated and
-the indicator's accumulator updated exactly as by every other stepper
-(:mod:`varint.kernels.checks`), and a neighbour is put back at distance d0
-along its vector, y_j = x + d0 ŵ_j, every interval or, with a threshold
-``d_max`` > 0, only once s_j exceeds it.
+the indicator's accumulator updated exactly as by every other stepper (the
+stepping skeleton's end of an interval, :mod:`varint.kernels.interval`),
+and a neighbour is put back at distance d0 along its vector,
+y_j = x + d0 ŵ_j, every interval or, with a threshold ``d_max`` > 0, only
+once s_j exceeds it.
 
 For a flow the reference orbit of a block of intervals is integrated first,
 in one call of the TM stepper that records it after every step (as the TDH
@@ -28,26 +29,29 @@ time.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from collections import namedtuple
+from functools import cache
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..protocol import Renorm, Status
 from . import tm as K
-from .checks import CHECK_EVERY, renormalize, state_status, tangent_overflow
+from .checks import state_status
+from .inlining import into_kernels
+from .interval import Call, StepBody, batch_loop, no_accumulator, orbit_record
 from .map_stepper import advance_map
 
-__all__ = ["flow_batch", "map_batch"]
+__all__ = ["flow_body", "map_body", "flow_batch", "map_batch", "TPOrbit", "TPFlowSetup",
+           "TPMapSetup"]
 
 _OK = int(Status.OK)
-_OVERFLOW = int(Status.TANGENT_OVERFLOW)
 _NONE = int(Renorm.NONE)
 #: Size (in float64 values) of the record of the reference orbit per block.
 _BLOCK_VALUES = 1 << 16
 
 
-@njit(inline="always", error_model="numpy")
+@njit(inline=into_kernels, error_model="numpy")
 def _place(x, Y, W, d0, periods, d, k, raw, reset, d_max):
     """Put neighbour j back at x + d0 ŵ_j where it must be (every interval,
     or once its separation, modulo the periods, exceeds ``d_max`` > 0).
@@ -73,7 +77,7 @@ def _place(x, Y, W, d0, periods, d, k, raw, reset, d_max):
             Y[j, i] = x[i] + d0 * W[i, j] / c
 
 
-@njit(inline="always", error_model="numpy")
+@njit(inline=into_kernels, error_model="numpy")
 def _separations(x, Y, W, start, scale, periods, d, k):
     """w_j ← D_j · scale_j / start_j with D_j = y_j − x, each component of
     positive period P reduced into [−P/2, P/2)."""
@@ -87,7 +91,7 @@ def _separations(x, Y, W, start, scale, periods, d, k):
             W[i, j] = v * f
 
 
-@njit(inline="always", error_model="numpy")
+@njit(inline=into_kernels, error_model="numpy")
 def _starts(x, Y, W, start, scale, periods, d, k, raw):
     """|y_j − x| (modulo the periods) and the vectors' lengths (1 unless
     ``raw``) at the start of an interval."""
@@ -109,204 +113,177 @@ def _starts(x, Y, W, start, scale, periods, d, k, raw):
         scale[j] = c
 
 
-@njit(inline="always", error_model="numpy")
-def _end_of_interval(x, Y, W, acc_m, acc_e, start, scale, periods, d, k, renorm, r, aux,
-                     accumulate, flow, t, d0, d_max, s):
-    """The separations as vectors, their renormalisation and accumulator,
-    and the neighbours put back; returns a status."""
-    _separations(x, Y, W, start, scale, periods, d, k)
-    raw = renorm == _NONE
-    if not raw:
-        status = renormalize(W, renorm, acc_m, acc_e, r, d, k)
-        if status != _OK:
-            return status
-        if aux.shape[0] > 0:
-            accumulate(aux, r, x, W, flow, t)
-    elif k > 0 and s % CHECK_EVERY == CHECK_EVERY - 1 and tangent_overflow(W):
-        return _OVERFLOW
-    _place(x, Y, W, d0, periods, d, k, raw, d_max <= 0.0, d_max)
-    return _OK
+#: One orbit's record (:mod:`varint.kernels.interval`): ``Y`` (k, 2N), the
+#: neighbours; ``pt`` (1,), the orbit's momentum conjugate to time (a
+#: time-dependent V; (0,) otherwise).
+TPOrbit = orbit_record("TPOrbit", ("Y", "pt"))
+
+#: What a call of the flow stepper reads: the TM stepper's tables
+#: (:class:`varint.kernels.tm.TMSetup`), the neighbours' distance d0 and the
+#: threshold d_max (≤ 0: reset every interval).
+TPFlowSetup = namedtuple("TPFlowSetup", ("kinds", "h", "hc", "minv", "par", "bw", "ctime", "d0",
+                                         "d_max"))
+
+#: What a call of the map stepper reads: iterations per interval, the map's
+#: parameters and periods, d0 and d_max.
+TPMapSetup = namedtuple("TPMapSetup", ("iters", "par", "periods", "d0", "d_max"))
+
+_FlowWork = namedtuple("_FlowWork", ("n", "k", "d", "xe", "block", "rec", "x0", "orbit_setup",
+                                     "no_W", "no_m", "no_e", "no_aux", "one_rec", "no_periods",
+                                     "start", "scale", "flow", "q", "g", "pl", "pt_y"))
+_MapWork = namedtuple("_MapWork", ("d", "k", "xe", "xn", "start", "scale"))
 
 
-def _make_flow_orbit(N_C, BW_C, FLOW, TIME):
-    """The one-orbit two-particle stepper of a flow (N and the bandwidth
-    constants when ≥ 0); ``FLOW``: the accumulator reads the phase-space
-    velocity; ``TIME``: a time-dependent V (arguments as for
-    :func:`varint.kernels.tm.tm_batch`)."""
-    record = K.orbit_kernel(N_C, BW_C, TIME)
+@cache
+def flow_body(N_C, BW_C, kernels, FLOW, TIME):
+    """The two-particle step body of a flow (N and the bandwidth constants
+    when ≥ 0) with the model ``kernels`` (:func:`varint.kernels.tm.model_kernels`);
+    ``FLOW``: the accumulator reads the phase-space velocity; ``TIME``: a
+    time-dependent V (see :func:`varint.kernels.tm.tm_body`)."""
+    record = K.orbit_kernel(N_C, BW_C, kernels, TIME)
+    grad = kernels[0]
 
-    @njit(error_model="numpy")
-    def tp_orbit(x, W, acc_m, acc_e, Y, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess,
-                 third, renorm, escape_r2, d0, d_max, counters, accumulate, aux, step0, tau,
-                 ctime=None, dtime=None, pt=None):
-        n = x.shape[0] // 2
+    @njit(inline="always", error_model="numpy")
+    def begin(state, setup, call):
+        n = state.x.shape[0] // 2
         d = 2 * n
-        k = W.shape[1]
-        block = max(1, min(n_steps, _BLOCK_VALUES // d))
-        rec = np.empty((block, d))
-        x0 = np.empty(d)
-        no_W, no_m, no_e = np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64)
-        no_aux = np.empty((0, 0))
-        one_rec = np.empty((1, d))   # a neighbour's one step, recorded and unused
-        no_periods = np.zeros(d)
-        start = np.empty(k)
-        scale = np.empty(k)
-        r = np.empty(k if aux.shape[0] > 0 else 0)
-        flow = np.empty(d if FLOW else 0)
-        q = np.empty(n)
-        g = np.empty(n)
-        pl = par.copy()
-        pt_y = np.zeros(1)        # the neighbours' p_t, which nothing needs
-        raw = renorm == _NONE
-        done = 0
-        while done < n_steps:
-            nb = min(block, n_steps - done)
+        k = state.W.shape[1]
+        block = max(1, min(call.n_steps, _BLOCK_VALUES // d))
+        orbit_setup = K.TMSetup(setup.kinds, setup.h, setup.hc, setup.minv, setup.par,
+                                setup.bw, setup.ctime)
+        ws = _FlowWork(n, k, d, np.empty(d), block,
+                       np.empty((block, d)),     # the reference orbit through a block
+                       np.empty(d),              # ... and at its start
+                       orbit_setup,
+                       np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64),
+                       np.empty((0, 0)),
+                       np.empty((1, d)),         # a neighbour's one step, recorded and unused
+                       np.zeros(d),
+                       np.empty(k), np.empty(k), np.empty(d if FLOW else 0),
+                       np.empty(n), np.empty(n), setup.par.copy(),
+                       np.zeros(1))              # the neighbours' p_t, which nothing needs
+        # The block: its first interval, the next block's, the intervals the
+        # reference orbit completed and its status.
+        return ws, (0, 0, 0, _OK)
+
+    @njit(inline="always", error_model="numpy")
+    def step(state, setup, ws, carry, s, call):
+        x, W, Y, counters = state.x, state.W, state.Y, state.counters
+        n, k, d, rec, x0 = ws.n, ws.k, ws.d, ws.rec, ws.x0
+        first, following, complete, orbit_status = carry
+        raw = call.renorm == _NONE
+        if s == following:
+            # The reference through the next block, recorded after every step.
+            nb = min(ws.block, call.n_steps - s)
             for i in range(d):
                 x0[i] = x[i]
-            # The reference through the block, recorded after every step.
+            orbit_status, steps = record(
+                K.TMOrbit(x, ws.no_W, ws.no_m, ws.no_e, ws.no_aux, counters, state.pt, rec),
+                ws.orbit_setup, Call(nb, call.step0 + s, call.tau, _NONE, call.escape_r2))
+            complete = steps if orbit_status != _OK else nb
+            first, following = s, s + nb
+        i_block = s - first
+        if i_block == complete:
+            return orbit_status, (first, following, complete, orbit_status)
+        xa = x0 if i_block == 0 else rec[i_block - 1]
+        _starts(xa, Y, W, ws.start, ws.scale, ws.no_periods, d, k, raw)
+        for j in range(k):
+            st, _ = record(
+                K.TMOrbit(Y[j], ws.no_W, ws.no_m, ws.no_e, ws.no_aux, counters, ws.pt_y,
+                          ws.one_rec),
+                ws.orbit_setup, Call(1, call.step0 + s, call.tau, _NONE, call.escape_r2))
+            if st != _OK:
+                for i in range(d):
+                    x[i] = xa[i]
+                return st, (first, following, complete, orbit_status)
+        xe = ws.xe
+        for i in range(d):
+            xe[i] = rec[i_block, i]
+        if FLOW:
+            q, g = ws.q, ws.g
+            for i in range(n):
+                q[i] = xe[i]
             if TIME:
-                status, steps = record(x, no_W, no_m, no_e, nb, kinds, h, hc, minv, par, bw_rt,
-                                       grad, hess, third, _NONE, escape_r2, counters, rec,
-                                       K.no_accumulator, no_aux, step0 + done, tau, ctime,
-                                       dtime, pt)
-            else:
-                status, steps = record(x, no_W, no_m, no_e, nb, kinds, h, hc, minv, par, bw_rt,
-                                       grad, hess, third, _NONE, escape_r2, counters, rec,
-                                       K.no_accumulator, no_aux, step0 + done, tau)
-            complete = steps if status != _OK else nb
-            for s in range(complete):
-                xa = x0 if s == 0 else rec[s - 1]
-                xe = rec[s]
-                _starts(xa, Y, W, start, scale, no_periods, d, k, raw)
-                for j in range(k):
-                    if TIME:
-                        st, _ = record(Y[j], no_W, no_m, no_e, 1, kinds, h, hc, minv, par,
-                                       bw_rt, grad, hess, third, _NONE, escape_r2, counters,
-                                       one_rec, K.no_accumulator, no_aux, step0 + done + s, tau,
-                                       ctime, dtime, pt_y)
-                    else:
-                        st, _ = record(Y[j], no_W, no_m, no_e, 1, kinds, h, hc, minv, par,
-                                       bw_rt, grad, hess, third, _NONE, escape_r2, counters,
-                                       one_rec, K.no_accumulator, no_aux, step0 + done + s, tau)
-                    if st != _OK:
-                        for i in range(d):
-                            x[i] = xa[i]
-                        return st, done + s
-                if FLOW:
-                    for i in range(n):
-                        q[i] = xe[i]
-                    if TIME:
-                        pl[pl.shape[0] - 1] = float(step0 + done + s + 1) * tau
-                    grad(q, pl, g)
-                    counters[0] += 1
-                    for i in range(n):
-                        flow[i] = minv[i] * xe[n + i]
-                        flow[n + i] = -g[i]
-                st = _end_of_interval(xe, Y, W, acc_m, acc_e, start, scale, no_periods, d, k,
-                                      renorm, r, aux, accumulate, flow,
-                                      (step0 + done + s + 1) * tau, d0, d_max, done + s)
-                if st != _OK:
-                    for i in range(d):
-                        x[i] = xe[i]
-                    return st, done + s
-            if status != _OK:
-                return status, done + complete
-            done += nb
-        if raw and k > 0 and tangent_overflow(W):
-            return _OVERFLOW, n_steps - 1
-        return _OK, n_steps
+                ws.pl[ws.pl.shape[0] - 1] = float(call.step0 + s + 1) * call.tau
+            grad(q, ws.pl, g)
+            counters[0] += 1
+            for i in range(n):
+                ws.flow[i] = setup.minv[i] * xe[n + i]
+                ws.flow[n + i] = -g[i]
+        _separations(xe, Y, W, ws.start, ws.scale, ws.no_periods, d, k)
+        return _OK, (first, following, complete, orbit_status)
 
-    return tp_orbit
+    @njit(inline="always")
+    def flow(state, setup, ws, carry, xe, s, call, out):
+        for i in range(ws.d):
+            out[i] = ws.flow[i]
+        return carry
+
+    @njit(inline="always", error_model="numpy")
+    def after(state, setup, ws, s, call):
+        raw = call.renorm == _NONE
+        _place(ws.xe, state.Y, state.W, setup.d0, ws.no_periods, ws.d, ws.k, raw,
+               setup.d_max <= 0.0, setup.d_max)
+        return _OK
+
+    # No end-of-interval check: the reference and the neighbours were checked
+    # as they were advanced.
+    return StepBody(begin=begin, step=step, flow=flow, after=after, error_model="numpy")
 
 
-@lru_cache(maxsize=None)
-def flow_batch(n, bw, parallel, flow=False, time=False):
-    """The batch two-particle stepper of a flow for N = ``n`` and bandwidth
-    ``bw`` (−1 for both: read at run time): advances every orbit of ``X``
-    (M, 2N) whose ``status`` is OK, with its neighbours ``Y`` (M, k, 2N) and
-    vectors ``W`` (M, 2N, k), by ``n_steps`` intervals; ``done`` and
-    ``status`` as for :func:`varint.kernels.tm.tm_batch`, and the same
-    ``ctime``, ``dtime``, ``pt`` after ``tau`` with ``time``."""
-    tp_orbit = _make_flow_orbit(n, bw, flow, time)
+@cache
+def map_body(iterate):
+    """The two-particle step body of the map ``iterate``."""
 
-    @njit(parallel=parallel, error_model="numpy")
-    def batch(X, W, acc_m, acc_e, Y, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third,
-              renorm, escape_r2, d0, d_max, counters, status, done, accumulate, aux, step0, tau,
-              ctime=None, dtime=None, pt=None):
-        for m in prange(X.shape[0]):
-            if status[m] != _OK:
-                done[m] = 0
-                continue
-            if time:
-                st, steps = tp_orbit(X[m], W[m], acc_m[m], acc_e[m], Y[m], n_steps, kinds, h, hc,
-                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2, d0,
-                                     d_max, counters[m], accumulate, aux[m], step0, tau, ctime,
-                                     dtime, pt[m:m + 1])
-            else:
-                st, steps = tp_orbit(X[m], W[m], acc_m[m], acc_e[m], Y[m], n_steps, kinds, h, hc,
-                                     minv, par, bw_rt, grad, hess, third, renorm, escape_r2, d0,
-                                     d_max, counters[m], accumulate, aux[m], step0, tau)
-            status[m] = st
-            done[m] = steps
+    @njit(inline="always", error_model="numpy")
+    def begin(state, setup, call):
+        d = state.x.shape[0]
+        k = state.W.shape[1]
+        return _MapWork(d, k, state.x, np.empty(d), np.empty(k), np.empty(k)), 0
 
-    return batch
-
-
-def _make_map_orbit():
-    @njit(error_model="numpy")
-    def tp_map_orbit(x, W, acc_m, acc_e, Y, n_steps, iters, par, periods, iterate, renorm,
-                     escape_r2, d0, d_max, counters, accumulate, aux, step0, tau):
-        d = x.shape[0]
-        k = W.shape[1]
-        xn = np.empty(d)
-        start = np.empty(k)
-        scale = np.empty(k)
-        r = np.empty(k if aux.shape[0] > 0 else 0)
-        no_flow = np.empty(0)
-        raw = renorm == _NONE
-        for s in range(n_steps):
-            _starts(x, Y, W, start, scale, periods, d, k, raw)
-            for _ in range(iters):
-                advance_map(x, xn, par, periods, iterate, d)
-                counters[0] += 1
-                for j in range(k):
-                    advance_map(Y[j], xn, par, periods, iterate, d)
-                    counters[0] += 1
-            status = state_status(x, d, escape_r2)
+    @njit(inline="always", error_model="numpy")
+    def step(state, setup, ws, carry, s, call):
+        x, W, Y, counters = state.x, state.W, state.Y, state.counters
+        d, k, xn, periods = ws.d, ws.k, ws.xn, setup.periods
+        _starts(x, Y, W, ws.start, ws.scale, periods, d, k, call.renorm == _NONE)
+        for _ in range(setup.iters):
+            advance_map(x, xn, setup.par, periods, iterate, d)
+            counters[0] += 1
             for j in range(k):
-                if status == _OK:
-                    status = state_status(Y[j], d, escape_r2)
-            if status != _OK:
-                return status, s
-            status = _end_of_interval(x, Y, W, acc_m, acc_e, start, scale, periods, d, k, renorm,
-                                      r, aux, accumulate, no_flow, (step0 + s + 1) * tau, d0,
-                                      d_max, s)
-            if status != _OK:
-                return status, s
-        if raw and k > 0 and tangent_overflow(W):
-            return _OVERFLOW, n_steps - 1
-        return _OK, n_steps
+                advance_map(Y[j], xn, setup.par, periods, iterate, d)
+                counters[0] += 1
+        # The orbit and its neighbours are checked before they become vectors.
+        status = state_status(x, d, call.escape_r2)
+        for j in range(k):
+            if status == _OK:
+                status = state_status(Y[j], d, call.escape_r2)
+        if status == _OK:
+            _separations(x, Y, W, ws.start, ws.scale, periods, d, k)
+        return status, carry
 
-    return tp_map_orbit
+    @njit(inline="always", error_model="numpy")
+    def after(state, setup, ws, s, call):
+        raw = call.renorm == _NONE
+        _place(state.x, state.Y, state.W, setup.d0, setup.periods, ws.d, ws.k, raw,
+               setup.d_max <= 0.0, setup.d_max)
+        return _OK
+
+    return StepBody(begin=begin, step=step, after=after, error_model="numpy")
 
 
-@lru_cache(maxsize=None)
-def map_batch(parallel):
+@cache
+def flow_batch(n, bw, parallel, kernels, accumulate=no_accumulator, flow=False, time=False):
+    """The batch two-particle stepper of a flow for N = ``n`` and bandwidth
+    ``bw`` (−1 for both: read at run time) with the model ``kernels``:
+    ``batch(states, setup, call, status, done)``
+    (:func:`varint.kernels.interval.batch_loop`) with a batch of
+    :class:`TPOrbit` and a :class:`TPFlowSetup`."""
+    body = flow_body(n, bw, kernels, bool(flow), bool(time))
+    return batch_loop(body, parallel, accumulate, flow)
+
+
+@cache
+def map_batch(parallel, iterate, accumulate=no_accumulator):
     """The batch two-particle stepper of a map (as :func:`flow_batch`, with
-    ``iters`` iterations per interval and the map's ``periods``)."""
-    tp_map_orbit = _make_map_orbit()
-
-    @njit(parallel=parallel, error_model="numpy")
-    def batch(X, W, acc_m, acc_e, Y, n_steps, iters, par, periods, iterate, renorm, escape_r2,
-              d0, d_max, counters, status, done, accumulate, aux, step0, tau):
-        for m in prange(X.shape[0]):
-            if status[m] != _OK:
-                done[m] = 0
-                continue
-            st, steps = tp_map_orbit(X[m], W[m], acc_m[m], acc_e[m], Y[m], n_steps, iters, par,
-                                     periods, iterate, renorm, escape_r2, d0, d_max, counters[m],
-                                     accumulate, aux[m], step0, tau)
-            status[m] = st
-            done[m] = steps
-
-    return batch
+    a :class:`TPMapSetup`)."""
+    return batch_loop(map_body(iterate), parallel, accumulate)

@@ -16,8 +16,10 @@ integrated: ``"tm"`` iterates them with their own tangent map
 
 ``method="tm"`` has two steppers: the generic one (:mod:`varint.methods.tm`,
 H = T + V with band kernels) and, for models split into k ≥ 2 parts (the
-lattices), the part stepper (:mod:`varint.methods.parts`), which
-:func:`make_propagator` picks by :func:`varint.methods.parts.runs_parts`.
+lattices, planetary systems), the part stepper (:mod:`varint.methods.parts`),
+which :func:`make_propagator` picks by :func:`varint.methods.parts.runs_parts`
+(or the propagator around it a model names in ``parts_propagator``:
+:mod:`varint.methods.planetary`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,10 @@ METHODS = {
     "dop853": "varint.baselines.dop853:DOP853Propagator",
     "two-particle": "varint.methods.two_particle:TwoParticlePropagator",
 }
+
+#: The reference methods, which integrate Hamilton's equations of any H(q, p)
+#: (a model with a ∇H, D²H kernel, ``grad_hess_h``) as well as of T + V.
+REFERENCE_METHODS = ("taylor", "cvode", "dop853")
 
 #: The methods that take map models: ``method=`` name → "module:class".
 MAP_METHODS = {
@@ -94,6 +100,11 @@ def propagator_class(method, model=None):
                              f"(iterated, not integrated); maps take: {', '.join(MAP_METHODS)} "
                              "('tm' iterates the map's own tangent map)")
         target = MAP_METHODS[key]
+    return _resolve(target)
+
+
+def _resolve(target):
+    """The class named by "module:Class"."""
     module, _, cls = target.partition(":")
     return getattr(importlib.import_module(module), cls)
 
@@ -144,8 +155,14 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
     from .parts import PartsPropagator, runs_parts
 
     if _key(method) == "tm" and runs_parts(model, options.get("scheme")):
-        cls = PartsPropagator
-    elif not getattr(model, "band_kernels", True):
+        # A model may name a propagator of its own around the part stepper
+        # ("module:Class"; planetary systems: the correctors at outputs).
+        own = getattr(model, "parts_propagator", None)
+        cls = PartsPropagator if own is None else _resolve(own)
+    elif not getattr(model, "band_kernels", True) and not (
+            _key(method) in REFERENCE_METHODS and callable(getattr(model, "grad_hess_h", None))):
+        # A model of any H(q, p) gives the reference methods Hamilton's
+        # equations from its ∇H, D²H kernel (baselines.rhs) and expression.
         raise ValueError(f"method {method!r} needs the band-Hessian kernels of "
                          f"varint.models.base, which {model.name} does not have (a 2D lattice, "
                          "a ring, or H not of the form T(p) + V(q)); use method='tm'")

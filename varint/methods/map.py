@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from ..kernels import map_stepper as K
-from ..kernels.tm import no_accumulator, use_parallel
+from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import STATUS_OK, Renorm
 from . import method_options
 
@@ -88,12 +88,13 @@ class MapPropagator:
         acc = self.accumulator
         update, aux = ((no_accumulator, np.empty((m, 0, 0))) if acc is None
                        else (acc.update, state.extra[acc.key]))
-        kernel = K.batch_kernel(model.dim, state.k, use_parallel(self.parallel, m))
+        kernel = K.batch_kernel(model.dim, state.k, use_parallel(self.parallel, m),
+                                model.iterate_kernel, model.jacobian_kernel, update)
         counters = np.zeros((m, len(K.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
-        kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self.iters, model.params,
-               model.periods, model.iterate_kernel, model.jacobian_kernel, int(self.renorm),
-               self._escape_r2, counters, state.status, done, update, aux, state.step,
-               self.tau)
+        kernel(K.MapOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters),
+               K.MapSetup(self.iters, model.params, model.periods),
+               Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
+               state.status, done)
         state.after_kernel(n, was_active, done, counters, K.COUNTERS)

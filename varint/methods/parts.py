@@ -5,7 +5,7 @@
 
 Any two-part scheme of :data:`varint.SCHEMES` (drift → the first part of the
 model's two-part split, kick → the second) or composition of
-:data:`varint.schemes.PART_SCHEMES` over k parts runs through the model's
+:data:`varint.schemes.SCHEMES` over k parts runs through the model's
 fused part flows (:mod:`varint.kernels.parts`). Corrector schemes (SABA_nC,
 SBAB_nC) need the corrector C = {B,{B,A}} = |∇V|² and its Hessian; the
 lattices have no corrector part, so they run through the generic stepper
@@ -19,19 +19,18 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..kernels import generate as G
+from ..codegen.expressions import symbolic_fits
 from ..kernels import parts as K
-from ..kernels.tm import no_accumulator, use_parallel
+from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import REASONS, STATUS_OK, Renorm, Status
-from ..schemes import CORRECTOR, CompositionScheme, part_stages, resolve_scheme, scheme_word
+from ..schemes import CORRECTOR, CompositionScheme, part_stages, scheme_word
 from . import method_options
 
 __all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
 
 
 def _scheme(model, scheme):
-    parts = model.parts
-    return resolve_scheme(scheme if scheme is not None else parts.default_scheme)
+    return model.parts.resolve(scheme, model.name)
 
 
 def runs_parts(model, scheme=None):
@@ -39,7 +38,7 @@ def runs_parts(model, scheme=None):
     default) through the part stepper: the model declares parts, and the
     scheme is a k-part composition or a two-part scheme without corrector
     (except on a chain split as T + V that gets a generated stepper, see
-    :func:`varint.kernels.generate.symbolic_fits`), or the model has no band
+    :func:`varint.codegen.expressions.symbolic_fits`), or the model has no band
     kernels for the generic stepper."""
     parts = getattr(model, "parts", None)
     if parts is None:
@@ -57,7 +56,7 @@ def runs_parts(model, scheme=None):
     # splitting: a small chain with a symbolic potential takes the stepper
     # generated for it, ~5x faster than the part flows' loops over sites
     # (FPU-beta N = 8, SBAB2: 23 against 174 ns per step).
-    return not (parts.splits.get(2) == ("T", "V") and G.symbolic_fits(model, 0))
+    return not (parts.splits.get(2) == ("T", "V") and symbolic_fits(model, 0))
 
 
 class PartsPropagator:
@@ -121,13 +120,14 @@ class PartsPropagator:
         else:
             update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
         kernel = K.parts_batch(parts.apply, parts.field, state.k,
-                               use_parallel(self.parallel, m), flow)
+                               use_parallel(self.parallel, m), update, flow)
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
-        kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._parts, self._h,
-               self._par, self._n_work, int(self.renorm), self._escape_r2, counters,
-               state.status, done, update, aux, state.step, self.tau)
+        kernel(K.PartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters),
+               K.PartsSetup(self._parts, self._h, self._par, self._n_work),
+               Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
+               state.status, done)
         state.after_kernel(n, was_active, done, counters,
                            tuple(f"flow_{name}" for name in parts.names))
 
@@ -186,10 +186,10 @@ def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
     status = np.zeros(1, dtype=np.int64)
     done = np.zeros(1, dtype=np.int64)
     kernel = K.parts_batch(model.parts.apply, model.parts.field, k, False)
-    kernel(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), int(n_steps), kinds, h,
-           par, n_work, int(Renorm.NONE), np.inf,
-           np.zeros((1, len(model.parts.names)), dtype=np.int64), status, done, no_accumulator,
-           np.empty((1, 0, 0)), 0, float(tau))
+    kernel(K.PartsOrbit(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64),
+                        np.empty((1, 0, 0)), np.zeros((1, len(model.parts.names)), dtype=np.int64)),
+           K.PartsSetup(kinds, h, par, n_work), Call(int(n_steps), 0, float(tau), int(Renorm.NONE),
+                                                      np.inf), status, done)
     if status[0] != STATUS_OK:
         raise FloatingPointError(f"the map failed after {done[0]} steps: "
                                  f"{REASONS.get(Status(status[0]), status[0])}")

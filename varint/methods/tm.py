@@ -7,7 +7,7 @@ renormalisation interval (or, with sparse renormalisation, the grid on which
 the vectors may be renormalised).
 
 Models that know their potential symbolically and are small get a stepper
-generated for them and for the scheme (:mod:`varint.kernels.generate`):
+generated for them and for the scheme (:mod:`varint.codegen`):
 stages unrolled, straight-line derivatives, state in registers, outputs
 copied inside the compiled loop, cached on disk. Others use the generic
 stepper (:mod:`varint.kernels.tm`).
@@ -22,14 +22,18 @@ import weakref
 import numpy as np
 import numba
 
-from ..kernels import generate as G
+from ..codegen.expressions import symbolic_fits
+from ..codegen.interval import LANE_WIDTH, LaneBlock, Outputs, StepperOrbit, StepperSetup
+from ..codegen.stepper import symbolic_stepper
+from ..codegen.tm import step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..gpu.advance import advance_cuda
 from ..gpu.emit import emittable
+from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
-from ..schemes import DRIFT, get_scheme, stage_arrays, stage_times
+from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
 from . import method_options
 
@@ -58,7 +62,7 @@ class TangentMapPropagator:
         every step, otherwise on an adaptive schedule that keeps every
         vector's growth below 1e50 and, for QR, the spread of the
         stretchings below 32 and the interval at most 64 steps
-        (:func:`varint.kernels.generate.next_interval`); the exponents,
+        (:func:`varint.kernels.interval.next_interval`); the exponents,
         GALIs and SALI are those of renormalising every step, to round-off.
         An int n: at most every n steps; a float: at most every that much
         time (rounded to steps). A given interval is *capped* by the same
@@ -90,15 +94,15 @@ class TangentMapPropagator:
         opts = method_options(self.method, options, self.OPTIONS)
         self.model = model
         self.tau = float(tau)
-        self.scheme = get_scheme(opts.get("scheme", "SBAB2C"))
+        self.scheme = get_scheme(opts.get("scheme", DEFAULT_SCHEME), n_parts=2)
         self.renorm = Renorm.parse(renorm)
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
         self.every = self._every(opts.get("renormalize_every"))
         self.backend = device.check_backend(opts.get("backend", "cpu"))
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
-        # A time-dependent V: the stage times and ∂_tV kernel (kernels/tm.py).
-        self._time = (stage_times(self.scheme), model.time_kernel) if model.time_dependent else ()
+        # A time-dependent V: the time of every stage (kernels/tm.py).
+        self._ctime = stage_times(self.scheme) if model.time_dependent else np.empty(0)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
@@ -156,7 +160,7 @@ class TangentMapPropagator:
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
     #: state stays in the L1 cache.
-    LANES = G.LANE_WIDTH
+    LANES = LANE_WIDTH
     #: Fewer orbits than one vector's width run one at a time: lanes would
     #: compute padding.
     MIN_LANES = 8
@@ -216,11 +220,11 @@ class TangentMapPropagator:
         return state.extra["tm_schedule"]
 
     def _step_counts(self, k):
-        """:func:`~varint.kernels.generate.step_counts` for k vectors (worked
+        """:func:`~varint.codegen.tm.step_counts` for k vectors (worked
         out once: a map with early stopping calls the stepper at every
         check time)."""
         if k not in self._counts:
-            self._counts[k] = G.step_counts(
+            self._counts[k] = step_counts(
                 self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
                 self.accumulator is not None and self.accumulator.needs_flow)
         return self._counts[k]
@@ -238,6 +242,13 @@ class TangentMapPropagator:
                 self.accumulator.key: np.full((s,) + aux.shape, np.nan)},
             renormalized=self.sparse == 0)
 
+    def _setup(self):
+        """What a generated stepper reads besides the call's numbers."""
+        return StepperSetup(self._h, self._hc, self.sparse)
+
+    def _call(self, state, n):
+        return Call(int(n), int(state.step), self.tau, int(self.renorm), self._escape_r2)
+
     def _snap_aux(self, snaps, s, m):
         if self.accumulator is None:
             return np.empty((s, m, 0, 0))
@@ -254,13 +265,13 @@ class TangentMapPropagator:
         if orbits is not None:
             was_active &= np.isin(np.arange(m), orbits)
         status = np.where(was_active, state.status, -1)   # others are skipped
-        parallel = K.use_parallel(self.parallel, int(was_active.sum()))
+        parallel = use_parallel(self.parallel, int(was_active.sum()))
         kernel = module.batch_parallel if parallel else module.batch_serial
-        kernel(state.x, state.W, state.acc_m, state.acc_e, status, done, int(n),
-               int(state.step), self.tau, self._h, self._hc, self._escape_r2, counters,
-               self._accumulator(state), sched, snaps.steps, snaps.x, snaps.W, snaps.acc_m,
-               snaps.acc_e, self._snap_aux(snaps, len(snaps.steps), m), int(self.renorm),
-               self.sparse)
+        kernel(StepperOrbit(state.x, state.W, state.acc_m, state.acc_e, self._accumulator(state),
+                            counters, sched),
+               self._setup(), self._call(state, n),
+               Outputs(snaps.steps, snaps.x, snaps.W, snaps.acc_m, snaps.acc_e,
+                       self._snap_aux(snaps, len(snaps.steps), m)), status, done)
         state.status[was_active] = status[was_active]
         if orbits is None:
             state.after_kernel(n, was_active, done, counters, COUNTERS)
@@ -268,7 +279,7 @@ class TangentMapPropagator:
 
     def _advance_lanes(self, module, state, n, snaps, active):
         """The ``active`` orbits as blocks of SIMD lanes (``lanes`` of
-        :mod:`varint.kernels.generate`). An orbit that fails is rerun alone
+        :mod:`varint.codegen.interval`). An orbit that fails is rerun alone
         by the one-orbit stepper from the call's start: it fails at the same
         step with the same bits, and is left exactly as that stepper leaves
         it."""
@@ -295,11 +306,10 @@ class TangentMapPropagator:
         sm = np.ones(shape + (k, lanes.width))
         se = np.zeros(shape + (k, lanes.width), dtype=np.int64)
         saux = np.full(shape + (lanes.width,) + aux.shape[1:], np.nan)
-        parallel = K.use_parallel(self.parallel, lanes.blocks)
+        parallel = use_parallel(self.parallel, lanes.blocks)
         kernel = module.blocks_parallel if parallel else module.blocks_serial
-        kernel(X, W, am, ae, st, fs, nxt, itv, int(n), int(state.step), self.tau, self._h,
-               self._hc, self._escape_r2, int(self.renorm), self.sparse, lane_aux, snaps.steps,
-               sx, sW, sm, se, saux)
+        kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
+               self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
         for lane_array, target in ((X, state.x), (W, state.W), (am, state.acc_m),
                                    (ae, state.acc_e)):
             lanes.put(lane_array, target)
@@ -344,22 +354,24 @@ class TangentMapPropagator:
         m = state.n_orbits
         model = self.model
         acc = self.accumulator
-        update, flow = (K.no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
+        update, flow = (no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
         kernel = K.batch_kernel(model.n_dof, state.k, model.bandwidth,
-                                K.use_parallel(self.parallel, m), flow, model.time_dependent)
-        time = self._time + (state.time_momentum(),) if self._time else ()
+                                use_parallel(self.parallel, m), K.model_kernels(model), update,
+                                flow, model.time_dependent)
+        time = model.time_dependent
+        pt = state.time_momentum()[:, None] if time else np.empty((m, 0))
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
-        kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
-               self._hc, model.inverse_mass, model.params, model.bandwidth,
-               model.grad_kernel, model.hess_kernel, model.third_kernel, int(self.renorm),
-               self._escape_r2, counters, state.status, done, update, self._accumulator(state),
-               state.step, self.tau, *time)
+        orbits = K.TMOrbit(state.x, state.W, state.acc_m, state.acc_e, self._accumulator(state),
+                           counters, pt, np.empty((m, 0, 0)))
+        setup = K.TMSetup(self._kinds, self._h, self._hc, model.inverse_mass, model.params,
+                          model.bandwidth, self._ctime)
+        kernel(orbits, setup, self._call(state, n), state.status, done)
         state.after_kernel(n, was_active, done, counters, COUNTERS)
 
 
-def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
+def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHEME):
     """Low-level: ``n_steps`` steps of the numerical map S and its tangent
     map TS, without renormalisation; τ may be negative (S(−τ) is the inverse
     of S(τ) for the symmetric schemes). A time-dependent V starts at t = 0.
@@ -404,13 +416,13 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme="SBAB2C"):
 
 
 #: Generated stepper modules per model (:func:`_generated_stepper`).
-_STEPPERS = weakref.WeakKeyDictionary()
+_STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _generated_stepper(model, kinds, hc, k, accumulator):
     """The generated stepper module of (model, scheme stages, k,
     accumulator), or None when the model has none
-    (:func:`varint.kernels.generate.symbolic_fits`). Remembered per
+    (:func:`varint.codegen.expressions.symbolic_fits`). Remembered per
     model, keyed by what the module depends on (its parameters and masses
     included), so that repeated runs skip the lookup (~50 µs)."""
     corrected = (hc != 0.0) & (kinds != DRIFT)
@@ -420,8 +432,8 @@ def _generated_stepper(model, kinds, hc, k, accumulator):
            np.asarray(model.params, dtype=float).tobytes(),
            np.asarray(model.inverse_mass, dtype=float).tobytes())
     if key not in memo:
-        memo[key] = (G.symbolic_stepper(model, kinds, corrected, k, accumulator)
-                     if G.symbolic_fits(model, k) else None)
+        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator)
+                     if symbolic_fits(model, k) else None)
     return memo[key]
 
 

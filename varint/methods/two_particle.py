@@ -57,9 +57,10 @@ import numpy as np
 from .._validate import positive_float
 from ..kernels import two_particle as K
 from ..kernels.map_stepper import COUNTERS as MAP_COUNTERS
-from ..kernels.tm import no_accumulator, specialised_sizes, use_parallel
+from ..kernels.interval import Call, no_accumulator, use_parallel
+from ..kernels.tm import model_kernels, specialised_sizes
 from ..protocol import COUNTERS, STATUS_OK, Renorm
-from ..schemes import get_scheme, stage_arrays, stage_times
+from ..schemes import DEFAULT_SCHEME, get_scheme, stage_arrays, stage_times
 from . import method_options
 from .map import iterations
 
@@ -134,10 +135,10 @@ class TwoParticlePropagator:
             self.scheme = None
         else:
             self.tau = positive_float(tau, "tau")
-            self.scheme = get_scheme(opts.get("scheme", "SBAB2C"))
+            self.scheme = get_scheme(opts.get("scheme", DEFAULT_SCHEME), n_parts=2)
             self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
-            self._time = ((stage_times(self.scheme), model.time_kernel)
-                          if model.time_dependent else ())
+            self._ctime = (stage_times(self.scheme) if model.time_dependent
+                           else np.empty(0))
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
 
@@ -184,22 +185,24 @@ class TwoParticlePropagator:
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
         d_max = 0.0 if self.d_max is None else self.d_max
+        call = Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2)
         if self.is_map:
             counters = np.zeros((m, 1), dtype=np.int64)
-            K.map_batch(parallel)(
-                state.x, state.W, state.acc_m, state.acc_e, Y, int(n), self.iters, model.params,
-                model.periods, model.iterate_kernel, int(self.renorm), self._escape_r2, self.d0,
-                d_max, counters, state.status, done, update, aux, state.step, self.tau)
+            K.map_batch(parallel, model.iterate_kernel, update)(
+                K.TPOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters, Y,
+                          np.empty((m, 0))),
+                K.TPMapSetup(self.iters, model.params, model.periods, self.d0, d_max), call,
+                state.status, done)
             state.after_kernel(n, was_active, done, counters, MAP_COUNTERS[:1])
             return
         nc, _, bwc = specialised_sizes(model.n_dof, 0, model.bandwidth)
         flow = acc is not None and acc.needs_flow
-        kernel = K.flow_batch(nc, bwc, parallel, flow, model.time_dependent)
+        time = model.time_dependent
+        kernel = K.flow_batch(nc, bwc, parallel, model_kernels(model), update, flow, time)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
-        time = self._time + (state.time_momentum(),) if self._time else ()
-        kernel(state.x, state.W, state.acc_m, state.acc_e, Y, int(n), self._kinds, self._h,
-               self._hc, model.inverse_mass, model.params, model.bandwidth, model.grad_kernel,
-               model.hess_kernel, model.third_kernel, int(self.renorm), self._escape_r2,
-               self.d0, d_max, counters, state.status, done, update, aux, state.step, self.tau,
-               *time)
+        pt = state.time_momentum()[:, None] if time else np.empty((m, 0))
+        kernel(K.TPOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters, Y, pt),
+               K.TPFlowSetup(self._kinds, self._h, self._hc, model.inverse_mass, model.params,
+                             model.bandwidth, self._ctime, self.d0, d_max),
+               call, state.status, done)
         state.after_kernel(n, was_active, done, counters, COUNTERS)

@@ -9,7 +9,7 @@ with its exact flow *fused* with the flow's tangent map — one compiled pass
 over the sites moves the orbit and every deviation vector (Skokos & Gerlach
 2010, Sect. V.C, applied to each part). ``method="tm"`` then runs any
 two-part scheme of :data:`varint.SCHEMES` or k-part composition of
-:data:`varint.schemes.PART_SCHEMES` on them (:mod:`varint.methods.parts`).
+:data:`varint.schemes.SCHEMES` on them (:mod:`varint.methods.parts`).
 
 Geometry
 --------
@@ -48,6 +48,7 @@ from typing import Any, Callable
 import numpy as np
 from numba import njit
 
+from ..schemes import get_scheme
 from .base import Model
 
 __all__ = ["LatticeModel", "Parts", "BOUNDARIES", "lattice_shape"]
@@ -299,6 +300,10 @@ class Parts:
     extend : callable or None
         ``extend(n_parts) -> (par, n_work)`` for splits whose flows need
         more data than ``par`` (built only when such a scheme is run).
+    schemes : dict or None
+        The model's own schemes by upper-cased name (those of a general
+        H(q, p), :data:`varint.flows.general.GENERAL_SCHEMES`): when given,
+        ``method="tm"`` takes only these.
     """
 
     names: tuple
@@ -309,6 +314,7 @@ class Parts:
     n_work: int = 0
     default_scheme: str | None = None
     extend: Callable | None = None
+    schemes: dict | None = None
 
     def index(self, name):
         return self.names.index(name)
@@ -326,6 +332,27 @@ class Parts:
             raise ValueError(f"this model splits into {have}; a scheme over {n_parts} parts "
                              "does not fit it")
         return {slot: self.index(name) for slot, name in enumerate(self.splits[n_parts])}
+
+    def resolve(self, scheme, owner="this model"):
+        """The scheme ``scheme`` (name or object; None: the default) as the
+        part stepper runs it on ``owner`` (its name, for the error).
+
+        Raises
+        ------
+        ValueError
+            For an unknown name, or for a model with :attr:`schemes` a
+            scheme not among them.
+        """
+        chosen = scheme if scheme is not None else self.default_scheme
+        if self.schemes is None:
+            return get_scheme(chosen)
+        # A model with schemes of its own (a general H(q, p)) takes only those.
+        key = chosen.upper() if isinstance(chosen, str) else getattr(chosen, "name", "").upper()
+        if key not in self.schemes:
+            raise ValueError(f"{owner} is integrated by its own schemes "
+                             f"({', '.join(s.name for s in self.schemes.values())}); "
+                             f"got {chosen!r}")
+        return self.schemes[key]
 
     def params(self, n_parts):
         """``(par, n_work)`` for a scheme over ``n_parts`` parts."""

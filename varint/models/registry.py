@@ -5,7 +5,7 @@ methods and indicators.
 
 An entry is a factory with its parameters (name, default, one line of
 documentation) and the names of the model's coordinates. ``kind`` says how
-a model is used: ``"flow"`` (a Hamiltonian H = ½pᵀM⁻¹p + V(q), integrated),
+a model is used: ``"flow"`` (a Hamiltonian, ½pᵀM⁻¹p + V(q) or of another form, integrated),
 ``"map"`` (a symplectic map, iterated) or ``"lattice"`` (a many-body
 lattice whose factory also takes ``shape``, ``boundary`` and the disorder's
 ``seed``). A new model is one :func:`register_model` call.
@@ -236,3 +236,46 @@ register_model(ModelEntry(
     "ddnls", "lattice", DDNLS,
     "the disordered discrete nonlinear Schrödinger lattice (1D or 2D)",
     (Parameter("W", 4.0, "disorder strength"), Parameter("beta", 1.0, "nonlinearity"))))
+
+
+# The models of any H(q, p) import SymPy: built on first use, so that reading
+# the registry (the command line's help) stays as quick as before.
+def _cr3bp(mu):
+    from .cr3bp import CR3BP
+
+    return CR3BP(mu)
+
+
+def _rotating_bar(omega):
+    from .bar import RotatingBar
+
+    return RotatingBar(omega=omega)
+
+
+def _magnetic_bottle(b0, length):
+    from .bottle import MagneticBottle
+
+    return MagneticBottle(b0, length)
+
+
+#: Sun–Jupiter, as varint.models.cr3bp.SUN_JUPITER_MU (a test checks they agree).
+_SUN_JUPITER_MU = 0.000954
+
+register_model(ModelEntry(
+    "cr3bp", "flow", _cr3bp,
+    "the planar circular restricted three-body problem in the rotating frame (Jacobi "
+    "constant checked)",
+    (Parameter("mu", _SUN_JUPITER_MU, "mass ratio of the secondary (Sun–Jupiter by default)"),),
+    coordinates=("x", "y"), classes=("CR3BP",)))
+register_model(ModelEntry(
+    "rotating-bar", "flow", _rotating_bar,
+    "a rotating Ferrers bar, Miyamoto–Nagai disc and Plummer bulge (Skokos, Patsis & "
+    "Athanassoula 2002)",
+    (Parameter("omega", 0.054, "pattern speed of the bar"),),
+    coordinates=("x", "y", "z"), classes=("RotatingBar",)))
+register_model(ModelEntry(
+    "magnetic-bottle", "flow", _magnetic_bottle,
+    "a charged particle in the mirror field B_z = B0 (1 + z²/L²)",
+    (Parameter("b0", 1.0, "field at the bottle's centre"),
+     Parameter("length", 1.0, "the mirror length L")),
+    coordinates=("x", "y", "z"), classes=("MagneticBottle",)))

@@ -52,7 +52,8 @@ from .base import Model
 from .maps import MapModel
 
 __all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map",
-           "NonSymplecticWarning"]
+           "NonSymplecticWarning",
+           "KernelPrinter"]
 
 #: Functions whose presence in V or its first three derivatives means V is
 #: not smooth enough (the corrector needs third derivatives everywhere).
@@ -183,7 +184,7 @@ def _exact_number(value, name):
 _INT64_MAX = 2 ** 63 - 1
 
 
-class _KernelPrinter(PythonCodePrinter):
+class KernelPrinter(PythonCodePrinter):
     """Python source for numba: ``math`` functions, float literals.
 
     An integer or a fraction whose parts are beyond int64 (numba cannot
@@ -243,7 +244,7 @@ def _kernel_source(V, n, time=False):
         terms = [sp.diff(H[i, i + b], q[m]) for m in range(n)] if i + b < n else []
         _check_smooth(terms, "third derivatives")
         third.append(sp.Add(*[v[m] * t for m, t in enumerate(terms)]))
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     unpack_q = [f"    q_{i} = q[{i}]" for i in range(n)]
     if time:
         unpack_q.append("    t = par[-1]")
@@ -419,7 +420,7 @@ def _map_source(F, n):
     J = [[sp.diff(f, xi) for xi in x] for f in F]
     _check_smooth([e for row in J for e in row], "first derivatives", subject="the map",
                   need="differentiable")
-    printer = _KernelPrinter()
+    printer = KernelPrinter()
     unpack = [f"    x_{i} = x[{i}]" for i in range(n)]
     try:
         body_f = _assignments(printer, [f"out[{i}]" for i in range(n)], F)

@@ -1,5 +1,7 @@
-"""Compiled steppers of the three TDH methods (Skokos & Gerlach 2010, Sect.
-V.B): one kernel, specialised at compile time to the method.
+"""The step body of the three TDH methods (Skokos & Gerlach 2010, Sect.
+V.B): one body, specialised at compile time to the method; the loop over
+intervals and their ends are the stepping skeleton's
+(:mod:`varint.kernels.interval`).
 
 Every renormalisation interval [t_i, t_i + τ) the orbit is advanced by
 ``n_sub`` steps Δt of its splitting scheme, and the deviation vectors
@@ -33,15 +35,17 @@ entry of a private copy of ``par``.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections import namedtuple
+from functools import cache
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..codegen.interval import Outputs, StepperOrbit, StepperSetup
 from ..kernels import tm as K
 from ..kernels.banded import band_kick_block, band_square_add
-from ..kernels.checks import (CHECK_EVERY, all_finite, derivative_status, renormalize,
-                              tangent_overflow)
+from ..kernels.checks import all_finite, derivative_status
+from ..kernels.interval import (Call, StepBody, batch_loop, no_accumulator, orbit_record)
 from ..protocol import COUNTERS as TM_COUNTERS, Renorm, Status
 from .frozen import _oscillator
 
@@ -53,7 +57,6 @@ COUNTERS = TM_COUNTERS + ("eigendecompositions",)
 
 _OK = int(Status.OK)
 _DEGENERATE = int(Status.TANGENT_DEGENERATE)
-_OVERFLOW = int(Status.TANGENT_OVERFLOW)
 _HESS = int(Status.HESSIAN_NONFINITE)
 _NONE = int(Renorm.NONE)
 
@@ -61,300 +64,292 @@ _NONE = int(Renorm.NONE)
 #: intervals: 512 kB.
 _BLOCK_VALUES = 1 << 16
 
+#: One orbit's record (:mod:`varint.kernels.interval`); ``pt`` (1,): its
+#: momentum conjugate to time (a time-dependent V; (0,) otherwise).
+TDHOrbit = orbit_record("TDHOrbit", ("pt",))
 
-@lru_cache(maxsize=None)
-def generic_orbit(n, bw):
-    """``run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess,
-    third, escape_r2, counters, rec) -> (status, steps)``: the orbit alone
-    by the generic TM stepper (sizes N = ``n``, bandwidth ``bw``; −1: read
-    at run time), the state after every step written to ``rec``."""
-    orbit = K.orbit_kernel(n, bw)
+#: What a call reads: the orbit's stage tables (``kinds``, ``h``, ``hc``,
+#: for the step Δt = τ/n_sub; ``ctime``: their times, for a time-dependent
+#: V), orbit steps per interval, the tangent scheme's stage tables
+#: (``tkinds``, ``th``, ``thc``; ``tidx``: the grid point of each stage's
+#: D²V), the grid points whose D²V the method needs, and the model's inverse
+#: masses, parameters and bandwidth.
+TDHSetup = namedtuple("TDHSetup", ("kinds", "h", "hc", "ctime", "n_sub", "tkinds", "th", "thc",
+                                   "tidx", "need", "minv", "par", "bw"))
 
-    @njit
-    def run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third, escape_r2,
-                  counters, rec):
-        d = x.shape[0]
-        return orbit(x, np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64), n_steps,
-                     kinds, h, hc, minv, par, bw_rt, grad, hess, third, _NONE, escape_r2,
-                     counters, rec, K.no_accumulator, np.empty((0, 0)), 0, 0.0)
-
-    return run_orbit
+_Work = namedtuple("_Work", (
+    "n", "k", "d", "xe", "bw", "bwc", "block", "rec", "x0", "orbit_setup", "no_W", "no_m", "no_e",
+    "no_aux", "q", "gq", "H", "Hs", "HCs", "hc_done", "zero_T", "Kb", "Kd", "lam", "Qm", "q0", "ca",
+    "sa", "u", "v", "ma", "mb", "rs", "pl"))
 
 
-@lru_cache(maxsize=None)
+@cache
+def generic_orbit(n, bw, kernels, time=False):
+    """``run_orbit(state, setup, call) -> (status, steps)``: the orbit alone
+    by the generic TM stepper (:func:`varint.kernels.tm.orbit_kernel`:
+    sizes N = ``n``, bandwidth ``bw``; −1: read at run time), the state
+    after every step written to ``state.record``."""
+    return K.orbit_kernel(n, bw, kernels, time)
+
+
+@cache
 def generated_orbit(module):
     """The same as :func:`generic_orbit` by a generated stepper
-    (:mod:`varint.kernels.generate`, k = 0), whose snapshots at every step
-    are the record: the orbit is the TM method's, bit for bit."""
+    (:mod:`varint.codegen`, k = 0), whose snapshots at every step are the
+    record: the orbit is the TM method's, bit for bit."""
     orbit = module.orbit
 
     @njit
-    def run_orbit(x, n_steps, kinds, h, hc, minv, par, bw_rt, grad, hess, third, escape_r2,
-                  counters, rec):
-        d = x.shape[0]
-        return orbit(x, np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64), n_steps,
-                     0, 0.0, h, hc, escape_r2, counters, np.empty((0, 0)),
-                     np.zeros(2, dtype=np.int64), np.arange(1, n_steps + 1), rec,
-                     np.empty((n_steps, d, 0)), np.ones((n_steps, 0)),
-                     np.zeros((n_steps, 0), dtype=np.int64), np.empty((n_steps, 0, 0)), _NONE, 0)
+    def run_orbit(state, setup, call):
+        d = state.x.shape[0]
+        n_steps = call.n_steps
+        return orbit(StepperOrbit(state.x, np.empty((d, 0)), np.ones(0),
+                                  np.zeros(0, dtype=np.int64), np.empty((0, 0)), state.counters,
+                                  np.zeros(2, dtype=np.int64)),
+                     StepperSetup(setup.h, setup.hc, 0),
+                     Call(n_steps, 0, 0.0, _NONE, call.escape_r2),
+                     Outputs(np.arange(1, n_steps + 1), state.record, np.empty((n_steps, d, 0)),
+                             np.ones((n_steps, 0)), np.zeros((n_steps, 0), dtype=np.int64),
+                             np.empty((n_steps, 0, 0))))
 
     return run_orbit
 
 
-def _make_tdh_orbit(N_C, K_C, BW_C, MODE, FLOW, run_orbit, TIME=False):
-    """The one-orbit TDH stepper for method ``MODE``; sizes are constants
-    when ≥ 0, else read from the arrays. ``FLOW``: the accumulator reads the
-    phase-space velocity (see :func:`varint.kernels.tm.tm_batch`).
-    ``run_orbit``: :func:`generic_orbit` or :func:`generated_orbit`.
-    ``TIME``: a time-dependent V, with ``ctime``, ``dtime``, ``pt`` as for
-    the TM stepper (:func:`varint.kernels.tm.tm_batch`); its orbit is the
-    generic stepper's in the extended phase space."""
-    time_orbit = K.orbit_kernel(N_C, BW_C, True) if TIME else run_orbit
+@cache
+def tdh_body(N_C, K_C, BW_C, MODE, kernels, eig, run_orbit, TIME=False):
+    """The step body of method ``MODE`` for the model ``kernels``
+    (:func:`varint.kernels.tm.model_kernels`) and eigensolver ``eig``
+    (TDHes); sizes are constants when ≥ 0, else read from the arrays.
+    ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
+    :func:`generated_orbit`); with ``TIME`` (a time-dependent V) its orbit
+    is the generic stepper's in the extended phase space.
 
-    @njit
-    def tdh_orbit(x, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx,
-                  need, tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2,
-                  counters, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
-        n = N_C if N_C >= 0 else x.shape[0] // 2
-        k = K_C if K_C >= 0 else W.shape[1]
-        bw = BW_C if BW_C >= 0 else bw_rt
+    The orbit runs a block of intervals at a time (one call of
+    ``run_orbit``, which records it after every step); the vectors then
+    follow it interval by interval, and the end point of each interval is
+    copied from the record. An orbit that fails is frozen as it was at the
+    failure: the orbit at the end of the failed orbit step and the vectors
+    at the start of that interval, or, if their renormalisation failed,
+    both at its end.
+    """
+    grad, hess = kernels[0], kernels[1]
+
+    @njit(inline="always")
+    def begin(state, setup, call):
+        n = N_C if N_C >= 0 else state.x.shape[0] // 2
+        k = K_C if K_C >= 0 else state.W.shape[1]
+        bw = BW_C if BW_C >= 0 else setup.bw
         d = 2 * n
         bwc = min(2 * bw, n - 1)
-        tangent = k > 0
-        # The orbit runs a block of intervals at a time (one call of the TM
-        # stepper, which records it after every step); then the vectors
-        # follow it through the block.
-        block = max(1, min(n_steps, _BLOCK_VALUES // (n_sub * d)))
-        rec = np.empty((block * n_sub, d))
-        x0 = np.empty(n)                        # q at the start of the block
-        r_acc = np.empty(k if aux.shape[0] > 0 else 0)    # stretching, for the accumulator
-        flow = np.empty(d if FLOW else 0)
-        gq = np.empty(n)                        # ∇V, for the accumulator's flow
-        q = np.empty(n)
-        H = np.zeros((bw + 1, n))
+        n_sub = setup.n_sub
         n_grid = n_sub + 1
-        Hs = np.zeros((n_grid, bw + 1, n))      # D²V at the grid points of an interval
-        HCs = np.zeros((n_grid, bwc + 1, n))    # D²C̃ = 2 D²V M⁻¹ D²V there
-        hc_done = np.zeros(n_grid, dtype=np.bool_)
-        zero_T = np.zeros((bw + 1, n))          # the TDH has no third derivatives
-        Kb = np.zeros((bwc + 1, n))
         ne = n if MODE == ES else 0
-        Kd = np.zeros((ne, ne))                 # M^{-1/2} D²V M^{-1/2}
-        lam = np.empty(ne)
-        Qm = np.empty((ne, ne))
-        q0 = np.empty(ne)                       # q(t_i), for an analytic eigensolver
-        ca = np.empty(ne)                       # c and s of each mode (frozen.py)
-        sa = np.empty(ne)
-        u = np.empty(ne)                        # S⁻¹δq, S δp
-        v = np.empty(ne)
-        ma = np.empty(ne)                       # the modes after τ
-        mb = np.empty(ne)
-        rs = np.sqrt(minv)                      # S = M^{-1/2}
-        have_end = False                        # Hs[n_sub] is D²V at the current q
-        pl = par.copy()                         # with the time of a grid point (TIME)
+        block = max(1, min(call.n_steps, _BLOCK_VALUES // (n_sub * d)))
+        orbit_setup = K.TMSetup(setup.kinds, setup.h, setup.hc, setup.minv, setup.par, setup.bw,
+                                setup.ctime)
+        ws = _Work(n, k, d, np.empty(d), bw, bwc, block,
+                   np.empty((block * n_sub, d)),      # the orbit after every step of a block
+                   np.empty(n),                       # q at the start of the block
+                   orbit_setup,
+                   np.empty((d, 0)), np.ones(0), np.zeros(0, dtype=np.int64), np.empty((0, 0)),
+                   np.empty(n),                       # q
+                   np.empty(n),                       # ∇V, for the accumulator's flow
+                   np.zeros((bw + 1, n)),
+                   np.zeros((n_grid, bw + 1, n)),     # D²V at the grid points of an interval
+                   np.zeros((n_grid, bwc + 1, n)),    # D²C̃ = 2 D²V M⁻¹ D²V there
+                   np.zeros(n_grid, dtype=np.bool_),
+                   np.zeros((bw + 1, n)),             # the TDH has no third derivatives
+                   np.zeros((bwc + 1, n)),
+                   np.zeros((ne, ne)),                # M^{-1/2} D²V M^{-1/2}
+                   np.empty(ne), np.empty((ne, ne)),
+                   np.empty(ne),                      # q(t_i), for an analytic eigensolver
+                   np.empty(ne), np.empty(ne),        # c and s of each mode (frozen.py)
+                   np.empty(ne), np.empty(ne),        # S⁻¹δq, S δp
+                   np.empty(ne), np.empty(ne),        # the modes after τ
+                   np.sqrt(setup.minv),               # S = M^{-1/2}
+                   setup.par.copy())                  # with the time of a grid point (TIME)
+        # The block: its first interval, the next block's, the intervals the
+        # orbit completed and its status; whether Hs[n_sub] is D²V at the
+        # current q.
+        return ws, (0, 0, 0, _OK, False)
+
+    @njit(inline="always")
+    def step(state, setup, ws, carry, s, call):
+        x, W, counters = state.x, state.W, state.counters
+        n, k, d, bw, bwc = ws.n, ws.k, ws.d, ws.bw, ws.bwc
+        rec, x0, q, H, Hs, HCs, hc_done = ws.rec, ws.x0, ws.q, ws.H, ws.Hs, ws.HCs, ws.hc_done
+        minv, n_sub, need = setup.minv, setup.n_sub, setup.need
+        first, following, complete, orbit_status, have_end = carry
+        tau = call.tau
         dt = tau / n_sub
-        done = 0
-        while done < n_steps:
-            nb = min(block, n_steps - done)
+        if s == following:
+            # The orbit through the next block, recorded after every step.
+            nb = min(ws.block, call.n_steps - s)
             for i in range(n):
                 x0[i] = x[i]
-            if TIME:
-                status, steps = time_orbit(x, np.empty((d, 0)), np.ones(0),
-                                           np.zeros(0, dtype=np.int64), nb * n_sub, kinds, h,
-                                           hc, minv, par, bw_rt, grad, hess, third, _NONE,
-                                           escape_r2, counters, rec, K.no_accumulator,
-                                           np.empty((0, 0)), (step0 + done) * n_sub, dt, ctime,
-                                           dtime, pt)
-            else:
-                status, steps = run_orbit(x, nb * n_sub, kinds, h, hc, minv, par, bw_rt, grad,
-                                          hess, third, escape_r2, counters, rec)
-            complete = steps // n_sub if status != _OK else nb
-            for s in range(complete):
-                if tangent:
-                    # D²V at the grid points t_i + jΔt the method uses.
-                    for jg in range(n_grid):
-                        hc_done[jg] = False
-                        if not need[jg]:
-                            continue
-                        if jg == 0 and have_end:
-                            for b in range(bw + 1):
-                                for i in range(n):
-                                    Hs[0, b, i] = Hs[n_sub, b, i]
-                            continue
-                        r = s * n_sub + jg - 1
+            orbit_status, steps = run_orbit(
+                K.TMOrbit(x, ws.no_W, ws.no_m, ws.no_e, ws.no_aux, counters, state.pt, rec),
+                ws.orbit_setup, Call(nb * n_sub, (call.step0 + s) * n_sub, dt, _NONE,
+                                     call.escape_r2))
+            complete = steps // n_sub if orbit_status != _OK else nb
+            first, following = s, s + nb
+        i_block = s - first
+        if i_block == complete:
+            # The orbit failed in this interval; it is where it failed.
+            return orbit_status, (first, following, complete, orbit_status, have_end)
+        end_row = (i_block + 1) * n_sub - 1
+        if k > 0:
+            # D²V at the grid points t_i + jΔt the method uses.
+            for jg in range(n_sub + 1):
+                hc_done[jg] = False
+                if not need[jg]:
+                    continue
+                if jg == 0 and have_end:
+                    for b in range(bw + 1):
                         for i in range(n):
-                            q[i] = x0[i] if r < 0 else rec[r, i]
-                        if TIME:
-                            pl[pl.shape[0] - 1] = float((step0 + done + s) * n_sub + jg) * dt
-                        hess(q, pl, H)
-                        counters[1] += 1
-                        if not all_finite(H.ravel(), (bw + 1) * n):
-                            for i in range(d):
-                                x[i] = rec[(s + 1) * n_sub - 1, i]
-                            return derivative_status(q, n, _HESS), done + s
-                        for b in range(bw + 1):
-                            for i in range(n):
-                                Hs[jg, b, i] = H[b, i]
-                        if jg == 0:
-                            for i in range(ne):
-                                q0[i] = q[i]
-                    have_end = need[n_sub]
-                if tangent and MODE == ES:
-                    # Exact flow of the frozen TDH: the modal coordinates
-                    # Qᵀ S⁻¹δq and Qᵀ S δp evolve as uncoupled oscillators.
-                    for i in range(n):
-                        Kd[i, i] = rs[i] * Hs[0, 0, i] * rs[i]
-                    for b in range(1, bw + 1):
-                        for i in range(n - b):
-                            Kd[i, i + b] = Kd[i + b, i] = rs[i] * Hs[0, b, i] * rs[i + b]
-                    finite = True
-                    for i in range(n):
-                        for j in range(n):
-                            finite = finite and abs(Kd[i, j]) < np.inf
-                    if not finite:
-                        # LAPACK would raise: fail the interval like a bad vector.
-                        for i in range(d):
-                            x[i] = rec[(s + 1) * n_sub - 1, i]
-                        return _DEGENERATE, done + s
-                    eig(q0, Kd, lam, Qm)
-                    counters[4] += 1
-                    for r in range(n):
-                        ca[r], sa[r] = _oscillator(lam[r], tau)
-                    counters[3] += 1
-                    for j in range(k):
-                        for i in range(n):
-                            u[i] = W[i, j] / rs[i]
-                            v[i] = W[n + i, j] * rs[i]
-                        for r in range(n):
-                            a = 0.0
-                            c = 0.0
-                            for i in range(n):
-                                a += Qm[i, r] * u[i]
-                                c += Qm[i, r] * v[i]
-                            ma[r] = ca[r] * a + sa[r] * c
-                            mb[r] = -lam[r] * sa[r] * a + ca[r] * c
-                        for i in range(n):
-                            a = 0.0
-                            c = 0.0
-                            for r in range(n):
-                                a += Qm[i, r] * ma[r]
-                                c += Qm[i, r] * mb[r]
-                            W[i, j] = rs[i] * a
-                            W[n + i, j] = c / rs[i]
-                elif tangent:
-                    # The TDH's splitting flows; kicks use D²V at their grid point.
-                    for st in range(tkinds.shape[0]):
-                        hs = th[st]
-                        if tkinds[st] == 0:
-                            for i in range(n):
-                                a = hs * minv[i]
-                                for j in range(k):
-                                    W[i, j] += a * W[n + i, j]
-                            continue
-                        g = tidx[st]
-                        hcs = thc[st]
-                        counters[3] += 1
-                        if hcs == 0.0:
-                            for b in range(bw + 1):
-                                for i in range(n):
-                                    Kb[b, i] = hs * Hs[g, b, i]
-                            band_kick_block(Kb, W, n, k, bw)
-                            continue
-                        if not hc_done[g]:
-                            for b in range(bw + 1):
-                                for i in range(n):
-                                    H[b, i] = Hs[g, b, i]
-                            band_square_add(H, minv, zero_T, HCs[g], n, bw, bwc)
-                            hc_done[g] = True
-                        for b in range(bwc + 1):
-                            for i in range(n):
-                                Kb[b, i] = hcs * HCs[g, b, i]
-                        for b in range(bw + 1):
-                            for i in range(n):
-                                Kb[b, i] += hs * Hs[g, b, i]
-                        band_kick_block(Kb, W, n, k, bwc)
-                # The vectors are at the end of interval s, and so is the orbit.
-                r = (s + 1) * n_sub - 1
-                if renorm != _NONE:
-                    if renormalize(W, renorm, acc_m, acc_e, r_acc, d, k) != _OK:
-                        for i in range(d):
-                            x[i] = rec[r, i]
-                        return _DEGENERATE, done + s
-                    if aux.shape[0] > 0:
-                        if FLOW:
-                            for i in range(n):
-                                q[i] = rec[r, i]
-                            if TIME:
-                                pl[pl.shape[0] - 1] = float((step0 + done + s + 1) * n_sub) * dt
-                            grad(q, pl, gq)
-                            counters[0] += 1
-                            for i in range(n):
-                                flow[i] = minv[i] * rec[r, n + i]
-                                flow[n + i] = -gq[i]
-                        accumulate(aux, r_acc, rec[r], W, flow, (step0 + done + s + 1) * tau)
-                elif tangent and (done + s) % CHECK_EVERY == CHECK_EVERY - 1 and \
-                        tangent_overflow(W):
+                            Hs[0, b, i] = Hs[n_sub, b, i]
+                    continue
+                r = i_block * n_sub + jg - 1
+                for i in range(n):
+                    q[i] = x0[i] if r < 0 else rec[r, i]
+                if TIME:
+                    ws.pl[ws.pl.shape[0] - 1] = float((call.step0 + s) * n_sub + jg) * dt
+                hess(q, ws.pl, H)
+                counters[1] += 1
+                if not all_finite(H.ravel(), (bw + 1) * n):
                     for i in range(d):
-                        x[i] = rec[r, i]
-                    return _OVERFLOW, done + s
-            if status != _OK:
-                return status, done + complete
-            done += nb
-        if renorm == _NONE and tangent and tangent_overflow(W):
-            return _OVERFLOW, n_steps - 1
-        return _OK, n_steps
+                        x[i] = rec[end_row, i]
+                    return (derivative_status(q, n, _HESS),
+                            (first, following, complete, orbit_status, have_end))
+                for b in range(bw + 1):
+                    for i in range(n):
+                        Hs[jg, b, i] = H[b, i]
+                if jg == 0:
+                    for i in range(ws.q0.shape[0]):
+                        ws.q0[i] = q[i]
+            have_end = need[n_sub]
+        if k > 0 and MODE == ES:
+            # Exact flow of the frozen TDH: the modal coordinates
+            # Qᵀ S⁻¹δq and Qᵀ S δp evolve as uncoupled oscillators.
+            Kd, lam, Qm, rs = ws.Kd, ws.lam, ws.Qm, ws.rs
+            ca, sa, u, v, ma, mb = ws.ca, ws.sa, ws.u, ws.v, ws.ma, ws.mb
+            for i in range(n):
+                Kd[i, i] = rs[i] * Hs[0, 0, i] * rs[i]
+            for b in range(1, bw + 1):
+                for i in range(n - b):
+                    Kd[i, i + b] = Kd[i + b, i] = rs[i] * Hs[0, b, i] * rs[i + b]
+            finite = True
+            for i in range(n):
+                for j in range(n):
+                    finite = finite and abs(Kd[i, j]) < np.inf
+            if not finite:
+                # LAPACK would raise: fail the interval like a bad vector.
+                for i in range(d):
+                    x[i] = rec[end_row, i]
+                return _DEGENERATE, (first, following, complete, orbit_status, have_end)
+            eig(ws.q0, Kd, lam, Qm)
+            counters[4] += 1
+            for r in range(n):
+                ca[r], sa[r] = _oscillator(lam[r], tau)
+            counters[3] += 1
+            for j in range(k):
+                for i in range(n):
+                    u[i] = W[i, j] / rs[i]
+                    v[i] = W[n + i, j] * rs[i]
+                for r in range(n):
+                    a = 0.0
+                    c = 0.0
+                    for i in range(n):
+                        a += Qm[i, r] * u[i]
+                        c += Qm[i, r] * v[i]
+                    ma[r] = ca[r] * a + sa[r] * c
+                    mb[r] = -lam[r] * sa[r] * a + ca[r] * c
+                for i in range(n):
+                    a = 0.0
+                    c = 0.0
+                    for r in range(n):
+                        a += Qm[i, r] * ma[r]
+                        c += Qm[i, r] * mb[r]
+                    W[i, j] = rs[i] * a
+                    W[n + i, j] = c / rs[i]
+        elif k > 0:
+            # The TDH's splitting flows; kicks use D²V at their grid point.
+            tkinds, th, thc, tidx, Kb = setup.tkinds, setup.th, setup.thc, setup.tidx, ws.Kb
+            for st in range(tkinds.shape[0]):
+                hs = th[st]
+                if tkinds[st] == 0:
+                    for i in range(n):
+                        a = hs * minv[i]
+                        for j in range(k):
+                            W[i, j] += a * W[n + i, j]
+                    continue
+                g = tidx[st]
+                hcs = thc[st]
+                counters[3] += 1
+                if hcs == 0.0:
+                    for b in range(bw + 1):
+                        for i in range(n):
+                            Kb[b, i] = hs * Hs[g, b, i]
+                    band_kick_block(Kb, W, n, k, bw)
+                    continue
+                if not hc_done[g]:
+                    for b in range(bw + 1):
+                        for i in range(n):
+                            H[b, i] = Hs[g, b, i]
+                    band_square_add(H, minv, ws.zero_T, HCs[g], n, bw, bwc)
+                    hc_done[g] = True
+                for b in range(bwc + 1):
+                    for i in range(n):
+                        Kb[b, i] = hcs * HCs[g, b, i]
+                for b in range(bw + 1):
+                    for i in range(n):
+                        Kb[b, i] += hs * Hs[g, b, i]
+                band_kick_block(Kb, W, n, k, bwc)
+        # The vectors are at the end of the interval, and so is the orbit.
+        for i in range(d):
+            ws.xe[i] = rec[end_row, i]
+        return _OK, (first, following, complete, orbit_status, have_end)
 
-    return tdh_orbit
+    @njit(inline="always")
+    def flow(state, setup, ws, carry, xe, s, call, out):
+        n, q, gq = ws.n, ws.q, ws.gq
+        for i in range(n):
+            q[i] = xe[i]
+        if TIME:
+            ws.pl[ws.pl.shape[0] - 1] = (float((call.step0 + s + 1) * setup.n_sub)
+                                         * (call.tau / setup.n_sub))
+        grad(q, ws.pl, gq)
+        state.counters[0] += 1
+        for i in range(n):
+            out[i] = setup.minv[i] * xe[n + i]
+            out[n + i] = -gq[i]
+        return carry
+
+    # No end-of-interval check of the orbit: run_orbit checked it every step.
+    return StepBody(begin=begin, step=step, flow=flow)
 
 
-@lru_cache(maxsize=None)
-def tdh_batch(n, k, bw, mode, parallel, flow, run_orbit, time=False):
+@cache
+def tdh_batch(n, k, bw, mode, parallel, kernels, eig, run_orbit, accumulate=no_accumulator,
+              flow=False, time=False):
     """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
-    read at run time).
-
-    The returned function advances every orbit of ``X`` (M, 2N) whose
-    ``status`` is OK by ``n_steps`` renormalisation intervals, in parallel
-    over orbits if ``parallel``; ``done[m]`` receives the intervals orbit m
-    completed and ``status[m]`` its status (codes of :class:`varint.protocol.Status`).
-    An orbit that fails is frozen as it was at the failure: the orbit at the
-    end of the failed orbit step and the vectors at the start of that
-    interval, or, if their renormalisation failed, both at its end.
-    ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
-    :func:`generated_orbit`). With ``time`` (a time-dependent V) ``ctime``,
-    ``dtime`` and ``pt`` (M,) follow ``step0``, as for
-    :func:`varint.kernels.tm.tm_batch`.
-    """
-    tdh_orbit = _make_tdh_orbit(n, k, bw, mode, flow, run_orbit, time)
-
-    @njit(parallel=parallel)
-    def batch(X, W, acc_m, acc_e, n_steps, kinds, h, hc, n_sub, tkinds, th, thc, tidx, need,
-              tau, minv, par, bw_rt, grad, hess, third, eig, renorm, escape_r2, counters,
-              status, done, accumulate, aux, step0, ctime=None, dtime=None, pt=None):
-        for m in prange(X.shape[0]):
-            if status[m] != _OK:
-                done[m] = 0
-                continue
-            if time:
-                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
-                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
-                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
-                                      accumulate, aux[m], step0, ctime, dtime, pt[m:m + 1])
-            else:
-                st, steps = tdh_orbit(X[m], W[m], acc_m[m], acc_e[m], n_steps, kinds, h, hc,
-                                      n_sub, tkinds, th, thc, tidx, need, tau, minv, par, bw_rt,
-                                      grad, hess, third, eig, renorm, escape_r2, counters[m],
-                                      accumulate, aux[m], step0)
-            status[m] = st
-            done[m] = steps
-
-    return batch
+    read at run time): ``batch(states, setup, call, status, done)``
+    (:func:`varint.kernels.interval.batch_loop`) with a batch of
+    :class:`TDHOrbit` and a :class:`TDHSetup`; ``call.tau`` is the
+    renormalisation interval τ and ``done[m]`` receives the intervals orbit
+    m completed. ``run_orbit`` integrates the orbit (:func:`generic_orbit`
+    or :func:`generated_orbit`). With ``time`` V depends on t."""
+    body = tdh_body(n, k, bw, mode, kernels, eig, run_orbit, time)
+    return batch_loop(body, parallel, accumulate, flow)
 
 
-def batch_kernel(n, k, bw, mode, parallel, flow=False, module=None, time=False):
+def batch_kernel(n, k, bw, mode, parallel, kernels, eig, accumulate=no_accumulator, flow=False,
+                 module=None, time=False):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
     TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`), its orbit
     by the generated stepper ``module`` if given, else the generic one."""
     sizes = K.specialised_sizes(n, k, bw)
-    run_orbit = generic_orbit(sizes[0], sizes[2]) if module is None else generated_orbit(module)
-    return tdh_batch(*sizes, mode, parallel, flow, run_orbit, time)
+    run_orbit = (generic_orbit(sizes[0], sizes[2], kernels, time) if module is None
+                 else generated_orbit(module))
+    return tdh_batch(*sizes, mode, parallel, kernels, eig, run_orbit, accumulate, flow, time)

@@ -31,6 +31,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..kernels.inlining import into_kernels
+
 __all__ = ["oscillator", "henon_heiles_transform", "lapack_eig", "henon_heiles_eig"]
 
 #: Below this |z| = |λ|h² the series of c and s/h are used: their first
@@ -39,7 +41,7 @@ __all__ = ["oscillator", "henon_heiles_transform", "lapack_eig", "henon_heiles_e
 _SERIES_Z = 1e-6
 
 
-@njit(inline="always")
+@njit(inline=into_kernels)
 def _oscillator(lam, h):
     z = lam * h * h
     if abs(z) < _SERIES_Z:

@@ -28,15 +28,17 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-import scipy
+import scipy  # type: ignore[import-untyped]
 
 from .._validate import choice
-from ..kernels import generate as G
+from ..codegen.expressions import symbolic_fits
+from ..codegen.stepper import symbolic_stepper
 from ..kernels import tm as K
+from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..methods import method_options
 from ..models.henon_heiles import HenonHeiles
 from ..protocol import COUNTERS, STATUS_OK, Renorm
-from ..schemes import DRIFT, SCHEMES, get_scheme, stage_arrays, stage_times
+from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, registered, stage_arrays, stage_times
 from . import _kernels as TK
 from .frozen import henon_heiles_eig, lapack_eig
 
@@ -69,9 +71,9 @@ def eps_grid(scheme):
         For each stage of :func:`varint.schemes.stage_arrays`, the grid
         point 0..m of its kick (0 for drifts); empty when ``m`` is None.
     """
-    kinds, h, _ = stage_arrays(get_scheme(scheme), 1.0)
+    kinds, h, _ = stage_arrays(get_scheme(scheme, n_parts=2), 1.0)
     times, t = [], 0.0
-    for kind, c in zip(kinds, h):
+    for kind, c in zip(kinds, h, strict=True):
         times.append(t)
         if kind == DRIFT:
             t += c
@@ -85,7 +87,7 @@ def eps_grid(scheme):
 
 
 def _eps_schemes():
-    return [s.name for s in SCHEMES.values() if eps_grid(s)[0] is not None]
+    return [s.name for s in registered(2) if eps_grid(s)[0] is not None]
 
 
 class _TDHPropagator:
@@ -93,9 +95,9 @@ class _TDHPropagator:
     tables, and :meth:`advance` over the compiled stepper."""
 
     method = ""
-    _mode = None
+    _mode: int | None = None
     #: Options every TDH method takes; subclasses add their own.
-    OPTIONS = ("scheme", "parallel")
+    OPTIONS: tuple[str, ...] = ("scheme", "parallel")
     #: What the accuracy verdict, measured on the orbit, does not check.
     TANGENT_NOTE = ("the verdict checks the orbit only: the TDH methods integrate the "
                     "deviation vectors apart from it, with an error of order 1 (TDHcc, TDHes) "
@@ -108,13 +110,13 @@ class _TDHPropagator:
         self.renorm = Renorm.parse(renorm)
         self.accumulator = accumulator
         self.parallel = options.get("parallel")
-        self.scheme = get_scheme(options.get("scheme", "SBAB2C"))
+        self.scheme = get_scheme(options.get("scheme", DEFAULT_SCHEME), n_parts=2)
         self.n_sub = int(n_sub)
         #: The orbit's integration step Δt (τ, or τ/m for TDHeps).
         self.orbit_step = self.tau / self.n_sub
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.orbit_step)
-        # A time-dependent V: the orbit's stage times and ∂_tV kernel.
-        self._time = (stage_times(self.scheme), model.time_kernel) if model.time_dependent else ()
+        # A time-dependent V: the time of each of the orbit's stages.
+        self._ctime = stage_times(self.scheme) if model.time_dependent else np.empty(0)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         # Defaults for the tangent part; subclasses overwrite what they use.
@@ -139,31 +141,33 @@ class _TDHPropagator:
         one, so the orbit is the TM method's own; None for the generic one."""
         if not hasattr(self, "_generated"):
             self._generated = None
-            if G.symbolic_fits(self.model, 0):
+            if symbolic_fits(self.model, 0):
                 corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
-                self._generated = G.symbolic_stepper(self.model, self._kinds, corrected, 0)
+                self._generated = symbolic_stepper(self.model, self._kinds, corrected, 0)
         return self._generated
 
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` intervals τ."""
         m = state.n_orbits
-        parallel = K.use_parallel(self.parallel, m)
+        parallel = use_parallel(self.parallel, m)
         model = self.model
         acc = self.accumulator
-        update, aux, flow = ((K.no_accumulator, np.empty((m, 0, 0)), False) if acc is None
+        update, aux, flow = ((no_accumulator, np.empty((m, 0, 0)), False) if acc is None
                              else (acc.update, state.extra[acc.key], acc.needs_flow))
-        kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode,
-                                 parallel, flow, self._orbit_stepper(), model.time_dependent)
-        time = self._time + (state.time_momentum(),) if self._time else ()
+        time = model.time_dependent
+        kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode, parallel,
+                                 K.model_kernels(model), self._eig, update, flow,
+                                 self._orbit_stepper(), time)
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
-        kernel(state.x, state.W, state.acc_m, state.acc_e, int(n), self._kinds, self._h,
-               self._hc, self.n_sub, self._tkinds, self._th, self._thc, self._tidx,
-               self._need, self.tau, model.inverse_mass, model.params, model.bandwidth,
-               model.grad_kernel, model.hess_kernel, model.third_kernel, self._eig,
-               int(self.renorm), self._escape_r2, counters, state.status, done, update, aux,
-               state.step, *time)
+        pt = state.time_momentum()[:, None] if time else np.empty((m, 0))
+        kernel(TK.TDHOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters, pt),
+               TK.TDHSetup(self._kinds, self._h, self._hc, self._ctime, self.n_sub, self._tkinds,
+                           self._th, self._thc, self._tidx, self._need, model.inverse_mass,
+                           model.params, model.bandwidth),
+               Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
+               state.status, done)
         state.after_kernel(n, was_active, done, counters,
                            TK.COUNTERS if self._mode == TK.ES else COUNTERS)
 
@@ -219,7 +223,7 @@ class TDHccPropagator(_TDHPropagator):
             raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
         self.substeps = int(substeps)
         self.tangent_scheme = self.scheme if tangent_scheme is None else get_scheme(
-            tangent_scheme)
+            tangent_scheme, n_parts=2)
         tables = stage_arrays(self.tangent_scheme, self.tau / self.substeps)
         self._tkinds, self._th, self._thc = (np.tile(a, self.substeps) for a in tables)
         self._tidx = np.zeros(len(self._tkinds), dtype=np.int64)
@@ -348,9 +352,9 @@ class TDHepsPropagator(_TDHPropagator):
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         options = method_options(self.method, options, self.OPTIONS)
-        scheme = options.get("scheme", "SBAB2C")
+        scheme = options.get("scheme", DEFAULT_SCHEME)
         tangent_scheme = options.get("tangent_scheme")
-        tangent = get_scheme(scheme if tangent_scheme is None else tangent_scheme)
+        tangent = get_scheme(scheme if tangent_scheme is None else tangent_scheme, n_parts=2)
         m, index = eps_grid(tangent)
         if m is None:
             raise ValueError(

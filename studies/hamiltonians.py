@@ -1,0 +1,649 @@
+"""Hamiltonians beyond ½pᵀM⁻¹p + V(q): the restricted three-body problem, a
+rotating Ferrers bar, a magnetic bottle and general H(q, p) — published
+values, work–precision of every method, classification agreement, and the
+targets of issue 29 against heyoka and galpy.
+
+Parts (``--part``, several separated by commas; all by default):
+
+``published``
+    Values from the literature reproduced: the Jacobi constants of the
+    Earth–Moon Lagrange points (Koon, Lo, Marsden & Ross 2011, Sect. 2.4:
+    3.1883, 3.1722, 3.0121, 2.9880) and C(L4) = 3 − μ(1 − μ); Arenstorf's
+    orbit (Hairer, Nørsett & Wanner 1993, Sect. II.0, eq. 0.1, Fig. 0.1)
+    closing after its period 17.0652165601579625588917206249 (the distance
+    from its start, by heyoka and by varint's methods); the Ferrers bar's
+    potential against galpy's ``FerrersPotential`` (where galpy installs).
+``maps``
+    FLI and MEGNO maps of the restricted three-body problem: Sun–Jupiter
+    μ = 0.000954, the section y = 0 with ẏ > 0 at Jacobi constant C = 3.05,
+    on a grid of (x, p_x) (x ∈ [0.3, 0.85], p_x ∈ [−0.3, 0.3]; 40 × 30, of
+    which the allowed points are the orbits), t = 1000 (≈ 160 periods of
+    Jupiter). varint's ``chaos_map`` with its defaults (no τ, no scheme)
+    against heyoka's ``taylor_adaptive_batch`` (batch 8, its own
+    variational equations from the same expression, tolerances 1e-6 … 1e-12,
+    normalising every 10 time units; ``studies/bench_peers.py`` drives it as
+    its experts would), one thread each, interleaved, the minimum of the
+    repeats. The reference is heyoka at tol 1e-15 normalising every time
+    unit; orbits are classified by the antimode of the reference's
+    distribution of log10(value); agreement is the fraction classified as
+    the reference classifies them. Target: varint's defaults ≥ 3× faster
+    per thread than heyoka batch 8 at equal agreement (the cheapest heyoka
+    tolerance whose agreement reaches varint's).
+``bar``
+    The largest Lyapunov exponent of the rotating bar's named orbits
+    (:data:`varint.models.bar.BAR_ORBITS`): varint's ``lyapunov_spectrum``
+    against galpy's ``Orbit.lyapunov`` (where it installs; AGAMA's
+    installer downloads from the network and fails here), at equal
+    accuracy of X1 against a tight reference (varint, ABA864 at τ = 0.005).
+    Target: ≥ 3× galpy.
+
+``precision``
+    Work–precision of every method on each system, orbit and one tangent
+    vector (``lyapunov_spectrum`` with one exponent from the same unit
+    vector): the error at t_end is the larger of the orbit's (max norm)
+    and of the vector's accumulated log-stretching, against heyoka's Taylor
+    method in extended precision (long double, tol ε); the cost is the wall
+    time (one thread, interleaved, minimum of the repeats). Systems and
+    contenders: the restricted three-body problem (Sun–Jupiter, a regular
+    orbit, t = 100): the rotating-frame split (SRKN14a, ABA864, s11odr6),
+    the termwise split (s11ABC6), Gauss–Legendre and Tao's method on the
+    same H forced general, heyoka and DOP853; the magnetic bottle (regular
+    orbit): its termwise four-part split, Gauss–Legendre, Tao, heyoka,
+    DOP853; a relativistic T(p) + V(q): s11odr6, SRKN14a, Gauss–Legendre,
+    heyoka; and two general H without exploitable structure (Hénon–Heiles
+    with the couplings (x p_y)²/8 + x y p_x/4, and Tao's (q² + 1)(p² + 1)/2):
+    Gauss–Legendre (GL4, GL6, GL8), Tao (orders 4 and 6: Yoshida's triple
+    jumps ABC4_Y, ABC6_Y of Tao's map, ω = 20, in a loop of this study since
+    the method carries its second copy from step to step), heyoka, DOP853.
+    The general systems answer two questions of issue 29: which of Tao's
+    method and Gauss–Legendre is cheaper at equal accuracy (the default of
+    general models), and the target that varint stays within 2× of heyoka
+    at equal accuracy for errors ≥ 1e-8 (heyoka's cost read off its
+    cost–error front at varint's errors, log–log interpolated).
+
+Usage: ``python studies/hamiltonians.py [--quick] [--out DIR] [--part maps,bar,...]
+[--repeats N]``. State the machine load (``uptime``, recorded in the JSON)
+with every figure.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numba
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import varint
+from studies.bench_peers import (HeyokaMap, agreement, antimode, chaotic, cost_at, interleaved,
+                                 pareto, seeded_vectors)
+from studies.common import Claims, parse_args, save_csv, save_json
+from varint.schemes import get_scheme, part_stages
+from varint.flows.tao import tao_step, tao_work
+from varint.models.bar import BAR_ORBITS, RotatingBar, bar_orbit
+from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, SUN_JUPITER_MU,
+                                 cr3bp_orbit)
+
+PARTS = ("published", "maps", "bar", "precision")
+REPEATS = 3
+#: The map: Sun–Jupiter section y = 0, ẏ > 0 at C = 3.05.
+JACOBI = 3.05
+MAP_X = (0.3, 0.85)
+MAP_PX = (-0.3, 0.3)
+MAP_TOLS = (1e-6, 1e-8, 1e-10, 1e-12)
+REF_TOL = 1e-15
+REF_EVERY = 1.0
+EVERY = 10.0
+BATCH = 8
+#: Koon, Lo, Marsden & Ross (2011), Sect. 2.4: Earth–Moon, μ = 0.01215.
+KOON_JACOBI = {"L1": 3.1883, "L2": 3.1722, "L3": 3.0121, "L4": 2.9880}
+
+
+def load():
+    """The machine's load averages (1, 5, 15 min), recorded with every
+    timing."""
+    return list(os.getloadavg())
+
+
+# -- published values -------------------------------------------------------------------
+def published_case(quick):
+    rows = []
+    m = CR3BP(EARTH_MOON_MU)
+    points = m.lagrange_points()
+    for name, value in KOON_JACOBI.items():
+        ours = float(m.jacobi_at(*points[name]))
+        rows.append({"quantity": f"C({name}), Earth–Moon", "published": value, "ours": ours,
+                     "difference": ours - value, "source": "Koon et al. 2011, Sect. 2.4"})
+    mu = EARTH_MOON_MU
+    rows.append({"quantity": "C(L4) − (3 − μ(1 − μ))", "published": 0.0,
+                 "ours": float(m.jacobi_at(*points["L4"])) - (3 - mu * (1 - mu)),
+                 "source": "exact"})
+    model, x0 = cr3bp_orbit("arenstorf")
+    closing = {}
+    from varint.baselines.taylor import heyoka_system
+    import heyoka as hy
+
+    system, _ = heyoka_system(model.symbolic())
+    ta = hy.taylor_adaptive(system, x0.copy(), tol=1e-16)
+    ta.propagate_until(ARENSTORF_PERIOD)
+    closing["heyoka tol 1e-16"] = float(np.abs(ta.state - x0).max())
+    for scheme, n in (("ABA864", 20000 if quick else 80000), ("SRKN14a", 20000 if quick
+                                                                 else 80000)):
+        r = varint.integrate(model, x0, ARENSTORF_PERIOD, tau=ARENSTORF_PERIOD / n,
+                             scheme=scheme, t_out=[ARENSTORF_PERIOD], energy_tol=math.inf)
+        closing[f"{scheme}, τ = T/{n}"] = float(np.abs(r.state - x0).max())
+    for name, value in closing.items():
+        rows.append({"quantity": f"Arenstorf orbit: |x(T) − x(0)|, {name}", "published": 0.0,
+                     "ours": value, "source": "Hairer, Nørsett & Wanner 1993, eq. 0.1"})
+    galpy = _galpy_potential_check()
+    if galpy is not None:
+        rows.append(galpy)
+    return rows
+
+
+def _galpy_potential_check():
+    """The bar model's potential against galpy's at a few points (galpy's
+    FerrersPotential takes axis ratios b/a, c/a; G = 1 in natural units)."""
+    try:
+        from galpy.potential import (FerrersPotential, MiyamotoNagaiPotential,
+                                     PlummerPotential, evaluatePotentials)
+    except ImportError:
+        return None
+    m = RotatingBar()
+    pot = _galpy_bar(FerrersPotential, MiyamotoNagaiPotential, PlummerPotential)
+    worst = 0.0
+    for q in ([1.0, 0.5, 0.2], [5.0, 1.4, 0.3], [7.0, 2.0, 1.0], [0.3, 4.0, -2.0]):
+        R, phi = math.hypot(q[0], q[1]), math.atan2(q[1], q[0])
+        theirs = evaluatePotentials(pot, R, q[2], phi=phi, t=0.0)
+        ours = float(m.potential(np.array(q)))
+        worst = max(worst, abs(ours - theirs) / abs(theirs))
+    return {"quantity": "RotatingBar potential vs galpy (largest relative difference, 4 "
+                        "points)", "published": 0.0, "ours": worst, "source": "galpy"}
+
+
+def _galpy_bar(FerrersPotential, MiyamotoNagaiPotential, PlummerPotential):
+    return [MiyamotoNagaiPotential(amp=0.82, a=3.0, b=1.0), PlummerPotential(amp=0.08, b=0.4),
+            FerrersPotential(amp=0.1, a=6.0, b=0.25, c=0.1, omegab=0.054)]
+
+
+# -- the map target -----------------------------------------------------------------------
+def map_grid(quick):
+    model = CR3BP(SUN_JUPITER_MU)
+    nx, ny = (10, 8) if quick else (40, 30)
+    return model, model.section_grid(JACOBI, np.linspace(*MAP_X, nx), np.linspace(*MAP_PX, ny))
+
+
+def maps_case(quick, repeats):
+    """The map rows: per indicator, varint's defaults and heyoka batch 8 at
+    each tolerance, with agreement and seconds (module docstring)."""
+    model, grid = map_grid(quick)
+    X = grid.states
+    t_end = 200.0 if quick else 1000.0
+    tols = MAP_TOLS[::2] if quick else MAP_TOLS
+    W0 = seeded_vectors(model.dim, 1, len(X))
+    rows, summary = [], {}
+    numba.set_num_threads(1)
+    import heyoka as hy
+
+    hy.set_nthreads(1)
+    for ind in ("fli", "megno"):
+        ref = HeyokaMap(model, ind, "var_ode_sys", BATCH, REF_TOL, every=REF_EVERY)
+        values_ref = ref.run(X, W0, t_end)
+        threshold, rule = antimode(values_ref)
+        truth = chaotic(ind, values_ref, threshold)
+        tasks = {"varint defaults": lambda ind=ind: varint.chaos_map(
+            model, grid, ind, t_end=t_end, progress=False)}
+        for tol in tols:
+            hm = HeyokaMap(model, ind, "var_ode_sys", BATCH, tol, every=EVERY)
+            tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = (
+                lambda hm=hm: hm.run(X, W0, t_end))
+        best, outs = interleaved(tasks, repeats)
+        for label, seconds in best.items():
+            out = outs[label]
+            values = out.values if hasattr(out, "values") else out
+            row = {"indicator": ind, "contender": label, "seconds": seconds,
+                   "agreement": agreement(ind, np.asarray(values), truth, threshold),
+                   "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+            if hasattr(out, "provenance"):
+                row["config"] = (f"{out.provenance.method_options['scheme']['name']}, "
+                                 f"τ = {out.provenance.tau:.4g}")
+            rows.append(row)
+        summary[ind] = _equal_agreement([r for r in rows if r["indicator"] == ind])
+        print(f"{ind}: chaotic fraction {truth.mean():.3f}; " + "; ".join(
+            f"{r['contender']}: {r['seconds']:.3g} s, agree {r['agreement']:.4f}"
+            for r in rows if r["indicator"] == ind), flush=True)
+        print(f"  equal agreement: {summary[ind]}", flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows, summary
+
+
+def _equal_agreement(rows):
+    """varint's time against the cheapest heyoka configuration whose
+    agreement reaches varint's (or the best heyoka, if none does)."""
+    ours = next(r for r in rows if r["contender"] == "varint defaults")
+    peers = [r for r in rows if r["contender"] != "varint defaults"]
+    meeting = [r for r in peers if r["agreement"] >= ours["agreement"]]
+    peer = (min(meeting, key=lambda r: r["seconds"]) if meeting
+            else max(peers, key=lambda r: r["agreement"]))
+    return {"varint_seconds": ours["seconds"], "varint_agreement": ours["agreement"],
+            "heyoka": peer["contender"], "heyoka_seconds": peer["seconds"],
+            "heyoka_agreement": peer["agreement"], "speedup": peer["seconds"] / ours["seconds"],
+            "heyoka_reaches": bool(meeting)}
+
+
+# -- the bar target -----------------------------------------------------------------------
+def bar_case(quick, repeats):
+    """X1 of the named bar orbits: varint (defaults, and ABA864 at a few
+    steps) and galpy's Orbit.lyapunov, error against a tight reference."""
+    t_end = 20.0 if quick else 100.0
+    rows = []
+    try:
+        import galpy  # noqa: F401
+        have_galpy = True
+    except ImportError:
+        have_galpy = False
+    # Every contender starts from galpy's default deviation vector, equal
+    # components (at t = 0 the rotating and inertial frames coincide, and
+    # (δq, δp) in the rotating frame is (δx, δv) rotated: the same norm).
+    w0 = np.full((6, 1), 1 / math.sqrt(6))
+    for name in BAR_ORBITS:
+        model, x0 = bar_orbit(name)
+        reference = varint.lyapunov_spectrum(model, x0, t_end, tau=0.005, scheme="ABA864",
+                                             deviations=w0, t_out=[t_end])
+        x1_ref = float(reference.exponents[-1, 0])
+        tasks = {"varint defaults": lambda model=model, x0=x0: varint.lyapunov_spectrum(
+            model, x0, t_end, deviations=w0, t_out=[t_end])}
+        for tau in (0.2, 0.1, 0.05):
+            tasks[f"varint SRKN14a τ = {tau}"] = (
+                lambda model=model, x0=x0, tau=tau: varint.lyapunov_spectrum(
+                    model, x0, t_end, tau=tau, scheme="SRKN14a", deviations=w0,
+                    t_out=[t_end]))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            best, outs = interleaved(tasks, 1 if quick else repeats)
+            if have_galpy:
+                # Minutes per call: timed once each (the load's noise is small
+                # against it).
+                for rtol in (1e-6, 1e-9):
+                    label = f"galpy lyapunov rtol {rtol:g}"
+                    t0 = time.perf_counter()
+                    outs[label] = _galpy_lyapunov(x0, w0[:, 0], t_end, rtol)
+                    best[label] = time.perf_counter() - t0
+                label = "galpy finite differences of its orbits (ε = 1e-6)"
+                t0 = time.perf_counter()
+                outs[label] = _galpy_finite_difference(x0, w0[:, 0], t_end)
+                best[label] = time.perf_counter() - t0
+        for label, seconds in best.items():
+            out = outs[label]
+            x1 = float(out.exponents[-1, 0]) if hasattr(out, "exponents") else float(out)
+            rows.append({"orbit": name, "contender": label, "seconds": seconds, "x1": x1,
+                         "x1_reference": x1_ref, "error": abs(x1 - x1_ref), "t_end": t_end})
+        print("; ".join(f"{r['contender']}: {r['seconds']:.3g} s, X1 {r['x1']:.5g} "
+                        f"(error {r['error']:.1e})" for r in rows if r["orbit"] == name),
+              flush=True)
+    return rows
+
+
+def _galpy_orbit(x):
+    """galpy's Orbit at the rotating frame's state ``x`` at t = 0."""
+    from galpy.orbit import Orbit
+
+    X, Y, Z, vx, vy, vz = x
+    R, phi = math.hypot(X, Y), math.atan2(Y, X)
+    return Orbit([R, (X * vx + Y * vy) / R, (X * vy - Y * vx) / R, Z, vz, phi])
+
+
+def _galpy_finite_difference(x0, w0, t_end, eps=1e-6):
+    """X1 at t_end from two galpy orbits started ±ε w0 apart (galpy's
+    integrator and force in C; the inertial and rotating frames' norms of a
+    deviation agree): what galpy's own orbits say its Lyapunov exponent is."""
+    from galpy.potential import FerrersPotential, MiyamotoNagaiPotential, PlummerPotential
+
+    pot = _galpy_bar(FerrersPotential, MiyamotoNagaiPotential, PlummerPotential)
+    ts = np.linspace(0.0, t_end, int(t_end) + 1)
+    ends = []
+    for sign in (1.0, -1.0):
+        o = _galpy_orbit(x0 + sign * eps * w0)
+        o.integrate(ts, pot, method="dop853_c")
+        t = ts[-1]
+        ends.append(np.array([o.x(t), o.y(t), o.z(t), o.vx(t), o.vy(t), o.vz(t)]))
+    return math.log(np.linalg.norm(ends[0] - ends[1]) / (2 * eps)) / t_end
+
+
+def _galpy_lyapunov(x0, w0, t_end, rtol):
+    """galpy's largest Lyapunov exponent of the bar orbit from the rotating
+    frame's state ``x0`` (at t = 0 the frames coincide and p is the inertial
+    velocity) and deviation vector ``w0``, with its default integrator
+    (DOP853 in C; galpy falls back to SciPy's odeint for the Ferrers bar,
+    whose C version cannot integrate the variational equations)."""
+    from galpy.potential import FerrersPotential, MiyamotoNagaiPotential, PlummerPotential
+
+    pot = _galpy_bar(FerrersPotential, MiyamotoNagaiPotential, PlummerPotential)
+    o = _galpy_orbit(x0)
+    ts = np.linspace(0.0, t_end, int(t_end) + 1)
+    return o.lyapunov(ts, pot=pot, dxdv0=w0, rtol=rtol, atol=rtol * 1e-3)[-1]
+
+
+# -- work–precision -----------------------------------------------------------------------
+def _systems(quick):
+    """name → (model, x0, t_end, contenders): contenders are (label, method,
+    options, steps or tolerances)."""
+    import sympy as sp
+
+    from varint.models import bottle_orbit, cr3bp_orbit, from_hamiltonian
+
+    t_scale = 0.2 if quick else 1.0
+    systems = {}
+    cr3bp, x_cr3bp = cr3bp_orbit("sun-jupiter-regular")
+    general_cr3bp = from_hamiltonian(cr3bp.symbolic().H, cr3bp.symbolic().q,
+                                     cr3bp.symbolic().p, structure="general", name="CR3BP general")
+    terms_cr3bp = from_hamiltonian(cr3bp.symbolic().H, cr3bp.symbolic().q, cr3bp.symbolic().p,
+                                   structure="terms", name="CR3BP termwise")
+    taus = (0.2, 0.1, 0.05, 0.025)
+    systems["CR3BP (Sun–Jupiter, regular)"] = (cr3bp, x_cr3bp, 100.0 * t_scale, [
+        ("SRKN14a", "tm", {"scheme": "SRKN14a"}, taus, cr3bp),
+        ("ABA864", "tm", {"scheme": "ABA864"}, taus, cr3bp),
+        ("s11odr6", "tm", {"scheme": "s11odr6"}, taus, cr3bp),
+        ("termwise s11ABC6", "tm", {"scheme": "s11ABC6"}, taus, terms_cr3bp),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, general_cr3bp),
+        ("GL8 (general)", "tm", {"scheme": "GL8"}, taus, general_cr3bp),
+        ("Tao4 (general)", "tao", {"scheme": "ABC4_Y"}, tuple(t / 2 for t in taus),
+         general_cr3bp)])
+    bottle, x_bottle = bottle_orbit("adiabatic")
+    general_bottle = from_hamiltonian(bottle.symbolic().H, bottle.symbolic().q,
+                                      bottle.symbolic().p, structure="general",
+                                      name="bottle general")
+    taus = (0.4, 0.2, 0.1, 0.05)
+    systems["magnetic bottle (adiabatic)"] = (bottle, x_bottle, 100.0 * t_scale, [
+        ("termwise 4-part s11odr6", "tm", {}, taus, bottle),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, general_bottle),
+        ("GL8 (general)", "tm", {"scheme": "GL8"}, taus, general_bottle),
+        ("Tao4 (general)", "tao", {"scheme": "ABC4_Y"}, tuple(t / 2 for t in taus),
+         general_bottle)])
+    x, y, px, py = sp.symbols("x y p_x p_y")
+    hh = (x ** 2 + y ** 2) / 2 + x ** 2 * y - y ** 3 / 3
+    rel = from_hamiltonian(sp.sqrt(1 + px ** 2 + py ** 2) + hh, [x, y], [px, py],
+                           name="relativistic Hénon–Heiles")
+    x_rel = np.array([0.1, 0.1, 0.3, 0.2])
+    taus = (0.4, 0.2, 0.1, 0.05)
+    systems["relativistic T(p) + V(q)"] = (rel, x_rel, 100.0 * t_scale, [
+        ("s11odr6", "tm", {"scheme": "s11odr6"}, taus, rel),
+        ("SRKN14a", "tm", {"scheme": "SRKN14a"}, taus, rel),
+        ("ABA864", "tm", {"scheme": "ABA864"}, taus, rel),
+        ("GL6 (general)", "tm", {"scheme": "GL6"}, taus, from_hamiltonian(
+            rel.symbolic().H, [x, y], [px, py], structure="general"))])
+    general = from_hamiltonian((px ** 2 + py ** 2) / 2 + hh + (x * py) ** 2 / 8 + x * y * px / 4,
+                               [x, y], [px, py], name="coupled Hénon–Heiles (general)")
+    x_general = np.array([0.1, 0.05, 0.2, 0.25])
+    q, p = sp.symbols("q p")
+    tao = from_hamiltonian((q ** 2 + 1) * (p ** 2 + 1) / 2, [q], [p], name="Tao's example")
+    x_tao = np.array([-3.0, -1e-3])
+    for name, model, x0, taus in (("general: coupled Hénon–Heiles", general, x_general,
+                                   (0.4, 0.2, 0.1, 0.05)),
+                                  ("general: Tao's (q² + 1)(p² + 1)/2", tao, x_tao,
+                                   (0.1, 0.05, 0.025, 0.0125))):
+        systems[name] = (model, x0, 100.0 * t_scale, [
+            ("GL4", "tm", {"scheme": "GL4"}, taus, model),
+            ("GL6", "tm", {"scheme": "GL6"}, taus, model),
+            ("GL8", "tm", {"scheme": "GL8"}, taus, model),
+            ("Tao4", "tao", {"scheme": "ABC4_Y"}, tuple(t / 2 for t in taus), model),
+            ("Tao6", "tao", {"scheme": "ABC6_Y"}, tuple(t / 4 for t in taus), model)])
+    return systems
+
+
+def _peers(model):
+    """heyoka (tolerances) and DOP853 (rtol) on the same expression."""
+    out = [("heyoka", "taylor", {}, (1e-6, 1e-8, 1e-10, 1e-12, 1e-14), model)]
+    if getattr(model, "symbolic", None) is not None and isinstance(model, RotatingBar):
+        out = []
+    out.append(("DOP853", "dop853", {}, (1e-6, 1e-8, 1e-10, 1e-12), model))
+    return out
+
+
+#: Tao's binding ω (Tao 2016 takes ω ≈ 20 for steps of this size).
+TAO_OMEGA = 20.0
+
+
+@numba.njit
+def _tao_loop(n, parts, h, omega, x, x2, V, G, par, work, grad_hess):
+    """``n`` steps of Tao's method on one vector (row of ``V``), renormalised
+    every step; returns (status, log-stretching)."""
+    log_growth = 0.0
+    for _ in range(n):
+        status = tao_step(parts, h, omega, x, x2, V, 1, G, par, work, grad_hess)
+        if status != 0:
+            return status, log_growth
+        norm = math.sqrt((V[0] * V[0]).sum())
+        log_growth += math.log(norm)
+        V[0] /= norm
+    return 0, log_growth
+
+
+def _tao(model, x0, t_end, scheme, h):
+    """Tao's method (Tao 2016; its flows and tangent in varint.flows.tao),
+    which carries its second copy from step to step and so runs here in its
+    own loop rather than in varint's part stepper: the orbit and the
+    log-stretching of the first unit vector at t_end."""
+    x = np.array(x0, dtype=np.float64)
+    x2 = x.copy()
+    G = np.eye(model.dim)
+    V = np.ascontiguousarray(np.eye(model.dim)[:1])
+    parts, hs = part_stages(get_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
+    work = np.empty(tao_work(model.n_dof, 1))
+    status, log_growth = _tao_loop(round(t_end / h), parts, hs, TAO_OMEGA, x, x2, V, G,
+                                   model.parameters_at(None), work, model.grad_hess_h)
+    if status != 0:
+        return np.full(model.dim, np.nan), math.nan
+    return x, log_growth
+
+
+def _one(model, x0, t_end, method, options, knob):
+    """One run, orbit and one tangent vector from the first unit vector."""
+    if method == "tao":
+        return _tao(model, x0, t_end, options["scheme"], knob)
+    w0 = np.eye(model.dim)[:, :1]
+    opts = dict(options)
+    if method == "taylor":
+        opts.update(tol=knob)
+        tau = 1.0
+    elif method == "dop853":
+        opts.update(rtol=knob, atol=knob * 1e-3)
+        tau = 1.0
+    else:
+        tau = knob
+    r = varint.lyapunov_spectrum(model, x0, t_end, tau=tau, method=method, deviations=w0,
+                                 t_out=[t_end], energy_tol=math.inf, progress=False, **opts)
+    return r.state, float(r.exponents[-1, 0]) * t_end
+
+
+def precision_case(quick, repeats):
+    rows, summary = [], {}
+    numba.set_num_threads(1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, (model, x0, t_end, contenders) in _systems(quick).items():
+            ref = varint.lyapunov_spectrum(model, x0, t_end, tau=1.0, method="taylor",
+                                           precision="extended",
+                                           deviations=np.eye(model.dim)[:, :1], t_out=[t_end],
+                                           energy_tol=math.inf, progress=False)
+            x_ref, log_ref = ref.state, float(ref.exponents[-1, 0]) * t_end
+            tasks = {}
+            for label, method, options, knobs, m in contenders + _peers(model):
+                for knob in knobs:
+                    # Compiled before the timing (a short run of the same kind;
+                    # heyoka builds an integrator per tolerance).
+                    _one(m, x0, min(t_end, 1.0), method, options, knob)
+                    tasks[(label, knob)] = (
+                        lambda m=m, method=method, options=options, knob=knob, x0=x0,
+                        t_end=t_end: _one(m, x0, t_end, method, options, knob))
+            best, outs = interleaved(tasks, 1 if quick else repeats)
+            for (label, knob), seconds in best.items():
+                state, log_growth = outs[(label, knob)]
+                error = max(float(np.abs(state - x_ref).max()), abs(log_growth - log_ref))
+                rows.append({"system": name, "contender": label, "knob": knob,
+                             "seconds": seconds, "error": error, "t_end": t_end})
+            summary[name] = _precision_summary([r for r in rows if r["system"] == name])
+            print(name, summary[name], flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows, summary
+
+
+def _precision_summary(rows, floor=1e-8):
+    """Per contender its cost–error front; for each of varint's fronts, the
+    ratio of heyoka's cost to its own at its errors ≥ ``floor`` (the
+    smallest over those points: "within 2×" asks it to stay ≥ 0.5)."""
+    fronts = {}
+    for r in rows:
+        fronts.setdefault(r["contender"], []).append((r["seconds"], r["error"]))
+    fronts = {k: pareto(v) for k, v in fronts.items()}
+    heyoka = fronts.get("heyoka", [])
+    out = {}
+    for label, front in fronts.items():
+        if label in ("heyoka", "DOP853"):
+            continue
+        ratios = []
+        for cost, err in front:
+            if err < floor:
+                continue
+            theirs, how = cost_at(heyoka, err)
+            if theirs is not None:
+                ratios.append((err, theirs / cost, how))
+        out[label] = {"front": front, "heyoka_over_varint": ratios,
+                      "worst": min((r for _, r, _ in ratios), default=None)}
+    return out
+
+
+# -- claims -------------------------------------------------------------------------------
+def claims(out, result):
+    c = Claims("hamiltonians", out, source="own")
+    if "published" in result:
+        for r in result["published"]["rows"]:
+            if r["quantity"].startswith("C(L") and "Earth" in r["quantity"]:
+                c.add(f"{r['quantity']} as published", paper=f"{r['published']:.4f}",
+                      ours=f"{r['ours']:.6f}", holds=abs(r["difference"]) < 5e-5)
+            elif r["quantity"].startswith("Arenstorf"):
+                c.add(f"{r['quantity']} (published period)", paper="0",
+                      ours=f"{r['ours']:.2e}", holds=None)
+    if "maps" in result:
+        for ind, s in result["maps"]["summary"].items():
+            c.add(f"CR3BP {ind.upper()} map with defaults ≥ 3× heyoka batch 8 per thread at "
+                  "equal agreement with a tight reference (issue 29)", paper="≥ 3×",
+                  ours=f"{s['speedup']:.2f}× ({s['heyoka']}: {s['heyoka_seconds']:.3g} s, "
+                       f"agreement {s['heyoka_agreement']:.4f}; varint {s['varint_seconds']:.3g}"
+                       f" s, agreement {s['varint_agreement']:.4f}); load "
+                       f"{result['maps']['load'][0]:.1f}",
+                  holds=s["speedup"] >= 3 and s["heyoka_reaches"],
+                  note="" if s["speedup"] >= 3 else "measured below the target")
+    if "bar" in result:
+        rows = result["bar"]["rows"]
+        for orbit in sorted({r["orbit"] for r in rows}):
+            ours = [r for r in rows if r["orbit"] == orbit and r["contender"].startswith("varint")]
+            galpy = [r for r in rows if r["orbit"] == orbit
+                     and r["contender"].startswith("galpy lyapunov")]
+            if not galpy:
+                c.add(f"Bar orbit '{orbit}': X1 ≥ 3× faster than galpy and AGAMA at equal "
+                      "accuracy (issue 29)", paper="≥ 3×", ours="galpy and AGAMA not installed",
+                      holds=None)
+                continue
+            best_galpy = min(galpy, key=lambda r: r["error"])
+            # varint's cheapest run at least as accurate as galpy's best.
+            enough = [r for r in ours if r["error"] <= best_galpy["error"]]
+            fastest = min(enough, key=lambda r: r["seconds"])
+            fd = next((r for r in rows if r["orbit"] == orbit
+                       and r["contender"].startswith("galpy finite")), None)
+            c.add(f"Bar orbit '{orbit}': X1 ≥ 3× faster than galpy at equal accuracy (issue 29; "
+                  "AGAMA's installer needs the network and fails here)", paper="≥ 3×",
+                  ours=f"{best_galpy['seconds'] / fastest['seconds']:.3g}× ({fastest['contender']}"
+                       f" {fastest['seconds']:.3g} s, X1 error {fastest['error']:.1e}; "
+                       f"{best_galpy['contender']} {best_galpy['seconds']:.3g} s, error "
+                       f"{best_galpy['error']:.1e}" + (
+                           f"; galpy's own orbits by finite differences: X1 = {fd['x1']:.5g} "
+                           f"against the reference {fd['x1_reference']:.5g}" if fd else "")
+                       + f"); load {result['bar']['load'][0]:.1f}",
+                  holds=best_galpy["seconds"] >= 3 * fastest["seconds"],
+                  note="galpy's Orbit.lyapunov falls back to SciPy's odeint for the Ferrers bar")
+    if "precision" in result:
+        for system, summary in result["precision"]["summary"].items():
+            if not system.startswith("general"):
+                continue
+            worst = {k: v["worst"] for k, v in summary.items() if v["worst"] is not None}
+            if not worst:
+                continue
+            best_label = max(worst, key=worst.get)
+            c.add(f"{system}: orbit + tangent within 2× of heyoka at equal accuracy for errors "
+                  "≥ 1e-8 (issue 29)", paper="heyoka/varint ≥ 0.5",
+                  ours=", ".join(f"{k}: {v:.3g}" for k, v in sorted(worst.items()))
+                  + f" (smallest heyoka/varint cost ratio over each method's errors ≥ 1e-8); "
+                    f"load {result['precision']['load'][0]:.1f}",
+                  holds=worst[best_label] >= 0.5,
+                  note=("" if worst[best_label] >= 0.5 else
+                        "heyoka's high-order Taylor steps are far longer than an implicit "
+                        "Runge–Kutta step of equal accuracy on these smooth, small systems")
+                  + ("" if result["precision"].get("warmed") else
+                     " Measured before every tolerance was warmed up: heyoka's times at "
+                     "tolerances after its first include building its integrator, so only "
+                     "its loosest point is clean."))
+    c.save()
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--part", default=",".join(PARTS),
+                            help=f"parts to run, comma-separated, of {', '.join(PARTS)}")
+        parser.add_argument("--repeats", type=int, default=REPEATS)
+
+    args = parse_args(__doc__.split("\n\n")[0], argv, extra)
+    parts = [p.strip() for p in args.part.split(",") if p.strip()]
+    unknown = sorted(set(parts) - set(PARTS))
+    if unknown:
+        raise SystemExit(f"unknown part {unknown[0]!r}; expected some of {', '.join(PARTS)}")
+    result = {"quick": args.quick}
+    if "published" in parts:
+        rows = published_case(args.quick)
+        save_csv(args.out, "hamiltonians_published", rows,
+                 ["quantity", "published", "ours", "difference", "source"])
+        result["published"] = {"rows": rows}
+        for r in rows:
+            print(f"{r['quantity']}: published {r['published']}, ours {r['ours']:.6g}")
+    if "maps" in parts:
+        start = load()
+        rows, summary = maps_case(args.quick, args.repeats)
+        save_csv(args.out, "hamiltonians_maps", rows,
+                 ["indicator", "contender", "config", "seconds", "agreement", "orbits", "t_end"])
+        result["maps"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
+    if "bar" in parts:
+        start = load()
+        rows = bar_case(args.quick, args.repeats)
+        save_csv(args.out, "hamiltonians_bar", rows,
+                 ["orbit", "contender", "seconds", "x1", "x1_reference", "error", "t_end"])
+        result["bar"] = {"rows": rows, "load": start, "load_end": load()}
+    if "precision" in parts:
+        start = load()
+        rows, summary = precision_case(args.quick, args.repeats)
+        save_csv(args.out, "hamiltonians_precision", rows,
+                 ["system", "contender", "knob", "seconds", "error", "t_end"])
+        result["precision"] = {"rows": rows, "summary": summary, "load": start,
+                               "load_end": load(), "warmed": "every knob"}
+    for part in parts:
+        save_json(args.out, f"hamiltonians_{part}", {"quick": args.quick, part: result[part]})
+    # The claims of every part run so far into this directory (parts may be
+    # run one at a time).
+    every = {}
+    for part in PARTS:
+        path = Path(args.out) / f"hamiltonians_{part}.json"
+        if path.exists():
+            every[part] = json.loads(path.read_text())[part]
+    claims(args.out, every)
+    return result
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() is not None else 1)

@@ -1,0 +1,131 @@
+"""from_hamiltonian: structure recognition, clear errors, the generated
+kernels against SymPy and finite differences, momenta solved from the
+energy, pickling."""
+
+import pickle
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from tests.flows.steppers import (bottle, coupled_general, cr3bp, larmor, relativistic,
+                                  tao_example)
+from varint.models import from_hamiltonian
+from varint.models.hamiltonian import (GeneralHamiltonian, IntegrableHamiltonian,
+                                       SeparableHamiltonian, TermwiseHamiltonian)
+from varint.models.symbolic import SymbolicModel
+
+x, y, z, px, py, pz, t = sp.symbols("x y z p_x p_y p_z t")
+
+
+def test_recognised_structures():
+    assert isinstance(cr3bp(), IntegrableHamiltonian)
+    assert cr3bp().planar == {"plane": (0, 1), "a": 1.0, "b": 0.0, "omega": 1.0, "others": {}}
+    # Uniform field B = 2, symmetric gauge: Larmor rotation Ω = 1 with the
+    # oscillator b = 1 moved into A, z free … plus its own z⁴/4 in V.
+    assert larmor().planar == {"plane": (0, 1), "a": 1.0, "b": 1.0, "omega": 1.0,
+                               "others": {2: (1.0, 0.0)}}
+    assert isinstance(relativistic(), SeparableHamiltonian)
+    # ½|p − A|² with A_x free of x, A_y free of y: a potential and the parts
+    # of p_x, p_y, p_z.
+    assert isinstance(bottle(), TermwiseHamiltonian)
+    assert bottle().part_names == ("V", "p_x", "p_y", "p_z")
+    assert isinstance(coupled_general(), GeneralHamiltonian)
+    assert isinstance(tao_example(), GeneralHamiltonian)
+    m = from_hamiltonian((px ** 2 + 2 * py ** 2) / 2 + x ** 4 + y ** 2 * x, [x, y], [px, py])
+    assert isinstance(m, SymbolicModel)
+    assert m.inverse_mass.tolist() == [1.0, 2.0]
+    # Landau gauge: a uniform field, not in the rotating form, but termwise.
+    landau = from_hamiltonian(((px + y) ** 2 + py ** 2) / 2 + x ** 4, [x, y], [px, py])
+    assert isinstance(landau, TermwiseHamiltonian)
+    # A time-dependent T(p) + V(q, t) with a non-quadratic T: the general form.
+    m = from_hamiltonian(sp.sqrt(1 + px ** 2) + x ** 2 * (1 + sp.cos(t)) / 2, [x], [px], time=t)
+    assert isinstance(m, GeneralHamiltonian) and m.time_dependent
+
+
+def test_forced_structures():
+    H = (px ** 2 + py ** 2) / 2 + y * px - x * py - 1 / sp.sqrt(x ** 2 + y ** 2 + 1)
+    assert isinstance(from_hamiltonian(H, [x, y], [px, py], structure="general"),
+                      GeneralHamiltonian)
+    sep = from_hamiltonian(px ** 2 / 2 + x ** 4, [x], [px], structure="separable")
+    assert isinstance(sep, SeparableHamiltonian)
+    with pytest.raises(ValueError, match="structure='separable' does not fit"):
+        from_hamiltonian(H, [x, y], [px, py], structure="separable")
+    with pytest.raises(ValueError, match="structure='integrable' does not fit"):
+        from_hamiltonian(px ** 2 * x ** 2 + x ** 2, [x], [px], structure="integrable")
+    with pytest.raises(ValueError, match="structure='terms' does not fit"):
+        from_hamiltonian(px ** 2 * x ** 2 + x ** 2, [x], [px], structure="terms")
+    terms = from_hamiltonian(H, [x, y], [px, py], structure="terms")
+    assert isinstance(terms, TermwiseHamiltonian) and terms.part_names == ("V", "p_x", "p_y")
+    with pytest.raises(ValueError, match="structure must be 'auto' or one of"):
+        from_hamiltonian(H, [x, y], [px, py], structure="rotating")
+
+
+@pytest.mark.parametrize("H, q, p, kwargs, message", [
+    (x ** 2 + px ** 2 + sp.Symbol("k") * x, [x], [px], {}, "neither coordinates nor momenta: k"),
+    (x ** 2 + px ** 2 * t, [x], [px], {}, "time=<its symbol>"),
+    (x ** 2 + px ** 2, [x, y], [px], {}, "one momentum per coordinate"),
+    (x ** 2 + px ** 2, [x], [x], {}, "both a coordinate and a momentum"),
+    (x ** 2 + 1, [x], [y], {}, "does not depend on the momenta"),
+    (sp.Abs(x) + px ** 2 * x, [x], [px], {}, "twice differentiable"),
+    (sp.I * x + px ** 2 * x, [x], [px], {}, "must be real"),
+    (sp.oo * x + px ** 2, [x], [px], {}, "non-finite"),
+    ("x + p", [x], [px], {}, "must be a SymPy expression"),
+    (x ** 2 + px ** 2, [x], [px], {"escape_radius": -1.0}, "escape_radius must be positive"),
+    (x ** 2 + px ** 2, [x], [px], {"time": x}, "also a coordinate"),
+])
+def test_bad_input_is_refused_with_a_clear_message(H, q, p, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        from_hamiltonian(H, q, p, **kwargs)
+
+
+@pytest.mark.parametrize("build", [cr3bp, relativistic, larmor, bottle, coupled_general])
+def test_kernels_against_sympy_and_finite_differences(build):
+    """∇H from the compiled kernel equals SymPy's derivatives at a random
+    state, and D²H equals central differences of ∇H."""
+    model = build()
+    s = model.symbolic()
+    xs = (*s.q, *s.p)
+    rng = np.random.default_rng(4)
+    state = 0.3 + 0.4 * rng.random(model.dim)
+    subs = dict(zip(xs, state, strict=True))
+    exact = np.array([float(sp.diff(s.H, v).evalf(subs=subs)) for v in xs])
+    assert np.abs(model.gradient_h(state) - exact).max() < 1e-13 * max(1, np.abs(exact).max())
+    eps = 1e-6
+    fd = np.array([(model.gradient_h(state + eps * e) - model.gradient_h(state - eps * e))
+                   / (2 * eps) for e in np.eye(model.dim)])
+    D = model.hessian_h(state)
+    assert np.abs(D - D.T).max() == 0
+    assert np.abs(D - fd).max() < 1e-7 * max(1, np.abs(D).max())
+    assert model.energy(state) == pytest.approx(float(s.H.evalf(subs=subs)), rel=1e-14)
+
+
+def test_momentum_from_energy_on_a_section():
+    """p_y solved on y = 0 from H = E has H = E to round-off and q̇_y ≥ 0;
+    the forbidden region gives NaN."""
+    model = cr3bp()
+    X = np.zeros((5, 4))
+    X[:, 0] = [-0.5, 0.2, 0.5, 0.8, 3.0]
+    E = -1.6
+    X[:, 3] = model.momentum_from_energy(X, E, 1)
+    ok = np.isfinite(X[:, 3])
+    assert ok.any() and not ok.all()
+    assert np.abs(model.energy(X[ok]) - E).max() < 1e-14
+    assert (model.field(X[ok][0])[1] >= 0)
+    with pytest.raises(ValueError, match="not a polynomial of degree 1 or 2"):
+        relativistic().momentum_from_energy(np.zeros(4), 1.5, 0)
+
+
+def test_models_pickle():
+    for build in (cr3bp, relativistic, bottle):
+        model = build()
+        copy = pickle.loads(pickle.dumps(model))
+        state = np.array([0.3, 0.2, 0.1, 0.5, 0.4, 0.3][:model.dim])
+        assert copy.energy(state) == model.energy(state)
+        assert np.array_equal(copy.gradient_h(state), model.gradient_h(state))
+
+
+def test_describe_names_the_hamiltonian():
+    d = cr3bp().describe()
+    assert d["structure"] == "integrable" and d["q"] == ["x", "y"] and d["p"] == ["p_x", "p_y"]
+    assert sp.sympify(d["hamiltonian"]) == cr3bp().symbolic().H

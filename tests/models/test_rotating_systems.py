@@ -1,0 +1,177 @@
+"""The restricted three-body problem, the Ferrers bar and the magnetic
+bottle: published values, laws from theory, and conserved quantities."""
+
+import numpy as np
+import pytest
+from scipy.special import elliprd, elliprf
+
+from tests.flows.steppers import gauss_steps, taylor_reference
+from varint.methods.parts import parts_steps
+from varint.models.bar import RotatingBar, bar_orbit
+from varint.models.bottle import MagneticBottle, bottle_orbit
+from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, cr3bp_orbit)
+from varint.models.ferrers import carlson_rd, carlson_rf, ferrers_grad_hess, inside_table
+
+
+# -- the restricted three-body problem --------------------------------------------------
+def test_lagrange_points_and_their_jacobi_constants():
+    """∇Ω = 0 at the five points; their Jacobi constants are those of the
+    Earth–Moon system in Koon, Lo, Marsden & Ross (2011), Sect. 2.4 (3.1883,
+    3.1722, 3.0121, 2.9880), and C(L4) = 3 − μ(1 − μ) exactly."""
+    m = CR3BP(EARTH_MOON_MU)
+    points = m.lagrange_points()
+    for x, y in points.values():
+        g = m.gradient_h(m.state([x, y], [0.0, 0.0]))
+        assert np.abs(g).max() < 1e-12       # at rest at an equilibrium: ẋ = J∇H = 0
+    C = {k: float(m.jacobi_at(*v)) for k, v in points.items()}
+    for name, published in (("L1", 3.1883), ("L2", 3.1722), ("L3", 3.0121), ("L4", 2.9880)):
+        assert C[name] == pytest.approx(published, abs=5e-5)
+    mu = EARTH_MOON_MU
+    assert C["L4"] == pytest.approx(3 - mu * (1 - mu), rel=1e-15)
+    assert C["L5"] == C["L4"]
+
+
+def test_jacobi_constant_and_velocities():
+    m = CR3BP(0.1)
+    r, v = np.array([0.3, -0.2]), np.array([0.1, 0.4])
+    x = m.state(r, v)
+    assert np.allclose(m.velocity(x), v, rtol=0, atol=1e-16)
+    assert m.jacobi(x) == pytest.approx(m.jacobi_at(*r) - v @ v, rel=1e-15)
+    assert m.conserved(x)["jacobi"] == pytest.approx(-2 * m.energy(x), rel=1e-15)
+    with pytest.raises(ValueError, match=r"mu must be a mass ratio in \(0, 1/2\]"):
+        CR3BP(0.7)
+
+
+def test_section_grid_masks_the_forbidden_region():
+    m = CR3BP(EARTH_MOON_MU)
+    g = m.section_grid(3.17, np.linspace(-1.5, 1.5, 31), np.linspace(-0.5, 0.5, 5))
+    assert 0 < g.mask.sum() < g.mask.size
+    assert np.abs(m.jacobi(g.states) - 3.17).max() < 1e-13
+    assert (m.velocity(g.states)[:, 1] >= 0).all()
+    # Points at rest (p_x = 0 row) in the forbidden region are exactly those masked.
+    row = g.mask[2]
+    assert np.array_equal(~row, m.forbidden(g.u, 0.0, 3.17))
+
+
+def test_arenstorf_orbit_closes_after_its_published_period():
+    """Arenstorf's orbit returns to its initial state after T =
+    17.0652165601579625588917206249 (Hairer, Nørsett & Wanner, Sect. II.0,
+    eq. 0.1, Fig. 0.1): to 1e-9 with the Taylor reference, and to the
+    scheme's error with the TM stepper (ABA864, fixed step T/40000) and with
+    Gauss–Legendre (GL8, T/20000)."""
+    model, x0 = cr3bp_orbit("arenstorf")
+    assert np.abs(taylor_reference(model, x0, ARENSTORF_PERIOD) - x0).max() < 1e-9
+    x, _ = parts_steps(model, x0, None, ARENSTORF_PERIOD / 40000, 40000, "ABA864")
+    assert np.abs(x - x0).max() < 1e-3
+    x, _ = gauss_steps(model, x0, None, ARENSTORF_PERIOD / 20000, 20000, "GL8")
+    assert np.abs(x - x0).max() < 1e-6
+
+
+# -- the Ferrers bar -----------------------------------------------------------------------
+def test_carlson_integrals_against_scipy():
+    rng = np.random.default_rng(5)
+    for x, y, z in rng.uniform(1e-3, 100.0, (50, 3)):
+        assert carlson_rf(x, y, z) == pytest.approx(elliprf(x, y, z), rel=4e-16)
+        assert carlson_rd(x, y, z) == pytest.approx(elliprd(x, y, z), rel=4e-16)
+
+
+_AXES2 = np.array([36.0, 2.25, 0.36])
+
+
+def _bar(q, axes2=_AXES2, gm=0.1):
+    g, D = np.zeros(3), np.zeros((3, 3))
+    phi = ferrers_grad_hess(np.asarray(q, float), axes2, gm, g, D, True, inside_table(axes2))
+    return phi, g, D
+
+
+@pytest.mark.parametrize("q", [[1.0, 0.5, 0.2], [5.0, 1.4, 0.3], [7.0, 2.0, 1.0],
+                               [0.3, 4.0, -2.0], [-20.0, 15.0, 9.0]])
+def test_ferrers_potential_obeys_poisson_and_is_differentiated_exactly(q):
+    """∇²Φ = 4πGρ with ρ = ρ_c(1 − m²)² inside and 0 outside (to 1e-16), and
+    the gradient and Hessian equal central differences of Φ and ∇Φ."""
+    q = np.asarray(q, float)
+    a2 = np.array([36.0, 2.25, 0.36])
+    phi, g, D = _bar(q)
+    m2 = (q ** 2 / a2).sum()
+    rho = 105 * 0.1 / (32 * np.pi * 6 * 1.5 * 0.6) * max(0.0, 1 - m2) ** 2
+    assert abs(np.trace(D) - 4 * np.pi * rho) < 1e-15
+    # Far out the W_ijk from partial fractions carry ~1e-12 of rounding
+    # ((λ/(b² − c²))² ε), so the difference step grows with the distance.
+    far = np.linalg.norm(q) > 10
+    e = 1e-5 * (10 if far else 1)
+    tol = 1e-6 if far else 1e-8
+    fd_g = [(_bar(q + e * u)[0] - _bar(q - e * u)[0]) / (2 * e) for u in np.eye(3)]
+    fd_D = [(_bar(q + e * u)[1] - _bar(q - e * u)[1]) / (2 * e) for u in np.eye(3)]
+    assert np.abs(g - fd_g).max() < tol * np.abs(g).max()
+    assert np.abs(D - np.array(fd_D)).max() < 10 * tol * np.abs(D).max()
+
+
+def test_ferrers_far_field_and_continuity():
+    """Far away Φ → −GM/r; across the bar's surface Φ and ∇Φ are continuous
+    (the inside formula at λ = 0 meets the outside one)."""
+    far = np.array([300.0, 200.0, 100.0])
+    assert _bar(far)[0] * np.linalg.norm(far) / 0.1 == pytest.approx(-1.0, abs=2e-4)
+    surface = np.array([6.0, 0.0, 0.0])
+    inner, outer = _bar(surface * (1 - 1e-9)), _bar(surface * (1 + 1e-9))
+    assert inner[0] == pytest.approx(outer[0], rel=1e-8)
+    assert np.abs(inner[1] - outer[1]).max() < 1e-8
+
+
+def test_rotating_bar_energy_includes_the_bar():
+    m = RotatingBar()
+    assert m.structure == "integrable" and m.planar["omega"] == 0.054
+    x0 = m.state_on_x_axis(0.5, -0.30, 0.1)
+    assert m.energy(x0) == pytest.approx(-0.30, abs=1e-14)
+    assert m.hamiltonian(x0) - m.potential(x0[:3]) == pytest.approx(0.5 * x0[3:] @ x0[3:]
+                                                                   - 0.054 * 0.5 * x0[4])
+    with pytest.raises(ValueError, match="no closed SymPy form"):
+        m.symbolic()
+    with pytest.raises(ValueError, match="a > b > c > 0"):
+        RotatingBar(axes=(1.0, 2.0, 0.5))
+
+
+@pytest.mark.parametrize("name", ["regular", "chaotic"])
+def test_bar_energy_conserved_by_the_part_stepper(name):
+    """ABA864 at τ = 0.05 keeps the Jacobi energy of both named orbits to
+    1e-9 over 2000 time units (bounded, symplectic)."""
+    model, x0 = bar_orbit(name)
+    x, _ = parts_steps(model, x0, None, 0.05, 40000, "ABA864")
+    assert abs(model.energy(x) - model.energy(x0)) < 1e-9 * abs(model.energy(x0))
+
+
+# -- the magnetic bottle ---------------------------------------------------------------------
+def test_bottle_field_and_state():
+    m = MagneticBottle(b0=2.0, length=3.0)
+    q = np.array([0.3, -0.2, 1.5])
+    B = m.field_strength(q)
+    # div B = ∂_xB_x + ∂_yB_y + ∂_zB_z = 0 (central differences).
+    e = 1e-6
+    div = sum((m.field_strength(q + e * u)[i] - m.field_strength(q - e * u)[i]) / (2 * e)
+              for i, u in enumerate(np.eye(3)))
+    assert abs(div) < 1e-9
+    assert B[2] == pytest.approx(2.0 * (1 + 1.5 ** 2 / 9.0))
+    x = m.state(q, [0.1, 0.2, 0.3])
+    # The velocity is ẋ = ∂H/∂p = p − A.
+    assert np.allclose(m.field(x)[:3], [0.1, 0.2, 0.3], atol=1e-15)
+
+
+def test_bottle_conserves_angular_momentum_and_energy():
+    """Gauss–Legendre (a symplectic RK method) conserves the quadratic
+    invariant p_φ = x p_y − y p_x to round-off, and the energy to its error."""
+    model, x0 = bottle_orbit("chaotic")
+    x, _ = gauss_steps(model, x0, None, 0.02, 5000, "GL6")
+    assert abs(model.angular_momentum(x) - model.angular_momentum(x0)) < 1e-14
+    assert abs(model.energy(x) / model.energy(x0) - 1) < 1e-10
+
+
+def test_registered_for_the_command_line():
+    """The registry builds the three systems with their parameters; its
+    default μ is the module's Sun–Jupiter value."""
+    from varint.models.cr3bp import SUN_JUPITER_MU
+    from varint.models.registry import MODELS
+
+    assert MODELS["cr3bp"].defaults()["mu"] == SUN_JUPITER_MU
+    assert MODELS["cr3bp"].build(mu=0.01).mu == 0.01
+    assert MODELS["rotating-bar"].build(omega=0.05).planar["omega"] == pytest.approx(0.05)
+    bottle = MODELS["magnetic-bottle"].build(b0=2.0)
+    assert bottle.n_dof == 3

@@ -1,0 +1,220 @@
+"""A model's potential as the expressions a generated stepper evaluates:
+∇V, D²V and the corrector's ∇C and D²C (C = ∇VᵀM⁻¹∇V, Skokos & Gerlach
+2010, eq. 26), in the symbols q0 … q{N−1}; and which models get a
+generated stepper at all (:func:`symbolic_fits`).
+
+The symbolic work costs far more than anything else in building a stepper,
+so it is cached: the expressions per potential and process, and for a
+built-in model even whether it fits and the key of its potential, on disk
+beside the steppers (a new process then builds no SymPy expression).
+That file is signed and holds only a flag and a key (:mod:`varint.codecache`);
+the expressions are only ever built from a model's own SymPy form, never
+from text read back from disk.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import sympy as sp  # type: ignore[import-untyped]
+
+from .. import cachedir, codecache
+from ..files import canonical_json
+from ..models.symbolic import SymbolicModel
+
+__all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_form",
+           "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
+
+#: Largest N and largest 2N(1 + k) (orbit and vectors held in local
+#: variables) for which straight-line code is generated; beyond, the generic
+#: stepper is used. The code grows as stages × 2N(1 + k) and LLVM's compile
+#: time faster: FPU n = 5 with 10 vectors (110 values) took 50 s to
+#: compile, the 3-dof model's full spectrum (42 values) a few seconds.
+SYMBOLIC_MAX_N = 16
+SYMBOLIC_MAX_VALUES = 48
+
+
+@dataclass(frozen=True)
+class Expressions:
+    """∇V, D²V, ∇C and D²C of a symbolic model in the symbols q0 … q{N−1}."""
+
+    n: int
+    minv: tuple
+    g: tuple       # ∇V_i
+    H: dict        # (i, j), i ≤ j -> D²V_ij (non-zero entries only)
+    gc: tuple      # ∇C_i
+    HC: dict       # (i, j), i ≤ j -> D²C_ij (non-zero entries only)
+    q: tuple       # the symbols
+
+
+#: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
+#: q0 … q{N−1}, inverse masses, N). Only ever filled from a model's own
+#: SymPy form, never from a file.
+_FORMS: dict = {}
+
+
+@lru_cache(maxsize=32)
+def expressions(key):
+    """The expressions of the potential of ``key`` (:func:`model_key`;
+    cached by it: the symbolic work costs far more than the rest)."""
+    V, minv, n = _FORMS[key]
+    q = sp.symbols(f"q0:{n}")
+    g = tuple(sp.diff(V, qi) for qi in q)
+    H = {}
+    for i in range(n):
+        for j in range(i, n):
+            e = sp.diff(g[i], q[j])
+            if e != 0:
+                H[i, j] = e
+
+    def h(i, j):
+        return H.get((min(i, j), max(i, j)), sp.Integer(0))
+
+    # C = Σ_k m_k g_k²: ∇C_i = 2 Σ_k m_k g_k H_ki and
+    # D²C_ij = 2 Σ_k m_k (H_ki H_kj + g_k ∂_j H_ki)  (paper eq. 26 with M⁻¹).
+    gc = tuple(2 * sp.Add(*[minv[k] * g[k] * h(k, i) for k in range(n)]) for i in range(n))
+    HC = {}
+    for i in range(n):
+        for j in range(i, n):
+            e = 2 * sp.Add(*[minv[k] * (h(k, i) * h(k, j) + g[k] * sp.diff(h(k, i), q[j]))
+                             for k in range(n)])
+            if e != 0:
+                HC[i, j] = e
+    return Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q)
+
+
+@lru_cache(maxsize=256)
+def _symbolic_key(s):
+    """A name (32 hex digits) for a model's (frozen, hashable) symbolic form:
+    the hash of its exact SymPy text (``srepr``) in the symbols q0 …
+    q{N−1}, worked out once per process, not once per chunk of a chaos map
+    (~0.4 ms each). The form itself is kept in ``_FORMS``: a stepper's
+    source is only ever emitted from a model's own expressions."""
+    n = len(s.q)
+    V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
+    text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in s.inverse_mass), str(n)])
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    _FORMS[key] = (V, tuple(s.inverse_mass), n)
+    return key
+
+
+def symbolic_fits(model, k):
+    """Whether ``model`` gets a generated straight-line stepper for ``k``
+    vectors (an autonomous flow that knows its potential symbolically and
+    is small; a time-dependent V takes the generic stepper's extended phase
+    space)."""
+    if getattr(model, "time_dependent", False) or getattr(model, "kind", "flow") != "flow":
+        return False
+    if not callable(getattr(model, "symbolic", None)) or model.n_dof > SYMBOLIC_MAX_N:
+        return False
+    if 2 * model.n_dof * (1 + k) > SYMBOLIC_MAX_VALUES:
+        return False
+    return _facts(model)[0]
+
+
+def model_key(model):
+    """The :func:`_symbolic_key` of ``model``'s form (the argument of
+    :func:`expressions`)."""
+    return _facts(model)[1]
+
+
+def ensure_form(model, key):
+    """Make sure the form of ``key`` is known in this process, from
+    ``model``'s own SymPy form (the stored facts named the key; the model
+    must give the same one).
+
+    Raises
+    ------
+    RuntimeError
+        If the model's form has another key than its cached facts say.
+    """
+    if key not in _FORMS and _facts_now(model)[1] != key:
+        raise RuntimeError(f"the cached symbolic facts of {model.name} do not match its form; "
+                           f"delete {cachedir.location()} and run again")
+
+
+#: A stored symbolic key: 32 hex digits.
+_KEY = re.compile(r"[0-9a-f]{32}\Z")
+
+
+def _facts(model):
+    """(whether the model's symbolic form has its coordinates and masses,
+    the form's :func:`_symbolic_key` or None).
+
+    For a built-in model they are kept in the kernels' cache directory,
+    named after the model's description (:meth:`~varint.models.base.Model.describe`,
+    "enough to rebuild the model"), the code of ``varint.models`` and
+    SymPy's version: a new process that runs it on cached steppers then
+    builds no SymPy expression, whose first costs ~0.1 s (SymPy imports its
+    tensor module). The file is signed and holds only a flag and a key
+    (:mod:`varint.codecache`): a file that fails its check or holds
+    anything else is discarded. Other models are asked directly: one made
+    from an expression (``from_potential``) holds it already, and the code
+    behind a user's own class is not known.
+    """
+    cls = type(model)
+    if isinstance(model, SymbolicModel) or not cls.__module__.startswith("varint.models."):
+        return _facts_now(model)
+    name = _description_id(cls, canonical_json(model.describe()))
+    if name in _FACTS:
+        return _FACTS[name]
+    file = f"varint_model_{name}.json"
+    facts = _stored_facts(codecache.read_json("kernels", file, "symbolic facts file"))
+    if facts is None:
+        facts = _facts_now(model)
+        # An unwritable cache costs SymPy's time, not the run.
+        codecache.write_json("kernels", file, list(facts))
+    _FACTS[name] = facts
+    return facts
+
+
+def _stored_facts(value):
+    """``value`` read from a facts file as (fits, key), or None unless it is
+    exactly what :func:`_facts` writes."""
+    if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], bool)):
+        return None
+    fits, key = value
+    if fits and isinstance(key, str) and _KEY.match(key):
+        return True, key
+    return (False, None) if not fits and key is None else None
+
+
+#: :func:`_facts` of the models run in this process, by description id.
+_FACTS: dict[str, tuple] = {}
+
+
+def _facts_now(model):
+    """:func:`_facts` from the model's SymPy form."""
+    try:
+        s = model.symbolic()
+    except (NotImplementedError, ValueError):
+        return False, None
+    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass))
+
+
+@lru_cache(maxsize=256)
+def _facts_of(s, n_dof, inverse_mass):
+    """:func:`_facts` of the symbolic form ``s`` for a model of ``n_dof``
+    coordinates and these masses (once per form and process)."""
+    fits = len(s.q) == n_dof and np.allclose([float(m) for m in s.inverse_mass],
+                                             inverse_mass, rtol=1e-15, atol=0)
+    return bool(fits), _symbolic_key(s) if fits else None
+
+
+@lru_cache(maxsize=256)
+def _description_id(cls, description):
+    """A name for a built-in model's symbolic facts: its class and
+    description and the code they come from (``varint.models``, this
+    module, which names the key, and SymPy, which prints it), so that a
+    change of either names new facts."""
+    digest = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}|{sp.__version__}|"
+                            f"{description}".encode())
+    digest.update(Path(__file__).read_bytes())
+    for path in sorted((Path(__file__).parent.parent / "models").glob("*.py")):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:24]

@@ -1,0 +1,177 @@
+"""Tangent-map steppers generated per model and scheme, cached on disk.
+
+For a model that knows its potential symbolically (every built-in model and
+every :func:`~varint.models.from_potential` model) and has few degrees of
+freedom (:func:`~varint.codegen.expressions.symbolic_fits`), the stepper is
+written out as Python source and compiled by numba: the scheme's stages
+unrolled with straight-line derivatives (:mod:`varint.codegen.tm`), the
+state in registers, the end of every step and the copies at output steps
+inside the loop (:mod:`varint.codegen.interval`), as one orbit and as SIMD
+lanes.
+
+The source goes to ``<cache dir>/kernels/`` under a name that hashes the
+generator's code, the model's potential and the plan, signed, and is
+verified before every later import and executed from the verified bytes
+(:func:`varint.codecache.load_module`); numba caches its compilation beside
+it (signed too), so a new process (or a new varint version, or
+another model) finds or builds exactly the kernel it needs; the first run
+in a new process loads it instead of compiling it, without emitting the
+source again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from types import ModuleType
+
+from .. import codecache
+from .accumulators import rule_text
+from .expressions import ensure_form, expressions, model_key
+from .interval import Interval
+from .tm import TMBody
+
+__all__ = ["Plan", "generated_source", "symbolic_stepper"]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What one generated stepper is specialised to.
+
+    Attributes
+    ----------
+    kinds : tuple of int
+        Stage kinds (``DRIFT`` or kick), as :func:`varint.schemes.stage_arrays`.
+    corrected : tuple of bool
+        Which kick stages carry a corrector.
+    k : int
+        Deviation vectors.
+    accumulator : str
+        What identifies the indicator's accumulator: its rule
+        (:func:`~varint.codegen.accumulators.rule_text`), written out in the
+        loop, or ``"module:name:hash"`` of its compiled update, called; ""
+        for none.
+    """
+
+    kinds: tuple
+    corrected: tuple
+    k: int
+    accumulator: str
+
+
+def generated_source(E, plan, accumulator=None):
+    """The Python source of the stepper for expressions ``E``, ``plan`` and
+    ``accumulator``. Its first line names the generator's own code, as the
+    file's name does (:func:`symbolic_stepper`): numba's cache does not
+    follow a changed dependency, so a changed generator must write a new
+    file."""
+    body = TMBody(E, plan.kinds, plan.corrected, plan.k)
+    source = Interval(body, plan.k, accumulator).module(plan.accumulator)
+    return f"# varint generator {_generator_id()}\n" + source
+
+
+@lru_cache(maxsize=1)
+def _generator_id():
+    """A hash of the modules whose code and constants a generated stepper
+    compiles in: this layer, the kernels it calls (the fused multiply–add,
+    the sparse schedule, the checks' constants) and the protocol's codes."""
+    from .. import protocol
+    from ..kernels import checks, fma, interval
+
+    digest = hashlib.sha256()
+    layer = sorted(Path(__file__).parent.glob("*.py"))
+    for path in layer + [Path(m.__file__) for m in (checks, fma, interval, protocol)]:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+@lru_cache(maxsize=256)
+def _function_id(function):
+    """A name for a compiled function that changes when its code does
+    (``module:qualname:hash of its source``), for the generated file's name;
+    read once per function and process (reading the source costs ~1 ms)."""
+    py = getattr(function, "py_func", function)
+    try:
+        code = inspect.getsource(py)
+    except (OSError, TypeError):
+        code = repr(py.__code__.co_code)
+    digest = hashlib.sha256(code.encode()).hexdigest()[:16]
+    return f"{py.__module__}:{py.__qualname__}:{digest}"
+
+
+def _accumulator_id(accumulator):
+    if accumulator is None:
+        return ""
+    if accumulator.rule is not None:
+        return f"rule {accumulator.name} {tuple(accumulator.columns)} " \
+               f"{rule_text(accumulator.rule)} flow={accumulator.needs_flow}"
+    return f"{_function_id(accumulator.update)} flow={accumulator.needs_flow}"
+
+
+_LOADED: dict[str, ModuleType] = {}
+
+
+@lru_cache(maxsize=64)
+def _source(key, plan, accumulator):
+    """The stepper's source for the model of ``key``
+    (:func:`~varint.codegen.expressions.model_key`), ``plan`` and
+    ``accumulator``, written once per process: each chunk of a chaos map
+    makes its own propagator, and emitting the source (SymPy's common
+    subexpressions, printing) costs ~60 ms."""
+    return generated_source(expressions(key), plan, accumulator)
+
+
+def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
+    """The generated stepper module for a model that
+    :func:`~varint.codegen.expressions.symbolic_fits`.
+
+    Parameters
+    ----------
+    model : Model
+    kinds : sequence of int
+        Stage kinds of the scheme (:func:`varint.schemes.stage_arrays`).
+    corrected : sequence of bool
+        Which kick stages carry a corrector.
+    k : int
+        Deviation vectors.
+    accumulator : Accumulator, optional
+
+    Returns
+    -------
+    module
+        With ``orbit``, ``batch_serial``, ``batch_parallel``, ``lanes``,
+        ``blocks_serial`` and ``blocks_parallel`` (see
+        :mod:`varint.codegen.interval`); compiled on first call, or loaded
+        from numba's cache.
+    """
+    plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
+                k=int(k), accumulator=_accumulator_id(accumulator))
+    key = model_key(model)
+    digest = _digest(key, plan)
+    if digest not in _LOADED:
+        # An update without a rule is called: the module finds it by name.
+        extra = {} if accumulator is None or accumulator.rule is not None else {
+            "accumulate": accumulator.update}
+
+        def make_source():
+            # The source is only ever emitted from the model's own form,
+            # never from what a file says: the stored facts named it, the
+            # model gives it (the same key: the facts are signed and named
+            # after the code and SymPy's version that made them).
+            ensure_form(model, key)
+            return _source(key, plan, accumulator)
+
+        _LOADED[digest] = codecache.load_module(f"varint_stepper_{digest}", "kernels",
+                                                make_source, extra)
+    return _LOADED[digest]
+
+
+@lru_cache(maxsize=256)
+def _digest(key, plan):
+    """The generated module's name: the generator's code, the model's
+    potential and masses (``key``) and the plan (scheme, k, accumulator)
+    determine its source."""
+    return hashlib.sha256(f"{_generator_id()}|{key}|{plan}".encode()).hexdigest()[:24]

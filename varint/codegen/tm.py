@@ -1,0 +1,259 @@
+"""The TM method's step, emitted: the stages of a splitting scheme written
+out as straight-line code for one model (Skokos & Gerlach 2010, Sect. V.C).
+
+Each kick evaluates ∇V, D²V and, for a corrector, ∇C and D²C as
+straight-line expressions of q with common subexpressions eliminated
+(:mod:`varint.codegen.expressions`), and applies the orbit kick and the
+tangent kick (eqs. 47, 53) in one go; drifts and kicks are chains of fused
+multiply–adds (:mod:`varint.kernels.fma`), which halves the latency of a
+step. The orbit and the deviation vectors are local variables (registers)
+for the whole loop. The loop around the step and the end of every step are
+the emitted skeleton's (:mod:`varint.codegen.interval`), the same for one
+orbit and for SIMD lanes; this body writes into either through its
+*target*, which says how a failure is recorded and whether work is counted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp  # type: ignore[import-untyped]
+
+from ..models.symbolic import KernelPrinter
+from ..protocol import Status
+from ..schemes import DRIFT
+
+__all__ = ["TMBody", "step_counts"]
+
+_NONFINITE = int(Status.ORBIT_NONFINITE)
+_GRAD, _HESS, _THIRD = (int(Status.GRADIENT_NONFINITE), int(Status.HESSIAN_NONFINITE),
+                        int(Status.THIRD_NONFINITE))
+
+
+class TMBody:
+    """The step body of the TM method for expressions ``E``
+    (:class:`~varint.codegen.expressions.Expressions`), stage kinds
+    ``kinds``, which kicks carry a corrector, and ``k`` vectors.
+
+    The orbit is ``q{i}``, ``p{i}``; component i of vector j is ``a{i}_{j}``
+    (δq) or ``b{i}_{j}`` (δp). The stage lengths are the locals ``h{s}`` and
+    ``hc{s}`` (:meth:`prologue`). After the first step, the first kick of a
+    BAB-type step reuses the values of the last kick (same q): one orbit
+    evaluates them once in its first step, SIMD lanes once when a block is
+    loaded and carry them between steps (:meth:`carried`).
+    """
+
+    def __init__(self, E, kinds, corrected, k):
+        self.E, self.kinds, self.corrected, self.k = E, tuple(kinds), tuple(corrected), k
+        n = self.n = E.n
+        self.q = [f"q{i}" for i in range(n)]
+        self.p = [f"p{i}" for i in range(n)]
+        # δq_i and δp_i of vector j.
+        self.a = [[f"a{i}_{j}" for j in range(k)] for i in range(n)]
+        self.b = [[f"b{i}_{j}" for j in range(k)] for i in range(n)]
+        self.printer = KernelPrinter()
+        self.reuse_first = self.kinds[0] != DRIFT and self.kinds[-1] != DRIFT
+
+    # -- names --------------------------------------------------------------------------
+    def coordinate(self, i):
+        """The local of component ``i`` (0 … 2N−1) of the state."""
+        return self.q[i] if i < self.n else self.p[i - self.n]
+
+    def component(self, i, j):
+        """The local of component ``i`` (0 … 2N−1) of vector ``j``."""
+        return self.a[i][j] if i < self.n else self.b[i - self.n][j]
+
+    def needs(self, corrected):
+        """What a kick stage evaluates: ∇V; D²V with vectors; ∇C (and D²C
+        with vectors) with a corrector."""
+        k = self.k
+        return {"g"} | ({"H"} if k else set()) | ({"gc"} if corrected else set()) \
+            | ({"HC"} if corrected and k else set())
+
+    def carried(self):
+        """The values SIMD lanes carry from one step to the next: those of
+        the last kick, which the first kick of a BAB-type step reuses."""
+        if not self.reuse_first:
+            return []
+        E, n = self.E, self.n
+        what = self.needs(self.corrected[0])
+        names = [f"g{i}" for i in range(n)]
+        if "gc" in what:
+            names += [f"gc{i}" for i in range(n)]
+        if "H" in what:
+            names += [f"H{i}_{j}" for i, j in E.H]
+        if "HC" in what:
+            names += [f"HC{i}_{j}" for i, j in E.HC]
+        return names
+
+    def counters(self):
+        """The locals one orbit counts its work in, in the order of
+        :data:`varint.protocol.COUNTERS`."""
+        return ("c_grad", "c_hess", "c_third", "c_tan")
+
+    # -- what is written before the loop ---------------------------------------------
+    def prologue(self, src):
+        """The stage lengths as locals, from ``h`` and ``hc``."""
+        for st in range(len(self.kinds)):
+            src(f"h{st} = h[{st}]")
+            if self.corrected[st]:
+                src(f"hc{st} = hc[{st}]")
+
+    def defaults(self, src):
+        """Everything a kick computes, defined before the loop: after the
+        first step the first kick of a step reuses the last kick's values."""
+        E = self.E
+        for i in range(self.n):
+            src(f"g{i} = 0.0", f"gc{i} = 0.0")
+        for i, j in E.H:
+            src(f"H{i}_{j} = 0.0")
+        for i, j in E.HC:
+            src(f"HC{i}_{j} = 0.0")
+
+    def start(self, src, target):
+        """The first kick's values at the loaded state (SIMD lanes)."""
+        if self.reuse_first:
+            self.derivatives(src, target, 0, self.needs(self.corrected[0]))
+
+    # -- the step ------------------------------------------------------------------------
+    def step(self, src, target):
+        """One step: the scheme's stages, drifts and kicks."""
+        for st, kind in enumerate(self.kinds):
+            if kind == DRIFT:
+                self.drift(src, st)
+                continue
+            corrected = self.corrected[st]
+            what = self.needs(corrected)
+            if st == 0 and self.reuse_first:
+                if not target.carries:
+                    with src.block("if s == 0:"):
+                        self.derivatives(src, target, st, what)
+            else:
+                self.derivatives(src, target, st, what)
+            self.kick(src, target, st, corrected)
+
+    def derivatives(self, src, target, label, what):
+        """Evaluate ∇V and, as ``what`` asks, D²V, ∇C, D²C at the current q,
+        with a singular value caught before it is used.
+
+        The orbit's quantities (∇V, ∇C) and the tangent ones (D²V, D²C) are
+        simplified separately, so the orbit gets the same bits whether or
+        not deviation vectors are carried.
+        """
+        E = self.E
+        orbit = [("g", [f"g{i}" for i in range(self.n)], list(E.g), _GRAD, "c_grad")]
+        if "gc" in what:
+            orbit.append(("gc", [f"gc{i}" for i in range(self.n)], list(E.gc), _THIRD, None))
+        tangent = []
+        if "H" in what:
+            tangent.append(("H", [f"H{i}_{j}" for i, j in E.H], list(E.H.values()), _HESS,
+                            "c_hess"))
+        if "HC" in what:
+            tangent.append(("HC", [f"HC{i}_{j}" for i, j in E.HC], list(E.HC.values()), _THIRD,
+                            "c_third"))
+        # At an enormous |q| the derivatives overflow before the state does:
+        # that is the orbit running away, not a singular potential.
+        rq = " + ".join(f"{v} * {v}" for v in self.q)
+        for part, groups in (("o", orbit), ("w", tangent)):
+            if not groups:
+                continue
+            targets = [t for g in groups for t in g[1]]
+            exprs = [e for g in groups for e in g[2]]
+            temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"t{label}{part}_"))
+            for t, e in temps:
+                src(f"{t} = {self.printer.doprint(e)}")
+            for t, e in zip(targets, reduced, strict=True):
+                src(f"{t} = {self.printer.doprint(e)}")
+            for _, names, _, status, counter in groups:
+                if counter and target.counts:
+                    src(f"{counter} += 1")
+                if names:
+                    src(f"fin = {' + '.join(names)}")
+                    target.fail(src, "fin - fin != 0.0",
+                                f"{status} if {rq} < HUGE else {_NONFINITE}")
+
+    # Drifts and kicks are chains of fused multiply–adds (varint.kernels.fma).
+    def drift(self, src, st):
+        for i in range(self.n):
+            m = self.E.minv[i]
+            h = f"h{st}" if m == 1.0 else f"(h{st} * {m!r})"
+            src(f"{self.q[i]} = fma({h}, {self.p[i]}, {self.q[i]})")
+            for j in range(self.k):
+                src(f"{self.a[i][j]} = fma({h}, {self.b[i][j]}, {self.a[i][j]})")
+
+    def kick(self, src, target, st, corrected):
+        """p −= h ∇V + hc ∇C and δp −= (h D²V + hc D²C) δq (paper eqs. 47, 53)."""
+        E, n, k = self.E, self.n, self.k
+        for i in range(n):
+            p = self.p[i]
+            if corrected:
+                p = f"fma(-hc{st}, gc{i}, {p})"
+            src(f"{self.p[i]} = fma(-h{st}, g{i}, {p})")
+        if not k:
+            return
+        if target.counts:
+            src("c_tan += 1")
+        entries = set(E.H) | (set(E.HC) if corrected else set())
+        for key in sorted(entries):
+            name = f"{key[0]}_{key[1]}"
+            if key in E.H and corrected and key in E.HC:
+                src(f"K{name} = fma(hc{st}, HC{name}, h{st} * H{name})")
+            elif key in E.H:
+                src(f"K{name} = h{st} * H{name}")
+            else:
+                src(f"K{name} = hc{st} * HC{name}")
+        for j in range(k):
+            for i in range(n):
+                acc = self.b[i][j]
+                for l in range(n):
+                    key = (min(i, l), max(i, l))
+                    if key in entries:
+                        acc = f"fma(-K{key[0]}_{key[1]}, {self.a[l][j]}, {acc})"
+                if acc != self.b[i][j]:
+                    src(f"{self.b[i][j]} = {acc}")
+
+    def flow(self, src, target, value=None):
+        """The phase-space velocity (M⁻¹p, −∇V) at the end of the step, as
+        2N expressions; ∇V is evaluated there when the step ends on a drift.
+        ``value`` maps a local to where it is read (SIMD lanes read the
+        state from their rows in a loop of their own, and the last kick's
+        ∇V from the carried values when the step ends on a kick)."""
+        n = self.n
+        if value is not None and (self.kinds[-1] == DRIFT or not self.reuse_first):
+            for i in range(n):
+                src(f"{self.q[i]} = {value(self.q[i])}")
+            self.derivatives(src, target, "f", {"g"})
+        elif value is not None:
+            for i in range(n):
+                src(f"g{i} = {value(f'g{i}')}")
+        elif self.kinds[-1] == DRIFT:
+            self.derivatives(src, target, "f", {"g"})
+        read = value or (lambda name: name)
+        out = []
+        for i in range(n):
+            m = self.E.minv[i]
+            out.append(read(self.p[i]) if m == 1.0 else f"({m!r} * {read(self.p[i])})")
+        return out + [f"(-g{i})" for i in range(n)]
+
+
+def step_counts(kinds, corrected, k, flow=False):
+    """Derivative evaluations of one step of a generated stepper, as
+    ``(per_step, first)``: what every step costs (gradients, Hessians,
+    corrector Hessians, tangent kicks) and what the first step of a call
+    costs on top (the first kick of a BAB-type step reuses the last kick's
+    values, except right after a call starts)."""
+    kinds = list(kinds)
+    reuse_first = kinds[0] != DRIFT and kinds[-1] != DRIFT
+    per, first = np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64)
+    for stage, kind in enumerate(kinds):
+        if kind == DRIFT:
+            continue
+        c = np.array([1, 1 if k else 0, 1 if corrected[stage] and k else 0, 1 if k else 0])
+        tan = np.array([0, 0, 0, c[3]])
+        if stage == 0 and reuse_first:
+            per += tan
+            first += c - tan
+        else:
+            per += c
+    if flow and kinds[-1] == DRIFT:
+        per[0] += 1
+    return per, first

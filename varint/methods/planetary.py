@@ -1,0 +1,250 @@
+"""The tangent map method on planetary systems (:class:`varint.models.Planetary`):
+what ``method="tm"`` runs for them.
+
+The Wisdom–Holman family — WH (SABA1, the default), SABA_n, SBAB_n,
+ABA864, ABA1064, any two-part scheme of :data:`varint.SCHEMES` without the
+Laskar–Robutel corrector, ``SplittingScheme.repeated(m)`` for m steps per
+interval, and the three-part compositions in democratic heliocentric
+coordinates — runs through the model's part flows (Kepler drifts and
+interaction kicks fused with their tangent maps) in the part stepper
+(:class:`varint.methods.parts.PartsPropagator`), which owns the loop and
+the end of every interval.
+
+What this adds is processing: with ``corrector=p`` the symplectic corrector
+C of Wisdom, Holman & Touma (1996) of order p (:mod:`varint.correctors`)
+turns the WH map W into C ∘ W ∘ C⁻¹, whose energy error is O(ετ^{p+1} +
+ε²τ²) instead of O(ετ²). The map runs on the mapped state y = C⁻¹(x₀) and
+its vectors DC⁻¹·W₀; at the end of every call (every output) the state is
+x = C(y) and the vectors DC(y)·W_y, renormalised as the indicator asks
+(copies: the stretching accumulated per interval is that of W_y, and C is a
+near-identity symplectic map, so every indicator's law is unchanged). With
+``renorm="none"`` the vectors are the exact tangent map of the processed
+map. y and W_y live in ``state.extra``, so chunking and checkpoints resume
+bit for bit.
+
+Orbits whose planets meet (the model's ``close_encounter``) stop with
+status ``CLOSE_ENCOUNTER``, those whose Kepler drift cannot be solved with
+``KEPLER_FAILED``. A Kepler drift longer than a planet's pericentre
+passage time is warned about at the start (:meth:`PlanetaryPropagator.advance`): the map does not
+resolve such a pericentre: its error there does not fall with ε.
+
+References
+----------
+J. Wisdom, M. Holman & J. Touma, Fields Inst. Commun. 10, 217 (1996);
+H. Rein & D. Tamayo, Mon. Not. R. Astron. Soc. 452, 376 (2015).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from numba import njit
+
+from ..accuracy import AccuracyWarning
+from ..correctors import WHT_ORDERS, corrector_word
+from ..kernels.nbody import apply_word
+from ..protocol import STATUS_OK, Renorm, Status
+from ..schemes import get_scheme
+from ..state import renormalized_copy
+from . import method_options
+from .parts import PartsPropagator
+
+__all__ = ["PlanetaryPropagator", "MAPPED_STATE", "MAPPED_VECTORS"]
+
+#: Keys of the map's state y = C⁻¹(x) and vectors in ``RunState.extra``.
+MAPPED_STATE, MAPPED_VECTORS = "wh_mapped_x", "wh_mapped_W"
+
+
+@njit(cache=True, error_model="numpy")
+def _apply_word_batch(parts, h, X, W, par, n_work, active, out_X, out_W):
+    """``out_X[m], out_W[m]`` = the word applied to orbit m of ``X`` and its
+    vectors ``W[m]`` (2N, k), for the ``active`` orbits; the others are
+    copied. Returns the status of each (0, or the Kepler failure)."""
+    m_all = X.shape[0]
+    status = np.zeros(m_all, dtype=np.int64)
+    work = np.empty(n_work)
+    for m in range(m_all):
+        out_X[m] = X[m]
+        out_W[m] = W[m]
+        if not active[m]:
+            continue
+        V = np.ascontiguousarray(W[m].T)
+        status[m] = apply_word(parts, h, out_X[m], V, V.shape[0], par, work)
+        if status[m] == 0:
+            out_W[m] = V.T
+        else:
+            out_X[m] = X[m]
+            out_W[m] = W[m]
+    return status
+
+
+def _name_failures(state, was_active):
+    """The planetary flows stop an orbit by a mark in its first coordinate,
+    which the part stepper reports as non-finite — or, with an
+    ``escape_radius``, +inf as escaped (its escape test comes first): +inf
+    for a close encounter, NaN for a Kepler drift that could not be solved,
+    the rest of the state finite (:func:`varint.kernels.nbody_unrolled.flows`).
+    Name them."""
+    failed = was_active & ((state.status == int(Status.ORBIT_NONFINITE))
+                           | (state.status == int(Status.ESCAPED)))
+    if not failed.any():
+        return
+    first = state.x[:, 0]
+    marked = failed & np.isfinite(state.x[:, 1:]).all(axis=1)
+    state.status[marked & (first == np.inf)] = int(Status.CLOSE_ENCOUNTER)
+    state.status[marked & np.isnan(first)] = int(Status.KEPLER_FAILED)
+
+
+def _kick_spacing(scheme):
+    """The longest drift between two kicks, in units of τ (across the
+    joint of two steps too): Σ|a| of the drifts between them."""
+    gaps, gap = [], 0.0
+    for kind, c in scheme.stages():
+        if kind == 0:
+            gap += abs(c)
+        else:
+            gaps.append(gap)
+            gap = 0.0
+    gaps[0] += gap              # the last drifts of a step join the next's first
+    return max(gaps)
+
+
+def _substeps(scheme):
+    """m if ``scheme`` is the WH map (SABA1) repeated m times, else None."""
+    wh = get_scheme("SABA1")
+    m = scheme.n_kicks
+    candidate = wh if m == 1 else wh.repeated(m)
+    if scheme.corrector is None and scheme.stages() == candidate.stages():
+        return m
+    return None
+
+
+class PlanetaryPropagator:
+    """``method="tm"`` on a :class:`~varint.models.Planetary`: the part
+    stepper, and the WHT corrector at the end of every call (module
+    docstring).
+
+    Parameters
+    ----------
+    model : Planetary
+    tau : float
+    renorm : Renorm
+    accumulator : Accumulator, optional
+    scheme : str or SplittingScheme or CompositionScheme, optional
+        By default the model's (WH in Jacobi coordinates, ABC2 in
+        democratic heliocentric ones).
+    corrector : int, optional
+        The order of the WHT corrector (3, 5, 7, 11 or 17); only with the WH
+        map (SABA1, or SABA1 repeated m times: the corrector of its substep
+        τ/m), in Jacobi coordinates.
+    parallel : bool, optional
+        As for :class:`~varint.methods.parts.PartsPropagator`.
+
+    Raises
+    ------
+    ValueError
+        For a corrector of another order, on another scheme or in democratic
+        heliocentric coordinates.
+    """
+
+    method = "tm"
+    OPTIONS = ("scheme", "parallel", "corrector")
+
+    def __init__(self, model, tau, renorm, accumulator=None, **options):
+        opts = method_options(self.method, options, self.OPTIONS)
+        corrector = opts.pop("corrector", None)
+        self.inner = PartsPropagator(model, tau, renorm, accumulator, **opts)
+        self.model = model
+        self.tau = self.inner.tau
+        self.renorm = Renorm.parse(renorm)
+        self.corrector = None if corrector is None else self._check(model, corrector)
+        if self.corrector is not None:
+            dt = self.tau / _substeps(self.inner.scheme)
+            self._to_map = self._word(corrector_word(self.corrector, inverse=True), dt)
+            self._to_real = self._word(corrector_word(self.corrector), dt)
+
+    def _check(self, model, corrector):
+        if isinstance(corrector, bool) or corrector not in WHT_ORDERS:
+            raise ValueError(f"corrector must be the order of a Wisdom-Holman-Touma corrector, "
+                             f"one of {', '.join(map(str, WHT_ORDERS))}, got {corrector!r}")
+        if model.coordinates != "jacobi":
+            raise ValueError(f"the Wisdom-Holman-Touma correctors need Jacobi coordinates; "
+                             f"{model.name} is in {model.coordinates} ones")
+        scheme = self.inner.scheme
+        if getattr(scheme, "n_parts", 2) != 2 or _substeps(scheme) is None:
+            raise ValueError(f"the corrector of order {corrector} is that of the Wisdom-Holman "
+                             f"map (scheme 'SABA1', or SABA1 repeated m times), not of scheme "
+                             f"{scheme.name!r}")
+        return int(corrector)
+
+    def _word(self, word, dt):
+        slots = self.model.parts.slots(2)
+        return (np.array([slots[s] for s, _ in word], dtype=np.int64),
+                np.array([c * dt for _, c in word], dtype=np.float64))
+
+    def describe(self):
+        d = self.inner.describe()
+        d["corrector"] = None if self.corrector is None else {
+            "order": self.corrector, "kind": "Wisdom, Holman & Touma (1996), at outputs"}
+        return d
+
+    def versions(self):
+        return self.inner.versions()
+
+    def advance(self, state, n):
+        """Advance every active orbit of ``state`` by ``n`` intervals."""
+        if state.step == 0:
+            self._warn_unresolved(state)
+        was_active = state.status == STATUS_OK
+        if self.corrector is None:
+            self.inner.advance(state, n)
+            _name_failures(state, was_active)
+            return
+        if MAPPED_STATE not in state.extra:
+            # The first call: the map starts from C⁻¹(x₀), its vectors DC⁻¹·W₀.
+            y, Wy = np.empty_like(state.x), np.empty_like(state.W)
+            self._apply(self._to_map, state.x, state.W, y, Wy,
+                        np.ones(state.n_orbits, dtype=np.bool_))
+            state.extra[MAPPED_STATE], state.extra[MAPPED_VECTORS] = y, Wy
+        y, Wy = state.extra[MAPPED_STATE], state.extra[MAPPED_VECTORS]
+        state.x[...] = y
+        state.W[...] = Wy
+        self.inner.advance(state, n)
+        _name_failures(state, was_active)
+        y[...] = state.x
+        Wy[...] = state.W
+        # Outputs: x = C(y) and DC(y)·W_y, renormalised as copies.
+        x, W = np.empty_like(y), np.empty_like(Wy)
+        self._apply(self._to_real, y, Wy, x, W, state.status <= STATUS_OK)
+        if self.renorm != Renorm.NONE and state.k:
+            W, _, _ = renormalized_copy(W, state.acc_m, state.acc_e, self.renorm)
+        state.x[...] = x
+        state.W[...] = W
+
+    def _warn_unresolved(self, state):
+        """An :class:`~varint.accuracy.AccuracyWarning` where the Kepler
+        drift's step exceeds a planet's pericentre passage time
+        √(q³/μ(1 + e)) (the time to cross the pericentre distance at the
+        pericentre speed): the Wisdom–Holman map then does not resolve the
+        pericentre, and its error grows without bound as e → 1."""
+        if getattr(self.inner.scheme, "n_parts", 2) != 2:
+            return
+        dt = self.tau * _kick_spacing(self.inner.scheme)
+        times = self.model.pericentre_times(state.x)
+        bad = (times < dt) & (state.status[:, None] <= STATUS_OK)
+        if not bad.any():
+            return
+        m, i = np.argwhere(bad)[0]
+        where = "" if state.n_orbits == 1 else f" of orbit {m} ({int(bad.any(axis=1).sum())} " \
+                                                f"of {state.n_orbits} orbits)"
+        warnings.warn(f"planet {i + 1}{where} has a pericentre passage time {times[m, i]:.3g}, "
+                      f"shorter than the Kepler drift's step {dt:.3g}: the Wisdom-Holman map "
+                      "does not resolve its pericentre (its error grows as e -> 1); use a "
+                      "smaller tau or more steps per interval (SplittingScheme.repeated)",
+                      AccuracyWarning, stacklevel=6)
+
+    def _apply(self, word, X, W, out_X, out_W, active):
+        parts, h = word
+        _apply_word_batch(parts, h, X, W, self.model.params, self.model.parts.n_work,
+                          np.ascontiguousarray(active), out_X, out_W)
