@@ -78,13 +78,14 @@ class TangentMapPropagator:
         Where a generated stepper runs a batch: "cuda" on a CUDA GPU, one
         orbit per thread (:mod:`varint.gpu`; refused in one line where
         numba-cuda or a GPU is missing, or where the indicator's
-        accumulator is not FLI's or MEGNO's); "auto" on the GPU where one
-        is present and at least
+        accumulator has no update rule to write out, as FLI's and MEGNO's
+        (with OFLI) have); "auto" on the GPU where one is present and at least
         :data:`~varint.gpu.device.AUTO_MIN_ORBITS` orbits are active,
         else on the CPU. The same arithmetic as the CPU's stepper: bitwise
-        its results on numba's CUDA simulator; on an H100 the Hénon–Heiles
-        FLI map differed by up to 1e-11 relative at t = 100 (not yet
-        explained; ``studies/results/bench_gpu_h100.md``).
+        its results on numba's CUDA simulator; on an H100 (the kernel as
+        emitted before its port onto :mod:`varint.codegen`) the
+        Hénon–Heiles FLI map differed by up to 1e-11 relative at t = 100
+        (not yet explained; ``studies/results/bench_gpu_h100.md``).
     """
 
     method = "tm"
