@@ -27,6 +27,9 @@ from ..codegen.interval import LANE_WIDTH, LaneBlock, Outputs, StepperOrbit, Ste
 from ..codegen.stepper import symbolic_stepper
 from ..codegen.tm import step_counts
 from ..kernels import tm as K
+from ..gpu import device
+from ..gpu.advance import advance_cuda
+from ..gpu.emit import emittable
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
@@ -71,10 +74,22 @@ class TangentMapPropagator:
         Vectors that grow beyond 1e100 are renormalised at once whatever
         the schedule. Only generated steppers renormalise sparsely; the
         generic one renormalises every step.
+    backend : {"cpu", "cuda", "auto"}, default "cpu"
+        Where a generated stepper runs a batch: "cuda" on a CUDA GPU, one
+        orbit per thread (:mod:`varint.gpu`; refused in one line where
+        numba-cuda or a GPU is missing, or where the indicator's
+        accumulator has no update rule to write out, as FLI's and MEGNO's
+        (with OFLI) have); "auto" on the GPU where one is present and at least
+        :data:`~varint.gpu.device.AUTO_MIN_ORBITS` orbits are active,
+        else on the CPU. The same arithmetic as the CPU's stepper: bitwise
+        its results on numba's CUDA simulator; on an H100 (the kernel as
+        emitted before its port onto :mod:`varint.codegen`) the
+        Hénon–Heiles FLI map differed by up to 1e-11 relative at t = 100
+        (not yet explained; ``studies/results/bench_gpu_h100.md``).
     """
 
     method = "tm"
-    OPTIONS = ("scheme", "parallel", "renormalize_every")
+    OPTIONS = ("scheme", "parallel", "renormalize_every", "backend")
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = method_options(self.method, options, self.OPTIONS)
@@ -85,6 +100,7 @@ class TangentMapPropagator:
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
         self.every = self._every(opts.get("renormalize_every"))
+        self.backend = device.check_backend(opts.get("backend", "cpu"))
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
         # A time-dependent V: the time of every stage (kernels/tm.py).
         self._ctime = stage_times(self.scheme) if model.time_dependent else np.empty(0)
@@ -122,6 +138,8 @@ class TangentMapPropagator:
         d = {"scheme": self.scheme.describe()}
         if self.every is not None:
             d["renormalize_every"] = self.every
+        if self.backend != "cpu":
+            d["backend"] = self.backend
         return d
 
     def versions(self):
@@ -164,6 +182,10 @@ class TangentMapPropagator:
         Snapshots or None
         """
         module = self._stepper(state.k)
+        if module is None and self.backend == "cuda":
+            raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
+                             f"{state.k} vectors has none (a model without a symbolic potential,"
+                             " time-dependent, or too large): use backend='cpu'")
         if module is None:
             if outputs is not None and len(outputs):
                 raise ValueError("this model has no generated stepper: no snapshots")
@@ -171,9 +193,12 @@ class TangentMapPropagator:
             return None
         snaps = self._snapshots(state, outputs)
         active = np.flatnonzero(state.status == STATUS_OK)
-        # Many orbits run as SIMD lanes; the lanes give bitwise the results
-        # of the one-orbit stepper, so this choice never changes a result.
-        if len(active) >= self.MIN_LANES:
+        # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
+        # on the GPU (the same arithmetic; see the ``backend`` option).
+        if len(active) and device.use_gpu(self.backend, len(active)) \
+                and (self.backend == "cuda" or emittable(self.accumulator)):
+            advance_cuda(self, module, state, n, snaps, active)
+        elif len(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, snaps, active)
         else:
             self._advance_generated(module, state, n, snaps)
@@ -304,6 +329,15 @@ class TangentMapPropagator:
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done[active], counters[active] = n, per * int(n) + first
         failed = active[lanes.aos(st) != 0]
+        self._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
+                           counters)
+
+    def _rerun_failed(self, module, state, n, snaps, active, failed, start, extra_start, done,
+                      counters):
+        """After the lanes (or the GPU) advanced the ``active`` orbits: the
+        ``failed`` ones put back at the call's ``start`` and rerun by the
+        one-orbit stepper; then the state's steps and counters."""
+        m = state.n_orbits
         if failed.size:
             rows = np.searchsorted(active, failed)
             for name, arr in start.items():

@@ -1,0 +1,348 @@
+"""Benchmark: Hénon–Heiles chaos maps on a CUDA GPU against the CPU path.
+
+One command on a machine with a GPU (``pip install "varint[cuda]"``)::
+
+    python studies/bench_gpu.py [--quick] [--out DIR] [--budget SECONDS]
+
+1. **Agreement.** The FLI, SALI and MEGNO maps of a 16 × 16 grid on the
+   section x = 0, p_x ≥ 0 at H = 0.125 (t = 100, chaos_map defaults) with
+   ``backend="cuda"`` and on the CPU: bitwise equal or the largest relative
+   difference; the FLI map of a Toda lattice from ``from_potential`` (exp:
+   libdevice against the C library) to the same horizon, relative
+   difference; and the GPU's FLI values against a tight reference (the
+   same map at τ/4 on the CPU: the defaults' error, the same for both).
+2. **Speed.** The FLI map (chaos_map defaults, t = 1e3) of random points of
+   the section at 1e4, 1e5, 1e6 (1e7 when the budget allows) orbits: orbits
+   per second on the GPU (one chunk per map), on all CPU cores and on one,
+   interleaved, the minimum of repeats where a run is short. A contender
+   whose next size would not end within the budget stops; its orbits per
+   second are flat in the size once a machine is full, so the ratio at the
+   largest common size is the figure.
+3. **Fraction of peak.** The floating-point operations of one step of the
+   generated kernel, counted in its source (an fma counts 2, a √ or log 1,
+   comparisons and integer work 0), times the steps, over the GPU's time,
+   against the peak FP64 rate of its FP64 units (SMs × 64 FMA × 2 × clock;
+   not the tensor cores, which a step cannot use).
+
+heyoka's batch mode is not installed on GPU machines here; its ratio to
+varint's CPU path is that of ``studies/bench_peers.py``.
+
+Writes ``bench_gpu.json`` and ``bench_gpu.md`` to ``--out`` and prints the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+import varint  # noqa: E402
+from varint.models import HenonHeiles  # noqa: E402
+
+ENERGY = 0.125
+
+
+def section_points(model, m, seed=0):
+    """``m`` random allowed points of the section x = 0, p_x ≥ 0 at H = ENERGY."""
+    rng = np.random.default_rng(seed)
+    out = np.empty((0, 4))
+    while len(out) < m:
+        y = rng.uniform(-0.45, 0.7, 2 * m)
+        py = rng.uniform(-0.45, 0.45, 2 * m)
+        v = y * y / 2 - y ** 3 / 3
+        px2 = 2 * (ENERGY - v) - py * py
+        ok = px2 >= 0
+        pts = np.column_stack([np.zeros(ok.sum()), y[ok], np.sqrt(px2[ok]), py[ok]])
+        out = np.vstack([out, pts])
+    return out[:m]
+
+
+def toda():
+    import sympy as sp
+
+    q0, q1 = sp.symbols("q0 q1")
+    r3 = sp.sqrt(3)
+    V = (sp.exp(q1 + 2 * r3 * q0) + sp.exp(q1 - 2 * r3 * q0) + sp.exp(-2 * q1)) / 24 \
+        - sp.Rational(1, 8)
+    return varint.models.from_potential(V, [q0, q1], name="toda")
+
+
+def compare(a, b):
+    """'bitwise' or the largest relative difference of the finite values."""
+    same = all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+               for f in ("values", "t_stop", "status"))
+    if same:
+        return "bitwise", 0.0
+    ok = np.isfinite(a.values) & np.isfinite(b.values)
+    rel = np.abs(a.values[ok] - b.values[ok]) / np.maximum(np.abs(a.values[ok]), 1e-300)
+    return "differs", float(rel.max()) if rel.size else float("nan")
+
+
+def step_flops(model, indicator="fli", scheme=None):
+    """(flops, sqrt+log count) of one step of the generated CUDA kernel,
+    counted in its source: the body of the loop over steps, less the
+    branches a chaos map of this indicator does not take every step (the
+    copies at output steps, the sparse schedule, the overflow check of
+    unrenormalised vectors)."""
+    from varint.gpu.emit import cuda_source
+    from varint.indicators import resolve
+    from varint.methods import make_propagator
+    from varint.schemes import DRIFT, stage_arrays
+
+    ind, _ = resolve(indicator)
+    prop = make_propagator("tm", model, 0.05, "normalize", getattr(ind, "accumulator", None),
+                           **({"scheme": scheme} if scheme else {}))
+    kinds, _, hc = stage_arrays(prop.scheme, 0.05)
+    src = cuda_source(model, kinds, (hc != 0) & (kinds != DRIFT), 1, prop.accumulator)
+    tree = ast.parse(src)
+    loop = next(n for n in ast.walk(tree) if isinstance(n, ast.For)
+                and isinstance(n.target, ast.Name) and n.target.id == "s")
+    skipped = ("jo <", "every != 0", "chk")
+
+    def counted(node):
+        if isinstance(node, ast.If) and any(ast.unparse(node.test).startswith(s)
+                                            for s in skipped):
+            return sum(counted(x) for x in node.orelse)
+        flops = special = 0
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.BinOp) and isinstance(sub.op, (ast.Add, ast.Sub, ast.Mult,
+                                                                  ast.Div)):
+                flops += 1
+            elif isinstance(sub, ast.Call):
+                name = ast.unparse(sub.func)
+                if name in ("cuda.fma", "fma"):
+                    flops += 2
+                elif name in ("math.sqrt", "math.log", "math.exp"):
+                    special += 1
+        return flops + special
+
+    total = sum(counted(n) for n in loop.body)
+    return total, src
+
+
+def gpu_info():
+    from numba import cuda
+
+    dev = cuda.get_current_device()
+    sms = dev.MULTIPROCESSOR_COUNT
+    clock_hz = dev.CLOCK_RATE * 1e3
+    name = dev.name.decode() if isinstance(dev.name, bytes) else str(dev.name)
+    # Hopper: 64 FP64 FMA units per SM (128 flops per clock).
+    fp64 = 64 if dev.compute_capability >= (9, 0) else 32
+    return {"name": name, "sms": sms, "clock_ghz": clock_hz / 1e9,
+            "compute_capability": list(dev.compute_capability),
+            "peak_fp64_tflops": sms * fp64 * 2 * clock_hz / 1e12}
+
+
+def timed(fn):
+    t = time.perf_counter()
+    r = fn()
+    return time.perf_counter() - t, r
+
+
+def table(res):
+    """The Markdown table of a result of :func:`main` (also of one that was
+    stopped before its end: ``python studies/bench_gpu.py --table FILE``)."""
+    from varint.maps import MAP_SCHEME
+
+    flops = res["flops_per_step_fli"]
+    lines = [f"# bench_gpu: {res['gpu']['name'] if res['gpu'] else 'no GPU'}, "
+             f"{res['machine']['cpus']} CPU cores, load {res['machine']['load']}", "",
+             f"FLI step of Hénon–Heiles ({MAP_SCHEME}): {flops} flops (fma = 2)", "",
+             "| orbits | GPU orbits/s | all cores orbits/s | 1 core orbits/s | GPU/all | GPU/1 "
+             "| GPU TFLOP/s (map) | of peak | kernel s / map s | TFLOP/s (kernel) | of peak |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def f(v, fmt):
+        return format(v, fmt) if isinstance(v, float) else "—"
+
+    for r in res["speed"]:
+        lines.append(f"| {r['orbits']} | {f(r.get('gpu_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('cpu_all_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('cpu_1_orbits_per_s'), '.4g')} | "
+                     f"{f(r.get('gpu_over_cpu_all'), '.1f')} | {f(r.get('gpu_over_cpu_1'), '.1f')} | "
+                     f"{f(r.get('gpu_tflops'), '.2f')} | {f(r.get('gpu_fraction_of_peak'), '.1%')} | "
+                     f"{f(r.get('gpu_kernel_s'), '.3g')} / {f(r.get('gpu_s'), '.3g')} | "
+                     f"{f(r.get('kernel_tflops'), '.2f')} | "
+                     f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
+    lines += ["", "Agreement: " + json.dumps(res["agreement"]),
+              "Errors: " + json.dumps(res["errors"])]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="small sizes (seconds)")
+    p.add_argument("--out", type=Path, default=HERE / "results")
+    p.add_argument("--budget", type=float, default=180.0,
+                   help="seconds for the speed part, all contenders together")
+    p.add_argument("--t-end", type=float, default=1000.0)
+    p.add_argument("--table", type=Path, default=None,
+                   help="only print the table of this bench_gpu.json")
+    args = p.parse_args(argv)
+    if args.table is not None:
+        text = table(json.loads(args.table.read_text()))
+        print(text)
+        return text
+    args.out.mkdir(parents=True, exist_ok=True)
+    from varint.gpu import device
+
+    hh = HenonHeiles()
+    gpu = device.available() and not device.simulated()
+    res = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
+                       "load": os.getloadavg(), "python": platform.python_version(),
+                       "numba": __import__("numba").__version__,
+                       "varint": varint.__version__},
+           "gpu": gpu_info() if gpu else None, "agreement": {}, "speed": [], "errors": []}
+    print(json.dumps(res["machine"]), res["gpu"], flush=True)
+    from varint.maps import MAP_SCHEME
+
+    flops, _ = step_flops(hh, "fli", MAP_SCHEME)
+    res["flops_per_step_fli"] = flops
+    print(f"flops per step (Hénon–Heiles, FLI, {MAP_SCHEME}): {flops}", flush=True)
+
+    # 1. Agreement.
+    n_grid, t_agree = (8, 20.0) if args.quick else (16, 100.0)
+    grid = varint.section_grid(hh, ENERGY, np.linspace(-0.45, 0.7, n_grid),
+                               np.linspace(-0.45, 0.45, n_grid)).states
+    backends = ["cuda"] if gpu else []
+    for ind in ("fli", "sali", "megno"):
+        # FLI with the map defaults (its kernel is the speed test's); SALI
+        # and MEGNO with the paper's SBAB2C at τ = 0.05.
+        kw = dict(t_end=t_agree, progress=False)
+        if ind != "fli":
+            kw.update(tau=0.05, scheme="SBAB2C")
+        cpu = varint.chaos_map(hh, grid, ind, **kw)
+        for b in backends:
+            got = varint.chaos_map(hh, grid, ind, backend=b, **kw)
+            res["agreement"][f"hh_{ind}"] = compare(cpu, got)
+            if ind == "fli":
+                try:
+                    tight = varint.chaos_map(hh, grid, ind, tau=cpu.accuracy.tau / 4, **kw)
+                    ok = np.isfinite(tight.values) & np.isfinite(got.values)
+                    res["agreement"]["hh_fli_vs_tau/4_max_abs"] = float(
+                        np.max(np.abs(tight.values[ok] - got.values[ok])))
+                    ok = ok & np.isfinite(cpu.values)
+                    res["agreement"]["hh_fli_cpu_vs_tau/4_max_abs"] = float(
+                        np.max(np.abs(tight.values[ok] - cpu.values[ok])))
+                except Exception as exc:
+                    res["errors"].append(f"tight reference: {exc!r}")
+    if gpu:
+        T = np.array([[0.0, 0.0, 0.35, 0.25], [0.1, -0.1, 0.3, 0.3], [0.0, 0.2, 0.4, 0.1],
+                      [0.05, 0.05, 0.2, 0.4]])
+        kw = dict(t_end=100.0, tau=0.05, threshold=None, progress=False)
+        res["agreement"]["toda_fli_t100"] = compare(varint.chaos_map(toda(), T, "fli", **kw),
+                                                    varint.chaos_map(toda(), T, "fli",
+                                                                     backend="cuda", **kw))
+    print("agreement", res["agreement"], flush=True)
+
+    def save():
+        # After every part: a run stopped at its time limit keeps what it measured.
+        (args.out / "bench_gpu.json").write_text(json.dumps(res, indent=1, default=str))
+
+    save()
+
+    # 2. Speed: interleaved contenders, growing sizes, within the budget.
+    import numba
+
+    sizes = [1000, 4000] if args.quick else [10_000, 100_000, 1_000_000, 10_000_000]
+    t_end = 20.0 if args.quick else args.t_end
+    contenders = (["gpu"] if gpu else []) + ["cpu_all", "cpu_1"]
+    elapsed = dict.fromkeys(contenders, 0.0)
+    last = dict.fromkeys(contenders, None)   # seconds per orbit at the last size
+    # The CPU on all cores must reach 1e6 orbits (the target's size); one
+    # core and the GPU need less time to show their rates.
+    weights = {"gpu": 0.25, "cpu_all": 0.5, "cpu_1": 0.25}
+    share = {c: args.budget * weights[c] / sum(weights[x] for x in contenders)
+             for c in contenders}
+    all_threads = numba.config.NUMBA_NUM_THREADS
+    # Compile every contender's kernels first (numba compiles the parallel
+    # CPU kernel once per process, and the GPU kernel once per process).
+    W = section_points(hh, 512, seed=1)
+    for c in contenders:
+        numba.set_num_threads(1 if c == "cpu_1" else all_threads)
+        kw = dict(t_end=t_end, progress=False, **({"backend": "cuda"} if c == "gpu" else {}))
+        res.setdefault("compile_s", {})[c] = timed(
+            lambda kw=kw: varint.chaos_map(hh, W, "fli", **kw))[0]
+    numba.set_num_threads(all_threads)
+    print("warm-up (compilation) seconds", res["compile_s"], flush=True)
+    from varint.gpu.advance import STATS
+
+    for m in sizes:
+        X = section_points(hh, m)
+        row = {"orbits": m, "t_end": t_end}
+        for c in contenders:
+            if last[c] is not None and elapsed[c] + last[c] * m > share[c]:
+                continue
+            kw = dict(t_end=t_end, progress=False, chunk_size=m)
+            if c == "gpu":
+                kw["backend"] = "cuda"
+            numba.set_num_threads(1 if c == "cpu_1" else all_threads)
+            reps = 2 if (last[c] is None or last[c] * m < 5.0) else 1
+            best = np.inf
+            try:
+                for _ in range(reps):
+                    STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
+                    dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
+                    if dt < best:
+                        best, stats = dt, dict(STATS)
+                    elapsed[c] += dt
+            except Exception as exc:
+                res["errors"].append(f"{c} at {m}: {exc!r}")
+                last[c] = np.inf
+                continue
+            last[c] = best / m
+            row[f"{c}_s"] = best
+            row[f"{c}_orbits_per_s"] = m / best
+            if c == "gpu":
+                steps = float(np.round(r.t_stop / r.accuracy.tau).sum())
+                row["gpu_steps"], row["tau"] = steps, r.accuracy.tau
+                row["gpu_launches"] = stats["launches"]
+                row["gpu_kernel_s"], row["gpu_host_s"] = stats["kernel_s"], stats["host_s"]
+                if res["gpu"]:
+                    rate = flops * steps / best / 1e12
+                    row["gpu_tflops"] = rate
+                    row["gpu_fraction_of_peak"] = rate / res["gpu"]["peak_fp64_tflops"]
+                    kernel = flops * steps / max(stats["kernel_s"], 1e-9) / 1e12
+                    row["kernel_tflops"] = kernel
+                    row["kernel_fraction_of_peak"] = kernel / res["gpu"]["peak_fp64_tflops"]
+        numba.set_num_threads(all_threads)
+        if "gpu_s" in row and "cpu_all_s" in row:
+            row["gpu_over_cpu_all"] = row["cpu_all_s"] / row["gpu_s"]
+        if "gpu_s" in row and "cpu_1_s" in row:
+            row["gpu_over_cpu_1"] = row["cpu_1_s"] / row["gpu_s"]
+        res["speed"].append(row)
+        save()
+        print(json.dumps(row), flush=True)
+    # Ratios at the largest size each pair shares, from orbits per second.
+    for c in ("cpu_all", "cpu_1"):
+        rates = [(r["orbits"], r["gpu_orbits_per_s"], r[f"{c}_orbits_per_s"])
+                 for r in res["speed"] if "gpu_orbits_per_s" in r and f"{c}_orbits_per_s" in r]
+        if rates:
+            m, g, h = rates[-1]
+            res[f"gpu_over_{c}_at_{m}"] = g / h
+    gpu_rates = [r["gpu_orbits_per_s"] for r in res["speed"] if "gpu_orbits_per_s" in r]
+    cpu_rates = [r["cpu_all_orbits_per_s"] for r in res["speed"] if "cpu_all_orbits_per_s" in r]
+    if gpu_rates and cpu_rates:
+        res["gpu_best_over_cpu_all_best"] = max(gpu_rates) / max(cpu_rates)
+    res["machine"]["load_after"] = os.getloadavg()
+    save()
+    text = table(res)
+    (args.out / "bench_gpu.md").write_text(text)
+    print(text, flush=True)
+    return res
+
+
+if __name__ == "__main__":
+    main()

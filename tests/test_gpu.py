@@ -1,0 +1,210 @@
+"""The CUDA backend (varint.gpu): the generated kernels against the CPU path.
+
+Without a GPU the kernels run on numba's CUDA simulator
+(``NUMBA_ENABLE_CUDASIM=1``, set before numba.cuda is imported, hence in a
+subprocess): the same generated source, thread by thread in Python, on small
+maps. The promise checked: bitwise the CPU's values, stopping times, status
+and final states for polynomial potentials, within 1e-12 relative otherwise
+(on the simulator, whose exp is the CPU's, also bitwise). Tests marked
+``cuda`` need a real GPU and skip without one.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import varint
+from varint.gpu import device, emit
+
+pytest.importorskip("numba.cuda")
+
+# Run in a subprocess on the simulator; prints one JSON line of checks.
+_SIM_SCRIPT = r'''
+import json, numpy as np, sympy as sp, varint
+import varint.methods.tm as tm
+from varint.models import HenonHeiles
+
+launched = []
+real = tm.advance_cuda
+def counted(prop, module, state, n, snaps, active):
+    launched.append(len(active))
+    return real(prop, module, state, n, snaps, active)
+tm.advance_cuda = counted
+
+def same(a, b):
+    return all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+               for f in ("values", "t_stop", "status", "state"))
+
+def rel(a, b):
+    ok = np.isfinite(a.values)
+    return float(np.max(np.abs(a.values[ok] - b.values[ok]) / np.abs(a.values[ok])))
+
+hh = HenonHeiles()
+rng = np.random.default_rng(7)
+X = np.zeros((10, 4))
+X[:, 1] = rng.uniform(-0.25, 0.35, 10)
+X[:, 2] = rng.uniform(0.05, 0.35, 10)
+X[:, 3] = rng.uniform(0.05, 0.3, 10)
+out = {}
+for ind, scheme in (("fli", "SBAB2C"), ("sali", "SBAB2C"), ("megno", "SBAB2C"),
+                    ("fli", "ABA864"), ("megno", "SABA2C"), ("gali", "SBAB2C")):
+    kw = dict(t_end=10, tau=0.05, threshold=None, progress=False, scheme=scheme)
+    n0 = len(launched)
+    cpu = varint.chaos_map(hh, X, ind, **kw)
+    gpu = varint.chaos_map(hh, X, ind, backend="cuda", **kw)
+    out[f"{ind}/{scheme}"] = [same(cpu, gpu), len(launched) > n0]
+# Early stopping (SALI below 1e-2 decides) at H = 0.16, where chaotic
+# orbits decide within t = 60: the same stopping times, values and states.
+y, py = rng.uniform(-0.3, 0.5, 10), rng.uniform(-0.2, 0.2, 10)
+px = np.sqrt(np.maximum(2 * (0.16 - (y * y / 2 - y ** 3 / 3)) - py * py, 0.0))
+C = np.column_stack([np.zeros(10), y, px, py])
+kw = dict(t_end=60, tau=0.05, threshold=1e-2, progress=False)
+cpu = varint.chaos_map(hh, C, "sali", **kw)
+gpu = varint.chaos_map(hh, C, "sali", backend="cuda", chunk_size=4, **kw)
+out["early"] = [same(cpu, gpu), int((cpu.status == -1).sum())]
+# Escapes (E > 1/6): failed on the GPU, recomputed by the CPU's stepper.
+E = np.array([[0.0, 0.1, 0.6, 0.1], [0.0, 0.0, 0.3, 0.2], [0.05, 0.0, 0.7, 0.0]])
+kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
+cpu = varint.chaos_map(hh, E, "fli", **kw)
+gpu = varint.chaos_map(hh, E, "fli", backend="cuda", **kw)
+out["escape"] = [same(cpu, gpu), int((cpu.status > 0).sum())]
+# A from_potential model with exp (not polynomial): within 1e-12.
+q0, q1 = sp.symbols("q0 q1")
+toda = varint.models.from_potential(sp.exp(q1 + 2 * sp.sqrt(3) * q0) / 24
+                             + sp.exp(q1 - 2 * sp.sqrt(3) * q0) / 24
+                             + sp.exp(-2 * q1) / 24 - sp.Rational(1, 8), [q0, q1], name="toda")
+T = np.array([[0.0, 0.0, 0.35, 0.25], [0.1, -0.1, 0.3, 0.3], [0.0, 0.2, 0.4, 0.1]])
+kw = dict(t_end=100, tau=0.05, threshold=None, progress=False)
+cpu = varint.chaos_map(toda, T, "fli", **kw)
+gpu = varint.chaos_map(toda, T, "fli", backend="cuda", **kw)
+out["toda"] = [rel(cpu, gpu), same(cpu, gpu)]
+print(json.dumps(out))
+'''
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    run = subprocess.run([sys.executable, "-c", _SIM_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("case", ["fli/SBAB2C", "sali/SBAB2C", "megno/SBAB2C", "fli/ABA864",
+                                  "megno/SABA2C", "gali/SBAB2C"])
+def test_simulated_kernel_is_bitwise_the_cpu(simulated, case):
+    bitwise, launched = simulated[case]
+    assert launched, "the map did not run on the (simulated) GPU"
+    assert bitwise
+
+
+def test_simulated_early_stopping_and_compaction_match(simulated):
+    bitwise, decided = simulated["early"]
+    assert decided > 0, "no orbit decided: the check proves nothing"
+    assert bitwise
+
+
+def test_simulated_failed_orbits_are_the_cpus(simulated):
+    bitwise, failed = simulated["escape"]
+    assert failed > 0
+    assert bitwise
+
+
+def test_simulated_transcendental_model_within_1e_12(simulated):
+    relative, _ = simulated["toda"]
+    assert relative <= 1e-12
+
+
+def test_cuda_without_gpu_says_so_in_one_line():
+    if device.available():
+        pytest.skip("a GPU (or the simulator) is present")
+    hh = varint.models.HenonHeiles()
+    with pytest.raises(RuntimeError, match="backend='cuda'") as err:
+        varint.chaos_map(hh, np.array([[0.0, 0.1, 0.3, 0.1]]), "fli", t_end=1, tau=0.05,
+                         backend="cuda", progress=False)
+    assert "\n" not in str(err.value)
+
+
+def test_unknown_backend_is_refused():
+    with pytest.raises(ValueError, match="backend must be one of"):
+        varint.chaos_map(varint.models.HenonHeiles(), np.array([[0.0, 0.1, 0.3, 0.1]]), "fli",
+                         t_end=1, tau=0.05, backend="gpu", progress=False)
+
+
+def test_auto_without_gpu_is_the_cpu():
+    if device.available():
+        pytest.skip("a GPU (or the simulator) is present")
+    hh = varint.models.HenonHeiles()
+    X = np.array([[0.0, 0.1, 0.3, 0.1], [0.0, -0.2, 0.35, 0.2]])
+    kw = dict(t_end=5, tau=0.05, threshold=None, progress=False)
+    a = varint.chaos_map(hh, X, "fli", **kw)
+    b = varint.chaos_map(hh, X, "fli", backend="auto", **kw)
+    assert np.array_equal(a.values, b.values)
+
+
+def test_an_accumulator_compiled_for_the_cpu_is_not_emitted():
+    import dataclasses
+
+    # FLI's compiled update without its rule: called, not written out.
+    acc = dataclasses.replace(varint.indicators.megno.FLI_ACCUMULATOR, name="mine", rule=None)
+    assert not emit.emittable(acc)
+    with pytest.raises(ValueError, match="compiled for the CPU only"):
+        emit.cuda_source(varint.models.HenonHeiles(), [1, 0, 1], [False] * 3, 1, acc)
+
+
+def _ptx_or_skip(kern, signature, exact):
+    """The kernel's PTX; with ``exact=False`` as numba-cuda compiles by
+    default (NVVM contracting multiplies and adds)."""
+    from numba import cuda
+
+    try:
+        if exact:
+            return kern.ptx(signature)
+        return cuda.compile_ptx(kern.dispatcher.py_func, signature, cc=(9, 0))[0]
+    except Exception as exc:   # no NVVM (numba-cuda without the CUDA toolkit's wheels)
+        pytest.skip(f"cannot compile PTX here: {str(exc).splitlines()[0]}")
+
+
+def test_kernel_compiles_to_registers_without_contraction():
+    """The real kernel compiles (PTX, no GPU needed where NVVM is
+    installed): no thread-local memory (the work arrays live in registers)
+    and fewer fused operations than NVVM makes when left to contract (the
+    explicit fma only)."""
+    if device.simulated():
+        pytest.skip("the simulator compiles nothing")
+    from numba import types as T
+
+    from varint.schemes import DRIFT, get_scheme, stage_arrays
+
+    kinds, _, hc = stage_arrays(get_scheme("SBAB2C"), 0.05)
+    kern = emit.cuda_stepper(varint.models.HenonHeiles(), kinds, (hc != 0) & (kinds != DRIFT), 1,
+                             varint.indicators.megno.FLI_ACCUMULATOR)
+    f2, f3, f4 = T.float64[:, ::1], T.float64[:, :, ::1], T.float64[:, :, :, ::1]
+    i1, i2, i3 = T.int64[::1], T.int64[:, ::1], T.int64[:, :, ::1]
+    sig = (f2, f3, f2, i2, i1, i1, i1, i1, T.int64, T.int64, T.float64, T.float64[::1],
+           T.float64[::1], T.float64, T.int64, T.int64, f3, i1, f3, f4, f3, i3, f4)
+    exact = _ptx_or_skip(kern, sig, True)
+    loose = _ptx_or_skip(kern, sig, False)
+    assert ".local" not in exact
+    assert 0 < exact.count("fma.rn.f64") < loose.count("fma.rn.f64")
+
+
+@pytest.mark.cuda
+@pytest.mark.xfail(reason="on an H100 the FLI map at t = 100 differed from the CPU's by 1e-11 "
+                          "relative (studies/results/bench_gpu_h100.md); the cause is not found "
+                          "yet: the kernel's PTX rounds every operation (.rn)", strict=False)
+def test_gpu_map_is_bitwise_the_cpu():
+    if not device.available() or device.simulated():
+        pytest.skip("no CUDA GPU")
+    hh = varint.models.HenonHeiles()
+    X = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.65, 24),
+                            np.linspace(-0.45, 0.45, 24)).states
+    kw = dict(t_end=100, progress=False)
+    a = varint.chaos_map(hh, X, "fli", **kw)
+    b = varint.chaos_map(hh, X, "fli", backend="cuda", **kw)
+    assert np.array_equal(a.values, b.values, equal_nan=True)
