@@ -94,7 +94,9 @@ def test_invalid_schemes_are_refused():
 
 def _max_energy_error(model, x0, tau, scheme, t_end=20.0):
     n = int(round(t_end / tau))
-    r = varint.integrate(model, x0, n * tau, tau=tau, scheme=scheme, t_out=n)
+    # The test measures the energy error itself, at steps chosen large enough
+    # to be above round-off: the accuracy verdict's warning is not its subject.
+    r = varint.integrate(model, x0, n * tau, tau=tau, scheme=scheme, t_out=n, energy_tol=1.0)
     return float(np.max(r.energy_error))
 
 
@@ -251,7 +253,8 @@ def _rms_energy_error(model, x0, tau, scheme, t_end=8.0, every=0.4):
     over a window of an oscillating error, as above, scatters by ±0.3 for
     the 6th- and 8th-order compositions)."""
     t_out = np.arange(1, int(round(t_end / every)) + 1) * every
-    r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, t_out=t_out)
+    # Large steps on purpose (an order is measured above round-off).
+    r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, t_out=t_out, energy_tol=1.0)
     e = model.energy(r.states)
     h0 = model.energy(x0)
     return float(np.sqrt(np.mean(((e - h0) / h0) ** 2)))
