@@ -225,16 +225,16 @@ class MethodsDirective(_Generated):
 
 
 class SchemesDirective(_Generated):
-    """The table of registered splitting schemes."""
+    """The table of registered two-part splitting schemes (H = A + B)."""
 
     sections = False
 
     def lines(self):
-        from varint import SCHEMES
+        from varint.schemes import registered
 
         rows = [[f"``{s.name}``", str(s.order), s.nominal_order or "—",
                  str(s.force_evaluations), "yes" if s.corrector is not None else "no",
-                 _inline(s.reference) or "—"] for s in SCHEMES.values()]
+                 _inline(s.reference) or "—"] for s in registered(2)]
         return _table(["name", "order", "published order", "force evaluations / step",
                        "corrector", "reference"], rows, widths=[2, 1, 2, 2, 1, 6])
 
