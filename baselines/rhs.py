@@ -90,6 +90,19 @@ def unpack(y, d, clock=0):
     return y[:d], y[d:len(y) - clock].reshape(d, -1)
 
 
+def _with_fun(rhs):
+    """``(rhs, fun)``: the in-place right-hand side ``rhs(t, y, yp)`` (the
+    form SUNDIALS calls) and ``fun(t, y) -> yp`` around it (SciPy's form)."""
+
+    @njit
+    def fun(t, y):
+        yp = np.empty_like(y)
+        rhs(t, y, yp)
+        return yp
+
+    return rhs, fun
+
+
 @cache
 def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
     minv = np.frombuffer(minv_bytes)
@@ -137,13 +150,7 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
                     yp[d + (n + i) * k + j] -= a * y[d + (i + b) * k + j]
                     yp[d + (n + i + b) * k + j] -= a * y[d + i * k + j]
 
-    @njit
-    def fun(t, y):
-        yp = np.empty_like(y)
-        rhs(t, y, yp)
-        return yp
-
-    return rhs, fun
+    return _with_fun(rhs)
 
 
 @cache
@@ -183,13 +190,7 @@ def _compiled_hamiltonian(grad_hess, d, par_bytes, dtime=None):
                     acc += D[src, m] * y[d + m * k + j]
                 yp[d + i * k + j] = sign * acc
 
-    @njit
-    def fun(t, y):
-        yp = np.empty_like(y)
-        rhs(t, y, yp)
-        return yp
-
-    return rhs, fun
+    return _with_fun(rhs)
 
 
 def _generated_source(V, n, minv):
@@ -245,13 +246,7 @@ def _compiled_generated(V, n, minv):
          namespace)
     rhs = njit(namespace["rhs"])
 
-    @njit
-    def fun(t, y):
-        yp = np.empty_like(y)
-        rhs(t, y, yp)
-        return yp
-
-    return rhs, fun
+    return _with_fun(rhs)
 
 
 def generated_rhs(model):
