@@ -71,23 +71,37 @@ GENERAL_SCHEMES = {name: WholeStep(name, len(INTEGRATORS), (1.0,), GAUSS[name].o
                    for i, name in enumerate(INTEGRATORS)}
 
 
-def general_work(n_dof, n_par):
+def general_work(n_dof, n_par, timed=False):
     """Floats of scratch of :func:`general_apply`'s flows for N = ``n_dof``
-    and ``n_par`` kernel parameters, for up to 2N deviation vectors."""
+    and ``n_par`` kernel parameters, for up to 2N deviation vectors (and,
+    ``timed``, the momentum conjugate to time in the last)."""
     d = 2 * n_dof
     s = max(GAUSS[name].stages for name in INTEGRATORS)
-    return (s + 1) * n_par + s * d + 1 + gauss_work(n_dof, s, d)
+    return (s + 1) * n_par + s * d + 1 + gauss_work(n_dof, s, d) + int(bool(timed))
 
 
 @cache
-def general_apply(grad, grad_hess, n_dof, n_par):
+def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
     """``apply(part, h, x, V, k, par, work)`` of a general model with
     kernels ``grad(x, par, g)`` and ``grad_hess(x, par, g, D)``: part i is
     one step of ``INTEGRATORS[i]`` (module docstring). Compiled once per
-    kernels and size."""
+    kernels and size.
+
+    With ``dtime(x, par)`` = ∂_tH (a time-dependent H, whose time is the
+    last entry of ``par``) the step starts at the time ``par[-1]``, its
+    stages at t₀ + c_i h, and the momentum conjugate to time, in the last
+    float of ``work``, is advanced by the same Gauss–Legendre quadrature
+    (:func:`varint.flows.gauss.gauss_step`): the method is then the
+    Gauss–Legendre method of the autonomous K = H(q, p, t) + p_t in the
+    extended phase space (t, q; p_t, p), which integrates ṫ = 1 exactly,
+    with the same order and symplecticity, and the tangent map of (q, p)
+    (δt = 0: the deviation vectors stay in phase space)
+    (:attr:`varint.models.lattice.Parts.timed`)."""
     (A4, b4, c4, d4, E4), (A6, b6, c6, d6, E6), (A8, b8, c8, d8, E8) = (
         tuple(np.array(a) for a in GAUSS[name].arrays) for name in INTEGRATORS)
     dim = 2 * n_dof
+    timed = dtime is not None
+    dt = dtime if timed else no_dtime
 
     @njit(error_model="numpy")
     def step(h, x, V, k, par, work, A, b, c, d, E):
@@ -95,13 +109,17 @@ def general_apply(grad, grad_hess, n_dof, n_par):
         pars = work[:(s + 1) * n_par].reshape((s + 1, n_par))
         for j in range(s + 1):
             pars[j, :] = par[:n_par]
+        if timed:
+            for j in range(s):
+                pars[j, n_par - 1] = par[n_par - 1] + c[j] * h
         off = (s + 1) * n_par
         prev = work[off:off + s * dim]
         prev[0] = np.nan               # the explicit guess: no state between steps
         off += s * dim
-        pt = work[off:off + 1]
-        status, _ = gauss_step(h, x, V, k, pars, A, b, c, d, E, work[off + 1:], grad,
-                               grad_hess, prev, False, no_dtime, pt)
+        end = work.shape[0] - 1 if timed else work.shape[0]
+        pt = work[end:end + 1] if timed else work[off:off + 1]
+        status, _ = gauss_step(h, x, V, k, pars, A, b, c, d, E, work[off + 1:end], grad,
+                               grad_hess, prev, timed, dt, pt)
         if status != 0:
             x[:] = np.nan
 

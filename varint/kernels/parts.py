@@ -32,7 +32,8 @@ from numba import njit
 from .checks import orbit_status
 from .interval import StepBody, batch_loop, no_accumulator, orbit_record
 
-__all__ = ["parts_body", "parts_batch", "PartsOrbit", "PartsSetup", "SPECIALISE_K"]
+__all__ = ["parts_body", "parts_batch", "PartsOrbit", "TimedPartsOrbit", "PartsSetup",
+           "SPECIALISE_K"]
 
 #: Largest number of deviation vectors compiled as a constant.
 SPECIALISE_K = 8
@@ -40,17 +41,22 @@ SPECIALISE_K = 8
 #: One orbit's record (:mod:`varint.kernels.interval`); ``counters`` counts
 #: the flows of each part.
 PartsOrbit = orbit_record("PartsOrbit")
+#: The record of a time-dependent H (flows that advance the time): ``pt``
+#: (1,) the momentum conjugate to time, as :data:`varint.kernels.tm.TMOrbit`'s.
+TimedPartsOrbit = orbit_record("TimedPartsOrbit", ("pt",))
 
 #: What a call reads: the word of flows (part index ``parts`` and length
 #: ``h`` of each), the model's parameters and the scratch it needs.
 PartsSetup = namedtuple("PartsSetup", ("parts", "h", "par", "n_work"))
 
 # Work space: sizes, the orbit (the end point), the vectors as rows, scratch.
-_Work = namedtuple("_Work", ("n", "k", "d", "xe", "V", "work"))
+# ``par``: the parameters the flows read (a private copy for a
+# time-dependent H, whose last entry is the time).
+_Work = namedtuple("_Work", ("n", "k", "d", "xe", "V", "work", "par"))
 
 
 @cache
-def parts_body(apply, field, K_C):
+def parts_body(apply, field, K_C, TIME=False):
     """The step body of the model whose flows are ``apply`` (and vector
     field ``field``); ``K_C`` ≥ 0 fixes the number of vectors at compile
     time, −1 reads it from ``W``.
@@ -58,6 +64,15 @@ def parts_body(apply, field, K_C):
     Each deviation vector is held as one contiguous row of ``V`` (k, 2N)
     while the steps run (the site loops of the flows then vectorise) and
     written back to ``W`` (2N, k) at the end of the call.
+
+    With ``TIME`` (a time-dependent H whose flows integrate the whole H,
+    :attr:`varint.models.lattice.Parts.timed`) every flow starts at its own
+    time, (step0 + s)·τ plus the lengths of the flows before it in the
+    step (the step's start from the integer step, so that it does not
+    depend on chunking), written to the last entry of a private copy of
+    ``par``; the momentum conjugate to time, ``state.pt[0]``, travels in
+    and out of the flow in the last float of ``work`` (the flow advances it
+    by −∫∂_tH dt, so that K = H + p_t is conserved).
     """
 
     @njit(inline="always")
@@ -65,14 +80,26 @@ def parts_body(apply, field, K_C):
         n = state.x.shape[0] // 2
         k = K_C if K_C >= 0 else state.W.shape[1]
         V = np.ascontiguousarray(state.W.T)
-        return _Work(n, k, 2 * n, state.x, V, np.empty(setup.n_work)), 0
+        par = setup.par.copy() if TIME else setup.par
+        return _Work(n, k, 2 * n, state.x, V, np.empty(setup.n_work), par), 0
 
     @njit(inline="always")
     def step(state, setup, ws, carry, s, call):
         parts, h, counters = setup.parts, setup.h, state.counters
-        for st in range(parts.shape[0]):
-            apply(parts[st], h[st], state.x, ws.V, ws.k, setup.par, ws.work)
-            counters[parts[st]] += 1
+        if TIME:
+            t = float(call.step0 + s) * call.tau
+            last, slot = ws.par.shape[0] - 1, ws.work.shape[0] - 1
+            for st in range(parts.shape[0]):
+                ws.par[last] = t
+                ws.work[slot] = state.pt[0]
+                apply(parts[st], h[st], state.x, ws.V, ws.k, ws.par, ws.work)
+                state.pt[0] = ws.work[slot]
+                t += h[st]
+                counters[parts[st]] += 1
+        else:
+            for st in range(parts.shape[0]):
+                apply(parts[st], h[st], state.x, ws.V, ws.k, setup.par, ws.work)
+                counters[parts[st]] += 1
         return 0, carry
 
     @njit(inline="always")
@@ -81,7 +108,9 @@ def parts_body(apply, field, K_C):
 
     @njit(inline="always")
     def flow(state, setup, ws, carry, xe, s, call, out):
-        field(xe, setup.par, out)
+        if TIME:
+            ws.par[ws.par.shape[0] - 1] = float(call.step0 + s + 1) * call.tau
+        field(xe, ws.par, out)
         return carry
 
     @njit(inline="always")
@@ -95,13 +124,14 @@ def parts_body(apply, field, K_C):
     return StepBody(begin=begin, step=step, check=check, flow=flow, vectors=vectors, end=end)
 
 
-def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False):
+def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False, time=False):
     """The batch stepper of a model's flows ``apply`` (and vector field
     ``field``) for ``k`` deviation vectors, compiled once per model class,
     k (up to :data:`SPECIALISE_K`), accumulator and options:
     ``batch(states, setup, call, status, done)``
     (:func:`varint.kernels.interval.batch_loop`) with a batch of
-    :class:`PartsOrbit` and a :class:`PartsSetup`.
+    :class:`PartsOrbit` and a :class:`PartsSetup` (with ``time``, a
+    time-dependent H: a batch of :class:`TimedPartsOrbit`, :func:`parts_body`).
 
     Flow ``st`` of a step is ``apply(parts[st], h[st], x, V, k, par,
     work)`` (V: the vectors as rows, ``work``: ``n_work`` floats of scratch
@@ -109,5 +139,5 @@ def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False
     m ran. ``accumulate`` updates ``aux[m]`` after every step; with
     ``flow`` it is given ``field(x, par, out)``, the phase-space velocity.
     """
-    body = parts_body(apply, field, k if k <= SPECIALISE_K else -1)
+    body = parts_body(apply, field, k if k <= SPECIALISE_K else -1, bool(time))
     return batch_loop(body, bool(parallel), accumulate, bool(flow))

@@ -120,11 +120,14 @@ class PartsPropagator:
         else:
             update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
         kernel = K.parts_batch(parts.apply, parts.field, state.k,
-                               use_parallel(self.parallel, m), update, flow)
+                               use_parallel(self.parallel, m), update, flow, parts.timed)
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
-        kernel(K.PartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters),
+        record = (K.TimedPartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters,
+                                    state.time_momentum()[:, None]) if parts.timed else
+                  K.PartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters))
+        kernel(record,
                K.PartsSetup(self._parts, self._h, self._par, self._n_work),
                Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
                state.status, done)
@@ -185,9 +188,12 @@ def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
     kinds, h, par, n_work = _tables(model, _scheme(model, scheme), float(tau))
     status = np.zeros(1, dtype=np.int64)
     done = np.zeros(1, dtype=np.int64)
-    kernel = K.parts_batch(model.parts.apply, model.parts.field, k, False)
-    kernel(K.PartsOrbit(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64),
-                        np.empty((1, 0, 0)), np.zeros((1, len(model.parts.names)), dtype=np.int64)),
+    timed = model.parts.timed
+    kernel = K.parts_batch(model.parts.apply, model.parts.field, k, False, time=timed)
+    fields = (x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), np.empty((1, 0, 0)),
+              np.zeros((1, len(model.parts.names)), dtype=np.int64))
+    # A time-dependent H starts at t = 0 with p_t = 0.
+    kernel(K.TimedPartsOrbit(*fields, np.zeros((1, 1))) if timed else K.PartsOrbit(*fields),
            K.PartsSetup(kinds, h, par, n_work), Call(int(n_steps), 0, float(tau), int(Renorm.NONE),
                                                       np.inf), status, done)
     if status[0] != STATUS_OK:

@@ -804,24 +804,17 @@ class GeneralHamiltonian(HamiltonianModel):
     @property
     def parts(self):
         """The whole-step integrators as the part stepper's flows
-        (:mod:`varint.flows.general`).
-
-        Raises
-        ------
-        ValueError
-            For a time-dependent H: its stages need their times, which the
-            part stepper does not pass to the flows.
-        """
-        if self.time_dependent:
-            raise ValueError(f"{self.name} depends on time and has no solvable split: "
-                             "method='tm' does not run it yet; use method='taylor', 'dop853' "
-                             "or 'cvode'")
+        (:mod:`varint.flows.general`); for a time-dependent H they run in
+        the extended phase space, the time in the last parameter and its
+        conjugate momentum carried by the stepper (``Parts.timed``)."""
         par = np.ascontiguousarray(self.parameters_at(None), dtype=np.float64)
+        timed = bool(self.time_dependent)
         return Parts(names=GEN.INTEGRATORS, apply=GEN.general_apply(
-            self.grad_h, self.grad_hess_h, self.n_dof, par.shape[0]),
+            self.grad_h, self.grad_hess_h, self.n_dof, par.shape[0],
+            self.dtime_h if timed else None),
             field=S.hamiltonian_field(self.grad_h), splits={len(GEN.INTEGRATORS): GEN.INTEGRATORS},
-            par=par, n_work=GEN.general_work(self.n_dof, par.shape[0]),
-            default_scheme=self.default_scheme, schemes=GEN.GENERAL_SCHEMES)
+            par=par, n_work=GEN.general_work(self.n_dof, par.shape[0], timed),
+            default_scheme=self.default_scheme, schemes=GEN.GENERAL_SCHEMES, timed=timed)
 
 
 _CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,

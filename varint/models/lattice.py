@@ -42,8 +42,9 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -304,6 +305,11 @@ class Parts:
         The model's own schemes by upper-cased name (those of a general
         H(q, p), :data:`varint.flows.general.GENERAL_SCHEMES`): when given,
         ``method="tm"`` takes only these.
+    timed : bool
+        A time-dependent H whose flows each integrate the whole H over
+        their time h: ``apply`` reads the flow's start time from the last
+        entry of ``par`` and advances the momentum conjugate to time, held
+        in the last float of ``work`` (:func:`varint.kernels.parts.parts_body`).
     """
 
     names: tuple
@@ -315,6 +321,7 @@ class Parts:
     default_scheme: str | None = None
     extend: Callable | None = None
     schemes: dict | None = None
+    timed: bool = False
 
     def index(self, name):
         return self.names.index(name)
