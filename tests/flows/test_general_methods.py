@@ -13,9 +13,11 @@ from scipy.integrate import solve_ivp
 import varint
 from tests.flows.steppers import coupled_general, gauss_steps, taylor_reference
 from tests.helpers import fitted_slope
-from varint.flows.general import GENERAL_SCHEMES
+from varint.flows.general import GENERAL_SCHEMES, TAO_SCHEMES
+from varint.flows.tao import tao_step, tao_work
 from varint.methods.parts import parts_steps
 from varint.models import from_hamiltonian
+from varint.schemes import part_stages
 
 X0 = np.array([0.1, 0.05, 0.2, 0.25])
 
@@ -127,3 +129,58 @@ def test_time_dependent_tangent_is_the_derivative_of_the_map():
                            - parts_steps(model, x0 - eps * e, None, 0.1, 8, "GL6")[0]) / (2 * eps)
                           for e in np.eye(2)])
     assert np.abs(W - fd).max() < 1e-8
+
+
+@pytest.mark.parametrize("name, steps", [("TAO4", (160, 320, 640)), ("TAO6", (320, 640, 1280))])
+def test_tao_measured_order_through_a_run(name, steps):
+    """Tao's method as schemes of method="tm" (its own step body on the
+    stepping skeleton, the second copy kept in the run's state): the orbit
+    at t = 4 against heyoka's Taylor method falls as τ^order (in the
+    asymptotic range: the binding ω = 20 makes the error's constant large
+    until ωτ ≪ 1: TAO6's local slopes over 160 → 320 → 640 steps were 5.5,
+    5.9)."""
+    model = coupled_general()
+    ref = taylor_reference(model, X0, 4.0)
+    taus = [4.0 / n for n in steps]
+    errors = []
+    for tau in taus:
+        r = varint.lyapunov_spectrum(model, X0, 4.0, tau=tau, scheme=name, t_out=[4.0],
+                                     energy_tol=math.inf, progress=False)
+        errors.append(np.abs(r.state - ref).max())
+    assert fitted_slope(taus, errors) == pytest.approx(TAO_SCHEMES[name].order, abs=0.3)
+
+
+def test_tao_runs_its_step_and_resumes_bit_for_bit():
+    """Through the skeleton, Tao's method gives the orbit of tao_step
+    applied step after step (no reset of the second copy), bit for bit, and
+    the log-stretching of its tangent to round-off; a run cut into 20 calls
+    by output times gives the same bits as one call (the second copy and G
+    travel in the run's state)."""
+    model = coupled_general()
+    scheme, tau, n = TAO_SCHEMES["TAO4"], 0.05, 200
+    parts, h = part_stages(scheme, tau, {0: 0, 1: 1, 2: 2})
+    x, x2, G = X0.copy(), X0.copy(), np.eye(4)
+    V = np.eye(4)[:1].copy()
+    work = np.empty(tao_work(model.n_dof, 1))
+    par = model.parameters_at(None)
+    log_growth = 0.0
+    for _ in range(n):
+        assert tao_step(parts, h, scheme.omega, x, x2, V, 1, G, par, work,
+                        model.grad_hess_h) == 0
+        norm = np.linalg.norm(V[0])
+        log_growth += math.log(norm)
+        V[0] /= norm
+    w0 = np.eye(4)[:, :1]
+    one = varint.lyapunov_spectrum(model, X0, n * tau, tau=tau, scheme="TAO4", deviations=w0,
+                                   t_out=[n * tau], energy_tol=math.inf, progress=False)
+    many = varint.lyapunov_spectrum(model, X0, n * tau, tau=tau, scheme="TAO4", deviations=w0,
+                                    t_out=np.linspace(0.5, n * tau, 20), energy_tol=math.inf,
+                                    progress=False)
+    assert np.array_equal(one.state, x)
+    assert one.exponents[-1, 0] * n * tau == pytest.approx(log_growth, rel=1e-12)
+    assert np.array_equal(one.state, many.state)
+    assert np.array_equal(one.exponents[-1], many.exponents[-1])
+    timed, _ = _timed_general()
+    with pytest.raises(ValueError, match="Tao's method takes no time-dependent H"):
+        varint.lyapunov_spectrum(timed, np.array([0.5, 0.1]), 1.0, tau=0.1, scheme="TAO4",
+                                 progress=False)

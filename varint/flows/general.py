@@ -22,8 +22,8 @@ stepper reports as a failed orbit.
 
 Tao's extended-phase-space method (:mod:`varint.flows.tao`) carries its
 second copy from step to step; that state has no place in the part
-stepper, so it is not offered here (``studies/hamiltonians.py`` measures it
-against Gauss–Legendre).
+stepper, so its schemes (:data:`TAO_SCHEMES`) run on a step body of their
+own (:mod:`varint.kernels.tao`), the copy kept in the run's state.
 """
 
 from __future__ import annotations
@@ -34,10 +34,11 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from ..schemes import CompositionScheme
+from ..schemes import CompositionScheme, get_scheme
 from .gauss import GAUSS, gauss_step, gauss_work, no_dtime
 
-__all__ = ["INTEGRATORS", "GENERAL_SCHEMES", "WholeStep", "general_apply", "general_work"]
+__all__ = ["INTEGRATORS", "GENERAL_SCHEMES", "TAO_SCHEMES", "TAO_OMEGA", "TaoScheme", "WholeStep",
+           "general_apply", "general_work"]
 
 #: The whole-step integrators of a general H, by part index.
 INTEGRATORS = ("GL4", "GL6", "GL8")
@@ -69,6 +70,38 @@ GENERAL_SCHEMES = {name: WholeStep(name, len(INTEGRATORS), (1.0,), GAUSS[name].o
                                    GAUSS[name].reference + "; symplectic: Hairer, Lubich & "
                                    "Wanner 2006, Sect. VI.4", slot=i)
                    for i, name in enumerate(INTEGRATORS)}
+
+
+#: Tao's binding ω (Tao 2016 takes ω ≈ 20 for steps of this size).
+TAO_OMEGA = 20.0
+
+
+@dataclass(frozen=True)
+class TaoScheme(CompositionScheme):
+    """Tao's explicit method (:mod:`varint.flows.tao`): a composition over
+    his three flows H_A, H_B, ω H_C (the γ of a three-part composition of
+    :data:`varint.schemes.SCHEMES`) with binding ``omega``. Its second copy
+    and tangent travel from step to step, so it runs on its own step body
+    (:mod:`varint.kernels.tao`, :class:`varint.methods.general.GeneralPropagator`)."""
+
+    omega: float = TAO_OMEGA
+
+    def describe(self) -> dict:
+        d = super().describe()
+        d["integrator"] = f"Tao's explicit extended-phase-space method, binding ω = {self.omega:g}"
+        return d
+
+
+def _tao(name, composition, order):
+    base = get_scheme(composition)
+    return TaoScheme(name, 3, base.gammas, order, f"M. Tao, Phys. Rev. E 94, 043303 (2016), "
+                     f"composed as {base.name} ({base.reference})")
+
+
+#: Tao's method of orders 4 and 6 (Yoshida's triple jumps of his second-order
+#: map), by upper-cased name; their orders are measured in
+#: tests/flows/test_general_methods.py.
+TAO_SCHEMES = {"TAO4": _tao("TAO4", "ABC4_Y", 4), "TAO6": _tao("TAO6", "ABC6_Y", 6)}
 
 
 def general_work(n_dof, n_par, timed=False):

@@ -793,13 +793,15 @@ class TermwiseHamiltonian(HamiltonianModel):
 class GeneralHamiltonian(HamiltonianModel):
     """Any H(q, p) (or H(q, p, t)) without a solvable split; see
     :func:`from_hamiltonian`. ``method="tm"`` integrates it by implicit
-    Gauss–Legendre steps (schemes GL4, GL6, GL8; :mod:`varint.flows.general`),
-    the reference methods by Hamilton's equations; Tao's explicit method is
-    in :mod:`varint.flows.tao`."""
+    Gauss–Legendre steps (schemes GL4, GL6, GL8; :mod:`varint.flows.general`)
+    or Tao's explicit method (TAO4, TAO6; :mod:`varint.flows.tao`), the
+    reference methods by Hamilton's equations."""
 
     structure = "general"
     #: The scheme of ``method="tm"`` when none is given.
     default_scheme = "GL8"
+    #: Gauss–Legendre through the part stepper, Tao's method through its own body.
+    parts_propagator = "varint.methods.general:GeneralPropagator"
 
     @property
     def parts(self):
@@ -814,7 +816,8 @@ class GeneralHamiltonian(HamiltonianModel):
             self.dtime_h if timed else None),
             field=S.hamiltonian_field(self.grad_h), splits={len(GEN.INTEGRATORS): GEN.INTEGRATORS},
             par=par, n_work=GEN.general_work(self.n_dof, par.shape[0], timed),
-            default_scheme=self.default_scheme, schemes=GEN.GENERAL_SCHEMES, timed=timed)
+            default_scheme=self.default_scheme,
+            schemes={**GEN.GENERAL_SCHEMES, **GEN.TAO_SCHEMES}, timed=timed)
 
 
 _CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,
