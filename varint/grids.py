@@ -1,7 +1,8 @@
 """Grids of initial conditions on a plane of phase space, for chaos maps of
 map models (a 2D map's whole phase space) or of any slice through a higher
 one; :func:`varint.section_grid` makes grids on a surface of section of a
-flow at fixed energy instead."""
+flow at fixed energy instead. Both are :class:`SectionGrid` records (data
+that models build too, so it lives here, below the runs and the models)."""
 
 from __future__ import annotations
 
