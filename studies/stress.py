@@ -41,9 +41,10 @@ def _stable(model, x0, scheme, tau, horizon):
         # At most one output per step (large τ near the stability limit).
         n_out = max(1, min(50, int(horizon // tau)))
         # Near the stability limit on purpose: the study's own threshold
-        # (UNSTABLE) judges the energy error, so the verdict uses it too.
+        # (UNSTABLE, below) judges the energy error, and a run past it is
+        # the finding, not a fault, so varint's verdict never warns here.
         r = varint.integrate(model, x0, horizon, tau=tau, scheme=scheme, t_out=n_out,
-                             progress=False, energy_tol=UNSTABLE)
+                             progress=False, energy_tol=np.inf)
     except IntegrationError:
         return False
     return bool(np.max(r.energy_error) < UNSTABLE)

@@ -234,7 +234,8 @@ def test_a_planted_kernels_link_is_refused(tmp_path, monkeypatch, private):
 
 def test_a_secret_others_can_read_is_replaced(private, monkeypatch):
     """A secret file readable by others may have leaked: it is replaced by a
-    new one (one warning), and what it signed is rebuilt."""
+    new one (one warning), and what it signed is rebuilt (one warning per
+    file signed with the old secret, which is not used)."""
     cache_dir, _ = private
     clean = x1()
     secret = cache_dir / cachedir.SECRET_FILE
@@ -242,8 +243,12 @@ def test_a_secret_others_can_read_is_replaced(private, monkeypatch):
     secret.chmod(0o644)
     new_process(monkeypatch)
     monkeypatch.setattr(cachedir, "_SECRETS", {})
-    with pytest.warns(CacheDirWarning, match="not private"):
+    with pytest.warns(CacheDirWarning, match="not private") as warned:
         assert x1() == clean
+    messages = [str(w.message) for w in warned]
+    assert len([m for m in messages if "not private" in m]) == 1
+    rebuilt = [m for m in messages if "not private" not in m]
+    assert rebuilt and all("is not used: its signature does not match" in m for m in rebuilt)
     assert secret.read_bytes() != old and stat.S_IMODE(secret.stat().st_mode) == 0o600
 
 

@@ -60,7 +60,9 @@ def test_escape_radius_stops_the_orbit_as_escaped(where, escaping):
     assert_time_and_step(info.value, 0.05)
     assert escaping[0].escape_radius is None  # the per-call radius left the model alone
     # It is stopped where |q| first exceeds 5, before it overflows.
-    crossed = varint.integrate(escaping[0], x0, info.value.t - 0.05, tau=0.05).state
+    # Near escape the energy error passes 1e-3; the verdict is not the subject.
+    crossed = varint.integrate(escaping[0], x0, info.value.t - 0.05, tau=0.05,
+                               energy_tol=1.0).state
     assert np.hypot(*crossed[:2]) <= 5.0
     with pytest.raises(varint.IntegrationError, match="non-finite") as overflow:
         varint.gali(*escaping, 100.0, tau=0.05)

@@ -312,7 +312,9 @@ def test_ddnls_norm_is_the_second_integral(ddnls_cases):
     s0 = model.norm(x0)
 
     def worst(scheme, tau):
-        r = varint.integrate(model, x0, 20.0, tau=tau, scheme=scheme, t_out=50)
+        # The coarse three-part runs are meant to err: the accuracy verdict
+        # (its warning) is not what this test checks.
+        r = varint.integrate(model, x0, 20.0, tau=tau, scheme=scheme, t_out=50, energy_tol=1.0)
         return np.max(np.abs(model.norm(r.states) / s0 - 1))
     # Round-off of 200 steps of the eigenvector transforms: ~3e-13.
     assert worst("ABA864", 0.1) < 2e-12

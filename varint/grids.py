@@ -1,7 +1,8 @@
 """Grids of initial conditions on a plane of phase space, for chaos maps of
 map models (a 2D map's whole phase space) or of any slice through a higher
 one; :func:`varint.section_grid` makes grids on a surface of section of a
-flow at fixed energy instead."""
+flow at fixed energy instead. Both are :class:`SectionGrid` records (data
+that models build too, so it lives here, below the runs and the models)."""
 
 from __future__ import annotations
 
@@ -11,9 +12,41 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _validate as check
-from .sections import SectionGrid
 
-__all__ = ["PhaseGrid", "phase_grid"]
+__all__ = ["SectionGrid", "PhaseGrid", "phase_grid"]
+
+
+@dataclass
+class SectionGrid:
+    """Initial conditions on a grid of a surface of section at fixed energy.
+
+    Attributes
+    ----------
+    states : ndarray, shape (M, 2N)
+        The valid grid points (row-major over ``mask``), with p_plane ≥ 0
+        solved from the energy.
+    mask : ndarray of bool, shape (n_v, n_u)
+        Which grid points are energetically allowed.
+    u, v : ndarray
+        Grid values of the two coordinates that vary (``axes``).
+    axes : tuple of int
+        State indices of u and v (e.g. (1, 3) = (y, p_y) for Hénon–Heiles).
+    plane : int
+        q_plane = value on the section.
+    value, energy : float
+    """
+
+    states: np.ndarray
+    mask: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    axes: tuple
+    plane: int
+    value: float
+    energy: float
+
+    def __len__(self):
+        return len(self.states)
 
 
 @dataclass

@@ -61,7 +61,7 @@ from .models.base import Model
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import default_tau, prepare
-from .sections import SectionGrid
+from .grids import SectionGrid
 from .state import initial_deviations, output_steps
 from .store import Invalid, Store
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 import numbers
 import time
 from collections import namedtuple
-from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
@@ -41,6 +40,9 @@ from . import identity
 from .accuracy import Reference, assess, energy_tolerance, warn
 from .results import Provenance, SectionResult, package_versions
 from .schemes import SplittingScheme, get_scheme, stage_arrays
+# The grid of initial conditions is data of the grids layer (models build it
+# too, below this module); imported here, where it has always been named.
+from .grids import SectionGrid
 
 __all__ = ["surface_of_section", "section_grid", "SectionGrid"]
 
@@ -316,39 +318,6 @@ def _autonomous_flow(model):
                          "no section at fixed energy; grid its phase space with "
                          "varint.phase_grid (a stroboscopic section: t_out at multiples of the "
                          "period)")
-
-
-@dataclass
-class SectionGrid:
-    """Initial conditions on a grid of a surface of section at fixed energy.
-
-    Attributes
-    ----------
-    states : ndarray, shape (M, 2N)
-        The valid grid points (row-major over ``mask``), with p_plane ≥ 0
-        solved from the energy.
-    mask : ndarray of bool, shape (n_v, n_u)
-        Which grid points are energetically allowed.
-    u, v : ndarray
-        Grid values of the two coordinates that vary (``axes``).
-    axes : tuple of int
-        State indices of u and v (e.g. (1, 3) = (y, p_y) for Hénon–Heiles).
-    plane : int
-        q_plane = value on the section.
-    value, energy : float
-    """
-
-    states: np.ndarray
-    mask: np.ndarray
-    u: np.ndarray
-    v: np.ndarray
-    axes: tuple
-    plane: int
-    value: float
-    energy: float
-
-    def __len__(self):
-        return len(self.states)
 
 
 def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,

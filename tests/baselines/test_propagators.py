@@ -97,7 +97,13 @@ def test_an_orbit_blowing_up_fails_in_the_same_interval_for_every_baseline():
     steps = {}
     for (method, options), name in zip(CONFIGS + [("tm", {})], CONFIG_IDS + ["tm"]):
         with pytest.raises(varint.IntegrationError) as info:
-            varint.lyapunov_spectrum(model, x0, 30.0, method=method, **options)
+            if method == "tm":
+                # TM chooses its own step with a pilot run, which sees the
+                # blow-up and says so.
+                with pytest.warns(varint.AccuracyWarning, match="no step of SBAB2C keeps"):
+                    varint.lyapunov_spectrum(model, x0, 30.0, method=method, **options)
+            else:
+                varint.lyapunov_spectrum(model, x0, 30.0, method=method, **options)
         steps[name] = info.value.step
     assert len({steps[name] for name in CONFIG_IDS}) == 1, steps
     assert abs(steps["tm"] - steps["taylor"]) <= 2 and 300 < steps["tm"] < 360, steps

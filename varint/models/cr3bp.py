@@ -40,7 +40,7 @@ import numbers
 
 import numpy as np
 
-from ..sections import SectionGrid
+from ..grids import SectionGrid
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["CR3BP", "CR3BP_ORBITS", "cr3bp_orbit", "EARTH_MOON_MU", "SUN_JUPITER_MU",
