@@ -247,7 +247,7 @@ def _claims(out, s, rows):
                ours=f"{wrong} of {len(below)} runs below {DEFAULT_ENERGY_TOL:g}",
                holds=wrong == 0, figure="energy_tolerance.png")
     lowest = s["lowest_failure"]
-    holds = None if lowest is None else bool(DEFAULT_ENERGY_TOL <= lowest / 10)
+    holds = None if lowest is None else bool(lowest / 10 >= DEFAULT_ENERGY_TOL)
     claims.add("The default energy tolerance lies at least a decade below the smallest energy "
                "error at which an indicator's verdict or X1's value went wrong",
                paper="—", ours=f"DEFAULT_ENERGY_TOL = {DEFAULT_ENERGY_TOL:g}; first failure at "

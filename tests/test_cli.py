@@ -769,4 +769,4 @@ def test_ctrl_c_prints_the_outputs_so_far_then_one_line(capsys, monkeypatch, tmp
     line = _one_line(err)
     assert line.startswith("varint run: interrupted at t = ") and "shown and written" in line
     rows = _rows(tmp_path / "r.csv")
-    assert 1 < len(rows) and float(rows[-1][0]) < 200
+    assert len(rows) > 1 and float(rows[-1][0]) < 200

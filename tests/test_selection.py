@@ -81,7 +81,7 @@ def test_the_default_pilot_fits_any_candidate_steps():
 
     assert default_pilot(1e4, [0.05, 0.1, 0.2]) == pytest.approx(100.0)
     T = default_pilot(1e4, [0.03])
-    assert T == pytest.approx(99.96) and (T / 4 / 0.03) == pytest.approx(833)
+    assert pytest.approx(99.96) == T and pytest.approx(833) == (T / 4 / 0.03)
     assert default_pilot(10.0, [0.05, 0.2]) == pytest.approx(9.6)
     with pytest.raises(ValueError, match="shorter than the shortest pilot, 0.8"):
         default_pilot(0.5, [0.05, 0.2])

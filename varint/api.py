@@ -10,7 +10,7 @@ of :func:`varint.run`, documented there once.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 from numpy.typing import ArrayLike
 
@@ -58,7 +58,8 @@ def lyapunov_spectrum(model: Model, x0: ArrayLike, t_end: float, tau: float | No
     >>> r.exponents.shape[1]
     4
     """
-    return run(model, x0, "lyapunov", t_end, tau, n_exponents=n_exponents, **options)
+    return cast(LyapunovResult, run(model, x0, "lyapunov", t_end, tau, n_exponents=n_exponents,
+                                    **options))
 
 
 def gali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
@@ -94,7 +95,7 @@ def gali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
     >>> sorted(g.gali)
     [2, 4]
     """
-    return run(model, x0, "gali", t_end, tau, k=k, **options)
+    return cast(GALIResult, run(model, x0, "gali", t_end, tau, k=k, **options))
 
 
 def sali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
@@ -116,7 +117,7 @@ def sali(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
     >>> bool(varint.sali(model, x0, 2000.0, tau=0.05).sali[-1] < 1e-8)
     True
     """
-    return run(model, x0, "sali", t_end, tau, **options)
+    return cast(SALIResult, run(model, x0, "sali", t_end, tau, **options))
 
 
 def megno(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
@@ -142,7 +143,7 @@ def megno(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
     >>> 1.5 < float(m.mean_megno[-1]) < 2.5
     True
     """
-    return run(model, x0, "megno", t_end, tau, **options)
+    return cast(MEGNOResult, run(model, x0, "megno", t_end, tau, **options))
 
 
 def integrate(model: Model, x0: ArrayLike, t_end: float, tau: float | None = None,
@@ -188,4 +189,5 @@ def integrate(model: Model, x0: ArrayLike, t_end: float, tau: float | None = Non
     >>> out.states.shape
     (5, 4)
     """
-    return run(model, x0, "integrate", t_end, tau, deviations=deviations, **options)
+    return cast(IntegrationResult, run(model, x0, "integrate", t_end, tau, deviations=deviations,
+                                       **options))

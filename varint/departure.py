@@ -223,7 +223,7 @@ def departure(model: Model, x0: ArrayLike, method: str, tau: float, t_end: float
     t_out = output_steps(t_end, tau, per_decade=per_decade) * tau
 
     common = dict(tau=tau, seed=seed, t_out=t_out, progress=progress)
-    runs = {
+    runs: dict[str, Any] = {  # Lyapunov and GALI results side by side
         "x1": lyapunov_spectrum(model, x0, t_end, method=method, scheme=scheme, n_exponents=1,
                                 **common, **method_options),
         "x1_reference": lyapunov_spectrum(model, x0, t_end, method=ref_method, n_exponents=1,

@@ -97,7 +97,7 @@ def test_ratio_rules_at_their_edges():
     assert rules.agrees(None, 1.0).holds is None
     assert rules.at_most(2.9e-7, 1e-7).holds and not rules.at_most(3.1e-7, 1e-7).holds
     assert rules.above(3.1, 1.0).holds and not rules.above(2.9, 1.0).holds
-    assert rules.ABOVE_FACTOR == f  # "above" starts where "agrees" ends
+    assert f == rules.ABOVE_FACTOR  # "above" starts where "agrees" ends
     assert rules.in_band(2e-8, 1.8e-8, 1.3e-7).holds
     assert not rules.in_band(5e-7, 1.8e-8, 1.3e-7).holds
     assert not rules.in_band(5e-9, 1.8e-8, 1.3e-7).holds

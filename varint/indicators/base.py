@@ -28,7 +28,8 @@ import re
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from collections.abc import Mapping
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
