@@ -23,6 +23,9 @@ Usage::
 
     git archive main varint | tar -x -C /tmp/base
     python studies/call_overhead.py --baseline /tmp/base
+
+The stored result compared this branch with ``main`` as it was when the
+branch started (its commit message gives the figures).
 """
 
 from __future__ import annotations
@@ -81,14 +84,16 @@ def worker(code_dir, calls):
 
 def main(argv=None):
     def extra(parser):
-        parser.add_argument("--baseline", type=Path, required=True,
-                            help="directory holding the baseline's varint package")
+        parser.add_argument("--baseline", type=Path, default=None,
+                            help="directory holding the baseline's varint package (default: "
+                                 "this code itself, which measures only the noise)")
         parser.add_argument("--rounds", type=int, default=5)
         parser.add_argument("--calls", type=int, default=400)
 
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     rounds, calls = (2, 50) if args.quick else (args.rounds, args.calls)
-    contenders = {"this": ROOT, "baseline": args.baseline.resolve()}
+    baseline = ROOT if args.baseline is None else args.baseline.resolve()
+    contenders = {"this": ROOT, "baseline": baseline}
     best = {}
     for _ in range(rounds):
         for label, code in contenders.items():
@@ -112,7 +117,8 @@ def main(argv=None):
     for label in contenders:
         summary[f"fixed_share_{label}"] = (best[label]["fixed"]["cpu_us"]
                                            / best[label]["frontier"]["cpu_us"])
-    data = {"rounds": rounds, "calls": calls, "best": best, "summary": summary}
+    data = {"rounds": rounds, "calls": calls, "baseline": str(args.baseline),
+            "best": best, "summary": summary}
     save_json(args.out, "call_overhead", data)
     for case in ("fixed", "frontier"):
         s = summary[case]
