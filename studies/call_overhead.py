@@ -1,0 +1,131 @@
+"""The fixed cost of one ``varint.integrate`` call, this code against a
+baseline copy of varint (issue 27: at global errors 1e-8/1e-10 on R1 the
+fixed per-call cost was about half of varint's time against heyoka).
+
+Two calls of the frontier study's kind (orbit + one tangent vector, R1,
+``varint.integrate(model, x0, t_end, tau=..., scheme=..., deviations=w)``):
+
+* ``fixed``: one step (t_end = τ = 0.05, s15odr8): almost all of it is the
+  call's fixed cost (option checks, initial-state checks, the conserved
+  quantities, the propagator, the driver, the accuracy verdict, the result
+  and its provenance);
+* ``frontier``: t_end = 1e3 at τ = 0.4 with s35odr10, the frontier study's
+  best varint run near error 1e-8.
+
+Each code runs in its own worker process (``python -c`` with the code's
+directory first on ``sys.path``), the workers alternate (interleaved
+rounds), each round takes the minimum over many calls, and the result is
+the minimum over rounds, in µs of CPU time (``time.process_time``) and of
+wall time. The workers also return the SHA-256 of the results' numbers:
+the two codes must agree bitwise.
+
+Usage::
+
+    git archive main varint | tar -x -C /tmp/base
+    python studies/call_overhead.py --baseline /tmp/base
+
+The stored result compared this branch with ``main`` as it was when the
+branch started (its commit message gives the figures).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from studies.common import parse_args, save_json  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The worker: run in a fresh interpreter with one code's directory first
+#: on sys.path; prints one JSON line.
+WORKER = r"""
+import hashlib, json, sys, time
+sys.path.insert(0, sys.argv[1])
+import numpy as np
+import varint
+calls = int(sys.argv[2])
+model, x0 = varint.paper_orbit("R1")
+w0 = np.random.default_rng(1).standard_normal(len(x0))
+w0 /= np.linalg.norm(w0)
+cases = {"fixed": (0.05, 0.05, "s15odr8"), "frontier": (1e3, 0.4, "s35odr10")}
+out = {"varint": varint.__file__}
+for name, (t_end, tau, scheme) in cases.items():
+    def call():
+        return varint.integrate(model, x0, t_end, tau=tau, scheme=scheme,
+                                deviations=w0[:, None])
+    r = call()
+    h = hashlib.sha256()
+    for a in (r.state, r.deviations, r.energy_error, r.t):
+        h.update(np.ascontiguousarray(a).tobytes())
+    n = calls if name == "fixed" else max(3, calls // 50)
+    cpu = wall = float("inf")
+    for _ in range(n):
+        c0, t0 = time.process_time(), time.perf_counter()
+        call()
+        wall = min(wall, time.perf_counter() - t0)
+        cpu = min(cpu, time.process_time() - c0)
+    out[name] = {"cpu_us": cpu * 1e6, "wall_us": wall * 1e6, "sha256": h.hexdigest()}
+print(json.dumps(out))
+"""
+
+
+def worker(code_dir, calls):
+    """One worker's minima (see :data:`WORKER`)."""
+    done = subprocess.run([sys.executable, "-c", WORKER, str(code_dir), str(calls)],
+                          capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--baseline", type=Path, default=None,
+                            help="directory holding the baseline's varint package (default: "
+                                 "this code itself, which measures only the noise)")
+        parser.add_argument("--rounds", type=int, default=5)
+        parser.add_argument("--calls", type=int, default=400)
+
+    args = parse_args(__doc__.splitlines()[0], argv, extra)
+    rounds, calls = (2, 50) if args.quick else (args.rounds, args.calls)
+    baseline = ROOT if args.baseline is None else args.baseline.resolve()
+    contenders = {"this": ROOT, "baseline": baseline}
+    best = {}
+    for _ in range(rounds):
+        for label, code in contenders.items():
+            got = worker(code, calls)
+            for case in ("fixed", "frontier"):
+                b = best.setdefault(label, {}).setdefault(case, dict(got[case]))
+                for key in ("cpu_us", "wall_us"):
+                    b[key] = min(b[key], got[case][key])
+                if b["sha256"] != got[case]["sha256"]:
+                    raise RuntimeError(f"{label} {case}: results differ between workers")
+    summary = {}
+    for case in ("fixed", "frontier"):
+        this, base = best["this"][case], best["baseline"][case]
+        summary[case] = {"this_cpu_us": this["cpu_us"], "baseline_cpu_us": base["cpu_us"],
+                         "this_wall_us": this["wall_us"],
+                         "baseline_wall_us": base["wall_us"],
+                         "cut_cpu_us": base["cpu_us"] - this["cpu_us"],
+                         "ratio_cpu": base["cpu_us"] / this["cpu_us"],
+                         "bitwise_equal": this["sha256"] == base["sha256"]}
+    # The fixed cost's share of the frontier run, each code.
+    for label in contenders:
+        summary[f"fixed_share_{label}"] = (best[label]["fixed"]["cpu_us"]
+                                           / best[label]["frontier"]["cpu_us"])
+    data = {"rounds": rounds, "calls": calls, "baseline": str(args.baseline),
+            "best": best, "summary": summary}
+    save_json(args.out, "call_overhead", data)
+    for case in ("fixed", "frontier"):
+        s = summary[case]
+        print(f"{case}: CPU {s['baseline_cpu_us']:.0f} -> {s['this_cpu_us']:.0f} µs "
+              f"({s['ratio_cpu']:.2f}x), bitwise equal: {s['bitwise_equal']}")
+    return data
+
+
+if __name__ == "__main__":
+    main()
