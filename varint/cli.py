@@ -763,9 +763,8 @@ def _grid(args, model):
     an autonomous flow, else (a map, a time-dependent flow) a grid of the
     plane of two state components (--axes)."""
     from .grids import phase_grid
-    from .sections import section_grid
-
     from .models.planetary import Planetary
+    from .sections import section_grid
 
     if isinstance(model, Planetary):
         return _element_grid(args, model)
