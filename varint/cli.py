@@ -763,8 +763,11 @@ def _grid(args, model):
     an autonomous flow, else (a map, a time-dependent flow) a grid of the
     plane of two state components (--axes)."""
     from .grids import phase_grid
+    from .models.planetary import Planetary
     from .sections import section_grid
 
+    if isinstance(model, Planetary):
+        return _element_grid(args, model)
     n = model.n_dof
     built_in = getattr(args, "map", None)
     phase = _is_map(model) or model.time_dependent
@@ -791,6 +794,28 @@ def _grid(args, model):
     with np.errstate(over="ignore", invalid="ignore"):
         return section_grid(model, args.energy, us, vs, axes=axes,
                             plane=0 if args.plane is None else args.plane)
+
+
+def _element_grid(args, model):
+    """The grid of ``varint map --model planetary``: the outer planet's
+    orbital elements on --axes (default a, e), the others fixed at
+    Jupiter's and Saturn's (:data:`varint.models.planetary.JUPITER_SATURN`)."""
+    from .element_grid import element_grid
+    from .models.planetary import ELEMENTS, JUPITER_SATURN
+
+    _refuse_unused(args, ("energy", "plane"), "does not apply to --model planetary, whose "
+                   "chaos map is a grid of the outer planet's orbital elements (--u, --v on "
+                   "--axes)")
+    axes = ("a", "e") if args.axes is None else tuple(_items(args.axes, "--axes"))
+    if len(axes) != 2 or axes[0] == axes[1] or any(a not in ELEMENTS for a in axes):
+        raise ValueError(f"--axes: two different orbital elements among {', '.join(ELEMENTS)} "
+                         f"for --model planetary, got {args.axes!r}")
+    (u0, u1, nu), (v0, v1, nv) = (_grid_spec(args.u or "7:10:100", "--u"),
+                                  _grid_spec(args.v or "0:0.5:100", "--v"))
+    check.check_memory(check.array_bytes((nu, nv, 6 + 8 * model.n_dof)),
+                       f"a grid of {nu} x {nv} = {nu * nv} points (--u, --v)")
+    return element_grid(model, JUPITER_SATURN, model.n_planets, np.linspace(u0, u1, nu),
+                        np.linspace(v0, v1, nv), axes=axes)
 
 
 def _cmd_map(args):
@@ -822,6 +847,8 @@ def _cmd_map(args):
     with np.errstate(invalid="ignore"):
         finite = r.values[np.isfinite(r.values)]
     where = (f"on q{grid.plane} = 0 at H = {args.energy:g}" if grid.plane is not None else
+             f"over the outer planet's {grid.axes[0]}, {grid.axes[1]}"
+             if isinstance(grid.axes[0], str) else
              f"on the plane of state components {grid.axes[0]}, {grid.axes[1]}")
     p = r.provenance
     scheme = p.method_options.get("scheme")
@@ -1265,11 +1292,14 @@ def build_parser():
                    "section (default 0: x = 0)")
     p.add_argument("--axes", help="state indices of the grid axes (default: the next coordinate "
                    "and its momentum, 1,3 = y,py for 2 dof; 0,1 for a map; q0,p0 for a "
-                   "time-dependent model)")
+                   "time-dependent model; --model planetary: two orbital elements of the "
+                   "outer planet, default a,e)")
     p.add_argument("--u", default=None, help="first axis START:STOP:NUM "
-                   "(default -0.45:0.7:100; a built-in map's whole range)")
+                   "(default -0.45:0.7:100; a built-in map's whole range; --model planetary: "
+                   "7:10:100 in a)")
     p.add_argument("--v", default=None, help="second axis START:STOP:NUM "
-                   "(default -0.45:0.45:100; a built-in map's whole range)")
+                   "(default -0.45:0.45:100; a built-in map's whole range; --model planetary: "
+                   "0:0.5:100 in e)")
     p.add_argument("--indicator", default="sali", help="sali (default), gali, gali_K, x1, "
                    "megno, fli, ofli")
     _add_run_options(p, t_end=1e3, chaos_map=True)

@@ -38,3 +38,15 @@ def test_quick_runs(tmp_path):
                                                        "REBOUND"}
     laws = pl.main(["--quick", "--out", str(tmp_path)])
     assert laws["worst_tangent_vs_differences"] < 1e-8
+
+
+def test_clopper_pearson_interval_follows_its_closed_forms():
+    """k = n: the lower bound is (α/2)^(1/n); k = 0: the upper is
+    1 − (α/2)^(1/n); and every interval contains k/n."""
+    from studies.planetary_agreement import clopper_pearson
+
+    assert clopper_pearson(128, 128) == pytest.approx((0.025 ** (1 / 128), 1.0), rel=1e-12)
+    assert clopper_pearson(0, 50) == pytest.approx((0.0, 1 - 0.025 ** (1 / 50)), rel=1e-12)
+    for k in (1, 60, 125):
+        lo, hi = clopper_pearson(k, 128)
+        assert lo < k / 128 < hi

@@ -57,12 +57,19 @@ from ..kernels.nbody_unrolled import flows
 from .base import Model
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
 
-__all__ = ["Planetary", "COORDINATES", "ELEMENTS", "FRAMES"]
+__all__ = ["Planetary", "COORDINATES", "ELEMENTS", "FRAMES", "JUPITER_SATURN"]
 
 #: The coordinate systems a :class:`Planetary` integrates in.
 COORDINATES = ("jacobi", "democratic")
 #: Orbital elements, in the order of :meth:`Planetary.to_elements`.
 ELEMENTS = ("a", "e", "inc", "Omega", "omega", "M")
+#: Jupiter's and Saturn's Jacobi elements (au, radians; G = 1 with the Sun's
+#: mass 1, so one year is 2π): the two-planet system of the command line's
+#: ``varint map --model planetary``, whose default grid varies Saturn's
+#: (a, e) over the 2:1 and 5:2 mean-motion resonances with Jupiter
+#: (a ≈ 8.26 and 9.59), as studies/bench_planetary.py does.
+JUPITER_SATURN = (dict(a=5.204, e=0.048, M=0.600, omega=0.257),
+                  dict(a=9.555, e=0.056, M=0.871, omega=1.616))
 #: Frames orbital elements refer to: the centre of mass of the bodies inside
 #: (Jacobi, REBOUND's default primary) or the star.
 FRAMES = ("jacobi", "heliocentric")

@@ -30,6 +30,7 @@ from .fput import FPUT
 from .henon_heiles import HenonHeiles
 from .kg import DisorderedKG
 from .maps import CoupledStandardMaps, StandardMap
+from .planetary import Planetary
 from .three_dof import ThreeDof
 
 __all__ = ["Parameter", "ModelEntry", "MODELS", "register_model", "get_model",
@@ -203,6 +204,12 @@ def _fput(shape, alpha, beta, boundary="fixed", seed=None):
     return FPUT(shape, alpha, beta, boundary=boundary)
 
 
+def _planetary(m1, m2):
+    """The star (mass 1, G = 1) and two planets of masses ``m1`` (inner) and
+    ``m2`` in Jacobi coordinates, Wisdom–Holman split."""
+    return Planetary([1.0, m1, m2])
+
+
 _HH_XY = ("x", "y")
 register_model(ModelEntry(
     "henon-heiles", "flow", HenonHeiles,
@@ -216,6 +223,13 @@ register_model(ModelEntry(
     "fpu-beta", "flow", FPUBeta, "the FPU-β chain with fixed ends (orbit R3)",
     (Parameter("n", 8, "FPU particles", flag="fpu-n", integer=True),
      Parameter("beta", 1.5, "FPU beta"))))
+register_model(ModelEntry(
+    "planetary", "flow", _planetary,
+    "a star and two planets (Jupiter and Saturn by default) in Jacobi coordinates; its map is "
+    "a grid of the outer planet's orbital elements",
+    (Parameter("m1", 9.54e-4, "inner planet's mass (the star's is 1)"),
+     Parameter("m2", 2.85e-4, "outer planet's mass (the star's is 1)")),
+    coordinates=("x1", "y1", "z1", "x2", "y2", "z2"), classes=("Planetary",)))
 register_model(ModelEntry(
     "standard", "map", StandardMap, "the standard map p' = p + K sin x, x' = x + p' (x mod 2π)",
     (Parameter("K", 1.2, "kick strength of the standard map"),),
