@@ -191,7 +191,7 @@ class DOP853Propagator(BlockPropagator):
             state.time_momentum()[m] = clock[0][1]
         if counts[COUNTS.index("blocks")]:
             # As the SciPy engine counts: per interval integrated.
-            state.add_counts(**dict(zip(COUNTS, counts.tolist())))
+            state.add_counts(**dict(zip(COUNTS, counts.tolist(), strict=True)))
         return int(done), int(status)
 
     def _integrate(self, state, m, y0, n_out):

@@ -438,7 +438,7 @@ def slopes(rows, configs):
             out.append({"orbit": orbit, "config": c.label, "family": c.family,
                         "expected_order": expected_order(c), "tangent_slope": s_tan,
                         "orbit_slope": s_orb, "points": int(ok.sum()),
-                        "taus_fitted": " ".join(f"{t:g}" for t, k in zip(taus, ok) if k)})
+                        "taus_fitted": " ".join(f"{t:g}" for t, k in zip(taus, ok, strict=True) if k)})
     return out
 
 
@@ -622,7 +622,7 @@ def main(argv=None):
     print("# 1. the extended reference against quadruple precision")
     val = []
     for orbit in orbits:
-        val += resume.get(f"validity {orbit}", lambda: validity(
+        val += resume.get(f"validity {orbit}", lambda orbit=orbit: validity(
             orbit, T_CONVERGENCE if quick else VALIDITY_HORIZON[orbit], [HORIZON[orbit]]))
     for r in val:
         print(f"{r['orbit']} t={r['t']:<8g} extended {r['extended_orbit']:.1e} / "
@@ -658,7 +658,7 @@ def main(argv=None):
     configs = tm_configs() + TDH + [DOP853_PAPER, CVODE_DEFAULT]
     conv = []
     for orbit in orbits:
-        conv += resume.get(f"convergence {orbit}", lambda: convergence(orbit, configs, TAUS))
+        conv += resume.get(f"convergence {orbit}", lambda orbit=orbit: convergence(orbit, configs, TAUS))
     save_csv(out, "accuracy_convergence", conv, list(conv[0]))
     sl = slopes(conv, configs)
     save_csv(out, "accuracy_slopes", sl, list(sl[0]))
@@ -700,7 +700,7 @@ def main(argv=None):
     timed = []
     for orbit in orbits:
         timed += resume.get(f"time {orbit}",
-                            lambda: errors_in_time(orbit, shown, horizons[orbit]))
+                            lambda orbit=orbit: errors_in_time(orbit, shown, horizons[orbit]))
     save_csv(out, "accuracy_time", timed, list(timed[0]))
     growth = []
     for orbit in orbits:
@@ -753,7 +753,7 @@ def main(argv=None):
 
     print("\n# 4. where the TDH methods lose R1 (departure from the Taylor reference)")
     cases = DEPARTURES_QUICK if quick else DEPARTURES_FULL
-    deps = [resume.get(f"departure {m} {tau} {t_end:g}", lambda: departure_row(m, tau, t_end))
+    deps = [resume.get(f"departure {m} {tau} {t_end:g}", lambda m=m, tau=tau, t_end=t_end: departure_row(m, tau, t_end))
             for m, tau, t_end in cases]
     check = resume.get("departure reference", lambda: departure_reference_check(
         1e3 if quick else 1e4))
@@ -795,7 +795,7 @@ def plot(out, orbits, val, conv, timed, deps, horizons):
     path, plt = figure(out, "accuracy_validity")
     fig, axes = plt.subplots(1, len(orbits), figsize=(3.2 * len(orbits), 3), sharey=True,
                              layout="constrained")
-    for ax, orbit in zip(np.atleast_1d(axes), orbits):
+    for ax, orbit in zip(np.atleast_1d(axes), orbits, strict=True):
         rows = [r for r in val if r["orbit"] == orbit]
         t = [r["t"] for r in rows]
         for key, style in (("extended_tangent", "o-"), ("double_tangent", "s--")):
@@ -810,7 +810,7 @@ def plot(out, orbits, val, conv, timed, deps, horizons):
     path, plt = figure(out, "accuracy_convergence")
     fig, axes = plt.subplots(1, len(orbits), figsize=(3.4 * len(orbits), 3.4), sharey=True,
                              layout="constrained")
-    for ax, orbit in zip(np.atleast_1d(axes), orbits):
+    for ax, orbit in zip(np.atleast_1d(axes), orbits, strict=True):
         mine = [r for r in conv if r["orbit"] == orbit]
         for label in dict.fromkeys(r["config"] for r in mine):
             if label.startswith("TM") and label[3:] not in SHOWN_SCHEMES:
@@ -840,7 +840,7 @@ def plot(out, orbits, val, conv, timed, deps, horizons):
             if label.startswith("TM") and label[3:] not in SHOWN_SCHEMES:
                 continue
             pts = [r for r in mine if r["config"] == label]
-            for ax, (key, name) in zip(axes, keys):
+            for ax, (key, name) in zip(axes, keys, strict=False):
                 ax.loglog([r["t"] for r in pts], [r[key] for r in pts], label=label,
                           **_style(label))
                 ax.set_xlabel("t")
@@ -881,7 +881,7 @@ def plot(out, orbits, val, conv, timed, deps, horizons):
                       color=color, mfc="none", label=f"{method}: 1 / departure time")
     for method, marker in (("tdhcc", "o"), ("tdheps", "^")):
         paper = sorted((tau, v) for (m, tau), v in PAPER_X1_1E8.items() if m == method)
-        bx.loglog(*zip(*paper), "k" + marker, mfc="none", ms=9,
+        bx.loglog(*zip(*paper, strict=True), "k" + marker, mfc="none", ms=9,
                   label=f"paper (Table I): {method} X1(1e8)")
     bx.set_xticks(taus)
     bx.xaxis.set_major_formatter(ScalarFormatter())

@@ -62,7 +62,7 @@ def heyoka_loop(model, X, t_end, steps, indices, seed=0):
     checks = set(int(s) for s in steps)
     out = np.empty(len(X))
     start = time.perf_counter()
-    for m, (x, index) in enumerate(zip(X, indices)):
+    for m, (x, index) in enumerate(zip(X, indices, strict=True)):
         W = initial_deviations(model.dim, 2, 1, seed, [index])[0]
         ta.time = 0.0
         ta.state[:model.dim] = x

@@ -59,16 +59,16 @@ def measure(quick):
     interleaved runs."""
     model, x0 = varint.paper_orbit("R1")
     horizons = [t / QUICK_DIVISOR if quick else t for *_, t in CONFIGS]
-    for (_, tau, options, _), t_end in zip(CONFIGS, horizons):
+    for _, tau, options, _ in CONFIGS:
         _run(model, x0, 10 * tau, tau, options)  # compile
     best = [np.inf] * len(CONFIGS)
     results = [None] * len(CONFIGS)
     for _ in range(REPEATS):
-        for i, ((_, tau, options, _), t_end) in enumerate(zip(CONFIGS, horizons)):
+        for i, ((_, tau, options, _), t_end) in enumerate(zip(CONFIGS, horizons, strict=True)):
             seconds, results[i] = _run(model, x0, t_end, tau, options)
             best[i] = min(best[i], seconds)
     rows = []
-    for (label, tau, options, _), t_end, seconds, res in zip(CONFIGS, horizons, best, results):
+    for (label, tau, options, _), t_end, seconds, res in zip(CONFIGS, horizons, best, results, strict=True):
         counts = res.provenance.counts
         work = counts.get("rhs_evaluations", counts.get("gradient"))
         rows.append({"config": label, "tau": tau, "delta": options.get("delta", "-"),

@@ -310,7 +310,7 @@ def megno_equations(eqs, rows):
 
     w = [eqs[i][0] for i in range(len(eqs))[rows]]
     wdot = [eqs[i][1] for i in range(len(eqs))[rows]]
-    rate = hy.sum([a * b for a, b in zip(w, wdot)]) / hy.sum([a * a for a in w])
+    rate = hy.sum([a * b for a, b in zip(w, wdot, strict=True)]) / hy.sum([a * a for a in w])
     y, ybar = hy.make_vars("megno_y", "megno_Y")
     return [(y, hy.time * rate), (ybar, 2.0 * y / hy.time)]
 
@@ -346,7 +346,7 @@ class HeyokaMap:
             w = [eqs[i][0] for i in range(len(eqs))[self.rows[0]]]
             wdot = [eqs[i][1] for i in range(len(eqs))[self.rows[0]]]
             log_norm = hy.make_vars("log_norm")
-            eqs.append((log_norm, hy.sum([a * b for a, b in zip(w, wdot)])
+            eqs.append((log_norm, hy.sum([a * b for a, b in zip(w, wdot, strict=True)])
                         / hy.sum([a * a for a in w])))
         self.n_extra = len(eqs) - self.d * (1 + k)
         self.t_start = T_START if indicator == "megno" else 0.0
@@ -392,7 +392,7 @@ class HeyokaMap:
         for j in range(1, n + 1):
             ta.propagate_until(t_end * j / n)
             norms = [np.sqrt(np.sum(st[rows] ** 2, axis=0)) for rows in self.rows]
-            for rows, norm in zip(self.rows, norms):
+            for rows, norm in zip(self.rows, norms, strict=True):
                 st[rows] /= norm
             if self.indicator == "fli":
                 log_norm += np.log(norms[0])
@@ -628,7 +628,7 @@ def maps_case(quick, repeats, with_pynamicalsys, indicators=INDICATORS, n_grid=N
                "compile_s": compile_seconds[(ind, peer, label)],
                "turn_seconds": turns[(ind, peer, label, 1)]}
         rows.append(row)
-    for ind, values in zip(("fli", "megno"), out.get(("soa", "numba", "", 1), ())):
+    for ind, values in zip(("fli", "megno"), out.get(("soa", "numba", "", 1), ()), strict=False):
         if ind not in indicators:
             continue
         rows.append({"indicator": ind, "peer": "numba",

@@ -186,7 +186,7 @@ def main(argv=None):
             ns = [tm_ns_per_step(model, x0, name, k, steps, repeats)[0] for k in ks]
             fe = varint.get_scheme(name).force_evaluations
             print(f"{name:10}" + "".join(f"{v:10.1f}" for v in ns) + f"{fe:11d}")
-            rows += [(label, name, k, v) for k, v in zip(ks, ns)]
+            rows += [(label, name, k, v) for k, v in zip(ks, ns, strict=True)]
     if args.csv:
         with open(args.csv, "w") as f:
             f.write("model,scheme,k,ns_per_step\n")

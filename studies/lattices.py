@@ -155,7 +155,7 @@ def efficiency(quick, out):
         for target in TARGETS:
             costs = {}
             for label, pts in ladders.items():
-                errs, secs = zip(*pts)
+                errs, secs = zip(*pts, strict=True)
                 sec = time_at(errs, secs, target) if len(pts) >= 2 else None
                 if sec is not None:
                     costs[label] = (sec, False)

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import sys
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -56,11 +57,21 @@ from studies import claims as rules  # noqa: E402
 from studies import roundoff_floor, table1  # noqa: E402
 from studies.chaotic import longest_sample, sample_at  # noqa: E402
 from studies.common import Claims, figure, parse_args, save_json  # noqa: E402
-from studies.laws import (decade_slopes, decay_rate, gali_deficit, growth_after,  # noqa: E402
-                          law_deficit, local_exponents, log_growth, regular_gali_powers,
-                          roundoff_time, slope, stretch_excess, x1_law_excess)
-from studies.paper_runs import (METHOD_LABELS, PAPER_TAU, horizon, longest_stored,  # noqa: E402
-                                run)
+from studies.laws import (  # noqa: E402
+    decade_slopes,
+    decay_rate,
+    gali_deficit,
+    growth_after,
+    law_deficit,
+    local_exponents,
+    log_growth,
+    regular_gali_powers,
+    roundoff_time,
+    slope,
+    stretch_excess,
+    x1_law_excess,
+)
+from studies.paper_runs import METHOD_LABELS, PAPER_TAU, horizon, longest_stored, run  # noqa: E402
 from varint.departure import departure_time  # noqa: E402
 
 #: The five methods of Figs. 2, 4, 7, 8 in the paper's panel order, and the
@@ -498,7 +509,7 @@ def fig3(ctx):
         rows.append((tau, dep, rules.levels_off(r.t, r.exponents[:, 0]), r.exponents[-1, 0],
                      rate))
     js = [lev for _, _, lev, _, _ in rows]
-    for a, b in zip(rows, rows[1:]):
+    for a, b in pairwise(rows):
         js.append(rules.above(b[3], a[3], f"X1 τ={b[0]:g}/τ={a[0]:g}: "))
         if a[1].value is not None and b[1].value is not None:
             js.append(rules.above(a[1].value, b[1].value, f"start τ={a[0]:g}/τ={b[0]:g}: "))
@@ -595,7 +606,7 @@ def fig5(ctx):
               f"|X1+X4| {tag}", lw)
         curve(axes[0, 1], r.t, ps[:, 1], "0.5" if tag == "DOP853" else "tab:cyan",
               f"|X2+X3| {tag}", lw)
-    for k, c in zip((2, 3, 4), GRAYS):
+    for k, c in zip((2, 3, 4), GRAYS, strict=False):
         axes[0, 2].plot(ga["dop853"].t, np.maximum(ga["dop853"].gali[k], 1e-300), color=c,
                         lw=1.3, label=f"GALI{k} DOP853")
         axes[0, 2].plot(ga["tm"].t, np.maximum(ga["tm"].gali[k], 1e-300), "--", color=c,
@@ -610,7 +621,7 @@ def fig5(ctx):
               "(d) X1, every method")
     # Each legend where its panel has no curve.
     for ax, title, where in zip(axes[0], titles, ("lower left", "lower left", "upper right",
-                                                  "lower right")):
+                                                  "lower right"), strict=False):
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("t")
         ax.legend(fontsize=LEGEND - 1, loc=where,
@@ -888,7 +899,7 @@ def fig11(ctx):
                    f"power laws (slopes over t = {window[0]:.0e}–{window[1]:.0e}; SBA08's "
                    "4-torus law in brackets)", "G2–G4 const; G5 … G16 power laws",
                    ", ".join(f"G{k}: {j.value:.2f} ({powers[k]})" if j.value is not None
-                             else f"G{k}: —" for k, j in zip(R3_UPPER + R3_LOWER, js)),
+                             else f"G{k}: —" for k, j in zip(R3_UPPER + R3_LOWER, js, strict=True)),
                    rules.verdict(js) if settled else None, figure=png, rules=js if settled else [],
                    note="" if settled else f"horizon {r.t[-1]:.0e}: the run ends before the "
                    f"vectors settle on the torus (t ≈ {R3_SETTLED:.0e})", **partial(r, 1e6))

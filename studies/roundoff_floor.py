@@ -217,8 +217,8 @@ def plot(out, ev, quick):
     path, plt = figure(out, "roundoff_floor")
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), layout="constrained")
     colors = ("black", "tab:blue", "tab:green", "tab:orange", "tab:red")
-    for ax, k in zip(axes[:2], (3, 4)):
-        for c, (d, a) in zip(colors, ev["arms"].items()):
+    for ax, k in zip(axes[:2], (3, 4), strict=True):
+        for c, (d, a) in zip(colors, ev["arms"].items(), strict=False):
             ax.loglog(a["t"], a["gali"][k], color=c, lw=1.0,
                       label="no injection" if d == 0 else f"δ = {d:g} per step")
         if ev["varint"] is not None:

@@ -49,7 +49,7 @@ def gray_orbits(model):
     ys = list(np.linspace(-0.4, 0.65, 15)) + [0.1, 0.2, 0.3]
     pys = [0.0] * 15 + [0.2, 0.25, -0.2]
     out = []
-    for y, py in zip(ys, pys):
+    for y, py in zip(ys, pys, strict=True):
         try:
             out.append(varint.solve_momentum(model, [0.0, y], [0.0, py], ENERGY))
         except ValueError:  # outside the allowed region
@@ -72,7 +72,7 @@ def coverage(points, mask):
     """Fraction of the allowed cells of the (y, p_y) grid that ``points`` visit."""
     iu = np.clip(np.round((points[:, 0] - _U[0]) / CELL).astype(int), 0, len(_U) - 1)
     iv = np.clip(np.round((points[:, 1] - _V[0]) / CELL).astype(int), 0, len(_V) - 1)
-    return len(set(zip(iu.tolist(), iv.tolist()))) / int(mask.sum())
+    return len(set(zip(iu.tolist(), iv.tolist(), strict=True))) / int(mask.sum())
 
 
 def main(argv=None):

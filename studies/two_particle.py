@@ -374,7 +374,7 @@ def _print(rows, laws_by, time_part, floors, best):
     for (name, tau), law in laws_by.items():
         cells = "  ".join(f"{d:.0e}:{e:.1e}" for d, e in zip(
             law["d0"], [r["error"] for r in rows if r["orbit"] == name and r["tau"] == tau
-                        and r["method"] == "two-particle"]))
+                        and r["method"] == "two-particle"], strict=False))
         print(f"{name} tau={tau:<6g} TM {law['tm_error']:.1e} | two-particle {cells}")
         print(f"{'':12} slope vs d0: curvature {law['curvature_slope']:.2f}, rounding "
               f"{law['rounding_slope']:.2f}; best d0 {law['best_d0']:g} (own error "

@@ -359,7 +359,7 @@ def main(argv=None):
         print(f"# {case.name}: {case.error} at t = {t_end:g} on {case.orbit}")
         for pt in pts:
             rows.append(resume.get(f"{case.name} {pt.label}",
-                                   lambda: measure(case, pt, t_end, repeats)))
+                                   lambda case=case, pt=pt, t_end=t_end: measure(case, pt, t_end, repeats)))
     for case in CASES:
         mine = [r for r in rows if r["case"] == case.name]
         base = next(r for r in mine if (r["config"], r["tau"]) == BASE)

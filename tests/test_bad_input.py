@@ -693,7 +693,7 @@ def test_runs_in_threads_give_the_results_of_runs_alone():
     serial = [fn(m, x0, 200.0, **kw) for fn, m, x0, kw in jobs]
     with ThreadPoolExecutor(4) as pool:
         threaded = list(pool.map(lambda j: j[0](j[1], j[2], 200.0, **j[3]), jobs))
-    for a, b in zip(serial, threaded):
+    for a, b in zip(serial, threaded, strict=True):
         assert a.provenance.tau == b.provenance.tau
         assert a.energy_error.tobytes() == b.energy_error.tobytes()
 

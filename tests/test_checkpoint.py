@@ -227,7 +227,7 @@ def test_write_read_round_trip_keeps_every_bit(tmp_path):
         assert state.extra[key].dtype == back.state.extra[key].dtype
         assert state.extra[key].tobytes() == back.state.extra[key].tobytes()
     assert len(back.records) == 4
-    for r, s in zip(records, back.records):
+    for r, s in zip(records, back.records, strict=True):
         assert all(r[k].tobytes() == s[k].tobytes() for k in r)
     state.extra["bad"] = np.array([object()])
     with pytest.raises(TypeError, match="extra__bad"):

@@ -754,7 +754,7 @@ def test_warnings_are_one_line_each(capsys, monkeypatch):
     import warnings
 
     def warn(args):
-        warnings.warn("three\nline\nwarning", RuntimeWarning)
+        warnings.warn("three\nline\nwarning", RuntimeWarning, stacklevel=2)
 
     monkeypatch.setattr(cli, "_cmd_run", warn)
     code, out, err = _run(capsys, ["run", "sali"])

@@ -41,7 +41,7 @@ def test_spreading_on_the_clean_linear_chain_is_the_bessel_solution():
                    profiles=True)
     assert np.allclose(r["m2"], 2 * r.t ** 2, rtol=1e-10, atol=0)
     sites = np.arange(61) - 30
-    for profile, t in zip(r["profile"], r.t):
+    for profile, t in zip(r["profile"], r.t, strict=True):
         assert np.max(np.abs(profile - jv(sites, 2 * t) ** 2)) < 1e-11
     assert np.allclose(r["total"], 1.0, rtol=1e-10)
 

@@ -31,6 +31,6 @@ def test_round_trip_through_stacked_arrays():
     r = Records([_rec(j) for j in range(4)])
     back = Records.from_stacked(r.stacked(), len(r))
     assert len(back) == 4
-    for a, b in zip(r, back):
+    for a, b in zip(r, back, strict=True):
         assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
     assert Records().stacked() == {} and len(Records.from_stacked({}, 0)) == 0

@@ -75,7 +75,7 @@ def test_canonical_is_the_json_round_trip(obj):
     fast = canonical(obj)
     slow = json.loads(canonical_json(obj))
     assert fast == slow and json.dumps(fast) == json.dumps(slow)   # keys in the same order
-    assert all(type(a) is type(b) for a, b in zip(_leaves(fast), _leaves(slow)))
+    assert all(type(a) is type(b) for a, b in zip(_leaves(fast), _leaves(slow), strict=True))
 
 
 def _leaves(obj):

@@ -34,7 +34,7 @@ def test_kernels_match_sympy_at_every_time():
     W = (x**2 + y**2) / 2 + sp.sin(t) * x**2 * y - sp.cos(2 * t) * y**3 / 3
     m = from_potential(W, [x, y], time=t)
     rng = np.random.default_rng(2)
-    for qv, tv in zip(rng.uniform(-0.5, 0.5, (4, 2)), rng.uniform(-3, 3, 4)):
+    for qv, tv in zip(rng.uniform(-0.5, 0.5, (4, 2)), rng.uniform(-3, 3, 4), strict=True):
         at = {x: qv[0], y: qv[1], t: tv}
         grad = [float(sp.diff(W, s).subs(at)) for s in (x, y)]
         hess = [[float(sp.diff(W, a, b).subs(at)) for b in (x, y)] for a in (x, y)]

@@ -80,9 +80,9 @@ class EnsembleResult(_Result):
 
     plot_kind: ClassVar[str] = "ensemble"
 
-    seeds: np.ndarray = None
-    values: dict = None
-    wall_times: np.ndarray = None
+    seeds: np.ndarray | None = None
+    values: dict | None = None
+    wall_times: np.ndarray | None = None
 
     def __getitem__(self, name):
         try:

@@ -94,7 +94,7 @@ def phase_grid(model, u, v, axes=(0, 1), base=None):
         raise ValueError(f"axes must be two distinct state indices in 0..{dim - 1}, "
                          f"got {axes!r}")
     grids = [check.real_array(a, name).reshape(-1) for a, name in ((u, "u"), (v, "v"))]
-    for g, name in zip(grids, ("u", "v")):
+    for g, name in zip(grids, ("u", "v"), strict=True):
         if g.size == 0 or not np.isfinite(g).all():
             raise ValueError(f"{name} must be a non-empty array of finite values")
     check.check_memory(check.array_bytes((grids[0].size, grids[1].size, dim + 1)),

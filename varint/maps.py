@@ -126,8 +126,8 @@ class _Chunk:
     status: np.ndarray
     energy_error: np.ndarray
     state: np.ndarray
-    max_energy_error: np.ndarray = None
-    max_error: np.ndarray = None
+    max_energy_error: np.ndarray | None = None
+    max_error: np.ndarray | None = None
     counts: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     interrupted: bool = False
@@ -450,7 +450,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         X, single = check.states(model, initial_conditions, "initial_conditions")
         if single:
             raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
-                             f"got shape {np.shape(initial_conditions)}")
+                             f"got shape {np.asarray(initial_conditions).shape}")
     m = len(X)
     # The map's per-orbit results (values, times, status, errors, states).
     model_name = model.name
@@ -476,14 +476,17 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     configured = ind.configure(model, ind_options)
     ind.check_states(model, X, configured)
     k = ind.vectors(model, configured, None)
+    limit: float | None
     if isinstance(threshold, str) and threshold == "default":
-        threshold = ind.default_threshold(model, configured)
-    elif threshold is not None:
-        if (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
-                or not np.isfinite(threshold)):
-            raise ValueError(f"threshold must be a finite number, None or 'default', "
-                             f"got {threshold!r}")
-        threshold = float(threshold)
+        limit = ind.default_threshold(model, configured)
+    elif threshold is None:
+        limit = None
+    elif (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
+            or not np.isfinite(threshold)):
+        raise ValueError(f"threshold must be a finite number, None or 'default', "
+                         f"got {threshold!r}")
+    else:
+        limit = float(threshold)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     workers = 1 if client is None else _cluster_threads(client)
@@ -513,7 +516,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         steps = steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])]
     spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=tau,
                  method=method, method_options=method_options, steps=steps, seed=int(seed),
-                 threshold=threshold, escape_radius=escape_radius)
+                 threshold=limit, escape_radius=escape_radius)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
     # times; values do not depend on it (see the module docstring).
@@ -521,7 +524,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     parameters = {"kind": "chaos_map", "model": model.describe(), "x0": digest(X),
                   "indicator": ind.name, "indicator_options": configured,
-                  "threshold": threshold, "t_end": t_end, "tau": tau,
+                  "threshold": limit, "t_end": t_end, "tau": tau,
                   "t_check": digest(steps), "method": spec.method,
                   "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,

@@ -397,7 +397,7 @@ def plot_lattice(result, ax=None):
                          f"'dvd'); this one holds {', '.join(values)}")
     axes = _panels(ax, len(panels))
     t = np.asarray(result.t)
-    for axis, (title, ylabel, series) in zip(axes, panels):
+    for axis, (title, ylabel, series) in zip(axes, panels, strict=True):
         for name, legend in series:
             if name in values:
                 axis.loglog(t, np.abs(np.asarray(values[name])), label=legend)
@@ -440,7 +440,7 @@ def plot_ensemble(result, ax=None, names=None):
     axes = _panels(ax, len(panels))
     t = np.asarray(result.t)
     realisations = len(result.seeds)
-    for axis, (title, ylabel, series) in zip(axes, panels):
+    for axis, (title, ylabel, series) in zip(axes, panels, strict=True):
         for name, legend in series:
             if name not in values:
                 continue

@@ -375,8 +375,8 @@ class IntegrationResult(_Result):
         The largest errors and the verdict.
     """
 
-    states: np.ndarray = None
-    deviations: np.ndarray = None
+    states: np.ndarray | None = None
+    deviations: np.ndarray | None = None
 
 
 @dataclass
@@ -394,8 +394,8 @@ class LyapunovResult(_Result):
 
     plot_kind: ClassVar[str] = "lyapunov"
 
-    exponents: np.ndarray = None
-    deviations: np.ndarray = None
+    exponents: np.ndarray | None = None
+    deviations: np.ndarray | None = None
 
     def pair_sums(self):
         """|X_i + X_{2N−i+1}|, i = 1..N, shape ([M,] n_out, N); zero in theory
@@ -421,8 +421,8 @@ class GALIResult(_Result):
 
     plot_kind: ClassVar[str] = "gali"
 
-    gali: dict = None
-    deviations: np.ndarray = None
+    gali: dict | None = None
+    deviations: np.ndarray | None = None
 
 
 @dataclass
@@ -438,8 +438,8 @@ class SALIResult(_Result):
 
     plot_kind: ClassVar[str] = "sali"
 
-    sali: np.ndarray = None
-    deviations: np.ndarray = None
+    sali: np.ndarray | None = None
+    deviations: np.ndarray | None = None
 
 
 @dataclass
@@ -463,11 +463,11 @@ class MEGNOResult(_Result):
 
     plot_kind: ClassVar[str] = "megno"
 
-    megno: np.ndarray = None
-    mean_megno: np.ndarray = None
-    fli: np.ndarray = None
-    ofli: np.ndarray = None
-    deviations: np.ndarray = None
+    megno: np.ndarray | None = None
+    mean_megno: np.ndarray | None = None
+    fli: np.ndarray | None = None
+    ofli: np.ndarray | None = None
+    deviations: np.ndarray | None = None
 
 
 @dataclass
@@ -486,8 +486,8 @@ class IndicatorResult(_Result):
 
     plot_kind: ClassVar[str] = "series"
 
-    values: dict = None
-    deviations: np.ndarray = None
+    values: dict | None = None
+    deviations: np.ndarray | None = None
 
     def __getitem__(self, name):
         try:
@@ -522,9 +522,9 @@ class SectionResult(_Result):
     def headline(self):
         return [("crossings", np.asarray(self.n_points))]
 
-    points: np.ndarray = None
-    times: np.ndarray = None
-    n_points: np.ndarray = None
+    points: np.ndarray | None = None
+    times: np.ndarray | None = None
+    n_points: np.ndarray | None = None
     plane: int = 0
     value: float = 0.0
 
@@ -563,14 +563,14 @@ class ChaosMapResult(_Result):
     plot_kind: ClassVar[str] = "chaos_map"
 
     indicator: str = ""
-    values: np.ndarray = None
-    t_stop: np.ndarray = None
+    values: np.ndarray | None = None
+    t_stop: np.ndarray | None = None
     threshold: float | None = None
-    x0: np.ndarray = None
+    x0: np.ndarray | None = None
     axes: list | None = None
-    u: np.ndarray = None
-    v: np.ndarray = None
-    mask: np.ndarray = None
+    u: np.ndarray | None = None
+    v: np.ndarray | None = None
+    mask: np.ndarray | None = None
 
     def headline(self):
         values = np.asarray(self.values, dtype=float)

@@ -522,8 +522,9 @@ _LASKAR_ROBUTEL = [
 ]
 
 for _name, _df, _d, _k, _n, _g in _LASKAR_ROBUTEL:
-    _base = register_scheme(SplittingScheme(
-        _name, _df, _d, _k, order=2, reference=_LR, nominal_order=f"({2 * _n},2)"))
+    _base = SplittingScheme(
+        _name, _df, _d, _k, order=2, reference=_LR, nominal_order=f"({2 * _n},2)")
+    register_scheme(_base)
     register_scheme(_base.corrected(_g))
 
 # Blanes, Casas, Farrés, Laskar, Makazaga & Murua (2013).

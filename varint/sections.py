@@ -367,10 +367,10 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
     n = model.n_dof
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) or not 0 <= plane < n:
         raise ValueError(f"plane must be a coordinate index in 0..{n - 1}, got {plane!r}")
-    axes = ((plane + 1) % n, n + (plane + 1) % n) if axes is None else tuple(axes)
-    if (len(axes) != 2 or len(set(axes)) != 2
-            or any(not isinstance(a, (int, np.integer)) or not 0 <= a < 2 * n for a in axes)
-            or plane in axes or plane + n in axes):
+    pair = ((plane + 1) % n, n + (plane + 1) % n) if axes is None else tuple(axes)
+    if (len(pair) != 2 or len(set(pair)) != 2
+            or any(not isinstance(a, (int, np.integer)) or not 0 <= a < 2 * n for a in pair)
+            or plane in pair or plane + n in pair):
         raise ValueError(f"axes must be two distinct state indices in 0..{2 * n - 1} other than "
                          f"the plane's q and p ({plane}, {plane + n}), got {axes!r}")
     if isinstance(energy, bool) or not isinstance(energy, numbers.Real) or not np.isfinite(energy):
@@ -391,12 +391,12 @@ def section_grid(model: Model, energy: float, u: ArrayLike, v: ArrayLike,
                        f"a section grid of {len(grids[0])} x {len(grids[1])} = {points} points")
     U, V = np.meshgrid(*grids)
     X = np.broadcast_to(base, U.shape + (2 * n,)).copy()
-    X[..., axes[0]], X[..., axes[1]] = U, V
+    X[..., pair[0]], X[..., pair[1]] = U, V
     X[..., plane], X[..., n + plane] = value, 0.0
     # p_plane² / 2 · m⁻¹ = E − V(q) − (other kinetic terms).
     rest = energy - model.potential(X[..., :n]) - model.kinetic(X[..., n:])
     mask = rest >= 0
     X[..., n + plane] = np.sqrt(np.where(mask, 2.0 * rest / model.inverse_mass[plane], 0.0))
     return SectionGrid(states=np.ascontiguousarray(X[mask]), mask=mask, u=grids[0], v=grids[1],
-                       axes=tuple(int(a) for a in axes), plane=int(plane), value=float(value),
+                       axes=tuple(int(a) for a in pair), plane=int(plane), value=float(value),
                        energy=energy)

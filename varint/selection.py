@@ -262,16 +262,17 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
     from .api import integrate, lyapunov_spectrum
 
     model = check.model(model)
-    x0, single = check.states(model, x0)
+    states, single = check.states(model, x0)
     if not single:
-        raise ValueError(f"x0 must be one state of shape ({model.dim},), got {x0.shape}")
-    check.kernels(model, x0)
-    x0 = x0[0]
+        raise ValueError(f"x0 must be one state of shape ({model.dim},), got {states.shape}")
+    check.kernels(model, states)
+    x0 = states[0]
     target = check.positive_float(target_error, "target_error")
-    name, metric = metric, {m.lower(): m for m in METRICS}.get(str(metric).lower())
-    if metric is None:
-        raise ValueError(f"unknown metric {name!r}; expected one of: "
+    known = {m.lower(): m for m in METRICS}.get(str(metric).lower())
+    if known is None:
+        raise ValueError(f"unknown metric {metric!r}; expected one of: "
                          f"{', '.join(METRICS)}")
+    metric = known
     t_end = check.positive_float(t_end, "t_end")
     cands = _candidates(candidates)
     pilot = (default_pilot(t_end, [tau for _, _, tau in cands]) if pilot_t is None
@@ -311,7 +312,7 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
             return np.abs(r.exponents[:, 0] - ref)
         return np.array([np.linalg.norm(integrate(model, x0, t, deviations=np.eye(dim), **opts)
                                         .deviations - W) / np.linalg.norm(W)
-                         for t, W in zip(checks, ref)])
+                         for t, W in zip(checks, ref, strict=True)])
 
     table = []
     for method, scheme, tau in cands:
@@ -325,8 +326,8 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
         predicted = e[1] * (t_end / pilot) ** growth if np.isfinite(growth) else math.inf
         seconds = (_time_unit_cost(model, x0, method, scheme, tau, k) * t_end
                    if np.isfinite(predicted) else math.inf)
-        name = None if scheme is None else getattr(scheme, "name", scheme)
-        table.append({"method": method, "scheme": name, "tau": tau,
+        scheme_name = None if scheme is None else getattr(scheme, "name", scheme)
+        table.append({"method": method, "scheme": scheme_name, "tau": tau,
                       "error_quarter": float(e[0]), "error_pilot": float(e[1]),
                       "growth": float(growth), "error": float(predicted),
                       "seconds": float(seconds), "meets": bool(predicted <= target),

@@ -56,8 +56,8 @@ class RunState:
     acc_m: np.ndarray
     acc_e: np.ndarray
     step: int = 0
-    status: np.ndarray = None
-    fail_step: np.ndarray = None
+    status: np.ndarray | None = None
+    fail_step: np.ndarray | None = None
     counts: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
 

@@ -172,7 +172,7 @@ class _Builder:
         trailing = tuple(trailing)[:extra]
         trailing += tuple(f"{name}_dim{i}" for i in range(len(trailing), extra))
         dims = tuple(lead) + trailing
-        for d, size in zip(dims, array.shape):
+        for d, size in zip(dims, array.shape, strict=True):
             if d not in self.out.coords:
                 self.out.coords[d] = ((d,), _coordinate(d, size, self.variables))
         self.out.data[name] = (dims, array)
@@ -332,7 +332,7 @@ def columns(result):
         else:
             flat = arr[keep]
             names = _column_names(name, dims[-1], lay.coords[dims[-1]][1])
-            out.update(zip(names, flat.T))
+            out.update(zip(names, flat.T, strict=True))
     return out
 
 

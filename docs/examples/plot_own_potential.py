@@ -47,7 +47,7 @@ for label, method, options in [("TM, SBAB2C", "tm", {"scheme": "SBAB2C"}),
 # is closer than SBAB2C at the same τ.
 taylor = runs["Taylor (heyoka)"]
 fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
-for (label, r), style in zip(runs.items(), ("-", "--", ":")):
+for (label, r), style in zip(runs.items(), ("-", "--", ":"), strict=False):
     axes[0].loglog(r.t, abs(r.exponents[:, 0]), style, label=label)
     if r is not taylor:
         axes[1].loglog(r.t, abs(r.exponents[:, 0] - taylor.exponents[:, 0]), style, label=label)

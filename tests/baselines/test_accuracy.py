@@ -60,7 +60,7 @@ def test_dop853_error_follows_delta_when_it_takes_natural_steps(orbit):
     name, model, x0, ref = orbit
     deltas = (1e-6, 1e-8, 1e-10)
     errs = [errors(run(model, x0, "dop853", tau=2.0, delta=d), ref)[0] for d in deltas]
-    assert all(e < 1e3 * d for e, d in zip(errs, deltas)), errs
+    assert all(e < 1e3 * d for e, d in zip(errs, deltas, strict=True)), errs
     assert 0.8 < fitted_slope(deltas, errs) < 1.2
 
 

@@ -49,7 +49,7 @@ def test_bench_libraries_quick(tmp_path):
     rows = {(r["orbit"], r["k"], r["contender"]): r for r in res["rows"]}
     for orbit in ("R1", "C1"):
         for k in (1, 4):
-            def err(label):
+            def err(label, orbit=orbit, k=k):
                 return rows[orbit, k, label]["orbit_error"]
             for tol in ("1e-08", "1e-10", "1e-12"):
                 ours, theirs = err(f"cvode (varint) tol={tol}"), err(f"scikit-sundae tol={tol} directly")

@@ -95,7 +95,7 @@ def test_an_orbit_blowing_up_fails_in_the_same_interval_for_every_baseline():
     model = HenonHeiles()
     x0 = varint.solve_momentum(model, [0.0, 0.0], [0.0, 0.2], 0.25)
     steps = {}
-    for (method, options), name in zip(CONFIGS + [("tm", {})], CONFIG_IDS + ["tm"]):
+    for (method, options), name in zip(CONFIGS + [("tm", {})], CONFIG_IDS + ["tm"], strict=True):
         with pytest.raises(varint.IntegrationError) as info:
             if method == "tm":
                 # TM chooses its own step with a pilot run, which sees the
@@ -231,7 +231,7 @@ def test_a_cut_block_makes_the_next_as_long_as_the_part_used(c1):
     used = np.diff(starts)
     assert lengths[0] == cap and (used < np.array(lengths[:-1])).sum() >= 5
     grown = 0
-    for length, part, after in zip(lengths, used, lengths[1:]):
+    for length, part, after in zip(lengths, used, lengths[1:], strict=False):
         if part < length:
             assert after == part
         else:

@@ -66,6 +66,6 @@ def test_tm_error_is_order_p_against_the_taylor_reference(scheme, orbit_and_refe
     p = scheme.order
     for name, errors in (("orbit", orbit_err), ("tangent", tangent_err)):
         bound = [K_BOUND[orbit] * t ** p for t in taus]
-        assert all(e <= b for e, b in zip(errors, bound)), (name, errors, bound)
+        assert all(e <= b for e, b in zip(errors, bound, strict=True)), (name, errors, bound)
         slope = fitted_slope(taus, errors)
         assert abs(slope - p) <= 0.3, (name, slope, p, errors)

@@ -202,7 +202,7 @@ def test_map_agreement_is_measured_against_the_reference(monkeypatch):
     assert 0.0 < true["chaotic_fraction"]["fli"] < 1.0
     assert [r["config"] for r in true["rows"]] == [r["config"] for r in flipped["rows"]]
     assert len(true["rows"]) == 2 + 2 * 2 + 1  # varint ×2, heyoka 2 systems × 2 tols, numba
-    for a, b in zip(true["rows"], flipped["rows"]):
+    for a, b in zip(true["rows"], flipped["rows"], strict=True):
         assert a["agreement"] + b["agreement"] == pytest.approx(1.0)
         assert a["agreement"] >= 0.9  # every contender classifies these orbits well
 
@@ -225,7 +225,7 @@ def test_r1_error_is_measured_against_the_reference(monkeypatch):
     monkeypatch.setattr(bp, "reference", moved)
     shifted = bp.spectra_case(True, 1, ("R1",))["R1"]
     assert shifted["X1_ref"] == pytest.approx(true["X1_ref"] + delta, abs=1e-15)
-    for a, b in zip(true["rows"], shifted["rows"]):
+    for a, b in zip(true["rows"], shifted["rows"], strict=True):
         assert a["config"] == b["config"]
         assert abs(b["X1_error"] - delta) <= a["X1_error"] + 1e-12
 

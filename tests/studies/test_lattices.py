@@ -5,6 +5,7 @@ must converge."""
 
 import csv
 import json
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -37,7 +38,7 @@ def test_quick_run(tmp_path):
         # Halving τ lowers every scheme's energy error.
         for method in {r["method"] for r in sel if r["setting"].startswith("τ")}:
             errs = [r["energy_error"] for r in sel if r["method"] == method]
-            assert all(a > b for a, b in zip(errs, errs[1:])), (case, method, errs)
+            assert all(a > b for a, b in pairwise(errs)), (case, method, errs)
     # The plain loop of the speed comparison is the same algorithm as varint's.
     plain = out["speed"][-1]
     assert plain["x1_plain"] == pytest.approx(plain["x1_varint"], rel=1e-10)

@@ -1,6 +1,8 @@
 """The work–precision study's quick mode: the cost–error relations theory
 predicts (never wall time), and the Pareto front."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
@@ -29,7 +31,7 @@ def test_halving_tau_doubles_tm_force_evaluations_and_cuts_its_error(result):
     for config in {r["config"] for r in tm}:
         pts = sorted((r for r in tm if r["config"] == config), key=lambda r: -r["tau"])
         p = varint.get_scheme(config.split()[1]).order
-        for a, b in zip(pts, pts[1:]):
+        for a, b in pairwise(pts):
             assert 1.9 < b["evaluations"] / a["evaluations"] < 2.1, config
             if b["error"] > 1e-11:
                 assert a["error"] / b["error"] > 2 ** (p - 0.5), (config, a["error"], b["error"])
@@ -44,16 +46,16 @@ def test_tighter_tolerances_cost_more_and_give_smaller_errors(result):
     for family in ("CVODE", "Taylor"):
         pts = sorted(rows_of(res, "tangent_R1", family), key=lambda r: -r["tolerance"])
         assert len(pts) >= 3
-        assert all(a["error"] > b["error"] for a, b in zip(pts, pts[1:])), family
+        assert all(a["error"] > b["error"] for a, b in pairwise(pts)), family
         if family == "CVODE":
-            assert all(a["evaluations"] < b["evaluations"] for a, b in zip(pts, pts[1:]))
+            assert all(a["evaluations"] < b["evaluations"] for a, b in pairwise(pts))
     # DOP853 restarted every τ with τ below its natural step: τ sets error
     # and cost; with a long interval δ does.
     dop = rows_of(res, "tangent_R1", "DOP853")
     for name in {r["series"] for r in dop}:
         pts = sorted((r for r in dop if r["series"] == name), key=lambda r: r["evaluations"])
         assert len(pts) >= 2
-        assert all(a["error"] > b["error"] for a, b in zip(pts, pts[1:])), name
+        assert all(a["error"] > b["error"] for a, b in pairwise(pts)), name
 
 
 def test_energy_error_is_bounded_for_tm_and_drifts_for_dop853(result):
@@ -89,7 +91,7 @@ def test_winners_cover_the_error_range_and_name_the_crossovers(result):
             seg = s[cost]["winners"]
             errs = [r["error"] for r in rows_of(res, case) if wp._ok(r, cost)]
             assert np.isclose(seg[0][0], max(errs)) and np.isclose(seg[-1][1], min(errs))
-            assert all(a[2] != b[2] for a, b in zip(seg, seg[1:]))
+            assert all(a[2] != b[2] for a, b in pairwise(seg))
 
 
 def test_claims_and_files(result):

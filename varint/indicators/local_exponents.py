@@ -160,14 +160,14 @@ class LocalExponentsResult(_Result):
     dims: ClassVar[dict] = dict.fromkeys(("local", "mean", "std", "minimum", "maximum",
                                           "windows"), ("exponent",))
 
-    local: np.ndarray = None
-    mean: np.ndarray = None
-    std: np.ndarray = None
-    minimum: np.ndarray = None
-    maximum: np.ndarray = None
-    windows: np.ndarray = None
+    local: np.ndarray | None = None
+    mean: np.ndarray | None = None
+    std: np.ndarray | None = None
+    minimum: np.ndarray | None = None
+    maximum: np.ndarray | None = None
+    windows: np.ndarray | None = None
     window: float = 0.0
-    deviations: np.ndarray = None
+    deviations: np.ndarray | None = None
 
     def distribution(self, bins=50, exponent=0, orbit=None, density=True):
         """Histogram of the local exponents in the time series.

@@ -87,6 +87,12 @@ class Model:
         Runs stop with an error when |q| exceeds this (the orbit escaped).
     """
 
+    n_dof: int
+    name: str
+    bandwidth: int
+    params: np.ndarray
+    inverse_mass: np.ndarray
+
     #: A Hamiltonian flow (map models, :mod:`varint.models.maps`, say "map").
     kind = "flow"
     #: Whether V depends on t (then ``time_kernel`` is set and ``potential``

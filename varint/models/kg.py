@@ -239,6 +239,6 @@ class DisorderedKG(LatticeModel):
         q = sp.symbols(f"q1:{n + 1}")
         c = sp.Rational(1.0 / self.W)
         walls = (sp.Integer(0),) + q + (sp.Integer(0),)
-        V = sp.Add(*[sp.Rational(e) * qi ** 2 / 2 + qi ** 4 / 4 for e, qi in zip(self.epsilon, q)])
+        V = sp.Add(*[sp.Rational(e) * qi ** 2 / 2 + qi ** 4 / 4 for e, qi in zip(self.epsilon, q, strict=True)])
         V += c / 2 * sp.Add(*[(walls[b + 1] - walls[b]) ** 2 for b in range(n + 1)])
         return SymbolicPotential(V, q, (sp.Integer(1),) * n)

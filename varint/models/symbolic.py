@@ -309,14 +309,16 @@ class SymbolicModel(Model):
         if time is None:
             numpy_V = sp.lambdify(qs, V_std, modules="numpy")
 
-            def potential(x):
+            def autonomous(x):
                 # A constant term comes back as a scalar; broadcast to x's shape.
                 return numpy_V(*(x[..., i] for i in range(n))) + np.zeros(x.shape[:-1])
+            potential = autonomous
         else:
             numpy_Vt = sp.lambdify((*qs, t), V_std, modules="numpy")
 
-            def potential(x, t=0.0):
+            def timed(x, t=0.0):
                 return numpy_Vt(*(x[..., i] for i in range(n)), t) + np.zeros(x.shape[:-1])
+            potential = timed
 
         self._symbolic = SymbolicPotential(V, q, minv, time)
         # The kernels of a time-dependent V read t from par[-1].
