@@ -4,7 +4,7 @@ caches as a fresh CI checkout has them, or warm, on the caches a cold run
 left. Stores wall and CPU time (pytest and its workers together), the
 machine's cores and load before and after, pytest's summary line and its
 slowest tests, under ``cold`` or ``warm`` of ``suite_time.json`` (the other
-entry is kept). README states the figures through ``studies/quotes.py``.
+entry is kept); pytest's whole report is left in ``CACHE/pytest.log``. README states the figures through ``studies/quotes.py``.
 
 Usage: ``python studies/suite_time.py [--warm] [--cache DIR] [--out DIR]
 [-- PYTEST ARGS]``
@@ -61,6 +61,8 @@ def run_suite(cache, warm, pytest_args=()):
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     out = proc.stdout + proc.stderr
+    # pytest's whole report, for the failures and warnings the summary names.
+    (cache / "pytest.log").write_text(out)
     summary = SUMMARY.search(out)
     return {"mode": "warm" if warm else "cold",
             "command": " ".join(["python", "-m", "pytest", *command[3:]]),
