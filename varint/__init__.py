@@ -12,9 +12,11 @@ integrator of the orbit and its deviation vectors.
 4
 """
 
+import importlib as _importlib
 import importlib.util as _util
 import re as _re
 import sys as _sys
+import types as _types
 from importlib import metadata as _metadata
 from pathlib import Path as _Path
 
@@ -70,43 +72,75 @@ def _source_checkout_baselines():
 
 _source_checkout_baselines()
 
-from . import models  # noqa: E402
-from .accuracy import Accuracy, AccuracyWarning  # noqa: E402
-from .api import gali, integrate, lyapunov_spectrum, megno, sali  # noqa: E402
-from .checkpoint import CheckpointError  # noqa: E402
-from .departure import Departure, departure  # noqa: E402
-from .driver import IntegrationError  # noqa: E402
-from .element_grid import element_grid  # noqa: E402
-from .grids import PhaseGrid, phase_grid  # noqa: E402
-from .ensemble import EnsembleResult, ensemble  # noqa: E402
-from .indicators import INDICATORS, Indicator, Option, get_indicator, register_indicator  # noqa: E402
-from .maps import chaos_map  # noqa: E402
-from .methods import METHODS, register_method  # noqa: E402
-from .models import paper_orbit, solve_momentum  # noqa: E402
-from .protocol import Renorm, Status  # noqa: E402
-from .results import (ChaosMapResult, GALIResult, IndicatorResult,  # noqa: E402
-                      IntegrationResult, LyapunovResult, MEGNOResult, SALIResult, SectionResult,
-                      load_result)
-from .run import run  # noqa: E402
-from .schemes import SCHEMES, SplittingScheme, get_scheme, register_scheme  # noqa: E402
-from .sections import section_grid, surface_of_section  # noqa: E402
-from .selection import select_scheme  # noqa: E402
-from .codecache import tolerate_full_disks  # noqa: E402
+#: Every public name and the submodule that defines it, in the order they
+#: were always imported. ``import varint`` imports none of them: numba,
+#: SymPy and SciPy take a second or more to import, and a process that
+#: only asks for ``varint.__version__`` (or a CLI's ``--help``) should not
+#: pay it. The first public name asked for imports them all (a run needs
+#: them all anyway), see :func:`__getattr__`.
+_EXPORTS = {
+    "models": "models",
+    "Accuracy": "accuracy", "AccuracyWarning": "accuracy",
+    "gali": "api", "integrate": "api", "lyapunov_spectrum": "api", "megno": "api",
+    "sali": "api",
+    "CheckpointError": "checkpoint",
+    "Departure": "departure", "departure": "departure",
+    "IntegrationError": "driver",
+    "element_grid": "element_grid",
+    "PhaseGrid": "grids", "phase_grid": "grids",
+    "EnsembleResult": "ensemble", "ensemble": "ensemble",
+    "INDICATORS": "indicators", "Indicator": "indicators", "Option": "indicators",
+    "get_indicator": "indicators", "register_indicator": "indicators",
+    "chaos_map": "maps",
+    "METHODS": "methods", "register_method": "methods",
+    "paper_orbit": "models", "solve_momentum": "models",
+    "Renorm": "protocol", "Status": "protocol",
+    "ChaosMapResult": "results", "GALIResult": "results", "IndicatorResult": "results",
+    "IntegrationResult": "results", "LyapunovResult": "results", "MEGNOResult": "results",
+    "SALIResult": "results", "SectionResult": "results", "load_result": "results",
+    "run": "run",
+    "SCHEMES": "schemes", "SplittingScheme": "schemes", "get_scheme": "schemes",
+    "register_scheme": "schemes",
+    "section_grid": "sections", "surface_of_section": "sections",
+    "select_scheme": "selection",
+}
 
-# A full disk when numba caches a kernel costs a warning, not the run.
-tolerate_full_disks()
+__all__ = list(_EXPORTS)
 
-__all__ = [
-    "models", "paper_orbit", "solve_momentum",
-    "SCHEMES", "SplittingScheme", "get_scheme", "register_scheme",
-    "METHODS", "register_method",
-    "INDICATORS", "Indicator", "Option", "get_indicator", "register_indicator",
-    "run", "integrate", "lyapunov_spectrum", "gali", "sali", "megno",
-    "IntegrationResult", "LyapunovResult", "GALIResult", "SALIResult", "MEGNOResult",
-    "IndicatorResult", "load_result", "Status", "Renorm",
-    "IntegrationError", "CheckpointError", "departure", "Departure",
-    "chaos_map", "ChaosMapResult", "surface_of_section", "section_grid", "ensemble",
-    "EnsembleResult", "phase_grid", "PhaseGrid", "element_grid", "SectionResult",
-    "select_scheme",
-    "Accuracy", "AccuracyWarning",
-]
+
+class _Package(_types.ModuleType):
+    """varint's module object: the import system binds every submodule it
+    imports to its package, and four submodules are named after the
+    function they define (``run``, ``departure``, ``ensemble``,
+    ``element_grid``). The function keeps the name, as it did when
+    ``import varint`` imported everything at once."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, _types.ModuleType) and _EXPORTS.get(name) == name != "models":
+            return
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package
+
+
+def _load():
+    """Import every public name (:data:`_EXPORTS`) into the package."""
+    names = globals()
+    for name, module in _EXPORTS.items():
+        value = _importlib.import_module(f".{module}", __name__)
+        names[name] = value if name == module == "models" else getattr(value, name)
+    # A full disk when numba caches a kernel costs a warning, not the run.
+    _importlib.import_module(".codecache", __name__).tolerate_full_disks()
+
+
+def __getattr__(name):
+    # Called only for names not yet in the package (PEP 562).
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    _load()
+    return globals()[name]
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,124 @@
+"""Start-up of a fresh process: ``import varint`` and the first run with
+warm caches (issue 28, "imports on demand", "every kernel cached").
+
+A researcher's session is many short processes, so the time before the
+first number matters as much as the time per step. Each figure is the
+median over fresh processes (wall time inside the child, from before
+``import varint`` to after it, and from after it to the end of the first
+run, :data:`CASES`); one earlier process per case compiles and caches
+the kernels first, so every timed process finds the caches warm. The
+heavy modules that ``import varint`` alone loaded are listed per source
+tree.
+
+With ``--against DIR`` a second source tree (e.g. a plain copy of an
+older commit) is timed in the same run, its processes interleaved with
+this tree's (a, b, a, b, …), so that the load of the shared machine falls
+on both alike; each tree keeps its own kernel cache directory.
+
+Usage: ``python studies/startup.py [--quick] [--out DIR] [--against DIR]
+[--cases r1 map1 map2] [--processes N]``; stored as ``startup.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from studies.common import parse_args, save_json
+
+HEAVY = ("sympy", "scipy", "scipy.linalg", "matplotlib", "numba", "pandas", "xarray",
+         "dask", "heyoka")
+#: What a fresh process runs after ``import varint``: the R1 spectrum of
+#: the paper to t = 100, or a FLI map of 64 Hénon–Heiles orbits on the x = 0
+#: section at E = 1/8 to t = 100 (SIMD lanes) on 1 or 2 threads.
+CASES = {
+    "r1": "m, x = varint.paper_orbit('R1'); "
+          "varint.lyapunov_spectrum(m, x, t_end=100.0, tau=0.05, progress=False)",
+    "map1": "numba.set_num_threads(1); " + (MAP := (
+        "model = varint.models.HenonHeiles(); "
+        "grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.65, 8), "
+        "np.linspace(-0.45, 0.45, 8)); "
+        "varint.chaos_map(model, grid, 'fli', t_end=100.0, progress=False)")),
+    "map2": "numba.set_num_threads(2); " + MAP,
+}
+CHILD = f"""
+import sys, time, json
+t0 = time.perf_counter()
+import varint
+t1 = time.perf_counter()
+heavy = [m for m in {HEAVY!r} if m in sys.modules]
+import numba, numpy as np
+exec(sys.argv[1])
+t2 = time.perf_counter()
+print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "heavy": heavy}}))
+"""
+
+
+def child(root, cache, case):
+    """One fresh process on source tree ``root`` running ``case``
+    (:data:`CASES`): its import and run seconds and the heavy modules the
+    import loaded."""
+    env = dict(os.environ, PYTHONPATH=str(root), VARINT_CACHE_DIR=str(cache))
+    done = subprocess.run([sys.executable, "-c", CHILD, CASES[case]], cwd=root, env=env,
+                          check=True, capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--against", type=Path, default=None,
+                            help="a second source tree, timed in the same run")
+        parser.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES),
+                            help="which first runs to time (default all)")
+        parser.add_argument("--processes", type=int, default=7,
+                            help="timed fresh processes per tree (default 7)")
+    args = parse_args(__doc__.splitlines()[0], argv, extra)
+    n = 3 if args.quick else max(5, args.processes)
+    trees = {"this": Path(__file__).resolve().parent.parent}
+    if args.against is not None:
+        trees["against"] = args.against.resolve()
+    scratch = Path(tempfile.mkdtemp(prefix="varint-startup-"))
+    caches = {}
+    for label, root in trees.items():
+        caches[label] = scratch / label
+        caches[label].mkdir(mode=0o700)
+        for case in args.cases:
+            child(root, caches[label], case)      # compiles and caches the kernels
+    samples = {(label, case): [] for label in trees for case in args.cases}
+    for _ in range(n):
+        for case in args.cases:
+            for label, root in trees.items():
+                samples[label, case].append(child(root, caches[label], case))
+    data = {"processes": n, "trees": {k: str(v) for k, v in trees.items()}}
+    for (label, case), rows in samples.items():
+        imports = [r["import"] for r in rows]
+        runs = [r["run"] for r in rows]
+        totals = [a + b for a, b in zip(imports, runs, strict=True)]
+        data.setdefault(label, {})[case] = {
+            "import_median_s": statistics.median(imports),
+            "import_range_s": [min(imports), max(imports)],
+            "first_run_median_s": statistics.median(runs),
+            "import_plus_first_run_median_s": statistics.median(totals),
+            "import_plus_first_run_range_s": [min(totals), max(totals)],
+            "heavy_after_import": rows[-1]["heavy"],
+        }
+        row = data[label][case]
+        print(f"{label:8s} {case:5s} import {row['import_median_s']:.3f} s, first run "
+              f"{row['first_run_median_s']:.3f} s, together "
+              f"{row['import_plus_first_run_median_s']:.3f} s (medians of {n}); "
+              f"import loaded {', '.join(rows[-1]['heavy']) or 'none of ' + '/'.join(HEAVY)}")
+    print(save_json(args.out, "startup", data,
+                    times="measured: wall time inside fresh child processes, medians"))
+    return data
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,55 @@
+"""``import varint`` imports no heavy library; the first public name asked
+for imports the API, and the functions keep the names their submodules
+share (issue 28, "imports on demand")."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import varint
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def fresh(code):
+    """Run ``code`` in a new interpreter on this source tree; its JSON."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                          capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_import_loads_no_heavy_library():
+    heavy = ("sympy", "scipy", "numba", "matplotlib", "pandas", "xarray", "dask", "heyoka")
+    loaded = fresh("import sys, json, varint; "
+                   f"print(json.dumps([m for m in {heavy!r} if m in sys.modules]))")
+    assert loaded == []
+
+
+def test_first_public_name_loads_the_api():
+    names = fresh("import sys, json, varint; varint.paper_orbit; "
+                  "print(json.dumps(['numba' in sys.modules, "
+                  "sorted(n for n in varint.__all__ if n not in vars(varint))]))")
+    assert names == [True, []]
+
+
+def test_functions_keep_the_names_of_their_submodules():
+    # A submodule imported before the package's names were asked for (by
+    # another submodule) must not take the name of its function.
+    kinds = fresh("import json, varint.sections, varint; "
+                  "print(json.dumps([callable(varint.run), callable(varint.departure), "
+                  "callable(varint.ensemble), callable(varint.element_grid), "
+                  "type(varint.models).__name__]))")
+    assert kinds == [True, True, True, True, "module"]
+
+
+def test_unknown_name_is_an_attribute_error():
+    try:
+        varint.no_such_name  # noqa: B018
+    except AttributeError as exc:
+        assert "no_such_name" in str(exc)
+    else:
+        raise AssertionError("varint.no_such_name did not raise")
+    assert set(varint.__all__) <= set(dir(varint))
