@@ -49,7 +49,7 @@ PATTERNS = {"fma.rn.f64": r"\bfma\.rn\.f64", "mul.f64": r"\bmul(\.rn)?\.f64",
             "rcp.approx": r"\brcp\.approx", "ex2/lg2.approx": r"\b(ex2|lg2)\.approx"}
 
 
-def main():
+def main(argv=None):
     p = argparse.ArgumentParser()
     p.add_argument("--budget", type=float, default=130.0)
     p.add_argument("--deadline", type=float, default=280.0,
@@ -57,7 +57,7 @@ def main():
     p.add_argument("--quick", action="store_true")
     p.add_argument("--skip-bench", action="store_true",
                    help="only the profile and the PTX (the benchmark measured before)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     out = Path(os.environ.get("OUT", "gpu_device_out"))
     out.mkdir(parents=True, exist_ok=True)
 

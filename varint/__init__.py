@@ -19,6 +19,7 @@ import sys as _sys
 import types as _types
 from importlib import metadata as _metadata
 from pathlib import Path as _Path
+from typing import TYPE_CHECKING as _TYPE_CHECKING
 
 
 def _version():
@@ -106,6 +107,56 @@ _EXPORTS = {
 }
 
 __all__ = list(_EXPORTS)
+
+if _TYPE_CHECKING:
+    # What a type checker sees (the same names, statically): at run time
+    # they arrive through __getattr__ below. ``X as X`` marks a re-export.
+    from . import models as models
+    from .accuracy import Accuracy as Accuracy, AccuracyWarning as AccuracyWarning
+    from .api import (
+        gali as gali,
+        integrate as integrate,
+        lyapunov_spectrum as lyapunov_spectrum,
+        megno as megno,
+        sali as sali,
+    )
+    from .checkpoint import CheckpointError as CheckpointError
+    from .departure import Departure as Departure, departure as departure
+    from .driver import IntegrationError as IntegrationError
+    from .element_grid import element_grid as element_grid
+    from .grids import PhaseGrid as PhaseGrid, phase_grid as phase_grid
+    from .ensemble import EnsembleResult as EnsembleResult, ensemble as ensemble
+    from .indicators import (
+        INDICATORS as INDICATORS,
+        Indicator as Indicator,
+        Option as Option,
+        get_indicator as get_indicator,
+        register_indicator as register_indicator,
+    )
+    from .maps import chaos_map as chaos_map
+    from .methods import METHODS as METHODS, register_method as register_method
+    from .models import paper_orbit as paper_orbit, solve_momentum as solve_momentum
+    from .protocol import Renorm as Renorm, Status as Status
+    from .results import (
+        ChaosMapResult as ChaosMapResult,
+        GALIResult as GALIResult,
+        IndicatorResult as IndicatorResult,
+        IntegrationResult as IntegrationResult,
+        LyapunovResult as LyapunovResult,
+        MEGNOResult as MEGNOResult,
+        SALIResult as SALIResult,
+        SectionResult as SectionResult,
+        load_result as load_result,
+    )
+    from .run import run as run
+    from .schemes import (
+        SCHEMES as SCHEMES,
+        SplittingScheme as SplittingScheme,
+        get_scheme as get_scheme,
+        register_scheme as register_scheme,
+    )
+    from .sections import section_grid as section_grid, surface_of_section as surface_of_section
+    from .selection import select_scheme as select_scheme
 
 
 class _Package(_types.ModuleType):
