@@ -2,6 +2,7 @@
 for imports the API, and the functions keep the names their submodules
 share (issue 28, "imports on demand")."""
 
+import ast
 import json
 import os
 import subprocess
@@ -53,3 +54,16 @@ def test_unknown_name_is_an_attribute_error():
     else:
         raise AssertionError("varint.no_such_name did not raise")
     assert set(varint.__all__) <= set(dir(varint))
+
+
+def test_type_checkers_see_every_lazy_name_from_its_module():
+    """The ``TYPE_CHECKING`` imports of varint/__init__.py (what mypy sees)
+    name exactly the lazy exports, each from the submodule that defines it."""
+    tree = ast.parse((ROOT / "varint" / "__init__.py").read_text())
+    block = next(node for node in tree.body if isinstance(node, ast.If)
+                 and getattr(node.test, "id", "") == "_TYPE_CHECKING")
+    seen = {}
+    for node in block.body:
+        for alias in node.names:
+            seen[alias.name] = node.module or alias.name
+    assert seen == varint._EXPORTS
