@@ -754,13 +754,29 @@ def fig7(ctx):
                + "; TDH/TM at the end " + ", ".join(f"{ends[m] / ends['tm']:.2g}" for m in TDH),
                rules.verdict(js) if full else None, figure=png, note=PAIRING_NOTE, rules=js,
                **partial(tm, 1e8))
-    c1 = ctx.lyap("C1", "tm")
-    js = [rules.above(c1.pair_sums()[-1, i], tm.pair_sums()[-1, i]) for i in range(2)]
+    # Each method's C2 pair sums against its own C1 run, where both reach
+    # the paper's horizon (a shorter DOP853 run is shown, not judged).
+    js, parts = [], []
+    for m in ("tm", "dop853"):
+        c2, c1 = runs[m], ctx.lyap("C1", m)
+        end = min(c1.t[-1], c2.t[-1])
+        pair = [rules.above(c1.pair_sums()[-1, i], c2.pair_sums()[-1, i]) for i in range(2)]
+        text = (f"{METHOD_LABELS[m]} at t = {end:.0e}: C1/C2 = "
+                + ", ".join(f"{j.value:.2g}" for j in pair))
+        if end >= 1e8:
+            js += pair
+        else:
+            text += " (not judged)"
+        parts.append(text)
+    dop = runs["dop853"]
+    late = rules.levels_off(dop.t, dop.pair_sums().max(axis=1))
     claims.add("C2, DOP853 and TM: the pair sums end below C1's (Fig. 5b)",
-               "C2's level-off values smaller than C1's saturation values",
-               f"TM at t = {tm.t[-1]:.0e}: C1/C2 = " + ", ".join(f"{j.value:.2g}" for j in js)
-               + f"; DOP853 at t = {runs['dop853'].t[-1]:.0e} not judged",
-               rules.verdict(js) if full else None, figure=png, rules=js, **partial(tm, 1e8))
+               "C2's level-off values smaller than C1's saturation values", "; ".join(parts),
+               rules.verdict(js) if full else None, figure=png, rules=js,
+               note="our C1 pair sums do not saturate (Fig. 5's claim): they fall as 1/t, so "
+                    "this compares two decays; DOP853's C2 sums fall more slowly once the "
+                    f"orbit turns chaotic ({late.text}): a non-symplectic tangent flow pairs "
+                    "the exponents only to its integration error", **partial(tm, 1e8))
     return claims
 
 
