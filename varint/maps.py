@@ -697,4 +697,5 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         t_stop=t_stop, threshold=spec.threshold, x0=X,
         axes=None if grid is None else list(grid.axes),
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
-        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask)
+        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
+        log_scale=ind.log_scale)
