@@ -223,7 +223,10 @@ class Run:
         self.indicator = ind = spec.indicator
         self.options = dict(spec.options)
         self.run_options = spec.run_options
-        self.method, self.energy_tol, self.reference = spec.method, spec.energy_tol, spec.reference
+        self.method, self.energy_tol = spec.method, spec.energy_tol
+        # A chunk's specification leaves its orbits' reference to its run.
+        self.reference = (spec.reference if spec.reference is not None
+                          else accuracy.Reference(spec.model, spec.x0))
         ckpt = None if checkpoint is None else Checkpoint(checkpoint, checkpoint_interval)
         self.checkpoint = ckpt
         saved = None if ckpt is None else ckpt.read()

@@ -32,7 +32,7 @@ from .indicators import Indicator, resolve
 from .methods import METHODS
 from .state import output_steps
 
-__all__ = ["RunSpec", "specify", "DEFAULT_TAU", "default_tau"]
+__all__ = ["RunSpec", "specify", "check_seed", "DEFAULT_TAU", "default_tau"]
 
 #: The step when no pilot can choose one (methods without a splitting
 #: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
@@ -56,8 +56,10 @@ class RunSpec:
     x0 : ndarray, shape (M, 2N)
     single : bool
         Whether the caller passed one state (results drop the orbit axis).
-    reference : varint.accuracy.Reference
-        The conserved quantities at ``x0`` and their scales.
+    reference : varint.accuracy.Reference or None
+        The conserved quantities at ``x0`` and their scales (None in the
+        specification a map sends to its chunks, whose runs measure their
+        own orbits'; :meth:`without_orbits`).
     indicator : Indicator
     options : dict
         The indicator's options, configured for the model
@@ -87,7 +89,7 @@ class RunSpec:
     model: Any
     x0: np.ndarray
     single: bool
-    reference: accuracy.Reference
+    reference: accuracy.Reference | None
     indicator: Indicator
     options: dict
     method: str
@@ -112,26 +114,33 @@ class RunSpec:
         """The ``scheme`` option (None when the method's default is used)."""
         return self.method_options.get("scheme")
 
-    def with_step(self, tau, tau_choice=None, t_out=None):
+    def with_step(self, tau, tau_choice=None, indicator_times=True):
         """This specification with τ fixed (``t_end`` rounded to whole steps,
-        :func:`varint._validate.horizon`) and its output steps: those of
-        ``t_out`` if given, else of the checked ``t_out`` of the call, else
-        the indicator's own default times."""
+        :func:`varint._validate.horizon`) and its output steps: those of the
+        call's ``t_out``, else the indicator's own default times (unless
+        ``indicator_times`` is false: a map's check times), else
+        log-spaced ones (:func:`varint.state.output_steps`)."""
         t_end, tau = check.horizon(self.t_end, tau)
-        t_out = self.t_out if t_out is None else t_out
-        if t_out is None and self.indicator.output_times is not None:
+        t_out = self.t_out
+        if t_out is None and indicator_times and self.indicator.output_times is not None:
             t_out = self.indicator.output_times(t_end, tau, self.options)
         return dataclasses.replace(
             self, t_end=t_end, tau=tau, steps=output_steps(t_end, tau, t_out),
             tau_choice=dict(self.tau_choice if tau_choice is None else tau_choice))
 
-    def for_orbits(self, x0, steps):
-        """The specification of a run over some of the orbits, already
-        checked (a chaos map's chunk): their states ``x0`` and its check
-        steps ``steps``, with τ fixed."""
-        return dataclasses.replace(self, x0=x0, single=False,
-                                   reference=accuracy.Reference(self.model, x0),
-                                   t_out=None, steps=steps)
+    def without_orbits(self):
+        """This specification, τ and its steps fixed, without its states and
+        their reference: what a chaos map sends to every chunk, whose run
+        takes its own orbits (:meth:`for_orbits`)."""
+        if self.steps is None:
+            raise ValueError("a specification sent to chunks needs its step fixed (with_step)")
+        return dataclasses.replace(self, x0=self.x0[:0], single=False, reference=None,
+                                   t_out=None)
+
+    def for_orbits(self, x0):
+        """The specification of a run over ``x0`` (M, 2N), some of the
+        orbits this one was checked with (a chaos map's chunk)."""
+        return dataclasses.replace(self, x0=x0, single=False, reference=None)
 
 
 def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="tm",
@@ -198,10 +207,12 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
                    escape_radius=escape_radius, energy_tol=energy_tol)
 
 
-def check_seed(seed):
-    """``seed`` as an int, or None; anything else is refused."""
-    if seed is None:
+def check_seed(seed, none=True):
+    """``seed`` as an int, or None where ``none`` allows it; anything else
+    is refused."""
+    if seed is None and none:
         return None
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
+        raise ValueError(f"seed must be a non-negative integer{' or None' if none else ''}, "
+                         f"got {seed!r}")
     return int(seed)
