@@ -39,7 +39,6 @@ days). A full or unwritable directory costs one warning: the map goes on.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import numbers
@@ -55,10 +54,12 @@ from numpy.typing import ArrayLike
 from . import _validate as check
 from . import accuracy, compiling, identity, stepsize
 from .checkpoint import digest
+from .fanout import (bar, client_label, cluster_threads, fan_out, total_cpu, warn_failures,
+                     warn_interrupted, worker_threads)
 from .indicators import INDICATORS, Indicator
 from .methods import propagator_class
 from .models.base import Model
-from .protocol import REASONS, STATUS_OK, Status, is_failure
+from .protocol import STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import Run
 from .runspec import RunSpec, check_seed, specify
@@ -137,47 +138,6 @@ class _Chunk:
     cpu_time: float | None = None
 
 
-@contextlib.contextmanager
-def _worker_threads():
-    """On a Dask worker, run numba on as many threads as the worker has
-    (numba's setting is per calling thread), so workers sharing a machine
-    do not oversubscribe it; yields the task's :func:`_cancel_check` there,
-    None elsewhere."""
-    try:
-        from distributed import get_worker
-
-        worker = get_worker()
-        n = worker.state.nthreads
-    except (ImportError, ValueError, AttributeError):
-        yield None
-        return
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
-    try:
-        yield _cancel_check(worker)
-    finally:
-        numba.set_num_threads(before)
-
-
-def _cancel_check(worker):
-    """A function telling whether the Dask task running in this thread was
-    cancelled (the map was interrupted): its run then stops at its next
-    chunk (~0.2 s) instead of finishing, so an interrupted map leaves no
-    worker busy for minutes and a cluster closes at once."""
-    try:
-        key = worker.get_current_task()
-    except Exception:  # not inside a task
-        return lambda: False
-
-    def cancelled():
-        task = worker.state.tasks.get(key)
-        return task is None or task.state in ("cancelled", "released", "forgotten")
-
-    return cancelled
-
-
 def run_chunk(x0, indices, spec):
     """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
     map) as one batch run of the map's :class:`RunSpec`, stopping early at
@@ -185,7 +145,7 @@ def run_chunk(x0, indices, spec):
     """
     ind, model = spec.run.indicator, spec.run.model
     cpu = time.process_time()
-    with _worker_threads() as cancelled, warnings.catch_warnings():
+    with worker_threads() as cancelled, warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         W0 = initial_deviations(model.dim, spec.k, len(x0), spec.run.seed, indices)
@@ -335,11 +295,6 @@ def _default_chunk_size(m, workers):
     return int(min(m, max(256, math.ceil(m / max(20, 2 * workers)))))
 
 
-def _cluster_threads(client):
-    info = client.scheduler_info()
-    return max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
-
-
 def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
               indicator: str | Indicator = "sali", *, t_end: float, tau: float | None = None,
               method: str = "tm", threshold: float | str | None = "default", seed: int = 0,
@@ -473,7 +428,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                          f"got {threshold!r}")
     else:
         limit = float(threshold)
-    workers = 1 if client is None else _cluster_threads(client)
+    workers = 1 if client is None else cluster_threads(client)
     if chunk_size is None:
         chunk_size = _default_chunk_size(m, workers)
     elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
@@ -514,9 +469,16 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                 done[c] = chunk
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
-    runner = _run_local if client is None else _run_dask
-    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar, clock.part("run"):
-        interrupted = runner(client, X, chunks, todo, shared, done, store, bar)
+    def keep(c, chunk):
+        done[c] = chunk
+        if store is not None:
+            _save_chunk(store, c, chunks[c], chunk)
+        return len(chunk.values)
+
+    with bar(progress, m, sum(len(chunks[c]) for c in done), "chaos_map", "orbit") as shown, \
+            clock.part("run"):
+        interrupted = fan_out(client, todo, run_chunk,
+                              lambda c: (X[chunks[c]], chunks[c], shared), keep, shown)
     result = _assemble(spec, X, grid, chunks, done, limit, parameters, resumed, interrupted,
                        store is not None, time.perf_counter() - start, client)
     # This process's compilations (a cluster's workers compile on their own).
@@ -550,65 +512,6 @@ def _describe_options(options):
             for k, v in options.items()}
 
 
-def _bar(progress, total, initial):
-    progress = check.flag(progress, "progress")
-    if progress is None:
-        import sys
-
-        progress = sys.stderr.isatty()
-    if not progress:
-        return contextlib.nullcontext(None)
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, initial=initial, desc="chaos_map", unit="orbit", leave=False)
-
-
-def _run_local(client, X, chunks, todo, spec, done, store, bar):
-    """Chunks one after the other in this process; each is parallel over its
-    orbits. Returns whether Ctrl-C stopped the map (inside a chunk, its run
-    stops at once; between chunks, the finished ones are kept)."""
-    try:
-        for c in todo:
-            idx = chunks[c]
-            chunk = run_chunk(X[idx], idx, spec)
-            if chunk.interrupted:
-                return True
-            _finish(c, chunks[c], chunk, done, store, bar)
-    except KeyboardInterrupt:
-        return True
-    return False
-
-
-def _run_dask(client, X, chunks, todo, spec, done, store, bar):
-    """Chunks as tasks on a Dask cluster, taken as they finish."""
-    from distributed import as_completed
-
-    futures = {client.submit(run_chunk, X[chunks[c]], chunks[c], spec,
-                             pure=False): c for c in todo}
-    try:
-        for future in as_completed(futures):
-            c = futures[future]
-            _finish(c, chunks[c], future.result(), done, store, bar)
-    except KeyboardInterrupt:
-        client.cancel(list(futures))
-        return True
-    return False
-
-
-def _finish(c, idx, chunk, done, store, bar):
-    done[c] = chunk
-    if store is not None:
-        _save_chunk(store, c, idx, chunk)
-    if bar is not None:
-        bar.update(len(chunk.values))
-
-
-def _total_cpu(times):
-    """The sum of measured CPU times; None if one was not measured."""
-    times = list(times)
-    return None if any(t is None for t in times) else float(sum(times))
-
-
 def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, interrupted, kept,
               wall, client):
     model, ind = spec.model, spec.indicator
@@ -625,24 +528,15 @@ def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, inter
         max_energy[idx], max_error[idx] = chunk.max_energy_error, chunk.max_error
         for key, n in chunk.counts.items():
             counts[key] = counts.get(key, 0) + int(n)
-    failed = is_failure(status)
-    if failed.any():
-        codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
-                          for s, n in zip(*np.unique(status[failed], return_counts=True),
-                                          strict=True))
-        warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
-                      "NaN", RuntimeWarning, stacklevel=accuracy.user_stacklevel())
+    warn_failures(status, "orbits", "their values are NaN")
     if interrupted:
-        warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
-                      + ("; they are kept in the checkpoint directory, call again to resume"
-                         if kept else ""), RuntimeWarning,
-                      stacklevel=accuracy.user_stacklevel())
+        warn_interrupted("chaos map", len(done), len(chunks), "chunks", kept)
     first = next(iter(done.values())).provenance if done else {}
     options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
                "threshold": threshold, "x0": parameters["x0"],
                "chunk_size": parameters["chunk_size"], "chunks": len(chunks),
                "chunks_resumed": resumed,
-               "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}
+               "client": client_label(client)}
     prov = Provenance(kind="chaos_map", model=model.describe(), x0=[], method=spec.method,
                       method_options=first.get("method_options", {}), tau=spec.tau,
                       t_end=spec.t_end, seed=spec.seed, options=options,
@@ -650,7 +544,7 @@ def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, inter
                       wall_time=wall, tau_choice=dict(spec.tau_choice),
                       code=first.get("code", identity.code_identity()),
                       machine=first.get("machine", identity.machine()),
-                      cpu_time=_total_cpu(chunk.cpu_time for chunk in done.values()))
+                      cpu_time=total_cpu(chunk.cpu_time for chunk in done.values()))
     failed = is_failure(status)
     with np.errstate(invalid="ignore"):
         accurate = ~failed & (max_error <= spec.energy_tol)
