@@ -69,7 +69,6 @@ class RunSpec:
         The method's own options (``scheme``, tolerances, …), checked by the
         propagator when it is built.
     t_end : float
-        As given, until :meth:`with_step` rounds it to whole steps.
     tau : float or None
         None: chosen by a pilot (:mod:`varint.stepsize`).
     t_out : None, int or ndarray
@@ -115,8 +114,9 @@ class RunSpec:
         return self.method_options.get("scheme")
 
     def with_step(self, tau, tau_choice=None, indicator_times=True):
-        """This specification with τ fixed (``t_end`` rounded to whole steps,
-        :func:`varint._validate.horizon`) and its output steps: those of the
+        """This specification with τ fixed (``t_end`` and τ checked against
+        each other, :func:`varint._validate.horizon`; the last output is the
+        step nearest ``t_end``) and its output steps: those of the
         call's ``t_out``, else the indicator's own default times (unless
         ``indicator_times`` is false: a map's check times), else
         log-spaced ones (:func:`varint.state.output_steps`)."""
