@@ -417,34 +417,11 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                          "maps take: " + ", ".join(n for n, i in INDICATORS.items()
                                                   if i.scalar is not None))
     k = ind.vectors(model, spec.options, None)
-    limit: float | None
-    if isinstance(threshold, str) and threshold == "default":
-        limit = ind.default_threshold(model, spec.options)
-    elif threshold is None:
-        limit = None
-    elif (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
-            or not np.isfinite(threshold)):
-        raise ValueError(f"threshold must be a finite number, None or 'default', "
-                         f"got {threshold!r}")
-    else:
-        limit = float(threshold)
-    workers = 1 if client is None else cluster_threads(client)
-    if chunk_size is None:
-        chunk_size = _default_chunk_size(m, workers)
-    elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
-            or chunk_size < 1:
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    limit = _threshold(threshold, spec)
+    chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
-    if spec.tau is None:
-        with clock.part("pilot"):
-            spec = _with_pilot_step(spec, k)
-    else:
-        spec = spec.with_step(spec.tau, indicator_times=False)
-    if t_check is None:
-        steps = spec.steps
-        spec = dataclasses.replace(
-            spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
+    spec = _with_step(spec, k, clock)
     shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -458,17 +435,11 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "method_options": _describe_options(spec.method_options), "seed": seed,
                   "chunk_size": int(chunk_size), "escape_radius": spec.escape_radius,
                   "versions": package_versions(), "code": identity.source_digest()}
-    store = None
-    done = {}
-    if checkpoint is not None:
-        store = Store(checkpoint, "chaos map", parameters)
-        store.manifest("map.json")
-        for c in range(len(chunks)):
-            chunk = _load_chunk(store, c, chunks[c], shared, X.shape[1])
-            if chunk is not None:
-                done[c] = chunk
+    store = None if checkpoint is None else Store(checkpoint, "chaos map", parameters)
+    done = {} if store is None else _resume(store, chunks, shared, X.shape[1])
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
+
     def keep(c, chunk):
         done[c] = chunk
         if store is not None:
@@ -485,6 +456,58 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, spec.method, what="the chaos map")
     return result
+
+
+def _threshold(threshold, spec):
+    """The early-stopping threshold of ``threshold=`` (see :func:`chaos_map`)."""
+    if isinstance(threshold, str) and threshold == "default":
+        return spec.indicator.default_threshold(spec.model, spec.options)
+    if threshold is None:
+        return None
+    if (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
+            or not np.isfinite(threshold)):
+        raise ValueError(f"threshold must be a finite number, None or 'default', "
+                         f"got {threshold!r}")
+    return float(threshold)
+
+
+def _chunk_size(chunk_size, m, client):
+    """Orbits per chunk: as given, or :func:`_default_chunk_size`."""
+    if chunk_size is None:
+        return _default_chunk_size(m, 1 if client is None else cluster_threads(client))
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
+            or chunk_size < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    return int(chunk_size)
+
+
+def _resume(store, chunks, shared, dim):
+    """The chunks of this map its checkpoint directory holds, valid
+    (:func:`_load_chunk`), by number."""
+    store.manifest("map.json")
+    done = {}
+    for c, idx in enumerate(chunks):
+        chunk = _load_chunk(store, c, idx, shared, dim)
+        if chunk is not None:
+            done[c] = chunk
+    return done
+
+
+def _with_step(spec, k, clock):
+    """``spec`` with the map's τ and check steps: τ as given, or from a
+    pilot (:func:`_with_pilot_step`); the check times of ``t_check``, or
+    log-spaced from :data:`FIRST_CHECK_STEP` steps on (and t_end). Every
+    chunk runs these (the map's τ is chosen here, once)."""
+    if spec.tau is None:
+        with clock.part("pilot"):
+            spec = _with_pilot_step(spec, k)
+    else:
+        spec = spec.with_step(spec.tau, indicator_times=False)
+    if spec.t_out is None:
+        steps = spec.steps
+        spec = dataclasses.replace(
+            spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
+    return spec
 
 
 def _with_pilot_step(spec, k):
