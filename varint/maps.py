@@ -5,12 +5,16 @@ A map evaluates an indicator — any of :data:`varint.INDICATORS` that has a
 map value (SALI, GALI_k, X1, MEGNO, FLI, OFLI, local exponents, or one a
 user registered) — for an (M, 2N) array of initial conditions or a grid on
 a surface of section (:func:`varint.section_grid`). It uses the same
-:class:`~varint.indicators.Indicator` objects and the same run
-(:func:`varint.run.prepare`) as single runs. The orbits are split
-into chunks; a chunk is one batch run of the compiled integrator, parallel
-over its orbits (numba ``prange``), so nothing per orbit passes through
-Python. With a ``dask.distributed.Client`` the chunks run on the cluster, one
-task each, and come back as they finish.
+:class:`~varint.indicators.Indicator` objects and the same run as single
+runs: the map's arguments are checked once into a
+:class:`~varint.runspec.RunSpec` (:func:`varint.runspec.specify`), its τ
+and check times fixed once, and every chunk is a
+:class:`~varint.run.Run` of that specification over its orbits. A chunk is
+one batch run of the compiled integrator, parallel over its orbits (numba
+``prange``), so nothing per orbit passes through Python. The chunks run one
+after the other here, or with a ``dask.distributed.Client`` on the cluster,
+one task each, coming back as they finish (:mod:`varint.fanout`, shared
+with ensembles).
 
 Deterministic by construction: orbit m's deviation vectors are drawn from
 ``default_rng([seed, m])`` with m its index in the whole map

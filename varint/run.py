@@ -5,8 +5,10 @@ with any method (:data:`varint.METHODS`) for one orbit or a batch; the
 public functions :func:`~varint.lyapunov_spectrum`, :func:`~varint.gali`,
 :func:`~varint.sali`, :func:`~varint.megno` and :func:`~varint.integrate`
 are thin wrappers over it, and :func:`~varint.chaos_map` runs it chunk by
-chunk. What it shares with every indicator and method: checking the inputs
-before any work, drawing seeded initial deviation vectors, building the
+chunk. What it shares with every indicator and method: the inputs checked
+before any work into a :class:`~varint.runspec.RunSpec`
+(:func:`~varint.runspec.specify`), which a :class:`Run` executes: drawing
+seeded initial deviation vectors, choosing τ when it is not given, building the
 propagator, resuming from a checkpoint, driving to the output times
 (:mod:`varint.driver`), and packaging the records into a result with its
 provenance and its accuracy.
