@@ -49,7 +49,7 @@ from numba import njit
 from varint.kernels.checks import orbit_status
 from varint.kernels.inlining import into_kernels
 from varint.kernels.interval import (Call, StepBody, no_accumulator, orbit_loop, orbit_record)
-from varint.methods import method_options
+from varint.methods.options import method_options
 from varint.protocol import Renorm, Status
 
 from .rhs import clock_size, pack

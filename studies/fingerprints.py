@@ -60,8 +60,10 @@ def _feed(h, name, value):
         h.update(a.tobytes())
 
 
-# Measured, not computed: wall times differ from run to run.
-_SKIP = {"provenance", "accuracy", "wall_times"}
+# Measured, not computed: wall times differ from run to run. A map's
+# ``log_scale`` is a drawing hint copied from its indicator's declaration,
+# not a number the run computed.
+_SKIP = {"provenance", "accuracy", "wall_times", "log_scale"}
 
 
 def fingerprint(result):

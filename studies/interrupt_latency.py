@@ -5,7 +5,7 @@ a few seconds into a long map; measured from the signal: when
 ``varint.chaos_map`` returns its partial result, and when the ``with
 LocalCluster(...), Client(...)`` block that made the cluster ends. Chunks
 already running on the workers stop at their next sub-chunk (~0.2 s) once
-their tasks are cancelled (``varint.maps._cancel_check``); before, they ran
+their tasks are cancelled (``varint.fanout._cancel_check``); before, they ran
 to their end (seconds to minutes) and closing the cluster waited for them
 (the nanny kills a busy worker after 4 s).
 
@@ -58,8 +58,8 @@ warnings.simplefilter("ignore")
 
 
 def never_cancelled():
-    import varint.maps
-    varint.maps._cancel_check = lambda worker: (lambda: False)
+    import varint.fanout
+    varint.fanout._cancel_check = lambda worker: (lambda: False)
 
 
 if __name__ == "__main__":

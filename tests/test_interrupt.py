@@ -131,7 +131,7 @@ def test_an_interrupted_dask_map_cancels_the_chunks_still_running(monkeypatch):
     """Ctrl-C while a Dask map's chunks run: the map returns at once with
     what finished (nothing here), and the chunks still running on the
     workers stop at their next sub-chunk, because their tasks are cancelled
-    and they poll that (``varint.maps._cancel_check``). Before, a worker ran
+    and they poll that (``varint.fanout._cancel_check``). Before, a worker ran
     its chunk to its end and closing the cluster waited for it; this chunk
     is ~10^10 steps (hours), so a worker that goes idle at all shows the
     chunk stopped."""

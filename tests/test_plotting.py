@@ -108,6 +108,24 @@ def test_a_map_colours_zero_apart_from_the_outside_and_names_the_axes(tmp_path):
     _rendered(ax.figure, tmp_path)
 
 
+def test_a_map_carries_its_indicators_log_scale_through_a_file(tmp_path):
+    # The map records Indicator.log_scale, so that drawing it needs nothing
+    # of the indicator registry; SALI's survives save and load, and a map
+    # saved before it was recorded (None) is drawn by the spread of values.
+    m = _sali_map_with_zeros()
+    assert m.log_scale is varint.indicators.get_indicator("sali").log_scale is True
+    m.save(tmp_path / "m.npz")
+    back = varint.load_result(tmp_path / "m.npz")
+    assert back.log_scale is True
+    assert "log$_{10}$ SALI" in back.plot().figure.axes[-1].get_ylabel()
+    sm = varint.models.StandardMap(0.5)
+    grid = varint.phase_grid(sm, np.linspace(0.5, 1.0, 3), np.linspace(0.1, 0.3, 2))
+    narrow = varint.chaos_map(sm, grid, "megno", t_end=50)
+    assert narrow.log_scale is False
+    narrow.log_scale = None
+    assert "log" not in narrow.plot().figure.axes[-1].get_ylabel()
+
+
 def test_a_section_map_shows_the_forbidden_region_in_its_own_colour(tmp_path):
     model = varint.models.HenonHeiles()
     grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.7, 12),

@@ -329,3 +329,17 @@ def test_two_and_three_part_splits_converge_to_the_same_orbit(ddnls_cases):
     a = varint.integrate(model, x0, 2.0, tau=0.01, scheme="s17ABC8").state
     b = varint.integrate(model, x0, 2.0, tau=0.01, scheme="s11odr6").state
     assert np.max(np.abs(a - b)) < 1e-10
+
+
+def test_the_default_scheme_is_named_in_one_place():
+    # Every module reads DEFAULT_SCHEME; the name itself appears as code
+    # only where it is registered and among the candidates the scheme
+    # selection tries (not as anyone's default).
+    import ast
+    from pathlib import Path
+
+    package = Path(varint.__file__).parent
+    named = sorted(str(path.relative_to(package)) for path in package.rglob("*.py")
+                   if any(isinstance(node, ast.Constant) and node.value == DEFAULT_SCHEME
+                          for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))))
+    assert named == ["schemes.py", "selection.py"]

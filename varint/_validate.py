@@ -446,9 +446,11 @@ def model(value, name="model"):
             getattr(value, "kind", None) in ("flow", "map")
             and isinstance(getattr(value, "dim", None), int)
             and callable(getattr(value, "energy", None))):
+        hint = (" (varint.paper_orbit(name) returns a model and its initial state)"
+                if isinstance(value, str) else "")
         raise ValueError(
             f"{name} must be a varint model (e.g. varint.models.HenonHeiles(), or "
-            f"varint.models.from_potential(V, q)), got {type(value).__name__} {value!r}")
+            f"varint.models.from_potential(V, q)), got {type(value).__name__} {value!r}{hint}")
     return value
 
 

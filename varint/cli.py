@@ -1227,11 +1227,12 @@ def _add_run_options(p, t_end=1e4, chaos_map=False):
                    "map, iterations per interval, default 1)")
     from .maps import MAP_SCHEME
     from .methods import MAP_METHODS, METHODS
+    from .schemes import DEFAULT_SCHEME
 
     p.add_argument("--method", default="tm", help=f"integration method: {', '.join(METHODS)} "
                    f"(default tm; a symplectic map: {', '.join(MAP_METHODS)})")
-    default = (f"{MAP_SCHEME} when the step is chosen automatically (no --tau), else SBAB2C"
-               if chaos_map else "SBAB2C, or a lattice's own split")
+    default = (f"{MAP_SCHEME} when the step is chosen automatically (no --tau), else "
+               f"{DEFAULT_SCHEME}" if chaos_map else f"{DEFAULT_SCHEME}, or a lattice's own split")
     p.add_argument("--scheme", help=f"splitting scheme (default {default}); see "
                    "'varint schemes'")
     p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "

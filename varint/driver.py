@@ -24,7 +24,7 @@ from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .records import Records
 from .state import Rows
 
-__all__ = ["IntegrationError", "drive", "failure_message"]
+__all__ = ["IntegrationError", "drive", "failure_message", "progress_bar"]
 
 _CHUNK_SECONDS = 0.2
 #: Chunks shorter than this may grow faster (:class:`_Pace`).
@@ -91,15 +91,20 @@ def _sigint_to_flag():
         signal.signal(signal.SIGINT, previous)
 
 
-def _progress_bar(progress, done, total, desc):
+def progress_bar(progress, done, total, desc, unit="step"):
+    """A tqdm bar on stderr counting ``unit`` from ``done`` to ``total``
+    (after a second, so that short work shows none), or a null context:
+    shown when ``progress`` is true, or by default (None) on a terminal.
+    The one bar of varint: runs count steps, maps and ensembles their
+    orbits and realisations (:mod:`varint.fanout`)."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         return contextlib.nullcontext(None)
     from tqdm.auto import tqdm
 
-    # Counts steps of τ over the whole run, so a resumed run starts part-way.
-    return tqdm(initial=int(done), total=int(total), desc=desc, unit="step", unit_scale=True,
+    # Counts over the whole work, so resumed work starts part-way.
+    return tqdm(initial=int(done), total=int(total), desc=desc, unit=unit, unit_scale=True,
                 delay=_PROGRESS_DELAY, leave=False, dynamic_ncols=True)
 
 
@@ -170,7 +175,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     batched = decide is None and takes is not None and takes(state)
     pace = _Pace()
     with _sigint_to_flag() as interrupted, \
-            _progress_bar(progress, state.step, out_steps[-1], desc) as bar:
+            progress_bar(progress, state.step, out_steps[-1], desc) as bar:
         while stop is None and todo.size:
             if batched:
                 n, outs = _batch(state, todo, pace.chunk)

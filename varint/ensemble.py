@@ -44,8 +44,9 @@ from . import _validate as check
 from . import identity
 from .checkpoint import CheckpointError, canonical
 from .indicators import resolve
-from .maps import _bar, _cluster_threads, _total_cpu, _worker_threads
-from .protocol import REASONS, is_failure
+from .accuracy import user_stacklevel
+from .fanout import (bar, client_label, fan_out, total_cpu, warn_failures, warn_interrupted,
+                     worker_threads)
 from .results import Provenance, _Result, load_result, package_versions
 from .run import prepare
 from .store import Invalid, Store
@@ -194,11 +195,23 @@ class _Spec:
                        **self.options)
 
 
+@dataclass
+class _Realisation:
+    """One realisation's outcome: its result, the parameters that determine
+    it, and why its run checkpoint could not be kept (or None)."""
+
+    result: _Result
+    parameters: dict
+    note: str | None
+
+    @property
+    def interrupted(self):
+        return self.result.interrupted
+
+
 def _realise(spec, seed, checkpoint):
-    """One realisation, run to the end (or interrupted): its result, the
-    parameters that determine it, and why its run checkpoint could not be
-    kept (or None)."""
-    with _worker_threads(), warnings.catch_warnings():
+    """One realisation, run to the end (or interrupted)."""
+    with worker_threads(), warnings.catch_warnings():
         # Failures are counted by the ensemble, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         note = None
@@ -213,7 +226,7 @@ def _realise(spec, seed, checkpoint):
             note = str(exc)
             job = spec.job(seed)
             result = job.execute()
-    return result, canonical(job.parameters()), note
+    return _Realisation(result, canonical(job.parameters()), note)
 
 
 def _name(seed):
@@ -378,55 +391,24 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
                 results[s], parameters[s] = found, expected
     resumed = len(results)
     todo = [s for s in seeds if s not in results]
-    runner = _run_local if client is None else _run_dask
-    with _bar(progress, len(seeds), resumed) as bar:
-        interrupted = runner(client, spec, todo, results, parameters, store, bar)
-    return _assemble(spec, first, seeds, results, resumed, interrupted, client,
-                     time.perf_counter() - start)
 
+    def arguments(s):
+        ckpt = None if store is None or store.unwritable else str(store.run_checkpoint(s))
+        return spec, s, ckpt
 
-def _keep(seed, outcome, results, parameters, store, bar):
-    result, params, note = outcome
-    results[seed], parameters[seed] = result, params
-    if note is not None:
-        warnings.warn(f"{note}; realisation {seed} was run without a checkpoint",
-                      RuntimeWarning, stacklevel=4)
-    if store is not None:
-        store.keep(seed, result, params)
-    if bar is not None:
-        bar.update(1)
+    def keep(s, outcome):
+        results[s], parameters[s] = outcome.result, outcome.parameters
+        if outcome.note is not None:
+            warnings.warn(f"{outcome.note}; realisation {s} was run without a checkpoint",
+                          RuntimeWarning, stacklevel=user_stacklevel())
+        if store is not None:
+            store.keep(s, outcome.result, outcome.parameters)
+        return 1
 
-
-def _run_local(client, spec, todo, results, parameters, store, bar):
-    """Realisations one after the other in this process. Returns whether
-    Ctrl-C stopped the ensemble (the realisation in progress keeps its run
-    checkpoint, if any)."""
-    try:
-        for s in todo:
-            ckpt = None if store is None or store.unwritable else store.run_checkpoint(s)
-            outcome = _realise(spec, s, ckpt)
-            if outcome[0].interrupted:
-                return True
-            _keep(s, outcome, results, parameters, store, bar)
-    except KeyboardInterrupt:
-        return True
-    return False
-
-
-def _run_dask(client, spec, todo, results, parameters, store, bar):
-    """Realisations as tasks on a Dask cluster, taken as they finish."""
-    from distributed import as_completed
-
-    futures = {client.submit(_realise, spec, s,
-                             None if store is None else str(store.run_checkpoint(s)),
-                             pure=False): s for s in todo}
-    try:
-        for future in as_completed(futures):
-            _keep(futures[future], future.result(), results, parameters, store, bar)
-    except KeyboardInterrupt:
-        client.cancel(list(futures))
-        return True
-    return False
+    with bar(progress, len(seeds), resumed, "ensemble", "realisation") as shown:
+        interrupted = fan_out(client, todo, _realise, arguments, keep, shown)
+    return _assemble(spec, first, seeds, results, resumed, interrupted, store is not None,
+                     client, time.perf_counter() - start)
 
 
 def _series(result):
@@ -444,7 +426,7 @@ def _series(result):
     return out
 
 
-def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
+def _assemble(spec, first, seeds, results, resumed, interrupted, kept, client, wall):
     r_count, dim = len(seeds), first.model.dim
     t = first.steps * first.tau
     n_out = t.size
@@ -467,21 +449,14 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
             if name not in values:
                 values[name] = np.full((r_count,) + arr.shape, np.nan)
             values[name][i] = arr
-    failed = is_failure(status)
-    if failed.any():
-        codes = "; ".join(f"{int(n)}: {REASONS.get(int(c), f'status {int(c)}')}"
-                          for c, n in zip(*np.unique(status[failed], return_counts=True),
-                                          strict=True))
-        warnings.warn(f"{int(failed.sum())} of {r_count} realisations failed ({codes}); their "
-                      "later values are NaN", RuntimeWarning, stacklevel=3)
+    warn_failures(status, "realisations", "their later values are NaN")
     if interrupted:
-        warnings.warn(f"ensemble interrupted: {len(results)} of {r_count} realisations finished",
-                      RuntimeWarning, stacklevel=3)
+        warn_interrupted("ensemble", len(results), r_count, "realisations", kept)
     some = next(iter(results.values()), None)
     p = some.provenance if some is not None else None
     options = {"indicator": first.indicator.name, "seeds": seeds, "realisations": r_count,
                "finished": len(results), "resumed": resumed, "options": canonical(first.options),
-               "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}
+               "client": client_label(client)}
     model = dict(first.model.describe())
     model.pop("seed", None)
     prov = Provenance(kind="ensemble", model=model, x0=[], method=first.method,
@@ -491,7 +466,7 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, client, wall):
                       counts=counts, wall_time=wall,
                       code=p.code if p is not None else identity.code_identity(),
                       machine=p.machine if p is not None else identity.machine(),
-                      cpu_time=_total_cpu(r.provenance.cpu_time for r in results.values()))
+                      cpu_time=total_cpu(r.provenance.cpu_time for r in results.values()))
     return EnsembleResult(t=t, energy_error=energy, state=state, provenance=prov, status=status,
                           interrupted=interrupted, seeds=np.array(seeds, dtype=np.int64),
                           values=values, wall_times=walls)

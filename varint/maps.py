@@ -5,12 +5,16 @@ A map evaluates an indicator — any of :data:`varint.INDICATORS` that has a
 map value (SALI, GALI_k, X1, MEGNO, FLI, OFLI, local exponents, or one a
 user registered) — for an (M, 2N) array of initial conditions or a grid on
 a surface of section (:func:`varint.section_grid`). It uses the same
-:class:`~varint.indicators.Indicator` objects and the same run
-(:func:`varint.run.prepare`) as single runs. The orbits are split
-into chunks; a chunk is one batch run of the compiled integrator, parallel
-over its orbits (numba ``prange``), so nothing per orbit passes through
-Python. With a ``dask.distributed.Client`` the chunks run on the cluster, one
-task each, and come back as they finish.
+:class:`~varint.indicators.Indicator` objects and the same run as single
+runs: the map's arguments are checked once into a
+:class:`~varint.runspec.RunSpec` (:func:`varint.runspec.specify`), its τ
+and check times fixed once, and every chunk is a
+:class:`~varint.run.Run` of that specification over its orbits. A chunk is
+one batch run of the compiled integrator, parallel over its orbits (numba
+``prange``), so nothing per orbit passes through Python. The chunks run one
+after the other here, or with a ``dask.distributed.Client`` on the cluster,
+one task each, coming back as they finish (:mod:`varint.fanout`, shared
+with ensembles).
 
 Deterministic by construction: orbit m's deviation vectors are drawn from
 ``default_rng([seed, m])`` with m its index in the whole map
@@ -39,8 +43,7 @@ days). A full or unwritable directory costs one warning: the map goes on.
 
 from __future__ import annotations
 
-import contextlib
-import copy
+import dataclasses
 import math
 import numbers
 import os
@@ -55,14 +58,17 @@ from numpy.typing import ArrayLike
 from . import _validate as check
 from . import accuracy, compiling, identity, stepsize
 from .checkpoint import digest
-from .indicators import INDICATORS, Indicator, resolve
-from .methods import METHODS, propagator_class
+from .fanout import (bar, client_label, cluster_threads, fan_out, total_cpu, warn_failures,
+                     warn_interrupted, worker_threads)
+from .indicators import INDICATORS, Indicator
+from .methods import propagator_class
 from .models.base import Model
-from .protocol import REASONS, STATUS_OK, Status, is_failure
+from .protocol import STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
-from .run import default_tau, prepare
+from .run import Run
+from .runspec import RunSpec, check_seed, specify
 from .grids import SectionGrid
-from .state import initial_deviations, output_steps
+from .state import initial_deviations
 from .store import Invalid, Store
 
 __all__ = ["chaos_map", "MAP_SCHEME", "MAP_PILOT_TOL", "pilot_tolerance"]
@@ -102,19 +108,19 @@ MAP_QUANTILE = 0.9
 
 @dataclass
 class _Spec:
-    """What every chunk of one map shares (sent to the workers)."""
+    """What every chunk of one map shares (sent to the workers): the run
+    each chunk makes of its orbits (:meth:`RunSpec.without_orbits`: τ
+    fixed, the check times as its output steps), how many deviation vectors
+    each orbit draws, and the early-stopping threshold."""
 
-    indicator: object
-    indicator_options: dict
+    run: RunSpec
     k: int
-    t_end: float
-    tau: float
-    method: str
-    method_options: dict
-    steps: np.ndarray
-    seed: int
     threshold: float | None
-    escape_radius: float | None
+
+    @property
+    def t_check(self):
+        """The check times (the last one t_end)."""
+        return self.run.steps * self.run.tau
 
 
 @dataclass
@@ -136,61 +142,18 @@ class _Chunk:
     cpu_time: float | None = None
 
 
-@contextlib.contextmanager
-def _worker_threads():
-    """On a Dask worker, run numba on as many threads as the worker has
-    (numba's setting is per calling thread), so workers sharing a machine
-    do not oversubscribe it; yields the task's :func:`_cancel_check` there,
-    None elsewhere."""
-    try:
-        from distributed import get_worker
-
-        worker = get_worker()
-        n = worker.state.nthreads
-    except (ImportError, ValueError, AttributeError):
-        yield None
-        return
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
-    try:
-        yield _cancel_check(worker)
-    finally:
-        numba.set_num_threads(before)
-
-
-def _cancel_check(worker):
-    """A function telling whether the Dask task running in this thread was
-    cancelled (the map was interrupted): its run then stops at its next
-    chunk (~0.2 s) instead of finishing, so an interrupted map leaves no
-    worker busy for minutes and a cluster closes at once."""
-    try:
-        key = worker.get_current_task()
-    except Exception:  # not inside a task
-        return lambda: False
-
-    def cancelled():
-        task = worker.state.tasks.get(key)
-        return task is None or task.state in ("cancelled", "released", "forgotten")
-
-    return cancelled
-
-
-def run_chunk(model, x0, indices, spec):
+def run_chunk(x0, indices, spec):
     """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
-    map) as one batch run, stopping early at the check times ``spec.steps``.
+    map) as one batch run of the map's :class:`RunSpec`, stopping early at
+    its check times.
     """
-    ind = spec.indicator
+    ind, model = spec.run.indicator, spec.run.model
     cpu = time.process_time()
-    with _worker_threads() as cancelled, warnings.catch_warnings():
+    with worker_threads() as cancelled, warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
-        W0 = initial_deviations(model.dim, spec.k, len(x0), spec.seed, indices)
-        job = prepare(model, x0, ind, spec.t_end, spec.tau, method=spec.method, deviations=W0,
-                      t_out=spec.steps * spec.tau, progress=False, errors="flag",
-                      escape_radius=spec.escape_radius, **spec.indicator_options,
-                      **spec.method_options)
+        W0 = initial_deviations(model.dim, spec.k, len(x0), spec.run.seed, indices)
+        job = Run(spec.run.for_orbits(x0), deviations=W0, progress=False, errors="flag")
 
         def record(rows):
             rec = job.record(rows)
@@ -224,7 +187,7 @@ def run_chunk(model, x0, indices, spec):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # failed before the first
             largest.append(np.nanmax(upto, axis=0))
-    t_stop = np.where(state.status != STATUS_OK, state.fail_step, state.step) * spec.tau
+    t_stop = np.where(state.status != STATUS_OK, state.fail_step, state.step) * spec.run.tau
     return _Chunk(values=values, t_stop=t_stop, status=state.status.copy(), energy_error=energy,
                   state=state.x.copy(), max_energy_error=largest[0], max_error=largest[1],
                   counts=dict(state.counts),
@@ -302,9 +265,9 @@ def _checked_chunk(piece, idx, spec, dim):
         if bad.any():
             raise Invalid(f"{name} is not finite for orbit {int(idx[np.argmax(bad)])}, which "
                           "did not fail")
-    t_end, checks_at = spec.t_end, spec.steps * spec.tau
+    t_end, checks_at = spec.run.t_end, spec.t_check
     t = a["t_stop"]
-    ok = np.where(status == STATUS_OK, t == spec.steps[-1] * spec.tau,
+    ok = np.where(status == STATUS_OK, t == checks_at[-1],
                   np.where(status == int(Status.DECIDED), np.isin(t, checks_at),
                            (t > 0) & (t <= t_end * (1 + 1e-12))))
     if not ok.all():
@@ -334,11 +297,6 @@ def _default_chunk_size(m, workers):
     # and two per worker thread, but no chunk under 256 orbits, where the
     # fixed cost of a run would show.
     return int(min(m, max(256, math.ceil(m / max(20, 2 * workers)))))
-
-
-def _cluster_threads(client):
-    info = client.scheduler_info()
-    return max(1, sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()))
 
 
 def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
@@ -439,136 +397,141 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              checkpoint="hh_sali_map")
     """
     start = time.perf_counter()
-    model = check.model(model)
     client = check.dask_client(client)
     grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
-    if grid is not None:
-        if grid.states.size == 0:
-            raise ValueError("the section grid holds no allowed point at this energy")
-        X, _ = check.states(model, grid.states, "the section grid's states")
-    else:
-        X, single = check.states(model, initial_conditions, "initial_conditions")
-        if single:
-            raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
-                             f"got shape {np.asarray(initial_conditions).shape}")
+    if grid is not None and grid.states.size == 0:
+        raise ValueError("the section grid holds no allowed point at this energy")
+    # The map draws orbit m's vectors from [seed, m]: a seed is needed.
+    seed = check_seed(seed, none=False)
+    spec = specify(model, initial_conditions if grid is None else grid.states, indicator,
+                   t_end, tau, method=method, t_out=t_check, seed=seed,
+                   escape_radius=escape_radius, energy_tol=energy_tol,
+                   what="initial_conditions" if grid is None else "the section grid's states",
+                   kernels_what="initial condition", t_out_name="t_check", **options)
+    if spec.single:
+        raise ValueError("initial_conditions must have shape (M, 2N) (one row per orbit), "
+                         f"got shape {np.asarray(initial_conditions).shape}")
+    model, X, ind = spec.model, spec.x0, spec.indicator
     m = len(X)
     # The map's per-orbit results (values, times, status, errors, states).
-    model_name = model.name
     check.check_memory(check.array_bytes((m, 2 * X.shape[1] + 8)),
-                       f"a chaos map of {m} orbits of {model_name}")
-    if getattr(model, "kind", "flow") == "map":
-        tau = default_tau(model) if tau is None else tau   # iterations: no step to choose
-    elif getattr(model, "band_kernels", True):
-        # An initial condition where V or its derivatives are singular is
-        # refused, not computed as a failed orbit.
-        check.kernels(model, X, "initial condition")
-    accuracy.Reference(model, X)
-    energy_tol = accuracy.energy_tolerance(energy_tol)
-    ind, fixed = resolve(indicator)
+                       f"a chaos map of {m} orbits of {model.name}")
     if ind.scalar is None:
         raise ValueError(f"indicator {ind.name!r} has no map value (one number per orbit); "
                          "maps take: " + ", ".join(n for n, i in INDICATORS.items()
                                                   if i.scalar is not None))
-    ind_options = {**fixed, **{k: v for k, v in options.items() if k in ind.options}}
-    method_options = {k: v for k, v in options.items()
-                      if k not in ind.options and not (k == "scheme" and v is None)}
-    # Checked here, before any chunk runs, with the chunks' own rules.
-    configured = ind.configure(model, ind_options)
-    ind.check_states(model, X, configured)
-    k = ind.vectors(model, configured, None)
-    limit: float | None
-    if isinstance(threshold, str) and threshold == "default":
-        limit = ind.default_threshold(model, configured)
-    elif threshold is None:
-        limit = None
-    elif (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
-            or not np.isfinite(threshold)):
-        raise ValueError(f"threshold must be a finite number, None or 'default', "
-                         f"got {threshold!r}")
-    else:
-        limit = float(threshold)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    workers = 1 if client is None else _cluster_threads(client)
-    if chunk_size is None:
-        chunk_size = _default_chunk_size(m, workers)
-    elif isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
-            or chunk_size < 1:
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    if escape_radius is not None:
-        escape_radius = check.positive_float(escape_radius, "escape_radius")
-    method = check.choice(method, METHODS, "method")
-    if tau is None and stepsize.pilots(method):
-        stepsize.check_options(method, method_options)
+    k = ind.vectors(model, spec.options, None)
+    limit = _threshold(threshold, spec)
+    chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
-    t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
-        t_end, (int, float)) and np.isfinite(t_end) else None)
-    tau_choice = {"rule": "given"}
-    clock = compiling.Clock(f"the {ind.name} map of {model_name} by {method}", progress)
-    if tau is None:
-        check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-        with clock.part("pilot"):
-            tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
-                                           t_check, escape_radius, ind, configured, k, seed)
-    t_end, tau = check.horizon(t_end, tau)
-    steps = output_steps(t_end, tau, t_check)
-    if t_check is None:
-        steps = steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])]
-    spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=tau,
-                 method=method, method_options=method_options, steps=steps, seed=int(seed),
-                 threshold=limit, escape_radius=escape_radius)
+    clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
+    spec = _with_step(spec, k, clock)
+    shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
     # times; values do not depend on it (see the module docstring).
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     parameters = {"kind": "chaos_map", "model": model.describe(), "x0": digest(X),
-                  "indicator": ind.name, "indicator_options": configured,
-                  "threshold": limit, "t_end": t_end, "tau": tau,
-                  "t_check": digest(steps), "method": spec.method,
-                  "method_options": _describe_options(method_options), "seed": int(seed),
-                  "chunk_size": int(chunk_size), "escape_radius": escape_radius,
+                  "indicator": ind.name, "indicator_options": spec.options,
+                  "threshold": limit, "t_end": spec.t_end, "tau": spec.tau,
+                  "t_check": digest(spec.steps), "method": spec.method,
+                  "method_options": _describe_options(spec.method_options), "seed": seed,
+                  "chunk_size": int(chunk_size), "escape_radius": spec.escape_radius,
                   "versions": package_versions(), "code": identity.source_digest()}
-    store = None
-    done = {}
-    if checkpoint is not None:
-        store = Store(checkpoint, "chaos map", parameters)
-        store.manifest("map.json")
-        for c in range(len(chunks)):
-            chunk = _load_chunk(store, c, chunks[c], spec, X.shape[1])
-            if chunk is not None:
-                done[c] = chunk
+    store = None if checkpoint is None else Store(checkpoint, "chaos map", parameters)
+    done = {} if store is None else _resume(store, chunks, shared, X.shape[1])
     resumed = len(done)
     todo = [c for c in range(len(chunks)) if c not in done]
-    runner = _run_local if client is None else _run_dask
-    with _bar(progress, m, sum(len(chunks[c]) for c in done)) as bar, clock.part("run"):
-        interrupted = runner(client, model, X, chunks, todo, spec, done, store, bar)
-    result = _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed,
-                       interrupted, store is not None, time.perf_counter() - start, client,
-                       energy_tol, tau_choice)
+
+    def keep(c, chunk):
+        done[c] = chunk
+        if store is not None:
+            _save_chunk(store, c, chunks[c], chunk)
+        return len(chunk.values)
+
+    with bar(progress, m, sum(len(chunks[c]) for c in done), "chaos_map", "orbit") as shown, \
+            clock.part("run"):
+        interrupted = fan_out(client, todo, run_chunk,
+                              lambda c: (X[chunks[c]], chunks[c], shared), keep, shown)
+    result = _assemble(spec, X, grid, chunks, done, limit, parameters, resumed, interrupted,
+                       store is not None, time.perf_counter() - start, client)
     # This process's compilations (a cluster's workers compile on their own).
     result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
-    accuracy.warn(result.accuracy, method, what="the chaos map")
+    accuracy.warn(result.accuracy, spec.method, what="the chaos map")
     return result
 
 
-def _choose_step(model, X, t_end, method, method_options, t_check, escape_radius, ind,
-                 configured, k, seed):
-    """The map's step from a pilot on a sample of its orbits
+def _threshold(threshold, spec):
+    """The early-stopping threshold of ``threshold=`` (see :func:`chaos_map`)."""
+    if isinstance(threshold, str) and threshold == "default":
+        return spec.indicator.default_threshold(spec.model, spec.options)
+    if threshold is None:
+        return None
+    if (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
+            or not np.isfinite(threshold)):
+        raise ValueError(f"threshold must be a finite number, None or 'default', "
+                         f"got {threshold!r}")
+    return float(threshold)
+
+
+def _chunk_size(chunk_size, m, client):
+    """Orbits per chunk: as given, or :func:`_default_chunk_size`."""
+    if chunk_size is None:
+        return _default_chunk_size(m, 1 if client is None else cluster_threads(client))
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) \
+            or chunk_size < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    return int(chunk_size)
+
+
+def _resume(store, chunks, shared, dim):
+    """The chunks of this map its checkpoint directory holds, valid
+    (:func:`_load_chunk`), by number."""
+    store.manifest("map.json")
+    done = {}
+    for c, idx in enumerate(chunks):
+        chunk = _load_chunk(store, c, idx, shared, dim)
+        if chunk is not None:
+            done[c] = chunk
+    return done
+
+
+def _with_step(spec, k, clock):
+    """``spec`` with the map's τ and check steps: τ as given, or from a
+    pilot (:func:`_with_pilot_step`); the check times of ``t_check``, or
+    log-spaced from :data:`FIRST_CHECK_STEP` steps on (and t_end). Every
+    chunk runs these (the map's τ is chosen here, once)."""
+    if spec.tau is None:
+        with clock.part("pilot"):
+            spec = _with_pilot_step(spec, k)
+    else:
+        spec = spec.with_step(spec.tau, indicator_times=False)
+    if spec.t_out is None:
+        steps = spec.steps
+        spec = dataclasses.replace(
+            spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
+    return spec
+
+
+def _with_pilot_step(spec, k):
+    """``spec`` with the map's step, from a pilot on a sample of its orbits
     (:func:`varint.stepsize.choose_step` with the map defaults: scheme
     :data:`MAP_SCHEME` unless one is given, tolerance
     :func:`pilot_tolerance` of the indicator, quantile
     :data:`MAP_QUANTILE`)."""
-    if stepsize.pilots(method):
+    method_options = dict(spec.method_options)
+    if stepsize.pilots(spec.method):
         method_options.setdefault("scheme", MAP_SCHEME)
-    if escape_radius is not None:
-        model = copy.copy(model)
-        model.escape_radius = escape_radius
-    return stepsize.choose_step(
-        model, X, t_end, pilot_tolerance(ind), method=method, scheme=method_options.get("scheme"),
+    t_check = spec.t_out
+    tau, tau_choice = stepsize.choose_step(
+        spec.model, spec.x0, spec.t_end, pilot_tolerance(spec.indicator), method=spec.method,
+        scheme=method_options.get("scheme"),
         cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
-        quantile=MAP_QUANTILE, seed=seed, k=k, renorm=ind.renorm,
-        accumulator=ind.accumulator_for(configured))
+        quantile=MAP_QUANTILE, seed=spec.seed, k=k, renorm=spec.indicator.renorm,
+        accumulator=spec.indicator.accumulator_for(spec.options))
+    return dataclasses.replace(spec, method_options=method_options).with_step(
+        tau, tau_choice, indicator_times=False)
 
 
 def _describe_options(options):
@@ -576,67 +539,9 @@ def _describe_options(options):
             for k, v in options.items()}
 
 
-def _bar(progress, total, initial):
-    progress = check.flag(progress, "progress")
-    if progress is None:
-        import sys
-
-        progress = sys.stderr.isatty()
-    if not progress:
-        return contextlib.nullcontext(None)
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, initial=initial, desc="chaos_map", unit="orbit", leave=False)
-
-
-def _run_local(client, model, X, chunks, todo, spec, done, store, bar):
-    """Chunks one after the other in this process; each is parallel over its
-    orbits. Returns whether Ctrl-C stopped the map (inside a chunk, its run
-    stops at once; between chunks, the finished ones are kept)."""
-    try:
-        for c in todo:
-            idx = chunks[c]
-            chunk = run_chunk(model, X[idx], idx, spec)
-            if chunk.interrupted:
-                return True
-            _finish(c, chunks[c], chunk, done, store, bar)
-    except KeyboardInterrupt:
-        return True
-    return False
-
-
-def _run_dask(client, model, X, chunks, todo, spec, done, store, bar):
-    """Chunks as tasks on a Dask cluster, taken as they finish."""
-    from distributed import as_completed
-
-    futures = {client.submit(run_chunk, model, X[chunks[c]], chunks[c], spec,
-                             pure=False): c for c in todo}
-    try:
-        for future in as_completed(futures):
-            c = futures[future]
-            _finish(c, chunks[c], future.result(), done, store, bar)
-    except KeyboardInterrupt:
-        client.cancel(list(futures))
-        return True
-    return False
-
-
-def _finish(c, idx, chunk, done, store, bar):
-    done[c] = chunk
-    if store is not None:
-        _save_chunk(store, c, idx, chunk)
-    if bar is not None:
-        bar.update(len(chunk.values))
-
-
-def _total_cpu(times):
-    """The sum of measured CPU times; None if one was not measured."""
-    times = list(times)
-    return None if any(t is None for t in times) else float(sum(times))
-
-
-def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, interrupted, kept,
-              wall, client, energy_tol, tau_choice):
+def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, interrupted, kept,
+              wall, client):
+    model, ind = spec.model, spec.indicator
     m, dim = X.shape
     values, t_stop = np.full(m, np.nan), np.full(m, np.nan)
     energy, max_energy, max_error = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
@@ -650,35 +555,26 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         max_energy[idx], max_error[idx] = chunk.max_energy_error, chunk.max_error
         for key, n in chunk.counts.items():
             counts[key] = counts.get(key, 0) + int(n)
-    failed = is_failure(status)
-    if failed.any():
-        codes = "; ".join(f"{int(n)}: {REASONS.get(int(s), f'status {int(s)}')}"
-                          for s, n in zip(*np.unique(status[failed], return_counts=True),
-                                          strict=True))
-        warnings.warn(f"{int(failed.sum())} of {m} orbits failed ({codes}); their values are "
-                      "NaN", RuntimeWarning, stacklevel=accuracy.user_stacklevel())
+    warn_failures(status, "orbits", "their values are NaN")
     if interrupted:
-        warnings.warn(f"chaos map interrupted: {len(done)} of {len(chunks)} chunks finished"
-                      + ("; they are kept in the checkpoint directory, call again to resume"
-                         if kept else ""), RuntimeWarning,
-                      stacklevel=accuracy.user_stacklevel())
+        warn_interrupted("chaos map", len(done), len(chunks), "chunks", kept)
     first = next(iter(done.values())).provenance if done else {}
     options = {"indicator": ind.name, "indicator_options": parameters["indicator_options"],
-               "threshold": spec.threshold, "x0": parameters["x0"],
+               "threshold": threshold, "x0": parameters["x0"],
                "chunk_size": parameters["chunk_size"], "chunks": len(chunks),
                "chunks_resumed": resumed,
-               "client": None if client is None else f"dask ({_cluster_threads(client)} threads)"}
+               "client": client_label(client)}
     prov = Provenance(kind="chaos_map", model=model.describe(), x0=[], method=spec.method,
                       method_options=first.get("method_options", {}), tau=spec.tau,
                       t_end=spec.t_end, seed=spec.seed, options=options,
                       versions=first.get("versions", package_versions()), counts=counts,
-                      wall_time=wall, tau_choice=dict(tau_choice),
+                      wall_time=wall, tau_choice=dict(spec.tau_choice),
                       code=first.get("code", identity.code_identity()),
                       machine=first.get("machine", identity.machine()),
-                      cpu_time=_total_cpu(chunk.cpu_time for chunk in done.values()))
+                      cpu_time=total_cpu(chunk.cpu_time for chunk in done.values()))
     failed = is_failure(status)
     with np.errstate(invalid="ignore"):
-        accurate = ~failed & (max_error <= energy_tol)
+        accurate = ~failed & (max_error <= spec.energy_tol)
     conserved = {"energy": max_energy}
     if not np.array_equal(max_error, max_energy, equal_nan=True):
         conserved["conserved quantities"] = max_error
@@ -686,7 +582,7 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
     # the time it was read at).
     verdict = accuracy.annotate(
         accuracy.Accuracy(energy_error=max_energy, conserved=conserved,
-                          t_worst=np.full(m, np.nan), energy_tol=energy_tol,
+                          t_worst=np.full(m, np.nan), energy_tol=spec.energy_tol,
                           accurate=accurate, tau=spec.tau),
         model, propagator_class(spec.method, model))
     empty = np.empty(0)
@@ -694,7 +590,8 @@ def _assemble(model, ind, X, grid, chunks, done, spec, parameters, resumed, inte
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,
         status=status, interrupted=interrupted, accuracy=verdict, indicator=ind.name,
         values=values,
-        t_stop=t_stop, threshold=spec.threshold, x0=X,
+        t_stop=t_stop, threshold=threshold, x0=X,
         axes=None if grid is None else list(grid.axes),
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
-        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask)
+        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
+        log_scale=ind.log_scale)

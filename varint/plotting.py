@@ -252,25 +252,20 @@ def plot_chaos_map(result, ax=None, log=None, cmap="viridis", colorbar=True):
     ----------
     log : bool, optional
         Colour by log₁₀ of the values. By default when the indicator is
-        read on a log scale (``Indicator.log_scale``: SALI, GALI) or its
-        positive values span more than two decades (MEGNO or FLI with a few
-        strongly chaotic orbits), so that outliers do not flatten the rest.
+        read on a log scale (``result.log_scale``, which the map copied from
+        ``Indicator.log_scale``: SALI, GALI) or its positive values span
+        more than two decades (MEGNO or FLI with a few strongly chaotic
+        orbits), so that outliers do not flatten the rest.
     """
     import matplotlib as mpl
     from matplotlib.patches import Patch
-
-    from .indicators import resolve
 
     ax = _axes(ax)
     values = np.asarray(result.values, dtype=float)
     failed = np.asarray(result.status) > 0
     zero = (values == 0) & ~failed
-    try:
-        declared = resolve(result.indicator)[0].log_scale
-    except ValueError:   # an indicator no longer registered
-        declared = False
     if log is None:
-        log = declared or _spans_decades(values[~zero])
+        log = bool(result.log_scale) or _spans_decades(values[~zero])
     label = result.indicator.upper().replace("_", " ")
     shown = values.copy()
     if log:

@@ -557,6 +557,12 @@ class ChaosMapResult(_Result):
         indices of the grid axes, their values and which grid points are
         allowed (``values`` holds the allowed ones in row-major order);
         None and empty arrays otherwise.
+    log_scale : bool or None
+        Whether the indicator is read on a log scale
+        (:attr:`Indicator.log_scale <varint.indicators.Indicator>`), as the
+        map recorded it, for :func:`~varint.plotting.plot_chaos_map`; None
+        in maps saved before it was recorded. The map holds it so that
+        drawing a result needs nothing of the indicator registry above it.
     """
 
     layout: ClassVar[str] = "map"
@@ -571,6 +577,7 @@ class ChaosMapResult(_Result):
     u: np.ndarray | None = None
     v: np.ndarray | None = None
     mask: np.ndarray | None = None
+    log_scale: bool | None = None
 
     def headline(self):
         values = np.asarray(self.values, dtype=float)

@@ -5,8 +5,10 @@ with any method (:data:`varint.METHODS`) for one orbit or a batch; the
 public functions :func:`~varint.lyapunov_spectrum`, :func:`~varint.gali`,
 :func:`~varint.sali`, :func:`~varint.megno` and :func:`~varint.integrate`
 are thin wrappers over it, and :func:`~varint.chaos_map` runs it chunk by
-chunk. What it shares with every indicator and method: checking the inputs
-before any work, drawing seeded initial deviation vectors, building the
+chunk. What it shares with every indicator and method: the inputs checked
+before any work into a :class:`~varint.runspec.RunSpec`
+(:func:`~varint.runspec.specify`), which a :class:`Run` executes: drawing
+seeded initial deviation vectors, choosing τ when it is not given, building the
 propagator, resuming from a checkpoint, driving to the output times
 (:mod:`varint.driver`), and packaging the records into a result with its
 provenance and its accuracy.
@@ -14,7 +16,6 @@ provenance and its accuracy.
 
 from __future__ import annotations
 
-import copy
 import os
 import time
 import warnings
@@ -29,23 +30,20 @@ from . import accuracy, compiling, identity, stepsize
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
-from .indicators import Indicator, resolve
-from .methods import METHODS, make_propagator
+from .indicators import Indicator
+from .methods import make_propagator
 from .models.base import Model
-from .models.maps import MapModel
 from .protocol import TIME_MOMENTUM, Renorm, is_failure
 from .records import Records
+from .runspec import DEFAULT_TAU, RunSpec, default_tau, specify
 from .results import Provenance, _Result, package_versions
-from .state import Rows, RunState, initial_deviations, output_steps, renormalized_copy
+from .state import Rows, RunState, initial_deviations, renormalized_copy
 
 __all__ = ["run", "prepare", "Run", "DEFAULT_TAU", "default_tau", "energy_scale"]
 
 #: Initial states of at most this many numbers are stored in a checkpoint's
 #: parameters as values (so a mismatch shows them), larger ones as a digest.
 _SHOWN_X0 = 32
-#: The step when no pilot can choose one (methods without a splitting
-#: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
-DEFAULT_TAU = stepsize.FALLBACK_TAU
 
 
 def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
@@ -171,23 +169,10 @@ def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: floa
             **options: Any) -> Run:
     """The :class:`Run` of :func:`run` (same arguments), every input checked
     and the state started or resumed, not yet executed."""
-    return Run(model, x0, indicator, t_end, tau, method, t_out, seed, deviations, progress,
-               errors, escape_radius, checkpoint, checkpoint_interval, options, energy_tol)
-
-
-def default_tau(model):
-    """τ when none is given: :data:`DEFAULT_TAU` for a flow, one iteration
-    for a map."""
-    return 1.0 if getattr(model, "kind", "flow") == "map" else DEFAULT_TAU
-
-
-def _model(model):
-    if isinstance(model, (Model, MapModel)):
-        return model
-    hint = (" (varint.paper_orbit(name) returns a model and its initial state)"
-            if isinstance(model, str) else "")
-    raise ValueError(f"model must be a varint model (varint.models.HenonHeiles(), "
-                     f"from_potential(...), ...), got {type(model).__name__} {model!r}{hint}")
+    spec = specify(model, x0, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                   escape_radius=escape_radius, energy_tol=energy_tol, **options)
+    return Run(spec, deviations=deviations, progress=progress, errors=errors,
+               checkpoint=checkpoint, checkpoint_interval=checkpoint_interval)
 
 
 def energy_scale(model, x):
@@ -197,11 +182,15 @@ def energy_scale(model, x):
 
 
 class Run:
-    """One run, prepared by :func:`prepare`: its inputs checked, its
-    propagator built, its state started or resumed from a checkpoint.
+    """One run of a :class:`~varint.runspec.RunSpec` (built by
+    :func:`prepare`, or by a chaos map for each chunk): its deviation
+    vectors drawn or checked, τ chosen if the specification leaves it open,
+    its propagator built, its state started or resumed from a checkpoint.
 
     Attributes
     ----------
+    spec : RunSpec
+        What it runs, τ and the output steps fixed.
     model, indicator, options
         The model, the :class:`~varint.indicators.Indicator` and its
         checked options.
@@ -225,94 +214,62 @@ class Run:
         sessions).
     """
 
-    def __init__(self, model, x0, indicator, t_end, tau, method, t_out, seed, deviations,
-                 progress, errors, escape_radius, checkpoint, checkpoint_interval, options,
-                 energy_tol=None):
-        model = _model(model)
+    def __init__(self, spec: RunSpec, deviations=None, progress=None, errors="raise",
+                 checkpoint=None, checkpoint_interval=60.0):
         # The machine as the run starts (its load, above all), and the code:
         # worked out once per process, at its first run, not hours later.
         self.machine, self.code = identity.machine(), identity.code_identity()
-        self.indicator, fixed = resolve(indicator)
-        ind = self.indicator
-        given = {k: v for k, v in options.items() if k in ind.options}
-        clash = sorted(set(given) & set(fixed))
-        if clash:
-            raise ValueError(f"indicator {indicator!r} fixes {clash[0]} = {fixed[clash[0]]!r}; "
-                             f"do not pass {clash[0]}= with it")
-        method_options = {k: v for k, v in options.items()
-                          if k not in ind.options and not (k == "scheme" and v is None)}
-        self.run_options = {}
-        if escape_radius is not None:
-            # A copy, so the caller's model keeps its own radius.
-            model = copy.copy(model)
-            model.escape_radius = check.positive_float(escape_radius, "escape_radius")
-            self.run_options["escape_radius"] = model.escape_radius
-        self.model = model
-        self.x0, self.single = check.states(model, x0)
-        is_map = getattr(model, "kind", "flow") == "map"
-        if not is_map and getattr(model, "band_kernels", True):
-            # A state where V or its derivatives are singular is refused
-            # here, not reported as a run failing at its first step (a
-            # lattice without band kernels is checked by its own stepper).
-            check.kernels(model, self.x0)
-        self.reference = accuracy.Reference(model, self.x0)
-        self.energy_tol = accuracy.energy_tolerance(energy_tol)
-        if tau is None and is_map:
-            tau = default_tau(model)      # one iteration: no step to choose
-        # Times are checked against t_end now only for the automatic step,
-        # whose pilot comes first (with τ given, output_steps checks them
-        # against t_end rounded to whole steps).
-        t_out = check.output_times(
-            t_out, t_end=t_end if tau is None and isinstance(t_end, (int, float))
-            and np.isfinite(t_end) else None)
         self.errors = check.choice(errors, ("raise", "flag"), "errors")
         self.progress = check.flag(progress, "progress")
-        self.options = ind.configure(model, {**fixed, **given})
-        ind.check_states(model, self.x0, self.options)
-        self.method = check.choice(method, METHODS, "method")
-        if tau is None and stepsize.pilots(self.method):
-            stepsize.check_options(self.method, method_options)
-        self.checkpoint = (None if checkpoint is None
-                           else Checkpoint(checkpoint, checkpoint_interval))
-        saved = None if self.checkpoint is None else self.checkpoint.read()
-        self.W0, self.seed = self._initial_vectors(deviations, seed, saved)
+        self.model, self.x0, self.single = spec.model, spec.x0, spec.single
+        self.indicator = ind = spec.indicator
+        self.options = dict(spec.options)
+        self.run_options = spec.run_options
+        self.method, self.energy_tol = spec.method, spec.energy_tol
+        # A chunk's specification leaves its orbits' reference to its run.
+        self.reference = (spec.reference if spec.reference is not None
+                          else accuracy.Reference(spec.model, spec.x0))
+        ckpt = None if checkpoint is None else Checkpoint(checkpoint, checkpoint_interval)
+        self.checkpoint = ckpt
+        saved = None if ckpt is None else ckpt.read()
+        self.W0, self.seed = self._initial_vectors(deviations, spec.seed, saved)
         if ind.count_option is not None:
             self.options[ind.count_option] = self.W0.shape[2]
         self.accumulator = ind.accumulator_for(self.options)
-        self.tau_choice = stepsize.StepChoice(rule="given")
-        scheme = method_options.get("scheme")
+        scheme = spec.scheme
         self.clock = compiling.Clock(
-            f"{ind.name} of {model.name} by {self.method}"
+            f"{ind.name} of {spec.model.name} by {self.method}"
             + (f" ({getattr(scheme, 'name', scheme)})" if scheme is not None else ""),
             self.progress)
-        if tau is None:
-            # Even the largest step the pilot may choose must fit the counter.
-            check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-            with self.clock.part("pilot"):
-                tau, self.tau_choice = stepsize.choose_step(
-                    model, self.x0, t_end, self.energy_tol / stepsize.PILOT_MARGIN,
-                    method=self.method, scheme=scheme,
-                    cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
-                    W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
-        self.t_end, self.tau = check.horizon(t_end, tau)
-        if t_out is None and ind.output_times is not None:
-            t_out = ind.output_times(self.t_end, self.tau, self.options)
-        self.steps = output_steps(self.t_end, self.tau, t_out)
+        if spec.steps is None:
+            tau, tau_choice = spec.tau, None
+            if tau is None:
+                with self.clock.part("pilot"):
+                    tau, tau_choice = stepsize.choose_step(
+                        spec.model, self.x0, spec.t_end,
+                        self.energy_tol / stepsize.PILOT_MARGIN, method=self.method,
+                        scheme=scheme, cap=None if spec.t_out is None or np.ndim(spec.t_out) == 0
+                        else float(spec.t_out[0]),
+                        W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+            spec = spec.with_step(tau, tau_choice)
+        self.spec = spec
+        self.t_end, self.tau, self.steps = spec.t_end, spec.tau, np.asarray(spec.steps)
+        self.tau_choice = spec.tau_choice
         self._check_size()
         with self.clock.part("setup"):
-            self.propagator = make_propagator(self.method, model, self.tau, ind.renorm,
-                                              self.accumulator, **method_options)
+            self.propagator = make_propagator(self.method, self.model, self.tau, ind.renorm,
+                                              self.accumulator, **spec.method_options)
         if hasattr(self.propagator, "set_horizon"):
             # A baseline integrating blocks of intervals ends none past the run.
             self.propagator.set_horizon(int(self.steps[-1]))
         start = self._start_state()
-        if saved is None:
+        if ckpt is None or saved is None:
             self.state, self.records = start, Records()
             self.wall_before, self.cpu_before = 0.0, 0.0
         else:
-            self.checkpoint.require(saved, self.parameters())
+            ckpt.require(saved, self.parameters())
             # Nothing from the file reaches a stepper before it is checked.
-            self.checkpoint.validate(saved, start, self.steps, self._template_record(start),
+            ckpt.validate(saved, start, self.steps, self._template_record(start),
                                      ind.renorm)
             self.state, self.records = saved.state, saved.records
             self.wall_before, self.cpu_before = saved.wall_time, saved.cpu_time
@@ -386,14 +343,12 @@ class Run:
 
     @staticmethod
     def _seed(seed, saved):
-        if seed is None:
-            # A random seed, unless a checkpoint already drew one: resuming
-            # must continue with the same vectors.
-            stored = None if saved is None else saved.parameters.get("seed")
-            return stored if isinstance(stored, int) else int(np.random.SeedSequence().entropy)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
-        return int(seed)
+        """The run's seed: the given one, else the one a checkpoint drew
+        (resuming must continue with the same vectors), else a new one."""
+        if seed is not None:
+            return seed
+        stored = None if saved is None else saved.parameters.get("seed")
+        return stored if isinstance(stored, int) else int(np.random.SeedSequence().entropy)
 
     def parameters(self):
         """Everything that determines the result, as JSON: what a checkpoint

@@ -27,6 +27,7 @@ from __future__ import annotations
 import importlib
 
 from ..protocol import Renorm
+from .options import method_options
 
 __all__ = ["METHODS", "MAP_METHODS", "make_propagator", "register_method", "method_options",
            "propagator_class"]
@@ -107,23 +108,6 @@ def _resolve(target):
     """The class named by "module:Class"."""
     module, _, cls = target.partition(":")
     return getattr(importlib.import_module(module), cls)
-
-
-def method_options(method, given, valid):
-    """``given`` options checked against the ``valid`` names of ``method``.
-
-    Raises
-    ------
-    TypeError
-        Naming the unknown option and the valid ones (rule 1 of the
-        protocol: a misspelt tolerance must not pass silently).
-    """
-    unknown = sorted(set(given) - set(valid))
-    if unknown:
-        listed = ", ".join(valid) if valid else "none"
-        raise TypeError(f"unknown option {unknown[0]!r} for method {method!r}; valid options: "
-                        f"{listed} (see varint.METHODS for the other methods)")
-    return dict(given)
 
 
 def make_propagator(method, model, tau, renorm, accumulator=None, **options):

@@ -22,7 +22,7 @@ from ..kernels import tao as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import STATUS_OK, Renorm
 from ..schemes import part_stages
-from . import method_options
+from .options import method_options
 from .parts import PartsPropagator
 
 __all__ = ["GeneralPropagator", "TAO_COPY", "TAO_TANGENT"]

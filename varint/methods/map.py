@@ -23,7 +23,7 @@ import numpy as np
 from ..kernels import map_stepper as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import STATUS_OK, Renorm
-from . import method_options
+from .options import method_options
 
 __all__ = ["MapPropagator", "iterations"]
 

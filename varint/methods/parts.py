@@ -24,7 +24,7 @@ from ..kernels import parts as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import REASONS, STATUS_OK, Renorm, Status
 from ..schemes import CORRECTOR, CompositionScheme, part_stages, scheme_word
-from . import method_options
+from .options import method_options
 
 __all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
 

@@ -47,7 +47,7 @@ from ..kernels.nbody import apply_word
 from ..protocol import STATUS_OK, Renorm, Status
 from ..schemes import get_scheme
 from ..state import renormalized_copy
-from . import method_options
+from .options import method_options
 from .parts import PartsPropagator
 
 __all__ = ["PlanetaryPropagator", "MAPPED_STATE", "MAPPED_VECTORS"]

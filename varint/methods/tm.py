@@ -35,7 +35,7 @@ from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
-from . import method_options
+from .options import method_options
 
 __all__ = ["TangentMapPropagator", "tangent_map_steps"]
 

@@ -61,7 +61,7 @@ from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.tm import model_kernels, specialised_sizes
 from ..protocol import COUNTERS, STATUS_OK, Renorm
 from ..schemes import DEFAULT_SCHEME, get_scheme, stage_arrays, stage_times
-from . import method_options
+from .options import method_options
 from .map import iterations
 
 __all__ = ["TwoParticlePropagator", "NEIGHBOURS", "DEFAULT_D0", "D0_MIN", "D0_MAX", "d0_range"]

@@ -35,7 +35,7 @@ from ..codegen.expressions import symbolic_fits
 from ..codegen.stepper import symbolic_stepper
 from ..kernels import tm as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
-from ..methods import method_options
+from ..methods.options import method_options
 from ..models.henon_heiles import HenonHeiles
 from ..protocol import COUNTERS, STATUS_OK, Renorm
 from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, registered, stage_arrays, stage_times

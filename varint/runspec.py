@@ -1,0 +1,218 @@
+"""What a run is, checked once: :class:`RunSpec` and :func:`specify`.
+
+Every workflow that integrates — one run (:func:`varint.run.prepare`), each
+chunk of a chaos map (:func:`varint.chaos_map`), each realisation of an
+ensemble (:func:`varint.ensemble`) — starts from the same specification:
+the model (with the call's escape radius), the initial states and the
+energies and scales their errors are measured against, the indicator and
+its configured options, the method and its options, the times, the seed and
+the energy tolerance. :func:`specify` checks the arguments of a call and
+builds it before any work; a :class:`~varint.run.Run` executes it, and a
+map hands the same specification to each chunk (:meth:`RunSpec.for_orbits`)
+instead of passing the arguments on to be checked again.
+
+τ is the one part a specification may leave open (``tau=None``): the run
+(or the map, for all its chunks) chooses it with a pilot
+(:mod:`varint.stepsize`) and records the choice; :meth:`RunSpec.with_step`
+fixes it, with its output steps.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import _validate as check
+from . import accuracy, stepsize
+from .indicators import Indicator, resolve
+from .methods import METHODS
+from .state import output_steps
+
+__all__ = ["RunSpec", "specify", "check_seed", "DEFAULT_TAU", "default_tau"]
+
+#: The step when no pilot can choose one (methods without a splitting
+#: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
+DEFAULT_TAU = stepsize.FALLBACK_TAU
+
+
+def default_tau(model):
+    """τ when none is given: :data:`DEFAULT_TAU` for a flow, one iteration
+    for a map."""
+    return 1.0 if getattr(model, "kind", "flow") == "map" else DEFAULT_TAU
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run's inputs, every one checked (built by :func:`specify`).
+
+    Attributes
+    ----------
+    model : Model
+        The model, a copy carrying ``escape_radius`` where the call gave one.
+    x0 : ndarray, shape (M, 2N)
+    single : bool
+        Whether the caller passed one state (results drop the orbit axis).
+    reference : varint.accuracy.Reference or None
+        The conserved quantities at ``x0`` and their scales (None in the
+        specification a map sends to its chunks, whose runs measure their
+        own orbits'; :meth:`without_orbits`).
+    indicator : Indicator
+    options : dict
+        The indicator's options, configured for the model
+        (:meth:`Indicator.configure`).
+    method : str
+    method_options : dict
+        The method's own options (``scheme``, tolerances, …), checked by the
+        propagator when it is built.
+    t_end : float
+    tau : float or None
+        None: chosen by a pilot (:mod:`varint.stepsize`).
+    t_out : None, int or ndarray
+        The output times as checked (:func:`varint.state.output_steps`).
+    steps : ndarray of int or None
+        Output steps, once τ is fixed.
+    tau_choice : dict
+        How τ was chosen (``{"rule": "given"}`` or the pilot's record).
+    seed : int or None
+        Seed of the random initial deviation vectors (None: drawn by the
+        run, or vectors given).
+    escape_radius : float or None
+        The call's own escape radius (None: the model's).
+    energy_tol : float
+    """
+
+    model: Any
+    x0: np.ndarray
+    single: bool
+    reference: accuracy.Reference | None
+    indicator: Indicator
+    options: dict
+    method: str
+    method_options: dict
+    t_end: float
+    tau: float | None
+    t_out: Any
+    seed: int | None
+    escape_radius: float | None
+    energy_tol: float
+    steps: np.ndarray | None = None
+    tau_choice: dict = dataclasses.field(default_factory=lambda: {"rule": "given"})
+
+    @property
+    def run_options(self):
+        """The options of the call that are neither the indicator's nor the
+        method's but change the result (recorded in its provenance)."""
+        return {} if self.escape_radius is None else {"escape_radius": self.escape_radius}
+
+    @property
+    def scheme(self):
+        """The ``scheme`` option (None when the method's default is used)."""
+        return self.method_options.get("scheme")
+
+    def with_step(self, tau, tau_choice=None, indicator_times=True):
+        """This specification with τ fixed (``t_end`` and τ checked against
+        each other, :func:`varint._validate.horizon`; the last output is the
+        step nearest ``t_end``) and its output steps: those of the
+        call's ``t_out``, else the indicator's own default times (unless
+        ``indicator_times`` is false: a map's check times), else
+        log-spaced ones (:func:`varint.state.output_steps`)."""
+        t_end, tau = check.horizon(self.t_end, tau)
+        t_out = self.t_out
+        if t_out is None and indicator_times and self.indicator.output_times is not None:
+            t_out = self.indicator.output_times(t_end, tau, self.options)
+        return dataclasses.replace(
+            self, t_end=t_end, tau=tau, steps=output_steps(t_end, tau, t_out),
+            tau_choice=dict(self.tau_choice if tau_choice is None else tau_choice))
+
+    def without_orbits(self):
+        """This specification, τ and its steps fixed, without its states and
+        their reference: what a chaos map sends to every chunk, whose run
+        takes its own orbits (:meth:`for_orbits`)."""
+        if self.steps is None:
+            raise ValueError("a specification sent to chunks needs its step fixed (with_step)")
+        return dataclasses.replace(self, x0=self.x0[:0], single=False, reference=None,
+                                   t_out=None)
+
+    def for_orbits(self, x0):
+        """The specification of a run over ``x0`` (M, 2N), some of the
+        orbits this one was checked with (a chaos map's chunk)."""
+        return dataclasses.replace(self, x0=x0, single=False, reference=None)
+
+
+def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="tm",
+            t_out=None, seed: int | None = 0, escape_radius=None, energy_tol=None,
+            what="x0", kernels_what="the initial state", t_out_name="t_out",
+            **options) -> RunSpec:
+    """The :class:`RunSpec` of a call, every argument checked before any
+    work (the arguments of :func:`varint.run`; ``what``, ``kernels_what``
+    and ``t_out_name`` name the states, one state and the output times in
+    messages).
+
+    Raises
+    ------
+    ValueError
+        Naming the value and what was expected: a model that is not one, an
+        indicator option the indicator fixes, states of the wrong shape or
+        where the potential or its derivatives are not finite, bad output
+        times, seed or energy tolerance, an unknown method.
+    TypeError
+        For an option that neither the indicator nor, when a pilot chooses
+        τ, the method takes (the method checks its own when it is built).
+    """
+    model = check.model(model)
+    ind, fixed = resolve(indicator)
+    given = {k: v for k, v in options.items() if k in ind.options}
+    clash = sorted(set(given) & set(fixed))
+    if clash:
+        raise ValueError(f"indicator {indicator!r} fixes {clash[0]} = {fixed[clash[0]]!r}; "
+                         f"do not pass {clash[0]}= with it")
+    method_options = {k: v for k, v in options.items()
+                      if k not in ind.options and not (k == "scheme" and v is None)}
+    if escape_radius is not None:
+        # A copy, so the caller's model keeps its own radius.
+        escape_radius = check.positive_float(escape_radius, "escape_radius")
+        model = copy.copy(model)
+        model.escape_radius = escape_radius
+    x, single = check.states(model, x0, what)
+    is_map = model.kind == "map"
+    if not is_map and getattr(model, "band_kernels", True):
+        # A state where V or its derivatives are singular is refused here,
+        # not reported as a run failing at its first step (a lattice
+        # without band kernels is checked by its own stepper).
+        check.kernels(model, x, kernels_what)
+    reference = accuracy.Reference(model, x)
+    energy_tol = accuracy.energy_tolerance(energy_tol)
+    if tau is None and is_map:
+        tau = default_tau(model)      # one iteration: no step to choose
+    # Times are checked against t_end now only for the automatic step, whose
+    # pilot comes first (with τ given, output_steps checks them against
+    # t_end rounded to whole steps).
+    t_out = check.output_times(t_out, t_out_name, t_end if tau is None and isinstance(
+        t_end, (int, float)) and np.isfinite(t_end) else None)
+    configured = ind.configure(model, {**fixed, **given})
+    ind.check_states(model, x, configured)
+    method = check.choice(method, METHODS, "method")
+    if tau is None and stepsize.pilots(method):
+        stepsize.check_options(method, method_options)
+    if tau is None:
+        # Even the largest step a pilot may choose must fit the counter.
+        check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
+    return RunSpec(model=model, x0=x, single=single, reference=reference, indicator=ind,
+                   options=configured, method=method, method_options=method_options,
+                   t_end=t_end, tau=tau, t_out=t_out, seed=check_seed(seed),
+                   escape_radius=escape_radius, energy_tol=energy_tol)
+
+
+def check_seed(seed, none=True):
+    """``seed`` as an int, or None where ``none`` allows it; anything else
+    is refused."""
+    if seed is None and none:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer{' or None' if none else ''}, "
+                         f"got {seed!r}")
+    return int(seed)
