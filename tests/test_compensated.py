@@ -11,6 +11,8 @@ from varint.methods.tm import TangentMapPropagator
 from varint.models import HenonHeiles
 from varint.protocol import Renorm, Status
 from varint.state import RunState
+from tests.helpers import assert_bitwise_equal
+from tests.test_checkpoint import crash_then_resume
 
 HH = HenonHeiles()
 
@@ -123,6 +125,19 @@ def test_compensated_resumes_bitwise_and_its_compensations_are_state():
     for key in one.extra:
         assert np.array_equal(one.extra[key], two.extra[key]), key
     assert not np.array_equal(one.x, dropped.x)
+
+
+def test_compensated_run_resumes_from_its_checkpoint_bitwise(c1, tmp_path, monkeypatch):
+    """A compensated spectrum stopped after two chunks and resumed from its
+    checkpoint is bitwise the run that never stopped: the compensations
+    travel in the checkpoint with the rest of the state."""
+    def run(**kw):
+        return varint.lyapunov_spectrum(*c1, 100.0, tau=0.05, compensated=True, **kw)
+
+    reference = run()
+    resumed, step = crash_then_resume(monkeypatch, tmp_path / "c.ckpt", run)
+    assert 0 < step < 2000
+    assert_bitwise_equal(resumed, reference)
 
 
 def test_compensated_through_an_indicator():

@@ -11,11 +11,12 @@ and of the vectors adds its increment by Kahan's compensated summation
 (Kahan 1965; Møller 1965): the low-order bits an addition loses are kept
 in a compensation local per component and fed into its next increment, so
 the round-off of a long run grows like a random walk instead of linearly
-(Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008), Sect. 3). The orbit and the deviation vectors are local variables (registers)
-for the whole loop. The loop around the step and the end of every step are
-the emitted skeleton's (:mod:`varint.codegen.interval`), the same for one
-orbit and for SIMD lanes; this body writes into either through its
-*target*, which says how a failure is recorded and whether work is counted.
+(Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008)). The orbit and the
+deviation vectors are local variables (registers) for the whole loop. The
+loop around the step and the end of every step are the emitted skeleton's
+(:mod:`varint.codegen.interval`), the same for one orbit and for SIMD
+lanes; this body writes into either through its *target*, which says how a
+failure is recorded and whether work is counted.
 """
 
 from __future__ import annotations
@@ -41,11 +42,12 @@ class TMBody:
 
     The orbit is ``q{i}``, ``p{i}``; component i of vector j is ``a{i}_{j}``
     (δq) or ``b{i}_{j}`` (δp); compensated, each of them has its
-    compensation ``c`` + its name (:meth:`compensation`). The stage lengths are the locals ``h{s}`` and
-    ``hc{s}`` (:meth:`prologue`). After the first step, the first kick of a
-    BAB-type step reuses the values of the last kick (same q): one orbit
-    evaluates them once in its first step, SIMD lanes once when a block is
-    loaded and carry them between steps (:meth:`carried`).
+    compensation ``c`` + its name (:meth:`compensation`). The stage lengths
+    are the locals ``h{s}`` and ``hc{s}`` (:meth:`prologue`). After the
+    first step, the first kick of a BAB-type step reuses the values of the
+    last kick (same q): one orbit evaluates them once in its first step,
+    SIMD lanes once when a block is loaded and carry them between steps
+    (:meth:`carried`).
     """
 
     def __init__(self, E, kinds, corrected, k, compensated=False):
@@ -203,8 +205,10 @@ class TMBody:
         by Kahan's summation, and what that addition lost becomes the new
         compensation: ``(s − name) − y`` is exactly the rounding error of
         ``s = name + y`` whenever ``|name| ≥ |y|`` (Dekker's Fast2Sum, 1971),
-        which a state component and its small increment satisfy. The
-        operations must stay in this order (numba does not reassociate
+        which holds for a component and its small increment except in the
+        steps where the component passes near zero (there the compensation
+        is approximate and the round-off of that addition is small anyway,
+        as the component is). The operations must stay in this order (numba does not reassociate
         floating point without fastmath).
         """
         if not self.compensated:
