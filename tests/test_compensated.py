@@ -140,6 +140,25 @@ def test_compensated_run_resumes_from_its_checkpoint_bitwise(c1, tmp_path, monke
     assert_bitwise_equal(resumed, reference)
 
 
+def test_the_automatic_step_pilots_compensated_runs_compensated():
+    """Without τ, a compensated run's pilot is compensated too: with
+    energy_tol = 1e-13 (pilot tolerance 1e-15) on R1 to t = 100 SRKN14a's
+    plain pilots stay at the plain round-off (≥ 6e-15 at every step tried)
+    and the run falls back with a warning, while the compensated pilots
+    meet it (measured 3e-16 to 7e-16) and choose a step."""
+    from varint.accuracy import AccuracyWarning
+
+    model, x0 = varint.paper_orbit("R1")
+    with pytest.warns(AccuracyWarning, match="no step of SRKN14a"):
+        plain = varint.integrate(model, x0, 100.0, scheme="SRKN14a", energy_tol=1e-13)
+    comp = varint.integrate(model, x0, 100.0, scheme="SRKN14a", energy_tol=1e-13,
+                            compensated=True)
+    assert plain.provenance.tau_choice["rule"] == "fallback"
+    assert comp.provenance.tau_choice["rule"] == "pilot"
+    assert max(e for _, e in comp.provenance.tau_choice["tried"]) > 1e-15   # it searched
+    assert np.max(np.abs(comp.energy_error)) < 1e-13
+
+
 def test_compensated_through_an_indicator():
     """The option reaches the TM method through an indicator's call: the
     spectrum of C2 with compensation is the plain one to 1e-12 and sums to
