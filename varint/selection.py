@@ -83,7 +83,7 @@ HIGH_ORDER_CANDIDATES = (("tm", "s17odr8", 0.2), ("tm", "s17odr8", 0.1),
 METRICS = ("energy", "tangent", "X1")
 #: A TM candidate whose predicted error is above the target by at most this
 #: factor is piloted again with compensated summation: at the plain floor
-#: compensation lowered R1's global error (t = 1e3) by a factor 20–40
+#: compensation lowered the global error (R1 and C2, t = 1e3 and 1e4) by a factor 30–250
 #: (``studies/compensated_floor.py``), so a candidate that misses by more
 #: cannot be rescued by it.
 COMPENSATION_RANGE = 100.0
