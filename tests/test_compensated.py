@@ -189,3 +189,12 @@ def test_compensated_needs_a_generated_stepper():
     with pytest.raises(ValueError, match="compensated=True runs generated steppers"):
         p.advance(state, 10)
     assert state.step == 0
+
+
+def test_a_bad_compensated_is_refused_before_the_pilot():
+    """Without τ the pilot is given the option as the run was: a bad value
+    is refused in one line when the first pilot's propagator is built,
+    not taken for True by the pilot and refused only after it."""
+    model, x0 = varint.paper_orbit("R1")
+    with pytest.raises(ValueError, match="compensated must be True or False, got 'yes'"):
+        varint.integrate(model, x0, 100.0, compensated="yes")

@@ -294,7 +294,7 @@ class Run:
                     method=self.method, scheme=scheme,
                     cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
                     W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator,
-                    compensated=bool(method_options.get("compensated", False)))
+                    compensated=method_options.get("compensated", False))
         self.t_end, self.tau = check.horizon(t_end, tau)
         if t_out is None and ind.output_times is not None:
             t_out = ind.output_times(self.t_end, self.tau, self.options)

@@ -287,7 +287,8 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
     # make_propagator: a lattice's "tm" is its part stepper.
     prop = make_propagator("tm", model, tau, Renorm.parse(renorm), accumulator, scheme=scheme,
-                           **({"compensated": True} if compensated else {}))
+                           # As given: the propagator checks the value.
+                           **({} if compensated is False else {"compensated": compensated}))
     advance = _advance if type(prop) is TangentMapPropagator else type(prop).advance
     state = RunState.start(X, W0)
     if accumulator is not None:
