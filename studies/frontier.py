@@ -15,7 +15,10 @@ Contenders
 * varint, public API: ``varint.integrate(model, x0, t_end, tau=τ,
   scheme=s, deviations=w0)``, each scheme over a ladder of steps. "Old" are
   the schemes before this issue (ABA864, s11odr6, SRKN14a; order ≤ 6),
-  "new" the orders 8 and 10 (s15odr8, s17odr8, s35odr10).
+  "new" the orders 8 and 10 (s15odr8, s17odr8, s35odr10), "compensated"
+  SRKN14a, s17odr8 and s35odr10 with ``compensated=True`` (Kahan's
+  summation in every drift and kick; ``studies/compensated_floor.py``) at
+  the steps of their ladders where round-off matters.
 * heyoka as its experts drive it for this task: the scalar
   ``taylor_adaptive`` on the model's equations and one column of the
   variational equations heyoka derives itself (``var_ode_sys``, order 1),
@@ -35,8 +38,9 @@ own cost–error Pareto front, log–log interpolated
 (:func:`studies.claims.cost_at`; "at most" where even its cheapest
 point is more accurate), and the cheapest scheme of a group counts; the
 ratio is heyoka's cost over varint's (> 1: varint is faster), for the best
-old scheme and the best scheme overall; the verdicts on the issue's targets
-are taken on the CPU times (the wall times are stored beside them). The floor is the smallest error a
+old scheme, the best plain scheme and the best scheme overall (compensated
+included); the verdicts on the issue's targets are taken on the CPU times
+(the wall times are stored beside them). The floor is the smallest error a
 contender reaches on its ladder. A row "varint one step" times the same
 call for a single step: varint's fixed cost per call (checks, set-up,
 provenance), given as a share of the best varint CPU time at each target. The figure
@@ -80,6 +84,13 @@ TAUS = {
     "s15odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05),
     "s17odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.04),
     "s35odr10": (1.0, 0.8, 0.5, 0.4, 0.3125, 0.25, 0.2, 0.16, 0.125, 0.1),
+}
+#: The compensated variants and their steps (those near and below the
+#: plain floor, where compensation can change the error).
+COMPENSATED = {
+    "SRKN14a": (0.125, 0.0625, 0.03125),
+    "s17odr8": (0.125, 0.1, 0.0625, 0.05),
+    "s35odr10": (0.4, 0.3125, 0.25, 0.2, 0.16, 0.125),
 }
 TOLS = (1e-8, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15, 1e-16)
 #: The issue's baseline (heyoka time / best varint time, t = 1e3, before the
@@ -136,17 +147,24 @@ def interleaved(tasks, repeats):
     return best
 
 
-def varint_runner(model, scheme, tau):
+def varint_runner(model, scheme, tau, compensated=False):
     """``run(x0, w0, t_end) -> (state, vector)`` through the public API."""
 
     def run(x0, w0, t_end):
-        r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, deviations=w0[:, None])
+        r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, deviations=w0[:, None],
+                             compensated=compensated)
         return r.state, r.deviations[:, 0]
 
     return run
 
 
-def orbit_case(name, t_end, schemes, tols, repeats):
+def key(row):
+    """The cost–error front a row belongs to: its scheme, "+c" when
+    compensated, or "heyoka"."""
+    return (row.get("scheme") or "heyoka") + ("+c" if row.get("compensated") else "")
+
+
+def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED):
     """Rows (contender, config, error, seconds) of one orbit."""
     model, x0 = varint.paper_orbit(name)
     w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
@@ -158,7 +176,13 @@ def orbit_case(name, t_end, schemes, tols, repeats):
             label = f"varint {s} tau={tau:g}"
             tasks[label] = varint_runner(model, s, tau)
             meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
-                           "group": "new" if s in NEW else "old"}
+                           "group": "new" if s in NEW else "old", "compensated": False}
+    for s, taus in compensated.items():
+        for tau in taus:
+            label = f"varint {s}+c tau={tau:g}"
+            tasks[label] = varint_runner(model, s, tau, True)
+            meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
+                           "group": "compensated", "compensated": True}
     for tol in tols:
         label = f"heyoka tol={tol:g}"
         tasks[label] = heyoka_runner(model, tol)
@@ -188,11 +212,11 @@ def group_cost(rows, target, clock):
     (:func:`studies.claims.cost_at`), the best of them; returns (cost,
     how, which) or (None, "unreachable", None)."""
     best = (None, "unreachable", None)
-    for key in dict.fromkeys(r.get("scheme") or "heyoka" for r in rows):
-        mine = [r for r in rows if (r.get("scheme") or "heyoka") == key]
+    for front in dict.fromkeys(key(r) for r in rows):
+        mine = [r for r in rows if key(r) == front]
         cost, how = cost_at(pareto([(r[clock], r["error"]) for r in mine]), target)
         if cost is not None and (best[0] is None or cost < best[0]):
-            best = (cost, how, key)
+            best = (cost, how, front)
     return best
 
 
@@ -206,6 +230,7 @@ def compare(rows, targets):
         one_step = next(r for r in mine if r["contender"] == "overhead")
         groups = {"heyoka": [r for r in mine if r["contender"] == "heyoka"],
                   "old": [r for r in mine if r["group"] == "old"],
+                  "plain": [r for r in mine if r["group"] in ("old", "new")],
                   "all": [r for r in mine if r["contender"] == "varint"]}
         for g, rs in groups.items():
             floors.append({"orbit": name, "contender": g,
@@ -218,7 +243,7 @@ def compare(rows, targets):
                     row[f"{tag}{g}_seconds"], row[f"{tag}{g}_how"] = c, how
                     if g != "heyoka":
                         row[f"{tag}{g}_scheme"] = which
-                for g in ("old", "all"):
+                for g in ("old", "plain", "all"):
                     ok = cost["heyoka"][0] is not None and cost[g][0] is not None
                     row[f"{tag}ratio_{g}"] = cost["heyoka"][0] / cost[g][0] if ok else None
             row["best_run"] = best_config(groups["all"], target)
@@ -243,16 +268,17 @@ def plot(out, rows, targets):
     fig, axes = plt.subplots(1, len(names), figsize=(6 * len(names), 4.5), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         mine = [r for r in rows if r["orbit"] == name]
-        for key in [*OLD, *NEW, "heyoka"]:
+        for front in [*OLD, *NEW, *(f"{s}+c" for s in COMPENSATED), "heyoka"]:
             # In ladder order (τ or tolerance decreasing).
             pts = sorted(((r.get("tau") or r["tol"], r["error"], r["cpu_seconds"]) for r in mine
-                          if (r.get("scheme") or "heyoka") == key and r["contender"] ==
-                          ("heyoka" if key == "heyoka" else "varint")), reverse=True)
+                          if key(r) == front and r["contender"] ==
+                          ("heyoka" if front == "heyoka" else "varint")), reverse=True)
             if not pts:
                 continue
             _, e, s = zip(*pts, strict=True)
-            style = "k-o" if key == "heyoka" else ("-s" if key in NEW else "--^")
-            ax.loglog(e, np.array(s) * 1e3, style, label=key, ms=4)
+            style = "k-o" if front == "heyoka" else (
+                ":D" if front.endswith("+c") else ("-s" if front in NEW else "--^"))
+            ax.loglog(e, np.array(s) * 1e3, style, label=front, ms=4)
         for t in targets:
             ax.axvline(t, color="0.8", lw=0.8)
         ax.set_xlabel("global error (orbit + tangent vector)")
@@ -273,22 +299,25 @@ def main(argv=None):
     t_end = 100.0 if args.quick else 1e3
     repeats = 1 if args.quick else 15
     schemes = ("SRKN14a", "s17odr8", "s35odr10") if args.quick else OLD + NEW
+    compensated = {"s35odr10": (0.25, 0.125)} if args.quick else COMPENSATED
     tols = (1e-10, 1e-14) if args.quick else TOLS
     load_before = os.getloadavg()
     rows = []
     for name in ORBITS:
-        rows += orbit_case(name, t_end, schemes, tols, repeats)
+        rows += orbit_case(name, t_end, schemes, tols, repeats, compensated)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     table, floors = compare(rows, TARGETS)
     fig = plot(args.out, rows, TARGETS)
     save_csv(args.out, "frontier", rows, ["orbit", "t_end", "config", "contender", "group",
-                                          "scheme", "tau", "tol", "error", "seconds",
-                                          "cpu_seconds"])
+                                          "scheme", "compensated", "tau", "tol", "error",
+                                          "seconds", "cpu_seconds"])
     save_csv(args.out, "frontier_ratios", table,
-             ["orbit", "target", "cpu_ratio_old", "cpu_ratio_all", "ratio_old", "ratio_all",
-              "cpu_old_scheme", "cpu_all_scheme", "old_scheme", "all_scheme", "best_run", "heyoka_seconds", "heyoka_how",
-              "old_seconds", "old_how", "all_seconds", "all_how", "cpu_heyoka_seconds",
-              "cpu_old_seconds", "cpu_all_seconds", "overhead_share", "baseline", "goal"])
+             ["orbit", "target", "cpu_ratio_old", "cpu_ratio_plain", "cpu_ratio_all",
+              "ratio_old", "ratio_plain", "ratio_all", "cpu_old_scheme", "cpu_plain_scheme",
+              "cpu_all_scheme", "old_scheme", "plain_scheme", "all_scheme", "best_run",
+              "heyoka_seconds", "heyoka_how", "old_seconds", "old_how", "plain_seconds",
+              "plain_how", "all_seconds", "all_how", "cpu_heyoka_seconds", "cpu_old_seconds",
+              "cpu_plain_seconds", "cpu_all_seconds", "overhead_share", "baseline", "goal"])
     result = {"rows": rows, "ratios": table, "floors": floors, "t_end": t_end,
               "repeats": repeats, "load": load, "figure": fig, "quick": args.quick,
               "versions": {"varint": varint.__version__, "heyoka": hy.__version__,
@@ -302,11 +331,16 @@ def main(argv=None):
     for r in table:
         if r["goal"] is None:
             continue
-        ratio, floor = r["cpu_ratio_all"], next(f["floor"] for f in floors if f["orbit"] == r["orbit"]
-                                             and f["contender"] == "all")
-        note = ""
-        if ratio is None:
-            note = f"below varint's floor ({floor:.1e}) at this horizon"
+        ratio = r["cpu_ratio_all"]
+        floor = {f["contender"]: f["floor"] for f in floors if f["orbit"] == r["orbit"]}
+        note, ours = "", None
+        if floor["all"] > r["target"]:
+            ours = f"unreachable: below varint's floor ({floor['all']:.1e})"
+            note = "below varint's floor at this horizon"
+        elif floor["heyoka"] > r["target"]:
+            # No ratio: heyoka's own floor is above the target.
+            ours = (f"heyoka cannot reach it (its floor {floor['heyoka']:.1e}); varint does "
+                    f"({r['best_run']}, floor {floor['all']:.1e})")
         elif ratio < r["goal"]:
             note = (f"one step's call (varint's fixed cost per call) is "
                     f"{r['overhead_share']:.0%} of varint's CPU time here; heyoka's Taylor "
@@ -315,10 +349,10 @@ def main(argv=None):
         claims.add(f"orbit + tangent, {r['orbit']}, t = {t_end:g}, global error "
                    f"{r['target']:g}: varint ≥ {r['goal']:g}× heyoka",
                    paper="issue 27 target",
-                   ours=(f"unreachable: below varint's floor ({floor:.1e})" if ratio is None
-                         else f"{ratio:.2f}× CPU time, {fmt(r['ratio_all'])}× wall time "
-                              f"({r['cpu_all_scheme']}; best old scheme "
-                              f"{fmt(r['cpu_ratio_old'])}× CPU; baseline {r['baseline']})"),
+                   ours=ours or (f"{ratio:.2f}× CPU time, {fmt(r['ratio_all'])}× wall time "
+                                 f"({r['cpu_all_scheme']}; best plain scheme "
+                                 f"{fmt(r['cpu_ratio_plain'])}× CPU, best old scheme "
+                                 f"{fmt(r['cpu_ratio_old'])}× CPU; baseline {r['baseline']})"),
                    holds=None if args.quick or ratio is None else ratio >= r["goal"],
                    figure=fig, note=note)
     claims.save()
@@ -327,7 +361,8 @@ def main(argv=None):
           "time (CPU, wall)")
     for r in table:
         print(f"{r['orbit']}  {r['target']:7.0e}  old {fmt(r['cpu_ratio_old']):>11} "
-              f"{fmt(r['ratio_old']):>11}   all {fmt(r['cpu_ratio_all']):>11} "
+              f"{fmt(r['ratio_old']):>11}   plain {fmt(r['cpu_ratio_plain']):>11} "
+              f"{fmt(r['ratio_plain']):>11}   all {fmt(r['cpu_ratio_all']):>11} "
               f"{fmt(r['ratio_all']):>11}  ({r['cpu_all_scheme']}; one step's call "
               f"{fmt(r['overhead_share'])} of it; baseline {r['baseline']}, goal {r['goal']})")
     for f in floors:

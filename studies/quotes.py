@@ -567,6 +567,25 @@ def _stability_range(R):
             f"and {rows['SBAB2C']:.3g} for SBAB2C")
 
 
+@quote("compensated_floor")
+def _compensated_floor(R):
+    floors = {(f["orbit"], f["t_end"], f["compensated"]): f["floor"]
+              for f in R.json("compensated_floor")["floors"]}
+    return ", ".join(f"{sci(floors['R1', t, False])} to {sci(floors['R1', t, True])} at t = "
+                     f"{power(t)}" for t in (1e3, 1e4))
+
+
+@quote("compensated_cost")
+def _compensated_cost(R):
+    res = R.json("compensated_floor")
+    one, batch = res["one_orbit_cost"], res["batch_cost"]
+    load = res["load"]["before"][0]
+    return (f"{one['median']:.2f}× the CPU time of plain summation for one orbit (median of "
+            f"{one['pairs']} steps and schemes; {one['min']:.2f}–{one['max']:.2f}×) and "
+            f"{batch['ratio_cpu']:.1f}× for {batch['orbits']} orbits, which then run one at a "
+            f"time instead of as SIMD lanes (load {load:.1f} on {res['load']['cpus']} CPUs)")
+
+
 @quote("tm_spectrum_ns")
 def _tm_spectrum_ns(R):
     r = next(r for r in R.json("bench_stepper")["rows"]

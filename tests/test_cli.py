@@ -323,6 +323,9 @@ BAD_ARGUMENTS = [
      "--d0: expected a positive finite number"),
     (["run", "x1", *R1, "--method", "two-particle", "--d0", "1e-6", "--d-max", "1e-7"], 2,
      "d_max must exceed d0"),
+    # The TM method's compensated summation.
+    (["run", "x1", *R1, "--method", "dop853", "--compensated"], 2,
+     "--compensated applies to --method tm only, not dop853"),
 ]
 
 
@@ -425,6 +428,22 @@ def test_run_lyapunov_of_a_paper_orbit(capsys):
                                    "--k", "2", "--scheme", "ABA864"])
     assert code == 0, err
     assert "X1" in out and "X2" in out and "X3" not in out and "ABA864" in out
+
+
+def test_run_compensated(capsys, tmp_path):
+    """--compensated reaches the TM method: the exponent the command writes
+    is the API's with compensated=True, bit for bit, and not the plain
+    one's."""
+    code, out, err = _run(capsys, ["run", "lyapunov", "--orbit", "C1", "--t-end", "10",
+                                   "--tau", "0.05", "--k", "1", "--compensated", "--csv",
+                                   str(tmp_path / "r.csv")])
+    assert code == 0, err
+    written = np.array([float(r[2]) for r in _rows(tmp_path / "r.csv")[1:]])
+    model, x0 = varint.paper_orbit("C1")
+    runs = {c: np.asarray(varint.lyapunov_spectrum(model, x0, 10.0, tau=0.05, n_exponents=1,
+                                                   compensated=c).exponents)[:, 0]
+            for c in (False, True)}
+    assert np.array_equal(written, runs[True]) and not np.array_equal(written, runs[False])
 
 
 @pytest.mark.parametrize("indicator, column", [("gali", "gali_4"), ("megno", "megno"),

@@ -637,11 +637,12 @@ def _method_options(args):
     if args.scheme is not None:
         out["scheme"] = args.scheme
     # Options of some methods only (the two-particle method's separation
-    # and renormalisation rule): each goes to the methods whose propagator
-    # lists it in OPTIONS (varint.METHODS), and is refused for the others.
+    # and renormalisation rule, the TM method's compensated summation): each
+    # goes to the methods whose propagator lists it in OPTIONS
+    # (varint.METHODS), and is refused for the others.
     from .methods import METHODS, propagator_class
 
-    for name in ("d0", "d_max"):
+    for name in ("d0", "d_max", "compensated"):
         value = getattr(args, name)
         if value is None:
             continue
@@ -1235,6 +1236,9 @@ def _add_run_options(p, t_end=1e4, chaos_map=False):
                f"{DEFAULT_SCHEME}" if chaos_map else f"{DEFAULT_SCHEME}, or a lattice's own split")
     p.add_argument("--scheme", help=f"splitting scheme (default {default}); see "
                    "'varint schemes'")
+    p.add_argument("--compensated", action="store_true", default=None, help="tm: add every "
+                   "drift and kick by compensated (Kahan) summation, a lower round-off floor at "
+                   "a higher cost per step")
     p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "
                    "each neighbour after it is put back (default 1e-8)")
     p.add_argument("--d-max", type=_positive, default=None, help="two-particle: put a "

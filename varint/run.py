@@ -250,7 +250,8 @@ class Run:
                         self.energy_tol / stepsize.PILOT_MARGIN, method=self.method,
                         scheme=scheme, cap=None if spec.t_out is None or np.ndim(spec.t_out) == 0
                         else float(spec.t_out[0]),
-                        W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator)
+                        W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator,
+                        compensated=spec.method_options.get("compensated", False))
             spec = spec.with_step(tau, tau_choice)
         self.spec = spec
         self.t_end, self.tau, self.steps = spec.t_end, spec.tau, np.asarray(spec.steps)

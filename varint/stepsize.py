@@ -28,6 +28,11 @@ combined standard errors (≤ 5 %) of ABA864's at τ = 0.02
 64 copies of C1 perturbed by 1e-9, compared what is nearly one sample: such
 copies share one trajectory for the first ~400 time units).
 
+A run with compensated summation (``compensated=True`` of the TM method)
+pilots with it: near round-off the energy error depends on it (R1, SRKN14a,
+t = 100: ~2e-14 plain at the steps a pilot tolerance of 1e-15 leads to,
+~5e-16 compensated; ``tests/test_compensated.py``).
+
 When the error does not shrink with the step (the orbit runs into a
 singularity of V, or escapes), no step helps: the run falls back to
 τ = 0.05 and an :class:`~varint.accuracy.AccuracyWarning` says so; the run's
@@ -126,7 +131,8 @@ def check_options(method, options):
 
 
 def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=None,
-                quantile=1.0, seed=0, W0=None, k=None, renorm="none", accumulator=None):
+                quantile=1.0, seed=0, W0=None, k=None, renorm="none", accumulator=None,
+                compensated=False):
     """The largest step whose pilot meets ``tolerance`` (see the module
     docstring).
 
@@ -160,6 +166,9 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
     k : int, optional
         Instead of ``W0``: the number of vectors, drawn at random for the
         pilot's orbits.
+    compensated : bool
+        The run's compensated summation (TM), which the pilot uses too:
+        near round-off the energy error it measures depends on it.
 
     Returns
     -------
@@ -181,7 +190,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
         W0 = W0[pick]
     else:
         W0 = initial_deviations(model.dim, k or 0, len(X), seed, pick)
-    setup = (W0, renorm, accumulator)
+    setup = (W0, renorm, accumulator, compensated)
     reference = Reference(model, X)
     tried, counts = {}, {}
 
@@ -272,12 +281,14 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     """The ``quantile`` over orbits of the largest relative error of the
     conserved quantities along a pilot with step ``tau`` (inf if an orbit
     became non-finite; an escaped orbit counts up to its escape)."""
-    W0, renorm, accumulator = setup
+    W0, renorm, accumulator, compensated = setup
     t_pilot = min(t_end, PILOT_T)
     n = max(1, int(round(t_pilot / tau)))
     checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
     # make_propagator: a lattice's "tm" is its part stepper.
-    prop = make_propagator("tm", model, tau, Renorm.parse(renorm), accumulator, scheme=scheme)
+    prop = make_propagator("tm", model, tau, Renorm.parse(renorm), accumulator, scheme=scheme,
+                           # As given: the propagator checks the value.
+                           **({} if compensated is False else {"compensated": compensated}))
     advance = _advance if type(prop) is TangentMapPropagator else type(prop).advance
     state = RunState.start(X, W0)
     if accumulator is not None:

@@ -45,8 +45,8 @@ from ..protocol import TANGENT_LIMIT, Renorm, Status
 from .accumulators import emit_readout, emit_rule
 from .source import Source
 
-__all__ = ["Interval", "OneOrbit", "Lanes", "StepperOrbit", "StepperSetup", "Outputs",
-           "LaneBlock", "LANE_WIDTH"]
+__all__ = ["Interval", "OneOrbit", "Lanes", "StepperOrbit", "CompensatedOrbit", "StepperSetup",
+           "Outputs", "LaneBlock", "LANE_WIDTH"]
 
 _OK, _ESCAPED, _NONFINITE = int(Status.OK), int(Status.ESCAPED), int(Status.ORBIT_NONFINITE)
 _DEGENERATE, _OVERFLOW = int(Status.TANGENT_DEGENERATE), int(Status.TANGENT_OVERFLOW)
@@ -59,6 +59,11 @@ LANE_WIDTH = 64
 #: the next renormalisation step and the current interval of the sparse
 #: schedule.
 StepperOrbit = orbit_record("StepperOrbit", ("schedule",))
+
+#: One orbit of a compensated stepper (:class:`varint.codegen.tm.TMBody`):
+#: a :data:`StepperOrbit` and ``compensation`` (2N, 1 + k), the Kahan
+#: compensations of the state (column 0) and of each vector (columns 1 … k).
+CompensatedOrbit = orbit_record("CompensatedOrbit", ("schedule", "compensation"))
 
 #: What a call reads besides :class:`~varint.kernels.interval.Call`: the
 #: stage lengths (:func:`varint.schemes.stage_arrays`) and ``every``:
@@ -311,6 +316,11 @@ class Interval:
                 out += [(body.a[i][j], f"W[{i}, {j}]"), (body.b[i][j], f"W[{n + i}, {j}]")]
         for j in range(k):
             out += [(f"am{j}", f"acc_m[{j}]"), (f"ae{j}", f"acc_e[{j}]")]
+        if body.compensated:
+            c = body.compensation
+            out += [(c(body.coordinate(i)), f"comp[{i}, 0]") for i in range(2 * n)]
+            out += [(c(body.component(i, j)), f"comp[{i}, {j + 1}]") for j in range(k)
+                    for i in range(2 * n)]
         return out + [("next_renorm", "rsched[0]"), ("interval", "rsched[1]")]
 
     def live_columns(self, where):
@@ -401,6 +411,10 @@ class Interval:
             src(f"inv = 1.0 / r{j}")
             for i in range(2 * self.n):
                 src(f"{w[i, j]} *= inv")
+                if self.body.compensated:
+                    # The vector is scaled: its compensation with it (one
+                    # orbit only: lanes are not emitted compensated).
+                    src(f"{self.body.compensation(names[i, j])} *= inv")
         t.commit(src, names, w)
 
     def dot(self, j, flow):
@@ -520,7 +534,8 @@ class Interval:
             f"# accumulator: {accumulator_id or 'none'}",
             "import math", "import numpy as np",
             "from numba import njit, prange, set_parallel_chunksize",
-            "from varint.codegen.interval import LaneBlock, Outputs, StepperOrbit",
+            "from varint.codegen.interval import CompensatedOrbit, LaneBlock, Outputs, "
+            "StepperOrbit",
             "from varint.kernels.fma import fma",
             "from varint.kernels.interval import next_interval", "",
             f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
@@ -529,8 +544,11 @@ class Interval:
             f"NONE, QR = {int(Renorm.NONE)}, {int(Renorm.QR)}")
         self.orbit()
         self.batch("orbit")
-        self.lanes()
-        self.batch("lanes")
+        # Compensated steppers run one orbit at a time: their lanes would
+        # need the compensations in the lane arrays too.
+        if not self.body.compensated:
+            self.lanes()
+            self.batch("lanes")
         return src.text()
 
     def unpack(self, record, fields, names=None):
@@ -539,15 +557,19 @@ class Interval:
 
     def orbit(self):
         """``orbit(state, setup, call, outputs) -> (status, steps)``: one orbit
-        (a :class:`StepperOrbit`, :class:`StepperSetup`,
+        (a :class:`StepperOrbit`, or :class:`CompensatedOrbit` when the body
+        is compensated; :class:`StepperSetup`,
         :class:`~varint.kernels.interval.Call`, :class:`Outputs`)."""
         src, body, k = self.src, self.body, self.k
         self.t = OneOrbit()
         src("", "", "@njit(cache=True, error_model='numpy', nogil=True)",
             "def orbit(state, setup, call, outputs):")
         with src.block():
-            self.unpack("state", ("x", "W", "acc_m", "acc_e", "aux", "counters", "schedule"),
-                        ("x", "W", "acc_m", "acc_e", "aux", "counters", "rsched"))
+            fields = ("x", "W", "acc_m", "acc_e", "aux", "counters", "schedule")
+            names = ("x", "W", "acc_m", "acc_e", "aux", "counters", "rsched")
+            if body.compensated:
+                fields, names = fields + ("compensation",), names + ("comp",)
+            self.unpack("state", fields, names)
             self.common_unpack()
             body.prologue(src)
             for local, where in self.locals() + self.live_columns(
@@ -654,8 +676,9 @@ class Interval:
         src = self.src
         one = kernel == "orbit"
         prefix, items = ("batch", "states") if one else ("blocks", "blocks")
-        fields = StepperOrbit._fields if one else LaneBlock._fields
-        record = "StepperOrbit" if one else "LaneBlock"
+        orbit_type = CompensatedOrbit if self.body.compensated else StepperOrbit
+        fields = orbit_type._fields if one else LaneBlock._fields
+        record = orbit_type.__name__ if one else "LaneBlock"
         # Snapshots are (S, M, …) over orbits, (blocks, S, …) over blocks.
         part = "[:, m]" if one else "[m]"
         for name, parallel in ((f"{prefix}_serial", False), (f"{prefix}_parallel", True)):

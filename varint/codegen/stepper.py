@@ -54,12 +54,16 @@ class Plan:
         (:func:`~varint.codegen.accumulators.rule_text`), written out in the
         loop, or ``"module:name:hash"`` of its compiled update, called; ""
         for none.
+    compensated : bool
+        Drifts and kicks add by compensated summation
+        (:class:`~varint.codegen.tm.TMBody`); such a module has no lanes.
     """
 
     kinds: tuple
     corrected: tuple
     k: int
     accumulator: str
+    compensated: bool = False
 
 
 def generated_source(E, plan, accumulator=None):
@@ -68,7 +72,7 @@ def generated_source(E, plan, accumulator=None):
     file's name does (:func:`symbolic_stepper`): numba's cache does not
     follow a changed dependency, so a changed generator must write a new
     file."""
-    body = TMBody(E, plan.kinds, plan.corrected, plan.k)
+    body = TMBody(E, plan.kinds, plan.corrected, plan.k, plan.compensated)
     source = Interval(body, plan.k, accumulator).module(plan.accumulator)
     return f"# varint generator {_generator_id()}\n" + source
 
@@ -124,7 +128,7 @@ def _source(key, plan, accumulator):
     return generated_source(expressions(key), plan, accumulator)
 
 
-def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
+def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=False):
     """The generated stepper module for a model that
     :func:`~varint.codegen.expressions.symbolic_fits`.
 
@@ -138,17 +142,21 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None):
     k : int
         Deviation vectors.
     accumulator : Accumulator, optional
+    compensated : bool, default False
+        Compensated summation in every drift and kick
+        (:class:`~varint.codegen.tm.TMBody`).
 
     Returns
     -------
     module
         With ``orbit``, ``batch_serial``, ``batch_parallel``, ``lanes``,
         ``blocks_serial`` and ``blocks_parallel`` (see
-        :mod:`varint.codegen.interval`); compiled on first call, or loaded
-        from numba's cache.
+        :mod:`varint.codegen.interval`; compensated: the first three);
+        compiled on first call, or loaded from numba's cache.
     """
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
-                k=int(k), accumulator=_accumulator_id(accumulator))
+                k=int(k), accumulator=_accumulator_id(accumulator),
+                compensated=bool(compensated))
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:

@@ -6,11 +6,17 @@ straight-line expressions of q with common subexpressions eliminated
 (:mod:`varint.codegen.expressions`), and applies the orbit kick and the
 tangent kick (eqs. 47, 53) in one go; drifts and kicks are chains of fused
 multiply–adds (:mod:`varint.kernels.fma`), which halves the latency of a
-step. The orbit and the deviation vectors are local variables (registers)
-for the whole loop. The loop around the step and the end of every step are
-the emitted skeleton's (:mod:`varint.codegen.interval`), the same for one
-orbit and for SIMD lanes; this body writes into either through its
-*target*, which says how a failure is recorded and whether work is counted.
+step. Compensated (``compensated=True``), every drift and kick of the orbit
+and of the vectors adds its increment by Kahan's compensated summation
+(Kahan 1965; Møller 1965): the low-order bits an addition loses are kept
+in a compensation local per component and fed into its next increment, so
+the round-off of a long run grows like a random walk instead of linearly
+(Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008)). The orbit and the
+deviation vectors are local variables (registers) for the whole loop. The
+loop around the step and the end of every step are the emitted skeleton's
+(:mod:`varint.codegen.interval`), the same for one orbit and for SIMD
+lanes; this body writes into either through its *target*, which says how a
+failure is recorded and whether work is counted.
 """
 
 from __future__ import annotations
@@ -35,15 +41,18 @@ class TMBody:
     ``kinds``, which kicks carry a corrector, and ``k`` vectors.
 
     The orbit is ``q{i}``, ``p{i}``; component i of vector j is ``a{i}_{j}``
-    (δq) or ``b{i}_{j}`` (δp). The stage lengths are the locals ``h{s}`` and
-    ``hc{s}`` (:meth:`prologue`). After the first step, the first kick of a
-    BAB-type step reuses the values of the last kick (same q): one orbit
-    evaluates them once in its first step, SIMD lanes once when a block is
-    loaded and carry them between steps (:meth:`carried`).
+    (δq) or ``b{i}_{j}`` (δp); compensated, each of them has its
+    compensation ``c`` + its name (:meth:`compensation`). The stage lengths
+    are the locals ``h{s}`` and ``hc{s}`` (:meth:`prologue`). After the
+    first step, the first kick of a BAB-type step reuses the values of the
+    last kick (same q): one orbit evaluates them once in its first step,
+    SIMD lanes once when a block is loaded and carry them between steps
+    (:meth:`carried`).
     """
 
-    def __init__(self, E, kinds, corrected, k):
+    def __init__(self, E, kinds, corrected, k, compensated=False):
         self.E, self.kinds, self.corrected, self.k = E, tuple(kinds), tuple(corrected), k
+        self.compensated = bool(compensated)
         n = self.n = E.n
         self.q = [f"q{i}" for i in range(n)]
         self.p = [f"p{i}" for i in range(n)]
@@ -61,6 +70,12 @@ class TMBody:
     def component(self, i, j):
         """The local of component ``i`` (0 … 2N−1) of vector ``j``."""
         return self.a[i][j] if i < self.n else self.b[i - self.n][j]
+
+    def compensation(self, name):
+        """The local that holds the compensation of state local ``name``:
+        what the last addition to it added too much (Kahan's ``c``; the
+        sum is ``name − c{name}``)."""
+        return f"c{name}"
 
     def needs(self, corrected):
         """What a kick stage evaluates: ∇V; D²V with vectors; ∇C (and D²C
@@ -176,18 +191,42 @@ class TMBody:
         for i in range(self.n):
             m = self.E.minv[i]
             h = f"h{st}" if m == 1.0 else f"(h{st} * {m!r})"
-            src(f"{self.q[i]} = fma({h}, {self.p[i]}, {self.q[i]})")
+            self.update(src, self.q[i], lambda acc, i=i, h=h: f"fma({h}, {self.p[i]}, {acc})")
             for j in range(self.k):
-                src(f"{self.a[i][j]} = fma({h}, {self.b[i][j]}, {self.a[i][j]})")
+                self.update(src, self.a[i][j],
+                            lambda acc, i=i, j=j, h=h: f"fma({h}, {self.b[i][j]}, {acc})")
+
+    def update(self, src, name, increment):
+        """``name`` += the increment ``increment(acc)`` adds to ``acc``.
+
+        Plain: ``name = increment(name)``, one rounding per fused
+        multiply–add. Compensated: the increment less the compensation is
+        formed from −c (its fused multiply–adds round once each), then added
+        by Kahan's summation, and what that addition lost becomes the new
+        compensation: ``(s − name) − y`` is exactly the rounding error of
+        ``s = name + y`` whenever ``|name| ≥ |y|`` (Dekker's Fast2Sum, 1971),
+        which holds for a component and its small increment except in the
+        steps where the component passes near zero (there the compensation
+        is approximate and the round-off of that addition is small anyway,
+        as the component is). The operations must stay in this order (numba does not reassociate
+        floating point without fastmath).
+        """
+        if not self.compensated:
+            src(f"{name} = {increment(name)}")
+            return
+        c = self.compensation(name)
+        src(f"ky = {increment(f'-{c}')}", f"ks = {name} + ky", f"{c} = (ks - {name}) - ky",
+            f"{name} = ks")
 
     def kick(self, src, target, st, corrected):
         """p −= h ∇V + hc ∇C and δp −= (h D²V + hc D²C) δq (paper eqs. 47, 53)."""
         E, n, k = self.E, self.n, self.k
         for i in range(n):
-            p = self.p[i]
-            if corrected:
-                p = f"fma(-hc{st}, gc{i}, {p})"
-            src(f"{self.p[i]} = fma(-h{st}, g{i}, {p})")
+            def orbit(acc, i=i):
+                if corrected:
+                    acc = f"fma(-hc{st}, gc{i}, {acc})"
+                return f"fma(-h{st}, g{i}, {acc})"
+            self.update(src, self.p[i], orbit)
         if not k:
             return
         if target.counts:
@@ -203,13 +242,16 @@ class TMBody:
                 src(f"K{name} = hc{st} * HC{name}")
         for j in range(k):
             for i in range(n):
-                acc = self.b[i][j]
-                for l in range(n):
-                    key = (min(i, l), max(i, l))
-                    if key in entries:
-                        acc = f"fma(-K{key[0]}_{key[1]}, {self.a[l][j]}, {acc})"
-                if acc != self.b[i][j]:
-                    src(f"{self.b[i][j]} = {acc}")
+                terms = [(f"K{min(i, l)}_{max(i, l)}", self.a[l][j]) for l in range(n)
+                         if (min(i, l), max(i, l)) in entries]
+                if not terms:
+                    continue
+
+                def tangent(acc, terms=terms):
+                    for K, a in terms:
+                        acc = f"fma(-{K}, {a}, {acc})"
+                    return acc
+                self.update(src, self.b[i][j], tangent)
 
     def flow(self, src, target, value=None):
         """The phase-space velocity (M⁻¹p, −∇V) at the end of the step, as

@@ -23,7 +23,8 @@ import numpy as np
 import numba
 
 from ..codegen.expressions import symbolic_fits
-from ..codegen.interval import LANE_WIDTH, LaneBlock, Outputs, StepperOrbit, StepperSetup
+from ..codegen.interval import (LANE_WIDTH, CompensatedOrbit, LaneBlock, Outputs, StepperOrbit,
+                                StepperSetup)
 from ..codegen.stepper import symbolic_stepper
 from ..codegen.tm import step_counts
 from ..kernels import tm as K
@@ -86,10 +87,20 @@ class TangentMapPropagator:
         emitted before its port onto :mod:`varint.codegen`) the
         Hénon–Heiles FLI map differed by up to 1e-11 relative at t = 100
         (not yet explained; ``studies/results/bench_gpu_h100.md``).
+    compensated : bool, default False
+        Add every drift and kick of the orbit and of the vectors by Kahan's
+        compensated summation (:mod:`varint.codegen.tm`; Hairer, McLachlan
+        & Razakarivony 2008): the round-off of a long run then grows like a
+        random walk instead of linearly, which lowers the smallest
+        reachable error (``studies/compensated_floor.py``). The
+        compensations are part of the run state (``extra["tm_compensation"]``,
+        (M, 2N, 1 + k): the state's and each vector's), so chunked and
+        resumed runs stay bitwise. Generated steppers only, one orbit at a
+        time on the CPU (no SIMD lanes, no GPU).
     """
 
     method = "tm"
-    OPTIONS = ("scheme", "parallel", "renormalize_every", "backend")
+    OPTIONS = ("scheme", "parallel", "renormalize_every", "backend", "compensated")
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = method_options(self.method, options, self.OPTIONS)
@@ -100,6 +111,13 @@ class TangentMapPropagator:
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
         self.every = self._every(opts.get("renormalize_every"))
+        self.compensated = opts.get("compensated", False)
+        if not isinstance(self.compensated, (bool, np.bool_)):
+            raise ValueError(f"compensated must be True or False, got {self.compensated!r}")
+        self.compensated = bool(self.compensated)
+        if self.compensated and opts.get("backend") == "cuda":
+            raise ValueError("compensated=True runs on the CPU only: use backend='cpu' or "
+                             "'auto'")
         self.backend = device.check_backend(opts.get("backend", "cpu"))
         self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
         # A time-dependent V: the time of every stage (kernels/tm.py).
@@ -140,6 +158,8 @@ class TangentMapPropagator:
             d["renormalize_every"] = self.every
         if self.backend != "cpu":
             d["backend"] = self.backend
+        if self.compensated:
+            d["compensated"] = True
         return d
 
     def versions(self):
@@ -150,7 +170,7 @@ class TangentMapPropagator:
         """The generated stepper module for k vectors, or None (generic)."""
         if k not in self._generated:
             self._generated[k] = _generated_stepper(self.model, self._kinds, self._hc, k,
-                                                    self.accumulator)
+                                                    self.accumulator, self.compensated)
         return self._generated[k]
 
     def takes_snapshots(self, state):
@@ -186,6 +206,10 @@ class TangentMapPropagator:
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
                              " time-dependent, or too large): use backend='cpu'")
+        if module is None and self.compensated:
+            raise ValueError(f"compensated=True runs generated steppers; {self.model.name} with "
+                             f"{state.k} vectors has none (a model without a symbolic potential,"
+                             " time-dependent, or too large): leave compensated=False")
         if module is None:
             if outputs is not None and len(outputs):
                 raise ValueError("this model has no generated stepper: no snapshots")
@@ -194,8 +218,11 @@ class TangentMapPropagator:
         snaps = self._snapshots(state, outputs)
         active = np.flatnonzero(state.status == STATUS_OK)
         # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
-        # on the GPU (the same arithmetic; see the ``backend`` option).
-        if len(active) and device.use_gpu(self.backend, len(active)) \
+        # on the GPU (the same arithmetic; see the ``backend`` option);
+        # compensated ones one at a time.
+        if self.compensated:
+            self._advance_generated(module, state, n, snaps)
+        elif len(active) and device.use_gpu(self.backend, len(active)) \
                 and (self.backend == "cuda" or emittable(self.accumulator)):
             advance_cuda(self, module, state, n, snaps, active)
         elif len(active) >= self.MIN_LANES:
@@ -219,6 +246,14 @@ class TangentMapPropagator:
             state.extra["tm_schedule"] = np.tile(np.array([state.step + 1, 1], dtype=np.int64),
                                                  (state.n_orbits, 1))
         return state.extra["tm_schedule"]
+
+    def _compensation(self, state):
+        """Per orbit: the Kahan compensations of the state and the vectors
+        (continuation state, zero at the start of a run)."""
+        if "tm_compensation" not in state.extra:
+            m, d, k = state.W.shape
+            state.extra["tm_compensation"] = np.zeros((m, d, 1 + k))
+        return state.extra["tm_compensation"]
 
     def _step_counts(self, k):
         """:func:`~varint.codegen.tm.step_counts` for k vectors (worked
@@ -268,9 +303,11 @@ class TangentMapPropagator:
         status = np.where(was_active, state.status, -1)   # others are skipped
         parallel = use_parallel(self.parallel, int(was_active.sum()))
         kernel = module.batch_parallel if parallel else module.batch_serial
-        kernel(StepperOrbit(state.x, state.W, state.acc_m, state.acc_e, self._accumulator(state),
-                            counters, sched),
-               self._setup(), self._call(state, n),
+        record = (state.x, state.W, state.acc_m, state.acc_e, self._accumulator(state), counters,
+                  sched)
+        record = CompensatedOrbit(*record, self._compensation(state)) if self.compensated \
+            else StepperOrbit(*record)
+        kernel(record, self._setup(), self._call(state, n),
                Outputs(snaps.steps, snaps.x, snaps.W, snaps.acc_m, snaps.acc_e,
                        self._snap_aux(snaps, len(snaps.steps), m)), status, done)
         state.status[was_active] = status[was_active]
@@ -420,7 +457,7 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
 _STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _generated_stepper(model, kinds, hc, k, accumulator):
+def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False):
     """The generated stepper module of (model, scheme stages, k,
     accumulator), or None when the model has none
     (:func:`varint.codegen.expressions.symbolic_fits`). Remembered per
@@ -429,11 +466,11 @@ def _generated_stepper(model, kinds, hc, k, accumulator):
     corrected = (hc != 0.0) & (kinds != DRIFT)
     # Beside the model, not in it: a model must stay picklable (Dask).
     memo = _STEPPERS.setdefault(model, {})
-    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator,
+    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, bool(compensated),
            np.asarray(model.params, dtype=float).tobytes(),
            np.asarray(model.inverse_mass, dtype=float).tobytes())
     if key not in memo:
-        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator)
+        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator, compensated)
                      if symbolic_fits(model, k) else None)
     return memo[key]
 
