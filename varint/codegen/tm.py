@@ -16,9 +16,7 @@ orbit and for SIMD lanes; this body writes into either through its
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp  # type: ignore[import-untyped]
 
-from ..models.symbolic import KernelPrinter
 from ..protocol import Status
 from ..schemes import DRIFT
 
@@ -50,6 +48,10 @@ class TMBody:
         # δq_i and δp_i of vector j.
         self.a = [[f"a{i}_{j}" for j in range(k)] for i in range(n)]
         self.b = [[f"b{i}_{j}" for j in range(k)] for i in range(n)]
+        # SymPy's printers are imported only when a stepper's source is
+        # emitted: a process that loads cached steppers never needs them.
+        from ..models.symbolic import KernelPrinter
+
         self.printer = KernelPrinter()
         self.reuse_first = self.kinds[0] != DRIFT and self.kinds[-1] != DRIFT
 
@@ -139,6 +141,8 @@ class TMBody:
         simplified separately, so the orbit gets the same bits whether or
         not deviation vectors are carried.
         """
+        import sympy as sp  # type: ignore[import-untyped]  # emitting only, as the printer
+
         E = self.E
         orbit = [("g", [f"g{i}" for i in range(self.n)], list(E.g), _GRAD, "c_grad")]
         if "gc" in what:
