@@ -8,8 +8,8 @@ so it is cached: the expressions per potential and process, and for a
 built-in model even whether it fits and the key of its potential, on disk
 beside the steppers (a new process then builds no SymPy expression, and
 does not even import SymPy). That file is signed and holds only a flag and
-a key (:mod:`varint.codecache`); the expressions are only ever built from a model's own SymPy form, never
-from text read back from disk.
+a key (:mod:`varint.codecache`); the expressions are only ever built from a
+model's own SymPy form, never from text read back from disk.
 """
 
 from __future__ import annotations
