@@ -51,6 +51,12 @@ __all__ = ["cache_on_disk", "closure_key"]
 _SOURCES = (Path(__file__).resolve().parent.parent, Path(baselines.__file__).resolve().parent)
 
 
+#: varint's sources, read when the skeleton is imported, as near as can be
+#: to when the code that runs was: a file edited later, while this process
+#: runs, must not give the kernels it compiles the key of the new code.
+_SOURCE_DIGEST = source_digest()
+
+
 class _Unnamed(Exception):
     """A value that no key can name (a user's function, an object)."""
 
@@ -78,7 +84,7 @@ def closure_key(dispatcher):
         If it closes over something no key can name.
     """
     text = repr(_describe(dispatcher))
-    return hashlib.sha256(f"{source_digest()}|{text}".encode()).hexdigest()
+    return hashlib.sha256(f"{_SOURCE_DIGEST}|{text}".encode()).hexdigest()
 
 
 def _describe(value, depth=0):
