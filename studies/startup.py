@@ -16,7 +16,7 @@ this tree's (a, b, a, b, …), so that the load of the shared machine falls
 on both alike; each tree keeps its own kernel cache directory.
 
 Usage: ``python studies/startup.py [--quick] [--out DIR] [--against DIR]
-[--cases r1 map1 map2] [--processes N]``; stored as ``startup.json``.
+[--cases floor r1 map1 map2 lattice] [--processes N]``; stored as ``startup.json``.
 """
 
 from __future__ import annotations
@@ -36,18 +36,31 @@ from studies.common import parse_args, save_json
 
 HEAVY = ("sympy", "scipy", "scipy.linalg", "matplotlib", "numba", "pandas", "xarray",
          "dask", "heyoka")
-#: What a fresh process runs after ``import varint``: the R1 spectrum of
-#: the paper to t = 100, or a FLI map of 64 Hénon–Heiles orbits on the x = 0
-#: section at E = 1/8 to t = 100 (SIMD lanes) on 1 or 2 threads.
+#: What a fresh process runs after ``import varint``: the floor (numpy,
+#: numba and one small cached kernel: numba loads its registries, and SciPy's
+#: BLAS with them, at the first call of any compiled function), the R1
+#: spectrum of the paper to t = 100, or a FLI map of 256 Hénon–Heiles orbits
+#: on the x = 0 section at E = 1/8 to t = 100 on 1 or 2 threads (four blocks
+#: of 64 SIMD lanes: with 2 threads, the parallel kernel over blocks; one
+#: block, 64 orbits, would run serially whatever the threads), or the
+#: largest Lyapunov exponent of 8 sites excited in a disordered
+#: Klein–Gordon chain of 64 sites to t = 10 (its part stepper, a closure
+#: of the skeleton; the full spectrum's 128 vectors would time the run).
 CASES = {
+    "floor": "from varint.kernels.checks import tangent_overflow; "
+             "tangent_overflow(np.zeros((2, 1)))",
     "r1": "m, x = varint.paper_orbit('R1'); "
           "varint.lyapunov_spectrum(m, x, t_end=100.0, tau=0.05, progress=False)",
     "map1": "numba.set_num_threads(1); " + (MAP := (
         "model = varint.models.HenonHeiles(); "
-        "grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.65, 8), "
-        "np.linspace(-0.45, 0.45, 8)); "
+        "grid = varint.section_grid(model, 0.125, np.linspace(-0.45, 0.65, 16), "
+        "np.linspace(-0.45, 0.45, 16)); "
         "varint.chaos_map(model, grid, 'fli', t_end=100.0, progress=False)")),
     "map2": "numba.set_num_threads(2); " + MAP,
+    "lattice": "m = varint.models.DisorderedKG(64, seed=1); "
+               "x = m.initial_block(width=8, seed=1); "
+               "varint.lyapunov_spectrum(m, x, t_end=10.0, tau=0.1, n_exponents=1, "
+               "progress=False)",
 }
 CHILD = f"""
 import sys, time, json
@@ -58,15 +71,20 @@ heavy = [m for m in {HEAVY!r} if m in sys.modules]
 import numba, numpy as np
 exec(sys.argv[1])
 t2 = time.perf_counter()
-print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "heavy": heavy}}))
+after = [m for m in {HEAVY!r} if m in sys.modules]
+print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "heavy": heavy, "heavy_run": after}}))
 """
 
 
-def child(root, cache, case):
+def child(root, cache, case, pycache):
     """One fresh process on source tree ``root`` running ``case``
     (:data:`CASES`): its import and run seconds and the heavy modules the
-    import loaded."""
-    env = dict(os.environ, PYTHONPATH=str(root), VARINT_CACHE_DIR=str(cache))
+    import loaded. Python's bytecode is cached in ``pycache`` as an
+    installed package's is (whatever ``PYTHONDONTWRITEBYTECODE`` says):
+    compiling varint's modules from source costs ~0.3 s a process."""
+    env = dict(os.environ, PYTHONPATH=str(root), VARINT_CACHE_DIR=str(cache),
+               PYTHONPYCACHEPREFIX=str(pycache))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     done = subprocess.run([sys.executable, "-c", CHILD, CASES[case]], cwd=root, env=env,
                           check=True, capture_output=True, text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -87,17 +105,18 @@ def main(argv=None):
         trees["against"] = args.against.resolve()
     scratch = Path(tempfile.mkdtemp(prefix="varint-startup-"))
     caches = {}
+    pycache = scratch / "pycache"
     for label, root in trees.items():
         caches[label] = scratch / label
         caches[label].mkdir(mode=0o700)
         for case in args.cases:
-            child(root, caches[label], case)      # compiles and caches the kernels
+            child(root, caches[label], case, pycache)   # compiles and caches the kernels
     samples = {(label, case): [] for label in trees for case in args.cases}
     for _ in range(n):
         for case in args.cases:
             for label, root in trees.items():
-                samples[label, case].append(child(root, caches[label], case))
-    data = {"processes": n, "trees": {k: str(v) for k, v in trees.items()}}
+                samples[label, case].append(child(root, caches[label], case, pycache))
+    data = {"processes": n, "trees": {k: v.name for k, v in trees.items()}}
     for (label, case), rows in samples.items():
         imports = [r["import"] for r in rows]
         runs = [r["run"] for r in rows]
@@ -109,12 +128,14 @@ def main(argv=None):
             "import_plus_first_run_median_s": statistics.median(totals),
             "import_plus_first_run_range_s": [min(totals), max(totals)],
             "heavy_after_import": rows[-1]["heavy"],
+            "heavy_after_run": rows[-1]["heavy_run"],
         }
         row = data[label][case]
         print(f"{label:8s} {case:5s} import {row['import_median_s']:.3f} s, first run "
               f"{row['first_run_median_s']:.3f} s, together "
               f"{row['import_plus_first_run_median_s']:.3f} s (medians of {n}); "
-              f"import loaded {', '.join(rows[-1]['heavy']) or 'none of ' + '/'.join(HEAVY)}")
+              f"import loaded {', '.join(rows[-1]['heavy']) or 'none of ' + '/'.join(HEAVY)}; "
+              f"the run {', '.join(rows[-1]['heavy_run'])}")
     print(save_json(args.out, "startup", data,
                     times="measured: wall time inside fresh child processes, medians"))
     return data

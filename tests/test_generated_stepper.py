@@ -110,6 +110,25 @@ def test_lanes_are_bitwise_the_one_orbit_stepper():
             np.testing.assert_array_equal(s1.W[:, 0], snaps.W[:, i])
 
 
+def test_parallel_blocks_of_lanes_are_bitwise_the_serial_ones():
+    """130 orbits (three blocks of 64 lanes, the last padded) on the kernel
+    over blocks in parallel (numba's chunk size set around the call, so
+    that the kernel is cached) and serially: the same bits, status and
+    snapshots."""
+    m = 130
+    x0, W0 = _hh_orbits(m), _deviations(m, 2)
+    outputs = np.array([50, 200])
+    runs = []
+    for parallel in (True, False):
+        p = TangentMapPropagator(HenonHeiles(), 0.05, Renorm.QR, parallel=parallel)
+        state = RunState.start(x0.copy(), W0.copy())
+        runs.append((state, p.advance(state, 200, outputs)))
+    (a, sa), (b, sb) = runs
+    for field in ("x", "W", "acc_m", "acc_e", "status"):
+        assert getattr(a, field).tobytes() == getattr(b, field).tobytes(), field
+    assert sa.x.tobytes() == sb.x.tobytes() and sa.W.tobytes() == sb.W.tobytes()
+
+
 @pytest.mark.parametrize("name", ["fli", "megno"])
 def test_inline_accumulators_lanes_orbit_chunks_and_generic(name):
     """The accumulators ``lanes`` writes out inline (FLI, MEGNO): lanes give

@@ -67,3 +67,27 @@ def test_type_checkers_see_every_lazy_name_from_its_module():
         for alias in node.names:
             seen[alias.name] = node.module or alias.name
     assert seen == varint._EXPORTS
+
+
+def test_a_process_on_cached_kernels_imports_no_sympy_and_compiles_nothing():
+    """Once a process has compiled them, a fresh process runs R1's spectrum
+    and a FLI map of 256 orbits on the parallel kernel over blocks of SIMD
+    lanes without importing SymPy or Dask's distributed (a map on this
+    machine asks no Dask worker) and without compiling anything: the
+    generated steppers (the parallel one included) come from the cache."""
+    code = ("import sys, json, numpy as np, varint; from varint import compiling; "
+            "m, x = varint.paper_orbit('R1'); "
+            "varint.lyapunov_spectrum(m, x, t_end=10.0, tau=0.05, progress=False); "
+            "hh = varint.models.HenonHeiles(); "
+            "grid = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.65, 16), "
+            "np.linspace(-0.45, 0.45, 16)); "
+            "varint.chaos_map(hh, grid, 'fli', t_end=10.0, progress=False, parallel=True); "
+            "hits = sum(sum(mod.blocks_parallel.stats.cache_hits.values()) "
+            "for name, mod in list(sys.modules.items()) if name.startswith('varint_stepper_')); "
+            "heavy = [m for m in ('sympy', 'distributed') if m in sys.modules]; "
+            "print(json.dumps([heavy, compiling.compile_seconds(), hits]))")
+    fresh(code)                             # compiles what the cache lacks
+    heavy, compiled, parallel_hits = fresh(code)
+    assert heavy == []
+    assert compiled == 0.0
+    assert parallel_hits >= 1

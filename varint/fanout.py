@@ -15,6 +15,7 @@ for both.
 from __future__ import annotations
 
 import contextlib
+import sys
 import warnings
 from collections.abc import Callable, Hashable, Iterable
 from typing import Any
@@ -97,12 +98,15 @@ def worker_threads():
     (numba's setting is per calling thread), so workers sharing a machine
     do not oversubscribe it; yields the task's :func:`_cancel_check` there,
     None elsewhere."""
+    # A Dask worker's process has imported distributed; any other process
+    # does not import it for this check (it costs more than a second).
+    distributed = sys.modules.get("distributed")
     try:
-        from distributed import get_worker
-
-        worker = get_worker()
+        if distributed is None:
+            raise ValueError("not on a Dask worker")
+        worker = distributed.get_worker()
         n = worker.state.nthreads
-    except (ImportError, ValueError, AttributeError):
+    except (ValueError, AttributeError):
         yield None
         return
     import numba

@@ -6,26 +6,25 @@ generated stepper at all (:func:`symbolic_fits`).
 The symbolic work costs far more than anything else in building a stepper,
 so it is cached: the expressions per potential and process, and for a
 built-in model even whether it fits and the key of its potential, on disk
-beside the steppers (a new process then builds no SymPy expression).
-That file is signed and holds only a flag and a key (:mod:`varint.codecache`);
-the expressions are only ever built from a model's own SymPy form, never
-from text read back from disk.
+beside the steppers (a new process then builds no SymPy expression, and
+does not even import SymPy). That file is signed and holds only a flag and
+a key (:mod:`varint.codecache`); the expressions are only ever built from a
+model's own SymPy form, never from text read back from disk.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import sympy as sp  # type: ignore[import-untyped]
 
 from .. import cachedir, codecache
 from ..files import canonical_json
-from ..models.symbolic import SymbolicModel
 
 __all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_form",
            "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
@@ -62,6 +61,8 @@ _FORMS: dict = {}
 def expressions(key):
     """The expressions of the potential of ``key`` (:func:`model_key`;
     cached by it: the symbolic work costs far more than the rest)."""
+    import sympy as sp  # type: ignore[import-untyped]  # (see _symbolic_key)
+
     V, minv, n = _FORMS[key]
     q = sp.symbols(f"q0:{n}")
     g = tuple(sp.diff(V, qi) for qi in q)
@@ -94,7 +95,13 @@ def _symbolic_key(s):
     the hash of its exact SymPy text (``srepr``) in the symbols q0 …
     q{N−1}, worked out once per process, not once per chunk of a chaos map
     (~0.4 ms each). The form itself is kept in ``_FORMS``: a stepper's
-    source is only ever emitted from a model's own expressions."""
+    source is only ever emitted from a model's own expressions.
+
+    SymPy is imported here and in :func:`expressions`, where a form is
+    worked on, not with this module: a process whose steppers and facts
+    are all cached never needs it (importing it costs ~0.35 s)."""
+    import sympy as sp  # type: ignore[import-untyped]
+
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
     text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in s.inverse_mass), str(n)])
@@ -158,7 +165,9 @@ def _facts(model):
     behind a user's own class is not known.
     """
     cls = type(model)
-    if isinstance(model, SymbolicModel) or not cls.__module__.startswith("varint.models."):
+    # The models of varint.models.symbolic (from_potential) hold their form.
+    if cls.__module__ == "varint.models.symbolic" or not cls.__module__.startswith(
+            "varint.models."):
         return _facts_now(model)
     name = _description_id(cls, canonical_json(model.describe()))
     if name in _FACTS:
@@ -212,7 +221,10 @@ def _description_id(cls, description):
     description and the code they come from (``varint.models``, this
     module, which names the key, and SymPy, which prints it), so that a
     change of either names new facts."""
-    digest = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}|{sp.__version__}|"
+    # SymPy's version from its installed metadata: importing SymPy for it
+    # would cost what the stored facts save.
+    sympy_version = importlib.metadata.version("sympy")
+    digest = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}|{sympy_version}|"
                             f"{description}".encode())
     digest.update(Path(__file__).read_bytes())
     for path in sorted((Path(__file__).parent.parent / "models").glob("*.py")):

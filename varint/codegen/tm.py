@@ -22,9 +22,7 @@ failure is recorded and whether work is counted.
 from __future__ import annotations
 
 import numpy as np
-import sympy as sp  # type: ignore[import-untyped]
 
-from ..models.symbolic import KernelPrinter
 from ..protocol import Status
 from ..schemes import DRIFT
 
@@ -59,6 +57,10 @@ class TMBody:
         # δq_i and δp_i of vector j.
         self.a = [[f"a{i}_{j}" for j in range(k)] for i in range(n)]
         self.b = [[f"b{i}_{j}" for j in range(k)] for i in range(n)]
+        # SymPy's printers are imported only when a stepper's source is
+        # emitted: a process that loads cached steppers never needs them.
+        from ..models.symbolic import KernelPrinter
+
         self.printer = KernelPrinter()
         self.reuse_first = self.kinds[0] != DRIFT and self.kinds[-1] != DRIFT
 
@@ -154,6 +156,8 @@ class TMBody:
         simplified separately, so the orbit gets the same bits whether or
         not deviation vectors are carried.
         """
+        import sympy as sp  # type: ignore[import-untyped]  # emitting only, as the printer
+
         E = self.E
         orbit = [("g", [f"g{i}" for i in range(self.n)], list(E.g), _GRAD, "c_grad")]
         if "gc" in what:

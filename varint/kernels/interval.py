@@ -46,6 +46,8 @@ skeleton takes orbit m's row of each. What does not change along a call
 the call's own numbers are :class:`Call`. The model's kernels and the
 accumulator's update are compiled into the kernel (closures), never passed
 in records: numba types a record holding a function ~10× slower per call.
+The closures are cached on disk across processes under a key naming what
+they are compiled from (:mod:`varint.kernels.closures`).
 
 A new method is therefore a step body and its records; a new
 end-of-interval check is one edit here.
@@ -66,6 +68,7 @@ from numba.core.extending import intrinsic, overload
 
 from ..protocol import Renorm, Status
 from .checks import CHECK_EVERY, renormalize, tangent_overflow
+from .closures import cache_on_disk
 from .inlining import defer
 
 __all__ = ["StepBody", "Call", "ORBIT_FIELDS", "orbit_record", "orbit_loop", "batch_loop",
@@ -321,7 +324,7 @@ def orbit_loop(body, accumulate=no_accumulator, flow=False, record=False):
         keep(ws_owner)
         return status, steps
 
-    return orbit
+    return cache_on_disk(orbit)
 
 
 @intrinsic
@@ -406,7 +409,7 @@ def batch_loop(body, parallel, accumulate=no_accumulator, flow=False):
             status[m] = st
             done[m] = steps
 
-    return batch
+    return cache_on_disk(batch)
 
 
 def use_parallel(parallel, n_orbits):

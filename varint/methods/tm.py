@@ -15,6 +15,7 @@ stepper (:mod:`varint.kernels.tm`).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
 import weakref
@@ -29,8 +30,6 @@ from ..codegen.stepper import symbolic_stepper
 from ..codegen.tm import step_counts
 from ..kernels import tm as K
 from ..gpu import device
-from ..gpu.advance import advance_cuda
-from ..gpu.emit import emittable
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
@@ -222,10 +221,17 @@ class TangentMapPropagator:
         # compensated ones one at a time.
         if self.compensated:
             self._advance_generated(module, state, n, snaps)
-        elif len(active) and device.use_gpu(self.backend, len(active)) \
-                and (self.backend == "cuda" or emittable(self.accumulator)):
-            advance_cuda(self, module, state, n, snaps, active)
-        elif len(active) >= self.MIN_LANES:
+            return snaps
+        if len(active) and device.use_gpu(self.backend, len(active)):
+            # The CUDA emitter (SymPy's printers) is imported for a GPU run
+            # only: a CPU process that loads cached steppers never needs it.
+            from ..gpu.advance import advance_cuda
+            from ..gpu.emit import emittable
+
+            if self.backend == "cuda" or emittable(self.accumulator):
+                advance_cuda(self, module, state, n, snaps, active)
+                return snaps
+        if len(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, snaps, active)
         else:
             self._advance_generated(module, state, n, snaps)
@@ -346,8 +352,14 @@ class TangentMapPropagator:
         saux = np.full(shape + (lanes.width,) + aux.shape[1:], np.nan)
         parallel = use_parallel(self.parallel, lanes.blocks)
         kernel = module.blocks_parallel if parallel else module.blocks_serial
-        kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
-               self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
+        # Blocks are handed out one at a time: a thread that is descheduled
+        # holds up one block, not a share of them. Set here, around the call
+        # (numba's chunk size is per calling thread), not in the kernel: a
+        # kernel that sets it cannot be cached on disk. (Only in parallel:
+        # setting it starts numba's threads.)
+        with numba.parallel_chunksize(1) if parallel else contextlib.nullcontext():
+            kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
+                   self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
         for lane_array, target in ((X, state.x), (W, state.W), (am, state.acc_m),
                                    (ae, state.acc_e)):
             lanes.put(lane_array, target)

@@ -1,0 +1,70 @@
+"""The stepping skeleton's closure kernels are cached on disk under a key
+that names what they are compiled from: the same key in every process, a
+new one when anything compiled in changes, none for a user's own function
+(varint.kernels.closures, issue 28)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from numba import njit
+from numba.core import caching
+
+from varint.kernels import parts as P
+from varint.kernels.closures import _ClosureCache, closure_key
+from varint.models import fput, kg
+
+ROOT = Path(__file__).resolve().parent.parent
+
+KEY_OF_KG = ("from varint.kernels.parts import parts_batch; "
+             "from varint.kernels.closures import closure_key; from varint.models import kg; "
+             "print(closure_key(parts_batch(kg._apply, kg._field, 2, False)))")
+
+
+def fresh(code):
+    """Run ``code`` in a new interpreter on this source tree; its last line."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                          capture_output=True, text=True)
+    return done.stdout.strip().splitlines()[-1]
+
+
+def test_a_kernel_has_the_same_key_in_every_process():
+    here = closure_key(P.parts_batch(kg._apply, kg._field, 2, False))
+    assert fresh(KEY_OF_KG) == fresh(KEY_OF_KG) == here
+
+
+def test_the_key_changes_with_what_is_compiled_in():
+    def key(apply=kg._apply, field=kg._field, k=2, parallel=False, flow=False):
+        return closure_key(P.parts_batch(apply, field, k, parallel, flow=flow))
+
+    keys = [key(), key(k=1), key(parallel=True), key(flow=True),
+            key(apply=fput._apply, field=fput._field)]
+    assert len(set(keys)) == len(keys)
+
+
+@njit
+def _users_update(aux, r, x, W, flow, t):
+    aux[0, 0] += r[0]
+
+
+def test_a_users_function_keeps_the_kernel_in_memory():
+    ours = P.parts_batch(kg._apply, kg._field, 1, False)
+    theirs = P.parts_batch(kg._apply, kg._field, 1, False, accumulate=_users_update)
+    assert isinstance(ours._cache, _ClosureCache)
+    assert isinstance(theirs._cache, caching.NullCache)
+
+
+def test_a_second_process_runs_a_lattice_without_compiling():
+    """The part stepper of a lattice, compiled by one process, is loaded by
+    the next, which compiles nothing and gets the same bits."""
+    code = ("import json, varint; from varint import compiling; "
+            "m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
+            "r = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
+            "print(json.dumps([compiling.compile_seconds(), r.exponents.tobytes().hex()]))")
+    _, first = json.loads(fresh(code))
+    compiled, second = json.loads(fresh(code))
+    assert compiled == 0.0
+    assert second == first
