@@ -56,6 +56,27 @@ def test_the_kernel_check_remembers_only_the_states_that_passed():
         varint.lyapunov_spectrum(model, singular, 1.0, tau=0.1)
 
 
+def test_many_states_are_checked_in_one_compiled_pass(monkeypatch):
+    """Past _SCAN_STATES the kernels are evaluated by one compiled loop
+    (the grid of a large map), which then checks that model's later
+    batches too; the state where one is not finite is named as from
+    Python."""
+    x, y = sp.symbols("x y")
+    model = from_potential(0.5 * (x ** 2 + y ** 2) + 1 / x, [x, y])
+    monkeypatch.setattr(check, "_SCAN_STATES", 50)
+    X = np.column_stack([np.linspace(0.5, 2.0, 80), np.zeros(80), np.zeros(80), np.ones(80)])
+    check.kernels(model, X)
+    assert check._SCANS[model][1] is not None and model not in check._FINITE_AT
+    X[63, 0] = 0.0
+    with pytest.raises(ValueError, match=r"initial state of orbit 63, q = .0.0, 0.0.: the "
+                                         "gradient"):
+        check.kernels(model, X)
+    # A small batch of the same model: the compiled pass, not the memo.
+    with pytest.raises(ValueError, match="initial state of orbit 1, q = .0.0, 0.0."):
+        check.kernels(model, X[62:65])
+    assert model not in check._FINITE_AT
+
+
 def test_a_model_that_ran_still_pickles_as_it_was():
     """What runs remember per model (kernel checks, stepper modules) lives
     beside it: a model sent to Dask workers after a run pickles, and
