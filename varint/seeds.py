@@ -36,7 +36,8 @@ try:   # NumPy's ziggurat tables, as numba's Generator support copies them
     from numba.np.random._constants import ziggurat_nor_r as _NOR_R
     _TABLES = True
 except ImportError:   # a numba without them: NumPy's own path
-    _FI = _KI = _WI = np.zeros(256)
+    _FI = _WI = np.zeros(256)
+    _KI = np.zeros(256, dtype=np.uint64)
     _NOR_INV_R = _NOR_R = 0.0
     _TABLES = False
 
