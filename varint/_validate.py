@@ -7,7 +7,6 @@ import errno
 import numbers
 import os
 import tempfile
-import weakref
 from pathlib import Path
 
 import numpy as np
@@ -332,68 +331,6 @@ def step_count(t_end, tau, limit=MAX_STEPS):
 #: Kernel evaluations of one block of :func:`kernels` hold at most this many
 #: numbers.
 _KERNEL_BLOCK = 2 ** 18
-#: :func:`kernels` remembers at most this many numbers (q) per model.
-_MEMO_NUMBERS = 1 << 21
-#: From this many states, :func:`kernels` evaluates them in one compiled
-#: loop (:func:`_scan`): compiling it costs ~1 s once per model and process
-#: (it cannot be cached on disk: it calls the model's kernels as
-#: arguments), calling the kernels from Python ~2.5 µs a state; once
-#: compiled, it checks every later batch of that model (the chunks of a map).
-_SCAN_STATES = 1 << 19
-#: The states where :func:`kernels` found the kernels finite (a
-#: :class:`_Finite`), per model and (kernels, parameters); beside the
-#: model, not in it: a model must stay picklable.
-_FINITE_AT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-#: Per model: (its kernels, the compiled loop of :func:`_scan` or None where
-#: they cannot be called from one).
-_SCANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-class _Finite:
-    """States (rows of q, compared bit for bit) found finite, looked up all
-    at once: a 64-bit hash of each row's words (FNV-1a over 64-bit words)
-    sorted, the rows beside it; a state is known where its hash is found
-    and the row there has its bits (a collision is only a state evaluated
-    again)."""
-
-    _OFFSET, _PRIME = np.uint64(0xCBF29CE484222325), np.uint64(0x100000001B3)
-
-    def __init__(self):
-        self.hashes = np.zeros(0, dtype=np.uint64)
-        self.rows = np.zeros((0, 0), dtype=np.uint64)
-
-    def __len__(self):
-        return len(self.hashes)
-
-    @classmethod
-    def words(cls, Q):
-        """(hashes (M,), bits (M, n)) of the rows of ``Q`` (C-contiguous float64)."""
-        bits = Q.view(np.uint64)
-        h = np.full(len(Q), cls._OFFSET)
-        with np.errstate(over="ignore"):   # uint64 arithmetic wraps by design
-            for j in range(bits.shape[1]):
-                h = (h ^ bits[:, j]) * cls._PRIME
-        return h, bits
-
-    def known(self, h, bits):
-        """Whether each row (its hash and bits) is remembered."""
-        if not len(self.hashes) or self.rows.shape[1] != bits.shape[1]:
-            return np.zeros(len(h), dtype=bool)
-        i = np.minimum(np.searchsorted(self.hashes, h), len(self.hashes) - 1)
-        return (self.hashes[i] == h) & (self.rows[i] == bits).all(axis=1)
-
-    def add(self, h, bits):
-        """Remember these rows; all are forgotten first if the memo would
-        hold more than :data:`_MEMO_NUMBERS` numbers."""
-        if (len(self) + len(h)) * bits.shape[1] > _MEMO_NUMBERS or \
-                self.rows.shape[1] != bits.shape[1]:
-            self.__init__()
-            if len(h) * bits.shape[1] > _MEMO_NUMBERS:
-                return
-        hashes = np.concatenate([self.hashes, h])
-        rows = np.concatenate([self.rows.reshape(-1, bits.shape[1]), bits])
-        order = np.argsort(hashes, kind="stable")
-        self.hashes, self.rows = hashes[order], rows[order]
 
 
 def kernels(model, X, what="the initial state"):
@@ -406,11 +343,12 @@ def kernels(model, X, what="the initial state"):
     that fails at its first step. An orbit that later runs into it fails
     with :class:`~varint.IntegrationError` (``Status.*_NONFINITE``).
 
-    Very many states (from :data:`_SCAN_STATES`) are evaluated in one
-    compiled pass (:func:`_scan`) that stops at the first state where a
-    kernel is not finite; that state, and the states of a smaller batch not
-    found finite before (:class:`_Finite`), are evaluated from Python, which
-    names what is wrong.
+    The states are evaluated in one compiled pass
+    (:func:`varint.kernels.finite.first_nonfinite`, ~0.1 µs a state) that
+    stops at the first where a kernel is not finite; that state is then
+    evaluated from Python, which names what is wrong. Kernels that the pass
+    cannot call (not numba functions of the protocol's types, or one that
+    raises) are evaluated from Python at every state (~2.5 µs a state).
 
     Raises
     ------
@@ -423,76 +361,28 @@ def kernels(model, X, what="the initial state"):
     """
     X = np.asarray(X, dtype=float)
     q_all = np.ascontiguousarray(X[:, :model.n_dof])
-    own = (model.grad_kernel, model.hess_kernel, model.third_kernel)
-    known = _SCANS.get(model)
-    if len(q_all) >= _SCAN_STATES or (known is not None and known[0] == own
-                                      and known[1] is not None):
-        first = _scan(model, own, q_all)
-        if first is not None:
-            if first >= 0:
-                _evaluate(model, q_all, np.array([first]), what, len(X))
-            return
-    # States checked before with the same kernels and parameters are not
-    # evaluated again (~2.5 µs each from Python): a chaos map checks its
-    # grid, then each chunk its orbits; a study repeats a run.
-    memo = _FINITE_AT.setdefault(model, {}).setdefault(
-        (tuple(map(id, own)), np.asarray(model.params, dtype=float).tobytes()), _Finite())
-    h, bits = _Finite.words(q_all)
-    todo = np.flatnonzero(~memo.known(h, bits))
-    _evaluate(model, q_all, todo, what, len(X))
-    memo.add(h[todo], bits[todo])
+    first = _scan(model, q_all)
+    if first is None:
+        _evaluate(model, q_all, np.arange(len(q_all)), what, len(X))
+    elif first >= 0:
+        _evaluate(model, q_all, np.array([first]), what, len(X))
 
 
-def _scan(model, own, Q):
+def _scan(model, Q):
     """The first row of ``Q`` where a kernel of ``model`` is not finite, −1
-    if none; None where the kernels cannot be called from a compiled loop
-    or one raises (then :func:`_evaluate` says why)."""
-    from numba.core.errors import NumbaError
-
-    known = _SCANS.get(model)
-    if known is None or known[0] != own:
-        known = (own, _scan_loop(*own))
-        _SCANS[model] = known
-    if known[1] is None:
+    if none; None where the compiled pass cannot call the kernels or one
+    raises (then :func:`_evaluate` says why)."""
+    kernels = (model.grad_kernel, model.hess_kernel, model.third_kernel)
+    par = model.params
+    if not (all(hasattr(k, "py_func") for k in kernels) and isinstance(par, np.ndarray)
+            and par.dtype == np.float64 and par.ndim == 1 and par.flags.c_contiguous):
         return None
+    from .kernels.finite import first_nonfinite
+
     try:
-        return int(known[1](Q, model.params, model.bandwidth + 1))
-    except (NumbaError, TypeError):   # not callable as the protocol says
-        _SCANS[model] = (own, None)
+        return int(first_nonfinite(*kernels, Q, par, model.bandwidth + 1))
+    except Exception:   # kernels of other types, or one raising: named from Python
         return None
-    except Exception:   # e.g. ZeroDivisionError in a kernel: named from Python
-        return None
-
-
-def _scan_loop(grad, hess, third):
-    """A compiled ``scan(Q, par, rows) -> first row or −1`` calling these
-    kernels (numba dispatchers) at every row of ``Q`` as :func:`_evaluate`
-    does, or None where they are not numba functions."""
-    from numba import njit
-
-    if not all(hasattr(k, "py_func") for k in (grad, hess, third)):
-        return None
-
-    @njit
-    def scan(Q, par, rows):
-        n = Q.shape[1]
-        g = np.empty(n)
-        h = np.empty((rows, n))
-        t = np.empty((rows, n))
-        v = np.ones(n)
-        for m in range(Q.shape[0]):
-            # Zeroed per state, as _evaluate's blocks: a banded kernel need
-            # not write every entry.
-            h[:] = 0.0
-            t[:] = 0.0
-            grad(Q[m], par, g)
-            hess(Q[m], par, h)
-            third(Q[m], par, v, t)
-            if not (np.isfinite(g).all() and np.isfinite(h).all() and np.isfinite(t).all()):
-                return m
-        return -1
-
-    return scan
 
 
 def _evaluate(model, q_all, todo, what, total):
