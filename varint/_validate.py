@@ -177,7 +177,16 @@ def full_rank(W, name="deviations"):
     """Raise if the k columns of any (2N, k) block are linearly dependent."""
     if W.shape[2] == 0:
         return
-    s = np.linalg.svd(W, compute_uv=False)
+    if W.shape[2] == 1:
+        # One column's singular value is its length (a chaos map's FLI
+        # vectors: no SVD of 10⁵ matrices), scaled as LAPACK scales it so
+        # that a subnormal column's squares do not underflow.
+        big = np.abs(W[:, :, 0]).max(axis=1)
+        unit = np.divide(W[:, :, 0], big[:, None], out=np.zeros(W.shape[:2]),
+                         where=big[:, None] > 0)
+        s = (big * np.linalg.norm(unit, axis=1))[:, None]
+    else:
+        s = np.linalg.svd(W, compute_uv=False)
     rel = s[:, -1] / np.maximum(s[:, 0], np.finfo(float).tiny)
     bad = np.flatnonzero(~(rel > 1e-12))
     if bad.size:
