@@ -112,17 +112,22 @@ def main(argv=None):
         return None
     m, t_end, reps = ((2000, 20.0, 1) if args.quick else (args.orbits, args.t_end, args.repeats))
     parts = args.parts.split(",")
-    with tempfile.TemporaryDirectory(prefix="varint-before-") as tmp:
-        before = Path(tmp)
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before],
-                                 capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(before)], input=archive, check=True)
-        # This script in the old tree too (it may not have it).
-        (before / "studies" / "map_host_work.py").write_bytes(Path(__file__).read_bytes())
-        trees = {"before": before, "after": ROOT}
+    after = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                           capture_output=True, text=True, check=True).stdout.strip()
+    with tempfile.TemporaryDirectory(prefix="varint-trees-") as tmp:
+        # Both trees exported from git: what was committed, whatever the
+        # working tree holds meanwhile.
+        trees = {"before": Path(tmp) / "before", "after": Path(tmp) / "after"}
+        for name, rev in (("before", args.before), ("after", after)):
+            trees[name].mkdir()
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev],
+                                     capture_output=True, check=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(trees[name])], input=archive, check=True)
+            # This script in the old tree too (it may not have it).
+            (trees[name] / "studies" / "map_host_work.py").write_bytes(
+                Path(__file__).read_bytes())
         res = {"orbits": m, "t_end": t_end, "repeats": reps, "before": args.before,
-               "after": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                                       capture_output=True, text=True).stdout.strip(),
+               "after": after,
                "load_start": os.getloadavg(), "cpus": os.cpu_count(), "s": {}}
         for part in parts:
             times = {"before": [], "after": []}
