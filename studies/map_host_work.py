@@ -5,9 +5,10 @@ A GPU map of 1e5 orbits spent 17.8 µs per orbit on the host against the
 kernel's 0.18 µs (``bench_gpu_h100.md``): validation, seeded vectors,
 repacking at the launches, records. This study times each part for the
 same Hénon–Heiles FLI map (random points of the section at H = 0.125,
-chaos_map defaults) in two source trees — ``--before`` (a git revision,
-exported with ``git archive``) and this one — each in fresh processes,
-alternating before/after, the minimum of repeats:
+chaos_map defaults; ``--indicator`` for another) in two source trees,
+``--before`` (a git revision) and this one's HEAD, both exported with ``git
+archive``, each part in fresh processes, alternating before/after, the
+minimum of repeats:
 
 * ``kernels``: the derivative kernels checked at every state
   (``_validate.kernels``), the first time (a fresh model);
@@ -20,8 +21,9 @@ alternating before/after, the minimum of repeats:
 * ``cpu_map``: the map on the CPU (all cores of this machine), orbits/s.
 
 Run: ``python studies/map_host_work.py [--orbits 100000] [--t-end 1000]
-[--repeats 3] [--before REV] [--quick]``; writes
-``results/map_host_work.json`` and ``.md``.
+[--repeats 3] [--before REV] [--parts kernels,...] [--indicator fli]
+[--name map_host_work] [--quick]``; writes ``results/<name>.json`` and
+``.md``.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ ROOT = HERE.parent
 PARTS = ("kernels", "seeds", "full_rank", "gpu_host", "cpu_map")
 
 
-def worker(part, m, t_end):
+def worker(part, m, t_end, indicator="fli"):
     """Time ``part`` once in this process (its compilation first, on a
     small batch) and print {"s": seconds}."""
     import numpy as np
@@ -78,18 +80,19 @@ def worker(part, m, t_end):
             kw["backend"] = "cuda"
         # The same kernels (the parallel one for many orbits), compiled or
         # loaded, on a short map of the same orbits.
-        varint.chaos_map(HenonHeiles(), X, "fli", **{**kw, "t_end": min(t_end, 2.0)})
+        varint.chaos_map(HenonHeiles(), X, indicator, **{**kw, "t_end": min(t_end, 2.0)})
         t = time.perf_counter()
-        varint.chaos_map(HenonHeiles(), X, "fli", **kw)
+        varint.chaos_map(HenonHeiles(), X, indicator, **kw)
     print(json.dumps({"s": time.perf_counter() - t}))
 
 
-def run_part(tree, part, m, t_end):
+def run_part(tree, part, m, t_end, indicator):
     env = dict(os.environ, PYTHONPATH=str(tree))
     if part == "gpu_host":
         env["NUMBA_ENABLE_CUDASIM"] = "1"
     out = subprocess.run([sys.executable, str(tree / "studies" / "map_host_work.py"),
-                          "--worker", part, "--orbits", str(m), "--t-end", str(t_end)],
+                          "--worker", part, "--orbits", str(m), "--t-end", str(t_end),
+                          "--indicator", indicator],
                          env=env, capture_output=True, text=True, cwd=tree, check=False)
     if out.returncode:
         raise RuntimeError(f"{part} in {tree}: {out.stderr[-2000:]}")
@@ -104,11 +107,13 @@ def main(argv=None):
     p.add_argument("--before", default="8042720")
     p.add_argument("--parts", default=",".join(PARTS))
     p.add_argument("--quick", action="store_true")
+    p.add_argument("--indicator", default="fli", help="the map's indicator (fli, megno, sali)")
+    p.add_argument("--name", default="map_host_work", help="the result files' name")
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     p.add_argument("--out", type=Path, default=HERE / "results")
     args = p.parse_args(argv)
     if args.worker:
-        worker(args.worker, args.orbits, args.t_end)
+        worker(args.worker, args.orbits, args.t_end, args.indicator)
         return None
     m, t_end, reps = ((2000, 20.0, 1) if args.quick else (args.orbits, args.t_end, args.repeats))
     parts = args.parts.split(",")
@@ -126,20 +131,22 @@ def main(argv=None):
             # This script in the old tree too (it may not have it).
             (trees[name] / "studies" / "map_host_work.py").write_bytes(
                 Path(__file__).read_bytes())
-        res = {"orbits": m, "t_end": t_end, "repeats": reps, "before": args.before,
+        res = {"orbits": m, "t_end": t_end, "indicator": args.indicator, "repeats": reps,
+               "before": args.before,
                "after": after,
                "load_start": os.getloadavg(), "cpus": os.cpu_count(), "s": {}}
         for part in parts:
             times = {"before": [], "after": []}
             for _ in range(reps):
                 for name, tree in trees.items():   # alternating
-                    times[name].append(run_part(tree, part, m, t_end))
+                    times[name].append(run_part(tree, part, m, t_end, args.indicator))
             res["s"][part] = {name: min(v) for name, v in times.items()}
             print(part, json.dumps(res["s"][part]), flush=True)
         res["load_end"] = os.getloadavg()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "map_host_work.json").write_text(json.dumps(res, indent=1))
-    lines = [f"# Host work of a Hénon–Heiles FLI map: {m} orbits, t = {t_end:g}", "",
+    (args.out / f"{args.name}.json").write_text(json.dumps(res, indent=1))
+    lines = [f"# Host work of a Hénon–Heiles {args.indicator.upper()} map: {m} orbits, "
+             f"t = {t_end:g}", "",
              f"Before {res['before']}, after {res['after']}; {res['cpus']} CPU cores, load "
              f"{res['load_start'][0]:.1f} at the start, {res['load_end'][0]:.1f} at the end; "
              f"minimum of {reps} alternating runs, each in a fresh process.", "",
@@ -154,7 +161,7 @@ def main(argv=None):
         lines += ["", f"CPU map ({res['cpus']} cores): {m / v['before']:.4g} orbits/s before, "
                       f"{m / v['after']:.4g} after ({v['before'] / v['after']:.2f}×)."]
     text = "\n".join(lines) + "\n"
-    (args.out / "map_host_work.md").write_text(text)
+    (args.out / f"{args.name}.md").write_text(text)
     print(text)
     return res
 
