@@ -20,9 +20,9 @@ One command on a machine with a GPU (``pip install "varint[cuda]"``)::
    largest common size is the figure.
 3. **Fraction of peak.** The floating-point operations of one step of the
    generated kernel, counted in its source (an fma counts 2, a √ or log 1,
-   comparisons and integer work 0), times the steps, over the GPU's time,
-   against the peak FP64 rate of its FP64 units (SMs × 64 FMA × 2 × clock;
-   not the tensor cores, which a step cannot use).
+   varint's ``vlog`` too; comparisons and integer work 0), times the steps,
+   over the GPU's time, against the peak FP64 rate of its FP64 units (SMs ×
+   64 FMA × 2 × clock; not the tensor cores, which a step cannot use).
 
 heyoka's batch mode is not installed on GPU machines here; its ratio to
 varint's CPU path is that of ``studies/bench_peers.py``.
@@ -123,7 +123,7 @@ def step_flops(model, indicator="fli", scheme=None):
                 name = ast.unparse(sub.func)
                 if name in ("cuda.fma", "fma"):
                     flops += 2
-                elif name in ("math.sqrt", "math.log", "math.exp"):
+                elif name in ("math.sqrt", "math.log", "vlog", "math.exp"):
                     special += 1
         return flops + special
 

@@ -142,6 +142,9 @@ def main(argv=None):
                     times[name].append(run_part(tree, part, m, t_end, args.indicator))
             res["s"][part] = {name: min(v) for name, v in times.items()}
             print(part, json.dumps(res["s"][part]), flush=True)
+            # After every part: a study stopped early keeps what it measured.
+            args.out.mkdir(parents=True, exist_ok=True)
+            (args.out / f"{args.name}.json").write_text(json.dumps(res, indent=1))
         res["load_end"] = os.getloadavg()
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"{args.name}.json").write_text(json.dumps(res, indent=1))
