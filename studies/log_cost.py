@@ -1,0 +1,62 @@
+"""Study: the cost of varint's logarithm (``varint.kernels.logarithm.vlog``)
+against the C library's ``log`` that numba calls for ``math.log``, per call
+in a compiled loop (10⁶ arguments in [0.5, 3], as the stretching factors a
+renormalisation takes the logarithm of), interleaved, the minimum of
+repeats, in one process.
+
+Run: ``python studies/log_cost.py``; writes ``results/log_cost.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from varint.kernels.logarithm import vlog
+
+HERE = Path(__file__).resolve().parent
+
+
+@njit
+def _libm(x):
+    s = 0.0
+    for v in x:
+        s += math.log(v)
+    return s
+
+
+@njit
+def _vlog(x):
+    s = 0.0
+    for v in x:
+        s += vlog(v)
+    return s
+
+
+def main():
+    x = np.random.default_rng(0).uniform(0.5, 3.0, 1_000_000)
+    _libm(x[:8]), _vlog(x[:8])
+    best = {"libm": math.inf, "vlog": math.inf}
+    load = os.getloadavg()
+    for _ in range(15):
+        for name, f in (("libm", _libm), ("vlog", _vlog)):
+            t = time.perf_counter()
+            f(x)
+            best[name] = min(best[name], time.perf_counter() - t)
+    res = {"ns_per_call": {k: v / len(x) * 1e9 for k, v in best.items()},
+           "vlog_over_libm": best["vlog"] / best["libm"], "load": load,
+           "load_end": os.getloadavg(), "cpus": os.cpu_count()}
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "log_cost.json").write_text(json.dumps(res, indent=1))
+    print(json.dumps(res))
+    return res
+
+
+if __name__ == "__main__":
+    main()
