@@ -353,7 +353,7 @@ def kernels(model, X, what="the initial state"):
     with :class:`~varint.IntegrationError` (``Status.*_NONFINITE``).
 
     The states are evaluated in one compiled pass
-    (:func:`varint.kernels.finite.first_nonfinite`, ~0.1 µs a state) that
+    (:func:`varint.kernels.finite.first_nonfinite`, ~0.3 µs a state) that
     stops at the first where a kernel is not finite; that state is then
     evaluated from Python, which names what is wrong. Kernels that the pass
     cannot call (not numba functions of the protocol's types, or one that
