@@ -290,11 +290,15 @@ def main(argv=None):
     # Compile every contender's kernels first (numba compiles the parallel
     # CPU kernel once per process, and the GPU kernel once per process).
     W = section_points(hh, 512, seed=1)
-    for c in contenders:
+    res["compile_s"] = {}
+    for c in list(contenders):
         numba.set_num_threads(1 if c == "cpu_1" else all_threads)
         kw = dict(t_end=t_end, progress=False, **({"backend": "cuda"} if c == "gpu" else {}))
-        res.setdefault("compile_s", {})[c] = timed(
-            lambda kw=kw: varint.chaos_map(hh, W, "fli", **kw))[0]
+        try:
+            res["compile_s"][c] = timed(lambda kw=kw: varint.chaos_map(hh, W, "fli", **kw))[0]
+        except Exception as exc:   # this contender cannot run; the others still do
+            res["errors"].append(f"{c} warm-up: {exc!r}")
+            contenders.remove(c)
     numba.set_num_threads(all_threads)
     print("warm-up (compilation) seconds", res["compile_s"], flush=True)
     from varint.gpu.advance import STATS
