@@ -15,9 +15,10 @@ minimum of repeats:
 * ``seeds``: the seeded orthonormal vectors (``state.initial_deviations``);
 * ``full_rank``: the check of given vectors (``_validate.full_rank``);
 * ``gpu_host``: a whole map with ``backend="cuda"`` on numba's CUDA
-  simulator with the kernel's launch replaced by nothing: everything the
-  host does for a GPU map (validation, seeds, repacking and copies at
-  every launch, records), per orbit;
+  simulator with the kernel's launch replaced by one that takes no step
+  (the snapshots get the state as it is): everything the host does for a
+  GPU map (validation, seeds, repacking and copies at every launch,
+  records), per orbit;
 * ``cpu_map``: the map on the CPU (all cores of this machine), orbits/s.
 
 Run: ``python studies/map_host_work.py [--orbits 100000] [--t-end 1000]
@@ -76,7 +77,7 @@ def worker(part, m, t_end, indicator="fli"):
         if part == "gpu_host":
             from varint.gpu import device
 
-            device._Kernel.launch = lambda self, n_threads, *args: None
+            device._Kernel.launch = _no_steps
             kw["backend"] = "cuda"
         # The same kernels (the parallel one for many orbits), compiled or
         # loaded, on a short map of the same orbits.
@@ -84,6 +85,15 @@ def worker(part, m, t_end, indicator="fli"):
         t = time.perf_counter()
         varint.chaos_map(HenonHeiles(), X, indicator, **kw)
     print(json.dumps({"s": time.perf_counter() - t}))
+
+
+def _no_steps(self, n_threads, X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc,
+              escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):
+    """The kernel's launch, doing no step: the snapshots get the state as it
+    is (so that the records are of finite values, as after real steps)."""
+    for j in range(snap_x.shape[0]):
+        snap_x[j], snap_W[j], snap_m[j], snap_e[j] = X, W, am, ae
+        snap_aux[j] = aux
 
 
 def run_part(tree, part, m, t_end, indicator):
