@@ -3,7 +3,12 @@ every kernel it launched and a profile of one GPU map, all under one clock.
 
 Run on a machine with a CUDA GPU, from a copy of the repository::
 
-    OUT=dir python studies/gpu_device_run.py [--budget S] [--deadline S] [--quick]
+    OUT=dir python studies/gpu_device_run.py [--budget S] [--deadline S] [--sizes M,...]
+                                            [--quick]
+
+(the defaults fit ~300 s on an H100 host: agreement of the FLI map, speed at
+1e4, 1e5 and 1e6 orbits, the other agreement checks, then the profile;
+``--quick`` with ``NUMBA_ENABLE_CUDASIM=1`` is a dry run on the simulator)
 
 Writes to ``$OUT``: ``bench_gpu.json``/``.md`` (the benchmark), ``ptx.json``
 (per kernel: counts of the FP64 instructions whose rounding decides bitwise
@@ -51,9 +56,11 @@ PATTERNS = {"fma.rn.f64": r"\bfma\.rn\.f64", "mul.f64": r"\bmul(\.rn)?\.f64",
 
 def main(argv=None):
     p = argparse.ArgumentParser()
-    p.add_argument("--budget", type=float, default=130.0)
-    p.add_argument("--deadline", type=float, default=280.0,
+    p.add_argument("--budget", type=float, default=150.0,
+                   help="seconds for the benchmark's speed part")
+    p.add_argument("--deadline", type=float, default=240.0,
                    help="seconds from the start after which no optional part begins")
+    p.add_argument("--sizes", default="10000,100000,1000000")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--skip-bench", action="store_true",
                    help="only the profile and the PTX (the benchmark measured before)")
@@ -69,7 +76,9 @@ def main(argv=None):
         return original(self, n_threads, *a)
 
     device._Kernel.launch = launch
-    argv = ["--out", str(out), "--budget", str(args.budget)] + (["--quick"] if args.quick else [])
+    argv = ["--out", str(out), "--budget", str(args.budget), "--sizes", args.sizes,
+            "--deadline", str(args.deadline - (time.perf_counter() - START))] + (
+        ["--quick"] if args.quick else [])
     try:
         if not args.skip_bench:
             bench_gpu.main(argv)

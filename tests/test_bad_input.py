@@ -705,3 +705,17 @@ def test_a_map_refuses_a_directory_holding_another_map_even_when_resuming(tmp_pa
     with pytest.raises(varint.CheckpointError, match="holds a chaos map with other parameters"):
         varint.chaos_map(HH, grid, "sali", t_end=20.0, checkpoint=tmp_path / "m",
                          progress=False)
+
+
+def test_one_vector_is_independent_where_svd_says_so():
+    # One column: its length stands for its singular value (no SVD); the
+    # verdicts are the SVD's, a subnormal column included.
+    W = np.ones((4, 4, 1))
+    W[2] = 0.0
+    W[3] = 1e-310
+    with pytest.raises(ValueError, match="deviations of orbit 2 are linearly dependent"):
+        check.full_rank(W)
+    s = np.linalg.svd(W, compute_uv=False)
+    assert list(s[:, -1] / np.maximum(s[:, 0], np.finfo(float).tiny) > 1e-12) == \
+        [True, True, False, True]
+    check.full_rank(W[[0, 1, 3]])

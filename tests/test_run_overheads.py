@@ -32,28 +32,33 @@ def test_quick_chunks_grow_faster_but_a_slow_one_at_most_eightfold():
     assert pace.chunk == 4 * m
 
 
-def test_the_kernel_check_remembers_only_the_states_that_passed():
-    """A chaos map checks its grid, then each chunk its orbits: states found
-    finite are not evaluated again; one that is not is refused every time,
-    named by its place in the batch even when states before it were
-    skipped."""
+def test_the_kernel_check_names_the_first_singular_state(monkeypatch):
+    """A batch's kernels are evaluated in one compiled pass; the first state
+    where one is not finite is named as from Python; kernels the pass
+    cannot call (here: parameters of another type) are evaluated from
+    Python at every state."""
     x, y = sp.symbols("x y")
     model = from_potential(0.5 * (x ** 2 + y ** 2) + 1 / x, [x, y])
-    good = np.array([[1.0, 0.0, 0.0, 0.1], [0.5, 0.2, 0.1, 0.0], [2.0, -1.0, 0.0, 0.0]])
-    singular = np.array([0.0, 0.3, 0.0, 0.1])
-
-    def remembered():
-        return sum(len(states) for states in check._FINITE_AT[model].values())
-
-    check.kernels(model, good)
-    assert remembered() == 3
-    batch = np.vstack([good[:2], singular, good[2:]])
+    X = np.column_stack([np.linspace(0.5, 2.0, 80), np.zeros(80), np.zeros(80), np.ones(80)])
+    check.kernels(model, X)
+    assert check._scan(model, np.ascontiguousarray(X[:, :2])) == -1
+    X[63, 0] = X[70, 0] = 0.0
+    assert check._scan(model, np.ascontiguousarray(X[:, :2])) == 63
     for _ in range(2):
-        with pytest.raises(ValueError, match="initial state of orbit 2, q = .0.0, 0.3."):
-            check.kernels(model, batch)
-    assert remembered() == 3
+        with pytest.raises(ValueError, match=r"initial state of orbit 63, q = .0.0, 0.0.: the "
+                                             "gradient"):
+            check.kernels(model, X)
+    with pytest.raises(ValueError, match="initial state of orbit 1, q = .0.0, 0.0."):
+        check.kernels(model, X[62:65])
     with pytest.raises(ValueError, match="not finite"):
-        varint.lyapunov_spectrum(model, singular, 1.0, tau=0.1)
+        varint.lyapunov_spectrum(model, X[63], 1.0, tau=0.1)
+    calls = []
+    original = check._evaluate
+    monkeypatch.setattr(check, "_evaluate", lambda m, q, todo, *a: (calls.append(len(todo)),
+                                                                     original(m, q, todo, *a)))
+    monkeypatch.setattr(model, "params", model.params.astype(np.float32))
+    check.kernels(model, X[:60])
+    assert calls == [60]
 
 
 def test_a_model_that_ran_still_pickles_as_it_was():

@@ -7,7 +7,6 @@ import errno
 import numbers
 import os
 import tempfile
-import weakref
 from pathlib import Path
 
 import numpy as np
@@ -178,7 +177,16 @@ def full_rank(W, name="deviations"):
     """Raise if the k columns of any (2N, k) block are linearly dependent."""
     if W.shape[2] == 0:
         return
-    s = np.linalg.svd(W, compute_uv=False)
+    if W.shape[2] == 1:
+        # One column's singular value is its length (a chaos map's FLI
+        # vectors: no SVD of 10⁵ matrices), scaled as LAPACK scales it so
+        # that a subnormal column's squares do not underflow.
+        big = np.abs(W[:, :, 0]).max(axis=1)
+        unit = np.divide(W[:, :, 0], big[:, None], out=np.zeros(W.shape[:2]),
+                         where=big[:, None] > 0)
+        s = (big * np.linalg.norm(unit, axis=1))[:, None]
+    else:
+        s = np.linalg.svd(W, compute_uv=False)
     rel = s[:, -1] / np.maximum(s[:, 0], np.finfo(float).tiny)
     bad = np.flatnonzero(~(rel > 1e-12))
     if bad.size:
@@ -332,12 +340,6 @@ def step_count(t_end, tau, limit=MAX_STEPS):
 #: Kernel evaluations of one block of :func:`kernels` hold at most this many
 #: numbers.
 _KERNEL_BLOCK = 2 ** 18
-#: :func:`kernels` remembers at most this many states per model.
-_MEMO_STATES = 1 << 16
-#: The states (q, as bytes) where :func:`kernels` found the kernels finite,
-#: per model and (kernels, parameters); beside the model, not in it: a model
-#: must stay picklable.
-_FINITE_AT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def kernels(model, X, what="the initial state"):
@@ -350,6 +352,13 @@ def kernels(model, X, what="the initial state"):
     that fails at its first step. An orbit that later runs into it fails
     with :class:`~varint.IntegrationError` (``Status.*_NONFINITE``).
 
+    The states are evaluated in one compiled pass
+    (:func:`varint.kernels.finite.first_nonfinite`, ~0.3 µs a state) that
+    stops at the first where a kernel is not finite; that state is then
+    evaluated from Python, which names what is wrong. Kernels that the pass
+    cannot call (not numba functions of the protocol's types, or one that
+    raises) are evaluated from Python at every state (~2.5 µs a state).
+
     Raises
     ------
     ValueError
@@ -359,19 +368,38 @@ def kernels(model, X, what="the initial state"):
         If the kernels cannot be compiled or called as the protocol says
         (:mod:`varint.models.base`).
     """
+    X = np.asarray(X, dtype=float)
+    q_all = np.ascontiguousarray(X[:, :model.n_dof])
+    first = _scan(model, q_all)
+    if first is None:
+        _evaluate(model, q_all, np.arange(len(q_all)), what, len(X))
+    elif first >= 0:
+        _evaluate(model, q_all, np.array([first]), what, len(X))
+
+
+def _scan(model, Q):
+    """The first row of ``Q`` where a kernel of ``model`` is not finite, −1
+    if none; None where the compiled pass cannot call the kernels or one
+    raises (then :func:`_evaluate` says why)."""
+    kernels = (model.grad_kernel, model.hess_kernel, model.third_kernel)
+    par = model.params
+    if not (all(hasattr(k, "py_func") for k in kernels) and isinstance(par, np.ndarray)
+            and par.dtype == np.float64 and par.ndim == 1 and par.flags.c_contiguous):
+        return None
+    from .kernels.finite import first_nonfinite
+
+    try:
+        return int(first_nonfinite(*kernels, Q, par, model.bandwidth + 1))
+    except Exception:   # kernels of other types, or one raising: named from Python
+        return None
+
+
+def _evaluate(model, q_all, todo, what, total):
+    """Evaluate the kernels at the rows ``todo`` of ``q_all`` from Python;
+    raise for the first where one is not finite (see :func:`kernels`)."""
     from numba.core.errors import NumbaError
 
-    X = np.asarray(X, dtype=float)
     n, rows = model.n_dof, model.bandwidth + 1
-    # States checked before with the same kernels and parameters are not
-    # evaluated again (~10 µs each from Python): a chaos map checks its
-    # grid, then each chunk its orbits; a study repeats a run.
-    memo = _FINITE_AT.setdefault(model, {}).setdefault(
-        (id(model.grad_kernel), id(model.hess_kernel), id(model.third_kernel),
-         np.asarray(model.params, dtype=float).tobytes()), set())
-    q_all = np.ascontiguousarray(X[:, :n])
-    keys = [q.tobytes() for q in q_all]
-    todo = np.array([m for m, key in enumerate(keys) if key not in memo], dtype=np.int64)
     block = max(1, min(len(todo), _KERNEL_BLOCK // (n * (2 * rows + 1))))
     v = np.ones(n)
     labels = ("the gradient ∇V", "the Hessian D²V", "the third derivatives of V")
@@ -397,7 +425,7 @@ def kernels(model, X, what="the initial state"):
                 "writing float64 arrays in place, see varint.models.base") from exc
         except ArithmeticError as exc:
             raise ValueError(f"the derivatives of V ({model.name}) cannot be evaluated at "
-                             f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: "
+                             f"{_where(what, orbits[i], total)}, q = {_short(Q[i])}: "
                              f"{type(exc).__name__}: {exc}") from None
         for label, values in zip(labels, (G, H, T), strict=True):
             bad = np.flatnonzero(~np.isfinite(values.reshape(len(Q), -1)).all(axis=1))
@@ -405,12 +433,9 @@ def kernels(model, X, what="the initial state"):
                 i = int(bad[0])
                 raise ValueError(
                     f"the derivatives of V ({model.name}) are not finite at "
-                    f"{_where(what, orbits[i], len(X))}, q = {_short(Q[i])}: {label} is "
+                    f"{_where(what, orbits[i], total)}, q = {_short(Q[i])}: {label} is "
                     f"{_short(values[i].ravel())}; V is singular, not real or too large there "
                     "(start the orbit elsewhere)")
-    if len(memo) + len(todo) > _MEMO_STATES:
-        memo.clear()
-    memo.update(keys[m] for m in todo[:_MEMO_STATES])
 
 
 def _where(what, m, total):

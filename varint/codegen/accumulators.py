@@ -19,6 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..kernels.logarithm import vlog
 from .source import Source
 
 __all__ = ["emit_rule", "emit_readout", "compile_update", "rule_text"]
@@ -27,7 +28,8 @@ __all__ = ["emit_rule", "emit_readout", "compile_update", "rule_text"]
 _OPERANDS = ("x", "w", "f")
 #: The names a rule reads besides its columns and temporaries.
 _INPUTS = ("r", "t", "am", "ae")
-_GLOBALS = ("math", "np", "ACC_BIG", "ACC_SMALL", "LN2", "abs", "float", "int", "max", "min")
+_GLOBALS = ("math", "np", "ACC_BIG", "ACC_SMALL", "LN2", "abs", "float", "int", "max", "min",
+            "vlog")
 
 
 def rule_text(rule):
@@ -67,6 +69,14 @@ class _Rename(ast.NodeTransformer):
             raise ValueError(f"accumulator rule: unknown name {node.id!r} (a rule reads its "
                              f"columns, its temporaries, {', '.join(_INPUTS)}, dot(), and "
                              f"{', '.join(_GLOBALS)})")
+        return node
+
+    def visit_Attribute(self, node):
+        # A rule's math.log is varint's logarithm, the same on every target
+        # (varint.kernels.logarithm).
+        if isinstance(node.value, ast.Name) and node.value.id == "math" and node.attr == "log":
+            return ast.copy_location(ast.Name(id="vlog", ctx=ast.Load()), node)
+        self.generic_visit(node)
         return node
 
     def visit_Call(self, node):
@@ -195,6 +205,6 @@ def compile_update(rule, columns):
         for col in live:
             src(f"aux[j, {index[col]}] = c_{col}")
     scope = {"math": math, "np": np, "ACC_BIG": 2.0 ** 500, "ACC_SMALL": 2.0 ** -500,
-             "LN2": math.log(2.0)}
+             "LN2": math.log(2.0), "vlog": vlog}
     exec(compile(src.text(), f"<accumulator rule {live}>", "exec"), scope)
     return njit(error_model="numpy")(scope["update"])

@@ -81,13 +81,15 @@ def generated_source(E, plan, accumulator=None):
 def _generator_id():
     """A hash of the modules whose code and constants a generated stepper
     compiles in: this layer, the kernels it calls (the fused multiply–add,
-    the sparse schedule, the checks' constants) and the protocol's codes."""
+    the logarithm, the sparse schedule, the checks' constants) and the
+    protocol's codes."""
     from .. import protocol
-    from ..kernels import checks, fma, interval
+    from ..kernels import checks, fma, interval, logarithm
 
     digest = hashlib.sha256()
     layer = sorted(Path(__file__).parent.glob("*.py"))
-    for path in layer + [Path(m.__file__) for m in (checks, fma, interval, protocol)]:
+    for path in layer + [Path(m.__file__) for m in (checks, fma, interval, logarithm,
+                                                     protocol)]:
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 

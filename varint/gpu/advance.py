@@ -33,9 +33,22 @@ __all__ = ["advance_cuda", "STATS"]
 STATS = {"launches": 0, "kernel_s": 0.0, "host_s": 0.0}
 
 
-def _soa(a):
-    """(M, ...) -> (..., M), contiguous: the orbit index innermost."""
-    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
+def _soa(a, rows):
+    """(M, ...) -> (..., len(rows)), contiguous: the orbit index innermost,
+    in one pass (the rows gathered from the transposed view; all rows, a
+    plain transposed copy)."""
+    view = np.moveaxis(a, 0, -1)
+    return np.ascontiguousarray(view if rows is None else view[..., rows])
+
+
+def _put(a, rows, soa, axis=0):
+    """The inverse of :func:`_soa`: ``soa`` (..., len(rows)) written back
+    into the rows of ``a`` whose orbit index is ``axis``, in one pass."""
+    view = np.moveaxis(a, axis, -1)
+    if rows is None:
+        view[...] = soa
+    else:
+        view[..., rows] = soa
 
 
 def advance_cuda(prop, module, state, n, snaps, active):
@@ -63,8 +76,8 @@ def advance_cuda(prop, module, state, n, snaps, active):
     kernel = cuda_stepper(prop.model, kinds, (prop._hc != 0.0) & (kinds != DRIFT), k,
                           prop.accumulator)
     sched = prop._schedule(state)
-    start = {"x": state.x[active], "W": state.W[active], "acc_m": state.acc_m[active],
-             "acc_e": state.acc_e[active]}
+    # All rows (no orbit decided or failed yet): views, no gathering.
+    rows = None if a == m else active
     extra_start = {key: arr[active] for key, arr in state.extra.items()}
     aux = prop._accumulator(state)
     # Arrays the kernel does not touch (no accumulator columns, no output
@@ -73,15 +86,19 @@ def advance_cuda(prop, module, state, n, snaps, active):
     lane_aux = np.ascontiguousarray(aux[active]) if aux.size else np.zeros((a, 1, 1))
     s = len(snaps.steps)
     outs = np.ascontiguousarray(snaps.steps, np.int64) if s else np.array([-1], np.int64)
-    host = {"X": _soa(start["x"]), "W": _soa(start["W"]), "am": _soa(start["acc_m"]),
-            "ae": _soa(start["acc_e"]), "st": np.zeros(a, np.int64), "fs": np.zeros(a, np.int64),
-            "nxt": np.ascontiguousarray(sched[active, 0]),
+    host = {"X": _soa(state.x, rows), "W": _soa(state.W, rows), "am": _soa(state.acc_m, rows),
+            "ae": _soa(state.acc_e, rows), "st": np.zeros(a, np.int64),
+            "fs": np.zeros(a, np.int64), "nxt": np.ascontiguousarray(sched[active, 0]),
             "itv": np.ascontiguousarray(sched[active, 1]), "aux": lane_aux}
+    # The call's start, for the orbits that fail: the host's copies.
+    start = {"x": np.moveaxis(host["X"], -1, 0), "W": np.moveaxis(host["W"], -1, 0),
+             "acc_m": np.moveaxis(host["am"], -1, 0), "acc_e": np.moveaxis(host["ae"], -1, 0)}
     dev = {name: cuda.to_device(arr) for name, arr in host.items()}
-    rows = max(s, 1)
-    snap = {"x": cuda.device_array((rows, d, a)), "W": cuda.device_array((rows, d, k, a)),
-            "m": cuda.device_array((rows, k, a)), "e": cuda.device_array((rows, k, a), np.int64),
-            "aux": cuda.device_array((rows,) + lane_aux.shape)}
+    rows_out = max(s, 1)
+    snap = {"x": cuda.device_array((rows_out, d, a)), "W": cuda.device_array((rows_out, d, k, a)),
+            "m": cuda.device_array((rows_out, k, a)),
+            "e": cuda.device_array((rows_out, k, a), np.int64),
+            "aux": cuda.device_array((rows_out,) + lane_aux.shape)}
     t1 = time.perf_counter()
     kernel.launch(a, dev["X"], dev["W"], dev["am"], dev["ae"], dev["st"], dev["fs"], dev["nxt"],
                   dev["itv"], int(n), int(state.step), prop.tau,
@@ -92,18 +109,17 @@ def advance_cuda(prop, module, state, n, snaps, active):
     cuda.synchronize()
     t2 = time.perf_counter()
     out = {name: arr.copy_to_host() for name, arr in dev.items()}
-    state.x[active] = np.moveaxis(out["X"], -1, 0)
-    state.W[active] = np.moveaxis(out["W"], -1, 0)
-    state.acc_m[active] = np.moveaxis(out["am"], -1, 0)
-    state.acc_e[active] = np.moveaxis(out["ae"], -1, 0)
+    _put(state.x, rows, out["X"])
+    _put(state.W, rows, out["W"])
+    _put(state.acc_m, rows, out["am"])
+    _put(state.acc_e, rows, out["ae"])
     sched[active, 0], sched[active, 1] = out["nxt"], out["itv"]
     if aux.size:
         aux[active] = out["aux"]
     if s:
-        snaps.x[:, active] = np.moveaxis(snap["x"].copy_to_host(), -1, 1)
-        snaps.W[:, active] = np.moveaxis(snap["W"].copy_to_host(), -1, 1)
-        snaps.acc_m[:, active] = np.moveaxis(snap["m"].copy_to_host(), -1, 1)
-        snaps.acc_e[:, active] = np.moveaxis(snap["e"].copy_to_host(), -1, 1)
+        # Snapshots (S, M, ...): the orbit index is the second.
+        for name, key in (("x", "x"), ("W", "W"), ("m", "acc_m"), ("e", "acc_e")):
+            _put(getattr(snaps, key), rows, snap[name].copy_to_host(), axis=1)
         if aux.size:
             snaps.extra[prop.accumulator.key][:, active] = snap["aux"].copy_to_host()
     per, first = prop._step_counts(k)

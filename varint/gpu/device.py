@@ -26,6 +26,7 @@ import threading
 from numba import njit
 
 from ..kernels.fma import fma
+from ..kernels.logarithm import py_as_bits, py_from_bits
 
 __all__ = ["BACKENDS", "AUTO_MIN_ORBITS", "available", "simulated", "check_backend",
            "use_gpu", "kernel", "kernel_globals", "THREADS_PER_BLOCK"]
@@ -137,15 +138,38 @@ def kernel(function):
 
 def kernel_globals():
     """The names a generated CUDA kernel uses beyond ``math`` and ``numpy``:
-    numba's ``cuda`` and its types; on the simulator, a correctly rounded
-    ``fma`` (the simulator's ``cuda.fma`` is a·b + c, rounded twice)."""
+    numba's ``cuda`` and its types, the bit casts of its logarithm
+    (:mod:`varint.kernels.logarithm`); on the simulator, a correctly rounded
+    ``fma`` (the simulator's ``cuda.fma`` is a·b + c, rounded twice) and
+    the bit casts in Python."""
     import numba
     from numba import cuda
 
     names = {"cuda": cuda, "float64": numba.float64, "int64": numba.int64}
     if simulated():
         names["fma"] = _host_fma()
+        names["as_bits"], names["from_bits"] = py_as_bits, py_from_bits
+    else:
+        names["as_bits"], names["from_bits"] = _bit_casts()
     return names
+
+
+@functools.lru_cache(maxsize=1)
+def _bit_casts():
+    """``as_bits``, ``from_bits`` of :mod:`varint.kernels.logarithm` as
+    device functions: libdevice's bit casts."""
+    from numba import cuda
+    from numba.cuda import libdevice
+
+    @cuda.jit(device=True)
+    def as_bits(x):
+        return libdevice.double_as_longlong(x)
+
+    @cuda.jit(device=True)
+    def from_bits(i):
+        return libdevice.longlong_as_double(i)
+
+    return as_bits, from_bits
 
 
 @functools.lru_cache(maxsize=1)
