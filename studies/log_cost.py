@@ -5,7 +5,8 @@ the stretching factors a renormalisation takes the logarithm of),
 interleaved, the minimum of repeats, in one process; and how often the two
 differ (in the last place) on uniform arguments of a few ranges.
 
-Run: ``python studies/log_cost.py``; writes ``results/log_cost.json``.
+Run: ``python studies/log_cost.py [--out DIR]``; writes ``log_cost.json``
+there (default ``studies/results``).
 """
 
 from __future__ import annotations
@@ -13,15 +14,18 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from varint.kernels.logarithm import vlog
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-HERE = Path(__file__).resolve().parent
+from studies.common import parse_args, save_json  # noqa: E402
+from varint.kernels.logarithm import vlog  # noqa: E402
 
 
 @njit
@@ -49,7 +53,8 @@ def _differ(x):
     return n
 
 
-def main():
+def main(argv=None):
+    cli = parse_args(__doc__.split("\n\n")[0], argv)
     rng = np.random.default_rng(0)
     # Wide arguments, and ones within 2 % of 1 (a renormalisation's stretching
     # over one short step: vlog's branches are then predictable).
@@ -72,8 +77,7 @@ def main():
     for lo, hi in ((0.999, 1.001), (0.9, 1.1), (0.5, 2.0), (1.0, 100.0)):
         y = rng.uniform(lo, hi, 1_000_000)
         res["differ_from_libm"][f"[{lo}, {hi}]"] = _differ(y) / len(y)
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "log_cost.json").write_text(json.dumps(res, indent=1))
+    save_json(cli.out, "log_cost", res)
     print(json.dumps(res))
     return res
 

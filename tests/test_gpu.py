@@ -195,9 +195,9 @@ def test_kernel_compiles_to_registers_without_contraction():
 
 
 @pytest.mark.cuda
-@pytest.mark.xfail(reason="on an H100 the FLI map at t = 100 differed from the CPU's by 1e-11 "
-                          "relative (studies/results/bench_gpu_h100.md) with libdevice's log; "
-                          "with varint.kernels.logarithm on both sides not yet run on a GPU",
+@pytest.mark.xfail(reason="on an H100 the FLI map at t = 100 differs from the CPU's by 1e-11 "
+                          "relative (studies/results/bench_gpu_h100.md), with libdevice's log "
+                          "and with varint.kernels.logarithm on both sides alike: cause not found",
                    strict=False)
 def test_gpu_map_is_bitwise_the_cpu():
     if not device.available() or device.simulated():

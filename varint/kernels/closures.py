@@ -182,6 +182,11 @@ class _ClosureCache(caching.FunctionCache):
             return None
 
     def save_overload(self, sig, data):
+        if getattr(data.library, "has_dynamic_globals", False):
+            # A kernel holding pointers of this process (e.g. a compiled
+            # right-hand side's) cannot be cached: it stays compiled in
+            # memory, as before, without numba's warning in every run.
+            return
         try:
             super().save_overload(sig, data)
         except OSError as exc:
