@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity, stepsize
+from . import accuracy, compiling, identity, stepsize, stepsize_orbits
 from .checkpoint import digest
 from .indicators import INDICATORS, Indicator, resolve
 from .methods import METHODS, propagator_class
@@ -115,6 +115,9 @@ class _Spec:
     seed: int
     threshold: float | None
     escape_radius: float | None
+    #: Per orbit of the map, the divisor n of its step τ = tau / n
+    #: (``tau="orbit"``, :mod:`varint.stepsize_orbits`); None: one step.
+    divisions: np.ndarray | None = None
 
 
 @dataclass
@@ -181,6 +184,8 @@ def run_chunk(model, x0, indices, spec):
     """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
     map) as one batch run, stopping early at the check times ``spec.steps``.
     """
+    if spec.divisions is not None:
+        return stepsize_orbits.run_grouped(run_chunk, model, x0, indices, spec)
     ind = spec.indicator
     cpu = time.process_time()
     with _worker_threads() as cancelled, warnings.catch_warnings():
@@ -342,7 +347,7 @@ def _cluster_threads(client):
 
 
 def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
-              indicator: str | Indicator = "sali", *, t_end: float, tau: float | None = None,
+              indicator: str | Indicator = "sali", *, t_end: float, tau: float | str | None = None,
               method: str = "tm", threshold: float | str | None = "default", seed: int = 0,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
@@ -373,6 +378,11 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         energy error of :func:`pilot_tolerance` (:data:`MAP_PILOT_TOL`, or the
         indicator's own ``map_tolerance``), and the result records the
         choice (``provenance.tau_choice``); one iteration for a map model.
+        ``"orbit"``: each orbit its own step, from its own pilot to the same
+        tolerance (:mod:`varint.stepsize_orbits`); the steps divide one unit
+        (``provenance.tau``), so the check times stay common, and
+        ``provenance.tau_choice["divisions"]`` gives each orbit's divisor n
+        of it (τ = tau / n).
     method : str, default "tm"
         As in :func:`varint.run`; every method computes every indicator.
     **options
@@ -498,14 +508,22 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     if escape_radius is not None:
         escape_radius = check.positive_float(escape_radius, "escape_radius")
     method = check.choice(method, METHODS, "method")
-    if tau is None and stepsize.pilots(method):
+    per_orbit = _per_orbit(tau, model, method, t_check)
+    if (tau is None or per_orbit) and stepsize.pilots(method):
         stepsize.check_options(method, method_options)
     progress = check.flag(progress, "progress")
-    t_check = check.output_times(t_check, "t_check", t_end if tau is None and isinstance(
-        t_end, (int, float)) and np.isfinite(t_end) else None)
+    t_check = check.output_times(t_check, "t_check", t_end if (tau is None or per_orbit) and (
+        isinstance(t_end, (int, float)) and np.isfinite(t_end)) else None)
     tau_choice = {"rule": "given"}
     clock = compiling.Clock(f"the {ind.name} map of {model_name} by {method}", progress)
-    if tau is None:
+    divisions = None
+    if per_orbit:
+        check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
+        with clock.part("pilot"):
+            tau, divisions, tau_choice = _choose_step(
+                model, X, t_end, method, method_options, t_check, escape_radius, ind,
+                configured, k, seed, per_orbit=True)
+    elif tau is None:
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
         with clock.part("pilot"):
             tau, tau_choice = _choose_step(model, X, t_end, method, method_options,
@@ -514,9 +532,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     steps = output_steps(t_end, tau, t_check)
     if t_check is None:
         steps = steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])]
-    spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=tau,
+    spec = _Spec(indicator=ind, indicator_options=ind_options, k=k, t_end=t_end, tau=float(tau),
                  method=method, method_options=method_options, steps=steps, seed=int(seed),
-                 threshold=limit, escape_radius=escape_radius)
+                 threshold=limit, escape_radius=escape_radius, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
     # times; values do not depend on it (see the module docstring).
@@ -529,6 +547,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "method_options": _describe_options(method_options), "seed": int(seed),
                   "chunk_size": int(chunk_size), "escape_radius": escape_radius,
                   "versions": package_versions(), "code": identity.source_digest()}
+    if divisions is not None:
+        parameters["tau_divisions"] = digest(divisions)
     store = None
     done = {}
     if checkpoint is not None:
@@ -552,23 +572,43 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     return result
 
 
+def _per_orbit(tau, model, method, t_check):
+    """Whether ``tau`` asks for a step per orbit ("orbit"), refusing it
+    where the steps of the orbits could not share the map's check times."""
+    if not isinstance(tau, str):
+        return False
+    if tau != "orbit":
+        raise ValueError(f"tau must be a positive number, None or 'orbit', got {tau!r}")
+    if getattr(model, "kind", "flow") == "map" or not stepsize.pilots(method):
+        raise ValueError(f"tau='orbit' chooses the step of a splitting scheme per orbit; "
+                         f"{model.name} by {method!r} has no such step (give a number or None)")
+    if t_check is not None and np.ndim(t_check) != 0:
+        raise ValueError("tau='orbit' needs check times on the grid of its unit step: give "
+                         "t_check as a count or None, not times")
+    return True
+
+
 def _choose_step(model, X, t_end, method, method_options, t_check, escape_radius, ind,
-                 configured, k, seed):
+                 configured, k, seed, per_orbit=False):
     """The map's step from a pilot on a sample of its orbits
     (:func:`varint.stepsize.choose_step` with the map defaults: scheme
     :data:`MAP_SCHEME` unless one is given, tolerance
     :func:`pilot_tolerance` of the indicator, quantile
-    :data:`MAP_QUANTILE`)."""
+    :data:`MAP_QUANTILE`), or with ``per_orbit`` each orbit's from its own
+    pilot (:func:`varint.stepsize_orbits.choose_steps`: the unit step, the
+    divisors and the choice)."""
     if stepsize.pilots(method):
         method_options.setdefault("scheme", MAP_SCHEME)
     if escape_radius is not None:
         model = copy.copy(model)
         model.escape_radius = escape_radius
-    return stepsize.choose_step(
-        model, X, t_end, pilot_tolerance(ind), method=method, scheme=method_options.get("scheme"),
-        cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
-        quantile=MAP_QUANTILE, seed=seed, k=k, renorm=ind.renorm,
-        accumulator=ind.accumulator_for(configured))
+    common = {"scheme": method_options.get("scheme"), "seed": seed, "k": k,
+              "renorm": ind.renorm, "accumulator": ind.accumulator_for(configured),
+              "cap": None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0])}
+    if per_orbit:
+        return stepsize_orbits.choose_steps(model, X, t_end, pilot_tolerance(ind), **common)
+    return stepsize.choose_step(model, X, t_end, pilot_tolerance(ind), method=method,
+                                quantile=MAP_QUANTILE, **common)
 
 
 def _describe_options(options):
