@@ -29,7 +29,12 @@ Parts (``--part``):
     alone) on a seeded sample of 16 orbits, its distribution against the
     map's one step, and the best a step per orbit could gain (the map's
     steps over the sum of the orbits' own steps, pilot excluded);
-    the same from the per-orbit pilot of ``tau="orbit"`` for every orbit.
+    the same from the per-orbit pilot of ``tau="orbit"`` for every orbit;
+    and each orbit's step by the map's own measure, agreement: the largest
+    step τ = 2^−j at which the map classifies the orbit as the reference of
+    ``race`` does, and at every smaller step of that ladder down to half
+    the map's step (the best gain of a step per orbit chosen by agreement,
+    not by the energy error of the map's tolerance).
 ``race``
     varint's defaults, varint with ``tau="orbit"`` and heyoka's
     ``taylor_adaptive_batch`` (batch 8, its own variational equations,
@@ -43,7 +48,9 @@ Parts (``--part``):
     varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
     (issue 27), the CR3BP map ≥ 3× (issue 29).
 
-Usage: ``python studies/map_steps.py [--quick] [--part profile,race] [--repeats N]``.
+Usage: ``python studies/map_steps.py [--quick] [--part profile,race] [--case cr3bp,core]
+[--repeats N]``; results ``map_steps_{profile,race}.json`` (``map_steps_quick_*`` with
+``--quick``).
 State the machine load (recorded in the JSON) with every figure.
 """
 
@@ -153,8 +160,12 @@ def profile_case(name, quick):
         wall = time.perf_counter() - t0
         pick, own = _own_steps(model, X, t_end, 0)
         per = varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")
+    _, truth, threshold, _ = reference(model, X, t_end)
+    agreeing, ladder = agreeing_steps(model, grid, t_end, truth, threshold,
+                                      r.provenance.tau / 2)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     tau = r.provenance.tau
+    fine = np.isfinite(agreeing)
     ok = np.isfinite(own)
     choice = per.provenance.tau_choice
     per_tau = choice["unit"] / np.asarray(choice["divisions"], dtype=float)
@@ -175,21 +186,52 @@ def profile_case(name, quick):
                       "run_steps": per.provenance.counts["steps"],
                       "step_gain": run_steps / per.provenance.counts["steps"],
                       "timing": per.provenance.timing},
+        "agreement_steps": {"ladder": ladder, **_quantiles(agreeing),
+                            "never": int((~fine).sum()),
+                            "counts": {f"{t:g}": int(np.sum(agreeing == t)) for t in ladder},
+                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine]))},
     }
+
+
+def reference(model, X, t_end):
+    """The map's deviation vectors, and its reference classification:
+    heyoka at tol 1e-15 (module docstring), the antimode threshold and its
+    rule."""
+    import heyoka as hy
+
+    hy.set_nthreads(1)
+    W0 = seeded_vectors(model.dim, 1, len(X))
+    ref = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, REF_TOL, every=REF_EVERY)
+    values_ref = ref.run(X, W0, t_end)
+    threshold, rule = antimode(values_ref)
+    return W0, chaotic(INDICATOR, values_ref, threshold), threshold, rule
+
+
+def agreeing_steps(model, grid, t_end, truth, threshold, smallest):
+    """Per orbit, the largest step τ = 2^−j (j = 0, 1, …, down to
+    ``smallest``) at which the map (MAP_SCHEME) classifies the orbit as the
+    reference does, and does so at every smaller step of the ladder too
+    (inf: at none)."""
+    ladder = [2.0**-j for j in range(int(np.ceil(-np.log2(smallest))) + 1)]
+    agree = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for tau in ladder:
+            values = varint.chaos_map(model, grid, INDICATOR, t_end=t_end, tau=tau,
+                                      scheme=MAP_SCHEME, progress=False).values
+            agree.append(np.isfinite(values) & (chaotic(INDICATOR, values, threshold) == truth))
+    agree = np.array(agree)
+    # From the smallest step up: agreeing there and at every smaller one.
+    holds = np.logical_and.accumulate(agree[::-1], axis=0)[::-1]
+    first = np.argmax(holds, axis=0)
+    return np.where(holds.any(axis=0), np.array(ladder)[first], np.nan), ladder
 
 
 def race_case(name, quick, repeats):
     model, grid, t_end = case(name, quick)
     X = grid.states
-    W0 = seeded_vectors(model.dim, 1, len(X))
     numba.set_num_threads(1)
-    import heyoka as hy
-
-    hy.set_nthreads(1)
-    ref = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, REF_TOL, every=REF_EVERY)
-    values_ref = ref.run(X, W0, t_end)
-    threshold, rule = antimode(values_ref)
-    truth = chaotic(INDICATOR, values_ref, threshold)
+    W0, truth, threshold, rule = reference(model, X, t_end)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for tau in (None, "orbit"):   # compiles, untimed
@@ -245,13 +287,16 @@ def main(argv=None):
     if set(parts) - set(PARTS) or set(cases) - set(CASES):
         raise SystemExit(f"parts are {', '.join(PARTS)}; cases {', '.join(CASES)}")
     result = {"quick": args.quick}
+    # Quick runs are the size of issue 29's stored race: kept beside the
+    # full ones under their own name.
+    name = "map_steps_quick" if args.quick else "map_steps"
     if "profile" in parts:
         start = load()
         rows = [profile_case(c, args.quick) for c in cases]
         for r in rows:
             print(f"{r['map']}: map tau {r['map_tau']:.4g}, pilot {r['pilot_share']:.0%} of "
                   f"{r['seconds']:.3g} s; own steps {r['own_pilot']}; per orbit "
-                  f"{r['per_orbit']}", flush=True)
+                  f"{r['per_orbit']}; by agreement {r['agreement_steps']}", flush=True)
         result["profile"] = {"rows": rows, "load": start, "load_end": load()}
     if "race" in parts:
         start = load()
@@ -264,11 +309,11 @@ def main(argv=None):
                 print(f"{c}: {row['contender']}: {row['seconds']:.4g} s, agreement "
                       f"{row['agreement']:.4f}", flush=True)
             print(f"  {s}", flush=True)
-        save_csv(args.out, "map_steps_race", rows,
+        save_csv(args.out, f"{name}_race", rows,
                  ["map", "contender", "seconds", "agreement", "steps", "orbits", "t_end"])
         result["race"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     for part in parts:
-        save_json(args.out, f"map_steps_{part}", {"quick": args.quick, part: result[part]})
+        save_json(args.out, f"{name}_{part}", {"quick": args.quick, part: result[part]})
     return result
 
 

@@ -89,7 +89,8 @@ _advance = TangentMapPropagator.advance
 
 class StepChoice(dict):
     """How the step was chosen (a dict, stored in the provenance as
-    ``tau_choice``): ``rule`` ("pilot", "fallback" or "fixed"), ``tau``,
+    ``tau_choice``): ``rule`` ("pilot", "fallback", "fixed", or "orbit"
+    for a map's steps per orbit, :mod:`varint.stepsize_orbits`), ``tau``,
     and for a pilot its ``scheme``, ``tolerance``, ``pilot_t``, ``orbits``,
     the ``tried`` steps with their errors and its ``counts`` (all of it
     deterministic: the same call chooses the same step, bit for bit)."""
