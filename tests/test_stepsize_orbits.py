@@ -94,12 +94,17 @@ def test_steps_per_orbit_are_bitwise_across_chunking_threads_and_resume(tmp_path
 
 def test_the_divisor_follows_the_order():
     """e ∝ τ^p: an error 2^p times the tolerance asks for half the step; a
-    non-finite one for a step 16 times smaller; at least one more."""
-    assert stepsize_orbits._next_divisor(3, 1e-7 * 2.0**6, 1e-7, 6) == 6
-    assert stepsize_orbits._next_divisor(3, np.inf, 1e-7, 6) == 48
-    assert stepsize_orbits._next_divisor(3, 1.0000001e-7, 1e-7, 6) == 4
-    assert stepsize_orbits._not_shrinking({1: 1e-3, 2: 0.9e-3}, 2)
-    assert not stepsize_orbits._not_shrinking({1: 1e-3, 2: 1e-5}, 2)
+    non-finite one for a step 16 times smaller; at least one more. An error
+    that did not halve when the step did is not the truncation error."""
+    n = stepsize_orbits._next_divisor(np.array([3, 3, 3, 3]),
+                                      np.array([1e-7 * 2.0**6, np.inf, 1.0000001e-7, 1e300]),
+                                      1e-7, 6)
+    assert n.tolist() == [6, 48, 4, 2**62]
+    tried_n = np.array([[1, 2], [1, 2], [1, 0]])
+    tried_e = np.array([[1e-3, 9e-4], [1e-3, 9e-4], [1e-3, 0.0]])
+    stuck = stepsize_orbits._not_shrinking(tried_n, tried_e, np.array([2, 2, 2]),
+                                           np.array([9e-4, 1e-5, np.inf]))
+    assert stuck.tolist() == [True, False, True]
 
 
 @pytest.mark.parametrize("model, kwargs, match", [

@@ -103,33 +103,35 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
     n = np.ones(m, dtype=np.int64)
     done = np.zeros(m, dtype=bool)
     fallback = np.zeros(m, dtype=bool)
-    # Each orbit's errors so far, by divisor: the "not shrinking" test.
-    history = [{} for _ in range(m)]
+    # Every round's divisor (0: not tried) and error per orbit, for the
+    # "not shrinking" test: a column per round.
+    tried_n, tried_e = np.zeros((m, 0), dtype=np.int64), np.zeros((m, 0))
     counts = {}
     n_fallback = max(1, math.ceil(unit / FALLBACK_TAU * (1 - 1e-12)))
     n_most = max(1, int(PILOT_STEPS * unit / t_pilot))
-    rounds = 0
     while not done.all():
-        rounds += 1
         active = np.flatnonzero(~done)
+        errors = np.full(m, np.nan)
         for level in np.unique(n[active]):
             rows = active[n[active] == level]
             W0 = initial_deviations(model.dim, k, len(rows), seed, rows)
-            errors = pilot_errors(model, X[rows], unit / level, t_pilot, sch,
-                                  Reference(model, X[rows]), counts, (W0, renorm, accumulator))
-            for row, e in zip(rows, errors, strict=True):
-                history[row][int(level)] = float(e)
-                if e <= tolerance:
-                    done[row] = True
-                    continue
-                nxt = _next_divisor(int(level), float(e), tolerance, sch.order)
-                if nxt > n_most or _not_shrinking(history[row], int(level)):
-                    n[row], done[row], fallback[row] = n_fallback, True, True
-                else:
-                    n[row] = nxt
+            errors[rows] = pilot_errors(model, X[rows], unit / level, t_pilot, sch,
+                                        Reference(model, X[rows]), counts,
+                                        (W0, renorm, accumulator))
+        tried_n = np.column_stack([tried_n, np.where(done, 0, n)])
+        tried_e = np.column_stack([tried_e, errors])
+        met = ~done & (errors <= tolerance)
+        done |= met
+        missed = np.flatnonzero(~done)
+        nxt = _next_divisor(n[missed], errors[missed], tolerance, sch.order)
+        stuck = (nxt > n_most) | _not_shrinking(tried_n[missed], tried_e[missed], n[missed],
+                                                 errors[missed])
+        n[missed] = np.where(stuck, n_fallback, nxt)
+        done[missed[stuck]] = fallback[missed[stuck]] = True
     choice = StepChoice(rule="orbit", unit=unit, tau=unit, divisions=n.tolist(),
                         scheme=sch.name, tolerance=float(tolerance), pilot_t=float(t_pilot),
-                        orbits=m, fallback=np.flatnonzero(fallback).tolist(), rounds=rounds,
+                        orbits=m, fallback=np.flatnonzero(fallback).tolist(),
+                        rounds=tried_n.shape[1],
                         counts=counts)
     if fallback.any():
         warnings.warn(
@@ -143,18 +145,24 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
 
 
 def _next_divisor(level, error, tolerance, order):
-    """The divisor the order predicts meets the tolerance (e ∝ τ^p), at
-    least one more than ``level``."""
-    if not (math.isfinite(error) and error > 0):
-        return level * BLOWUP_DROP
-    return max(level + 1, math.ceil(level * (error / tolerance) ** (1.0 / order)))
+    """Per orbit, the divisor the order predicts meets the tolerance
+    (e ∝ τ^p), at least one more than ``level``; :data:`BLOWUP_DROP` times
+    ``level`` after a non-finite error."""
+    with np.errstate(all="ignore"):
+        # Capped where int64 ends (the caller's step limit is far below).
+        predicted = np.minimum(np.ceil(level * (error / tolerance) ** (1.0 / order)), 2.0**62)
+    finite = np.isfinite(error) & (error > 0)
+    return np.where(finite, np.maximum(level + 1, np.where(finite, predicted, 0)),
+                    level * BLOWUP_DROP).astype(np.int64)
 
 
-def _not_shrinking(errors, level):
-    """Whether a step at least halved earlier did not halve the error: the
-    error is not the scheme's truncation error."""
-    e = errors[level]
-    return any(level >= 2 * other and not (e <= v / 2) for other, v in errors.items())
+def _not_shrinking(tried_n, tried_e, level, error):
+    """Per orbit, whether an earlier try at a divisor at most half of
+    ``level`` (a step at least twice as large) had an error less than twice
+    ``error``: the error is not the scheme's truncation error."""
+    earlier = (tried_n > 0) & (level[:, None] >= 2 * tried_n)
+    with np.errstate(invalid="ignore"):
+        return np.any(earlier & ~(error[:, None] <= tried_e / 2), axis=1)
 
 
 def run_grouped(run_chunk, model, x0, indices, spec):
