@@ -47,9 +47,14 @@ Parts (``--part``):
     tolerance whose agreement reaches its own (ratio = heyoka seconds /
     varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
     (issue 27), the CR3BP map ≥ 3× (issue 29).
+``fixed``
+    How cheap a map can be that still classifies as the reference does,
+    whatever rule chooses its step: fixed steps τ = 1, 1/2, 1/4 of SBAB2
+    (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
+    interleaved as in ``race``.
 
-Usage: ``python studies/map_steps.py [--quick] [--part profile,race] [--case cr3bp,core]
-[--repeats N]``; results ``map_steps_{profile,race}.json`` (``map_steps_quick_*`` with
+Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
+[--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
 ``--quick``).
 State the machine load (recorded in the JSON) with every figure.
 """
@@ -79,13 +84,15 @@ from varint.indicators import resolve
 from varint.maps import MAP_SCHEME, pilot_tolerance
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 
-PARTS = ("profile", "race")
+PARTS = ("profile", "race", "fixed")
 CASES = ("cr3bp", "core")
 INDICATOR = "fli"
 REPEATS = 3
 SAMPLE = 16
 #: heyoka as bench_peers' expert drives it, and the reference.
 BATCH, EVERY, TOLS, REF_TOL, REF_EVERY = 8, 10.0, (1e-6, 1e-8, 1e-10, 1e-12), 1e-15, 1.0
+#: The fixed steps of part "fixed".
+FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8
 
@@ -257,8 +264,44 @@ def race_case(name, quick, repeats):
             row["timing"] = out.provenance.timing
             row["max_energy_error"] = float(np.nanmax(out.accuracy.energy_error))
         rows.append(row)
-    summary = {label: _equal_agreement(rows, label) for label in tasks if label.startswith("varint")}
+    summary = {label: _equal_agreement(rows, label) for label in tasks
+               if label.startswith("varint")}
     return rows, summary
+
+
+def fixed_case(name, quick, repeats):
+    """Fixed steps τ = 1, 1/2, 1/4 of three schemes (orders 2, 4 and 6:
+    SBAB2, ABA864, SRKN14a) against heyoka at tol 1e-6, one
+    thread each, interleaved: how cheap a map can be that still classifies
+    as the reference does, whatever rule chooses its step."""
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    W0, truth, threshold, rule = reference(model, X, t_end)
+    tasks = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for scheme in FIXED_SCHEMES:
+            for tau in FIXED_TAUS:
+                def go(scheme=scheme, tau=tau):
+                    return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, tau=tau,
+                                            scheme=scheme, progress=False)
+                go()   # compiles, untimed
+                tasks[f"varint {scheme}, tau {tau:g}"] = go
+        hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, TOLS[0], every=EVERY)
+        tasks[f"heyoka batch {BATCH}, tol {TOLS[0]:g}"] = lambda: hm.run(X, W0, t_end)
+        best, outs = interleaved(tasks, repeats)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    peer = best[f"heyoka batch {BATCH}, tol {TOLS[0]:g}"]
+    rows = []
+    for label, seconds in best.items():
+        out = outs[label]
+        values = np.asarray(out.values if hasattr(out, "values") else out)
+        rows.append({"map": name, "contender": label, "seconds": seconds,
+                     "ratio_to_heyoka": peer / seconds,
+                     "agreement": agreement(INDICATOR, values, truth, threshold),
+                     "orbits": len(X), "t_end": t_end})
+    return rows
 
 
 def _equal_agreement(rows, label):
@@ -312,6 +355,16 @@ def main(argv=None):
         save_csv(args.out, f"{name}_race", rows,
                  ["map", "contender", "seconds", "agreement", "steps", "orbits", "t_end"])
         result["race"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
+    if "fixed" in parts:
+        start = load()
+        rows = [row for c in cases for row in fixed_case(c, args.quick, args.repeats)]
+        for row in rows:
+            print(f"{row['map']}: {row['contender']}: {row['seconds']:.4g} s "
+                  f"({row['ratio_to_heyoka']:.3g}x heyoka), agreement {row['agreement']:.4f}",
+                  flush=True)
+        save_csv(args.out, f"{name}_fixed", rows,
+                 ["map", "contender", "seconds", "ratio_to_heyoka", "agreement", "orbits", "t_end"])
+        result["fixed"] = {"rows": rows, "load": start, "load_end": load()}
     for part in parts:
         save_json(args.out, f"{name}_{part}", {"quick": args.quick, part: result[part]})
     return result
