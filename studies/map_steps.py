@@ -79,6 +79,7 @@ if __package__ in (None, ""):
 import varint
 from studies.bench_peers import HeyokaMap, agreement, antimode, chaotic, interleaved, seeded_vectors
 from studies.common import parse_args, save_csv, save_json
+from studies.hamiltonians import _equal_agreement as hamiltonians_equal_agreement
 from varint import stepsize
 from varint.indicators import resolve
 from varint.maps import MAP_SCHEME, pilot_tolerance
@@ -306,16 +307,13 @@ def fixed_case(name, quick, repeats):
 
 def _equal_agreement(rows, label):
     """``label``'s time against the cheapest heyoka tolerance whose agreement
-    reaches its own (or the most accurate heyoka, if none does)."""
-    ours = next(r for r in rows if r["contender"] == label)
+    reaches its own (or the most accurate heyoka, if none does), as
+    ``studies/hamiltonians.py`` judges its defaults."""
+    ours = [{**r, "contender": "varint defaults"} for r in rows if r["contender"] == label]
     peers = [r for r in rows if r["contender"].startswith("heyoka")]
-    meeting = [r for r in peers if r["agreement"] >= ours["agreement"]]
-    peer = (min(meeting, key=lambda r: r["seconds"]) if meeting
-            else max(peers, key=lambda r: r["agreement"]))
-    return {"varint_seconds": ours["seconds"], "varint_agreement": ours["agreement"],
-            "heyoka": peer["contender"], "heyoka_seconds": peer["seconds"],
-            "heyoka_agreement": peer["agreement"], "ratio": peer["seconds"] / ours["seconds"],
-            "heyoka_reaches": bool(meeting)}
+    summary = hamiltonians_equal_agreement(ours + peers)
+    summary["ratio"] = summary.pop("speedup")
+    return summary
 
 
 def main(argv=None):
