@@ -294,6 +294,26 @@ def _map_choice_text(R):
                    f"(τ = {s['tau']:.2g})")
 
 
+@quote("map_steps_orbit")
+def _map_steps_orbit(R):
+    """tau="orbit" against the defaults (studies/map_steps.py): steps,
+    seconds and agreement on each map of the full run."""
+    profile = {r["map"]: r for r in R.json("map_steps_profile")["profile"]["rows"]}
+    race = R.json("map_steps_race")["race"]
+    parts = []
+    for name, what in (("core", "the small-core map"), ("cr3bp", "the restricted three-body map")):
+        s = race["summary"][name]
+        ours, per = s["varint defaults"], s["varint, tau='orbit'"]
+        parts.append(
+            f"on {what} ({profile[name]['orbits']} orbits) "
+            f"{profile[name]['per_orbit']['step_gain']:.1f} times fewer steps and a "
+            f"{ours['varint_seconds'] / per['varint_seconds']:.1f} times shorter map, classifying "
+            f"{per['varint_agreement']:.1%} of the orbits as a tight reference does against the "
+            f"defaults' {ours['varint_agreement']:.1%}")
+    load = max(race["load"][0], race["load_end"][0])
+    return "; ".join(parts) + f" (one thread each, machine load up to {load:.0f})"
+
+
 def _chaos_row(R, method):
     return next(r for r in R.json("bench_chaos_map")["rows"] if r["method"].startswith(method))
 

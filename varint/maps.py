@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity, stepsize
+from . import accuracy, compiling, identity, stepsize, stepsize_orbits
 from .checkpoint import digest
 from .fanout import (bar, client_label, cluster_threads, fan_out, total_cpu, warn_failures,
                      warn_interrupted, worker_threads)
@@ -116,6 +116,9 @@ class _Spec:
     run: RunSpec
     k: int
     threshold: float | None
+    #: Per orbit of the map, the divisor n of its step τ = run.tau / n
+    #: (``tau="orbit"``, :mod:`varint.stepsize_orbits`); None: one step.
+    divisions: np.ndarray | None = None
 
     @property
     def t_check(self):
@@ -147,6 +150,8 @@ def run_chunk(x0, indices, spec):
     map) as one batch run of the map's :class:`RunSpec`, stopping early at
     its check times.
     """
+    if spec.divisions is not None:
+        return stepsize_orbits.run_grouped(run_chunk, x0, indices, spec)
     ind, model = spec.run.indicator, spec.run.model
     cpu = time.process_time()
     with worker_threads() as cancelled, warnings.catch_warnings():
@@ -300,7 +305,7 @@ def _default_chunk_size(m, workers):
 
 
 def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
-              indicator: str | Indicator = "sali", *, t_end: float, tau: float | None = None,
+              indicator: str | Indicator = "sali", *, t_end: float, tau: float | str | None = None,
               method: str = "tm", threshold: float | str | None = "default", seed: int = 0,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
@@ -324,13 +329,18 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         :func:`varint.register_indicator`.
     t_end : float
         Final time of every orbit not stopped early.
-    tau : float, optional
+    tau : float, "orbit" or None, optional
         Step (renormalisation interval). By default the method's pilot
         chooses it (:func:`varint.stepsize.choose_step` on a sample of the
         orbits) for :data:`MAP_SCHEME` unless a ``scheme`` is given, to an
         energy error of :func:`pilot_tolerance` (:data:`MAP_PILOT_TOL`, or the
         indicator's own ``map_tolerance``), and the result records the
         choice (``provenance.tau_choice``); one iteration for a map model.
+        ``"orbit"``: each orbit its own step, from its own pilot to the same
+        tolerance (:mod:`varint.stepsize_orbits`); the steps divide one unit
+        (``provenance.tau``), so the check times stay common, and
+        ``provenance.tau_choice["divisions"]`` gives each orbit's divisor n
+        of it (τ = tau / n).
     method : str, default "tm"
         As in :func:`varint.run`; every method computes every indicator.
     **options
@@ -403,8 +413,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         raise ValueError("the section grid holds no allowed point at this energy")
     # The map draws orbit m's vectors from [seed, m]: a seed is needed.
     seed = check_seed(seed, none=False)
+    per_orbit = _per_orbit(tau, model, method, t_check)
     spec = specify(model, initial_conditions if grid is None else grid.states, indicator,
-                   t_end, tau, method=method, t_out=t_check, seed=seed,
+                   t_end, None if per_orbit else tau, method=method, t_out=t_check, seed=seed,
                    escape_radius=escape_radius, energy_tol=energy_tol,
                    what="initial_conditions" if grid is None else "the section grid's states",
                    kernels_what="initial condition", t_out_name="t_check", **options)
@@ -425,8 +436,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
-    spec = _with_step(spec, k, clock)
-    shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit)
+    spec, divisions = _with_step(spec, k, clock, per_orbit)
+    shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
     # times; values do not depend on it (see the module docstring).
@@ -439,6 +450,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "method_options": _describe_options(spec.method_options), "seed": seed,
                   "chunk_size": int(chunk_size), "escape_radius": spec.escape_radius,
                   "versions": package_versions(), "code": identity.source_digest()}
+    if divisions is not None:
+        parameters["tau_divisions"] = digest(divisions)
     store = None if checkpoint is None else Store(checkpoint, "chaos map", parameters)
     done = {} if store is None else _resume(store, chunks, shared, X.shape[1])
     resumed = len(done)
@@ -497,12 +510,19 @@ def _resume(store, chunks, shared, dim):
     return done
 
 
-def _with_step(spec, k, clock):
-    """``spec`` with the map's τ and check steps: τ as given, or from a
-    pilot (:func:`_with_pilot_step`); the check times of ``t_check``, or
-    log-spaced from :data:`FIRST_CHECK_STEP` steps on (and t_end). Every
-    chunk runs these (the map's τ is chosen here, once)."""
-    if spec.tau is None:
+def _with_step(spec, k, clock, per_orbit=False):
+    """``spec`` with the map's τ and check steps, and the orbits' divisors
+    of τ (None but for ``tau="orbit"``): τ as given, or from a pilot
+    (:func:`_with_pilot_step`), or each orbit's from its own pilot
+    (``per_orbit``: :func:`varint.stepsize_orbits.choose_steps`, τ the unit
+    its steps divide); the check times of ``t_check``, or log-spaced from
+    :data:`FIRST_CHECK_STEP` steps on (and t_end). Every chunk runs these
+    (the map's τ is chosen here, once)."""
+    divisions = None
+    if per_orbit:
+        with clock.part("pilot"):
+            spec, divisions = _with_orbit_steps(spec, k)
+    elif spec.tau is None:
         with clock.part("pilot"):
             spec = _with_pilot_step(spec, k)
     else:
@@ -511,7 +531,7 @@ def _with_step(spec, k, clock):
         steps = spec.steps
         spec = dataclasses.replace(
             spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
-    return spec
+    return spec, divisions
 
 
 def _with_pilot_step(spec, k):
@@ -532,6 +552,42 @@ def _with_pilot_step(spec, k):
         accumulator=spec.indicator.accumulator_for(spec.options))
     return dataclasses.replace(spec, method_options=method_options).with_step(
         tau, tau_choice, indicator_times=False)
+
+
+def _with_orbit_steps(spec, k):
+    """``spec`` with the unit step of ``tau="orbit"`` and each orbit's
+    divisor of it, from its own pilot to the map's tolerance
+    (:func:`varint.stepsize_orbits.choose_steps`, scheme :data:`MAP_SCHEME`
+    unless one is given)."""
+    method_options = dict(spec.method_options)
+    method_options.setdefault("scheme", MAP_SCHEME)
+    t_check = spec.t_out
+    unit, divisions, tau_choice = stepsize_orbits.choose_steps(
+        spec.model, spec.x0, spec.t_end, pilot_tolerance(spec.indicator),
+        scheme=method_options["scheme"],
+        cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
+        seed=spec.seed, k=k, renorm=spec.indicator.renorm,
+        accumulator=spec.indicator.accumulator_for(spec.options))
+    spec = dataclasses.replace(spec, method_options=method_options).with_step(
+        unit, tau_choice, indicator_times=False)
+    return spec, divisions
+
+
+def _per_orbit(tau, model, method, t_check):
+    """Whether ``tau`` asks for a step per orbit ("orbit"), refusing it
+    where the steps of the orbits could not share the map's check times."""
+    if not isinstance(tau, str):
+        return False
+    if tau != "orbit":
+        raise ValueError(f"tau must be a positive number, None or 'orbit', got {tau!r}")
+    if getattr(model, "kind", "flow") == "map" or not stepsize.pilots(method):
+        raise ValueError(f"tau='orbit' chooses the step of a splitting scheme per orbit; "
+                         f"{getattr(model, 'name', model)} by {method!r} has no such step "
+                         "(give a number or None)")
+    if t_check is not None and np.ndim(t_check) != 0:
+        raise ValueError("tau='orbit' needs check times on the grid of its unit step: give "
+                         "t_check as a count or None, not times")
+    return True
 
 
 def _describe_options(options):

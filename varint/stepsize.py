@@ -64,7 +64,7 @@ from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
 from .schemes import DEFAULT_SCHEME, get_scheme
 from .state import RunState, initial_deviations
 
-__all__ = ["choose_step", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
+__all__ = ["choose_step", "pilot_errors", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
 
 #: The pilot's tolerance is the run's energy_tol divided by this (see the
 #: module docstring for the measurements).
@@ -94,7 +94,8 @@ _advance = TangentMapPropagator.advance
 
 class StepChoice(dict):
     """How the step was chosen (a dict, stored in the provenance as
-    ``tau_choice``): ``rule`` ("pilot", "fallback" or "fixed"), ``tau``,
+    ``tau_choice``): ``rule`` ("pilot", "fallback", "fixed", or "orbit"
+    for a map's steps per orbit, :mod:`varint.stepsize_orbits`), ``tau``,
     and for a pilot its ``scheme``, ``tolerance``, ``pilot_t``, ``orbits``,
     the ``tried`` steps with their errors and its ``counts`` (all of it
     deterministic: the same call chooses the same step, bit for bit)."""
@@ -281,8 +282,19 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     """The ``quantile`` over orbits of the largest relative error of the
     conserved quantities along a pilot with step ``tau`` (inf if an orbit
     became non-finite; an escaped orbit counts up to its escape)."""
+    worst = pilot_errors(model, X, tau, min(t_end, PILOT_T), scheme, reference, counts, setup)
+    return float(np.quantile(worst, quantile, method="higher"))
+
+
+def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup):
+    """Per orbit, the largest relative error of the conserved quantities
+    at :data:`PILOT_CHECKS` times along a pilot with step ``tau`` to
+    ``t_pilot`` (inf if the orbit became non-finite; an escaped orbit counts
+    up to its escape). Each orbit is integrated on its own, so its error
+    does not depend on the other orbits of ``X``. ``counts`` accumulates the
+    pilot's work; ``setup`` is ``(W0, renorm, accumulator, compensated)`` (see
+    :func:`choose_step`)."""
     W0, renorm, accumulator, compensated = setup
-    t_pilot = min(t_end, PILOT_T)
     n = max(1, int(round(t_pilot / tau)))
     checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
     # make_propagator: a lattice's "tm" is its part stepper.
@@ -309,4 +321,4 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
         worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
     for key, value in state.counts.items():
         counts[key] = counts.get(key, 0) + int(value)
-    return float(np.quantile(worst, quantile, method="higher"))
+    return worst

@@ -1,0 +1,372 @@
+"""Steps that follow the orbit in chaos maps: where the time of a map with
+automatic steps goes, what step each orbit needs, and what a step per orbit
+(``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`) gains
+against the map's one step (its pilot's 90 % quantile orbit) and against
+heyoka's batch mode (issue 27 item 4a, issue 29's map target).
+
+Maps (FLI, one thread):
+
+``cr3bp``
+    The restricted three-body problem's map of ``studies/hamiltonians.py``
+    (Sun–Jupiter, section y = 0, ẏ > 0 at C = 3.05, a grid of (x, p_x)):
+    10 × 8 points (76 orbits) to t = 200 with ``--quick`` (the size of the
+    stored race of issue 29), else 20 × 15 to t = 500.
+``core``
+    A cored logarithmic potential with a small core, V = ½ ln(R_c² + x² +
+    y²/q²) with R_c = 0.03, q = 0.8 (Binney & Tremaine 2008, eq. 2.71b;
+    its box orbits pass through the near-singular centre, loop orbits
+    never come near it), section y = 0, p_y ≥ 0 at E = 0, a grid of
+    (x, p_x) ∈ [−0.9, 0.9]²: 12 × 10 points (104 orbits) to t = 200 with
+    ``--quick``, else 24 × 20 to t = 500.
+
+Parts (``--part``):
+
+``profile``
+    For each map with the defaults (no τ, no scheme): the seconds of the
+    pilot and of the run, the functions with the most own time (cProfile),
+    the steps taken; each orbit's step from its own full pilot (to
+    t = min(t_end, 100), :func:`varint.stepsize.choose_step` on the orbit
+    alone) on a seeded sample of 16 orbits, its distribution against the
+    map's one step, and the best a step per orbit could gain (the map's
+    steps over the sum of the orbits' own steps, pilot excluded);
+    the same from the per-orbit pilot of ``tau="orbit"`` for every orbit;
+    and each orbit's step by the map's own measure, agreement: the largest
+    step τ = 2^−j at which the map classifies the orbit as the reference of
+    ``race`` does, and at every smaller step of that ladder down to half
+    the map's step (the best gain of a step per orbit chosen by agreement,
+    not by the energy error of the map's tolerance).
+``race``
+    varint's defaults, varint with ``tau="orbit"`` and heyoka's
+    ``taylor_adaptive_batch`` (batch 8, its own variational equations,
+    tolerances 1e-6 … 1e-12, normalising every 10 time units, as
+    ``studies/bench_peers.py`` drives it), one thread each, interleaved,
+    the minimum of the repeats. Reference: heyoka at tol 1e-15 normalising
+    every time unit; orbits are classified by the antimode of the
+    reference's log10 FLI; agreement is the fraction classified as the
+    reference does. Each varint contender against the cheapest heyoka
+    tolerance whose agreement reaches its own (ratio = heyoka seconds /
+    varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
+    (issue 27), the CR3BP map ≥ 3× (issue 29).
+``fixed``
+    How cheap a map can be that still classifies as the reference does,
+    whatever rule chooses its step: fixed steps τ = 1, 1/2, 1/4 of SBAB2
+    (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
+    interleaved as in ``race``.
+
+Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
+[--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
+``--quick``).
+State the machine load (recorded in the JSON) with every figure.
+"""
+
+from __future__ import annotations
+
+import cProfile
+import os
+import pstats
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numba
+import numpy as np
+import sympy as sp
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import varint
+from studies.bench_peers import HeyokaMap, agreement, antimode, chaotic, interleaved, seeded_vectors
+from studies.common import parse_args, save_csv, save_json
+from studies.hamiltonians import _equal_agreement as hamiltonians_equal_agreement
+from varint import stepsize
+from varint.indicators import resolve
+from varint.maps import MAP_SCHEME, pilot_tolerance
+from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
+
+PARTS = ("profile", "race", "fixed")
+CASES = ("cr3bp", "core")
+INDICATOR = "fli"
+REPEATS = 3
+SAMPLE = 16
+#: heyoka as bench_peers' expert drives it, and the reference.
+BATCH, EVERY, TOLS, REF_TOL, REF_EVERY = 8, 10.0, (1e-6, 1e-8, 1e-10, 1e-12), 1e-15, 1.0
+#: The fixed steps of part "fixed".
+FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
+#: The cored logarithmic potential.
+CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8
+
+
+def load():
+    return list(os.getloadavg())
+
+
+def cored_logarithmic():
+    """V = ½ ln(R_c² + x² + y²/q²) (module docstring)."""
+    x, y = sp.symbols("x y")
+    rc, q = sp.Float(CORE_RADIUS), sp.Float(CORE_FLATTENING)
+    return varint.models.from_potential(sp.log(rc**2 + x**2 + y**2 / q**2) / 2, [x, y],
+                                        name=f"cored logarithmic, R_c = {CORE_RADIUS}")
+
+
+def case(name, quick):
+    """The model, its grid and t_end of map ``name`` (module docstring)."""
+    t_end = 200.0 if quick else 500.0
+    if name == "cr3bp":
+        model = CR3BP(SUN_JUPITER_MU)
+        nx, ny = (10, 8) if quick else (20, 15)
+        return model, model.section_grid(3.05, np.linspace(0.3, 0.85, nx),
+                                          np.linspace(-0.3, 0.3, ny)), t_end
+    model = cored_logarithmic()
+    nx, ny = (12, 10) if quick else (24, 20)
+    return model, varint.section_grid(model, 0.0, np.linspace(-0.9, 0.9, nx),
+                                      np.linspace(-0.9, 0.9, ny), plane=1), t_end
+
+
+def _top(profile, n=8):
+    """The ``n`` functions with the most own time: (where, seconds, share)."""
+    stats = pstats.Stats(profile)
+    total = stats.total_tt
+    rows = sorted(stats.stats.items(), key=lambda kv: -kv[1][2])[:n]
+    return [{"function": f"{Path(f).name}:{line}({fn})", "seconds": round(tt, 4),
+             "share": round(tt / total, 3)} for (f, line, fn), (_, _, tt, _, _) in rows]
+
+
+def _own_steps(model, X, t_end, seed):
+    """Each orbit's step from its own full pilot, for a seeded sample."""
+    ind, fixed = resolve(INDICATOR)
+    configured = ind.configure(model, dict(fixed))
+    pick = np.sort(np.random.default_rng(seed).choice(len(X), min(SAMPLE, len(X)), replace=False))
+    taus = []
+    for m in pick:
+        tau, choice = stepsize.choose_step(
+            model, X[[m]], t_end, pilot_tolerance(ind), scheme=MAP_SCHEME, quantile=1.0,
+            k=ind.vectors(model, configured, None), renorm=ind.renorm,
+            accumulator=ind.accumulator_for(configured))
+        taus.append(tau if choice["rule"] == "pilot" else np.nan)
+    return pick, np.array(taus)
+
+
+def _quantiles(taus):
+    ok = taus[np.isfinite(taus)]
+    return {f"q{int(q * 100)}": float(np.quantile(ok, q)) for q in (0, 0.1, 0.5, 0.9, 1)}
+
+
+def profile_case(name, quick):
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False)   # compiles
+        prof = cProfile.Profile()
+        t0 = time.perf_counter()
+        prof.enable()
+        r = varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False)
+        prof.disable()
+        wall = time.perf_counter() - t0
+        pick, own = _own_steps(model, X, t_end, 0)
+        per = varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")
+    _, truth, threshold, _ = reference(model, X, t_end)
+    agreeing, ladder = agreeing_steps(model, grid, t_end, truth, threshold,
+                                      r.provenance.tau / 2)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    tau = r.provenance.tau
+    fine = np.isfinite(agreeing)
+    ok = np.isfinite(own)
+    choice = per.provenance.tau_choice
+    per_tau = choice["unit"] / np.asarray(choice["divisions"], dtype=float)
+    run_steps = r.provenance.counts["steps"]
+    return {
+        "map": name, "orbits": len(X), "t_end": t_end, "scheme": MAP_SCHEME,
+        "tolerance": r.provenance.tau_choice["tolerance"], "map_tau": tau,
+        "seconds": wall, "timing": r.provenance.timing,
+        "pilot_share": r.provenance.timing["pilot"] / wall,
+        "run_steps": run_steps, "pilot_steps": r.provenance.tau_choice["counts"]["steps"],
+        "top": _top(prof),
+        "own_pilot": {"orbits": pick.tolist(), "tau": own.tolist(), **_quantiles(own),
+                      "below_map_tau": int(np.sum(own[ok] < tau)),
+                      "best_gain": float(ok.sum() / tau / np.sum(1 / own[ok]))},
+        "per_orbit": {**_quantiles(per_tau), "pilot_t": choice["pilot_t"],
+                      "rounds": choice["rounds"], "fallback": len(choice["fallback"]),
+                      "pilot_steps": choice["counts"]["steps"],
+                      "run_steps": per.provenance.counts["steps"],
+                      "step_gain": run_steps / per.provenance.counts["steps"],
+                      "timing": per.provenance.timing},
+        "agreement_steps": {"ladder": ladder, **_quantiles(agreeing),
+                            "never": int((~fine).sum()),
+                            "counts": {f"{t:g}": int(np.sum(agreeing == t)) for t in ladder},
+                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine]))},
+    }
+
+
+def reference(model, X, t_end):
+    """The map's deviation vectors, and its reference classification:
+    heyoka at tol 1e-15 (module docstring), the antimode threshold and its
+    rule."""
+    import heyoka as hy
+
+    hy.set_nthreads(1)
+    W0 = seeded_vectors(model.dim, 1, len(X))
+    ref = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, REF_TOL, every=REF_EVERY)
+    values_ref = ref.run(X, W0, t_end)
+    threshold, rule = antimode(values_ref)
+    return W0, chaotic(INDICATOR, values_ref, threshold), threshold, rule
+
+
+def agreeing_steps(model, grid, t_end, truth, threshold, smallest):
+    """Per orbit, the largest step τ = 2^−j (j = 0, 1, …, down to
+    ``smallest``) at which the map (MAP_SCHEME) classifies the orbit as the
+    reference does, and does so at every smaller step of the ladder too
+    (inf: at none)."""
+    ladder = [2.0**-j for j in range(int(np.ceil(-np.log2(smallest))) + 1)]
+    agree = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for tau in ladder:
+            values = varint.chaos_map(model, grid, INDICATOR, t_end=t_end, tau=tau,
+                                      scheme=MAP_SCHEME, progress=False).values
+            agree.append(np.isfinite(values) & (chaotic(INDICATOR, values, threshold) == truth))
+    agree = np.array(agree)
+    # From the smallest step up: agreeing there and at every smaller one.
+    holds = np.logical_and.accumulate(agree[::-1], axis=0)[::-1]
+    first = np.argmax(holds, axis=0)
+    return np.where(holds.any(axis=0), np.array(ladder)[first], np.nan), ladder
+
+
+def race_case(name, quick, repeats):
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    W0, truth, threshold, rule = reference(model, X, t_end)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for tau in (None, "orbit"):   # compiles, untimed
+            varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False, tau=tau)
+        tasks = {"varint defaults": lambda: varint.chaos_map(
+            model, grid, INDICATOR, t_end=t_end, progress=False),
+            "varint, tau='orbit'": lambda: varint.chaos_map(
+                model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")}
+        for tol in TOLS:
+            hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, tol, every=EVERY)
+            tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = lambda hm=hm: hm.run(X, W0, t_end)
+        best, outs = interleaved(tasks, repeats)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    rows = []
+    for label, seconds in best.items():
+        out = outs[label]
+        values = np.asarray(out.values if hasattr(out, "values") else out)
+        row = {"map": name, "contender": label, "seconds": seconds,
+               "agreement": agreement(INDICATOR, values, truth, threshold),
+               "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+        if hasattr(out, "provenance"):
+            row["steps"] = out.provenance.counts["steps"]
+            row["timing"] = out.provenance.timing
+            row["max_energy_error"] = float(np.nanmax(out.accuracy.energy_error))
+        rows.append(row)
+    summary = {label: _equal_agreement(rows, label) for label in tasks
+               if label.startswith("varint")}
+    return rows, summary
+
+
+def fixed_case(name, quick, repeats):
+    """Fixed steps τ = 1, 1/2, 1/4 of three schemes (orders 2, 4 and 6:
+    SBAB2, ABA864, SRKN14a) against heyoka at tol 1e-6, one
+    thread each, interleaved: how cheap a map can be that still classifies
+    as the reference does, whatever rule chooses its step."""
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    W0, truth, threshold, rule = reference(model, X, t_end)
+    tasks = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for scheme in FIXED_SCHEMES:
+            for tau in FIXED_TAUS:
+                def go(scheme=scheme, tau=tau):
+                    return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, tau=tau,
+                                            scheme=scheme, progress=False)
+                go()   # compiles, untimed
+                tasks[f"varint {scheme}, tau {tau:g}"] = go
+        hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, TOLS[0], every=EVERY)
+        tasks[f"heyoka batch {BATCH}, tol {TOLS[0]:g}"] = lambda: hm.run(X, W0, t_end)
+        best, outs = interleaved(tasks, repeats)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    peer = best[f"heyoka batch {BATCH}, tol {TOLS[0]:g}"]
+    rows = []
+    for label, seconds in best.items():
+        out = outs[label]
+        values = np.asarray(out.values if hasattr(out, "values") else out)
+        rows.append({"map": name, "contender": label, "seconds": seconds,
+                     "ratio_to_heyoka": peer / seconds,
+                     "agreement": agreement(INDICATOR, values, truth, threshold),
+                     "orbits": len(X), "t_end": t_end})
+    return rows
+
+
+def _equal_agreement(rows, label):
+    """``label``'s time against the cheapest heyoka tolerance whose agreement
+    reaches its own (or the most accurate heyoka, if none does), as
+    ``studies/hamiltonians.py`` judges its defaults."""
+    ours = [{**r, "contender": "varint defaults"} for r in rows if r["contender"] == label]
+    peers = [r for r in rows if r["contender"].startswith("heyoka")]
+    summary = hamiltonians_equal_agreement(ours + peers)
+    summary["ratio"] = summary.pop("speedup")
+    return summary
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--part", default=",".join(PARTS))
+        parser.add_argument("--case", default=",".join(CASES))
+        parser.add_argument("--repeats", type=int, default=REPEATS)
+
+    args = parse_args(__doc__.split("\n\n")[0], argv, extra)
+    parts = [p for p in args.part.split(",") if p]
+    cases = [c for c in args.case.split(",") if c]
+    if set(parts) - set(PARTS) or set(cases) - set(CASES):
+        raise SystemExit(f"parts are {', '.join(PARTS)}; cases {', '.join(CASES)}")
+    result = {"quick": args.quick}
+    # Quick runs are the size of issue 29's stored race: kept beside the
+    # full ones under their own name.
+    name = "map_steps_quick" if args.quick else "map_steps"
+    if "profile" in parts:
+        start = load()
+        rows = [profile_case(c, args.quick) for c in cases]
+        for r in rows:
+            print(f"{r['map']}: map tau {r['map_tau']:.4g}, pilot {r['pilot_share']:.0%} of "
+                  f"{r['seconds']:.3g} s; own steps {r['own_pilot']}; per orbit "
+                  f"{r['per_orbit']}; by agreement {r['agreement_steps']}", flush=True)
+        result["profile"] = {"rows": rows, "load": start, "load_end": load()}
+    if "race" in parts:
+        start = load()
+        rows, summary = [], {}
+        for c in cases:
+            r, s = race_case(c, args.quick, args.repeats)
+            rows += r
+            summary[c] = s
+            for row in r:
+                print(f"{c}: {row['contender']}: {row['seconds']:.4g} s, agreement "
+                      f"{row['agreement']:.4f}", flush=True)
+            print(f"  {s}", flush=True)
+        save_csv(args.out, f"{name}_race", rows,
+                 ["map", "contender", "seconds", "agreement", "steps", "orbits", "t_end"])
+        result["race"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
+    if "fixed" in parts:
+        start = load()
+        rows = [row for c in cases for row in fixed_case(c, args.quick, args.repeats)]
+        for row in rows:
+            print(f"{row['map']}: {row['contender']}: {row['seconds']:.4g} s "
+                  f"({row['ratio_to_heyoka']:.3g}x heyoka), agreement {row['agreement']:.4f}",
+                  flush=True)
+        save_csv(args.out, f"{name}_fixed", rows,
+                 ["map", "contender", "seconds", "ratio_to_heyoka", "agreement", "orbits", "t_end"])
+        result["fixed"] = {"rows": rows, "load": start, "load_end": load()}
+    for part in parts:
+        save_json(args.out, f"{name}_{part}", {"quick": args.quick, part: result[part]})
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,120 @@
+"""A step per orbit in maps (``chaos_map(tau="orbit")``,
+varint.stepsize_orbits): each orbit runs with τ = U/n of its own pilot, on
+the map's common check times; the values are those of the same orbits run
+at that step, bitwise across chunking, threads and resume; orbits that pass
+a near-singular centre get smaller steps than those that do not."""
+
+import numba
+import numpy as np
+import pytest
+import sympy as sp
+
+import varint
+from varint import stepsize_orbits
+from varint.models import from_potential
+from varint.models.maps import StandardMap
+
+
+@pytest.fixture(scope="module")
+def cored():
+    """A cored logarithmic potential with a small core (R_c = 0.03), and
+    three orbits from (0.5, 0): one nearly radial (p_y = 1e-3, through the
+    centre), and two at E = 0 (p_y from the energy): p_x = 1.1 and a
+    near-circular loop orbit (p_x = 0)."""
+    x, y = sp.symbols("x y")
+    model = from_potential(sp.log(sp.Float(0.03) ** 2 + x**2 + y**2 / sp.Float(0.64)) / 2,
+                           [x, y])
+
+    def at(x0, px):
+        v = 0.5 * np.log(0.03**2 + x0**2)
+        return [x0, 0.0, px, np.sqrt(-2 * v - px**2)]
+
+    return model, np.array([[0.5, 0.0, 0.0, 1e-3], at(0.5, 1.1), at(0.5, 0.0)])
+
+
+def test_orbits_through_the_core_take_smaller_steps(cored):
+    """The near-radial orbit passes the core (force gradient ~1/R_c²), the
+    loop orbit stays at r ≈ 0.5: its step is several times larger; every
+    step divides the unit, so all orbits share the check times."""
+    model, X = cored
+    r = varint.chaos_map(model, X, "fli", t_end=50.0, tau="orbit", threshold=None)
+    choice = r.provenance.tau_choice
+    n = np.asarray(choice["divisions"])
+    assert choice["rule"] == "orbit" and r.provenance.tau == choice["unit"]
+    assert n[0] >= 4 * n[2]
+    assert np.all(r.t_stop == r.t[-1])
+    assert choice["fallback"] == [] and choice["tolerance"] == varint.maps.pilot_tolerance(
+        varint.indicators.resolve("fli")[0])
+
+
+@pytest.mark.filterwarnings("ignore::varint.accuracy.AccuracyWarning")
+def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(cored):
+    """Every orbit's FLI equals, bit for bit, that of the same orbit in a
+    map run at the fixed step U/n; and a run of the orbit at that step
+    keeps the energy error within the pilot's tolerance over the pilot's
+    horizon (at the pilot's 50 checks). (The fixed-step maps at the larger
+    orbits' steps are not accurate for the orbit through the core: that is
+    the point.)"""
+    model, X = cored
+    per = varint.chaos_map(model, X, "fli", t_end=50.0, tau="orbit", threshold=None)
+    choice = per.provenance.tau_choice
+    for m, n in enumerate(choice["divisions"]):
+        tau = choice["unit"] / n
+        fixed = varint.chaos_map(model, X, "fli", t_end=50.0, tau=tau, threshold=None,
+                                 scheme=choice["scheme"])
+        assert per.values[m] == fixed.values[m]
+        checks = min(50, round(choice["pilot_t"] / tau))
+        run = varint.run(model, X[m], "fli", choice["pilot_t"], tau=tau,
+                         scheme=choice["scheme"], t_out=checks)
+        assert np.max(run.energy_error) <= choice["tolerance"]
+
+
+def test_steps_per_orbit_are_bitwise_across_chunking_threads_and_resume(tmp_path):
+    model = varint.models.HenonHeiles()
+    grid = varint.section_grid(model, 0.125, np.linspace(-0.4, 0.6, 6),
+                               np.linspace(-0.3, 0.3, 5))
+    a = varint.chaos_map(model, grid, "megno", t_end=200.0, tau="orbit")
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        b = varint.chaos_map(model, grid, "megno", t_end=200.0, tau="orbit", chunk_size=7,
+                             checkpoint=tmp_path / "m")
+    finally:
+        numba.set_num_threads(threads)
+    (tmp_path / "m" / "chunk_000001.npz").unlink()
+    c = varint.chaos_map(model, grid, "megno", t_end=200.0, tau="orbit", chunk_size=7,
+                         checkpoint=tmp_path / "m")
+    assert c.provenance.options["chunks_resumed"] == len(list((tmp_path / "m").glob("chunk_*")))\
+        - 1
+    for other in (b, c):
+        for name in ("values", "t_stop", "status", "state", "energy_error"):
+            assert np.array_equal(getattr(a, name), getattr(other, name), equal_nan=True), name
+        assert other.provenance.tau_choice["divisions"] == a.provenance.tau_choice["divisions"]
+
+
+def test_the_divisor_follows_the_order():
+    """e ∝ τ^p: an error 2^p times the tolerance asks for half the step; a
+    non-finite one for a step 16 times smaller; at least one more. An error
+    that did not halve when the step did is not the truncation error."""
+    n = stepsize_orbits._next_divisor(np.array([3, 3, 3, 3]),
+                                      np.array([1e-7 * 2.0**6, np.inf, 1.0000001e-7, 1e300]),
+                                      1e-7, 6)
+    assert n.tolist() == [6, 48, 4, 2**62]
+    tried_n = np.array([[1, 2], [1, 2], [1, 0]])
+    tried_e = np.array([[1e-3, 9e-4], [1e-3, 9e-4], [1e-3, 0.0]])
+    stuck = stepsize_orbits._not_shrinking(tried_n, tried_e, np.array([2, 2, 2]),
+                                           np.array([9e-4, 1e-5, np.inf]))
+    assert stuck.tolist() == [True, False, True]
+
+
+@pytest.mark.parametrize("model, kwargs, match", [
+    ("hh", {"tau": "auto"}, "None or 'orbit'"),
+    ("hh", {"tau": "orbit", "method": "dop853"}, "no such step"),
+    ("hh", {"tau": "orbit", "t_check": [10.0, 20.0]}, "as a count or None"),
+    ("sm", {"tau": "orbit"}, "no such step"),
+])
+def test_steps_per_orbit_refuse_what_they_cannot_do(model, kwargs, match):
+    m = varint.models.HenonHeiles() if model == "hh" else StandardMap(1.2)
+    x = np.array([[0.0, 0.1, 0.3, 0.0]]) if model == "hh" else np.array([[0.1, 0.2]])
+    with pytest.raises(ValueError, match=match):
+        varint.chaos_map(m, x, "fli", t_end=20.0, **kwargs)
