@@ -938,6 +938,16 @@ def main(argv=None):
             print(f"unsourced: {page.relative_to(ROOT)}:{line}: {content}")
 
 
+# -- the test suite ------------------------------------------------------------
+
+@quote("suite_time")
+def _suite_time(R):
+    """How long the default suite took, cold, as CI runs it
+    (``studies/suite_time.py``): wall and CPU time, cores, load."""
+    s = R.json("suite_time")["cold"]
+    return (f"{s['wall_s'] / 60:.0f} min cold ({s['cpu_s'] / 60:.0f} min of CPU) on "
+            f"{s['cores']} cores at load {s['load_start'][0]:.1f}: {s['summary']}")
+
+
 if __name__ == "__main__":
     main()
-
