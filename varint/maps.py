@@ -514,17 +514,13 @@ def _with_step(spec, k, clock, per_orbit=False):
     """``spec`` with the map's τ and check steps, and the orbits' divisors
     of τ (None but for ``tau="orbit"``): τ as given, or from a pilot
     (:func:`_with_pilot_step`), or each orbit's from its own pilot
-    (``per_orbit``: :func:`varint.stepsize_orbits.choose_steps`, τ the unit
-    its steps divide); the check times of ``t_check``, or log-spaced from
+    (``per_orbit``, τ the unit its steps divide); the check times of ``t_check``, or log-spaced from
     :data:`FIRST_CHECK_STEP` steps on (and t_end). Every chunk runs these
     (the map's τ is chosen here, once)."""
     divisions = None
-    if per_orbit:
+    if per_orbit or spec.tau is None:
         with clock.part("pilot"):
-            spec, divisions = _with_orbit_steps(spec, k)
-    elif spec.tau is None:
-        with clock.part("pilot"):
-            spec = _with_pilot_step(spec, k)
+            spec, divisions = _with_pilot_step(spec, k, per_orbit)
     else:
         spec = spec.with_step(spec.tau, indicator_times=False)
     if spec.t_out is None:
@@ -534,42 +530,34 @@ def _with_step(spec, k, clock, per_orbit=False):
     return spec, divisions
 
 
-def _with_pilot_step(spec, k):
-    """``spec`` with the map's step, from a pilot on a sample of its orbits
-    (:func:`varint.stepsize.choose_step` with the map defaults: scheme
-    :data:`MAP_SCHEME` unless one is given, tolerance
-    :func:`pilot_tolerance` of the indicator, quantile
-    :data:`MAP_QUANTILE`)."""
+def _with_pilot_step(spec, k, per_orbit=False):
+    """``spec`` with the map's step, from a pilot with the map defaults
+    (scheme :data:`MAP_SCHEME` unless one is given, tolerance
+    :func:`pilot_tolerance` of the indicator), and each orbit's divisor of
+    it (None unless ``per_orbit``): one step for all from a sample of the
+    orbits (:func:`varint.stepsize.choose_step`, quantile
+    :data:`MAP_QUANTILE`), or with ``per_orbit`` the unit step of
+    ``tau="orbit"`` and each orbit's divisor from its own pilot
+    (:func:`varint.stepsize_orbits.choose_steps`)."""
     method_options = dict(spec.method_options)
     if stepsize.pilots(spec.method):
         method_options.setdefault("scheme", MAP_SCHEME)
     t_check = spec.t_out
-    tau, tau_choice = stepsize.choose_step(
-        spec.model, spec.x0, spec.t_end, pilot_tolerance(spec.indicator), method=spec.method,
-        scheme=method_options.get("scheme"),
-        cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
-        quantile=MAP_QUANTILE, seed=spec.seed, k=k, renorm=spec.indicator.renorm,
-        accumulator=spec.indicator.accumulator_for(spec.options))
-    return dataclasses.replace(spec, method_options=method_options).with_step(
-        tau, tau_choice, indicator_times=False)
-
-
-def _with_orbit_steps(spec, k):
-    """``spec`` with the unit step of ``tau="orbit"`` and each orbit's
-    divisor of it, from its own pilot to the map's tolerance
-    (:func:`varint.stepsize_orbits.choose_steps`, scheme :data:`MAP_SCHEME`
-    unless one is given)."""
-    method_options = dict(spec.method_options)
-    method_options.setdefault("scheme", MAP_SCHEME)
-    t_check = spec.t_out
-    unit, divisions, tau_choice = stepsize_orbits.choose_steps(
-        spec.model, spec.x0, spec.t_end, pilot_tolerance(spec.indicator),
-        scheme=method_options["scheme"],
-        cap=None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0]),
-        seed=spec.seed, k=k, renorm=spec.indicator.renorm,
-        accumulator=spec.indicator.accumulator_for(spec.options))
+    common = {"scheme": method_options.get("scheme"), "seed": spec.seed, "k": k,
+              "renorm": spec.indicator.renorm,
+              "accumulator": spec.indicator.accumulator_for(spec.options),
+              "cap": None if t_check is None or np.ndim(t_check) == 0 else float(t_check[0])}
+    tolerance = pilot_tolerance(spec.indicator)
+    divisions = None
+    if per_orbit:
+        tau, divisions, tau_choice = stepsize_orbits.choose_steps(
+            spec.model, spec.x0, spec.t_end, tolerance, **common)
+    else:
+        tau, tau_choice = stepsize.choose_step(spec.model, spec.x0, spec.t_end, tolerance,
+                                               method=spec.method, quantile=MAP_QUANTILE,
+                                               **common)
     spec = dataclasses.replace(spec, method_options=method_options).with_step(
-        unit, tau_choice, indicator_times=False)
+        tau, tau_choice, indicator_times=False)
     return spec, divisions
 
 
