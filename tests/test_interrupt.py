@@ -161,11 +161,13 @@ def test_an_interrupted_dask_map_cancels_the_chunks_still_running(monkeypatch):
 
         monkeypatch.setattr(distributed, "as_completed", ctrl_c_once_running)
         # Not pytest.warns: the chunk's worker thread shares this process's
-        # warning filters (warnings.catch_warnings is not thread-safe).
+        # warning filters (warnings.catch_warnings is not thread-safe). The
+        # filter stays until the worker has stopped: its chunk says
+        # "interrupted" when it stops, after the map has returned.
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             r = varint.chaos_map(hh, grid, "sali", t_end=1e9, tau=0.05, client=client,
                                  progress=False, threshold=None)
-        assert r.interrupted and np.isnan(r.values).all()
-        wait_for(lambda: worker.state.executing_count == 0,
-                 "the cancelled chunk still runs on its worker")
+            assert r.interrupted and np.isnan(r.values).all()
+            wait_for(lambda: worker.state.executing_count == 0,
+                     "the cancelled chunk still runs on its worker")
