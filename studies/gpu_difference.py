@@ -1,0 +1,222 @@
+"""Study: where the GPU's chaos map first departs from the CPU's (issue 33).
+
+On an H100 the Hénon–Heiles FLI map differed from the CPU's by 1.03e-11
+relative at t = 100 (``results/bench_gpu_h100.md``), with libdevice's log
+and with varint's own logarithm alike, while on numba's CUDA simulator (the
+same generated source run as Python) the two are bitwise. The kernel's PTX
+(compiled here without a GPU) rounds every operation: ``mul.rn``,
+``add.rn``, ``sub.rn`` (ptxas does not fuse those), ``fma.rn`` only where
+the source writes ``fma``, ``div.rn``, ``rcp.rn``, ``sqrt.rn``. So the
+difference must be found on the device, in two parts:
+
+1. :func:`primitives`: every operation the FLI kernel uses, on the device
+   and on the host, over a million operands of all magnitudes (a product
+   and a sum rounded apart, ``fma``, division, reciprocal, √, the sum of
+   squares of a norm, varint's ``vlog``, int → float): the count of
+   operands whose bits differ, and the first few. Zero everywhere means the
+   device computes what the source says.
+2. :func:`first_step`: the map's orbits (x0 and seeded vectors as
+   ``chaos_map`` draws them, its scheme, τ and renormalisation) advanced by
+   the TM propagator on the CPU and on the GPU in one call each, with the
+   state copied at every step: the first step at which any orbit differs,
+   which quantities differ there (the orbit, the vectors, the growth, the
+   FLI accumulator), both values in hex for the first orbits, and the
+   count of orbits that differ at the end. A difference first in the
+   orbit's coordinates is the drift/kick arithmetic; first in the growth
+   or the accumulator, the renormalisation.
+
+Run alone: ``python studies/gpu_difference.py [--quick] [--out DIR]``
+(``--quick`` with ``NUMBA_ENABLE_CUDASIM=1`` is a dry run); writes
+``gpu_difference.json``. ``studies/bench_gpu.py`` runs it after its speed
+and agreement parts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+#: The primitives' kernel: one operand triple per thread, one row of
+#: ``out`` per operation (the names of :data:`OPS`, in order).
+_PRIMITIVES = '''
+def primitives(a, b, c, n, out):
+    i = cuda.grid(1)
+    if i >= a.shape[0]:
+        return
+    x = a[i]
+    y = b[i]
+    z = c[i]
+    out[0, i] = x * y + z
+    out[1, i] = fma(x, y, z)
+    out[2, i] = x / y
+    out[3, i] = 1.0 / y
+    out[4, i] = math.sqrt(abs(x))
+    out[5, i] = math.sqrt(x * x + y * y + z * z + x * z)
+    out[6, i] = vlog(abs(x))
+    out[7, i] = float(n[i]) * 0.6931471805599453
+    out[8, i] = 2 * x * y + x
+'''
+OPS = ("x*y+z", "fma", "x/y", "1/y", "sqrt|x|", "sqrt(norm2)", "vlog|x|", "float(n)*ln2",
+       "2*x*y+x")
+
+
+def _hex(v):
+    return float(v).hex()
+
+
+def operands(m, seed=0):
+    """``m`` operand triples of every magnitude (2**-60 … 2**60, both signs)
+    and integers for the conversion."""
+    rng = np.random.default_rng(seed)
+
+    def wide():
+        return rng.choice([-1.0, 1.0], m) * np.exp2(rng.uniform(-60, 60, m)) * \
+            rng.uniform(1, 2, m)
+
+    a, b, c = wide(), wide(), wide()
+    # A third of them of one scale, where sums cancel (a step's arithmetic).
+    third = m // 3
+    a[:third], b[:third], c[:third] = (rng.uniform(-1, 1, (3, third)))
+    n = rng.integers(-2000, 2000, m).astype(np.int64)
+    return a, b, c, n
+
+
+def _host(a, b, c, n):
+    """The same operations on the CPU (numpy, and numba for fma and vlog)."""
+    from numba import njit
+
+    from varint.kernels.fma import fma
+    from varint.kernels.logarithm import vlog
+
+    @njit
+    def fused(a, b, c):
+        out = np.empty((2, a.shape[0]))
+        for i in range(a.shape[0]):
+            out[0, i] = fma(a[i], b[i], c[i])
+            out[1, i] = vlog(abs(a[i]))
+        return out
+
+    f = fused(a, b, c)
+    return np.stack([a * b + c, f[0], a / b, 1.0 / b, np.sqrt(np.abs(a)),
+                     np.sqrt(a * a + b * b + c * c + a * c), f[1], n * 0.6931471805599453,
+                     2 * a * b + a])
+
+
+def primitives(m=1_000_000, seed=0):
+    """Each operation of :data:`OPS` on the device and on the host: the
+    count of operands whose bits differ and the first three of them."""
+    from numba import cuda
+
+    from varint.gpu import device, emit
+    from varint.kernels.logarithm import SOURCE as LOG_SOURCE
+
+    source = "import math\n\n@cuda.jit(device=True)\n" + LOG_SOURCE + _PRIMITIVES
+    if not device.simulated():
+        source = emit._FMA.sub("cuda.fma(", source)
+    scope = dict(device.kernel_globals(), math=math)
+    exec(compile(source, "<gpu_difference.primitives>", "exec"), scope)
+    kernel = device.kernel(scope["primitives"])
+    a, b, c, n = operands(m, seed)
+    out = cuda.device_array((len(OPS), m))
+    kernel.launch(m, cuda.to_device(a), cuda.to_device(b), cuda.to_device(c), cuda.to_device(n),
+                  out)
+    got = out.copy_to_host()
+    want = _host(a, b, c, n)
+    res = {}
+    for j, name in enumerate(OPS):
+        bad = np.flatnonzero(got[j].view(np.int64) != want[j].view(np.int64))
+        res[name] = {"differ": int(bad.size), "of": m,
+                     "first": [{"a": _hex(a[i]), "b": _hex(b[i]), "c": _hex(c[i]),
+                                "device": _hex(got[j, i]), "host": _hex(want[j, i])}
+                               for i in bad[:3]]}
+    return res
+
+
+def first_step(model, X, tau, n_steps, seed=0):
+    """The FLI map's propagation of orbits ``X`` on the CPU and on the GPU,
+    copied at every step: the first step where they differ and what
+    differs there (see the module docstring)."""
+    from varint.indicators.megno import FLI_ACCUMULATOR
+    from varint.maps import MAP_SCHEME
+    from varint.methods import make_propagator
+    from varint.state import RunState, initial_deviations
+
+    acc = FLI_ACCUMULATOR
+    X = np.asarray(X, dtype=float)
+    W0 = initial_deviations(X.shape[1], 1, len(X), seed)
+    runs = {}
+    for backend in ("cpu", "cuda"):
+        prop = make_propagator("tm", model, tau, "normalize", acc, scheme=MAP_SCHEME,
+                               backend=backend)
+        state = RunState.start(X, W0)
+        state.extra[acc.key] = np.tile(np.array(acc.initial, dtype=np.float64),
+                                       (state.n_orbits, state.k, 1))
+        snaps = prop.advance(state, n_steps, outputs=np.arange(1, n_steps + 1))
+        runs[backend] = {"x": snaps.x, "W": snaps.W, "acc_m": snaps.acc_m,
+                         "acc_e": snaps.acc_e, "aux": snaps.extra[acc.key]}
+    cpu, gpu = runs["cpu"], runs["cuda"]
+    differs = {}
+    for key in cpu:
+        a, b = cpu[key], gpu[key]
+        ne = ~((a == b) | (np.isnan(a) & np.isnan(b))) if a.dtype.kind == "f" else a != b
+        differs[key] = ne.reshape(ne.shape[0], ne.shape[1], -1).any(axis=2)   # (steps, M)
+    any_step = np.any(np.stack([d for d in differs.values()]), axis=(0, 2))
+    res = {"orbits": len(X), "steps": n_steps, "tau": tau,
+           "orbits_differing_at_end": int(np.stack([d[-1] for d in differs.values()])
+                                          .any(axis=0).sum())}
+    if not any_step.any():
+        res["first_step"] = None
+        return res
+    s = int(np.argmax(any_step))
+    res["first_step"] = s + 1
+    res["at_first_step"] = {key: int(d[s].sum()) for key, d in differs.items()}
+    rows = np.flatnonzero(np.stack([d[s] for d in differs.values()]).any(axis=0))[:3]
+    res["examples"] = []
+    for m in rows:
+        ex = {"orbit": int(m)}
+        for key in cpu:
+            if differs[key][s, m]:
+                ex[key] = {"cpu": [_hex(v) for v in np.ravel(cpu[key][s, m])],
+                           "gpu": [_hex(v) for v in np.ravel(gpu[key][s, m])],
+                           "cpu_before": [_hex(v) for v in np.ravel(cpu[key][s - 1, m])]
+                           if s else None}
+        res["examples"].append(ex)
+    return res
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="small sizes (the simulator)")
+    p.add_argument("--out", type=Path, default=HERE / "results")
+    args = p.parse_args(argv)
+    import varint
+    from varint.models import HenonHeiles
+
+    from studies.bench_gpu import ENERGY
+
+    hh = HenonHeiles()
+    n_grid, t_end = (4, 5.0) if args.quick else (16, 100.0)
+    grid = varint.section_grid(hh, ENERGY, np.linspace(-0.45, 0.7, n_grid),
+                               np.linspace(-0.45, 0.45, n_grid)).states
+    res = {"primitives": primitives(300 if args.quick else 1_000_000)}
+    print(json.dumps(res["primitives"]), flush=True)
+    # The map's τ (its pilot's choice at this horizon, on the CPU).
+    tau = varint.chaos_map(hh, grid, "fli", t_end=t_end, progress=False).accuracy.tau
+    res["first_step"] = first_step(hh, grid, tau, int(round(t_end / tau)))
+    print(json.dumps(res["first_step"]), flush=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "gpu_difference.json").write_text(json.dumps(res, indent=1))
+    return res
+
+
+if __name__ == "__main__":
+    main()
