@@ -187,9 +187,9 @@ def table(res):
                      f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
     lines += ["", "Agreement: " + json.dumps(res["agreement"])]
     diff = res.get("difference", {})
-    if "primitives" in diff:
-        lines.append("Primitives differing on the device (of each): " + json.dumps(
-            {k: v["differ"] for k, v in diff["primitives"].items()}))
+    for way, ops in diff.get("primitives", {}).items():
+        lines.append(f"Primitives whose bits differ on the device, kernel compiled as {way} "
+                     "(of each): " + json.dumps({k: v["differ"] for k, v in ops.items()}))
     if "first_step" in diff:
         first = {k: v for k, v in diff["first_step"].items() if k != "examples"}
         lines.append("First differing step of the FLI propagation: " + json.dumps(first))

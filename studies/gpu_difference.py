@@ -13,7 +13,12 @@ difference must be found on the device, in two parts:
    and on the host, over a million operands of all magnitudes (a product
    and a sum rounded apart, ``fma``, division, reciprocal, √, the sum of
    squares of a norm, varint's ``vlog``, int → float): the count of
-   operands whose bits differ, and the first few. Zero everywhere means the
+   operands whose bits differ, and the first few, for the kernel compiled
+   as varint compiles its kernels and as numba-cuda does by default
+   (linked with link-time optimisation where nvJitLink is installed:
+   compiled here without a GPU, nvJitLink's PTX of the FLI kernel has 230
+   ``fma.rn`` and no ``mul.rn``/``add.rn`` where NVVM's has 177 and 296;
+   the cause found, :mod:`varint.gpu.device`). Zero everywhere means the
    device computes what the source says.
 2. :func:`first_step`: the map's orbits (x0 and seeded vectors as
    ``chaos_map`` draws them, its scheme, τ and renormalisation) advanced by
@@ -112,8 +117,13 @@ def _host(a, b, c, n):
 
 
 def primitives(m=1_000_000, seed=0):
-    """Each operation of :data:`OPS` on the device and on the host: the
-    count of operands whose bits differ and the first three of them."""
+    """Each operation of :data:`OPS` on the device and on the host: per way
+    of compiling the kernel, the count of operands whose bits differ and
+    the first three of them. ``varint``: as varint compiles its kernels
+    (:func:`varint.gpu.device.kernel`: NVVM without contraction, no
+    link-time optimisation); ``lto``: the same with numba-cuda's default
+    linking (link-time optimisation by nvJitLink where it is installed,
+    which contracts a·b + c on its own)."""
     from numba import cuda
 
     from varint.gpu import device, emit
@@ -122,22 +132,27 @@ def primitives(m=1_000_000, seed=0):
     source = "import math\n\n@cuda.jit(device=True)\n" + LOG_SOURCE + _PRIMITIVES
     if not device.simulated():
         source = emit._FMA.sub("cuda.fma(", source)
-    scope = dict(device.kernel_globals(), math=math)
-    exec(compile(source, "<gpu_difference.primitives>", "exec"), scope)
-    kernel = device.kernel(scope["primitives"])
     a, b, c, n = operands(m, seed)
-    out = cuda.device_array((len(OPS), m))
-    kernel.launch(m, cuda.to_device(a), cuda.to_device(b), cuda.to_device(c), cuda.to_device(n),
-                  out)
-    got = out.copy_to_host()
     want = _host(a, b, c, n)
     res = {}
-    for j, name in enumerate(OPS):
-        bad = np.flatnonzero(got[j].view(np.int64) != want[j].view(np.int64))
-        res[name] = {"differ": int(bad.size), "of": m,
-                     "first": [{"a": _hex(a[i]), "b": _hex(b[i]), "c": _hex(c[i]),
-                                "device": _hex(got[j, i]), "host": _hex(want[j, i])}
-                               for i in bad[:3]]}
+    for way in ("varint", "lto"):
+        scope = dict(device.kernel_globals(), math=math)
+        exec(compile(source, f"<gpu_difference.primitives.{way}>", "exec"), scope)
+        if way == "varint":
+            kernel = device.kernel(scope["primitives"])
+        else:
+            kernel = device._Kernel(cuda.jit(scope["primitives"]))
+        out = cuda.device_array((len(OPS), m))
+        kernel.launch(m, cuda.to_device(a), cuda.to_device(b), cuda.to_device(c),
+                      cuda.to_device(n), out)
+        got = out.copy_to_host()
+        res[way] = {}
+        for j, name in enumerate(OPS):
+            bad = np.flatnonzero(got[j].view(np.int64) != want[j].view(np.int64))
+            res[way][name] = {"differ": int(bad.size), "of": m,
+                              "first": [{"a": _hex(a[i]), "b": _hex(b[i]), "c": _hex(c[i]),
+                                         "device": _hex(got[j, i]), "host": _hex(want[j, i])}
+                                        for i in bad[:3]]}
     return res
 
 
