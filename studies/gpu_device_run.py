@@ -22,7 +22,9 @@ the FP64 instructions whose rounding decides bitwise agreement with the
 CPU — ``fma.rn``; ``mul``, ``add``, ``sub`` with ``.rn``, which ptxas
 never fuses, and without it, which it may; ``div.rn`` against
 ``div.approx``/``div.full``, ``rcp.rn`` against ``rcp.approx``,
-``sqrt.rn`` against ``sqrt.approx``), one kernel's ``kernel.ptx``, and
+``sqrt.rn`` against ``sqrt.approx``), one kernel's ``kernel.ptx``,
+``ptx_lto.json`` (the FLI kernel's counts as NVVM writes it and as
+nvJitLink rewrites it under link-time optimisation), and
 ``profile.txt`` (cProfile of the FLI map of 1e5 orbits on the GPU, by
 cumulative time: where the map's time goes besides the kernel).
 """
@@ -62,6 +64,12 @@ PATTERNS = {"fma.rn.f64": r"\bfma\.rn\.f64", "mul.rn.f64": r"\bmul\.rn\.f64",
             "rcp.rn.f64": r"\brcp\.rn\.f64", "sqrt.rn.f64": r"\bsqrt\.rn\.f64",
             "sqrt.approx": r"\bsqrt\.approx", "rcp.approx": r"\brcp\.approx",
             "ex2/lg2.approx": r"\b(ex2|lg2)\.approx"}
+
+
+def device_cc():
+    from numba import cuda
+
+    return cuda.get_current_device().compute_capability
 
 
 def main(argv=None):
@@ -106,6 +114,14 @@ def main(argv=None):
                 (out / "kernel.ptx").write_text(ptx)
     (out / "ptx.json").write_text(json.dumps(summary, indent=1))
     print("PTX:", json.dumps(summary), flush=True)
+    try:   # the FLI kernel's PTX before and after nvJitLink's link-time optimisation
+        from studies import gpu_difference
+
+        lto = gpu_difference.linked_ptx(tuple(device_cc()))
+        (out / "ptx_lto.json").write_text(json.dumps(lto, indent=1))
+        print("PTX with and without LTO:", json.dumps(lto), flush=True)
+    except Exception as exc:
+        print("PTX with LTO failed:", repr(exc), flush=True)
     if time.perf_counter() - START > args.deadline:
         print("no time for the profile", flush=True)
         return

@@ -15,10 +15,9 @@ difference must be found on the device, in two parts:
    squares of a norm, varint's ``vlog``, int → float): the count of
    operands whose bits differ, and the first few, for the kernel compiled
    as varint compiles its kernels and as numba-cuda does by default
-   (linked with link-time optimisation where nvJitLink is installed:
-   compiled here without a GPU, nvJitLink's PTX of the FLI kernel has 230
-   ``fma.rn`` and no ``mul.rn``/``add.rn`` where NVVM's has 177 and 296;
-   the cause found, :mod:`varint.gpu.device`). Zero everywhere means the
+   (linked with link-time optimisation where nvJitLink is installed, which
+   fuses products and sums on its own: ``results/gpu_lto_ptx.json``, the
+   cause found, :mod:`varint.gpu.device`). Zero everywhere means the
    device computes what the source says.
 2. :func:`first_step`: the map's orbits (x0 and seeded vectors as
    ``chaos_map`` draws them, its scheme, τ and renormalisation) advanced by
@@ -32,7 +31,9 @@ difference must be found on the device, in two parts:
 
 Run alone: ``python studies/gpu_difference.py [--quick] [--out DIR]``
 (``--quick`` with ``NUMBA_ENABLE_CUDASIM=1`` is a dry run); writes
-``gpu_difference.json``. ``studies/bench_gpu.py`` runs it after its speed
+``gpu_difference.json``. ``--ptx`` (NVVM and nvJitLink needed, not a GPU)
+writes ``gpu_lto_ptx.json``: the FLI kernel's operation counts as NVVM
+writes it and as nvJitLink rewrites it (:func:`linked_ptx`). ``studies/bench_gpu.py`` runs it after its speed
 and agreement parts.
 """
 
@@ -208,11 +209,75 @@ def first_step(model, X, tau, n_steps, seed=0):
     return res
 
 
+def linked_ptx(cc=(9, 0)):
+    """Counts of the FP64 operations in the Hénon–Heiles FLI kernel's PTX
+    as NVVM writes it (``-fma=0``) and as nvJitLink rewrites it when the
+    kernel is linked with link-time optimisation (numba-cuda's default
+    where nvJitLink is installed). Needs NVVM and nvJitLink, not a GPU:
+    without one, numba-cuda's questions to the driver (the device's compute
+    capability, binding the linked kernel) are answered for ``cc``."""
+    import re
+    import types as pytypes
+
+    import numba.cuda.codegen as codegen
+    import numba.cuda.dispatcher as dispatcher
+    from numba import cuda
+    from numba import types as T
+
+    from varint.gpu import device, emit
+    from varint.indicators.megno import FLI_ACCUMULATOR
+    from varint.maps import MAP_SCHEME
+    from varint.models import HenonHeiles
+    from varint.schemes import DRIFT, get_scheme, stage_arrays
+
+    if not device.available():
+        fake = pytypes.SimpleNamespace(device=pytypes.SimpleNamespace(compute_capability=cc))
+        codegen.devices.get_context = lambda *a: fake
+        dispatcher.get_current_device = lambda: fake.device
+        dispatcher._Kernel.bind = lambda self: None
+    kinds, _, hc = stage_arrays(get_scheme(MAP_SCHEME), 0.05)
+    kern = emit.cuda_stepper(HenonHeiles(), kinds, (hc != 0) & (kinds != DRIFT), 1,
+                             FLI_ACCUMULATOR)
+    f2, f3, f4 = T.float64[:, ::1], T.float64[:, :, ::1], T.float64[:, :, :, ::1]
+    i1, i2, i3 = T.int64[::1], T.int64[:, ::1], T.int64[:, :, ::1]
+    sig = (f2, f3, f2, i2, i1, i1, i1, i1, T.int64, T.int64, T.float64, T.float64[::1],
+           T.float64[::1], T.float64, T.int64, T.int64, f3, i1, f3, f4, f3, i3, f4)
+
+    def counts(ptx):
+        return {op: len(re.findall(rx, ptx)) for op, rx in (
+            ("fma.rn.f64", r"\bfma\.rn\.f64"), ("mul.rn.f64", r"\bmul\.rn\.f64"),
+            ("add.rn.f64", r"\badd\.rn\.f64"), ("sub.rn.f64", r"\bsub\.rn\.f64"),
+            ("mul/add/sub.f64 (fusable)", r"\b(mul|add|sub)\.f64"))}
+
+    lto = cuda.jit(kern.dispatcher.py_func, lto=True)
+    with device._no_contraction():
+        kern.dispatcher.compile(sig)
+        lto.compile(sig)
+        from importlib.metadata import version
+
+        from numba.cuda.cudadrv import nvvm
+
+        return {"kernel": f"Hénon–Heiles FLI, {MAP_SCHEME}", "cc": list(cc),
+                "numba_cuda": version("numba-cuda"), "nvvm": list(nvvm.NVVM().get_version()),
+                "varint (NVVM -fma=0, no LTO)": counts(kern.dispatcher.inspect_asm(sig)),
+                "LTO: NVVM's PTX": counts(lto.inspect_asm(sig)),
+                "LTO: nvJitLink's PTX (what runs)": counts(lto.inspect_lto_ptx(sig))}
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="small sizes (the simulator)")
     p.add_argument("--out", type=Path, default=HERE / "results")
+    p.add_argument("--ptx", action="store_true",
+                   help="only the FLI kernel's PTX before and after nvJitLink's link-time "
+                        "optimisation (no GPU needed): gpu_lto_ptx.json")
     args = p.parse_args(argv)
+    if args.ptx:
+        res = linked_ptx()
+        print(json.dumps(res, indent=1))
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "gpu_lto_ptx.json").write_text(json.dumps(res, indent=1) + "\n")
+        return res
     import varint
     from varint.models import HenonHeiles
 
