@@ -222,11 +222,13 @@ class _Pace:
     Ctrl-C stay responsive, and the chunking never changes a result
     (rule 3 of the propagator protocol).
 
-    A call costs a fixed part (transfers, packing; on a GPU, for a million
-    orbits, more than ``_CHUNK_SECONDS``) and a part per step. Sized by
+    A call costs a fixed part (transfers, packing: on a GPU, for many
+    orbits, it may exceed ``_CHUNK_SECONDS``) and a part per step. Sized by
     its mean cost per step alone, a chunk whose fixed part exceeds the
     target would shrink at every call, to one step, and the run would
-    pay the fixed part at every step (a GPU map of 1e6 orbits never ended).
+    pay the fixed part at every step (a GPU map of 1e5 orbits on the CUDA
+    simulator, its kernel doing no step: 864 calls; the likely reason why
+    the H100's GPU map of 1e6 orbits did not end within its run).
     So where two calls of different lengths show the marginal cost of a
     step to be smaller than the mean, the chunk is sized by the marginal
     cost: shrinking a chunk cannot make a call faster than its fixed part.
