@@ -1,22 +1,32 @@
-"""One device run of the GPU study: ``studies/bench_gpu.py``, then the PTX of
-every kernel it launched and a profile of one GPU map, all under one clock.
+"""One device run of the GPU study: ``studies/bench_gpu.py`` (speed at 1e6
+orbits first, then 1e5, then agreement and where the GPU first departs from
+the CPU), then the PTX of every kernel it launched and, while time is left,
+a profile of one GPU map, all under one clock.
 
-Run on a machine with a CUDA GPU, from a copy of the repository::
+Run on a machine with a CUDA GPU and numba-cuda, from a copy of the
+repository. The device lacks ``platformdirs`` (which ``varint.cachedir``
+imports): carry its wheel in an ignored folder (``.gpurun/whl``) and put
+the unpacked wheel on ``PYTHONPATH``::
 
-    OUT=dir python studies/gpu_device_run.py [--budget S] [--deadline S] [--sizes M,...]
-                                            [--quick]
+    python -m zipfile -e .gpurun/whl/platformdirs-*.whl /tmp/pd && \
+    PYTHONPATH=/tmp/pd:. VARINT_CACHE_DIR=/tmp/varint-cache timeout 330 \
+    python studies/gpu_device_run.py --deadline 270
 
-(the defaults fit ~300 s on an H100 host: agreement of the FLI map, speed at
-1e4, 1e5 and 1e6 orbits, the other agreement checks, then the profile;
+(``--deadline``: seconds from the start after which no further part
+begins; ``--sizes`` the speed part's orbits, measured in that order;
 ``--quick`` with ``NUMBA_ENABLE_CUDASIM=1`` is a dry run on the simulator)
 
-Writes to ``$OUT``: ``bench_gpu.json``/``.md`` (the benchmark), ``ptx.json``
-(per kernel: counts of the FP64 instructions whose rounding decides bitwise
-agreement with the CPU — ``fma.rn``, ``mul``, ``add``, ``div.rn`` against
-``div.approx``/``div.full``, ``sqrt.rn`` against ``sqrt.approx``), one
-kernel's ``kernel.ptx``, and ``profile.txt`` (cProfile of the FLI map of
-1e5 orbits on the GPU, by cumulative time: where the map's time goes
-besides the kernel).
+Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement)
+and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
+the FP64 instructions whose rounding decides bitwise agreement with the
+CPU — ``fma.rn``; ``mul``, ``add``, ``sub`` with ``.rn``, which ptxas
+never fuses, and without it, which it may; ``div.rn`` against
+``div.approx``/``div.full``, ``rcp.rn`` against ``rcp.approx``,
+``sqrt.rn`` against ``sqrt.approx``), one kernel's ``kernel.ptx``,
+``ptx_lto.json`` (the FLI kernel's counts as NVVM writes it and as
+nvJitLink rewrites it under link-time optimisation), and
+``profile.txt`` (cProfile of the FLI map of 1e5 orbits on the GPU, by
+cumulative time: where the map's time goes besides the kernel).
 """
 
 from __future__ import annotations
@@ -47,23 +57,29 @@ for _old, _new in (("row_stack", "vstack"), ("trapz", "trapezoid"), ("in1d", "is
 from studies import bench_gpu  # noqa: E402
 from varint.gpu import device  # noqa: E402
 
-PATTERNS = {"fma.rn.f64": r"\bfma\.rn\.f64", "mul.f64": r"\bmul(\.rn)?\.f64",
-            "add.f64": r"\badd(\.rn)?\.f64", "sub.f64": r"\bsub(\.rn)?\.f64",
+PATTERNS = {"fma.rn.f64": r"\bfma\.rn\.f64", "mul.rn.f64": r"\bmul\.rn\.f64",
+            "add.rn.f64": r"\badd\.rn\.f64", "sub.rn.f64": r"\bsub\.rn\.f64",
+            "mul/add/sub.f64 (fusable)": r"\b(mul|add|sub)\.f64",
             "div.rn.f64": r"\bdiv\.rn\.f64", "div.approx/full": r"\bdiv\.(approx|full)",
-            "sqrt.rn.f64": r"\bsqrt\.rn\.f64", "sqrt.approx": r"\bsqrt\.approx",
-            "rcp.approx": r"\brcp\.approx", "ex2/lg2.approx": r"\b(ex2|lg2)\.approx"}
+            "rcp.rn.f64": r"\brcp\.rn\.f64", "sqrt.rn.f64": r"\bsqrt\.rn\.f64",
+            "sqrt.approx": r"\bsqrt\.approx", "rcp.approx": r"\brcp\.approx",
+            "ex2/lg2.approx": r"\b(ex2|lg2)\.approx"}
+
+
+def device_cc():
+    from numba import cuda
+
+    return cuda.get_current_device().compute_capability
 
 
 def main(argv=None):
     p = argparse.ArgumentParser()
-    p.add_argument("--budget", type=float, default=150.0,
-                   help="seconds for the benchmark's speed part")
-    p.add_argument("--deadline", type=float, default=240.0,
-                   help="seconds from the start after which no optional part begins")
-    p.add_argument("--sizes", default="10000,100000,1000000")
+    p.add_argument("--deadline", type=float, default=270.0,
+                   help="seconds from the start after which no further part begins")
+    p.add_argument("--sizes", default="1000000,100000")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--skip-bench", action="store_true",
-                   help="only the profile and the PTX (the benchmark measured before)")
+                   help="only the PTX and the profile (the benchmark measured before)")
     args = p.parse_args(argv)
     out = Path(os.environ.get("OUT", "gpu_device_out"))
     out.mkdir(parents=True, exist_ok=True)
@@ -76,7 +92,7 @@ def main(argv=None):
         return original(self, n_threads, *a)
 
     device._Kernel.launch = launch
-    argv = ["--out", str(out), "--budget", str(args.budget), "--sizes", args.sizes,
+    argv = ["--out", str(out), "--sizes", args.sizes,
             "--deadline", str(args.deadline - (time.perf_counter() - START))] + (
         ["--quick"] if args.quick else [])
     try:
@@ -85,9 +101,29 @@ def main(argv=None):
     except Exception as exc:   # keep going: the PTX and profile still tell something
         print("bench_gpu failed:", repr(exc), flush=True)
 
-    if time.perf_counter() - START > args.deadline or not device.available() \
-            or device.simulated():
-        print("no time (or no GPU) for the profile", flush=True)
+    if not device.available() or device.simulated():
+        print("no GPU: no PTX or profile", flush=True)
+        return
+    # The PTX of what ran (seconds: compiled already).
+    summary = []
+    for k in launched.values():
+        for sig, ptx in k.dispatcher.inspect_asm().items():
+            counts = {name: len(re.findall(rx, ptx)) for name, rx in PATTERNS.items()}
+            summary.append({"signature": str(sig), "ptx_lines": ptx.count("\n"), **counts})
+            if not (out / "kernel.ptx").exists():
+                (out / "kernel.ptx").write_text(ptx)
+    (out / "ptx.json").write_text(json.dumps(summary, indent=1))
+    print("PTX:", json.dumps(summary), flush=True)
+    try:   # the FLI kernel's PTX before and after nvJitLink's link-time optimisation
+        from studies import gpu_difference
+
+        lto = gpu_difference.linked_ptx(tuple(device_cc()))
+        (out / "ptx_lto.json").write_text(json.dumps(lto, indent=1))
+        print("PTX with and without LTO:", json.dumps(lto), flush=True)
+    except Exception as exc:
+        print("PTX with LTO failed:", repr(exc), flush=True)
+    if time.perf_counter() - START > args.deadline:
+        print("no time for the profile", flush=True)
         return
     import varint
     from varint.gpu.advance import STATS
@@ -113,16 +149,6 @@ def main(argv=None):
     pstats.Stats(prof, stream=s).sort_stats("tottime").print_stats(25)
     (out / "profile.txt").write_text(s.getvalue())
     print(s.getvalue()[:6000], flush=True)
-    summary = []
-    for k in launched.values():
-        for sig, ptx in k.dispatcher.inspect_asm().items():
-            counts = {name: len(re.findall(rx, ptx)) for name, rx in PATTERNS.items()}
-            summary.append({"signature": str(sig), "ptx_lines": ptx.count("\n"), **counts})
-            if not (out / "kernel.ptx").exists():
-                (out / "kernel.ptx").write_text(ptx)
-    (out / "ptx.json").write_text(json.dumps(summary, indent=1))
-    print("PTX:", json.dumps(summary), flush=True)
-
     print(f"total {time.perf_counter() - START:.1f} s", flush=True)
 
 

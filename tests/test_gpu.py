@@ -11,6 +11,7 @@ and final states for polynomial potentials, within 1e-12 relative otherwise
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -179,11 +180,12 @@ def test_kernel_compiles_to_registers_without_contraction():
         pytest.skip("the simulator compiles nothing")
     from numba import types as T
 
+    from varint.indicators.megno import FLI_ACCUMULATOR
     from varint.schemes import DRIFT, get_scheme, stage_arrays
 
     kinds, _, hc = stage_arrays(get_scheme("SBAB2C"), 0.05)
     kern = emit.cuda_stepper(varint.models.HenonHeiles(), kinds, (hc != 0) & (kinds != DRIFT), 1,
-                             varint.indicators.megno.FLI_ACCUMULATOR)
+                             FLI_ACCUMULATOR)
     f2, f3, f4 = T.float64[:, ::1], T.float64[:, :, ::1], T.float64[:, :, :, ::1]
     i1, i2, i3 = T.int64[::1], T.int64[:, ::1], T.int64[:, :, ::1]
     sig = (f2, f3, f2, i2, i1, i1, i1, i1, T.int64, T.int64, T.float64, T.float64[::1],
@@ -192,13 +194,23 @@ def test_kernel_compiles_to_registers_without_contraction():
     loose = _ptx_or_skip(kern, sig, False)
     assert ".local" not in exact
     assert 0 < exact.count("fma.rn.f64") < loose.count("fma.rn.f64")
+    # Every other product and sum explicitly rounded: ptxas fuses only those
+    # without a rounding modifier.
+    assert exact.count("mul.rn.f64") > 0
+    assert re.search(r"\b(mul|add|sub)\.f64", exact) is None
+
+
+def test_kernel_is_linked_without_link_time_optimisation():
+    """The PTX that NVVM writes without contraction is the code that runs:
+    with LTO (numba-cuda's default where nvJitLink is installed) nvJitLink
+    compiles the kernel again and fuses a·b + c (varint.gpu.device)."""
+    if device.simulated():
+        pytest.skip("the simulator links nothing")
+    kern = device.kernel(lambda x: None)
+    assert kern.dispatcher.targetoptions["lto"] is False
 
 
 @pytest.mark.cuda
-@pytest.mark.xfail(reason="on an H100 the FLI map at t = 100 differs from the CPU's by 1e-11 "
-                          "relative (studies/results/bench_gpu_h100.md), with libdevice's log "
-                          "and with varint.kernels.logarithm on both sides alike: cause not found",
-                   strict=False)
 def test_gpu_map_is_bitwise_the_cpu():
     if not device.available() or device.simulated():
         pytest.skip("no CUDA GPU")

@@ -32,6 +32,24 @@ def test_quick_chunks_grow_faster_but_a_slow_one_at_most_eightfold():
     assert pace.chunk == 4 * m
 
 
+def test_a_chunk_whose_fixed_cost_exceeds_the_target_grows_back():
+    """A call of 1 s whatever its steps (a GPU call for many orbits: the
+    transfers): the chunk shrinks once (mean cost per step), then the
+    shorter call's equal time shows the fixed cost, and the chunk grows
+    8-fold per call by the marginal cost of a step, instead of shrinking
+    to one step (a call per step)."""
+    pace = driver._Pace()
+    pace.took(64, 1.0)
+    assert pace.chunk == 12                       # 64 * 0.2 s / 1 s
+    pace.took(12, 1.0 - 12e-5)                    # 1e-5 s per step beyond 1 s
+    assert pace.chunk == 96
+    pace.took(96, 1.0 - 12e-5 + 84e-5)
+    assert pace.chunk == 768
+    # The mean rules where it is the smaller (a marginal cost of noise).
+    pace.took(768, 0.5)
+    assert pace.chunk == 307                      # 768 * 0.2 / 0.5
+
+
 def test_the_kernel_check_names_the_first_singular_state(monkeypatch):
     """A batch's kernels are evaluated in one compiled pass; the first state
     where one is not finite is named as from Python; kernels the pass

@@ -220,14 +220,33 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
 class _Pace:
     """Chunks of steps sized to take about ``_CHUNK_SECONDS``: progress and
     Ctrl-C stay responsive, and the chunking never changes a result
-    (rule 3 of the propagator protocol)."""
+    (rule 3 of the propagator protocol).
+
+    A call costs a fixed part (transfers, packing: on a GPU, for many
+    orbits, it may exceed ``_CHUNK_SECONDS``) and a part per step. Sized by
+    its mean cost per step alone, a chunk whose fixed part exceeds the
+    target would shrink at every call, to one step, and the run would
+    pay the fixed part at every step (a GPU map of 1e5 orbits on the CUDA
+    simulator, its kernel doing no step: 864 calls; the likely reason why
+    the H100's GPU map of 1e6 orbits did not end within its run).
+    So where two calls of different lengths show the marginal cost of a
+    step to be smaller than the mean, the chunk is sized by the marginal
+    cost: shrinking a chunk cannot make a call faster than its fixed part.
+    """
 
     def __init__(self):
         self.chunk = 64
+        self.last = None   # (steps, seconds) of the last call that set the pace
 
     def took(self, n, seconds):
         if n >= self.chunk:
-            grown = n * _CHUNK_SECONDS / max(seconds, 1e-6)
+            per_step = max(seconds, 1e-6) / n
+            if self.last is not None and self.last[0] != n:
+                marginal = (seconds - self.last[1]) / (n - self.last[0])
+                if marginal > 0.0:
+                    per_step = min(per_step, marginal)
+            self.last = (n, seconds)
+            grown = _CHUNK_SECONDS / per_step
             # A chunk grows at most 8-fold, so that one unrepresentative
             # chunk cannot make the next last for minutes; a chunk of under
             # 1 ms (mostly the fixed cost of a call) may grow 64-fold, since

@@ -12,7 +12,21 @@ unless told not to (its ``-fma=1`` default, which numba-cuda keeps). The
 CPU steppers write their fused operations explicitly and round every other
 product (:mod:`varint.kernels.fma`), so the kernels are compiled with
 ``-fma=0``: the explicit fma stay fused and nothing else is, as on the
-CPU.
+CPU. NVVM then writes every other product and sum with an explicit
+rounding (``mul.rn``, ``add.rn``), which ptxas does not fuse.
+
+The kernels are also compiled without link-time optimisation. Where
+nvJitLink is installed numba-cuda links kernels by default as LTO-IR, and
+nvJitLink optimises and generates the code again with its own defaults,
+``-fma=1`` among them: it contracts a·b + c into one ``fma.rn`` although
+NVVM was told not to (a·b + c compiled with ``-fma=0``: ``mul.rn``,
+``add.rn`` in NVVM's PTX, one ``fma.rn`` in nvJitLink's, numba-cuda 0.30.4
+and CUDA 12.9). That explains the 1e-11 relative difference of the H100's
+FLI map from the CPU's at t = 100, which a GPU run of
+``studies/gpu_difference.py`` is to confirm: the kernel's PTX read back
+then (``inspect_asm``: NVVM's, before the link) had no contraction; the
+code that ran was nvJitLink's. Without LTO the PTX that NVVM writes is the
+code that runs.
 """
 
 from __future__ import annotations
@@ -130,10 +144,12 @@ class _Kernel:
 
 
 def kernel(function):
-    """``function`` as a CUDA kernel (:class:`_Kernel`)."""
+    """``function`` as a CUDA kernel (:class:`_Kernel`), linked without
+    link-time optimisation (see the module docstring); the simulator has
+    no linker (nor the option)."""
     from numba import cuda
 
-    return _Kernel(cuda.jit(function))
+    return _Kernel(cuda.jit(function) if simulated() else cuda.jit(function, lto=False))
 
 
 def kernel_globals():

@@ -35,12 +35,12 @@ schedule's, MEGNO's, FLI's readout) are :mod:`varint.kernels.logarithm`'s
 so they are the CPU's bits too; ``exp``, ``sqrt`` of a model's potential and
 the like come from libdevice on the GPU and from the C library on the CPU
 and may differ in the last place. On numba's CUDA simulator the kernel
-gives the CPU's bits (``tests/test_gpu.py``). On an H100, before the
-logarithm was written out, the Hénon–Heiles FLI map differed from the
-CPU's by up to 1e-11 relative at t = 100
-(``studies/results/bench_gpu_h100.md``: libdevice's ``log`` against the C
-library's, whose last-place differences move the sparse schedule's
-renormalisations); with ``vlog`` the map has not been run on a GPU yet.
+gives the CPU's bits (``tests/test_gpu.py``). On an H100 the Hénon–Heiles
+FLI map differed from the CPU's by up to 1e-11 relative at t = 100
+(``studies/results/bench_gpu_h100.md``), with libdevice's log and with
+``vlog`` alike: the kernel was linked with link-time optimisation, which
+contracts products and sums again (:mod:`varint.gpu.device`); it is now
+linked without.
 """
 
 from __future__ import annotations
