@@ -261,9 +261,17 @@ def race_case(name, quick, repeats):
                "agreement": agreement(INDICATOR, values, truth, threshold),
                "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
         if hasattr(out, "provenance"):
+            choice = out.provenance.tau_choice
             row["steps"] = out.provenance.counts["steps"]
+            row["pilot_steps"] = choice["counts"]["steps"]
             row["timing"] = out.provenance.timing
+            # The run's seconds per orbit and step: what a step costs in
+            # this model (the race's seconds are the pilot's and the run's).
+            row["us_per_step"] = 1e6 * out.provenance.timing["run"] / row["steps"]
             row["max_energy_error"] = float(np.nanmax(out.accuracy.energy_error))
+            if "judged" in choice:
+                row["judged"] = len(choice["judged"])
+                row["rounds"] = choice["rounds"]
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
@@ -351,7 +359,8 @@ def main(argv=None):
                       f"{row['agreement']:.4f}", flush=True)
             print(f"  {s}", flush=True)
         save_csv(args.out, f"{name}_race", rows,
-                 ["map", "contender", "seconds", "agreement", "steps", "orbits", "t_end"])
+                 ["map", "contender", "seconds", "agreement", "steps", "pilot_steps",
+                  "us_per_step", "orbits", "t_end"])
         result["race"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     if "fixed" in parts:
         start = load()

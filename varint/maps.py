@@ -550,8 +550,10 @@ def _with_pilot_step(spec, k, per_orbit=False):
     tolerance = pilot_tolerance(spec.indicator)
     divisions = None
     if per_orbit:
+        judge = stepsize_orbits.indicator_judge(spec.indicator, spec.model, spec.options,
+                                                spec.energy_tol)
         tau, divisions, tau_choice = stepsize_orbits.choose_steps(
-            spec.model, spec.x0, spec.t_end, tolerance, **common)
+            spec.model, spec.x0, spec.t_end, tolerance, judge=judge, **common)
     else:
         tau, tau_choice = stepsize.choose_step(spec.model, spec.x0, spec.t_end, tolerance,
                                                method=spec.method, quantile=MAP_QUANTILE,
