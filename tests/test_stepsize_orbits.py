@@ -64,7 +64,8 @@ def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(cored):
     choice = per.provenance.tau_choice
     judge = choice["judge"]
     assert judge == {"indicator": "fli", "agreement": stepsize_orbits.AGREEMENT,
-                     "energy_bound": varint.accuracy.DEFAULT_ENERGY_TOL / 100}
+                     "energy_bound": min(stepsize_orbits.BOUND_FACTOR * choice["tolerance"],
+                                         varint.accuracy.DEFAULT_ENERGY_TOL / 100)}
     compared = dict(zip(choice["judged"], choice["compared"], strict=True))
     for m, n in enumerate(choice["divisions"]):
         tau = choice["unit"] / n
@@ -95,7 +96,7 @@ def test_the_indicator_takes_larger_steps_than_the_energy_error(cored):
               "accumulator": ind.accumulator_for(options)}
     tol = varint.maps.pilot_tolerance(ind)
     _, by_energy, plain = stepsize_orbits.choose_steps(model, X, 50.0, tol, **common)
-    judge = stepsize_orbits.indicator_judge(ind, model, options, 1e-3)
+    judge = stepsize_orbits.indicator_judge(ind, model, options, tol, 1e-3)
     _, by_value, judged = stepsize_orbits.choose_steps(model, X, 50.0, tol, judge=judge,
                                                        **common)
     assert "judge" not in plain and judged["judged"]
@@ -112,7 +113,7 @@ def test_the_pilot_reads_the_value_the_map_shows():
         ind, fixed = varint.indicators.resolve(name)
         options = ind.configure(model, dict(fixed))
         k = ind.vectors(model, options, None)
-        judge = stepsize_orbits.indicator_judge(ind, model, options, 1e-3)
+        judge = stepsize_orbits.indicator_judge(ind, model, options, 1e-7, 1e-3)
         W0 = varint.state.initial_deviations(model.dim, k, len(X), 0, np.arange(len(X)))
         _, values = varint.stepsize.pilot_errors(
             model, X, 0.25, 20.0, varint.schemes.get_scheme(varint.maps.MAP_SCHEME),

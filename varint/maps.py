@@ -551,7 +551,7 @@ def _with_pilot_step(spec, k, per_orbit=False):
     divisions = None
     if per_orbit:
         judge = stepsize_orbits.indicator_judge(spec.indicator, spec.model, spec.options,
-                                                spec.energy_tol)
+                                                tolerance, spec.energy_tol)
         tau, divisions, tau_choice = stepsize_orbits.choose_steps(
             spec.model, spec.x0, spec.t_end, tolerance, judge=judge, **common)
     else:

@@ -19,10 +19,11 @@ own map value at the pilot's end, and searches its own step:
    :class:`Judge`): an orbit whose map value at the previous, larger step
    agrees with the value at this step — |u − u'| ≤ :data:`AGREEMENT` ·
    max(1, |u'|), u the value (FLI, MEGNO) or its log₁₀ (SALI, GALI) —
-   and whose energy error at that larger step was within the map's
-   ``energy_tol`` / :data:`~varint.stepsize.PILOT_MARGIN` (the bound a
-   run's own pilot keeps, so the map's accuracy verdict holds) takes the
-   larger step: halving it would not change what the map shows;
+   and whose energy error at that larger step was within the judge's
+   bound (:data:`BOUND_FACTOR` times the map's pilot tolerance, at most its
+   ``energy_tol`` / :data:`~varint.stepsize.PILOT_MARGIN`, the bound a run's
+   own pilot keeps) takes the larger step: halving it would not change
+   what the map shows;
 3. *the energy error*: an orbit whose error meets the map's pilot tolerance
    takes this step (the rule without a judge: the tolerance the map's one
    step meets);
@@ -79,7 +80,8 @@ from .state import initial_deviations
 from .stepsize import (FALLBACK_TAU, PILOT_MARGIN, PILOT_STEPS, PILOT_T, TAU_MAX, StepChoice,
                        _default_scheme, _divide, pilot_errors)
 
-__all__ = ["choose_steps", "run_grouped", "indicator_judge", "Judge", "PILOT_SHARE", "AGREEMENT"]
+__all__ = ["choose_steps", "run_grouped", "indicator_judge", "Judge", "PILOT_SHARE", "AGREEMENT",
+           "BOUND_FACTOR"]
 
 #: The per-orbit pilot runs to at most this share of t_end (and at most
 #: PILOT_T time units).
@@ -88,6 +90,11 @@ PILOT_SHARE = 0.1
 #: value at two steps (at the pilot's end) for the larger step to count
 #: as good enough (module docstring).
 AGREEMENT = 0.05
+#: The judge's bound on the pilot's energy error is this many times the
+#: map's pilot tolerance (module docstring: the map's ``energy_tol`` /
+#: PILOT_MARGIN alone let rare passages near a small core exceed the map's
+#: ``energy_tol`` later in the map).
+BOUND_FACTOR = 10.0
 #: Factor by which n grows after a non-finite pilot error.
 BLOWUP_DROP = 16
 
@@ -111,9 +118,7 @@ class Judge:
         :meth:`agrees`).
     bound : float
         Largest relative energy error over the pilot a step chosen by the
-        indicator may have: the map's ``energy_tol`` over
-        :data:`~varint.stepsize.PILOT_MARGIN`, as a run's pilot bounds its
-        step, so the map's accuracy verdict still holds.
+        indicator may have (:func:`indicator_judge`).
     """
 
     value: Callable
@@ -137,15 +142,18 @@ class Judge:
                 "energy_bound": self.bound}
 
 
-def indicator_judge(indicator, model, options, energy_tol):
+def indicator_judge(indicator, model, options, tolerance, energy_tol):
     """The :class:`Judge` of a map of ``indicator`` (configured
-    ``options``) whose accuracy verdict is ``energy_tol``."""
+    ``options``) whose pilot tolerance is ``tolerance`` and whose accuracy
+    verdict is ``energy_tol``: its bound is :data:`BOUND_FACTOR` times the
+    tolerance, at most ``energy_tol`` / :data:`~varint.stepsize.PILOT_MARGIN`."""
 
     def value(rows, t):
         return indicator.scalar(indicator.read(rows, model, t, options), model, options)
 
     return Judge(value=value, name=indicator.name, log_scale=bool(indicator.log_scale),
-                 agreement=AGREEMENT, bound=float(energy_tol) / PILOT_MARGIN)
+                 agreement=AGREEMENT,
+                 bound=min(BOUND_FACTOR * float(tolerance), float(energy_tol) / PILOT_MARGIN))
 
 
 def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k=0,
