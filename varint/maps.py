@@ -337,7 +337,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         indicator's own ``map_tolerance``), and the result records the
         choice (``provenance.tau_choice``); one iteration for a map model.
         ``"orbit"``: each orbit its own step, from its own pilot to the same
-        tolerance (:mod:`varint.stepsize_orbits`); the steps divide one unit
+        tolerance or, judged by the map's indicator, a larger step whose
+        value agrees with a smaller one's (:mod:`varint.stepsize_orbits`);
+        the steps divide one unit
         (``provenance.tau``), so the check times stay common, and
         ``provenance.tau_choice["divisions"]`` gives each orbit's divisor n
         of it (τ = tau / n).
