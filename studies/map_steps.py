@@ -1,7 +1,7 @@
 """Steps that follow the orbit in chaos maps: where the time of a map with
 automatic steps goes, what step each orbit needs, and what a step per orbit
-(``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`) gains
-against the map's one step (its pilot's 90 % quantile orbit) and against
+(``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`: the energy
+error or the map's own indicator judges each orbit's step) gains against the map's one step (its pilot's 90 % quantile orbit) and against
 heyoka's batch mode (issue 27 item 4a, issue 29's map target).
 
 Maps (FLI, one thread):
@@ -46,7 +46,11 @@ Parts (``--part``):
     reference does. Each varint contender against the cheapest heyoka
     tolerance whose agreement reaches its own (ratio = heyoka seconds /
     varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
-    (issue 27), the CR3BP map ≥ 3× (issue 29).
+    (issue 27), the CR3BP map ≥ 3× (issue 29). Each varint row also keeps
+    its steps, the pilot's steps, the run's microseconds per orbit and step
+    (``us_per_step``: the three-body model runs the generic part stepper,
+    the cored potential a generated SIMD stepper) and, for ``tau='orbit'``,
+    how many orbits the indicator's verdict gave their step (``judged``).
 ``fixed``
     How cheap a map can be that still classifies as the reference does,
     whatever rule chooses its step: fixed steps τ = 1, 1/2, 1/4 of SBAB2
