@@ -30,9 +30,8 @@ own map value at the pilot's end, and searches its own step:
 4. otherwise it runs its pilot again at n' > n: the step the scheme's
    order p predicts meets the tolerance (e ∝ τ^p: τ' = τ (tol / e)^(1/p),
    n' = ⌈U / τ'⌉, at least n + 1, a factor 16 down for a non-finite
-   error), but with a judge at most 2n while the error is within the
-   judge's bound (each factor 2 of the step gets its verdict), and the
-   step predicted to meet that bound while it is not. An orbit whose error
+   error), but with a judge at most 2n once the error is within the
+   judge's bound (each factor 2 of the step gets its verdict). An orbit whose error
    does not shrink with the step (it runs into a singularity, or escapes)
    takes the step nearest :data:`~varint.stepsize.FALLBACK_TAU`, as a
    map's pilot does, and the map warns once with their number.
@@ -239,10 +238,10 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
         nxt = _next_divisor(n[missed], errors[missed], tolerance, sch.order)
         if judge is not None:
             # Within the judge's bound, at most half the step: every factor
-            # 2 gets its verdict; above it, the step the order predicts
-            # meets the bound (the indicator cannot choose a step there).
-            nxt = np.where(errors[missed] <= judge.bound, np.minimum(nxt, 2 * n[missed]),
-                           _next_divisor(n[missed], errors[missed], judge.bound, sch.order))
+            # 2 gets its verdict. Above it the search goes on as without a
+            # judge (a large error, e.g. at a step too large for a passage
+            # near a singularity, need not follow the order's law).
+            nxt = np.where(errors[missed] <= judge.bound, np.minimum(nxt, 2 * n[missed]), nxt)
         stuck = (nxt > n_most) | _not_shrinking(tried_n[missed], tried_e[missed], n[missed],
                                                  errors[missed])
         prev_n[missed], prev_v[missed], prev_e[missed] = n[missed], values[missed], errors[missed]
