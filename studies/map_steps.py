@@ -57,6 +57,21 @@ Parts (``--part``):
     (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
     interleaved as in ``race``.
 
+Where the time of the three-body map goes (full race, load 14–17,
+``map_steps_race.json``): heyoka does the whole map in 1.6 s; varint's
+defaults take 1.64 M orbit steps in 20 s, ~12 µs each (the model runs the
+generic part stepper of :mod:`varint.methods.parts`: a rotating-frame
+drift and the kick, arrays in memory, no generated SIMD stepper), against
+~0.6 µs per step of SRKN14a on the cored potential's generated stepper;
+``tau='orbit'`` halves the steps (0.83 M) and spends ~20 % of its time in
+the pilot. Even τ = 1 for every orbit (0.145 M steps) would take ~1.8 s at
+that cost: no choice of steps reaches issue 29's 3× (the map in ~0.5 s)
+while a step costs that much. What would close the gap: a generated
+stepper for the integrable-part + V split (the rotation by Ω τ is the same
+linear map every step), at the cost per step of a potential's (~0.6 µs:
+~1 s for the defaults' steps, ~0.5 s for ``tau='orbit'``'s), and a pilot
+that costs less than its ~20 %.
+
 Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
 [--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
 ``--quick``).
