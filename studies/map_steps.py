@@ -1,8 +1,9 @@
 """Steps that follow the orbit in chaos maps: where the time of a map with
 automatic steps goes, what step each orbit needs, and what a step per orbit
 (``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`: the energy
-error or the map's own indicator judges each orbit's step) gains against the map's one step (its pilot's 90 % quantile orbit) and against
-heyoka's batch mode (issue 27 item 4a, issue 29's map target).
+error or the map's own indicator judges each orbit's step) gains against
+the map's one step (its pilot's 90 % quantile orbit) and against heyoka's
+batch mode (issue 27 item 4a, issue 29's map target).
 
 Maps (FLI, one thread):
 

@@ -31,10 +31,10 @@ own map value at the pilot's end, and searches its own step:
    order p predicts meets the tolerance (e ∝ τ^p: τ' = τ (tol / e)^(1/p),
    n' = ⌈U / τ'⌉, at least n + 1, a factor 16 down for a non-finite
    error), but with a judge at most 2n once the error is within the
-   judge's bound (each factor 2 of the step gets its verdict). An orbit whose error
-   does not shrink with the step (it runs into a singularity, or escapes)
-   takes the step nearest :data:`~varint.stepsize.FALLBACK_TAU`, as a
-   map's pilot does, and the map warns once with their number.
+   judge's bound (each factor 2 of the step gets its verdict). An orbit
+   whose error does not shrink with the step (it runs into a singularity,
+   or escapes) takes the step nearest :data:`~varint.stepsize.FALLBACK_TAU`,
+   as a map's pilot does, and the map warns once with their number.
 
 The energy tolerance of a map is much stricter than what its classification
 needs for most orbits (FLI maps of ``studies/map_steps.py``: the largest
@@ -66,13 +66,14 @@ and its FLI at the pilot's end can stay within their tolerances while its
 FLI at t_end needs a smaller step, so this is not the default. The
 indicator's verdict chose the step of 113 and 7 of those orbits; the rest
 met the energy tolerance first (from an error above the judge's bound the
-search jumps to the step the order predicts meets the tolerance). Letting the judge's bound also steer the search (the step predicted
-to meet it, then halving) took 11.0 M instead of 15.3 M steps on the cored
-map at 99.3 % but sent one orbit through the core to the fallback step
-(energy error 7e-3), and 0.62 M instead of 0.83 M on the three-body map at
-97.9 %; with the bound at energy_tol / 100, a 5 % agreement at a pilot
-twice as long still misclassified 10 of the 290 (measured while developing
-this rule, not stored).
+search jumps to the step the order predicts meets the tolerance). Letting
+the judge's bound also steer the search (the step predicted to meet it,
+then halving) took 11.0 M instead of 15.3 M steps on the cored map at
+99.3 % but sent one orbit through the core to the fallback step (energy
+error 7e-3), and 0.62 M instead of 0.83 M on the three-body map at 97.9 %;
+with the bound at energy_tol / 100, a 5 % agreement at a pilot twice as
+long still misclassified 10 of the 290 (measured while developing this
+rule, not stored).
 """
 
 from __future__ import annotations
