@@ -1,8 +1,9 @@
 """Steps that follow the orbit in chaos maps: where the time of a map with
 automatic steps goes, what step each orbit needs, and what a step per orbit
-(``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`) gains
-against the map's one step (its pilot's 90 % quantile orbit) and against
-heyoka's batch mode (issue 27 item 4a, issue 29's map target).
+(``chaos_map(..., tau="orbit")``, :mod:`varint.stepsize_orbits`: the energy
+error or the map's own indicator judges each orbit's step) gains against
+the map's one step (its pilot's 90 % quantile orbit) and against heyoka's
+batch mode (issue 27 item 4a, issue 29's map target).
 
 Maps (FLI, one thread):
 
@@ -46,12 +47,31 @@ Parts (``--part``):
     reference does. Each varint contender against the cheapest heyoka
     tolerance whose agreement reaches its own (ratio = heyoka seconds /
     varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
-    (issue 27), the CR3BP map ≥ 3× (issue 29).
+    (issue 27), the CR3BP map ≥ 3× (issue 29). Each varint row also keeps
+    its steps, the pilot's steps, the run's microseconds per orbit and step
+    (``us_per_step``: the three-body model runs the generic part stepper,
+    the cored potential a generated SIMD stepper) and, for ``tau='orbit'``,
+    how many orbits the indicator's verdict gave their step (``judged``).
 ``fixed``
     How cheap a map can be that still classifies as the reference does,
     whatever rule chooses its step: fixed steps τ = 1, 1/2, 1/4 of SBAB2
     (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
     interleaved as in ``race``.
+
+Where the time of the three-body map goes (full race, load 14–17,
+``map_steps_race.json``): heyoka does the whole map in 1.6 s; varint's
+defaults take 1.64 M orbit steps in 20 s, ~12 µs each (the model runs the
+generic part stepper of :mod:`varint.methods.parts`: a rotating-frame
+drift and the kick, arrays in memory, no generated SIMD stepper), against
+~0.6 µs per step of SRKN14a on the cored potential's generated stepper;
+``tau='orbit'`` halves the steps (0.83 M) and spends ~20 % of its time in
+the pilot. Even τ = 1 for every orbit (0.145 M steps) would take ~1.8 s at
+that cost: no choice of steps reaches issue 29's 3× (the map in ~0.5 s)
+while a step costs that much. What would close the gap: a generated
+stepper for the integrable-part + V split (the rotation by Ω τ is the same
+linear map every step), at the cost per step of a potential's (~0.6 µs:
+~1 s for the defaults' steps, ~0.5 s for ``tau='orbit'``'s), and a pilot
+that costs less than its ~20 %.
 
 Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
 [--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
@@ -261,9 +281,17 @@ def race_case(name, quick, repeats):
                "agreement": agreement(INDICATOR, values, truth, threshold),
                "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
         if hasattr(out, "provenance"):
+            choice = out.provenance.tau_choice
             row["steps"] = out.provenance.counts["steps"]
+            row["pilot_steps"] = choice["counts"]["steps"]
             row["timing"] = out.provenance.timing
+            # The run's seconds per orbit and step: what a step costs in
+            # this model (the race's seconds are the pilot's and the run's).
+            row["us_per_step"] = 1e6 * out.provenance.timing["run"] / row["steps"]
             row["max_energy_error"] = float(np.nanmax(out.accuracy.energy_error))
+            if "judged" in choice:
+                row["judged"] = len(choice["judged"])
+                row["rounds"] = choice["rounds"]
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
@@ -351,7 +379,8 @@ def main(argv=None):
                       f"{row['agreement']:.4f}", flush=True)
             print(f"  {s}", flush=True)
         save_csv(args.out, f"{name}_race", rows,
-                 ["map", "contender", "seconds", "agreement", "steps", "orbits", "t_end"])
+                 ["map", "contender", "seconds", "agreement", "steps", "pilot_steps",
+                  "us_per_step", "orbits", "t_end"])
         result["race"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     if "fixed" in parts:
         start = load()

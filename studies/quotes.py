@@ -296,17 +296,18 @@ def _map_choice_text(R):
 
 @quote("map_steps_orbit")
 def _map_steps_orbit(R):
-    """tau="orbit" against the defaults (studies/map_steps.py): steps,
+    """tau="orbit" against the defaults (studies/map_steps.py, race): steps,
     seconds and agreement on each map of the full run."""
-    profile = {r["map"]: r for r in R.json("map_steps_profile")["profile"]["rows"]}
     race = R.json("map_steps_race")["race"]
+    steps = {(r["map"], r["contender"]): r["steps"] for r in race["rows"] if "steps" in r}
+    orbits = {r["map"]: r["orbits"] for r in race["rows"]}
     parts = []
     for name, what in (("core", "the small-core map"), ("cr3bp", "the restricted three-body map")):
         s = race["summary"][name]
         ours, per = s["varint defaults"], s["varint, tau='orbit'"]
+        gain = steps[name, "varint defaults"] / steps[name, "varint, tau='orbit'"]
         parts.append(
-            f"on {what} ({profile[name]['orbits']} orbits) "
-            f"{profile[name]['per_orbit']['step_gain']:.1f} times fewer steps and a "
+            f"on {what} ({orbits[name]} orbits) {gain:.1f} times fewer steps and a "
             f"{ours['varint_seconds'] / per['varint_seconds']:.1f} times shorter map, classifying "
             f"{per['varint_agreement']:.1%} of the orbits as a tight reference does against the "
             f"defaults' {ours['varint_agreement']:.1%}")

@@ -4,13 +4,16 @@ the map's common check times; the values are those of the same orbits run
 at that step, bitwise across chunking, threads and resume; orbits that pass
 a near-singular centre get smaller steps than those that do not."""
 
+import dataclasses
+
 import numba
 import numpy as np
 import pytest
 import sympy as sp
 
 import varint
-from varint import stepsize_orbits
+from varint import accuracy, maps, schemes, state, stepsize, stepsize_orbits
+from varint.indicators import resolve
 from varint.models import from_potential
 from varint.models.maps import StandardMap
 
@@ -43,21 +46,39 @@ def test_orbits_through_the_core_take_smaller_steps(cored):
     assert choice["rule"] == "orbit" and r.provenance.tau == choice["unit"]
     assert n[0] >= 4 * n[2]
     assert np.all(r.t_stop == r.t[-1])
-    assert choice["fallback"] == [] and choice["tolerance"] == varint.maps.pilot_tolerance(
-        varint.indicators.resolve("fli")[0])
+    assert choice["fallback"] == [] and choice["tolerance"] == maps.pilot_tolerance(
+        resolve("fli")[0])
+
+
+@pytest.fixture(scope="module")
+def henon_heiles():
+    """Hénon–Heiles orbits whose FLI needs a larger step than the energy
+    tolerance asks for (the judge chooses some of their steps)."""
+    model = varint.models.HenonHeiles()
+    return model, varint.section_grid(model, 0.125, np.linspace(-0.4, 0.6, 6),
+                                      np.linspace(-0.3, 0.3, 5)).states[:6]
 
 
 @pytest.mark.filterwarnings("ignore::varint.accuracy.AccuracyWarning")
-def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(cored):
+@pytest.mark.parametrize("orbits", ["cored", "henon_heiles"])
+def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(orbits, request):
     """Every orbit's FLI equals, bit for bit, that of the same orbit in a
-    map run at the fixed step U/n; and a run of the orbit at that step
-    keeps the energy error within the pilot's tolerance over the pilot's
-    horizon (at the pilot's 50 checks). (The fixed-step maps at the larger
-    orbits' steps are not accurate for the orbit through the core: that is
-    the point.)"""
-    model, X = cored
+    map run at the fixed step U/n. An orbit whose step the energy error
+    chose keeps it within the pilot's tolerance over the pilot's horizon (at
+    the pilot's 50 checks); one whose step its indicator chose keeps it
+    within the judge's bound, and its FLI at the pilot's end, from maps run
+    at its step and at the smaller step it was compared with, agrees within
+    the judge's agreement. (The fixed-step maps at the larger orbits' steps
+    are not accurate for the orbit through the core: that is the point.)"""
+    model, X = request.getfixturevalue(orbits)
     per = varint.chaos_map(model, X, "fli", t_end=50.0, tau="orbit", threshold=None)
     choice = per.provenance.tau_choice
+    judge = choice["judge"]
+    assert (choice["judged"] != []) == (orbits == "henon_heiles")
+    assert judge == {"indicator": "fli", "agreement": stepsize_orbits.AGREEMENT,
+                     "energy_bound": min(stepsize_orbits.BOUND_FACTOR * choice["tolerance"],
+                                         accuracy.DEFAULT_ENERGY_TOL / 100)}
+    compared = dict(zip(choice["judged"], choice["compared"], strict=True))
     for m, n in enumerate(choice["divisions"]):
         tau = choice["unit"] / n
         fixed = varint.chaos_map(model, X, "fli", t_end=50.0, tau=tau, threshold=None,
@@ -66,7 +87,70 @@ def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(cored):
         checks = min(50, round(choice["pilot_t"] / tau))
         run = varint.run(model, X[m], "fli", choice["pilot_t"], tau=tau,
                          scheme=choice["scheme"], t_out=checks)
-        assert np.max(run.energy_error) <= choice["tolerance"]
+        if m not in compared:
+            assert np.max(run.energy_error) <= choice["tolerance"]
+            continue
+        assert compared[m] > n and np.max(run.energy_error) <= judge["energy_bound"]
+        at = [varint.chaos_map(model, X, "fli", t_end=choice["pilot_t"], threshold=None,
+                               tau=choice["unit"] / d, scheme=choice["scheme"]).values[m]
+              for d in (n, compared[m])]
+        assert abs(at[0] - at[1]) <= judge["agreement"] * max(1.0, abs(at[1]))
+
+
+def test_the_indicator_takes_larger_steps_than_the_energy_error():
+    """On Hénon–Heiles orbits the energy tolerance asks for steps the FLI
+    does not need: with the judge every orbit's step is at least as large
+    as without it, and some are larger (the orbits it judged)."""
+    model = varint.models.HenonHeiles()
+    X = varint.section_grid(model, 0.125, np.linspace(-0.4, 0.6, 6),
+                            np.linspace(-0.3, 0.3, 5)).states
+    ind, fixed = resolve("fli")
+    options = ind.configure(model, dict(fixed))
+    common = {"scheme": maps.MAP_SCHEME, "k": 1, "renorm": ind.renorm,
+              "accumulator": ind.accumulator_for(options)}
+    tol = maps.pilot_tolerance(ind)
+    _, by_energy, plain = stepsize_orbits.choose_steps(model, X, 50.0, tol, **common)
+    judge = stepsize_orbits.indicator_judge(ind, model, options, tol, 1e-3)
+    _, by_value, judged = stepsize_orbits.choose_steps(model, X, 50.0, tol, judge=judge,
+                                                       **common)
+    assert "judge" not in plain
+    assert np.all(by_value <= by_energy)
+    assert np.flatnonzero(by_value < by_energy).tolist() == judged["judged"] != []
+
+
+def test_the_pilot_reads_the_value_the_map_shows():
+    """The pilot's value at its end is, bit for bit, the map's value of the
+    same orbits (same vectors, step and horizon)."""
+    model = varint.models.HenonHeiles()
+    X = varint.section_grid(model, 0.125, np.linspace(-0.3, 0.5, 3),
+                            np.linspace(-0.2, 0.2, 2)).states
+    for name in ("fli", "megno", "sali"):
+        ind, fixed = resolve(name)
+        options = ind.configure(model, dict(fixed))
+        k = ind.vectors(model, options, None)
+        judge = stepsize_orbits.indicator_judge(ind, model, options, 1e-7, 1e-3)
+        W0 = state.initial_deviations(model.dim, k, len(X), 0, np.arange(len(X)))
+        _, values = stepsize.pilot_errors(
+            model, X, 0.25, 20.0, schemes.get_scheme(maps.MAP_SCHEME),
+            accuracy.Reference(model, X), {},
+            (W0, ind.renorm, ind.accumulator_for(options), False), value=judge.value)
+        ref = varint.chaos_map(model, X, name, t_end=20.0, tau=0.25, threshold=None,
+                               scheme=maps.MAP_SCHEME)
+        assert np.array_equal(values, ref.values), name
+
+
+def test_the_judge_compares_values_or_their_logarithms():
+    """Relative to max(1, |u|) of the smaller step's value; log₁₀ for a
+    log-scale indicator; NaN agrees with nothing."""
+    judge = stepsize_orbits.Judge(value=None, name="x", log_scale=False, agreement=0.05,
+                                  bound=1e-5)
+    coarse = np.array([10.4, 10.6, 0.03, 0.07, np.nan, 1.0])
+    fine = np.array([10.0, 10.0, 0.0, 0.0, 1.0, np.nan])
+    assert judge.agrees(coarse, fine).tolist() == [True, False, True, False, False, False]
+    logs = dataclasses.replace(judge, log_scale=True)
+    assert logs.agrees(np.array([1e-10, 1e-10, 0.5]), np.array([1e-10 * 10**0.45, 1e-11,
+                                                                0.5 * 10**0.04])).tolist() \
+        == [True, False, True]
 
 
 def test_steps_per_orbit_are_bitwise_across_chunking_threads_and_resume(tmp_path):

@@ -337,7 +337,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         indicator's own ``map_tolerance``), and the result records the
         choice (``provenance.tau_choice``); one iteration for a map model.
         ``"orbit"``: each orbit its own step, from its own pilot to the same
-        tolerance (:mod:`varint.stepsize_orbits`); the steps divide one unit
+        tolerance or, judged by the map's indicator, a larger step whose
+        value agrees with a smaller one's (:mod:`varint.stepsize_orbits`);
+        the steps divide one unit
         (``provenance.tau``), so the check times stay common, and
         ``provenance.tau_choice["divisions"]`` gives each orbit's divisor n
         of it (τ = tau / n).
@@ -550,8 +552,10 @@ def _with_pilot_step(spec, k, per_orbit=False):
     tolerance = pilot_tolerance(spec.indicator)
     divisions = None
     if per_orbit:
+        judge = stepsize_orbits.indicator_judge(spec.indicator, spec.model, spec.options,
+                                                tolerance, spec.energy_tol)
         tau, divisions, tau_choice = stepsize_orbits.choose_steps(
-            spec.model, spec.x0, spec.t_end, tolerance, **common)
+            spec.model, spec.x0, spec.t_end, tolerance, judge=judge, **common)
     else:
         tau, tau_choice = stepsize.choose_step(spec.model, spec.x0, spec.t_end, tolerance,
                                                method=spec.method, quantile=MAP_QUANTILE,

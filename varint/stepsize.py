@@ -51,6 +51,7 @@ of τ = 0.05 with the pilot (3–4 pilot runs, 3300–6200 gradients) included
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -62,7 +63,7 @@ from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
 from .schemes import DEFAULT_SCHEME, get_scheme
-from .state import RunState, initial_deviations
+from .state import Rows, RunState, initial_deviations
 
 __all__ = ["choose_step", "pilot_errors", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
 
@@ -286,14 +287,20 @@ def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
     return float(np.quantile(worst, quantile, method="higher"))
 
 
-def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup):
+def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value=None):
     """Per orbit, the largest relative error of the conserved quantities
     at :data:`PILOT_CHECKS` times along a pilot with step ``tau`` to
     ``t_pilot`` (inf if the orbit became non-finite; an escaped orbit counts
     up to its escape). Each orbit is integrated on its own, so its error
     does not depend on the other orbits of ``X``. ``counts`` accumulates the
     pilot's work; ``setup`` is ``(W0, renorm, accumulator, compensated)`` (see
-    :func:`choose_step`)."""
+    :func:`choose_step`).
+
+    With ``value`` (``value(rows, t) -> ndarray (M,)``, e.g. a map's
+    indicator value from a :class:`~varint.state.Rows`) it returns
+    ``(errors, values)``: also each orbit's ``value`` at the pilot's end
+    (NaN for an orbit that stopped before it), read as a run reads its
+    outputs."""
     W0, renorm, accumulator, compensated = setup
     n = max(1, int(round(t_pilot / tau)))
     checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
@@ -317,8 +324,21 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup):
         taken = np.isfinite(snaps.x).all(axis=2)
         worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
         worst[(state.status > STATUS_OK) & (state.status != Status.ESCAPED)] = np.inf
+        # The copy at the last check (the pilot's end), as a run reads it.
+        rows = dataclasses.replace(snaps, steps=snaps.steps[-1:], x=snaps.x[-1:],
+                                   W=snaps.W[-1:], acc_m=snaps.acc_m[-1:],
+                                   acc_e=snaps.acc_e[-1:],
+                                   extra={key: v[-1:] for key, v in snaps.extra.items()}
+                                   ).rows(Renorm.parse(renorm)) if value is not None else None
     else:
         worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
-    for key, value in state.counts.items():
-        counts[key] = counts.get(key, 0) + int(value)
-    return worst
+        rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
+    for key, number in state.counts.items():
+        counts[key] = counts.get(key, 0) + int(number)
+    if value is None:
+        return worst
+    with np.errstate(all="ignore"):
+        values = np.asarray(value(rows, rows.step * tau), dtype=float)
+    # An orbit that stopped before the end has no value there.
+    values[(state.status != STATUS_OK) | (rows.step != n)] = np.nan
+    return worst, values
