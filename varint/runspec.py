@@ -163,6 +163,14 @@ class RunSpec:
                 "options": {**self.options, **self.run_options},
                 "versions": package_versions(), "code": identity.source_digest()}
 
+    def one_state(self, what="x0"):
+        """The state of a specification of one orbit (2N,); a batch is
+        refused (for workflows of one orbit: departure, scheme selection)."""
+        if not self.single:
+            raise ValueError(f"{what} must be one state of shape ({self.model.dim},), got shape "
+                             f"{self.x0.shape}")
+        return self.x0[0]
+
     def without_orbits(self):
         """This specification, τ and its steps fixed, without its states and
         their reference: what a chaos map sends to every chunk, whose run
