@@ -6,10 +6,11 @@ specification (:func:`varint.runspec.specify`, which also fixes τ for all),
 and runs each realisation (one seed of the disorder each) as the
 :class:`~varint.run.Run` of its own specification, in this process or as
 tasks on a Dask cluster (as :func:`varint.chaos_map` runs its chunks), and
-stacks the realisations' series. What the lattice laws are stated for — ⟨log₁₀ m₂⟩(t), ⟨log₁₀ Λ⟩(t)
-averaged over disorder (Flach, Krimer & Skokos 2009; Senyange, Many Manda &
-Skokos 2018) — is :meth:`EnsembleResult.log_mean`, and the exponent of a
-power law with its spread over realisations :meth:`EnsembleResult.exponent`.
+stacks the realisations' series. What the lattice laws are stated for —
+⟨log₁₀ m₂⟩(t), ⟨log₁₀ Λ⟩(t) averaged over disorder (Flach, Krimer & Skokos
+2009; Senyange, Many Manda & Skokos 2018) — is
+:meth:`EnsembleResult.log_mean`, and the exponent of a power law with its
+spread over realisations :meth:`EnsembleResult.exponent`.
 
 Deterministic by construction: realisation s is the model built for seed s,
 its initial state, and deviation vectors drawn from ``default_rng([s, 0])``;
@@ -20,8 +21,8 @@ Resuming: with ``checkpoint=DIR`` every finished realisation is written to
 ``DIR/seed_<s>.npz`` (:class:`varint.store.Store`: the result with the key
 and parameters of its run specification,
 :meth:`varint.runspec.RunSpec.parameters`) as soon as it arrives, and a
-realisation in progress keeps a run checkpoint ``DIR/seed_<s>.ckpt`` (:func:`varint.run`'s,
-bitwise resumable). The same call again loads the finished realisations,
+realisation in progress keeps a run checkpoint ``DIR/seed_<s>.ckpt``
+(:func:`varint.run`'s, bitwise resumable). The same call again loads the finished realisations,
 resumes the one in progress and runs the rest; a stored realisation whose
 parameters differ from this call's is refused with a
 :class:`~varint.CheckpointError` naming them, and one that is damaged or
