@@ -9,6 +9,7 @@ import pytest
 
 import varint
 from varint.departure import departure, departure_time
+from varint.run import Run
 
 LN10 = math.log(10.0)
 
@@ -81,6 +82,19 @@ def test_input_is_checked(r1):
         departure(model, x0, "tdhcc", 0.05, 100.0, reference={"scheme": "ABA864"})
     with pytest.raises(ValueError, match="threshold"):
         departure(model, x0, "tdhcc", 0.05, 100.0, threshold=0.0)
+
+
+def test_every_run_is_checked_before_any_runs(r1, monkeypatch):
+    # An option the reference's method does not take, or a GALI order out
+    # of range, is refused before the method under test has run.
+    model, x0 = r1
+    ran = []
+    monkeypatch.setattr(Run, "execute", lambda self: ran.append(self.method))
+    with pytest.raises(TypeError, match="rtol"):
+        departure(model, x0, "tdhcc", 0.05, 100.0, reference={"method": "tm", "rtol": 1e-9})
+    with pytest.raises(ValueError, match="GALI order"):
+        departure(model, x0, "tdhcc", 0.05, 100.0, gali_orders=(2, 9))
+    assert ran == []
 
 
 def test_a_chaotic_reference_is_flagged(c1):

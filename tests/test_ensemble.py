@@ -2,6 +2,8 @@
 of their order, kept and resumed from a checkpoint directory, and the
 averaged exponent reproduces the law of regular motion, Λ ∝ t^{−1}."""
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,8 @@ from varint.checkpoint import CheckpointError
 from varint.ensemble import ensemble
 from varint.models import DDNLS, DisorderedKG
 
+#: The module (varint.ensemble is the function).
+ENSEMBLE = importlib.import_module("varint.ensemble")
 PARAMS = {"shape": 12, "W": 4.0, "beta": 1.0}
 T_OUT = [1.0, 2.0, 4.0]
 
@@ -46,6 +50,48 @@ def test_finished_realisations_are_kept_and_reused(tmp_path):
     with pytest.raises(CheckpointError, match="other parameters"):
         ensemble(DDNLS, [1], block, "dvd", 4.0, 0.1, params={**PARAMS, "beta": 2.0},
                  scheme="s9ABC6", t_out=T_OUT, checkpoint=tmp_path, progress=False)
+
+
+def test_stored_realisations_are_checked_without_building_their_runs(tmp_path, monkeypatch):
+    # Resuming reads each stored realisation's parameters off its run
+    # specification: a run (and its propagator) is built only for the
+    # realisations that still have to run.
+    small([1, 2], checkpoint=tmp_path)
+    built = []
+    original = ENSEMBLE.Run
+
+    def counting(spec, *args, **kwargs):
+        built.append(spec.seed)
+        return original(spec, *args, **kwargs)
+
+    monkeypatch.setattr(ENSEMBLE, "Run", counting)
+    again = small([1, 2, 4], checkpoint=tmp_path)
+    assert built == [4] and again.provenance.options["resumed"] == 2
+
+
+def test_an_automatic_step_is_chosen_once_and_each_realisation_is_its_run(monkeypatch):
+    # τ left open: the first realisation's pilot chooses it for all (one
+    # pilot, one set of output times), and realisation s is then the run of
+    # its model at that τ, bit for bit.
+    pilots = []
+    original = varint.stepsize.choose_step
+
+    def counting(*args, **kwargs):
+        pilots.append(args[0])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(varint.stepsize, "choose_step", counting)
+    e = ensemble(DDNLS, [3, 5], block, "dvd", 4.0, params=PARAMS, scheme="s9ABC6",
+                 t_out=T_OUT, progress=False)
+    assert len(pilots) == 1 and pilots[0].seed == 3
+    tau = e.provenance.tau
+    assert e.provenance.tau_choice["rule"] != "given" and 0 < tau <= T_OUT[0]
+    assert np.allclose(e.t, T_OUT)
+    model = DDNLS(**PARAMS, seed=5)
+    r = varint.run(model, block(model, 5), "dvd", 4.0, tau, scheme="s9ABC6", t_out=T_OUT,
+                   seed=5)
+    for name in ("x1", "m2", "dvd_m2"):
+        assert np.array_equal(e[name][1], r[name]), name
 
 
 def test_regular_motion_gives_lambda_proportional_to_inverse_time():

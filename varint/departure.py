@@ -24,9 +24,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from .api import gali, lyapunov_spectrum
 from .methods import METHODS
 from .models.base import Model
+from .run import Run
+from .runspec import specify
 from .state import output_steps
 
 __all__ = ["Departure", "departure", "departure_time", "DEFAULT_REFERENCE"]
@@ -193,13 +194,6 @@ def departure(model: Model, x0: ArrayLike, method: str, tau: float, t_end: float
     >>> d.t_x1, d.level, d.t_gali                                         # doctest: +SKIP
     (6.4e3, 9.5e-4, {2: 5.7e3, 3: 3.2e3, 4: 3.2e3})
     """
-    model = check.model(model)
-    states, single = check.states(model, x0)
-    if not single:
-        raise ValueError(f"x0 must be one state of shape ({model.dim},), got shape "
-                         f"{np.shape(x0)}")
-    x0 = states[0]
-    check.kernels(model, states)
     t_end, tau = check.horizon(t_end, tau)
     threshold = check.positive_float(threshold, "threshold")
     gali_threshold = check.positive_float(gali_threshold, "gali_threshold")
@@ -212,23 +206,32 @@ def departure(model: Model, x0: ArrayLike, method: str, tau: float, t_end: float
     if not isinstance(ref.get("method"), str):
         raise ValueError(f"reference must be a dict with a 'method' name, got {reference!r}")
     ref_method = check.choice(ref.pop("method"), METHODS, "reference method")
-    method = check.choice(method, METHODS, "method")
-    if gali_orders is not None and (isinstance(gali_orders, (str, bytes))
-                                    or not hasattr(gali_orders, "__iter__")):
-        raise ValueError(f"gali_orders must be a sequence of GALI orders in 2..{model.dim}, "
-                         f"got {gali_orders!r}")
-    orders = tuple(range(2, model.dim + 1)) if gali_orders is None else tuple(gali_orders)
-    for k in orders:
-        check.n_vectors(k, model.dim, "GALI order", minimum=2)
     t_out = output_steps(t_end, tau, per_decade=per_decade) * tau
 
-    common = dict(tau=tau, seed=seed, t_out=t_out, progress=progress)
-    runs: dict[str, Any] = {  # Lyapunov and GALI results side by side
-        "x1": lyapunov_spectrum(model, x0, t_end, method=method, scheme=scheme, n_exponents=1,
-                                **common, **method_options),
-        "x1_reference": lyapunov_spectrum(model, x0, t_end, method=ref_method, n_exponents=1,
-                                          **common, **ref),
-    }
+    def spec(indicator, method, **options):
+        return specify(model, x0, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                       **options)
+
+    # Every run specified: every input checked once, as every run's are.
+    specs = {"x1": spec("lyapunov", method, scheme=scheme, n_exponents=1, **method_options),
+             "x1_reference": spec("lyapunov", ref_method, n_exponents=1, **ref)}
+    specs["x1"].one_state()
+    dim = specs["x1"].model.dim
+    if gali_orders is not None and (isinstance(gali_orders, (str, bytes))
+                                    or not hasattr(gali_orders, "__iter__")):
+        raise ValueError(f"gali_orders must be a sequence of GALI orders in 2..{dim}, "
+                         f"got {gali_orders!r}")
+    orders = tuple(range(2, dim + 1)) if gali_orders is None else tuple(gali_orders)
+    for k in orders:
+        check.n_vectors(k, dim, "GALI order", minimum=2)
+    if orders:
+        specs["gali"] = spec("gali", method, k=orders, scheme=scheme, **method_options)
+        specs["gali_reference"] = spec("gali", ref_method, k=orders, **ref)
+    method = specs["x1"].method
+    # Every run built (the methods check their options) before any runs;
+    # Lyapunov and GALI results side by side.
+    jobs = {name: Run(s, progress=progress) for name, s in specs.items()}
+    runs: dict[str, Any] = {name: job.execute() for name, job in jobs.items()}
     t = runs["x1"].t
     x1, x1_ref = runs["x1"].exponents[:, 0], runs["x1_reference"].exponents[:, 0]
     t_x1 = departure_time(t, (x1 - x1_ref) * t, threshold)
@@ -246,10 +249,6 @@ def departure(model: Model, x0: ArrayLike, method: str, tau: float, t_end: float
 
     g, g_ref, t_gali = {}, {}, {}
     if orders:
-        runs["gali"] = gali(model, x0, t_end, k=orders, method=method, scheme=scheme, **common,
-                            **method_options)
-        runs["gali_reference"] = gali(model, x0, t_end, k=orders, method=ref_method, **common,
-                                      **ref)
         tiny = np.finfo(float).tiny
         for k in runs["gali"].gali:
             g[k], g_ref[k] = runs["gali"].gali[k], runs["gali_reference"].gali[k]

@@ -1,13 +1,16 @@
 """Ensembles over disorder: one indicator for many realisations of a
 disordered lattice, and its averages.
 
-:func:`ensemble` runs :func:`varint.run` once per realisation (one seed of
-the disorder each), in this process or as tasks on a Dask cluster (as
-:func:`varint.chaos_map` runs its chunks), and stacks the realisations'
-series. What the lattice laws are stated for — ⟨log₁₀ m₂⟩(t), ⟨log₁₀ Λ⟩(t)
-averaged over disorder (Flach, Krimer & Skokos 2009; Senyange, Many Manda &
-Skokos 2018) — is :meth:`EnsembleResult.log_mean`, and the exponent of a
-power law with its spread over realisations :meth:`EnsembleResult.exponent`.
+:func:`ensemble` checks its arguments once, on the first realisation's run
+specification (:func:`varint.runspec.specify`, which also fixes τ for all),
+and runs each realisation (one seed of the disorder each) as the
+:class:`~varint.run.Run` of its own specification, in this process or as
+tasks on a Dask cluster (as :func:`varint.chaos_map` runs its chunks), and
+stacks the realisations' series. What the lattice laws are stated for —
+⟨log₁₀ m₂⟩(t), ⟨log₁₀ Λ⟩(t) averaged over disorder (Flach, Krimer & Skokos
+2009; Senyange, Many Manda & Skokos 2018) — is
+:meth:`EnsembleResult.log_mean`, and the exponent of a power law with its
+spread over realisations :meth:`EnsembleResult.exponent`.
 
 Deterministic by construction: realisation s is the model built for seed s,
 its initial state, and deviation vectors drawn from ``default_rng([s, 0])``;
@@ -16,9 +19,10 @@ on resuming.
 
 Resuming: with ``checkpoint=DIR`` every finished realisation is written to
 ``DIR/seed_<s>.npz`` (:class:`varint.store.Store`: the result with the key
-and parameters of its run) as soon as it arrives, and a realisation in
-progress keeps a run checkpoint ``DIR/seed_<s>.ckpt`` (:func:`varint.run`'s,
-bitwise resumable). The same call again loads the finished realisations,
+and parameters of its run specification,
+:meth:`varint.runspec.RunSpec.parameters`) as soon as it arrives, and a
+realisation in progress keeps a run checkpoint ``DIR/seed_<s>.ckpt``
+(:func:`varint.run`'s, bitwise resumable). The same call again loads the finished realisations,
 resumes the one in progress and runs the rest; a stored realisation whose
 parameters differ from this call's is refused with a
 :class:`~varint.CheckpointError` naming them, and one that is damaged or
@@ -42,13 +46,14 @@ import numpy as np
 
 from . import _validate as check
 from . import identity
-from .checkpoint import CheckpointError, canonical
+from .checkpoint import CheckpointError, canonical, digest
 from .indicators import resolve
 from .accuracy import user_stacklevel
 from .fanout import (bar, client_label, fan_out, total_cpu, warn_failures, warn_interrupted,
                      worker_threads)
 from .results import Provenance, _Result, load_result, package_versions
-from .run import prepare
+from .run import Run
+from .runspec import described, specify
 from .store import Invalid, Store
 
 __all__ = ["ensemble", "EnsembleResult"]
@@ -167,9 +172,16 @@ class EnsembleResult(_Result):
                 "realisations": int(r), "window": (float(t[use][0]), float(t[use][-1]))}
 
 
+#: Options of the call that go to each realisation's :class:`~varint.run.Run`
+#: rather than into its specification.
+_RUN_OPTIONS = ("deviations", "checkpoint_interval")
+
+
 @dataclass
 class _Spec:
-    """What every realisation of one ensemble shares (sent to the workers)."""
+    """What every realisation of one ensemble shares (sent to the workers):
+    how to build its model and initial state from its seed, and the call's
+    arguments, τ fixed once for all (:meth:`fix_step`)."""
 
     factory: object
     params: dict | None
@@ -178,6 +190,8 @@ class _Spec:
     t_end: float
     tau: float | None
     options: dict
+    run_options: dict
+    tau_choice: dict | None = None
 
     def model(self, seed):
         if self.params is not None:
@@ -187,12 +201,41 @@ class _Spec:
     def initial(self, model, seed):
         return self.x0(model, seed) if callable(self.x0) else self.x0
 
-    def job(self, seed, checkpoint=None):
-        """The prepared run of realisation ``seed`` (:func:`varint.run.prepare`)."""
+    def specify(self, seed):
+        """The :class:`~varint.runspec.RunSpec` of realisation ``seed``, its
+        inputs checked (:func:`varint.runspec.specify`), with the ensemble's
+        τ and output steps once :meth:`fix_step` has fixed them."""
         model = self.model(seed)
-        return prepare(model, self.initial(model, seed), self.indicator, self.t_end, self.tau,
-                       seed=int(seed), progress=False, errors="flag", checkpoint=checkpoint,
-                       **self.options)
+        spec = specify(model, self.initial(model, seed), self.indicator, self.t_end, self.tau,
+                       seed=int(seed), **self.options)
+        return spec if self.tau_choice is None else spec.with_step(self.tau, self.tau_choice)
+
+    def fix_step(self, first):
+        """Fix τ for every realisation from ``first``, the specification of
+        one of them: as given, else chosen by ``first``'s pilot
+        (:meth:`RunSpec.with_pilot_step`), so that all share their output
+        times. Returns ``first`` with its step."""
+        k, options = _vectors(first, self.run_options.get("deviations"))
+        first = (first.with_step(first.tau) if first.tau is not None else
+                 first.with_pilot_step(k=k, accumulator=first.indicator.accumulator_for(options)))
+        self.tau, self.tau_choice = first.tau, first.tau_choice
+        return first
+
+    def job(self, seed, checkpoint=None):
+        """The prepared run of realisation ``seed``."""
+        return Run(self.specify(seed), progress=False, errors="flag", checkpoint=checkpoint,
+                   **self.run_options)
+
+
+def _vectors(spec, deviations):
+    """(k, the indicator's options with k): how many deviation vectors each
+    realisation of ``spec`` carries (given, or the indicator's choice)."""
+    ind, options = spec.indicator, dict(spec.options)
+    k = (ind.vectors(spec.model, options, None) if deviations is None
+         else np.shape(deviations)[-1])
+    if ind.count_option is not None:
+        options[ind.count_option] = k
+    return k, options
 
 
 @dataclass
@@ -226,7 +269,18 @@ def _realise(spec, seed, checkpoint):
             note = str(exc)
             job = spec.job(seed)
             result = job.execute()
-    return _Realisation(result, canonical(job.parameters()), note)
+    return _Realisation(result, _parameters(job.spec, spec.run_options), note)
+
+
+def _parameters(run_spec, run_options):
+    """What determines a realisation's result (the key of its stored piece):
+    its specification's parameters (:meth:`RunSpec.parameters`), and the
+    digest of the deviation vectors when the call gave them."""
+    parameters = run_spec.parameters()
+    deviations = run_options.get("deviations")
+    parameters["deviations"] = None if deviations is None else digest(
+        np.asarray(deviations, dtype=float))
+    return canonical(parameters)
 
 
 def _name(seed):
@@ -325,7 +379,9 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
     indicator : str or Indicator
         As for :func:`varint.run` (``"dvd"``, ``"spreading"``, ``"x1"``, …).
     t_end, tau : float
-        As for :func:`varint.run`.
+        As for :func:`varint.run`; a τ left open is chosen once, by the
+        pilot of the first realisation (``provenance.tau_choice``), and
+        every realisation runs it, so that all share their output times.
     params : dict, optional
         The model's parameters when ``model`` is a class.
     client : dask.distributed.Client, optional
@@ -377,16 +433,18 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
     check.dask_client(client)
     if not callable(x0):
         x0 = check.real_array(x0, "x0")
-    spec = _Spec(model, params, x0, resolve(indicator)[0], t_end, tau, dict(options))
-    # Every input checked before any long run: build (and discard) the
-    # first realisation's run.
-    first = spec.job(seeds[0])
+    run_options = {k: options.pop(k) for k in _RUN_OPTIONS if k in options}
+    spec = _Spec(model, params, x0, resolve(indicator)[0], t_end, tau, options, run_options)
+    # Every input checked before any long run, on the first realisation's
+    # specification, whose pilot (if any) fixes τ for all.
+    first = spec.fix_step(spec.specify(seeds[0]))
     store = None if checkpoint is None else _Store(checkpoint)
     results, parameters = {}, {}
     if store is not None:
         for s in seeds:
-            expected = canonical(spec.job(s).parameters())
-            found = _load_realisation(store, s, expected, first)
+            own = first if s == seeds[0] else spec.specify(s)
+            expected = _parameters(own, run_options)
+            found = _load_realisation(store, s, expected, own)
             if found is not None:
                 results[s], parameters[s] = found, expected
     resumed = len(results)
@@ -407,8 +465,8 @@ def ensemble(model, seeds, x0, indicator, t_end, tau=None, *, params=None, clien
 
     with bar(progress, len(seeds), resumed, "ensemble", "realisation") as shown:
         interrupted = fan_out(client, todo, _realise, arguments, keep, shown)
-    return _assemble(spec, first, seeds, results, resumed, interrupted, store is not None,
-                     client, time.perf_counter() - start)
+    return _assemble(first, _vectors(first, run_options.get("deviations"))[1], seeds, results,
+                     resumed, interrupted, store is not None, client, time.perf_counter() - start)
 
 
 def _series(result):
@@ -426,7 +484,10 @@ def _series(result):
     return out
 
 
-def _assemble(spec, first, seeds, results, resumed, interrupted, kept, client, wall):
+def _assemble(first, ind_options, seeds, results, resumed, interrupted, kept, client, wall):
+    """The :class:`EnsembleResult` of the realisations finished (``results``
+    by seed), ``first`` the specification of the first, ``ind_options`` its
+    indicator's options."""
     r_count, dim = len(seeds), first.model.dim
     t = first.steps * first.tau
     n_out = t.size
@@ -455,13 +516,15 @@ def _assemble(spec, first, seeds, results, resumed, interrupted, kept, client, w
     some = next(iter(results.values()), None)
     p = some.provenance if some is not None else None
     options = {"indicator": first.indicator.name, "seeds": seeds, "realisations": r_count,
-               "finished": len(results), "resumed": resumed, "options": canonical(first.options),
+               "finished": len(results), "resumed": resumed, "options": canonical(ind_options),
                "client": client_label(client)}
     model = dict(first.model.describe())
     model.pop("seed", None)
     prov = Provenance(kind="ensemble", model=model, x0=[], method=first.method,
-                      method_options=first.propagator.describe(), tau=first.tau,
-                      t_end=first.t_end, seed=None, options=options,
+                      method_options=(p.method_options if p is not None
+                                      else described(first.method_options)),
+                      tau=first.tau, t_end=first.t_end, seed=None, options=options,
+                      tau_choice=dict(first.tau_choice),
                       versions=p.versions if p is not None else package_versions(),
                       counts=counts, wall_time=wall,
                       code=p.code if p is not None else identity.code_identity(),

@@ -66,7 +66,7 @@ from .models.base import Model
 from .protocol import STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import Run
-from .runspec import RunSpec, check_seed, specify
+from .runspec import RunSpec, check_seed, described, specify
 from .grids import SectionGrid
 from .state import initial_deviations
 from .store import Invalid, Store
@@ -449,7 +449,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                   "indicator": ind.name, "indicator_options": spec.options,
                   "threshold": limit, "t_end": spec.t_end, "tau": spec.tau,
                   "t_check": digest(spec.steps), "method": spec.method,
-                  "method_options": _describe_options(spec.method_options), "seed": seed,
+                  "method_options": described(spec.method_options), "seed": seed,
                   "chunk_size": int(chunk_size), "escape_radius": spec.escape_radius,
                   "versions": package_versions(), "code": identity.source_digest()}
     if divisions is not None:
@@ -580,11 +580,6 @@ def _per_orbit(tau, model, method, t_check):
         raise ValueError("tau='orbit' needs check times on the grid of its unit step: give "
                          "t_check as a count or None, not times")
     return True
-
-
-def _describe_options(options):
-    return {k: (v.describe() if callable(getattr(v, "describe", None)) else v)
-            for k, v in options.items()}
 
 
 def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, interrupted, kept,

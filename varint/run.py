@@ -26,7 +26,7 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity, stepsize
+from . import accuracy, compiling, identity
 from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical
@@ -241,18 +241,11 @@ class Run:
             f"{ind.name} of {spec.model.name} by {self.method}"
             + (f" ({getattr(scheme, 'name', scheme)})" if scheme is not None else ""),
             self.progress)
-        if spec.steps is None:
-            tau, tau_choice = spec.tau, None
-            if tau is None:
-                with self.clock.part("pilot"):
-                    tau, tau_choice = stepsize.choose_step(
-                        spec.model, self.x0, spec.t_end,
-                        self.energy_tol / stepsize.PILOT_MARGIN, method=self.method,
-                        scheme=scheme, cap=None if spec.t_out is None or np.ndim(spec.t_out) == 0
-                        else float(spec.t_out[0]),
-                        W0=self.W0, renorm=ind.renorm, accumulator=self.accumulator,
-                        compensated=spec.method_options.get("compensated", False))
-            spec = spec.with_step(tau, tau_choice)
+        if spec.tau is None:
+            with self.clock.part("pilot"):
+                spec = spec.with_pilot_step(W0=self.W0, accumulator=self.accumulator)
+        elif spec.steps is None:
+            spec = spec.with_step(spec.tau)
         self.spec = spec
         self.t_end, self.tau, self.steps = spec.t_end, spec.tau, np.asarray(spec.steps)
         self.tau_choice = spec.tau_choice

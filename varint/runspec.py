@@ -27,12 +27,14 @@ from typing import Any
 import numpy as np
 
 from . import _validate as check
-from . import accuracy, stepsize
+from . import accuracy, identity, stepsize
+from .checkpoint import digest
 from .indicators import Indicator, resolve
 from .methods import METHODS
+from .results import package_versions
 from .state import output_steps
 
-__all__ = ["RunSpec", "specify", "check_seed", "DEFAULT_TAU", "default_tau"]
+__all__ = ["RunSpec", "specify", "check_seed", "described", "DEFAULT_TAU", "default_tau"]
 
 #: The step when no pilot can choose one (methods without a splitting
 #: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
@@ -128,6 +130,47 @@ class RunSpec:
             self, t_end=t_end, tau=tau, steps=output_steps(t_end, tau, t_out),
             tau_choice=dict(self.tau_choice if tau_choice is None else tau_choice))
 
+    def with_pilot_step(self, W0=None, k=None, accumulator=None):
+        """This specification with τ chosen by a pilot
+        (:func:`varint.stepsize.choose_step`, to ``energy_tol`` /
+        :data:`~varint.stepsize.PILOT_MARGIN`, no step larger than the first
+        output time) carrying the run's initial vectors ``W0`` (or ``k``
+        random ones) and ``accumulator``, so that it runs the stepper the
+        run will; the pilot's record is kept in ``tau_choice``."""
+        t_out = self.t_out
+        tau, choice = stepsize.choose_step(
+            self.model, self.x0, self.t_end, self.energy_tol / stepsize.PILOT_MARGIN,
+            method=self.method, scheme=self.scheme,
+            cap=None if t_out is None or np.ndim(t_out) == 0 else float(t_out[0]),
+            W0=W0, k=k, renorm=self.indicator.renorm, accumulator=accumulator,
+            compensated=self.method_options.get("compensated", False))
+        return self.with_step(tau, choice)
+
+    def parameters(self):
+        """Everything that determines the runs of this specification (τ and
+        its steps fixed) as JSON, without building them: the model, a digest
+        of the states, the indicator and its options, the times, the method
+        and its options as given, the seed, the call's run options, the
+        package versions and the digest of varint's sources. What a
+        resumable store keys a piece by (:mod:`varint.store`)."""
+        if self.steps is None:
+            raise ValueError("the parameters of a specification need its step fixed "
+                             "(with_step)")
+        return {"kind": self.indicator.name, "model": self.model.describe(),
+                "x0": digest(self.x0), "t_end": self.t_end, "tau": self.tau,
+                "t_out": digest(self.steps), "method": self.method,
+                "method_options": described(self.method_options), "seed": self.seed,
+                "options": {**self.options, **self.run_options},
+                "versions": package_versions(), "code": identity.source_digest()}
+
+    def one_state(self, what="x0"):
+        """The state of a specification of one orbit (2N,); a batch is
+        refused (for workflows of one orbit: departure, scheme selection)."""
+        if not self.single:
+            raise ValueError(f"{what} must be one state of shape ({self.model.dim},), got shape "
+                             f"{self.x0.shape}")
+        return self.x0[0]
+
     def without_orbits(self):
         """This specification, τ and its steps fixed, without its states and
         their reference: what a chaos map sends to every chunk, whose run
@@ -205,6 +248,12 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
                    options=configured, method=method, method_options=method_options,
                    t_end=t_end, tau=tau, t_out=t_out, seed=check_seed(seed),
                    escape_radius=escape_radius, energy_tol=energy_tol)
+
+
+def described(options):
+    """Method options as JSON: a scheme object by its description."""
+    return {k: (v.describe() if callable(getattr(v, "describe", None)) else v)
+            for k, v in options.items()}
 
 
 def check_seed(seed, none=True):

@@ -37,8 +37,9 @@ from .models.base import Model
 from .protocol import COUNTERS, STATUS_OK, Renorm, Status
 from . import _validate as check
 from . import identity
-from .accuracy import Reference, assess, energy_tolerance, warn
+from .accuracy import assess, warn
 from .results import Provenance, SectionResult, package_versions
+from .runspec import specify
 from .schemes import SplittingScheme, get_scheme, stage_arrays
 # The grid of initial conditions is data of the grids layer (models build it
 # too, below this module); imported here, where it has always been named.
@@ -220,10 +221,14 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     >>> bool(np.abs(s.points[:, 0]).max() < 1e-15)
     True
     """
-    model = check.model(model)
+    # The run's inputs checked as every run's are (model, states and the
+    # kernels there, times, escape radius, energy tolerance), into the
+    # specification of the orbits' integration.
+    spec = specify(model, x0, "integrate", t_end, tau, scheme=scheme, seed=None,
+                   escape_radius=escape_radius, energy_tol=energy_tol)
+    spec = spec.with_step(spec.tau)
+    model, X, single, t_end, tau = spec.model, spec.x0, spec.single, spec.t_end, spec.tau
     _autonomous_flow(model)
-    X, single = check.states(model, x0)
-    t_end, tau = check.horizon(t_end, tau)
     if isinstance(plane, bool) or not isinstance(plane, (int, np.integer)) \
             or not 0 <= plane < model.n_dof:
         raise ValueError(f"plane must be a coordinate index in 0..{model.n_dof - 1}, got {plane!r}")
@@ -237,9 +242,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
                 or max_points < 1:
             raise ValueError(f"max_points must be a positive integer, got {max_points!r}")
         limit = int(max_points)
-    radius = model.escape_radius if escape_radius is None else check.positive_float(
-        escape_radius, "escape_radius")
-    energy_tol = energy_tolerance(energy_tol)
+    radius = model.escape_radius
     sch = get_scheme(scheme, n_parts=2)
     kinds, h, hc = stage_arrays(sch, tau)
     n_steps = check.step_count(t_end, tau)
@@ -248,8 +251,7 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
     # of the crossings (at least one row each), before allocating them.
     check.check_memory(check.array_bytes((m, _BUFFER, d + 1), (m, 2 * d + 4)),
                        f"surface_of_section of {m} orbits of {model.name}")
-    check.kernels(model, X)
-    reference = Reference(model, X)
+    reference = spec.reference
     x = X.copy()
     small = model.n_dof <= K.SPECIALISE_N
     kernel = _section_kernel(model.n_dof if small else -1, model.bandwidth if small else -1,
@@ -297,7 +299,8 @@ def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0
         counts=dict(steps=int(done.sum()), **dict(zip(COUNTERS, map(int, total), strict=True))),
         wall_time=time.perf_counter() - start, code=code, machine=machine)
     sq = (lambda a: a[0]) if single else (lambda a: a)
-    verdict = assess(times, {"energy_error": energy_error}, status, energy_tol, tau, single)
+    verdict = assess(times, {"energy_error": energy_error}, status, spec.energy_tol, tau,
+                     single)
     warn(verdict, "tm", what="the surface of section")
     return SectionResult(t=done * tau if not single else np.array([done[0] * tau]),
                          energy_error=sq(energy_error), state=sq(x), provenance=prov,

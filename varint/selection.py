@@ -62,6 +62,7 @@ from . import _validate as check
 from .driver import IntegrationError
 from .methods import METHODS, make_propagator
 from .models.base import Model
+from .runspec import specify
 from .schemes import get_scheme
 from .state import RunState, initial_deviations
 
@@ -287,19 +288,16 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
     from .cache import reference
     from .api import integrate, lyapunov_spectrum
 
-    model = check.model(model)
-    states, single = check.states(model, x0)
-    if not single:
-        raise ValueError(f"x0 must be one state of shape ({model.dim},), got {states.shape}")
-    check.kernels(model, states)
-    x0 = states[0]
+    t_end = check.positive_float(t_end, "t_end")
+    # The orbit checked as every run's is (model, state, the kernels there).
+    spec = specify(model, x0, "integrate", t_end, seed=None)
+    model, x0 = spec.model, spec.one_state()
     target = check.positive_float(target_error, "target_error")
     known = {m.lower(): m for m in METRICS}.get(str(metric).lower())
     if known is None:
         raise ValueError(f"unknown metric {metric!r}; expected one of: "
                          f"{', '.join(METRICS)}")
     metric = known
-    t_end = check.positive_float(t_end, "t_end")
     cands = _candidates(candidates)
     pilot = (default_pilot(t_end, [tau for _, _, tau in cands]) if pilot_t is None
              else min(check.positive_float(pilot_t, "pilot_t"), t_end))
