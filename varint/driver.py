@@ -283,7 +283,8 @@ def _read_snapshots(snaps, state, record, renorm):
     # Rows of orbits that had failed by an output were never written: show
     # them the frozen state (then blank their values), so no reader sees NaN.
     dead = failed[None, :] & (state.fail_step[None, :] <= snaps.steps[:, None])
-    if dead.any():
+    blank = bool(dead.any())
+    if blank:
         out, orb = np.nonzero(dead)
         snaps.x[out, orb] = state.x[orb]
         snaps.W[out, orb] = state.W[orb]
@@ -294,11 +295,11 @@ def _read_snapshots(snaps, state, record, renorm):
     flat = record(snaps.rows(renorm))
     # One copy per key for the whole chunk (the record may hold views of
     # the snapshot buffers), blanked at once and kept as one block: no work
-    # per output.
+    # per output (nothing to blank in a run without failures).
     shaped = {}
     for key, arr in flat.items():
         block = np.array(arr).reshape((s, m) + np.shape(arr)[1:])
-        if np.issubdtype(block.dtype, np.floating):
+        if blank and np.issubdtype(block.dtype, np.floating):
             block[dead] = np.nan
         shaped[key] = block
     return shaped
