@@ -23,7 +23,10 @@ The load of the shared machine (``os.getloadavg``) is stored with them: only
 the shares and the call's own minimum mean much.
 
 Stored as ``call_profile_<label>.json``/``.csv``: ``before`` is the code
-as the fixed-cost work started (main a885a59), ``after`` the code after it.
+as the fixed-cost work started (main a885a59, its ``varint`` exported with
+``git archive`` and imported first, then this script run with
+:func:`runpy.run_path`), ``after`` this code, run right after it in the
+same load window (only figures of one window compare).
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]``
 """
