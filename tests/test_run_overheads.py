@@ -114,3 +114,39 @@ def test_stage_tables_are_new_arrays_every_call():
     kinds, h, hc = stage_arrays(scheme, 0.05)
     h[:] = 0.0
     assert np.all(stage_arrays(scheme, 0.05)[1] != 0.0)
+
+
+@pytest.mark.parametrize("n_end, n", [(1, 1), (7, 3), (20000, 1), (20000, 7), (999, 1000 // 3)])
+def test_counted_output_steps_are_the_evenly_spaced_ones_and_the_callers_own(n_end, n):
+    """``t_out`` as a count: the steps kept per (n_end, n) are those of
+    linspace rounded (the law: n steps, strictly increasing, ending at
+    n_end, each within half a step of k·n_end/n), and every call gets its
+    own writable copy."""
+    from varint import state
+
+    steps = state.output_steps(n_end * 0.5, 0.5, n)
+    assert steps.flags.writeable and steps[-1] == n_end and len(steps) == n
+    assert (np.diff(steps) > 0).all()
+    assert np.abs(steps - np.arange(1, n + 1) * n_end / n).max() <= 0.5
+    steps[:] = -1
+    again = state.output_steps(n_end * 0.5, 0.5, n)
+    assert again[-1] == n_end and np.array_equal(again, state._spaced(n_end, n))
+
+
+@pytest.mark.parametrize("n", [1, check._PYTHON_STATES, check._PYTHON_STATES + 1])
+def test_few_states_are_checked_from_python_and_name_the_same_state(n, monkeypatch):
+    """Up to ``_PYTHON_STATES`` initial states skip the compiled pass (its
+    fixed cost is more than theirs); either way the first singular state is
+    named, and the pass is used only for more states."""
+    x, y = sp.symbols("x y")
+    model = from_potential(0.5 * (x ** 2 + y ** 2) + 1 / x, [x, y])
+    X = np.column_stack([np.linspace(0.5, 2.0, n), np.zeros(n), np.zeros(n), np.ones(n)])
+    scans = []
+    original = check._scan
+    monkeypatch.setattr(check, "_scan", lambda m, q: (scans.append(len(q)), original(m, q))[1])
+    check.kernels(model, X)
+    X[n - 1, 0] = 0.0
+    where = "initial state" if n == 1 else f"initial state of orbit {n - 1}"
+    with pytest.raises(ValueError, match=rf"{where}, q = .0.0, 0.0.: the gradient"):
+        check.kernels(model, X)
+    assert scans == ([] if n <= check._PYTHON_STATES else [n, n])

@@ -10,6 +10,7 @@ stopping between chunks and resuming from a checkpoint.
 
 from __future__ import annotations
 
+import _signal
 import contextlib
 import signal
 import sys
@@ -23,6 +24,9 @@ from .accuracy import user_stacklevel
 from .protocol import REASONS, STATUS_OK, Status, is_failure
 from .records import Records
 from .state import Rows
+
+#: SIGINT as the C module ``_signal`` takes it (:func:`_sigint_to_flag`).
+_SIGINT = int(signal.SIGINT)
 
 __all__ = ["IntegrationError", "drive", "failure_message", "progress_bar"]
 
@@ -78,17 +82,18 @@ def _sigint_to_flag():
         return
     def handler(signum, frame):
         if flag.is_set():
-            signal.signal(signal.SIGINT, previous)
+            _signal.signal(_SIGINT, previous)
             raise KeyboardInterrupt
         flag.set()
 
-    # signal.signal returns the handler it replaces: no getsignal call
-    # (each call converts its result to an enum, ~10 µs of a short run).
-    previous = signal.signal(signal.SIGINT, handler)
+    # The C module's signal() returns the handler it replaces, which is put
+    # back as it was: signal.signal would convert numbers and handlers to
+    # and from enums at every call (~10 µs of a short run).
+    previous = _signal.signal(_SIGINT, handler)
     try:
         yield flag
     finally:
-        signal.signal(signal.SIGINT, previous)
+        _signal.signal(_SIGINT, previous)
 
 
 def progress_bar(progress, done, total, desc, unit="step"):
@@ -297,7 +302,8 @@ def _read_snapshots(snaps, state, record, renorm):
     # Rows of orbits that had failed by an output were never written: show
     # them the frozen state (then blank their values), so no reader sees NaN.
     dead = failed[None, :] & (state.fail_step[None, :] <= snaps.steps[:, None])
-    if dead.any():
+    blank = bool(dead.any())
+    if blank:
         out, orb = np.nonzero(dead)
         snaps.x[out, orb] = state.x[orb]
         snaps.W[out, orb] = state.W[orb]
@@ -308,11 +314,11 @@ def _read_snapshots(snaps, state, record, renorm):
     flat = record(snaps.rows(renorm))
     # One copy per key for the whole chunk (the record may hold views of
     # the snapshot buffers), blanked at once and kept as one block: no work
-    # per output.
+    # per output (nothing to blank in a run without failures).
     shaped = {}
     for key, arr in flat.items():
         block = np.array(arr).reshape((s, m) + np.shape(arr)[1:])
-        if np.issubdtype(block.dtype, np.floating):
+        if blank and np.issubdtype(block.dtype, np.floating):
             block[dead] = np.nan
         shaped[key] = block
     return shaped

@@ -339,10 +339,11 @@ def output_steps(t_end, tau, t_out=None, per_decade=10):
         if n > n_end:
             raise ValueError(f"t_out = {n} output times, more than the {n_end} steps of the "
                              f"run (t_end / tau = {t_end:g} / {tau:g}); give at most {n_end}")
+        if n <= _CACHED_COUNT:
+            return _even_steps(n_end, n).copy()
         # linspace, its rounding and np.unique: three arrays of n numbers.
         check.check_memory(check.array_bytes((3, n)), f"t_out = {n} output times")
-        steps = np.unique(np.round(np.linspace(n_end / n, n_end, n)).astype(np.int64))
-        return _ending_at(steps, n_end)
+        return _spaced(n_end, n)
     else:
         t = np.asarray(t_out, dtype=float).reshape(-1)
         if t.size == 0 or not np.isfinite(t).all():
@@ -371,6 +372,29 @@ def _log_steps(n_end, per_decade):
     steps = _ending_at(np.unique(np.round(steps).astype(np.int64)), n_end)
     steps.flags.writeable = False
     return steps
+
+
+#: Evenly spaced output steps of at most this many outputs are kept
+#: (:func:`_even_steps`); more are worked out at every call.
+_CACHED_COUNT = 1024
+
+
+@functools.lru_cache(maxsize=64)
+def _even_steps(n_end, n):
+    """``n`` evenly spaced output steps ending at ``n_end`` (``t_out`` as a
+    count in :func:`output_steps`), read-only: worked out once per
+    (n_end, n) when n is small (``integrate`` records one output, and
+    linspace, rounding and np.unique are ~20 µs of a short run's fixed
+    cost)."""
+    steps = _spaced(n_end, n)
+    steps.flags.writeable = False
+    return steps
+
+
+def _spaced(n_end, n):
+    """``n`` evenly spaced output steps ending at ``n_end``."""
+    steps = np.unique(np.round(np.linspace(n_end / n, n_end, n)).astype(np.int64))
+    return _ending_at(steps, n_end)
 
 
 def _ending_at(steps, n_end):

@@ -1,0 +1,40 @@
+"""The fixed-cost profile's stages: every one is reached by the call it
+profiles, each nests in its parent, and the wrappers leave varint as it
+was; never a time compared with a figure."""
+
+import importlib
+
+import numpy as np
+
+import varint
+from studies import call_profile
+
+
+def _original(path, name):
+    module, _, attr = path.partition(":")
+    owner = importlib.import_module(module)
+    return getattr(getattr(owner, attr) if attr else owner, name)
+
+
+def test_every_stage_is_reached_nests_in_its_parent_and_is_restored():
+    model, x0 = varint.paper_orbit("R1")
+    w = np.eye(4)[:, :1]
+    before = [_original(path, name) for _, _, path, name in call_profile.STAGES]
+    spent = {}
+    restore = call_profile.wrap_stages(spent)
+    try:
+        varint.integrate(model, x0, 0.05, tau=0.05, scheme="s15odr8", deviations=w)
+    finally:
+        restore()
+    # A stage the call no longer goes through (a renamed function) would be
+    # missing here, and the stored breakdown would silently lose it.
+    labels = [label for _, label, _, _ in call_profile.STAGES]
+    assert sorted(spent) == sorted(labels)
+    # Inclusive times: a stage's children (the deeper rows after it, up to
+    # the next row as shallow as it) never take longer than it.
+    for i, (depth, label, _, _) in enumerate(call_profile.STAGES):
+        for d, child, _, _ in call_profile.STAGES[i + 1:]:
+            if d <= depth:
+                break
+            assert spent[child] <= spent[label], (child, label)
+    assert [_original(path, name) for _, _, path, name in call_profile.STAGES] == before
