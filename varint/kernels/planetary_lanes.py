@@ -3,8 +3,14 @@ many grid points (orbits) stepped together, the orbit index innermost.
 
 A block of L orbits is held as a structure of arrays — the states ``X``
 (6n, L) and the deviation vectors ``V`` (k, 6n, L) — and each flow is one
-loop over the lanes whose body is branch-free, so that LLVM vectorises it
-(as the TM steppers' lanes do for orbits, :mod:`varint.codegen.interval`):
+loop over the lanes whose body is branch-free, the layout in which LLVM
+vectorises a loop (as it does the TM steppers' lanes for orbits,
+:mod:`varint.codegen.interval`). Measured (studies/planetary_lanes.py,
+numba 0.68): the loops of the f and g update and of the tangent map
+vectorise, those of the Kepler solve and of the kick do not yet (no vector
+body in their IR), and a block of 64 grid points takes as long as the
+one-orbit part stepper (0.98×); these kernels are not yet what
+``chaos_map`` runs.
 
 * the drift solves every lane's Kepler equations by the common path of
   :func:`varint.kernels.kepler.solve_fast` — the series guess, one
