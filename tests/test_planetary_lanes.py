@@ -63,3 +63,9 @@ def test_lanes_mark_an_encounter_as_the_one_orbit_flow_does():
     # The one-orbit flow marks the same orbit (+inf: non-finite) at once.
     with pytest.raises(FloatingPointError, match="after 0 steps"):
         parts_steps(model, x, W[0], 10.0, 1, WH10)
+
+
+def test_lanes_refuse_democratic_coordinates():
+    model = Planetary([1.0, 0.000954, 0.000285], coordinates="democratic")
+    with pytest.raises(ValueError, match="Jacobi coordinates only"):
+        lane_steps(model.n_planets, False, 1, model.parts.apply)

@@ -261,7 +261,17 @@ def lane_steps(n, jacobi, k, apply):
     common path does not settle takes that flow through ``apply``, the
     one-orbit flow (:func:`varint.kernels.nbody_unrolled.flows`). Returns
     the number of such one-orbit drifts. Only the Kepler and interaction
-    parts (Jacobi coordinates)."""
+    parts (Jacobi coordinates).
+
+    Raises
+    ------
+    ValueError
+        For democratic heliocentric coordinates (their jump flow has no
+        lanes).
+    """
+    if not jacobi:
+        raise ValueError("planetary lanes step Jacobi coordinates only (Kepler drift and "
+                         "interaction kick); got democratic heliocentric ones")
     kick = kick_lanes(n, jacobi, k)
 
     @njit(error_model="numpy")
