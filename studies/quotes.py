@@ -950,7 +950,7 @@ def _planetary_race(R):
     lo, hi = d["load_average"]
     return (f"{d['grid_points']} points over {d['inner_periods']:g} orbits of the inner planet "
             f"(t ≈ {sci(d['t_end'], 3)}), {d['workers']} REBOUND workers and {d['workers']} varint "
-            f"threads, load average {lo:.0f}–{hi:.0f} on {d['cores']} shared cores: REBOUND took "
+            f"threads, load average {lo:.0f} → {hi:.0f} on {d['cores']} shared cores: REBOUND took "
             f"{ratio(d['rebound_over_varint'])}× varint's CPU time with early stopping "
             f"({spread(reb['time_over_varint_per_block'])}× over the blocks) and "
             f"{ratio(d['rebound_over_varint_no_early_stopping'])}× without; on {d['sample']} "
@@ -968,7 +968,7 @@ def _planetary_profile(R):
     lo, hi = d["load_average"]
     return (f"{ns['map, MEGNO']:.0f} ns of CPU time (REBOUND's WHFast with MEGNO "
             f"{ns['REBOUND WHFast + MEGNO']:.0f} ns, {ratio(d['rebound_over_varint_per_step'])}×; "
-            f"load {lo:.0f}–{hi:.0f}): the planets' Kepler equations {sh['kepler solve']:.0%}, "
+            f"load {lo:.0f} → {hi:.0f}): the planets' Kepler equations {sh['kepler solve']:.0%}, "
             f"the f and g update {sh['f, g update of the orbit']:.0%}, the tangent map of the "
             f"drift {sh['tangent of the drift']:.0%}, the interaction kick "
             f"{sh['kick (orbit)']:.0%} and its tangent {sh['tangent of the kick']:.0%}, the end "
@@ -982,7 +982,7 @@ def _planetary_lanes(R):
     d = R.json("planetary_lanes")
     lo, hi = d["load_average"]
     return (f"a block of {d['points']} points takes {ratio(1 / d['lanes_speedup'])}× the time "
-            f"of one orbit at a time (load {lo:.0f}–{hi:.0f})")
+            f"of one orbit at a time (load {lo:.0f} → {hi:.0f})")
 
 
 @quote("suite_time")
