@@ -941,6 +941,51 @@ def main(argv=None):
 
 # -- the test suite ------------------------------------------------------------
 
+@quote("planetary_race")
+def _planetary_race(R):
+    """The MEGNO map race with REBOUND in a process pool
+    (``studies/race_planetary.py``): horizon, ratios and agreements."""
+    d = R.json("race_planetary")
+    rows = {row["code"]: row for row in d["rows"]}
+    reb, var = rows["REBOUND"], rows["varint"]
+    lo, hi = d["load_average"]
+    return (f"{d['grid_points']} points over {d['inner_periods']:g} orbits of the inner planet "
+            f"(t ≈ {sci(d['t_end'], 3)}), {d['workers']} REBOUND workers and {d['workers']} varint "
+            f"threads, load average {lo:.0f} → {hi:.0f} on {d['cores']} shared cores: REBOUND took "
+            f"{ratio(d['rebound_over_varint'])}× varint's CPU time with early stopping "
+            f"({spread(reb['time_over_varint_per_block'])}× over the blocks) and "
+            f"{ratio(d['rebound_over_varint_no_early_stopping'])}× without; on {d['sample']} "
+            f"sample points varint's verdicts agree with heyoka at tolerance 1e-15 on "
+            f"{var['agreement_with_reference']:.1%}, REBOUND's on "
+            f"{reb['agreement_with_reference']:.1%}; varint's and REBOUND's verdicts agree on "
+            f"{var['agreement_with_rebound']:.1%} of the grid")
+
+
+@quote("planetary_profile")
+def _planetary_profile(R):
+    """Where a planetary map point's step goes (``studies/planetary_profile.py``)."""
+    d = R.json("planetary_profile")
+    ns, sh = d["ns_per_step"], d["share_of_map_step"]
+    lo, hi = d["load_average"]
+    return (f"{ns['map, MEGNO']:.0f} ns of CPU time (REBOUND's WHFast with MEGNO "
+            f"{ns['REBOUND WHFast + MEGNO']:.0f} ns, {ratio(d['rebound_over_varint_per_step'])}×; "
+            f"load {lo:.0f} → {hi:.0f}): the planets' Kepler equations {sh['kepler solve']:.0%}, "
+            f"the f and g update {sh['f, g update of the orbit']:.0%}, the tangent map of the "
+            f"drift {sh['tangent of the drift']:.0%}, the interaction kick "
+            f"{sh['kick (orbit)']:.0%} and its tangent {sh['tangent of the kick']:.0%}, the end "
+            f"of every interval {sh['end of interval and FLI']:.0%} and MEGNO's update "
+            f"{sh['MEGNO beyond FLI']:.0%}")
+
+
+@quote("planetary_lanes")
+def _planetary_lanes(R):
+    """Lanes against one orbit at a time (``studies/planetary_lanes.py``)."""
+    d = R.json("planetary_lanes")
+    lo, hi = d["load_average"]
+    return (f"a block of {d['points']} points takes {ratio(1 / d['lanes_speedup'])}× the time "
+            f"of one orbit at a time (load {lo:.0f} → {hi:.0f})")
+
+
 @quote("suite_time")
 def _suite_time(R):
     """How long the default suite took, cold, as CI runs it

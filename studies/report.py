@@ -53,6 +53,8 @@ KNOWN = {
                  "(studies/planetary.py)",
     "bench_planetary": "Benchmark: MEGNO stability maps of planetary systems against REBOUND "
                        "(studies/bench_planetary.py)",
+    "race_planetary": "Benchmark: the full MEGNO map race against REBOUND with multiprocessing "
+                      "(studies/race_planetary.py)",
     "two_particle": "The two-particle method the paper left out (studies/two_particle.py)",
     "lattices": "Many-body lattices: the scheme ranking of Danieli et al. 2019 and the speed "
                 "targets (studies/lattices.py)",
