@@ -229,7 +229,7 @@ class FPUT(LatticeModel):
                     _third if band else no_third_kernel, 1 if band else 0,
                     header + [self.alpha, self.beta], band)
         self.parts = Parts(names=("T", "V"), apply=_apply, field=_field, splits={2: ("T", "V")},
-                           par=self.params, default_scheme=None if band else "ABA864")
+                           par=self.params, default_scheme="ABA864")
 
     def _potential_of_bonds(self, r):
         return 0.5 * r * r + self.alpha * r ** 3 / 3.0 + 0.25 * self.beta * r ** 4
