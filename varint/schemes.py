@@ -48,9 +48,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["SplittingScheme", "CompositionScheme", "SCHEMES", "DEFAULT_SCHEME", "default_for",
-           "get_scheme",
-           "register_scheme", "registered", "stage_arrays", "stage_times", "scheme_word",
-           "part_stages", "CORRECTOR"]
+           "get_scheme", "register_scheme", "registered", "stage_arrays", "stage_times",
+           "scheme_word", "part_stages", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -435,9 +434,9 @@ def default_for(model, method="tm"):
     (``model.parts.default_scheme``): the lattices name the best of their
     fused part stepper (ABA864 for the KG and FPUT chains, s11ABC6 for the
     DDNLS; Danieli et al. 2019), which reaches an energy error at a fraction
-    of the cost of SBAB2C on the generic stepper
-    (``studies/bench_peers.py``, the lattice race). The TM method takes it; every other method and every model without one takes
-    :data:`DEFAULT_SCHEME`.
+    of the cost of SBAB2C on the generic stepper (``studies/bench_peers.py``,
+    the lattice case). The TM method takes it; every other method, and
+    every model without one, takes :data:`DEFAULT_SCHEME`.
 
     Parameters
     ----------

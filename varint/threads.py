@@ -5,9 +5,9 @@ numba's parallel kernels share a batch's orbits (or blocks of SIMD lanes)
 among numba's threads, and a call returns when its last thread is done. On
 a machine whose cores other processes keep busy, the operating system
 deschedules one of those threads now and then and the whole call waits for
-it: on two cores under a load of ~3, two threads took 1/0.49 and 1/0.61 of
-one thread's time on the Hénon–Heiles SALI and MEGNO maps (issue 28;
-``studies/threads.py`` measures it). So a batch goes parallel by default
+it: on the two busy cores of our shared machine, two threads took 1/0.49
+and 1/0.61 of one thread's time on the Hénon–Heiles SALI and MEGNO maps
+(issue 28; ``studies/threads.py`` measures it). So a batch goes parallel by default
 only when the cores this process may use, less the load the *other*
 processes put on them, leave room for a second thread.
 
