@@ -1131,7 +1131,8 @@ def lattice_case(quick, repeats):
     front. Every run stores 10 outputs."""
     n = 64 if quick else 1024
     t_end = 20.0 if quick else 100.0
-    tols = (1e-6, 1e-10) if quick else (1e-6, 1e-9, 1e-12, 1e-15)
+    # From loose (heyoka's error reaches varint's defaults) to tight.
+    tols = (1e-4, 1e-10) if quick else (1e-3, 1e-4, 1e-6, 1e-9, 1e-12)
     model = varint.models.DisorderedKG(n, 4.0, 1)
     x0 = model.initial_block(5 if quick else 21, 0.1, seed=1)
     w0 = seeded_vectors(2 * n, 1, 1, seed=0)[0]

@@ -820,6 +820,17 @@ def how_fast(R):
                  f"{fpu['varint_ns_per_step'] / 1e3:.1f} µs/step",
                  f"plain numba loop of the same step, {fpu['numba_ns_per_step'] / 1e3:.1f} µs",
                  _ratio_cell(fpu["varint_over_numba"], None), _peers_measured(R, "fpu")))
+    if "lattice" in peers:
+        lt = peers["lattice"]
+        for e in lt["equal_energy_error"]:
+            bound = "at most " if e["how"] == "at most" else ""
+            rows.append((f"KG chain N = {lt['n']}, one vector, to t = {lt['t_end']:g}, varint "
+                         f"{e['varint']} (with its pilot)",
+                         f"{e['varint_s']:.2f} s, energy error {e['energy_error']:.0e}",
+                         f"heyoka's Taylor method at that error, {bound}{e['heyoka_s']:.2f} s",
+                         "—" if e["heyoka_over_varint"] is None else
+                         f"{bound}{_ratio_cell(e['heyoka_over_varint'], None, faster=True)}",
+                         _peers_measured(R, "lattice")))
 
     lat = R.json("lattices_efficiency")
     where = measured_in(lat, "lattices")
