@@ -104,12 +104,22 @@ FPU lattices
 ------------
 FPU-β (β = 1.5, fixed ends, q_i = 0.5 sin(πi/(n+1)), p = 0), one deviation
 vector normalised every step, ABA864 τ = 0.05, n = 8 … 4096: varint
-``lyapunov_spectrum(n_exponents=1)`` against a plain numba loop of the same
-fused step (its X1 is printed beside varint's); at n = 256 against heyoka
-(``var_ode_sys``, compact mode, scalar and batch 8, tol 1e-9 … 1e-15,
-normalised every 10 time units) at equal energy error.
+``lyapunov_spectrum(n_exponents=1)`` (one output, at the end, as the loop)
+against a plain numba loop of the same fused step written as an expert
+would (:func:`fpu_tangent`: q, p, δq, δp in arrays of their own, one site
+loop per kick carrying the previous bond's force; its X1 is printed beside
+varint's); at n = 256 against heyoka (``var_ode_sys``, compact mode, scalar
+and batch 8, tol 1e-9 … 1e-15, normalised every 10 time units) at equal
+energy error.
 
-Usage: ``python studies/bench_peers.py [--quick] [--out DIR] [--cases maps,spectra,orbit,fpu]
+The disordered KG chain
+-----------------------
+N = 1024 (64 quick), W = 4, one deviation vector, t = 100: varint with its
+defaults and with the previous default (SBAB2C on the generic stepper),
+both at their pilot's step, against heyoka's Taylor method at a ladder of
+tolerances, compared at equal energy error (:func:`lattice_case`).
+
+Usage: ``python studies/bench_peers.py [--quick] [--out DIR] [--cases maps,spectra,orbit,fpu,lattice]
 [--indicators fli,sali,megno] [--grid N] [--one-thread] [--spectra R1,C1] [--repeats N]
 [--pynamicalsys]``. The options that cut a case down (``--indicators``,
 ``--grid``, ``--one-thread``, ``--spectra``) are for reduced runs on a busy
@@ -144,7 +154,7 @@ from studies.common import CODE, interleaved, parse_args, save_csv, save_json
 from varint.cache import reference
 
 DRIFT, KICK = 0, 1  # the kinds of SplittingScheme.stages()
-CASES = ("maps", "spectra", "orbit", "fpu")
+CASES = ("maps", "spectra", "orbit", "fpu", "lattice")
 REPEATS = 3
 #: heyoka's check and normalisation interval in the maps and the FPU case.
 EVERY = 10.0
@@ -472,10 +482,13 @@ def soa_fli_megno(X, W, kinds, h, hc, n_steps, tau, chunk):
 def fpu_tangent(x, w, beta, kinds, h, n_steps):
     """FPU-β with fixed ends and one deviation vector: the fused step of a
     splitting scheme without corrector (stage tables ``kinds``, ``h``),
-    the vector normalised every step. Advances ``x`` and ``w`` in place and
-    returns Σ ln‖w‖ (X1 = that / t)."""
+    the vector normalised every step, written as an expert would: q, p, δq,
+    δp in four arrays of their own (no aliasing between the loops' loads
+    and stores), one site loop per kick that carries the force and the
+    tangent force of the previous bond (one φ' and one φ'' per bond).
+    Advances ``x`` and ``w`` in place and returns Σ ln‖w‖ (X1 = that / t)."""
     n = x.shape[0] // 2
-    q, p, dq, dp = x[:n], x[n:], w[:n], w[n:]
+    q, p, dq, dp = x[:n].copy(), x[n:].copy(), w[:n].copy(), w[n:].copy()
     total = 0.0
     for _ in range(n_steps):
         for st in range(kinds.shape[0]):
@@ -485,26 +498,30 @@ def fpu_tangent(x, w, beta, kinds, h, n_steps):
                     q[i] += a * p[i]
                     dq[i] += a * dp[i]
                 continue
-            # Bond b joins particles b − 1 and b; walls at −1 and n.
-            for b in range(n + 1):
-                left, dleft = (q[b - 1], dq[b - 1]) if b >= 1 else (0.0, 0.0)
-                right, dright = (q[b], dq[b]) if b < n else (0.0, 0.0)
-                r = right - left
-                f = a * (r + beta * r * r * r)
-                df = a * (1.0 + 3.0 * beta * r * r) * (dright - dleft)
-                if b < n:
-                    p[b] -= f
-                    dp[b] -= df
-                if b >= 1:
-                    p[b - 1] += f
-                    dp[b - 1] += df
+            # Particle i sits between bond i (left, r = q_i − q_{i−1}) and
+            # bond i + 1; the walls are q_{−1} = q_n = 0.
+            r = q[0]
+            fl = a * (r + beta * r * r * r)
+            gl = a * (1.0 + 3.0 * beta * r * r) * dq[0]
+            for i in range(n - 1):
+                r = q[i + 1] - q[i]
+                fr = a * (r + beta * r * r * r)
+                gr = a * (1.0 + 3.0 * beta * r * r) * (dq[i + 1] - dq[i])
+                p[i] += fr - fl
+                dp[i] += gr - gl
+                fl, gl = fr, gr
+            r = -q[n - 1]
+            p[n - 1] += a * (r + beta * r * r * r) - fl
+            dp[n - 1] += a * (1.0 + 3.0 * beta * r * r) * (-dq[n - 1]) - gl
         norm = 0.0
-        for i in range(2 * n):
-            norm += w[i] * w[i]
+        for i in range(n):
+            norm += dq[i] * dq[i] + dp[i] * dp[i]
         norm = math.sqrt(norm)
         total += math.log(norm)
-        for i in range(2 * n):
-            w[i] /= norm
+        for i in range(n):
+            dq[i] /= norm
+            dp[i] /= norm
+    x[:n], x[n:], w[:n], w[n:] = q, p, dq, dp
     return total
 
 
@@ -1039,7 +1056,7 @@ def fpu_case(quick, repeats):
 
         def vrun(model=model, x0=x0, w0=w0, t_end=t_end):
             r = varint.lyapunov_spectrum(model, x0, t_end, tau=tau, n_exponents=1,
-                                         scheme=scheme, deviations=w0, t_out=20,
+                                         scheme=scheme, deviations=w0, t_out=1,
                                          progress=False)
             return float(r.exponents[-1, 0]), float(np.max(r.energy_error))
 
@@ -1098,6 +1115,64 @@ def fpu_case(quick, repeats):
                        else cost / v["varint_ns_per_step"]}
     return {"rows": rows, "heyoka": hy_rows, "heyoka_n": n_hy, "heyoka_t_end": t_hy,
             "equal_energy_error": equal}
+
+
+# -- the disordered KG chain with defaults --------------------------------------------------
+
+def lattice_case(quick, repeats):
+    """The disordered KG chain (W = 4, a central block of energy density
+    0.1), one deviation vector, to t_end: varint with its defaults (the
+    chain's own scheme on its part stepper at the pilot's step; every call
+    runs its pilot) and with the previous default (SBAB2C on the generic
+    stepper, also at its pilot's step), against heyoka's Taylor method on
+    ``var_ode_sys`` (varint's ``taylor`` baseline, compact mode,
+    renormalised every time unit) at a ladder of tolerances; heyoka's cost
+    at each varint run's energy error is interpolated on its cost–error
+    front. Every run stores 10 outputs."""
+    n = 64 if quick else 1024
+    t_end = 20.0 if quick else 100.0
+    # From loose (heyoka's error reaches varint's defaults) to tight.
+    tols = (1e-4, 1e-10) if quick else (1e-3, 1e-4, 1e-6, 1e-9, 1e-12)
+    model = varint.models.DisorderedKG(n, 4.0, 1)
+    x0 = model.initial_block(5 if quick else 21, 0.1, seed=1)
+    w0 = seeded_vectors(2 * n, 1, 1, seed=0)[0]
+    print(f"\n# {model.name}, one deviation vector, t = {t_end:g}", flush=True)
+
+    def run(t=t_end, outputs=10, **opts):
+        r = varint.run(model, x0, "x1", t, deviations=w0, t_out=outputs, progress=False, **opts)
+        return {"X1": float(r.exponents[-1, 0]),
+                "energy_error": float(np.max(np.abs(r.energy_error))),
+                "tau": r.provenance.tau,
+                "scheme": (r.provenance.method_options.get("scheme") or {}).get("name"),
+                "stepper": r.provenance.method_options.get("stepper")}
+
+    contenders = {("varint", "defaults"): {},
+                  ("varint", "scheme='SBAB2C' (the previous default)"): {"scheme": "SBAB2C"}}
+    contenders.update({("heyoka", f"tol {tol:g}"): {"tau": 1.0, "method": "taylor", "tol": tol,
+                                                   "compact_mode": True} for tol in tols})
+    compile_s = {}
+    for key, opts in contenders.items():
+        t0 = time.perf_counter()
+        # Compile (load the cached kernels; for heyoka, build the integrator).
+        run(**opts) if key[0] == "varint" else run(t=2.0, outputs=1, **opts)
+        compile_s[key] = time.perf_counter() - t0
+    tasks = {key: (lambda opts=opts: run(**opts)) for key, opts in contenders.items()}
+    best, res = interleaved(tasks, repeats)
+    rows = [dict(res[key], peer=key[0], config=key[1], seconds=best[key],
+                 warm_up_s=compile_s[key]) for key in contenders]
+    front = pareto([(r["seconds"], r["energy_error"]) for r in rows if r["peer"] == "heyoka"])
+    equal = []
+    for r in rows:
+        if r["peer"] != "varint":
+            continue
+        cost, how = cost_at(front, r["energy_error"])
+        equal.append({"varint": r["config"], "energy_error": r["energy_error"],
+                      "varint_s": r["seconds"], "heyoka_s": cost, "how": how,
+                      "heyoka_over_varint": None if cost is None else cost / r["seconds"]})
+    for r in rows:
+        print(f"{r['peer']:7s} {r['config']:40s} {r['seconds']:8.3f} s  err "
+              f"{r['energy_error']:.2e}  X1 {r['X1']:.6e}", flush=True)
+    return {"model": model.name, "n": n, "t_end": t_end, "rows": rows, "equal_energy_error": equal}
 
 
 def _fpu_heyoka(ta, batch, x0, w0, t_end, e0, scale, model):
@@ -1246,6 +1321,20 @@ def report(res, markdown=False):
             [("config", "heyoka", 24, ""), ("ns_per_tau_per_orbit", "ns per τ", 10, ".0f"),
              ("energy_error", "|ΔH|/H", 9, ".1e"), ("X1", "X1", 13, ".6e"),
              ("compile_s", "compile s", 9, ".2f")]))
+    if "lattice" in res:
+        lt = res["lattice"]
+        parts.append(tab(
+            f"\n{lt['model']}, one deviation vector, t = {lt['t_end']:g}: wall seconds (varint's "
+            "runs include their pilot)",
+            [dict(r, label=f"{r['peer']}: {r['config']}") for r in lt["rows"]],
+            [("label", "contender", 50, ""), ("seconds", "seconds", 8, ".3f"),
+             ("energy_error", "|ΔH|/H", 9, ".1e"), ("tau", "τ", 7, ".4g"),
+             ("X1", "X1", 13, ".6e"), ("warm_up_s", "warm-up s", 9, ".2f")]))
+        parts.append(tab(
+            "\nheyoka's cost at varint's energy error", lt["equal_energy_error"],
+            [("varint", "varint", 40, ""), ("energy_error", "|ΔH|/H", 9, ".1e"),
+             ("varint_s", "varint s", 9, ".3f"), ("heyoka_s", "heyoka s", 9, ".3f"),
+             ("how", "how", 12, ""), ("heyoka_over_varint", "hy/varint", 9, ".2f")]))
     return "\n".join(parts)
 
 
@@ -1299,6 +1388,8 @@ def main(argv=None):
         res["orbit"] = orbit_case(args.quick, repeats)
     if "fpu" in cases:
         res["fpu"] = fpu_case(args.quick, repeats)
+    if "lattice" in cases:
+        res["lattice"] = lattice_case(args.quick, repeats)
     measured = {"code": CODE, "load": [load, os.getloadavg()[0]], "repeats": repeats,
                 "argv": sys.argv[1:] if argv is None else argv,
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
@@ -1340,6 +1431,9 @@ def main(argv=None):
         save_csv(args.out, f"{name}_orbit", res["orbit"]["rows"], list(res["orbit"]["rows"][0]))
     if "fpu" in fresh:
         save_csv(args.out, f"{name}_fpu", res["fpu"]["rows"], list(res["fpu"]["rows"][0]))
+    if "lattice" in fresh:
+        save_csv(args.out, f"{name}_lattice", res["lattice"]["rows"],
+                 list(res["lattice"]["rows"][0]))
     save_json(args.out, name, res)
     return res
 

@@ -124,9 +124,11 @@ def cases():
         opts = {"window": 10.0} if ind == "local_exponents" else {}
         add((f"tm/SBAB2C/HH/ind/{ind}", lambda i=ind, o=opts: varint.run(
             hh, c1, i, 40.0, tau=0.05, **o)))
+        # A lattice's own default is ABA864 on its part stepper: SBAB2C named.
         add((f"tm/SBAB2C/FPU20/ind/{ind}", lambda i=ind, o=opts: varint.run(
-            big, xb, i, 10.0, tau=0.05, **o)))
-    add(("tm/SBAB2C/R3/lyapunov", lambda: varint.lyapunov_spectrum(fpu, r3, 30.0, tau=0.05)))
+            big, xb, i, 10.0, tau=0.05, scheme="SBAB2C", **o)))
+    add(("tm/SBAB2C/R3/lyapunov", lambda: varint.lyapunov_spectrum(fpu, r3, 30.0, tau=0.05,
+                                                                  scheme="SBAB2C")))
     # Batches, serial and parallel (lanes), with every accumulator.
     X = np.array([r1, c1, 0.99 * c1])
     for ind in ("sali", "megno", "fli", "lyapunov", "gali"):
@@ -173,6 +175,14 @@ def cases():
             m, x, "lyapunov", 5.0, 0.1, scheme="ABA864", n_exponents=2)))
         add((f"tm/ABA864/{name}/megno", lambda m=model, x=x0: varint.run(
             m, x, "megno", 5.0, 0.1, scheme="ABA864")))
+    # The lattices' defaults: their own scheme (the part stepper; the
+    # generated one for KG8), at a given and at the pilot's step.
+    for name, model, x0 in (("KG32", kg, kg.initial_block(4, 0.4)),
+                            ("KG8", kg_small, kg_small.initial_block(2, 0.4)),
+                            ("FPUT32", fput, fput.initial_block(4, 0.4)),
+                            ("DDNLS32", dd, dd.initial_block(4, 1.0))):
+        add((f"tm/default/{name}/dvd", lambda m=model, x=x0: varint.run(m, x, "dvd", 5.0, 0.1)))
+        add((f"tm/auto/{name}/dvd", lambda m=model, x=x0: varint.run(m, x, "dvd", 5.0)))
     for name, model, x0 in (("DDNLS32", dd, dd.initial_block(4, 1.0)),
                             ("DDNLS6x6", dd2, dd2.initial_block(2, 1.0))):
         for s in (s.name.upper() for s in registered(3)):

@@ -813,14 +813,33 @@ def how_fast(R):
             " / ".join(ratio(r["orbits_per_s_2_threads"] / r["orbits_per_s"]) for r in two)
             + " (one run)", where))
     else:
-        rows.append(("FLI / SALI / MEGNO map on 2 threads", "not re-measured", "1 thread",
-                     "—", "wall time of two threads means nothing on a machine this loaded "
-                     "(`bench_peers --cases maps` measures it)"))
+        th = R.json("threads")
+        by = {r["indicator"]: r for r in th["rows"]}
+        inds = [i for i in ("fli", "sali", "megno") if i in by]
+        chose = " / ".join("2" if by[i]["default_parallel"] else "1" for i in inds)
+        rows.append((f"{' / '.join(i.upper() for i in inds)} map, {by[inds[0]]['orbits']} "
+                     f"orbits, t = {power(by[inds[0]]['t_end'])}, on 2 threads by default "
+                     f"(it ran on {chose}; `parallel=True` forced: "
+                     + " / ".join(ratio(by[i]["forced_over_1"]) for i in inds) + "×)",
+                     "—", "1 thread",
+                     " / ".join(ratio(by[i]["default_over_1"]) for i in inds) + " (one run)",
+                     measured_in(th, "threads")))
     fpu = peers["fpu"]["rows"][-1]
     rows.append((f"FPU-β n = {fpu['n']}, one vector, ABA864",
                  f"{fpu['varint_ns_per_step'] / 1e3:.1f} µs/step",
                  f"plain numba loop of the same step, {fpu['numba_ns_per_step'] / 1e3:.1f} µs",
                  _ratio_cell(fpu["varint_over_numba"], None), _peers_measured(R, "fpu")))
+    if "lattice" in peers:
+        lt = peers["lattice"]
+        for e in lt["equal_energy_error"]:
+            bound = "at most " if e["how"] == "at most" else ""
+            rows.append((f"KG chain N = {lt['n']}, one vector, to t = {lt['t_end']:g}, varint "
+                         f"{e['varint']} (with its pilot)",
+                         f"{e['varint_s']:.2f} s, energy error {e['energy_error']:.0e}",
+                         f"heyoka's Taylor method at that error, {bound}{e['heyoka_s']:.2f} s",
+                         "—" if e["heyoka_over_varint"] is None else
+                         f"{bound}{_ratio_cell(e['heyoka_over_varint'], None, faster=True)}",
+                         _peers_measured(R, "lattice")))
 
     lat = R.json("lattices_efficiency")
     where = measured_in(lat, "lattices")

@@ -1233,7 +1233,8 @@ def _add_run_options(p, t_end=1e4, chaos_map=False):
     p.add_argument("--method", default="tm", help=f"integration method: {', '.join(METHODS)} "
                    f"(default tm; a symplectic map: {', '.join(MAP_METHODS)})")
     default = (f"{MAP_SCHEME} when the step is chosen automatically (no --tau), else "
-               f"{DEFAULT_SCHEME}" if chaos_map else f"{DEFAULT_SCHEME}, or a lattice's own split")
+               f"{DEFAULT_SCHEME}" if chaos_map else
+               f"{DEFAULT_SCHEME}, or a lattice's own: ABA864 for KG and FPUT, s11ABC6 for DDNLS")
     p.add_argument("--scheme", help=f"splitting scheme (default {default}); see "
                    "'varint schemes'")
     p.add_argument("--compensated", action="store_true", default=None, help="tm: add every "

@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SplittingScheme", "CompositionScheme", "SCHEMES", "DEFAULT_SCHEME", "get_scheme",
-           "register_scheme", "registered", "stage_arrays", "stage_times", "scheme_word",
-           "part_stages", "CORRECTOR"]
+__all__ = ["SplittingScheme", "CompositionScheme", "SCHEMES", "DEFAULT_SCHEME", "default_for",
+           "get_scheme", "register_scheme", "registered", "stage_arrays", "stage_times",
+           "scheme_word", "part_stages", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
 DRIFT, KICK = 0, 1
@@ -425,6 +425,36 @@ SCHEMES: dict[str, SplittingScheme | CompositionScheme] = {}
 #: The scheme of the TM method and the TDH methods when none is given: the
 #: paper's S_B2^c (Skokos & Gerlach 2010), SBAB2 with corrector.
 DEFAULT_SCHEME = "SBAB2C"
+
+
+def default_for(model, method="tm"):
+    """The scheme ``method`` runs ``model`` with when none is given.
+
+    A model split into parts may declare its preferred scheme
+    (``model.parts.default_scheme``): the lattices name the best of their
+    fused part stepper (ABA864 for the KG and FPUT chains, s11ABC6 for the
+    DDNLS; Danieli et al. 2019), which reaches an energy error at a fraction
+    of the cost of SBAB2C on the generic stepper (``studies/bench_peers.py``,
+    the lattice case). The TM method takes it; every other method, and
+    every model without one, takes :data:`DEFAULT_SCHEME`.
+
+    Parameters
+    ----------
+    model : Model
+    method : str, default "tm"
+
+    Returns
+    -------
+    str or SplittingScheme or CompositionScheme
+        The model's declared default or :data:`DEFAULT_SCHEME`.
+
+    References
+    ----------
+    C. Danieli, B. Many Manda, T. Mithun & Ch. Skokos, Math. Eng. 1, 447
+    (2019).
+    """
+    own = getattr(getattr(model, "parts", None), "default_scheme", None)
+    return own if own is not None and method == "tm" else DEFAULT_SCHEME
 
 
 def register_scheme(scheme: SplittingScheme | CompositionScheme

@@ -62,7 +62,7 @@ from .accuracy import AccuracyWarning, Reference, user_stacklevel
 from .methods import METHODS, make_propagator, propagator_class
 from .methods.tm import TangentMapPropagator
 from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
-from .schemes import DEFAULT_SCHEME, get_scheme
+from .schemes import default_for, get_scheme
 from .state import Rows, RunState, initial_deviations
 
 __all__ = ["choose_step", "pilot_errors", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
@@ -108,17 +108,13 @@ def pilots(method):
     return "scheme" in getattr(propagator_class(method), "OPTIONS", ())
 
 
-def _default_scheme(model, scheme):
-    """The scheme "tm" runs ``model`` with: the given one, a lattice's own
-    default (its part split), or the paper's SBAB2C."""
+def _default_scheme(model, scheme, method="tm"):
+    """The scheme ``method`` runs ``model`` with: the given one, or its
+    default (:func:`varint.schemes.default_for`: a lattice's own for "tm")."""
     parts = getattr(model, "parts", None)
     if parts is not None and parts.schemes is not None:
         return parts.resolve(scheme, model.name)
-    if scheme is not None:
-        return get_scheme(scheme)
-    if parts is not None and parts.default_scheme is not None:
-        return get_scheme(parts.default_scheme)
-    return get_scheme(DEFAULT_SCHEME)
+    return get_scheme(default_for(model, method) if scheme is None else scheme)
 
 
 def check_options(method, options):
@@ -183,7 +179,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
         return tau, StepChoice(rule="fixed", tau=tau, note=(
             f"{method}'s tau is its renormalisation interval, not its step; its accuracy is "
             "set by its tolerances"))
-    sch = _default_scheme(model, scheme)
+    sch = _default_scheme(model, scheme, method)
     pick = np.arange(len(X))
     if len(X) > PILOT_ORBITS:
         pick = np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))

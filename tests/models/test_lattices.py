@@ -335,3 +335,41 @@ def test_methods_and_schemes_that_do_not_fit_are_refused():
         varint.run(kg2, kg2.initial_block(1), "x1", 1.0, scheme="s9ABC6")
     with pytest.raises(ValueError, match="no band-stored Hessian"):
         kg2.hessian_band(np.zeros(16))
+
+
+def test_a_lattice_runs_its_own_scheme_by_default():
+    """The lattices declare their best scheme (Danieli et al. 2019: ABA864
+    for the KG and FPUT chains, s11ABC6 for the DDNLS); method "tm" runs it
+    when none is given — on the part stepper, or on the stepper generated
+    for a small chain — and its pilot tries the same scheme. The other
+    methods keep varint's DEFAULT_SCHEME."""
+    from varint import stepsize
+    from varint.methods import make_propagator
+    from varint.methods.parts import PartsPropagator
+    from varint.methods.tm import TangentMapPropagator
+    from varint.schemes import DEFAULT_SCHEME, default_for
+
+    for model, own, stepper in ((DisorderedKG(40, 4.0, 1), "ABA864", PartsPropagator),
+                                (DisorderedKG((4, 4), 4.0, 1), "ABA864", PartsPropagator),
+                                (FPUT(40, 0.25, 1.0), "ABA864", PartsPropagator),
+                                (FPUBeta(8, 1.5), "ABA864", TangentMapPropagator),
+                                (DDNLS(12, 4.0, 1.0, 1), "S11ABC6", PartsPropagator)):
+        assert default_for(model).upper() == own
+        prop = make_propagator("tm", model, 0.1, "qr")
+        assert type(prop) is stepper and prop.scheme.name.upper() == own, model.name
+        assert stepsize._default_scheme(model, None, "tm") is prop.scheme
+        assert default_for(model, "tdhcc") == DEFAULT_SCHEME
+    chain = FPUBeta(8, 1.5)
+    assert make_propagator("tdhcc", chain, 0.1, "qr").scheme.name == DEFAULT_SCHEME
+    assert stepsize._default_scheme(chain, None, "tdhcc").name == DEFAULT_SCHEME
+    # A given scheme is run as given.
+    assert make_propagator("tm", chain, 0.1, "qr", scheme="SABA2C").scheme.name == "SABA2C"
+
+
+def test_the_default_is_bitwise_the_named_scheme():
+    model = DisorderedKG(16, 4.0, 2)
+    x0 = model.initial_block(3, 0.3)
+    a = varint.run(model, x0, "dvd", 2.0, 0.1)
+    b = varint.run(model, x0, "dvd", 2.0, 0.1, scheme="ABA864")
+    for name in ("state", "deviations", "energy_error"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name

@@ -252,3 +252,21 @@ def test_c1_accuracy_is_the_reference_distribution(monkeypatch):
     monkeypatch.setattr(bp, "reference_sample", lambda *a, **k: sample(*a, **k) + 0.05)
     moved = bp.spectra_case(True, 1, ("C1",))["C1"]
     assert not any(r["same_law"] for r in moved["rows"]) and not moved["equal_error"]
+
+
+def test_the_fpu_reference_loop_is_varints_map():
+    """The plain loop the FPU case races (four arrays, the previous bond's
+    force carried along the sites) computes the same map as varint's
+    ABA864 step with one vector normalised every step: the same orbit,
+    vector and X1 to round-off."""
+    n, tau, steps = 12, 0.05, 200
+    model, x0 = varint.models.FPUBeta(n, 1.5), bp.fpu_state(n)
+    w0 = bp.seeded_vectors(2 * n, 1, 1, seed=0)[0]
+    kinds, h, _ = bp.stage_tables(varint.get_scheme("ABA864"), tau)
+    x, w = x0.copy(), w0[:, 0].copy()
+    x1 = bp.fpu_tangent(x, w, 1.5, kinds, h, steps) / (steps * tau)
+    r = varint.lyapunov_spectrum(model, x0, steps * tau, tau=tau, n_exponents=1,
+                                 scheme="ABA864", deviations=w0, t_out=1, progress=False)
+    assert np.max(np.abs(r.state - x)) < 1e-13
+    assert np.max(np.abs(r.deviations[:, 0] - w)) < 1e-11
+    assert abs(r.exponents[-1, 0] - x1) < 1e-12 * abs(x1) + 1e-15

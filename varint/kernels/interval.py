@@ -61,12 +61,12 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
-import numba
 import numpy as np
 from numba import njit, prange, types
 from numba.core.extending import intrinsic, overload
 
 from ..protocol import Renorm, Status
+from ..threads import parallel_by_default
 from .checks import CHECK_EVERY, renormalize, tangent_overflow
 from .closures import cache_on_disk
 from .inlining import defer
@@ -414,7 +414,8 @@ def batch_loop(body, parallel, accumulate=no_accumulator, flow=False):
 
 def use_parallel(parallel, n_orbits):
     """Whether a batch runs its orbits on all cores: as asked, or by default
-    when there is more than one orbit and more than one numba thread."""
+    when there is more than one orbit, more than one numba thread and a
+    core free for the second (:func:`varint.threads.parallel_by_default`)."""
     if parallel is None:
-        return n_orbits > 1 and numba.get_num_threads() > 1
+        return parallel_by_default(n_orbits)
     return bool(parallel)

@@ -92,13 +92,15 @@ def parts_body(apply, field, K_C, TIME=False):
             for st in range(parts.shape[0]):
                 ws.par[last] = t
                 ws.work[slot] = state.pt[0]
-                apply(parts[st], h[st], state.x, ws.V, ws.k, ws.par, ws.work)
+                apply(parts[st], h[st], state.x, ws.V, K_C if K_C >= 0 else ws.k, ws.par,
+                      ws.work)
                 state.pt[0] = ws.work[slot]
                 t += h[st]
                 counters[parts[st]] += 1
         else:
             for st in range(parts.shape[0]):
-                apply(parts[st], h[st], state.x, ws.V, ws.k, setup.par, ws.work)
+                apply(parts[st], h[st], state.x, ws.V, K_C if K_C >= 0 else ws.k, setup.par,
+                      ws.work)
                 counters[parts[st]] += 1
         return 0, carry
 

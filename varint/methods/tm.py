@@ -33,7 +33,7 @@ from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
-from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, stage_arrays, stage_times
+from ..schemes import DEFAULT_SCHEME, DRIFT, default_for, get_scheme, stage_arrays, stage_times
 from ..state import Snapshots
 from .options import method_options
 
@@ -105,7 +105,10 @@ class TangentMapPropagator:
         opts = method_options(self.method, options, self.OPTIONS)
         self.model = model
         self.tau = float(tau)
-        self.scheme = get_scheme(opts.get("scheme", DEFAULT_SCHEME), n_parts=2)
+        scheme = opts.get("scheme")
+        # A small chain whose own scheme takes the stepper generated for it
+        # (varint.methods.parts.runs_parts) runs that scheme here.
+        self.scheme = get_scheme(default_for(model) if scheme is None else scheme, n_parts=2)
         self.renorm = Renorm.parse(renorm)
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator

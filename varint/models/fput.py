@@ -147,17 +147,23 @@ def _kick(x, V, k, h, par):
     alpha, beta = par[_ALPHA], par[_BETA]
     periodic = par[3] != 0.0
     _kick_site(x, V, k, h, alpha, beta, 0, n, periodic)
+    # The right bond of site i is the left bond of site i + 1: its force
+    # and stiffness are carried to the next site (one φ', φ'' per bond, not
+    # two; the same values, the kick only moves momenta).
+    rl = x[1] - x[0]
+    fl = force(rl, alpha, beta)
+    kl = stiffness(rl, alpha, beta)
     for i in range(1, n - 1):
-        rl = x[i] - x[i - 1]
         rr = x[i + 1] - x[i]
-        x[n + i] -= h * ((0.0 + force(rl, alpha, beta)) - force(rr, alpha, beta))
-        kl = stiffness(rl, alpha, beta)
+        fr = force(rr, alpha, beta)
         kr = stiffness(rr, alpha, beta)
+        x[n + i] -= h * ((0.0 + fl) - fr)
         a = h * ((0.0 + kl) + kr)
         al = h * (-kl)
         ar = h * (-kr)
         for j in range(k):
             V[j, n + i] = ((V[j, n + i] - a * V[j, i]) - al * V[j, i - 1]) - ar * V[j, i + 1]
+        fl, kl = fr, kr
     _kick_site(x, V, k, h, alpha, beta, n - 1, n, periodic)
 
 
@@ -229,7 +235,7 @@ class FPUT(LatticeModel):
                     _third if band else no_third_kernel, 1 if band else 0,
                     header + [self.alpha, self.beta], band)
         self.parts = Parts(names=("T", "V"), apply=_apply, field=_field, splits={2: ("T", "V")},
-                           par=self.params, default_scheme=None if band else "ABA864")
+                           par=self.params, default_scheme="ABA864")
 
     def _potential_of_bonds(self, r):
         return 0.5 * r * r + self.alpha * r ** 3 / 3.0 + 0.25 * self.beta * r ** 4

@@ -185,7 +185,7 @@ class DisorderedKG(LatticeModel):
         self._setup(shape, boundary, name, self._V, _grad, _hess if band else no_band_kernel,
                     _third if band else no_third_kernel, 1 if band else 0, par, band)
         self.parts = Parts(names=("T", "V"), apply=_apply, field=_field, splits={2: ("T", "V")},
-                           par=self.params, default_scheme=None if band else "ABA864")
+                           par=self.params, default_scheme="ABA864")
 
     def _V(self, q):
         dq, _ = self.bonds(q)

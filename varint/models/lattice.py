@@ -295,9 +295,11 @@ class Parts:
     n_work : int
         Scratch size per orbit.
     default_scheme : str or None
-        The scheme of ``method="tm"`` when none is given; None keeps
-        varint's default (SBAB2C, through the generic stepper, for chains
-        with band kernels).
+        The model's preferred scheme of ``method="tm"`` when none is given,
+        run on its fused part stepper (or on the stepper generated for a
+        small chain, :func:`varint.methods.parts.runs_parts`); None keeps
+        :data:`varint.schemes.DEFAULT_SCHEME` on the generic stepper
+        (:func:`varint.schemes.default_for` reads it).
     extend : callable or None
         ``extend(n_parts) -> (par, n_work)`` for splits whose flows need
         more data than ``par`` (built only when such a scheme is run).
