@@ -22,10 +22,6 @@ from varint.gpu import device, emit
 
 pytest.importorskip("numba.cuda")
 
-# One simulator run (the module fixture ``simulated``) checks every case: its
-# tests share one xdist worker, so that the run is made once, not once per worker.
-pytestmark = pytest.mark.xdist_group("gpu_simulated")
-
 # Run in a subprocess on the simulator; prints one JSON line of checks.
 _SIM_SCRIPT = r'''
 import json, numpy as np, sympy as sp, varint

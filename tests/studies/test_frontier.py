@@ -11,9 +11,6 @@ import pytest
 import varint
 from studies import frontier
 
-# The quick study (the module fixture) is run once: its tests share one xdist worker.
-pytestmark = pytest.mark.xdist_group("study_frontier")
-
 
 @pytest.fixture(scope="module")
 def result(tmp_path_factory):

@@ -9,9 +9,6 @@ import pytest
 import varint
 from studies import work_precision as wp
 
-# The quick study (the module fixture) is run once: its tests share one xdist worker.
-pytestmark = pytest.mark.xdist_group("study_work_precision")
-
 
 @pytest.fixture(scope="module")
 def result(tmp_path_factory):
