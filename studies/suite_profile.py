@@ -112,6 +112,8 @@ def _extra(parser):
     parser.add_argument("--rows", type=Path, default=None,
                         help="make the table from the plugin's files in this folder "
                              "instead of running pytest")
+    parser.add_argument("--note", default=None,
+                        help="what the table's run was (kept beside it, e.g. an interruption)")
     parser.add_argument("pytest_args", nargs="*", help="pytest arguments (files) after --")
 
 
@@ -165,7 +167,7 @@ def main(argv=None):
                 for k, v in rows.items()}}
     runs = [*stored.get("runs", []),
             {"args": args.pytest_args, "rows": None if args.rows is None else str(args.rows),
-             "returncode": code, "load_start": load_start,
+             "returncode": code, "note": args.note, "load_start": load_start,
              "load_end": [round(x, 2) for x in os.getloadavg()]}]
     files = by_file(tests)
     save_json(args.out, "suite_profile", {"files": files, "runs": runs, "tests": tests})
