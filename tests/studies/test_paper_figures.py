@@ -9,9 +9,6 @@ import pytest
 
 from studies import laws, paper_figures
 
-# The paper studies' quick runs are made once, in one xdist worker (tests/studies/conftest.py).
-pytestmark = pytest.mark.xdist_group("paper_quick")
-
 FIGURES = ("fig02_r1_lyapunov", "fig03_r1_step_sizes", "fig04_r1_gali", "fig05_c1",
            "fig07_c2_lyapunov", "fig08_c2_gali", "fig09_r2_lyapunov",
            "fig10_r2_gali", "fig11_r3_gali")

@@ -3,12 +3,7 @@ each figure beside its claims."""
 
 import json
 
-import pytest
-
 from studies import report
-
-# The paper studies' quick runs are made once, in one xdist worker (tests/studies/conftest.py).
-pytestmark = pytest.mark.xdist_group("paper_quick")
 
 
 def test_report_assembles_everything(table1_quick, figures_quick, paper_quick_dir, tmp_path):

@@ -7,9 +7,6 @@ import pytest
 import varint
 from studies import roundoff_floor as rf
 
-# The paper studies' quick runs are made once, in one xdist worker (tests/studies/conftest.py).
-pytestmark = pytest.mark.xdist_group("paper_quick")
-
 
 def test_the_loop_is_varints_tangent_map():
     # Same scheme, orbit and vectors: the GALIs agree to rounding after

@@ -10,9 +10,6 @@ import pytest
 from studies import table1
 from varint import AccuracyWarning
 
-# The paper studies' quick runs are made once, in one xdist worker (tests/studies/conftest.py).
-pytestmark = pytest.mark.xdist_group("paper_quick")
-
 #: The committed results of the full run.
 RESULTS = Path(__file__).resolve().parents[2] / "studies" / "results"
 

@@ -1,0 +1,181 @@
+"""Where the default test suite's time goes: per test file, the wall and CPU
+seconds its tests took (setup, call and teardown together) and the share of
+the CPU seconds numba spent compiling, measured on cold caches (fresh varint and numba caches, as
+CI has them) in one process (``-n 0``), so a file's compile time is the
+compilation its own tests caused, in the order pytest runs them.
+
+Compilation is timed (process CPU time: on a loaded machine wall time
+counts the other processes too) with numba's event API (``numba:compile`` events,
+outermost only, so a function compiled while compiling another is counted
+once); heyoka's LLVM compilation of its Taylor integrators is not a numba
+event and counts as running time. Groups of files can be profiled one run at
+a time and merged into the stored table (``--merge``), as the whole suite in
+one process takes long.
+
+The same timer rides along any pytest run as a plugin: with
+``VARINT_SUITE_PROFILE=DIR`` and ``-p studies.suite_profile`` each process
+(every xdist worker) writes ``DIR/<worker>.rows.json``; ``--rows DIR`` makes
+the table from them (so the cold suite run of ``studies/suite_time.py``, two
+workers as CI has them, gives its own profile).
+
+Usage: ``python studies/suite_profile.py [--merge] [--cache DIR] [--rows DIR]
+[--out DIR] [-- PYTEST ARGS (files)]``
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+try:
+    from common import parse_args, save_json
+except ImportError:  # imported as studies.suite_profile
+    from .common import parse_args, save_json
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class CompileTimer:
+    """A pytest plugin: per test id, the seconds of its setup, call and
+    teardown, and the seconds numba spent compiling during them (outermost
+    ``numba:compile`` events only)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.depth = 0
+        self.started = 0.0
+        self.compiling = 0.0
+        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0})
+
+    def on_start(self, event):
+        if self.depth == 0:
+            self.started = time.process_time()
+        self.depth += 1
+
+    def on_end(self, event):
+        self.depth -= 1
+        if self.depth == 0:
+            self.compiling += time.process_time() - self.started
+
+    def pytest_sessionstart(self, session):
+        from numba.core import event
+
+        timer = self
+
+        class Listener(event.Listener):
+            def on_start(self, e):
+                timer.on_start(e)
+
+            def on_end(self, e):
+                timer.on_end(e)
+
+        event.register("numba:compile", Listener())
+
+    def pytest_runtest_protocol(self, item, nextitem):
+        self.item_start = time.perf_counter()
+        self.item_cpu = time.process_time()
+        self.item_compile = self.compiling
+
+    def pytest_runtest_logfinish(self, nodeid, location):
+        row = self.rows[nodeid]
+        row["s"] += time.perf_counter() - self.item_start
+        row["cpu_s"] += time.process_time() - self.item_cpu
+        row["compile_s"] += self.compiling - self.item_compile
+
+    def pytest_sessionfinish(self, session):
+        self.path.write_text(json.dumps(self.rows))
+
+
+def pytest_configure(config):
+    """As a plugin (``-p studies.suite_profile``): time this process's tests
+    into ``$VARINT_SUITE_PROFILE/<worker>.rows.json``."""
+    folder = os.environ.get("VARINT_SUITE_PROFILE")
+    # An xdist controller (numprocesses set) runs no test: its workers time them.
+    if folder and not getattr(config.option, "numprocesses", None):
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        config.pluginmanager.register(CompileTimer(Path(folder) / f"{worker}.rows.json"))
+
+
+def _extra(parser):
+    parser.add_argument("--merge", action="store_true",
+                        help="add these files to the stored table instead of replacing it")
+    parser.add_argument("--cache", type=Path,
+                        default=Path(tempfile.gettempdir()) / f"varint-suite-profile-{os.getuid()}",
+                        help="folder of the fresh caches the files run with")
+    parser.add_argument("--rows", type=Path, default=None,
+                        help="make the table from the plugin's files in this folder "
+                             "instead of running pytest")
+    parser.add_argument("--note", default=None,
+                        help="what the table's run was (kept beside it, e.g. an interruption)")
+    parser.add_argument("pytest_args", nargs="*", help="pytest arguments (files) after --")
+
+
+def profile(cache, pytest_args):
+    """Run pytest once, cold and in one process; per test, its seconds and
+    compile seconds (a dict), and pytest's return code."""
+    shutil.rmtree(cache, ignore_errors=True)
+    for path in ROOT.glob("**/__pycache__/*.nb[ic]"):
+        path.unlink()
+    cache.mkdir(parents=True)
+    rows = cache / "rows.json"
+    code = (f"import sys, pytest; sys.path.insert(0, {str(ROOT / 'studies')!r}); "
+            f"from suite_profile import CompileTimer; "
+            f"sys.exit(pytest.main(sys.argv[1:], plugins=[CompileTimer({str(rows)!r})]))")
+    env = {**os.environ, "VARINT_CACHE_DIR": str(cache / "varint")}
+    proc = subprocess.run([sys.executable, "-c", code, "-n", "0", "-p", "no:cacheprovider",
+                           "-q", *pytest_args], cwd=ROOT, env=env)
+    return json.loads(rows.read_text()), proc.returncode
+
+
+def by_file(rows):
+    """Per test file: wall seconds, CPU seconds, compile CPU seconds, the
+    compile share of the CPU seconds, and the number of tests."""
+    files = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0, "tests": 0})
+    for nodeid, row in rows.items():
+        f = files[nodeid.split("::")[0]]
+        for key in ("s", "cpu_s", "compile_s"):
+            f[key] += row[key]
+        f["tests"] += 1
+    return {name: {"s": round(f["s"], 1), "cpu_s": round(f["cpu_s"], 1),
+                   "compile_s": round(f["compile_s"], 1),
+                   "compile_share": round(f["compile_s"] / f["cpu_s"], 2) if f["cpu_s"] else 0.0,
+                   "tests": f["tests"]}
+            for name, f in sorted(files.items(), key=lambda kv: -kv[1]["cpu_s"])}
+
+
+def main(argv=None):
+    args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
+    load_start = [round(x, 2) for x in os.getloadavg()]
+    if args.rows is None:
+        rows, code = profile(args.cache, args.pytest_args)
+    else:
+        rows, code = {}, None
+        for path in sorted(args.rows.glob("*.rows.json")):
+            rows.update(json.loads(path.read_text()))
+    path = Path(args.out) / "suite_profile.json"
+    stored = json.loads(path.read_text()) if args.merge and path.exists() else {}
+    stored.pop("_provenance", None)
+    tests = {**stored.get("tests", {}),
+             **{k: {key: round(v[key], 2) for key in ("s", "cpu_s", "compile_s")}
+                for k, v in rows.items()}}
+    runs = [*stored.get("runs", []),
+            {"args": args.pytest_args, "rows": None if args.rows is None else str(args.rows),
+             "returncode": code, "note": args.note, "load_start": load_start,
+             "load_end": [round(x, 2) for x in os.getloadavg()]}]
+    files = by_file(tests)
+    save_json(args.out, "suite_profile", {"files": files, "runs": runs, "tests": tests})
+    for name, f in list(files.items())[:40]:
+        print(f"{f['s']:8.1f} s {f['cpu_s']:8.1f} s CPU {f['compile_share']:5.0%} compile "
+              f"{f['tests']:4d}  {name}")
+    return files
+
+
+if __name__ == "__main__":
+    main()
