@@ -54,9 +54,9 @@ if str(HERE.parent) not in sys.path:
     sys.path.insert(0, str(HERE.parent))
 
 import varint  # noqa: E402
+from studies import gpu_difference  # noqa: E402
+from studies.gpu_difference import ENERGY  # noqa: E402
 from varint.models import HenonHeiles  # noqa: E402
-
-ENERGY = 0.125
 
 
 def section_points(model, m, seed=0):
@@ -371,8 +371,6 @@ def main(argv=None):
                                                                      backend="cuda", **kw))
 
     def difference():
-        from studies import gpu_difference
-
         res["difference"] = {"primitives": gpu_difference.primitives(
             300 if args.quick else 1_000_000)}
         save()
