@@ -94,6 +94,19 @@ def _solve_lane(r0, eta0, zeta0, beta, h):
     return settled, Y, H0, H1, H2, H3, H4, H5
 
 
+@njit(inline="always", error_model="numpy")
+def _fg(r0, eta0, zeta0, G1, G2, G3, mu, h):
+    """1/r0, 1/r and the Lagrange coefficients f − 1, g, ḟ, ġ − 1 of one
+    lane's Kepler step from its solved Stumpff terms (the state's update
+    and its tangent's both need them: recomputed per loop, not stored, so
+    each loop stays one pass over the lanes)."""
+    r = r0 + eta0 * G1 + zeta0 * G2
+    inv_r0 = 1.0 / r0
+    inv_r = 1.0 / r
+    return (inv_r0, inv_r, -mu * G2 * inv_r0, h - mu * G3, -mu * G1 * inv_r0 * inv_r,
+            -mu * G2 * inv_r)
+
+
 @njit(error_model="numpy")
 def _solve_planet(X, i, n, mu, inv_m, h, S, bad):
     """Kepler's equation of planet ``i`` in every lane; the prepared state
@@ -136,13 +149,7 @@ def _finish_planet(X, V, k, i, n, mu, mass, inv_m, h, S, bad):
             eta0, zeta0, Xu = S[i, _ETA, lane], S[i, _ZETA, lane], S[i, _X, lane]
             G0, G1, G2 = S[i, _G0, lane], S[i, _G0 + 1, lane], S[i, _G0 + 2, lane]
             G3, G4, G5 = S[i, _G0 + 3, lane], S[i, _G0 + 4, lane], S[i, _G0 + 5, lane]
-            r = r0 + eta0 * G1 + zeta0 * G2
-            inv_r0 = 1.0 / r0
-            inv_r = 1.0 / r
-            f = -mu * G2 * inv_r0
-            g = h - mu * G3
-            fd = -mu * G1 * inv_r0 * inv_r
-            gd = -mu * G2 * inv_r
+            inv_r0, inv_r, f, g, fd, gd = _fg(r0, eta0, zeta0, G1, G2, G3, mu, h)
             fm = fd * mass
             px, py, pz = X[ip, lane], X[ip + 1, lane], X[ip + 2, lane]
             G1b = 0.5 * (G3 - Xu * G2)
@@ -178,13 +185,7 @@ def _finish_planet(X, V, k, i, n, mu, mass, inv_m, h, S, bad):
         vx, vy, vz = S[i, _VX, lane], S[i, _VY, lane], S[i, _VZ, lane]
         r0, eta0, zeta0 = S[i, _R0, lane], S[i, _ETA, lane], S[i, _ZETA, lane]
         G1, G2, G3 = S[i, _G0 + 1, lane], S[i, _G0 + 2, lane], S[i, _G0 + 3, lane]
-        r = r0 + eta0 * G1 + zeta0 * G2
-        inv_r0 = 1.0 / r0
-        inv_r = 1.0 / r
-        f = -mu * G2 * inv_r0
-        g = h - mu * G3
-        fd = -mu * G1 * inv_r0 * inv_r
-        gd = -mu * G2 * inv_r
+        inv_r0, inv_r, f, g, fd, gd = _fg(r0, eta0, zeta0, G1, G2, G3, mu, h)
         px, py, pz = X[ip, lane], X[ip + 1, lane], X[ip + 2, lane]
         fm = fd * mass
         X[iq, lane] = rx if keep else rx + (f * rx + g * vx)
