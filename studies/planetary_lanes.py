@@ -68,7 +68,7 @@ def main(argv=None):
     W0 = np.random.default_rng(30).standard_normal((len(X0), model.dim, 1))
     scheme = varint.get_scheme("SABA1").repeated(SUBSTEPS)
     parts, h, par, n_work = _tables(model, scheme, DT * SUBSTEPS)
-    steps = lane_steps(model.n_planets, True, 1, model.parts.apply)
+    steps = lane_steps(model.n_planets, True, 1, model.parts.apply, len(X0))
     alone = []
 
     def lanes():
