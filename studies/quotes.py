@@ -968,7 +968,11 @@ def _planetary_race(R):
     rows = {row["code"]: row for row in d["rows"]}
     reb, var = rows["REBOUND"], rows["varint"]
     lo, hi = d["load_average"]
-    return (f"{d['grid_points']} points over {d['inner_periods']:g} orbits of the inner planet "
+    # Older results count the horizon in orbits of the inner planet only.
+    unit = d.get("periods_of", "inner")
+    horizon = d["periods"] if "periods" in d else d["inner_periods"]
+    where = " at the grid's middle" if unit == "outer" else ""
+    return (f"{d['grid_points']} points over {horizon:g} orbits of the {unit} planet{where} "
             f"(t ≈ {sci(d['t_end'], 3)}), {d['workers']} REBOUND workers and {d['workers']} varint "
             f"threads, load average {lo:.0f} → {hi:.0f} on {d['cores']} shared cores: REBOUND took "
             f"{ratio(d['rebound_over_varint'])}× varint's CPU time with early stopping "
@@ -1001,8 +1005,10 @@ def _planetary_lanes(R):
     """Lanes against one orbit at a time (``studies/planetary_lanes.py``)."""
     d = R.json("planetary_lanes")
     lo, hi = d["load_average"]
-    return (f"a block of {d['points']} points takes {ratio(1 / d['lanes_speedup'])}× the time "
-            f"of one orbit at a time (load {lo:.0f} → {hi:.0f})")
+    ns = d["ns_per_point_step"]
+    return (f"a block of {d['points']} points steps {ratio(d['lanes_speedup'])}× as fast as one "
+            f"orbit at a time ({ns['lanes']:.0f} against {ns['one orbit at a time']:.0f} CPU ns "
+            f"per point and step of dt, one thread, load {lo:.0f} → {hi:.0f})")
 
 
 @quote("suite_time")

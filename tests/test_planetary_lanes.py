@@ -3,11 +3,15 @@ grid points stepped together end bit for bit where each point's one-orbit
 part stepper ends, including lanes whose Kepler drift leaves the common
 path (unresolved pericentres, stepped alone) and lanes that meet."""
 
+import platform
+import re
+import warnings
+
 import numpy as np
 import pytest
 
 import varint
-from varint.kernels.planetary_lanes import lane_steps
+from varint.kernels.planetary_lanes import _planet_drift, kick_lanes, lane_steps
 from varint.methods.parts import _tables, parts_steps
 from varint.models import Planetary
 
@@ -31,7 +35,7 @@ def _lanes(model, X, W, tau, n_steps, scheme):
     parts, h, par, n_work = _tables(model, scheme, tau)
     Xl = np.ascontiguousarray(X.T)
     Vl = np.ascontiguousarray(np.moveaxis(W, 0, 2).transpose(1, 0, 2))   # (k, 2N, L)
-    steps = lane_steps(model.n_planets, True, k, model.parts.apply)
+    steps = lane_steps(model.n_planets, True, k, model.parts.apply, len(X))
     alone = steps(Xl, Vl, parts, h, par, n_work, n_steps)
     return Xl.T, Vl.transpose(2, 1, 0), alone
 
@@ -68,4 +72,53 @@ def test_lanes_mark_an_encounter_as_the_one_orbit_flow_does():
 def test_lanes_refuse_democratic_coordinates():
     model = Planetary([1.0, 0.000954, 0.000285], coordinates="democratic")
     with pytest.raises(ValueError, match="Jacobi coordinates only"):
-        lane_steps(model.n_planets, False, 1, model.parts.apply)
+        lane_steps(model.n_planets, False, 1, model.parts.apply, 4)
+
+
+@pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"),
+                    reason="reads x86 assembly")
+def test_the_lane_loops_compile_to_vector_instructions():
+    # What the lanes are for: the solve, the tangent and state updates and
+    # the kick each compile to packed double instructions (SSE2's *pd at
+    # least, on any x86-64), not one lane at a time (*sd only) — as they
+    # did while a run-time row length or planet index blocked LLVM.
+    model = Planetary([1.0, 0.000954, 0.000285])
+    X = _grid(model)
+    _lanes(model, X, np.ones((len(X), model.dim, 1)), 10.0, 1, WH10)     # compiles them
+    packed = re.compile(r"\n\s+v?(?:mul|add|sub|div|sqrt|fn?m(?:add|sub)\d*)pd\s")
+    kernels = {"kick": kick_lanes(2, True, 1, len(X))}
+    for i in range(2):
+        kernels[f"solve {i}"], kernels[f"finish {i}"] = _planet_drift(i, 2, 1, len(X))
+    for name, kernel in kernels.items():
+        (asm,) = kernel.inspect_asm().values()
+        assert len(packed.findall(asm)) >= 20, name
+
+
+def _map(model, X, **options):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # the eccentric lanes' unresolved pericentres
+        return varint.chaos_map(model, X, "megno", t_end=1500.0, tau=10.0, threshold=4.0,
+                                scheme=WH10, progress=False, escape_radius=20.0, **options)
+
+
+def test_a_map_in_lanes_is_bitwise_the_map_one_orbit_at_a_time_whatever_its_chunks():
+    # MEGNO with early stopping, escapes and failed drifts (the eccentric
+    # lanes): lanes (default) against one orbit at a time, one chunk
+    # against chunks of 7 (blocks part-filled and refilled as orbits stop)
+    # and one thread against all.
+    model = Planetary([1.0, 0.000954, 0.000285])
+    X = _grid(model)
+    one = _map(model, X, lanes=False, chunk_size=len(X))
+    assert (one.status > 0).any() and (one.status < 0).any()   # failures and early stops
+    for options in (dict(chunk_size=len(X)), dict(chunk_size=7, parallel=True),
+                    dict(chunk_size=len(X), parallel=False)):
+        lanes = _map(model, X, **options)
+        for key in ("values", "status", "t_stop"):
+            assert np.array_equal(getattr(lanes, key), getattr(one, key), equal_nan=True), \
+                (key, options)
+
+
+def test_lanes_option_is_checked():
+    model = Planetary([1.0, 0.000954, 0.000285])
+    with pytest.raises(ValueError, match="lanes must be True or False, got 'yes'"):
+        _map(model, _grid(model)[:4], lanes="yes")

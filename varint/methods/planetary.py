@@ -8,7 +8,9 @@ interval, and the three-part compositions in democratic heliocentric
 coordinates — runs through the model's part flows (Kepler drifts and
 interaction kicks fused with their tangent maps) in the part stepper
 (:class:`varint.methods.parts.PartsPropagator`), which owns the loop and
-the end of every interval.
+the end of every interval — or, for several orbits in Jacobi coordinates,
+in blocks of SIMD lanes with the same end of every interval
+(:mod:`varint.kernels.planetary_batch`), bit for bit the same.
 
 What this adds is processing: with ``corrector=p`` the symplectic corrector
 C of Wisdom, Holman & Touma (1996) of order p (:mod:`varint.correctors`)
@@ -38,12 +40,15 @@ from __future__ import annotations
 
 import warnings
 
+import numba
 import numpy as np
 from numba import njit
 
 from ..accuracy import AccuracyWarning
 from ..correctors import WHT_ORDERS, corrector_word
+from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.nbody import apply_word
+from ..kernels.planetary_batch import LANES, lane_batch
 from ..protocol import STATUS_OK, Renorm, Status
 from ..schemes import get_scheme
 from ..state import renormalized_copy
@@ -51,6 +56,9 @@ from .options import method_options
 from .parts import PartsPropagator
 
 __all__ = ["PlanetaryPropagator", "MAPPED_STATE", "MAPPED_VECTORS"]
+
+#: Fewest active orbits a call steps as SIMD lanes (fewer: one at a time).
+MIN_LANE_ORBITS = 4
 
 #: Keys of the map's state y = C⁻¹(x) and vectors in ``RunState.extra``.
 MAPPED_STATE, MAPPED_VECTORS = "wh_mapped_x", "wh_mapped_W"
@@ -140,21 +148,36 @@ class PlanetaryPropagator:
         τ/m), in Jacobi coordinates.
     parallel : bool, optional
         As for :class:`~varint.methods.parts.PartsPropagator`.
+    lanes : bool, optional
+        Step the orbits of a call in blocks of SIMD lanes
+        (:mod:`varint.kernels.planetary_batch`; default True, in Jacobi
+        coordinates with a two-part scheme and at least
+        :data:`MIN_LANE_ORBITS` active orbits): bit for bit what one orbit at
+        a time gives (``lanes=False``), faster (studies/planetary_lanes.py).
 
     Raises
     ------
     ValueError
-        For a corrector of another order, on another scheme or in democratic
-        heliocentric coordinates.
+        For ``lanes`` not a bool; for a corrector of another order, on
+        another scheme or in democratic heliocentric coordinates.
     """
 
     method = "tm"
-    OPTIONS = ("scheme", "parallel", "corrector")
+    OPTIONS = ("scheme", "parallel", "corrector", "lanes")
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = method_options(self.method, options, self.OPTIONS)
         corrector = opts.pop("corrector", None)
+        lanes = opts.pop("lanes", True)
+        if not isinstance(lanes, bool):
+            raise ValueError(f"lanes must be True or False, got {lanes!r}")
         self.inner = PartsPropagator(model, tau, renorm, accumulator, **opts)
+        # Orbits stepped as SIMD lanes (kernels.planetary_batch): the Kepler
+        # drift and the kick have lanes in Jacobi coordinates only, and the
+        # Wisdom-Holman family's two parts.
+        self.lanes = (lanes and model.coordinates == "jacobi"
+                      and getattr(self.inner.scheme, "n_parts", 2) == 2
+                      and not model.parts.timed)
         self.model = model
         self.tau = self.inner.tau
         self.renorm = Renorm.parse(renorm)
@@ -198,7 +221,7 @@ class PlanetaryPropagator:
             self._warn_unresolved(state)
         was_active = state.status == STATUS_OK
         if self.corrector is None:
-            self.inner.advance(state, n)
+            self._advance(state, n)
             _name_failures(state, was_active)
             return
         if MAPPED_STATE not in state.extra:
@@ -210,7 +233,7 @@ class PlanetaryPropagator:
         y, Wy = state.extra[MAPPED_STATE], state.extra[MAPPED_VECTORS]
         state.x[...] = y
         state.W[...] = Wy
-        self.inner.advance(state, n)
+        self._advance(state, n)
         _name_failures(state, was_active)
         y[...] = state.x
         Wy[...] = state.W
@@ -221,6 +244,36 @@ class PlanetaryPropagator:
             W, _, _ = renormalized_copy(W, state.acc_m, state.acc_e, self.renorm)
         state.x[...] = x
         state.W[...] = W
+
+    def _advance(self, state, n):
+        """The part stepper's ``n`` intervals on the active orbits: in
+        blocks of SIMD lanes where there are several (bit for bit the same,
+        :mod:`varint.kernels.planetary_batch`), else one orbit at a time."""
+        order = np.flatnonzero(state.status == STATUS_OK)
+        if not (self.lanes and n > 0 and len(order) >= MIN_LANE_ORBITS):
+            self.inner.advance(state, n)
+            return
+        inner, parts, m = self.inner, self.model.parts, state.n_orbits
+        acc = inner.accumulator
+        if acc is None:
+            update, aux, flow = no_accumulator, np.empty((m, 0, 0)), False
+        else:
+            update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
+        parallel = use_parallel(inner.parallel, m)
+        kernel = lane_batch(self.model.n_planets, state.k, parts.apply, parts.field, update,
+                            flow, parallel)
+        # One block of lanes per thread, each with an equal share of the orbits.
+        blocks = min(-(-len(order) // LANES), numba.get_num_threads() if parallel else 1)
+        groups = np.linspace(0, len(order), blocks + 1).astype(np.int64)
+        counters = np.zeros((m, len(parts.names)), dtype=np.int64)
+        done = np.zeros(m, dtype=np.int64)
+        was_active = state.status == STATUS_OK
+        kernel(state.x, state.W, state.acc_m, state.acc_e, aux, counters, inner._parts,
+               inner._h, inner._par, inner._n_work,
+               Call(int(n), state.step, inner.tau, int(inner.renorm), inner._escape_r2),
+               state.status, done, order, groups)
+        state.after_kernel(n, was_active, done, counters,
+                           tuple(f"flow_{name}" for name in parts.names))
 
     def _warn_unresolved(self, state):
         """An :class:`~varint.accuracy.AccuracyWarning` where the Kepler
