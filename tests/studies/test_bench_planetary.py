@@ -1,13 +1,14 @@
 """The planetary benchmark's rules (its verdict and agreement, its grid)
 and the planetary laws study's helpers — never its timings; the quick runs
-of both are slow (they compile the planetary steppers and heyoka's) and
-run with ``-m slow``."""
+of both (and of the map-lanes study) are slow (they compile the planetary
+steppers and heyoka's) and run with ``-m slow``."""
 
 import numpy as np
 import pytest
 
 from studies import bench_planetary as bp
 from studies import planetary as pl
+from studies import planetary_map_lanes as pml
 
 
 def test_a_failed_or_escaped_orbit_counts_as_chaotic():
@@ -50,3 +51,9 @@ def test_clopper_pearson_interval_follows_its_closed_forms():
     for k in (1, 60, 125):
         lo, hi = clopper_pearson(k, 128)
         assert lo < k / 128 < hi
+
+
+@pytest.mark.slow
+def test_quick_map_lanes_run_is_bitwise(tmp_path):
+    result = pml.main(["--quick", "--out", str(tmp_path)])
+    assert result["bitwise_equal"] == {"early stopping": True, "no early stopping": True}

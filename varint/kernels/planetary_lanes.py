@@ -246,11 +246,10 @@ def drift_lanes(n, k, width):
     scope = {}
     for i, (solve, finish) in enumerate(drifts):
         scope[f"solve{i}"], scope[f"finish{i}"] = solve, finish
-    names = range(n)
     body = ["def drift(X, V, h, par, S, bad):", "    bad[:] = False"]
-    body += [f"    solve{i}(X, par[{omu + i}], 1.0 / par[{okm + i}], h, S, bad)" for i in names]
+    body += [f"    solve{i}(X, par[{omu + i}], 1.0 / par[{okm + i}], h, S, bad)" for i in range(n)]
     body += [f"    finish{i}(X, V, par[{omu + i}], par[{okm + i}], 1.0 / par[{okm + i}], h, S, bad)"
-             for i in names]
+             for i in range(n)]
     body.append("    return int(bad.sum())")
     exec(compile("\n".join(body) + "\n", f"<varint planetary drift lanes n={n} k={k}>", "exec"),
          scope)
