@@ -1011,6 +1011,20 @@ def _planetary_lanes(R):
             f"per point and step of dt, one thread, load {lo:.0f} → {hi:.0f})")
 
 
+@quote("planetary_map_lanes")
+def _planetary_map_lanes(R):
+    """A planetary MEGNO map in lanes against one orbit at a time
+    (``studies/planetary_map_lanes.py``)."""
+    d = R.json("planetary_map_lanes")
+    lo, hi = d["load_average"]
+    s = d["lanes_speedup"]
+    return (f"on {d['grid_points']} points of the race's grid over {d['inner_periods']:g} orbits "
+            f"of the inner planet, one thread, the map in lanes ran {ratio(s['early stopping'])}× "
+            f"as fast as one orbit at a time (CPU time) with early stopping and "
+            f"{ratio(s['no early stopping'])}× without, bit for bit alike (load {lo:.0f} → "
+            f"{hi:.0f})")
+
+
 @quote("suite_time")
 def _suite_time(R):
     """How long the default suite took, cold, as CI runs it
