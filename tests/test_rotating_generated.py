@@ -157,3 +157,33 @@ def test_more_vectors_than_fit_are_refused():
     P = TangentMapPropagator(model, 0.05, Renorm.NONE, scheme="SRKN14a")
     with pytest.raises(ValueError, match="at most 4 vectors"):
         P.advance(state, 1)
+
+
+_SIM_SCRIPT = r'''
+import json, numpy as np, varint
+from varint.models import CR3BP
+model = CR3BP(0.000954)
+X = model.section_grid(3.05, [0.4, 0.55, 0.6], [0.0]).states
+kw = dict(t_end=2, tau=0.05, threshold=None, progress=False, scheme="SBAB2")
+cpu = varint.chaos_map(model, X, "fli", **kw)
+gpu = varint.chaos_map(model, X, "fli", backend="cuda", **kw)
+print(json.dumps([bool(np.array_equal(cpu.values, gpu.values)),
+                  bool(np.array_equal(cpu.state, gpu.state))]))
+'''
+
+
+def test_cuda_kernel_on_the_simulator_is_bitwise_the_cpu():
+    """The CUDA emitter writes the same rotating-frame drift (numba's CUDA
+    simulator, in a subprocess: set before numba.cuda is imported): an FLI
+    map's values and final states are the CPU's bits."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("numba.cuda")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    run = subprocess.run([sys.executable, "-c", _SIM_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert json.loads(run.stdout.strip().splitlines()[-1]) == [True, True]
