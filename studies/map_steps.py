@@ -49,8 +49,7 @@ Parts (``--part``):
     varint seconds, > 1: varint faster). Targets: the small-core map ≥ 1.0×
     (issue 27), the CR3BP map ≥ 3× (issue 29). Each varint row also keeps
     its steps, the pilot's steps, the run's microseconds per orbit and step
-    (``us_per_step``: the three-body model runs the generic part stepper,
-    the cored potential a generated SIMD stepper) and, for ``tau='orbit'``,
+    (``us_per_step``: both models run generated SIMD steppers) and, for ``tau='orbit'``,
     how many orbits the indicator's verdict gave their step (``judged``).
 ``fixed``
     How cheap a map can be that still classifies as the reference does,
@@ -58,20 +57,22 @@ Parts (``--part``):
     (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
     interleaved as in ``race``.
 
-Where the time of the three-body map goes (full race, load 14–17,
-``map_steps_race.json``): heyoka does the whole map in 1.6 s; varint's
-defaults take 1.64 M orbit steps in 20 s, ~12 µs each (the model runs the
-generic part stepper of :mod:`varint.methods.parts`: a rotating-frame
-drift and the kick, arrays in memory, no generated SIMD stepper), against
-~0.6 µs per step of SRKN14a on the cored potential's generated stepper;
-``tau='orbit'`` halves the steps (0.83 M) and spends ~20 % of its time in
-the pilot. Even τ = 1 for every orbit (0.145 M steps) would take ~1.8 s at
-that cost: no choice of steps reaches issue 29's 3× (the map in ~0.5 s)
-while a step costs that much. What would close the gap: a generated
-stepper for the integrable-part + V split (the rotation by Ω τ is the same
-linear map every step), at the cost per step of a potential's (~0.6 µs:
-~1 s for the defaults' steps, ~0.5 s for ``tau='orbit'``'s), and a pilot
-that costs less than its ~20 %.
+Where the time of the three-body map goes. Before its generated stepper
+(full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
+defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
+stepper (a rotating-frame drift and the kick, arrays in memory) against
+0.63 µs per step of SRKN14a on the cored potential's generated stepper in
+the same run (30×); ratio 0.078× (defaults), 0.116× (``tau='orbit'``).
+With the rotating frame's drift emitted into the generated one-orbit and
+SIMD-lane steppers (issue 29; ``map_steps_race.json``, load 13–17): the
+same 1.64 M steps take 5.4 µs each against 1.16 µs for the cored
+potential in the same run (4.6×: the three-body kick evaluates two
+distances, their r⁻³ and r⁻⁵, where the cored potential divides once),
+and the ratios become 0.18× (defaults) and 0.24× (``tau='orbit'``), heyoka
+still reaching the same agreement at its loosest tolerance (1e-6, 1.5 s).
+What is left: steps (5 660 per orbit on average to t = 500 at the pilot's
+step for the map's energy tolerance, 14 kicks each of SRKN14a) — 3×
+heyoka needs the map in ~0.5 s, ~16× less than now.
 
 Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
 [--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with

@@ -3,6 +3,16 @@
 2010, eq. 26), in the symbols q0 … q{N−1}; and which models get a
 generated stepper at all (:func:`symbolic_fits`).
 
+Two kinds of model qualify: H = ½pᵀM⁻¹p + V(q) (every built-in potential
+and :func:`~varint.models.from_potential`), whose drift is free motion, and
+H = A + V(q) with A the solvable quadratic of a rotating frame or a uniform
+magnetic field (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`:
+the restricted three-body problem), whose drift is A's exact linear flow
+(:attr:`Expressions.planar`, emitted by :class:`~varint.codegen.tm.TMBody`).
+For the latter M⁻¹ is A's diagonal of ∂²A/∂p² (a, a, a_i): A's rotation
+term is linear in p, so the corrector C = {V,{V,A}} = ∇Vᵀ diag(a) ∇V is the
+same as for ½pᵀM⁻¹p.
+
 The symbolic work costs far more than anything else in building a stepper,
 so it is cached: the expressions per potential and process, and for a
 built-in model even whether it fits and the key of its potential, on disk
@@ -27,7 +37,7 @@ from .. import cachedir, codecache
 from ..files import canonical_json
 
 __all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_form",
-           "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
+           "planar_key", "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
 
 #: Largest N and largest 2N(1 + k) (orbit and vectors held in local
 #: variables) for which straight-line code is generated; beyond, the generic
@@ -49,11 +59,14 @@ class Expressions:
     gc: tuple      # ∇C_i
     HC: dict       # (i, j), i ≤ j -> D²C_ij (non-zero entries only)
     q: tuple       # the symbols
+    #: A rotating frame's drift (:func:`planar_key`), or None for free motion.
+    planar: tuple | None = None
 
 
 #: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
-#: q0 … q{N−1}, inverse masses, N). Only ever filled from a model's own
-#: SymPy form, never from a file.
+#: q0 … q{N−1}, inverse masses, N, the rotating frame's :func:`planar_key`
+#: or None). Only ever filled from a model's own SymPy form, never from a
+#: file.
 _FORMS: dict = {}
 
 
@@ -63,7 +76,7 @@ def expressions(key):
     cached by it: the symbolic work costs far more than the rest)."""
     import sympy as sp  # type: ignore[import-untyped]  # (see _symbolic_key)
 
-    V, minv, n = _FORMS[key]
+    V, minv, n, planar = _FORMS[key]
     q = sp.symbols(f"q0:{n}")
     g = tuple(sp.diff(V, qi) for qi in q)
     H = {}
@@ -86,11 +99,26 @@ def expressions(key):
                              for k in range(n)])
             if e != 0:
                 HC[i, j] = e
-    return Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q)
+    return Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q,
+                       planar=planar)
+
+
+def planar_key(planar, n):
+    """A rotating frame's drift as a hashable tuple ``(u, v, a, b, Ω,
+    ((a_i, b_i) for every i))`` from the ``planar`` dict of
+    :class:`~varint.models.hamiltonian.IntegrableHamiltonian` (A =
+    ½a|p_⊥|² + ½b|q_⊥|² − Ω(q_u p_v − q_v p_u) + Σ_i ½a_i p_i² + ½b_i q_i²;
+    :func:`varint.flows.split.planar_params`); the plane's own entries
+    repeat (a, b)."""
+    u, v = (int(c) for c in planar["plane"])
+    a, b = float(planar["a"]), float(planar["b"])
+    pairs = tuple((a, b) if i in (u, v) else tuple(float(c) for c in planar["others"][i])
+                  for i in range(n))
+    return (u, v, a, b, float(planar["omega"]), pairs)
 
 
 @lru_cache(maxsize=256)
-def _symbolic_key(s):
+def _symbolic_key(s, planar=None):
     """A name (32 hex digits) for a model's (frozen, hashable) symbolic form:
     the hash of its exact SymPy text (``srepr``) in the symbols q0 …
     q{N−1}, worked out once per process, not once per chunk of a chaos map
@@ -104,17 +132,22 @@ def _symbolic_key(s):
 
     n = len(s.q)
     V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
-    text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in s.inverse_mass), str(n)])
+    # A rotating frame's masses are A's coefficients a of p² (module docstring).
+    minv = tuple(s.inverse_mass) if planar is None else tuple(sp.Rational(a)
+                                                               for a, _ in planar[5])
+    text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in minv), str(n)])
+    if planar is not None:
+        text += f"|planar {planar!r}"
     key = hashlib.sha256(text.encode()).hexdigest()[:32]
-    _FORMS[key] = (V, tuple(s.inverse_mass), n)
+    _FORMS[key] = (V, minv, n, planar)
     return key
 
 
 def symbolic_fits(model, k):
     """Whether ``model`` gets a generated straight-line stepper for ``k``
     vectors (an autonomous flow that knows its potential symbolically and
-    is small; a time-dependent V takes the generic stepper's extended phase
-    space)."""
+    is small, H = ½pᵀM⁻¹p + V or a rotating frame's A + V; a time-dependent
+    V takes the generic stepper's extended phase space)."""
     if getattr(model, "time_dependent", False) or getattr(model, "kind", "flow") != "flow":
         return False
     if not callable(getattr(model, "symbolic", None)) or model.n_dof > SYMBOLIC_MAX_N:
@@ -203,16 +236,24 @@ def _facts_now(model):
         s = model.symbolic()
     except (NotImplementedError, ValueError):
         return False, None
-    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass))
+    # An H(q, p) model (varint.models.hamiltonian) qualifies only as a
+    # rotating frame's A + V; its other forms have no straight-line drift.
+    planar = None
+    if getattr(s, "structure", None) == "integrable":
+        planar = planar_key(model.planar, model.n_dof)
+    elif not hasattr(s, "inverse_mass"):
+        return False, None
+    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass), planar)
 
 
 @lru_cache(maxsize=256)
-def _facts_of(s, n_dof, inverse_mass):
+def _facts_of(s, n_dof, inverse_mass, planar=None):
     """:func:`_facts` of the symbolic form ``s`` for a model of ``n_dof``
-    coordinates and these masses (once per form and process)."""
-    fits = len(s.q) == n_dof and np.allclose([float(m) for m in s.inverse_mass],
-                                             inverse_mass, rtol=1e-15, atol=0)
-    return bool(fits), _symbolic_key(s) if fits else None
+    coordinates and these masses (once per form and process); a rotating
+    frame's (``planar``) masses are its A's."""
+    fits = len(s.q) == n_dof and (planar is not None or np.allclose(
+        [float(m) for m in s.inverse_mass], inverse_mass, rtol=1e-15, atol=0))
+    return bool(fits), _symbolic_key(s, planar) if fits else None
 
 
 @lru_cache(maxsize=256)

@@ -12,7 +12,15 @@ and of the vectors adds its increment by Kahan's compensated summation
 in a compensation local per component and fed into its next increment, so
 the round-off of a long run grows like a random walk instead of linearly
 (Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008)). The orbit and the
-deviation vectors are local variables (registers) for the whole loop. The
+deviation vectors are local variables (registers) for the whole loop. For
+H = A + V(q) with A the solvable quadratic of a rotating frame or a uniform
+magnetic field (:attr:`~varint.codegen.expressions.Expressions.planar`),
+the drift is A's exact flow (:func:`varint.flows.split.planar_flow`): free
+motion or an oscillator's rotation in each (q_i, p_i), then the rotation by
+Ωh of the plane's (q_u, q_v) and (p_u, p_v); linear, so the same map moves
+every deviation vector, and its coefficients depend only on the stage's
+length, worked out once per call. Each is written as an increment
+(cos θ − 1 = −2 sin²(θ/2)), so that compensation applies to it too. The
 loop around the step and the end of every step are the emitted skeleton's
 (:mod:`varint.codegen.interval`), the same for one orbit and for SIMD
 lanes; this body writes into either through its *target*, which says how a
@@ -109,11 +117,43 @@ class TMBody:
 
     # -- what is written before the loop ---------------------------------------------
     def prologue(self, src):
-        """The stage lengths as locals, from ``h`` and ``hc``."""
+        """The stage lengths as locals, from ``h`` and ``hc``; with a
+        rotating frame, each drift's coefficients (:meth:`planar_drift`)."""
         for st in range(len(self.kinds)):
             src(f"h{st} = h[{st}]")
             if self.corrected[st]:
                 src(f"hc{st} = hc[{st}]")
+            if self.E.planar is not None and self.kinds[st] == DRIFT:
+                self.planar_coefficients(src, st)
+
+    def _groups(self):
+        """The rotating frame's coordinates by their oscillator (a, b): a
+        list of (name, a, b, coordinates); the plane's two share one."""
+        u, v, a, b, _, pairs = self.E.planar
+        groups = [("p", a, b, (u, v))]
+        groups += [(str(i), ai, bi, (i,)) for i, (ai, bi) in enumerate(pairs) if i not in (u, v)]
+        return groups
+
+    def planar_coefficients(self, src, st):
+        """The locals of drift ``st`` of A: per oscillator (a, b) the free
+        motion's ``da`` = a h (b = 0), or the flow of ½a p² + ½b q²,
+        q ← q + oc q + os1 p, p ← p + os2 q + oc p (oc = cos wh − 1 or
+        cosh wh − 1, w = √|ab|; :func:`varint.flows.split.oscillator`), and
+        the rotation by θ = Ωh: ``rc`` = cos θ − 1, ``rs`` = sin θ."""
+        omega = self.E.planar[4]
+        for g, a, b, _ in self._groups():
+            if b == 0.0:
+                if a != 1.0:
+                    src(f"da{st}_{g} = h{st} * {a!r}")
+                continue
+            w = float(np.sqrt(abs(a * b)))
+            sin = "math.sin" if a * b > 0 else "math.sinh"
+            sign = "-2.0" if a * b > 0 else "2.0"
+            src(f"zs = {sin}({0.5 * w!r} * h{st})", f"oc{st}_{g} = {sign} * (zs * zs)",
+                f"zs = {sin}({w!r} * h{st})", f"os1{st}_{g} = {a / w!r} * zs",
+                f"os2{st}_{g} = {-b / w!r} * zs")
+        src(f"zs = math.sin({0.5 * omega!r} * h{st})", f"rc{st} = -2.0 * (zs * zs)",
+            f"rs{st} = math.sin({omega!r} * h{st})")
 
     def defaults(self, src):
         """Everything a kick computes, defined before the loop: after the
@@ -192,6 +232,9 @@ class TMBody:
 
     # Drifts and kicks are chains of fused multiply–adds (varint.kernels.fma).
     def drift(self, src, st):
+        if self.E.planar is not None:
+            self.planar_drift(src, st)
+            return
         for i in range(self.n):
             m = self.E.minv[i]
             h = f"h{st}" if m == 1.0 else f"(h{st} * {m!r})"
@@ -199,6 +242,35 @@ class TMBody:
             for j in range(self.k):
                 self.update(src, self.a[i][j],
                             lambda acc, i=i, j=j, h=h: f"fma({h}, {self.b[i][j]}, {acc})")
+
+    def planar_drift(self, src, st):
+        """Drift ``st`` as A's exact flow (module docstring), in the order of
+        :func:`varint.flows.split.planar_flow`: each coordinate's oscillator
+        (free motion for b = 0), then the rotation of the plane's positions
+        and momenta by Ωh; the orbit and then every vector, (δq, δp) moving
+        as (q, p)."""
+        u, v = self.E.planar[:2]
+        pairs = [(self.q, self.p)] + [([a[j] for a in self.a], [b[j] for b in self.b])
+                                      for j in range(self.k)]
+        for g, a, b, coords in self._groups():
+            for qs, ps in pairs:
+                for i in coords:
+                    if b == 0.0:
+                        h = f"h{st}" if a == 1.0 else f"da{st}_{g}"
+                        self.update(src, qs[i], lambda acc, h=h, p=ps[i]: f"fma({h}, {p}, {acc})")
+                    else:
+                        self.turn(src, qs[i], ps[i], f"oc{st}_{g}", f"os1{st}_{g}",
+                                  f"os2{st}_{g}")
+        for qs, ps in pairs:
+            for x in (qs, ps):
+                self.turn(src, x[u], x[v], f"rc{st}", f"rs{st}", f"-rs{st}")
+
+    def turn(self, src, x, y, cm, s1, s2):
+        """(x, y) ← (x + cm x + s1 y, y + s2 x + cm y): a linear flow of one
+        pair as increments, from the old values."""
+        src(f"zx = {x}", f"zy = {y}")
+        self.update(src, x, lambda acc: f"fma({s1}, zy, fma({cm}, zx, {acc}))")
+        self.update(src, y, lambda acc: f"fma({s2}, zx, fma({cm}, zy, {acc}))")
 
     def update(self, src, name, increment):
         """``name`` += the increment ``increment(acc)`` adds to ``acc``.
@@ -274,11 +346,29 @@ class TMBody:
         elif self.kinds[-1] == DRIFT:
             self.derivatives(src, target, "f", {"g"})
         read = value or (lambda name: name)
+        if self.E.planar is not None:
+            return self.planar_flow(read)
         out = []
         for i in range(n):
             m = self.E.minv[i]
             out.append(read(self.p[i]) if m == 1.0 else f"({m!r} * {read(self.p[i])})")
         return out + [f"(-g{i})" for i in range(n)]
+
+    def planar_flow(self, read):
+        """Hamilton's equations of A + V: q̇ = ∂A/∂p and ṗ = −∂A/∂q − ∇V,
+        with A = ½a|p_⊥|² + ½b|q_⊥|² − Ω(q_u p_v − q_v p_u) + Σ ½a_i p_i² +
+        ½b_i q_i² (q̇_u gains Ω q_v, q̇_v −Ω q_u; ṗ_u gains Ω p_v, ṗ_v −Ω p_u)."""
+        u, v, _, _, omega, pairs = self.E.planar
+        q = [read(name) for name in self.q]
+        p = [read(name) for name in self.p]
+        dq = [f"({a!r} * {p[i]})" for i, (a, _) in enumerate(pairs)]
+        dp = [f"(-g{i})" if b == 0.0 else f"(-{b!r} * {q[i]} - g{i})"
+              for i, (_, b) in enumerate(pairs)]
+        dq[u] = f"({dq[u]} + {omega!r} * {q[v]})"
+        dq[v] = f"({dq[v]} - {omega!r} * {q[u]})"
+        dp[u] = f"({dp[u]} + {omega!r} * {p[v]})"
+        dp[v] = f"({dp[v]} - {omega!r} * {p[u]})"
+        return dq + dp
 
 
 def step_counts(kinds, corrected, k, flow=False):

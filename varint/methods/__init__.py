@@ -136,7 +136,7 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
     # Models split into parts (the lattices) run "tm" through their fused
     # part flows (varint.methods.parts decides when), and only "tm" when
     # they have no band kernels for the other methods.
-    from .parts import PartsPropagator, runs_parts
+    from .parts import PartsPropagator, generated_rotating, runs_parts
 
     if _key(method) == "tm" and runs_parts(model, options.get("scheme")):
         # A model may name a propagator of its own around the part stepper
@@ -144,7 +144,8 @@ def make_propagator(method, model, tau, renorm, accumulator=None, **options):
         own = getattr(model, "parts_propagator", None)
         cls = PartsPropagator if own is None else _resolve(own)
     elif not getattr(model, "band_kernels", True) and not (
-            _key(method) in REFERENCE_METHODS and callable(getattr(model, "grad_hess_h", None))):
+            _key(method) in REFERENCE_METHODS and callable(getattr(model, "grad_hess_h", None))
+    ) and not (_key(method) == "tm" and generated_rotating(model)):
         # A model of any H(q, p) gives the reference methods Hamilton's
         # equations from its ∇H, D²H kernel (baselines.rhs) and expression.
         raise ValueError(f"method {method!r} needs the band-Hessian kernels of "

@@ -26,7 +26,7 @@ from ..protocol import REASONS, STATUS_OK, Renorm, Status
 from ..schemes import CORRECTOR, CompositionScheme, part_stages, scheme_word
 from .options import method_options
 
-__all__ = ["PartsPropagator", "parts_steps", "runs_parts"]
+__all__ = ["PartsPropagator", "parts_steps", "runs_parts", "generated_rotating"]
 
 
 def _scheme(model, scheme):
@@ -37,9 +37,10 @@ def runs_parts(model, scheme=None):
     """Whether ``method="tm"`` runs ``model`` with ``scheme`` (None: the
     default) through the part stepper: the model declares parts, and the
     scheme is a k-part composition or a two-part scheme without corrector
-    (except on a chain split as T + V that gets a generated stepper, see
-    :func:`varint.codegen.expressions.symbolic_fits`), or the model has no band
-    kernels for the generic stepper."""
+    (except on a chain split as T + V or a rotating frame's A + V that gets
+    a generated stepper, see :func:`varint.codegen.expressions.symbolic_fits`
+    and :func:`generated_rotating`), or the model has no band kernels for
+    the generic stepper."""
     parts = getattr(model, "parts", None)
     if parts is None:
         return False
@@ -48,6 +49,12 @@ def runs_parts(model, scheme=None):
     s = _scheme(model, scheme)
     if isinstance(s, CompositionScheme):
         return True
+    if generated_rotating(model):
+        # A rotating frame's A + V with a generated stepper (the drift A's
+        # exact flow, varint.codegen.tm): the CR3BP's map step took 30x a
+        # generated potential's through the part flows, 4.6x on its own
+        # generated stepper (studies/map_steps.py).
+        return False
     if not getattr(model, "band_kernels", True):
         return True
     if s.corrector is not None:
@@ -57,6 +64,17 @@ def runs_parts(model, scheme=None):
     # generated for it, ~5x faster than the part flows' loops over sites
     # (FPU-beta N = 8, SBAB2: 23 against 174 ns per step).
     return not (parts.splits.get(2) == ("T", "V") and symbolic_fits(model, 0))
+
+
+def generated_rotating(model):
+    """Whether ``model`` is H = A + V(q) with A a rotating frame's or a
+    uniform magnetic field's solvable quadratic
+    (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`) that gets a
+    generated stepper (:func:`~varint.codegen.expressions.symbolic_fits`)
+    for every number of vectors up to 2N: then ``method="tm"`` runs its
+    two-part schemes, correctors included, on that stepper (one orbit and
+    SIMD lanes) instead of the part flows."""
+    return getattr(model, "structure", None) == "integrable" and symbolic_fits(model, model.dim)
 
 
 class PartsPropagator:

@@ -212,6 +212,12 @@ class TangentMapPropagator:
             raise ValueError(f"compensated=True runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
                              " time-dependent, or too large): leave compensated=False")
+        if module is None and getattr(self.model, "structure", None) == "integrable":
+            # The generic stepper's drift is free motion, not a rotating frame's.
+            raise ValueError(f"{self.model.name} with {state.k} vectors has no generated "
+                             f"stepper (too many values to hold), and the generic stepper's "
+                             f"drift is not its rotating frame's: use at most "
+                             f"{self.model.dim} vectors")
         if module is None:
             if outputs is not None and len(outputs):
                 raise ValueError("this model has no generated stepper: no snapshots")

@@ -17,7 +17,9 @@ a total mass of 2·10¹⁰ M_⊙ and G = 1).
 
 H is a rotating frame's kinetic term plus a potential, so ``method="tm"``
 runs the exact flow of the rotating frame and the kick of the potential
-with their tangent maps (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`).
+with their tangent maps (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`),
+through the part flows: without a closed form of the bar there is no
+generated stepper (the restricted three-body problem has one).
 The bar's potential has no closed form (λ is the root of an equation and
 the W_ijk are elliptic integrals), so there is no SymPy expression of H:
 ``method="taylor"`` refuses this model, the other methods run it.

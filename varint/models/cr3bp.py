@@ -17,7 +17,9 @@ curves 2Ω = C).
 H is a rotating frame's kinetic term plus a potential: ``method="tm"`` runs
 its exact flow (a rotation composed with free motion,
 :func:`varint.flows.split.planar_flow`) and the kick of V with their tangent
-maps, through every explicit two-part scheme.
+maps, through every explicit two-part scheme, correctors included, on a
+stepper generated for the model (:mod:`varint.codegen`: the drift written
+out as straight-line code, one orbit and SIMD lanes).
 
 References
 ----------
