@@ -33,7 +33,8 @@ from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
-from ..schemes import DEFAULT_SCHEME, DRIFT, default_for, get_scheme, stage_arrays, stage_times
+from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
+                       stage_arrays, stage_times)
 from ..state import Snapshots
 from .options import method_options
 
@@ -96,6 +97,19 @@ class TangentMapPropagator:
         (M, 2N, 1 + k): the state's and each vector's), so chunked and
         resumed runs stay bitwise. Generated steppers only, one orbit at a
         time on the CPU (no SIMD lanes, no GPU).
+
+    Notes
+    -----
+    A :class:`~varint.schemes.ProcessedScheme` steps its kernel K and
+    reads the state through its processor P (:meth:`_processed`): the run
+    keeps the kernel's state x̃ = P⁻¹(x) and its vectors W̃ = DP⁻¹ W in
+    ``extra["tm_kernel"]`` (M, 2N, 1 + k), so chunking and resuming never
+    change a bit, and ``state.x``, ``state.W`` are P(x̃), DP(x̃) W̃ after
+    every call. Vectors are renormalised (and their stretchings summed) in
+    the kernel's coordinates, which differ from the true ones by the
+    near-identity DP = I + O(τ³): a bounded difference, so exponents agree
+    in the limit. No snapshots inside the compiled loop (the driver stops
+    at every output); time-independent V only, not compensated, CPU only.
     """
 
     method = "tm"
@@ -108,7 +122,10 @@ class TangentMapPropagator:
         scheme = opts.get("scheme")
         # A small chain whose own scheme takes the stepper generated for it
         # (varint.methods.parts.runs_parts) runs that scheme here.
-        self.scheme = get_scheme(default_for(model) if scheme is None else scheme, n_parts=2)
+        self.scheme = get_scheme(default_for(model) if scheme is None else scheme, n_parts=2,
+                                 processed=True)
+        processed = isinstance(self.scheme, ProcessedScheme)
+        kernel = self.scheme.kernel_scheme if processed else self.scheme
         self.renorm = Renorm.parse(renorm)
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
@@ -121,9 +138,18 @@ class TangentMapPropagator:
             raise ValueError("compensated=True runs on the CPU only: use backend='cpu' or "
                              "'auto'")
         self.backend = device.check_backend(opts.get("backend", "cpu"))
-        self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
+        if processed and (model.time_dependent or self.compensated or self.backend == "cuda"):
+            raise ValueError(f"scheme {self.scheme.name!r} is processed: it runs a "
+                             "time-independent V, with compensated=False, on the CPU; got "
+                             f"time_dependent={model.time_dependent}, compensated="
+                             f"{self.compensated}, backend={self.backend!r}")
+        #: P and P⁻¹ as stage tables (None for an unprocessed scheme).
+        self._processor = ((self.scheme.processor_stages(self.tau),
+                            self.scheme.processor_stages(self.tau, inverse=True))
+                           if processed else None)
+        self._kinds, self._h, self._hc = stage_arrays(kernel, self.tau)
         # A time-dependent V: the time of every stage (kernels/tm.py).
-        self._ctime = stage_times(self.scheme) if model.time_dependent else np.empty(0)
+        self._ctime = stage_times(kernel) if model.time_dependent else np.empty(0)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
@@ -177,8 +203,9 @@ class TangentMapPropagator:
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
-        the compiled loop (a generated stepper for this model and k)."""
-        return self._stepper(state.k) is not None
+        the compiled loop (a generated stepper for this model and k; not
+        for a processed scheme, whose outputs pass through its processor)."""
+        return self._processor is None and self._stepper(state.k) is not None
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -203,6 +230,8 @@ class TangentMapPropagator:
         -------
         Snapshots or None
         """
+        if self._processor is not None:
+            return self._processed(state, n)
         module = self._stepper(state.k)
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
@@ -402,6 +431,60 @@ class TangentMapPropagator:
         was_active = np.zeros(m, dtype=bool)
         was_active[active] = True
         state.after_kernel(n, was_active, done, counters, COUNTERS)
+
+    def _processed(self, state, n):
+        """``n`` kernel steps of a processed scheme from the kernel's state
+        (``extra["tm_kernel"]``, see the class notes), then the outputs
+        P(x̃) and DP(x̃) W̃. An orbit whose state differs from what the last
+        call wrote (a new run, or a state set from outside) starts from
+        P⁻¹(x), DP⁻¹ W."""
+        forward, inverse = self._processor
+        m, d, k = state.W.shape
+        now = np.concatenate([state.x[:, :, None], state.W], axis=2)
+        kept = state.extra.get("tm_kernel")
+        wrote = state.extra.get("tm_kernel_out")
+        active = state.status == STATUS_OK
+        if kept is None:
+            kept, wrote = np.empty_like(now), np.full_like(now, np.nan)
+        fresh = active & ~np.all(now == wrote, axis=(1, 2))
+        x, W = state.x.copy(), state.W.copy()
+        if fresh.any():
+            self._apply(x, W, fresh, inverse)
+            kept[fresh] = np.concatenate([x[fresh, :, None], W[fresh]], axis=2)
+        # Step the kernel from its own state.
+        state.x[active], state.W[active] = kept[active, :, 0], kept[active, :, 1:]
+        module = self._stepper(state.k)
+        if module is None:
+            self._advance_generic(state, n)
+        elif len(np.flatnonzero(active)) >= self.MIN_LANES:
+            self._advance_lanes(module, state, n, self._snapshots(state, None),
+                                np.flatnonzero(active))
+        else:
+            self._advance_generated(module, state, n, self._snapshots(state, None))
+        kept[active] = np.concatenate([state.x[active, :, None], state.W[active]], axis=2)
+        self._apply(state.x, state.W, active, forward)
+        wrote = np.where(active[:, None, None],
+                         np.concatenate([state.x[:, :, None], state.W], axis=2), wrote)
+        state.extra["tm_kernel"], state.extra["tm_kernel_out"] = kept, wrote
+        return None
+
+    def _apply(self, x, W, rows, stages):
+        """The map of ``stages`` (a processor's tables) and its tangent map
+        applied in place to the orbits ``rows`` of ``x`` (M, 2N) and ``W``
+        (M, 2N, k): one step of the generic stepper, no renormalisation."""
+        m, _, k = W.shape
+        model = self.model
+        kinds, h, hc = stages
+        kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False, K.model_kernels(model),
+                                no_accumulator, False, False)
+        orbits = K.TMOrbit(x, W, np.ones((m, k)), np.zeros((m, k), dtype=np.int64),
+                           np.empty((m, 0, 0)), np.zeros((m, len(COUNTERS)), dtype=np.int64),
+                           np.empty((m, 0)), np.empty((m, 0, 0)))
+        setup = K.TMSetup(kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
+                          np.empty(0))
+        status = np.where(rows, STATUS_OK, -1).astype(np.int64)
+        kernel(orbits, setup, Call(1, 0, self.tau, int(Renorm.NONE), self._escape_r2), status,
+               np.zeros(m, dtype=np.int64))
 
     def _advance_generic(self, state, n):
         m = state.n_orbits
