@@ -50,8 +50,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SplittingScheme", "CompositionScheme", "ProcessedScheme", "SCHEMES", "DEFAULT_SCHEME", "default_for",
-           "get_scheme", "register_scheme", "registered", "stage_arrays", "stage_times",
+__all__ = ["SplittingScheme", "CompositionScheme", "ProcessedScheme", "SCHEMES", "DEFAULT_SCHEME",
+           "default_for", "get_scheme", "register_scheme", "registered", "stage_arrays", "stage_times",
            "scheme_word", "part_stages", "CORRECTOR"]
 
 #: Stage kinds used by :meth:`SplittingScheme.stages`.
@@ -645,7 +645,9 @@ def get_scheme(scheme: str | SplittingScheme | CompositionScheme | ProcessedSche
 def registered(n_parts: int | None = None):
     """The registered schemes in registration order; with ``n_parts = 2``
     the two-part ones (:class:`SplittingScheme`), with another number the
-    compositions over that many parts."""
+    compositions over that many parts. Processed schemes
+    (:class:`ProcessedScheme`, the TM method only) are only in the full
+    list."""
     if n_parts is None:
         return tuple(SCHEMES.values())
     if n_parts == 2:
