@@ -514,13 +514,8 @@ class ProcessedScheme:
         h : ndarray of float64
         hc : ndarray of float64 (zeros)
         """
-        # In order of application: P applies S2(p_r τ) first, P⁻¹ S2(−p_1 τ).
-        coeffs = [-c for c in self.processor] if inverse else list(self.processor[::-1])
-        word = _merge([(kind, c * h) for c in coeffs
-                       for kind, h in ((DRIFT, 0.5), (KICK, 1.0), (DRIFT, 0.5))])
-        kinds = np.array([k for k, _ in word], dtype=np.int64)
-        h = np.array([c * float(tau) for _, c in word], dtype=np.float64)
-        return kinds, h, np.zeros_like(h)
+        # New arrays every call: callers may keep and change them.
+        return tuple(a.copy() for a in _processor_stages(self, float(tau), bool(inverse)))
 
     def describe(self) -> dict:
         """JSON-serialisable description (for result provenance)."""
@@ -528,6 +523,16 @@ class ProcessedScheme:
                 "kernel_stages": 2 * len(self.kernel) - 1,
                 "processor_stages": len(self.processor),
                 "force_evaluations": self.force_evaluations, "reference": self.reference}
+
+
+@functools.lru_cache(maxsize=64)
+def _processor_stages(scheme, tau, inverse):
+    # In order of application: P applies S2(p_r τ) first, P⁻¹ S2(−p_1 τ).
+    coeffs = [-c for c in scheme.processor] if inverse else list(scheme.processor[::-1])
+    word = _merge([(kind, c * h) for c in coeffs
+                   for kind, h in ((DRIFT, 0.5), (KICK, 1.0), (DRIFT, 0.5))])
+    h = np.array([c * tau for _, c in word], dtype=np.float64)
+    return np.array([k for k, _ in word], dtype=np.int64), h, np.zeros_like(h)
 
 
 #: Every registered scheme, two-part (:class:`SplittingScheme`) and k-part

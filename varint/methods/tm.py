@@ -32,6 +32,7 @@ from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
+from ..kernels.processor import processor_map
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
                        stage_arrays, stage_times)
@@ -103,7 +104,7 @@ class TangentMapPropagator:
     A :class:`~varint.schemes.ProcessedScheme` steps its kernel K and
     reads the state through its processor P (:meth:`_processed`): the run
     keeps the kernel's state x̃ = P⁻¹(x) and its vectors W̃ = DP⁻¹ W in
-    ``extra["tm_kernel"]`` (M, 2N, 1 + k), so chunking and resuming never
+    ``extra["tm_kernel_x"]`` and ``["tm_kernel_W"]``, so chunking and resuming never
     change a bit, and ``state.x``, ``state.W`` are P(x̃), DP(x̃) W̃ after
     every call. Vectors are renormalised (and their stretchings summed) in
     the kernel's coordinates, which differ from the true ones by the
@@ -434,57 +435,50 @@ class TangentMapPropagator:
 
     def _processed(self, state, n):
         """``n`` kernel steps of a processed scheme from the kernel's state
-        (``extra["tm_kernel"]``, see the class notes), then the outputs
-        P(x̃) and DP(x̃) W̃. An orbit whose state differs from what the last
-        call wrote (a new run, or a state set from outside) starts from
-        P⁻¹(x), DP⁻¹ W."""
+        (``extra["tm_kernel_x"]``, ``["tm_kernel_W"]``, see the class
+        notes), then the outputs P(x̃) and DP(x̃) W̃. An orbit whose state
+        differs from what the last call wrote (``["tm_kernel_out_x"]``,
+        ``["tm_kernel_out_W"]``: a new run, or a state set from outside)
+        starts from P⁻¹(x), DP⁻¹ W."""
         forward, inverse = self._processor
-        m, d, k = state.W.shape
-        now = np.concatenate([state.x[:, :, None], state.W], axis=2)
-        kept = state.extra.get("tm_kernel")
-        wrote = state.extra.get("tm_kernel_out")
+        m = state.n_orbits
+        extra = state.extra
+        if "tm_kernel_x" not in extra:
+            extra["tm_kernel_x"], extra["tm_kernel_W"] = np.empty_like(state.x), \
+                np.empty_like(state.W)
+            extra["tm_kernel_out_x"] = np.full_like(state.x, np.nan)
+            extra["tm_kernel_out_W"] = np.full_like(state.W, np.nan)
+        kx, kW = extra["tm_kernel_x"], extra["tm_kernel_W"]
         active = state.status == STATUS_OK
-        if kept is None:
-            kept, wrote = np.empty_like(now), np.full_like(now, np.nan)
-        fresh = active & ~np.all(now == wrote, axis=(1, 2))
-        x, W = state.x.copy(), state.W.copy()
+        fresh = active & ~((state.x == extra["tm_kernel_out_x"]).all(axis=1)
+                           & (extra["tm_kernel_out_W"] == state.W).reshape(m, -1).all(axis=1))
         if fresh.any():
-            self._apply(x, W, fresh, inverse)
-            kept[fresh] = np.concatenate([x[fresh, :, None], W[fresh]], axis=2)
+            kx[fresh], kW[fresh] = state.x[fresh], state.W[fresh]
+            self._apply(kx, kW, fresh, inverse)
         # Step the kernel from its own state.
-        state.x[active], state.W[active] = kept[active, :, 0], kept[active, :, 1:]
+        state.x[active], state.W[active] = kx[active], kW[active]
         module = self._stepper(state.k)
         if module is None:
             self._advance_generic(state, n)
-        elif len(np.flatnonzero(active)) >= self.MIN_LANES:
+        elif np.count_nonzero(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, self._snapshots(state, None),
                                 np.flatnonzero(active))
         else:
             self._advance_generated(module, state, n, self._snapshots(state, None))
-        kept[active] = np.concatenate([state.x[active, :, None], state.W[active]], axis=2)
+        kx[active], kW[active] = state.x[active], state.W[active]
         self._apply(state.x, state.W, active, forward)
-        wrote = np.where(active[:, None, None],
-                         np.concatenate([state.x[:, :, None], state.W], axis=2), wrote)
-        state.extra["tm_kernel"], state.extra["tm_kernel_out"] = kept, wrote
+        extra["tm_kernel_out_x"][active] = state.x[active]
+        extra["tm_kernel_out_W"][active] = state.W[active]
         return None
 
     def _apply(self, x, W, rows, stages):
         """The map of ``stages`` (a processor's tables) and its tangent map
         applied in place to the orbits ``rows`` of ``x`` (M, 2N) and ``W``
-        (M, 2N, k): one step of the generic stepper, no renormalisation."""
-        m, _, k = W.shape
+        (M, 2N, k) (:func:`varint.kernels.processor.processor_map`)."""
         model = self.model
-        kinds, h, hc = stages
-        kernel = K.batch_kernel(model.n_dof, k, model.bandwidth, False, K.model_kernels(model),
-                                no_accumulator, False, False)
-        orbits = K.TMOrbit(x, W, np.ones((m, k)), np.zeros((m, k), dtype=np.int64),
-                           np.empty((m, 0, 0)), np.zeros((m, len(COUNTERS)), dtype=np.int64),
-                           np.empty((m, 0)), np.empty((m, 0, 0)))
-        setup = K.TMSetup(kinds, h, hc, model.inverse_mass, model.params, model.bandwidth,
-                          np.empty(0))
-        status = np.where(rows, STATUS_OK, -1).astype(np.int64)
-        kernel(orbits, setup, Call(1, 0, self.tau, int(Renorm.NONE), self._escape_r2), status,
-               np.zeros(m, dtype=np.int64))
+        kinds, h, _ = stages
+        processor_map(x, W, rows, kinds, h, model.inverse_mass, model.params, model.bandwidth,
+                      model.grad_kernel, model.hess_kernel)
 
     def _advance_generic(self, state, n):
         m = state.n_orbits
