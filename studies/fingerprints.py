@@ -94,7 +94,7 @@ def cases():
     import varint
     from varint.models import (DDNLS, FPUT, CoupledStandardMaps, DisorderedKG, FPUBeta,
                                StandardMap, from_map, from_potential)
-    from varint.schemes import registered
+    from varint.schemes import ProcessedScheme, registered
 
     out = []
     add = out.append
@@ -107,9 +107,11 @@ def cases():
     xb[:20] = 0.1 * np.sin(np.arange(1, 21))
     xb[20:] = 0.05 * np.cos(np.arange(1, 21))
 
-    # TM: every two-part scheme on the generated stepper (HH, 3-dof) and the
-    # generic one (FPU-beta n = 20), the spectrum (QR) and GALI (normalise).
-    for name in (s.name.upper() for s in registered(2)):
+    # TM: every two-part scheme (and processed scheme) on the generated
+    # stepper (HH, 3-dof) and the generic one (FPU-beta n = 20), the
+    # spectrum (QR) and GALI (normalise).
+    for name in (s.name.upper() for s in registered()
+                 if isinstance(s, ProcessedScheme) or s in registered(2)):
         add((f"tm/{name}/HH/lyapunov", lambda s=name: varint.lyapunov_spectrum(
             hh, c1, 50.0, tau=0.05, scheme=s)))
         add((f"tm/{name}/ThreeDof/gali", lambda s=name: varint.gali(

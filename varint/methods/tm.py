@@ -110,7 +110,10 @@ class TangentMapPropagator:
     the kernel's coordinates, which differ from the true ones by the
     near-identity DP = I + O(τ³): a bounded difference, so exponents agree
     in the limit. No snapshots inside the compiled loop (the driver stops
-    at every output); time-independent V only, not compensated, CPU only.
+    at every output); time-independent V only, CPU only. With
+    ``compensated=True`` the kernel's drifts and kicks are compensated
+    (its Kahan terms kept as for any scheme); the processor, applied once
+    per output and not accumulated, is not.
     """
 
     method = "tm"
@@ -139,11 +142,10 @@ class TangentMapPropagator:
             raise ValueError("compensated=True runs on the CPU only: use backend='cpu' or "
                              "'auto'")
         self.backend = device.check_backend(opts.get("backend", "cpu"))
-        if processed and (model.time_dependent or self.compensated or self.backend == "cuda"):
+        if processed and (model.time_dependent or self.backend == "cuda"):
             raise ValueError(f"scheme {self.scheme.name!r} is processed: it runs a "
-                             "time-independent V, with compensated=False, on the CPU; got "
-                             f"time_dependent={model.time_dependent}, compensated="
-                             f"{self.compensated}, backend={self.backend!r}")
+                             "time-independent V on the CPU; got time_dependent="
+                             f"{model.time_dependent}, backend={self.backend!r}")
         #: P and P⁻¹ as stage tables (None for an unprocessed scheme).
         self._processor = ((self.scheme.processor_stages(self.tau),
                             self.scheme.processor_stages(self.tau, inverse=True))
@@ -233,6 +235,11 @@ class TangentMapPropagator:
         """
         if self._processor is not None:
             return self._processed(state, n)
+        return self._advance_steps(state, n, outputs)
+
+    def _advance_steps(self, state, n, outputs=None):
+        """:meth:`advance` by the scheme's steps (the kernel's, for a
+        processed scheme)."""
         module = self._stepper(state.k)
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
@@ -455,16 +462,12 @@ class TangentMapPropagator:
         if fresh.any():
             kx[fresh], kW[fresh] = state.x[fresh], state.W[fresh]
             self._apply(kx, kW, fresh, inverse)
-        # Step the kernel from its own state.
+        # Step the kernel from its own state (compensations, when kept,
+        # are the kernel's; an orbit processed afresh starts without).
         state.x[active], state.W[active] = kx[active], kW[active]
-        module = self._stepper(state.k)
-        if module is None:
-            self._advance_generic(state, n)
-        elif np.count_nonzero(active) >= self.MIN_LANES:
-            self._advance_lanes(module, state, n, self._snapshots(state, None),
-                                np.flatnonzero(active))
-        else:
-            self._advance_generated(module, state, n, self._snapshots(state, None))
+        if self.compensated:
+            self._compensation(state)[fresh] = 0.0
+        self._advance_steps(state, n)
         kx[active], kW[active] = state.x[active], state.W[active]
         self._apply(state.x, state.W, active, forward)
         extra["tm_kernel_out_x"][active] = state.x[active]
