@@ -173,6 +173,9 @@ def test_lyapunov_exponent_agrees_with_an_unprocessed_scheme(c1):
     a = varint.lyapunov_spectrum(model, x0, 200.0, tau=0.2, scheme="P13odr8", n_exponents=1)
     b = varint.lyapunov_spectrum(model, x0, 200.0, tau=0.1, scheme="SRKN14a", n_exponents=1)
     assert abs(a.exponents[-1, 0] - b.exponents[-1, 0]) < 0.01 * abs(b.exponents[-1, 0])
+    # The automatic step takes a processed scheme by its effective order.
+    auto = varint.lyapunov_spectrum(model, x0, 20.0, scheme="P13odr8", n_exponents=1)
+    assert np.isfinite(auto.exponents).all()
 
 
 def test_processed_schemes_are_refused_where_no_processor_is_applied(c1):
