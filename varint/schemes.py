@@ -636,8 +636,9 @@ def get_scheme(scheme: str | SplittingScheme | CompositionScheme | ProcessedSche
         if not processed:
             raise ValueError(
                 f"scheme {scheme.name!r} is processed (a kernel and a processor applied at "
-                "outputs); only method='tm' on a time-independent model applies the "
-                "processor: choose another scheme here")
+                "outputs); only method='tm' with the drift and kick of H = T + V on a "
+                "time-independent model applies the processor (not the TDH, two-particle or "
+                "section methods, nor a lattice's part stepper): choose another scheme here")
         return scheme
     if n_parts == 2 and not isinstance(scheme, SplittingScheme):
         raise ValueError(
