@@ -798,13 +798,13 @@ register_scheme(SplittingScheme(
 
 # Processed schemes ([BCM06]_): kernels Π S2(a_i τ) of effective order 6, 8
 # and 10 with 11, 13 and 23 stages (against 14 kicks of SRKN14a, 17 of
-# s17odr8 and 35 of s35odr10), and their processors. The kernels' free
-# parameters (a_1 = 0.168 of the order-8 kernel, γ_6 = −0.1 and γ_1 = 0.1
-# of two processors) are the published choices; the other digits are as
-# published (15–19 significant digits: the sum rules close them, and the
-# measured effective orders and error floors are in tests/test_schemes.py
-# and studies/frontier.py). Published processor coefficients γ_j
-# (processor p = −γ, the second half the negated first).
+# s17odr8 and 35 of s35odr10), and their processors. The free parameters
+# (a_1 = 0.168 of the order-8 kernel, γ_6 = −0.1 of the order-6 processor)
+# are the published choices; the other digits are as published (14–19
+# significant digits; the sum rules close each table). The effective orders
+# are measured in tests/test_processed.py, the error floors in
+# studies/frontier.py. Processors are published as their first half γ_j,
+# the second half −γ_j, and p = −γ.
 _BCM06 = "Blanes, Casas & Murua, SIAM J. Sci. Comput. 27, 1817 (2006)"
 
 
