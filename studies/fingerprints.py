@@ -94,7 +94,7 @@ def cases():
     import varint
     from varint.models import (DDNLS, FPUT, CoupledStandardMaps, DisorderedKG, FPUBeta,
                                StandardMap, from_map, from_potential)
-    from varint.schemes import registered
+    from varint.schemes import ProcessedScheme, registered
 
     out = []
     add = out.append
@@ -107,15 +107,19 @@ def cases():
     xb[:20] = 0.1 * np.sin(np.arange(1, 21))
     xb[20:] = 0.05 * np.cos(np.arange(1, 21))
 
-    # TM: every two-part scheme on the generated stepper (HH, 3-dof) and the
-    # generic one (FPU-beta n = 20), the spectrum (QR) and GALI (normalise).
-    for name in (s.name.upper() for s in registered(2)):
+    # TM: every two-part scheme (and processed scheme) on the generated
+    # stepper (HH, 3-dof) and the generic one (FPU-beta n = 20), the
+    # spectrum (QR) and GALI (normalise).
+    processed = {s.name.upper() for s in registered() if isinstance(s, ProcessedScheme)}
+    for name in (s.name.upper() for s in registered()
+                 if s.name.upper() in processed or s in registered(2)):
         add((f"tm/{name}/HH/lyapunov", lambda s=name: varint.lyapunov_spectrum(
             hh, c1, 50.0, tau=0.05, scheme=s)))
         add((f"tm/{name}/ThreeDof/gali", lambda s=name: varint.gali(
             three, r2, 30.0, tau=0.05, k=(2, 3), scheme=s)))
-        add((f"tm/{name}/FPU20/lyapunov2", lambda s=name: varint.lyapunov_spectrum(
-            big, xb, 20.0, tau=0.05, n_exponents=2, scheme=s)))
+        if name not in processed:   # a lattice's part stepper applies no processor
+            add((f"tm/{name}/FPU20/lyapunov2", lambda s=name: varint.lyapunov_spectrum(
+                big, xb, 20.0, tau=0.05, n_exponents=2, scheme=s)))
         add((f"tm/{name}/HH/integrate", lambda s=name: varint.integrate(
             hh, r1, 20.0, tau=0.05, scheme=s, t_out=5,
             deviations=np.eye(4)[:, :2])))

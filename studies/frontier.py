@@ -16,9 +16,12 @@ Contenders
   scheme=s, deviations=w0)``, each scheme over a ladder of steps. "Old" are
   the schemes before this issue (ABA864, s11odr6, SRKN14a; order ≤ 6),
   "new" the orders 8 and 10 (s15odr8, s17odr8, s35odr10), "compensated"
-  SRKN14a, s17odr8 and s35odr10 with ``compensated=True`` (Kahan's
+  SRKN14a, s17odr8, s35odr10, P13odr8 and P23odr10 with ``compensated=True`` (Kahan's
   summation in every drift and kick; ``studies/compensated_floor.py``) at
-  the steps of their ladders where round-off matters.
+  the steps of their ladders where round-off matters; "processed"
+  the processed schemes of Blanes, Casas & Murua (2006) (P11odr6, P13odr8,
+  P23odr10: kernels of 11, 13 and 23 leapfrog stages of effective order 6,
+  8 and 10, the processor applied once at the start and once at the end).
 * heyoka as its experts drive it for this task: the scalar
   ``taylor_adaptive`` on the model's equations and one column of the
   variational equations heyoka derives itself (``var_ode_sys``, order 1),
@@ -45,6 +48,12 @@ contender reaches on its ladder. A row "varint one step" times the same
 call for a single step: varint's fixed cost per call (checks, set-up,
 provenance), given as a share of the best varint CPU time at each target. The figure
 shows the CPU times.
+
+Where the time goes (``frontier_cost.csv``): per orbit and target, the
+cheapest run of each scheme (and of heyoka) that meets it, with its steps,
+its force evaluations per step (heyoka: its Taylor order and steps), its
+CPU time and the CPU time per step and per force evaluation after the fixed
+cost of one call (the "one step" row) is taken off.
 
 Usage: ``python studies/frontier.py [--quick] [--out DIR]``
 """
@@ -75,6 +84,7 @@ ORBITS = ("R1", "C2")
 TARGETS = (1e-8, 1e-10, 1e-12)
 OLD = ("ABA864", "s11odr6", "SRKN14a")
 NEW = ("s15odr8", "s17odr8", "s35odr10")
+PROCESSED = ("P11odr6", "P13odr8", "P23odr10")
 #: Step ladders by scheme: from where the error is ~1e-6 down to round-off
 #: (all divide 1e3 and 100 into whole steps).
 TAUS = {
@@ -84,6 +94,9 @@ TAUS = {
     "s15odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05),
     "s17odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.04),
     "s35odr10": (1.0, 0.8, 0.5, 0.4, 0.3125, 0.25, 0.2, 0.16, 0.125, 0.1),
+    "P11odr6": (0.5, 0.25, 0.125, 0.0625, 0.03125),
+    "P13odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05),
+    "P23odr10": (1.0, 0.8, 0.5, 0.4, 0.3125, 0.25, 0.2, 0.16, 0.125),
 }
 #: The compensated variants and their steps (those near and below the
 #: plain floor, where compensation can change the error).
@@ -91,6 +104,8 @@ COMPENSATED = {
     "SRKN14a": (0.125, 0.0625, 0.03125),
     "s17odr8": (0.125, 0.1, 0.0625, 0.05),
     "s35odr10": (0.4, 0.3125, 0.25, 0.2, 0.16, 0.125),
+    "P13odr8": (0.125, 0.1, 0.0625, 0.05),
+    "P23odr10": (0.25, 0.2, 0.16, 0.125),
 }
 TOLS = (1e-8, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15, 1e-16)
 #: The issue's baseline (heyoka time / best varint time, t = 1e3, before the
@@ -117,9 +132,11 @@ def heyoka_runner(model, tol):
         ta.time = 0.0
         ta.state[:d] = x0
         ta.state[rows[0]] = w0
-        ta.propagate_until(t_end)
+        # (outcome, min h, max h, steps, ...): the steps of the last call.
+        run.steps = int(ta.propagate_until(t_end)[3])
         return ta.state[:d].copy(), ta.state[rows[0]].copy()
 
+    run.order = int(ta.order)
     return run
 
 
@@ -176,13 +193,18 @@ def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED):
             label = f"varint {s} tau={tau:g}"
             tasks[label] = varint_runner(model, s, tau)
             meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
-                           "group": "new" if s in NEW else "old", "compensated": False}
+                           "group": ("processed" if s in PROCESSED else
+                                     "new" if s in NEW else "old"), "compensated": False,
+                           "steps": round(t_end / tau),
+                           "evaluations": varint.get_scheme(s, processed=True).force_evaluations}
     for s, taus in compensated.items():
         for tau in taus:
             label = f"varint {s}+c tau={tau:g}"
             tasks[label] = varint_runner(model, s, tau, True)
             meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
-                           "group": "compensated", "compensated": True}
+                           "group": "compensated", "compensated": True,
+                           "steps": round(t_end / tau),
+                           "evaluations": varint.get_scheme(s, processed=True).force_evaluations}
     for tol in tols:
         label = f"heyoka tol={tol:g}"
         tasks[label] = heyoka_runner(model, tol)
@@ -201,6 +223,10 @@ def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED):
     for label, (wall, cpu, (x, w)) in interleaved(calls, repeats).items():
         err = (math.nan if label == "varint one step" else
                max(relative(x, x_ref), relative(w, w_ref)))
+        if meta[label]["contender"] == "heyoka":
+            # Its steps to t_end (the last timed call's) and Taylor order.
+            meta[label].update(steps=tasks[label].steps, evaluations=None,
+                               taylor_order=tasks[label].order)
         rows.append({"orbit": name, "t_end": t_end, "config": label, **meta[label],
                      "error": err, "seconds": wall, "cpu_seconds": cpu})
     return rows
@@ -231,6 +257,7 @@ def compare(rows, targets):
         groups = {"heyoka": [r for r in mine if r["contender"] == "heyoka"],
                   "old": [r for r in mine if r["group"] == "old"],
                   "plain": [r for r in mine if r["group"] in ("old", "new")],
+                  "processed": [r for r in mine if r["group"] == "processed"],
                   "all": [r for r in mine if r["contender"] == "varint"]}
         for g, rs in groups.items():
             floors.append({"orbit": name, "contender": g,
@@ -243,7 +270,7 @@ def compare(rows, targets):
                     row[f"{tag}{g}_seconds"], row[f"{tag}{g}_how"] = c, how
                     if g != "heyoka":
                         row[f"{tag}{g}_scheme"] = which
-                for g in ("old", "plain", "all"):
+                for g in ("old", "plain", "processed", "all"):
                     ok = cost["heyoka"][0] is not None and cost[g][0] is not None
                     row[f"{tag}ratio_{g}"] = cost["heyoka"][0] / cost[g][0] if ok else None
             row["best_run"] = best_config(groups["all"], target)
@@ -254,6 +281,38 @@ def compare(rows, targets):
             row["goal"] = GOAL.get(target)
             table.append(row)
     return table, floors
+
+
+def cost_table(rows, targets):
+    """Where the time goes: per orbit and target, the cheapest run of each
+    front (scheme, compensated scheme or heyoka) that meets the target,
+    cheapest first, with its steps, force evaluations per step (heyoka:
+    Taylor order), CPU time, and the CPU time per step and per force
+    evaluation once varint's fixed cost of one call is taken off."""
+    table = []
+    for name in dict.fromkeys(r["orbit"] for r in rows):
+        mine = [r for r in rows if r["orbit"] == name and r["contender"] != "overhead"]
+        one = next(r for r in rows if r["orbit"] == name
+                   and r["contender"] == "overhead")["cpu_seconds"]
+        for target in targets:
+            best = []
+            for front in dict.fromkeys(key(r) for r in mine):
+                ok = [r for r in mine if key(r) == front and r["error"] <= target]
+                if ok:
+                    best.append(min(ok, key=lambda r: r["cpu_seconds"]))
+            for r in sorted(best, key=lambda r: r["cpu_seconds"]):
+                fixed = one if r["contender"] == "varint" else 0.0
+                stepping = max(r["cpu_seconds"] - fixed, 0.0)
+                evals = r.get("evaluations")
+                table.append({
+                    "orbit": name, "target": target, "front": key(r), "group": r["group"],
+                    "config": r["config"], "error": r["error"], "steps": r["steps"],
+                    "evaluations_per_step": evals, "taylor_order": r.get("taylor_order"),
+                    "cpu_seconds": r["cpu_seconds"], "fixed_cpu_seconds": fixed,
+                    "per_step_us": 1e6 * stepping / r["steps"],
+                    "per_evaluation_ns": (1e9 * stepping / (r["steps"] * evals)
+                                          if evals else None)})
+    return table
 
 
 def best_config(rows, target):
@@ -268,7 +327,7 @@ def plot(out, rows, targets):
     fig, axes = plt.subplots(1, len(names), figsize=(6 * len(names), 4.5), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         mine = [r for r in rows if r["orbit"] == name]
-        for front in [*OLD, *NEW, *(f"{s}+c" for s in COMPENSATED), "heyoka"]:
+        for front in [*OLD, *NEW, *PROCESSED, *(f"{s}+c" for s in COMPENSATED), "heyoka"]:
             # In ladder order (τ or tolerance decreasing).
             pts = sorted(((r.get("tau") or r["tol"], r["error"], r["cpu_seconds"]) for r in mine
                           if key(r) == front and r["contender"] ==
@@ -277,7 +336,8 @@ def plot(out, rows, targets):
                 continue
             _, e, s = zip(*pts, strict=True)
             style = "k-o" if front == "heyoka" else (
-                ":D" if front.endswith("+c") else ("-s" if front in NEW else "--^"))
+                ":D" if front.endswith("+c") else ("-s" if front in NEW else
+                                                   "-.v" if front in PROCESSED else "--^"))
             ax.loglog(e, np.array(s) * 1e3, style, label=front, ms=4)
         for t in targets:
             ax.axvline(t, color="0.8", lw=0.8)
@@ -298,7 +358,8 @@ def main(argv=None):
     numba.set_num_threads(1)
     t_end = 100.0 if args.quick else 1e3
     repeats = 1 if args.quick else 15
-    schemes = ("SRKN14a", "s17odr8", "s35odr10") if args.quick else OLD + NEW
+    schemes = (("SRKN14a", "s17odr8", "s35odr10", "P13odr8", "P23odr10") if args.quick
+               else OLD + NEW + PROCESSED)
     compensated = {"s35odr10": (0.25, 0.125)} if args.quick else COMPENSATED
     tols = (1e-10, 1e-14) if args.quick else TOLS
     load_before = os.getloadavg()
@@ -307,18 +368,26 @@ def main(argv=None):
         rows += orbit_case(name, t_end, schemes, tols, repeats, compensated)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     table, floors = compare(rows, TARGETS)
+    costs = cost_table(rows, TARGETS)
     fig = plot(args.out, rows, TARGETS)
     save_csv(args.out, "frontier", rows, ["orbit", "t_end", "config", "contender", "group",
                                           "scheme", "compensated", "tau", "tol", "error",
+                                          "steps", "evaluations", "taylor_order",
                                           "seconds", "cpu_seconds"])
+    save_csv(args.out, "frontier_cost", costs,
+             ["orbit", "target", "front", "group", "config", "error", "steps",
+              "evaluations_per_step", "taylor_order", "cpu_seconds", "fixed_cpu_seconds",
+              "per_step_us", "per_evaluation_ns"])
     save_csv(args.out, "frontier_ratios", table,
-             ["orbit", "target", "cpu_ratio_old", "cpu_ratio_plain", "cpu_ratio_all",
-              "ratio_old", "ratio_plain", "ratio_all", "cpu_old_scheme", "cpu_plain_scheme",
-              "cpu_all_scheme", "old_scheme", "plain_scheme", "all_scheme", "best_run",
+             ["orbit", "target", "cpu_ratio_old", "cpu_ratio_plain", "cpu_ratio_processed",
+              "cpu_ratio_all", "ratio_old", "ratio_plain", "ratio_processed", "ratio_all",
+              "cpu_old_scheme", "cpu_plain_scheme", "cpu_processed_scheme", "cpu_all_scheme",
+              "old_scheme", "plain_scheme", "processed_scheme", "all_scheme", "best_run",
               "heyoka_seconds", "heyoka_how", "old_seconds", "old_how", "plain_seconds",
-              "plain_how", "all_seconds", "all_how", "cpu_heyoka_seconds", "cpu_old_seconds",
-              "cpu_plain_seconds", "cpu_all_seconds", "overhead_share", "baseline", "goal"])
-    result = {"rows": rows, "ratios": table, "floors": floors, "t_end": t_end,
+              "plain_how", "processed_seconds", "processed_how", "all_seconds", "all_how",
+              "cpu_heyoka_seconds", "cpu_old_seconds", "cpu_plain_seconds",
+              "cpu_processed_seconds", "cpu_all_seconds", "overhead_share", "baseline", "goal"])
+    result = {"rows": rows, "ratios": table, "floors": floors, "costs": costs, "t_end": t_end,
               "repeats": repeats, "load": load, "figure": fig, "quick": args.quick,
               "versions": {"varint": varint.__version__, "heyoka": hy.__version__,
                            "numba": numba.__version__, "numpy": np.__version__}}
@@ -355,7 +424,8 @@ def main(argv=None):
                    paper="issue 27 target",
                    ours=ours or (f"{ratio:.2f}× CPU time, {times(r['ratio_all'])} wall time "
                                  f"({r['cpu_all_scheme']}; best plain scheme "
-                                 f"{times(r['cpu_ratio_plain'])} CPU, best old scheme "
+                                 f"{times(r['cpu_ratio_plain'])} CPU, best processed scheme "
+                                 f"{times(r['cpu_ratio_processed'])} CPU, best old scheme "
                                  f"{times(r['cpu_ratio_old'])} CPU; baseline {r['baseline']})"),
                    holds=None if args.quick or ratio is None else ratio >= r["goal"],
                    figure=fig, note=note)
@@ -370,7 +440,16 @@ def main(argv=None):
               f"{fmt(r['ratio_all']):>11}  ({r['cpu_all_scheme']}; one step's call "
               f"{fmt(r['overhead_share'])} of it; baseline {r['baseline']}, goal {r['goal']})")
     for f in floors:
-        print(f"floor {f['orbit']} {f['contender']:7} {f['floor']:.2e}")
+        print(f"floor {f['orbit']} {f['contender']:9} {f['floor']:.2e}")
+    print("where the time goes (cheapest run per front meeting the target; CPU):")
+    for c in costs:
+        if c["target"] in GOAL:
+            per = ("" if c["per_evaluation_ns"] is None else
+                   f", {c['per_evaluation_ns']:.1f} ns/evaluation")
+            kind = (f"order {c['taylor_order']}" if c["taylor_order"] else
+                    f"{c['evaluations_per_step']} evaluations/step")
+            print(f"{c['orbit']} {c['target']:.0e} {c['front']:11} {c['steps']:7d} steps, {kind}, "
+                  f"{1e3 * c['cpu_seconds']:.3f} ms, {c['per_step_us']:.3f} µs/step{per}")
     return result
 
 

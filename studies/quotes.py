@@ -596,6 +596,26 @@ def _compensated_floor(R):
                      f"{power(t)}" for t in (1e3, 1e4))
 
 
+@quote("processed_frontier")
+def _processed_frontier(R):
+    res = R.json("frontier")
+    ratios = {(r["orbit"], r["target"]): r for r in res["ratios"]}
+    floors = {(f["orbit"], f["contender"]): f["floor"] for f in res["floors"]}
+
+    def x(v, scheme=None):
+        return ("does not reach it" if v is None else
+                f"runs at {v:.2f}× heyoka's speed" + (f" ({scheme})" if scheme else ""))
+
+    parts = [f"at a global error of {power(t)} the best processed scheme "
+             f"{x(ratios['R1', t]['cpu_ratio_processed'], ratios['R1', t]['cpu_processed_scheme'])}"
+             f", the best plain one {x(ratios['R1', t]['cpu_ratio_plain'])}"
+             for t in (1e-10, 1e-12)]
+    return ("; ".join(parts) + f"; the processed schemes' floor is "
+            f"{sci(floors['R1', 'processed'])}, the plain ones' {sci(floors['R1', 'plain'])} "
+            f"(R1, t = {power(res['t_end'])}, CPU time, load {res['load']['before'][0]:.1f} on "
+            f"{res['load']['cpus']} CPUs)")
+
+
 @quote("compensated_cost")
 def _compensated_cost(R):
     res = R.json("compensated_floor")

@@ -179,7 +179,9 @@ def _candidates(candidates):
         method, scheme, tau = c
         method = check.choice(method, METHODS, "method")
         if scheme is not None:
-            get_scheme(scheme)  # an unknown name fails now, listing the valid ones
+            # An unknown name fails now, listing the valid ones (and a
+            # processed scheme anywhere but in the TM method).
+            get_scheme(scheme, processed=method == "tm")
         out.append((method, scheme, check.positive_float(tau, "candidate tau")))
     if not out:
         raise ValueError("candidates must name at least one (method, scheme, tau)")

@@ -114,7 +114,8 @@ def _default_scheme(model, scheme, method="tm"):
     parts = getattr(model, "parts", None)
     if parts is not None and parts.schemes is not None:
         return parts.resolve(scheme, model.name)
-    return get_scheme(default_for(model, method) if scheme is None else scheme)
+    return get_scheme(default_for(model, method) if scheme is None else scheme,
+                      processed=method == "tm")
 
 
 def check_options(method, options):

@@ -32,8 +32,10 @@ from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
+from ..kernels.processor import processor_map
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
-from ..schemes import DEFAULT_SCHEME, DRIFT, default_for, get_scheme, stage_arrays, stage_times
+from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
+                       stage_arrays, stage_times)
 from ..state import Snapshots
 from .options import method_options
 
@@ -96,6 +98,22 @@ class TangentMapPropagator:
         (M, 2N, 1 + k): the state's and each vector's), so chunked and
         resumed runs stay bitwise. Generated steppers only, one orbit at a
         time on the CPU (no SIMD lanes, no GPU).
+
+    Notes
+    -----
+    A :class:`~varint.schemes.ProcessedScheme` steps its kernel K and
+    reads the state through its processor P (:meth:`_processed`): the run
+    keeps the kernel's state x̃ = P⁻¹(x) and its vectors W̃ = DP⁻¹ W in
+    ``extra["tm_kernel_x"]`` and ``["tm_kernel_W"]``, so chunking and resuming never
+    change a bit, and ``state.x``, ``state.W`` are P(x̃), DP(x̃) W̃ after
+    every call. Vectors are renormalised (and their stretchings summed) in
+    the kernel's coordinates, which differ from the true ones by the
+    near-identity DP = I + O(τ³): a bounded difference, so exponents agree
+    in the limit. No snapshots inside the compiled loop (the driver stops
+    at every output); time-independent V only, CPU only. With
+    ``compensated=True`` the kernel's drifts and kicks are compensated
+    (its Kahan terms kept as for any scheme); the processor, applied once
+    per output and not accumulated, is not.
     """
 
     method = "tm"
@@ -108,7 +126,10 @@ class TangentMapPropagator:
         scheme = opts.get("scheme")
         # A small chain whose own scheme takes the stepper generated for it
         # (varint.methods.parts.runs_parts) runs that scheme here.
-        self.scheme = get_scheme(default_for(model) if scheme is None else scheme, n_parts=2)
+        self.scheme = get_scheme(default_for(model) if scheme is None else scheme, n_parts=2,
+                                 processed=True)
+        processed = isinstance(self.scheme, ProcessedScheme)
+        kernel = self.scheme.kernel_scheme if processed else self.scheme
         self.renorm = Renorm.parse(renorm)
         self.parallel = opts.get("parallel")
         self.accumulator = accumulator
@@ -121,9 +142,17 @@ class TangentMapPropagator:
             raise ValueError("compensated=True runs on the CPU only: use backend='cpu' or "
                              "'auto'")
         self.backend = device.check_backend(opts.get("backend", "cpu"))
-        self._kinds, self._h, self._hc = stage_arrays(self.scheme, self.tau)
+        if processed and (model.time_dependent or self.backend == "cuda"):
+            raise ValueError(f"scheme {self.scheme.name!r} is processed: it runs a "
+                             "time-independent V on the CPU; got time_dependent="
+                             f"{model.time_dependent}, backend={self.backend!r}")
+        #: P and P⁻¹ as stage tables (None for an unprocessed scheme).
+        self._processor = ((self.scheme.processor_stages(self.tau),
+                            self.scheme.processor_stages(self.tau, inverse=True))
+                           if processed else None)
+        self._kinds, self._h, self._hc = stage_arrays(kernel, self.tau)
         # A time-dependent V: the time of every stage (kernels/tm.py).
-        self._ctime = stage_times(self.scheme) if model.time_dependent else np.empty(0)
+        self._ctime = stage_times(kernel) if model.time_dependent else np.empty(0)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
@@ -177,8 +206,9 @@ class TangentMapPropagator:
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
-        the compiled loop (a generated stepper for this model and k)."""
-        return self._stepper(state.k) is not None
+        the compiled loop (a generated stepper for this model and k; not
+        for a processed scheme, whose outputs pass through its processor)."""
+        return self._processor is None and self._stepper(state.k) is not None
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -203,6 +233,13 @@ class TangentMapPropagator:
         -------
         Snapshots or None
         """
+        if self._processor is not None:
+            return self._processed(state, n)
+        return self._advance_steps(state, n, outputs)
+
+    def _advance_steps(self, state, n, outputs=None):
+        """:meth:`advance` by the scheme's steps (the kernel's, for a
+        processed scheme)."""
         module = self._stepper(state.k)
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
@@ -408,6 +445,49 @@ class TangentMapPropagator:
         was_active = np.zeros(m, dtype=bool)
         was_active[active] = True
         state.after_kernel(n, was_active, done, counters, COUNTERS)
+
+    def _processed(self, state, n):
+        """``n`` kernel steps of a processed scheme from the kernel's state
+        (``extra["tm_kernel_x"]``, ``["tm_kernel_W"]``, see the class
+        notes), then the outputs P(x̃) and DP(x̃) W̃. An orbit whose state
+        differs from what the last call wrote (``["tm_kernel_out_x"]``,
+        ``["tm_kernel_out_W"]``: a new run, or a state set from outside)
+        starts from P⁻¹(x), DP⁻¹ W."""
+        forward, inverse = self._processor
+        m = state.n_orbits
+        extra = state.extra
+        if "tm_kernel_x" not in extra:
+            extra["tm_kernel_x"], extra["tm_kernel_W"] = np.empty_like(state.x), \
+                np.empty_like(state.W)
+            extra["tm_kernel_out_x"] = np.full_like(state.x, np.nan)
+            extra["tm_kernel_out_W"] = np.full_like(state.W, np.nan)
+        kx, kW = extra["tm_kernel_x"], extra["tm_kernel_W"]
+        active = state.status == STATUS_OK
+        fresh = active & ~((state.x == extra["tm_kernel_out_x"]).all(axis=1)
+                           & (extra["tm_kernel_out_W"] == state.W).reshape(m, -1).all(axis=1))
+        if fresh.any():
+            kx[fresh], kW[fresh] = state.x[fresh], state.W[fresh]
+            self._apply(kx, kW, fresh, inverse)
+        # Step the kernel from its own state (compensations, when kept,
+        # are the kernel's; an orbit processed afresh starts without).
+        state.x[active], state.W[active] = kx[active], kW[active]
+        if self.compensated:
+            self._compensation(state)[fresh] = 0.0
+        self._advance_steps(state, n)
+        kx[active], kW[active] = state.x[active], state.W[active]
+        self._apply(state.x, state.W, active, forward)
+        extra["tm_kernel_out_x"][active] = state.x[active]
+        extra["tm_kernel_out_W"][active] = state.W[active]
+        return None
+
+    def _apply(self, x, W, rows, stages):
+        """The map of ``stages`` (a processor's tables) and its tangent map
+        applied in place to the orbits ``rows`` of ``x`` (M, 2N) and ``W``
+        (M, 2N, k) (:func:`varint.kernels.processor.processor_map`)."""
+        model = self.model
+        kinds, h, _ = stages
+        processor_map(x, W, rows, kinds, h, model.inverse_mass, model.params, model.bandwidth,
+                      model.grad_kernel, model.hess_kernel)
 
     def _advance_generic(self, state, n):
         m = state.n_orbits
