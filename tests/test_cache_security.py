@@ -60,7 +60,8 @@ def filled(private, _filled_cache):
     """``private`` holding a copy (modes and times kept) of the cache one
     run of :func:`x1` filled, as a new process finds what an earlier one
     left: a test whose subject is what happens to the files afterwards
-    loads the stepper instead of compiling it again (~8 s each). Returns
+    loads the stepper instead of compiling it again (7-11 s of CPU each
+    in a cold suite). Returns
     (cache dir, marker path)."""
     cache_dir, marker = private
     shutil.copytree(_filled_cache, cache_dir)
