@@ -61,8 +61,7 @@ def filled(private, _filled_cache):
     run of :func:`x1` filled, as a new process finds what an earlier one
     left: a test whose subject is what happens to the files afterwards
     loads the stepper instead of compiling it again (7-11 s of CPU each
-    in a cold suite). Returns
-    (cache dir, marker path)."""
+    in a cold suite). Returns (cache dir, marker path)."""
     cache_dir, marker = private
     shutil.copytree(_filled_cache, cache_dir)
     return cache_dir, marker
