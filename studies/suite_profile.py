@@ -44,15 +44,19 @@ ROOT = Path(__file__).resolve().parent.parent
 
 class CompileTimer:
     """A pytest plugin: per test id, the seconds of its setup, call and
-    teardown, and the seconds numba spent compiling during them (outermost
-    ``numba:compile`` events only)."""
+    teardown, the seconds numba spent compiling during them and the number
+    of functions it compiled (outermost ``numba:compile`` events only: a
+    generated stepper's ``orbit``, compiled inside its ``batch_serial``,
+    counts in the caller's)."""
 
     def __init__(self, path):
         self.path = Path(path)
         self.depth = 0
         self.started = 0.0
         self.compiling = 0.0
-        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0})
+        self.compiled = 0
+        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0,
+                                         "compiles": 0})
 
     def on_start(self, event):
         if self.depth == 0:
@@ -63,6 +67,7 @@ class CompileTimer:
         self.depth -= 1
         if self.depth == 0:
             self.compiling += time.process_time() - self.started
+            self.compiled += 1
 
     def pytest_sessionstart(self, session):
         from numba.core import event
@@ -82,12 +87,14 @@ class CompileTimer:
         self.item_start = time.perf_counter()
         self.item_cpu = time.process_time()
         self.item_compile = self.compiling
+        self.item_compiled = self.compiled
 
     def pytest_runtest_logfinish(self, nodeid, location):
         row = self.rows[nodeid]
         row["s"] += time.perf_counter() - self.item_start
         row["cpu_s"] += time.process_time() - self.item_cpu
         row["compile_s"] += self.compiling - self.item_compile
+        row["compiles"] += self.compiled - self.item_compiled
 
     def pytest_sessionfinish(self, session):
         self.path.write_text(json.dumps(self.rows))
@@ -136,17 +143,21 @@ def profile(cache, pytest_args):
 
 def by_file(rows):
     """Per test file: wall seconds, CPU seconds, compile CPU seconds, the
-    compile share of the CPU seconds, and the number of tests."""
-    files = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0, "tests": 0})
+    compile share of the CPU seconds, the functions numba compiled (None
+    where the rows predate the count) and the number of tests."""
+    files = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0, "compiles": 0,
+                                 "tests": 0})
     for nodeid, row in rows.items():
         f = files[nodeid.split("::")[0]]
         for key in ("s", "cpu_s", "compile_s"):
             f[key] += row[key]
+        f["compiles"] = None if f["compiles"] is None or "compiles" not in row \
+            else f["compiles"] + row["compiles"]
         f["tests"] += 1
     return {name: {"s": round(f["s"], 1), "cpu_s": round(f["cpu_s"], 1),
                    "compile_s": round(f["compile_s"], 1),
                    "compile_share": round(f["compile_s"] / f["cpu_s"], 2) if f["cpu_s"] else 0.0,
-                   "tests": f["tests"]}
+                   "compiles": f["compiles"], "tests": f["tests"]}
             for name, f in sorted(files.items(), key=lambda kv: -kv[1]["cpu_s"])}
 
 
@@ -163,16 +174,23 @@ def main(argv=None):
     stored = json.loads(path.read_text()) if args.merge and path.exists() else {}
     stored.pop("_provenance", None)
     tests = {**stored.get("tests", {}),
-             **{k: {key: round(v[key], 2) for key in ("s", "cpu_s", "compile_s")}
+             **{k: {key: round(v[key], 2) if key != "compiles" else v[key]
+                    for key in ("s", "cpu_s", "compile_s", "compiles") if key in v}
                 for k, v in rows.items()}}
+    # From rows, the load now is not the run's (the note says what it was);
+    # the rows' folder by name only (a path of this machine means nothing
+    # elsewhere).
+    measured = args.rows is None
     runs = [*stored.get("runs", []),
-            {"args": args.pytest_args, "rows": None if args.rows is None else str(args.rows),
-             "returncode": code, "note": args.note, "load_start": load_start,
-             "load_end": [round(x, 2) for x in os.getloadavg()]}]
+            {"args": args.pytest_args, "rows": None if measured else args.rows.name,
+             "returncode": code, "note": args.note,
+             "load_start": load_start if measured else None,
+             "load_end": [round(x, 2) for x in os.getloadavg()] if measured else None}]
     files = by_file(tests)
     save_json(args.out, "suite_profile", {"files": files, "runs": runs, "tests": tests})
     for name, f in list(files.items())[:40]:
         print(f"{f['s']:8.1f} s {f['cpu_s']:8.1f} s CPU {f['compile_share']:5.0%} compile "
+              f"{f['compiles'] if f['compiles'] is not None else '-':>5} fns "
               f"{f['tests']:4d}  {name}")
     return files
 

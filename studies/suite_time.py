@@ -5,6 +5,10 @@ left. Stores wall and CPU time (pytest and its workers together), the
 machine's cores and load before and after, pytest's summary line and its
 slowest tests, under ``cold`` or ``warm`` of ``suite_time.json`` (the other
 entry is kept); pytest's whole report is left in ``CACHE/pytest.log``. README states the figures through ``studies/quotes.py``.
+The run carries the ``studies.suite_profile`` plugin: a cold run also
+leaves the per-file table of where the time went (CPU seconds, compile
+share, functions compiled) as ``suite_profile.json`` (a warm run keeps the
+cold table).
 
 Usage: ``python studies/suite_time.py [--warm] [--cache DIR] [--out DIR]
 [-- PYTEST ARGS]``
@@ -25,8 +29,10 @@ from pathlib import Path
 
 try:
     from common import parse_args, provenance, save_json
+    from suite_profile import main as profile_main
 except ImportError:  # imported as studies.suite_time
     from .common import parse_args, provenance, save_json
+    from .suite_profile import main as profile_main
 
 ROOT = Path(__file__).resolve().parent.parent
 #: pytest's closing line: "1470 passed, 60 deselected in 512.3s".
@@ -55,9 +61,13 @@ def run_suite(cache, warm, pytest_args=()):
         for path in ROOT.glob("**/__pycache__/*.nb[ic]"):
             path.unlink()
     cache.mkdir(parents=True, exist_ok=True)
-    env = {**os.environ, "VARINT_CACHE_DIR": str(cache / "varint")}
+    # Each process's per-test rows (studies/suite_profile.py), fresh.
+    shutil.rmtree(cache / "rows", ignore_errors=True)
+    (cache / "rows").mkdir()
+    env = {**os.environ, "VARINT_CACHE_DIR": str(cache / "varint"),
+           "VARINT_SUITE_PROFILE": str(cache / "rows")}
     command = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider",
-               "--durations=30", *pytest_args]
+               "-p", "studies.suite_profile", "--durations=30", *pytest_args]
     load_start = os.getloadavg()
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
@@ -92,6 +102,11 @@ def main(argv=None):
     stored.pop("_provenance", None)
     stored[entry["mode"]] = entry
     save_json(out, "suite_time", stored)
+    if entry["mode"] == "cold":
+        profile_main(["--rows", str(args.cache / "rows"), "--out", str(out), "--note",
+                      f"the cold default suite of suite_time.py: {entry['summary']}, "
+                      f"{entry['wall_s']:.0f} s wall, {entry['cpu_s']:.0f} s CPU, load "
+                      f"{entry['load_start'][0]} -> {entry['load_end'][0]}"])
     print(f"{entry['mode']}: {entry['wall_s']:.0f} s wall, {entry['cpu_s']:.0f} s CPU, "
           f"{entry['summary']} (load {entry['load_start'][0]} → {entry['load_end'][0]})")
     return entry

@@ -82,3 +82,39 @@ def hook_advance(monkeypatch, method, at, action):
 
     monkeypatch.setattr(cls, "advance", advance)
     return calls
+
+
+def generic_tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None, every=None):
+    """``n_steps`` of the numerical map and its tangent map, as
+    :func:`varint.methods.tm.tangent_map_steps`, on the generic TM stepper
+    (kernels/tm.py: the scheme's stages are data, so one compilation serves
+    every scheme) instead of the straight-line stepper generated per
+    (model, scheme, k). A law of the scheme itself (its order,
+    reversibility, symplecticity) does not depend on which of the two runs
+    it; test_generated_stepper checks that they are the same map to
+    round-off, and the stored fingerprints pin every generated stepper
+    bitwise.
+
+    Returns the final state and vectors, and with ``every`` the states
+    after every ``every`` steps (shape (n_steps // every, 2N)) first.
+    """
+    from varint.methods.tm import TangentMapPropagator
+    from varint.protocol import Renorm, Status
+    from varint.state import RunState
+
+    x = np.array(x, dtype=np.float64).reshape(1, -1)
+    W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
+    state = RunState.start(x, W.reshape(model.dim, -1)[None])
+    p = TangentMapPropagator(model, float(tau), Renorm.NONE, scheme=scheme, parallel=False)
+    p._generated[state.k] = None          # the generic stepper
+    if every is None:
+        p.advance(state, int(n_steps))
+    else:
+        states = []
+        for _ in range(int(n_steps) // every):
+            p.advance(state, every)
+            states.append(state.x[0].copy())
+    assert state.status[0] == Status.OK, state.status[0]
+    if every is None:
+        return state.x[0], state.W[0]
+    return np.array(states), state.x[0], state.W[0]

@@ -9,6 +9,7 @@ results must stay bitwise those of a clean cache."""
 import json
 import os
 import pickle
+import shutil
 import stat
 import subprocess
 import sys
@@ -38,6 +39,32 @@ def private(tmp_path, monkeypatch):
     monkeypatch.setattr(cachedir, "_FALLBACK", {"dir": tmp_path / "fallback"})
     new_process(monkeypatch)
     return tmp_path / "cache", tmp_path / "MARKER"
+
+
+@pytest.fixture(scope="module")
+def _filled_cache(tmp_path_factory):
+    """A private cache directory after one run of :func:`x1`: its generated
+    stepper, facts and numba cache, compiled once for this file."""
+    path = tmp_path_factory.mktemp("filled") / "cache"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("VARINT_CACHE_DIR", str(path))
+        mp.setattr(cachedir, "_WARNED", set())
+        mp.setattr(cachedir, "_FALLBACK", {"dir": path.parent / "fallback"})
+        new_process(mp)
+        x1()
+    return path
+
+
+@pytest.fixture
+def filled(private, _filled_cache):
+    """``private`` holding a copy (modes and times kept) of the cache one
+    run of :func:`x1` filled, as a new process finds what an earlier one
+    left: a test whose subject is what happens to the files afterwards
+    loads the stepper instead of compiling it again (7-11 s of CPU each
+    in a cold suite). Returns (cache dir, marker path)."""
+    cache_dir, marker = private
+    shutil.copytree(_filled_cache, cache_dir)
+    return cache_dir, marker
 
 
 def new_process(monkeypatch):
@@ -78,12 +105,12 @@ def test_the_cache_directory_and_its_secret_are_private(private):
 
 @pytest.mark.parametrize("edit", ["payload appended", "coefficient changed", "truncated",
                                   "emptied", "signature line removed", "another user's"])
-def test_an_edited_generated_stepper_never_runs_and_is_rebuilt(private, monkeypatch, edit):
+def test_an_edited_generated_stepper_never_runs_and_is_rebuilt(filled, monkeypatch, edit):
     """A payload added to a cached stepper would run at import, a changed
     Hessian coefficient would make R1 look chaotic: the file fails its
     signature, is discarded with a warning, rebuilt, and the result is
     bitwise that of a clean cache."""
-    cache_dir, marker = private
+    cache_dir, marker = filled
     clean = x1()
     path = stepper_file(cache_dir)
     text = path.read_text()
@@ -109,10 +136,10 @@ def test_an_edited_generated_stepper_never_runs_and_is_rebuilt(private, monkeypa
     assert x1() == clean                     # and used without a warning
 
 
-def test_code_planted_beside_the_steppers_is_never_imported(private, monkeypatch):
+def test_code_planted_beside_the_steppers_is_never_imported(filled, monkeypatch):
     """A .pyc or a module planted in the kernels folder is not what varint
     executes: it runs the verified bytes of its own file only."""
-    cache_dir, marker = private
+    cache_dir, marker = filled
     clean = x1()
     path = stepper_file(cache_dir)
     pycache = path.parent / "__pycache__"
@@ -126,12 +153,12 @@ def test_code_planted_beside_the_steppers_is_never_imported(private, monkeypatch
 
 
 @pytest.mark.parametrize("damage", ["garbage", "truncated", "pickle payload", "empty"])
-def test_damaged_numba_cache_files_are_discarded_and_rebuilt(private, monkeypatch, damage):
+def test_damaged_numba_cache_files_are_discarded_and_rebuilt(filled, monkeypatch, damage):
     """numba's cache files are pickles that numba loads: one that does not
     carry varint's signature is never unpickled (a pickle that would
     create the marker stays inert), it is deleted with a warning and
     compiled again; later runs use the new, signed file."""
-    cache_dir, marker = private
+    cache_dir, marker = filled
     clean = x1()
     files = sorted((cache_dir / "kernels" / "__pycache__").glob("*"))
     assert files and all(f.suffix in (".nbi", ".nbc") for f in files)
@@ -154,11 +181,11 @@ def test_damaged_numba_cache_files_are_discarded_and_rebuilt(private, monkeypatc
                for f in (cache_dir / "kernels" / "__pycache__").glob("*"))
 
 
-def test_symbolic_facts_are_data_never_code(private, monkeypatch):
+def test_symbolic_facts_are_data_never_code(filled, monkeypatch):
     """The cached facts of a built-in model hold a flag and a key, signed;
     text in them is never evaluated (SymPy's sympify would eval it), not
     even when someone who holds the secret signs it."""
-    cache_dir, marker = private
+    cache_dir, marker = filled
     clean = x1()
     (facts,) = (cache_dir / "kernels").glob("varint_model_*.json")
     evil = f"__import__('os').system('touch {marker}')"
@@ -232,11 +259,11 @@ def test_a_planted_kernels_link_is_refused(tmp_path, monkeypatch, private):
     assert list(elsewhere.iterdir()) == []
 
 
-def test_a_secret_others_can_read_is_replaced(private, monkeypatch):
+def test_a_secret_others_can_read_is_replaced(filled, monkeypatch):
     """A secret file readable by others may have leaked: it is replaced by a
     new one (one warning), and what it signed is rebuilt (one warning per
     file signed with the old secret, which is not used)."""
-    cache_dir, _ = private
+    cache_dir, _ = filled
     clean = x1()
     secret = cache_dir / cachedir.SECRET_FILE
     old = secret.read_bytes()
@@ -254,11 +281,11 @@ def test_a_secret_others_can_read_is_replaced(private, monkeypatch):
     assert secret.read_bytes() != old and stat.S_IMODE(secret.stat().st_mode) == 0o600
 
 
-def test_a_full_cache_compiles_in_memory_with_one_warning(private, monkeypatch):
+def test_a_full_cache_compiles_in_memory_with_one_warning(filled, monkeypatch):
     """No space for the generated source: the kernels are compiled in
     memory (numba's disk caching off), the run's result is unchanged, one
     warning says so."""
-    cache_dir, _ = private
+    cache_dir, _ = filled
     clean = x1()
     new_process(monkeypatch)
     for path in (cache_dir / "kernels").glob("varint_stepper_*.py"):
@@ -274,10 +301,10 @@ def test_a_full_cache_compiles_in_memory_with_one_warning(private, monkeypatch):
     assert not list((cache_dir / "kernels").glob("varint_stepper_*.py"))
 
 
-def test_a_full_disk_when_numba_writes_its_cache_costs_a_warning(private, monkeypatch):
+def test_a_full_disk_when_numba_writes_its_cache_costs_a_warning(filled, monkeypatch):
     """numba's own cache write hitting a full disk raised a raw OSError
     [Errno 28] that lost the run: now it is one warning."""
-    cache_dir, _ = private
+    cache_dir, _ = filled
     clean = x1()
     new_process(monkeypatch)
     for f in (cache_dir / "kernels" / "__pycache__").glob("*"):

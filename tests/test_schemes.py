@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 
 import varint
-from varint.methods.tm import tangent_map_steps
 from varint.schemes import (DEFAULT_SCHEME, DRIFT, KICK, CompositionScheme, ProcessedScheme,
                             SplittingScheme, register_scheme, registered, scheme_word,
                             stage_arrays)
 
-from tests.helpers import fitted_slope
+from tests.helpers import fitted_slope, generic_tangent_map_steps
 
 NAMES = [s.name for s in registered(2)]
 
@@ -94,30 +93,41 @@ def test_invalid_schemes_are_refused():
         SplittingScheme("bad", True, (0.5,), (0.5, 0.2, 0.3), order=2)
 
 
-def _max_energy_error(model, x0, tau, scheme, t_end=20.0):
+def _energy_errors(model, x0, tau, scheme, t_end=20.0, every=1):
+    """|ΔH| / (|T| + |V|) after every ``every`` steps up to ``t_end``, on
+    the generic stepper (one compilation for all schemes; see
+    :func:`tests.helpers.generic_tangent_map_steps`). The test measures the
+    energy error itself, at steps chosen large enough to be above
+    round-off. With four deviation vectors (the orbit does not depend on
+    them), as the tests below: the generic stepper is compiled per number
+    of vectors."""
     n = int(round(t_end / tau))
-    # The test measures the energy error itself, at steps chosen large enough
-    # to be above round-off: the accuracy verdict's warning is not its subject.
-    # The identity as deviation vectors (the orbit does not depend on them)
-    # lets the run share the compiled stepper of the other tests of every
-    # scheme on Hénon–Heiles (four vectors): one compilation per scheme.
-    r = varint.integrate(model, x0, n * tau, tau=tau, scheme=scheme, t_out=n, energy_tol=1.0,
-                         deviations=np.eye(4))
-    return float(np.max(r.energy_error))
+    xs, _, _ = generic_tangent_map_steps(model, x0, np.eye(4), tau=tau, n_steps=n,
+                                         scheme=scheme, every=every)
+    return (model.energy(xs) - model.energy(x0)) / model.energy_scale(x0)
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_measured_order_of_energy_error(name, c1):
     """Slope of max |ΔH/H| over t ≤ 20 against τ on Hénon–Heiles (C1,
     H = 1/8) equals the documented order ± 0.3."""
+    model, x0 = c1
     s = varint.get_scheme(name)
-    # Sixth-order schemes reach round-off at τ = 0.05; measure them earlier.
-    # The order-10 s35odr10 goes from pre-asymptotic (slope 13 at τ ≥ 0.6)
-    # to round-off (1e-14 at τ = 0.2) within a factor 3 of τ: measured on
-    # a finer ladder in between (slope 10.3).
-    taus = ((0.5, 0.4, 0.3125, 0.25) if s.order >= 10 else
-            (0.4, 0.2, 0.1) if s.order >= 6 else (0.2, 0.1, 0.05))
-    errs = [_max_energy_error(*c1, tau, name) for tau in taus]
+    if s.order >= 10:
+        # The order-10 s35odr10 goes from pre-asymptotic (slope 13 at
+        # τ ≥ 0.6) to round-off (1e-14 at τ = 0.2) within a factor 3 of τ,
+        # where a max over a window of an oscillating error scatters (this
+        # ladder's max gives 10.4 to 10.6 depending on the rungs): the RMS
+        # of the error at the times common to every τ (every 2 up to 20)
+        # scales exactly as τ^10, measured 10.13.
+        taus = (0.5, 0.4, 1 / 3, 0.25)
+        errs = [np.sqrt(np.mean(_energy_errors(model, x0, tau, name,
+                                               every=round(2.0 / tau)) ** 2))
+                for tau in taus]
+    else:
+        # Sixth-order schemes reach round-off at τ = 0.05; measure them earlier.
+        taus = (0.4, 0.2, 0.1) if s.order >= 6 else (0.2, 0.1, 0.05)
+        errs = [np.max(np.abs(_energy_errors(model, x0, tau, name))) for tau in taus]
     assert abs(fitted_slope(taus, errs) - s.order) < 0.3, errs
 
 
@@ -126,8 +136,8 @@ def test_reversibility(name, c1):
     """S(−τ)ⁿ S(τ)ⁿ returns the start (orbit and tangent map) to round-off."""
     model, x0 = c1
     W0 = np.eye(4)
-    x, W = tangent_map_steps(model, x0, W0, tau=0.1, n_steps=200, scheme=name)
-    xb, Wb = tangent_map_steps(model, x, W, tau=-0.1, n_steps=200, scheme=name)
+    x, W = generic_tangent_map_steps(model, x0, W0, tau=0.1, n_steps=200, scheme=name)
+    xb, Wb = generic_tangent_map_steps(model, x, W, tau=-0.1, n_steps=200, scheme=name)
     assert np.max(np.abs(xb - x0)) < 1e-12
     assert np.max(np.abs(Wb - W0)) < 1e-10
 
@@ -136,8 +146,9 @@ def test_momentum_flip_reversibility(c1):
     """Flipping p after n steps and stepping n more returns the flipped start."""
     model, x0 = c1
     flip = np.array([1.0, 1.0, -1.0, -1.0])
-    x, _ = tangent_map_steps(model, x0, tau=0.1, n_steps=300, scheme="SABA3C")
-    xb, _ = tangent_map_steps(model, x * flip, tau=0.1, n_steps=300, scheme="SABA3C")
+    W = np.eye(4)    # unused: the stepper of the other tests
+    x, _ = generic_tangent_map_steps(model, x0, W, tau=0.1, n_steps=300, scheme="SABA3C")
+    xb, _ = generic_tangent_map_steps(model, x * flip, W, tau=0.1, n_steps=300, scheme="SABA3C")
     assert np.max(np.abs(xb * flip - x0)) < 1e-12
 
 
@@ -151,7 +162,7 @@ def _J(n):
 @pytest.mark.parametrize("name", NAMES)
 def test_tangent_map_is_symplectic(name, c1):
     model, x0 = c1
-    _, M = tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=50, scheme=name)
+    _, M = generic_tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=50, scheme=name)
     assert np.max(np.abs(M.T @ J4 @ M - J4)) < 1e-13
 
 
@@ -161,7 +172,8 @@ def test_tangent_map_is_symplectic(name, c1):
 def test_tangent_map_is_symplectic_with_masses_and_bands(model, name):
     n = model.n_dof
     x0 = np.linspace(-0.2, 0.3, 2 * n)
-    _, M = tangent_map_steps(model, x0, np.eye(2 * n), tau=0.05, n_steps=50, scheme=name)
+    _, M = generic_tangent_map_steps(model, x0, np.eye(2 * n), tau=0.05, n_steps=50,
+                                     scheme=name)
     J = _J(n)
     assert np.max(np.abs(M.T @ J @ M - J)) < 1e-13
 
@@ -171,7 +183,7 @@ def test_tangent_map_is_the_derivative_of_the_map(name, c1):
     """TS equals the central finite difference of Sⁿ, with error ∝ h²."""
     model, x0 = c1
     n = 40
-    _, M = tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=n, scheme=name)
+    _, M = generic_tangent_map_steps(model, x0, np.eye(4), tau=0.1, n_steps=n, scheme=name)
     hs = (4e-3, 2e-3, 1e-3)
     errs = []
     for h in hs:
@@ -179,9 +191,10 @@ def test_tangent_map_is_the_derivative_of_the_map(name, c1):
         for i in range(4):
             e = np.zeros(4)
             e[i] = h
-            # With vectors (unused) as above: the same compiled stepper.
-            xp, _ = tangent_map_steps(model, x0 + e, np.eye(4), tau=0.1, n_steps=n, scheme=name)
-            xm, _ = tangent_map_steps(model, x0 - e, np.eye(4), tau=0.1, n_steps=n, scheme=name)
+            xp, _ = generic_tangent_map_steps(model, x0 + e, np.eye(4), tau=0.1, n_steps=n,
+                                              scheme=name)
+            xm, _ = generic_tangent_map_steps(model, x0 - e, np.eye(4), tau=0.1, n_steps=n,
+                                              scheme=name)
             fd[:, i] = (xp - xm) / (2 * h)
         errs.append(np.max(np.abs(fd - M)) / np.max(np.abs(M)))
     assert errs[-1] < 1e-4
