@@ -278,7 +278,7 @@ def _kernels(site, bond):
         sweep(x, V, k, x.shape[0] // 2, 0, cst, nx, ny, dim, per)
 
     # -- the kick of a bond chain: each bond's force carried to the next site --
-    @njit(error_model="numpy")
+    @njit(inline="always", error_model="numpy")
     def chain_site(x, V, k, h, cs, cb, a, i, n, periodic):
         # Particle i between bond i (left) and bond i + 1 (right). The order
         # of the operations is that of grad, hess and band_kick_block:
@@ -336,7 +336,10 @@ def _kernels(site, bond):
         else:
             linear_kick(x, V, k, h, par)
 
-    @njit(error_model="numpy")
+    # Inlined by numba into the part stepper's step, where the number of
+    # vectors is a constant: the loops over vectors unroll and the site
+    # loops vectorise (called, a run-time k cost FPU-beta n = 64 ...).
+    @njit(inline="always", error_model="numpy")
     def apply(part, h, x, V, k, par, work):
         n = x.shape[0] // 2
         if part == 0:
