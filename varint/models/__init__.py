@@ -20,7 +20,8 @@ from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
 __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "FPUT", "DisorderedKG", "DDNLS",
-           "LatticeModel", "Parts", "Stencil", "Potential", "StencilLattice", "Planetary", "paper_orbit", "solve_momentum", "PAPER_ORBITS",
+           "LatticeModel", "Parts", "Stencil", "Potential", "StencilLattice", "Planetary",
+           "paper_orbit", "solve_momentum", "PAPER_ORBITS",
            "from_potential", "SymbolicModel", "SymbolicPotential",
            "MapModel", "StandardMap", "CoupledStandardMaps", "from_map", "SymbolicMap",
            "from_hamiltonian", "HamiltonianModel", "CR3BP", "cr3bp_orbit", "RotatingBar",
