@@ -105,8 +105,7 @@ class Potential:
 @dataclass(frozen=True)
 class Stencil:
     """A lattice H = Σ p²/2 + Σ_l u(q_l; a_l) + Σ_bonds φ(r) (module
-    docstring): its site and bond potentials (None: absent) and how many
-    coefficients each reads.
+    docstring): its site and bond potentials (None: absent; not both).
 
     Attributes
     ----------
@@ -278,6 +277,7 @@ def _kernels(site, bond):
         sweep(x, V, k, x.shape[0] // 2, 0, cst, nx, ny, dim, per)
 
     # -- the kick of a bond chain: each bond's force carried to the next site --
+    # (the edge sites inlined too: 12 % of FPU-beta's kick at n = 64 as calls)
     @njit(inline="always", error_model="numpy")
     def chain_site(x, V, k, h, cs, cb, a, i, n, periodic):
         # Particle i between bond i (left) and bond i + 1 (right). The order
@@ -338,7 +338,8 @@ def _kernels(site, bond):
 
     # Inlined by numba into the part stepper's step, where the number of
     # vectors is a constant: the loops over vectors unroll and the site
-    # loops vectorise (called, a run-time k cost FPU-beta n = 64 ...).
+    # loops vectorise (called instead, with k a run-time value, FPU-beta's
+    # drift at n = 64 took twice as long: studies/fpu_gap.py).
     @njit(inline="always", error_model="numpy")
     def apply(part, h, x, V, k, par, work):
         n = x.shape[0] // 2
