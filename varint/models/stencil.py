@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from .._validate import array_bytes, check_memory
 from ..kernels.closures import cache_on_disk
 from .lattice import (HEADER, LatticeModel, Parts, drift, neighbour_sum, neighbour_sweep,
                       no_band_kernel, no_third_kernel)
@@ -417,6 +418,9 @@ class StencilLattice(LatticeModel):
         if bond is not None and not bond.linear and dim != 1:
             raise ValueError(f"stencil {stencil.name!r} has a nonlinear bond, which runs on "
                              f"chains only; got shape {shape!r}")
+        # Before the first array of size N (the parameters), the check of
+        # Model.__init__: its inverse mass, one state, gradient and band.
+        check_memory(array_bytes(n, 2 * n, n, (2, n)), f"model {name} ({n} degrees of freedom)")
         self.stencil = stencil
         self.site_coeffs = _coefficients(site_coeffs, "site")
         self.bond_coeffs = _coefficients(bond_coeffs, "bond")
