@@ -1,7 +1,8 @@
 """Models H = ½ pᵀM⁻¹p + V(q) (or V(q, t)): the protocol and the paper's
 systems; symplectic maps with their tangent maps (:mod:`.maps`); the
 many-body lattices (:mod:`varint.models.lattice`), which also declare the
-parts their Hamiltonians split into; and planetary systems
+parts their Hamiltonians split into, and the T + V ones written as one
+stencil (:mod:`varint.models.stencil`); and planetary systems
 (:mod:`varint.models.planetary`), split into Kepler problems and their
 interaction."""
 
@@ -14,11 +15,13 @@ from .kg import DisorderedKG
 from .lattice import LatticeModel, Parts
 from .maps import CoupledStandardMaps, MapModel, StandardMap
 from .planetary import Planetary
+from .stencil import Potential, Stencil, StencilLattice
 from .orbits import PAPER_ORBITS, paper_orbit, solve_momentum
 from .three_dof import ThreeDof
 
 __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "FPUT", "DisorderedKG", "DDNLS",
-           "LatticeModel", "Parts", "Planetary", "paper_orbit", "solve_momentum", "PAPER_ORBITS",
+           "LatticeModel", "Parts", "Stencil", "Potential", "StencilLattice", "Planetary",
+           "paper_orbit", "solve_momentum", "PAPER_ORBITS",
            "from_potential", "SymbolicModel", "SymbolicPotential",
            "MapModel", "StandardMap", "CoupledStandardMaps", "from_map", "SymbolicMap",
            "from_hamiltonian", "HamiltonianModel", "CR3BP", "cr3bp_orbit", "RotatingBar",

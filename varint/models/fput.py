@@ -8,10 +8,12 @@ of n bonds). Per bond the force is φ'(r) = r + αr² + βr³ and the stiffness
 tridiagonal (Skokos & Gerlach 2010, eq. 56 for α = 0; Danieli, Many Manda,
 Mithun & Skokos 2019 for the α-β chain).
 
+The chain is its stencil (:mod:`varint.models.stencil`): the bond φ and its
+derivatives below; its kernels, energy densities and SymPy potential follow.
 Every derivative is assembled bond by bond in O(n). The kick, fused with
 its tangent map, runs the same floating-point operations in the same order
-as the generic stepper with the band kernels below, so for fixed ends both
-paths give bitwise the same orbit and vectors (tests/models/test_lattices.py).
+as the generic stepper with the band kernels, so for fixed ends both paths
+give bitwise the same orbit and vectors (tests/models/test_lattices.py).
 """
 
 from __future__ import annotations
@@ -21,12 +23,10 @@ import numbers
 import numpy as np
 from numba import njit
 
-from .lattice import HEADER, LatticeModel, Parts, check_real, drift, no_band_kernel, \
-    no_third_kernel
+from .lattice import check_real
+from .stencil import Potential, Stencil, StencilLattice, stencil_kernels
 
-__all__ = ["FPUT"]
-
-_ALPHA, _BETA = HEADER, HEADER + 1
+__all__ = ["FPUT", "STENCIL"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -53,138 +53,33 @@ def third(r, alpha, beta):
     return 2.0 * alpha + 6.0 * beta * r
 
 
+# The bond of the stencil, c = (α, β).
 @njit(cache=True, error_model="numpy")
-def bond(q, b, n, periodic):
-    """r_b = q_b − q_{b−1}: bond b joins particles b − 1 and b (0-based),
-    walls at −1 and n for fixed ends; on a ring bond 0 joins n − 1 and 0."""
-    if periodic:
-        return q[b % n] - q[(b - 1) % n]
-    right = q[b] if b < n else 0.0
-    left = q[b - 1] if b >= 1 else 0.0
-    return right - left
-
-
-# The band kernels (fixed ends; par = header, α, β). For α = 0 they are the
-# FPU-β kernels of Skokos & Gerlach 2010, operation for operation.
-@njit(cache=True, error_model="numpy")
-def _grad(q, par, g):
-    alpha, beta = par[_ALPHA], par[_BETA]
-    n = q.shape[0]
-    for i in range(n):
-        g[i] = 0.0
-    for b in range(n + 1):
-        f = force(bond(q, b, n, False), alpha, beta)
-        if b < n:
-            g[b] += f
-        if b >= 1:
-            g[b - 1] -= f
+def _bond_force(r, c):
+    return force(r, c[0], c[1])
 
 
 @njit(cache=True, error_model="numpy")
-def _add_bond(B, b, k, n):
-    # A bond b with stiffness k joins particles b − 1 and b: it adds
-    # k e_b e_bᵀ to a symmetric tridiagonal matrix in band storage.
-    if b < n:
-        B[0, b] += k
-    if b >= 1:
-        B[0, b - 1] += k
-    if 1 <= b < n:
-        B[1, b - 1] = -k
+def _bond_stiffness(r, c):
+    return stiffness(r, c[0], c[1])
 
 
 @njit(cache=True, error_model="numpy")
-def _hess(q, par, B):
-    alpha, beta = par[_ALPHA], par[_BETA]
-    n = q.shape[0]
-    for i in range(n):
-        B[0, i] = 0.0
-        B[1, i] = 0.0
-    for b in range(n + 1):
-        _add_bond(B, b, stiffness(bond(q, b, n, False), alpha, beta), n)
+def _bond_third(r, c):
+    return third(r, c[0], c[1])
 
 
-@njit(cache=True, error_model="numpy")
-def _third(q, par, v, B):
-    alpha, beta = par[_ALPHA], par[_BETA]
-    n = q.shape[0]
-    for i in range(n):
-        B[0, i] = 0.0
-        B[1, i] = 0.0
-    for b in range(n + 1):
-        r = bond(q, b, n, False)
-        dv = (v[b] if b < n else 0.0) - (v[b - 1] if b >= 1 else 0.0)
-        _add_bond(B, b, third(r, alpha, beta) * dv, n)
+#: The α-β chain as a stencil (:mod:`varint.models.stencil`): bonds only.
+STENCIL = Stencil(
+    "FPUT",
+    bond=Potential(_bond_force, _bond_stiffness, _bond_third,
+                   terms=(lambda r, c: 0.5 * r * r, lambda r, c: c[0] * r ** 3 / 3.0,
+                          lambda r, c: 0.25 * c[1] * r ** 4),
+                   expression=lambda r, c: r**2 / 2 + c[0] * r**3 / 3 + c[1] * r**4 / 4))
 
+_KERNELS = stencil_kernels(STENCIL)
+_apply, _field = _KERNELS.apply, _KERNELS.field
 
-@njit(cache=True, error_model="numpy")
-def _kick_site(x, V, k, h, alpha, beta, i, n, periodic):
-    # Particle i between bond i (left) and bond i + 1 (right). The order of
-    # the operations is that of _grad, _hess and band_kick_block: ∇V_i =
-    # (0 + φ'_left) − φ'_right; δp_i −= h(k_l + k_r)δq_i, then the left and
-    # the right neighbour.
-    rl = bond(x, i, n, periodic)
-    rr = bond(x, i + 1, n, periodic)
-    x[n + i] -= h * ((0.0 + force(rl, alpha, beta)) - force(rr, alpha, beta))
-    kl = stiffness(rl, alpha, beta)
-    kr = stiffness(rr, alpha, beta)
-    a = h * ((0.0 + kl) + kr)
-    al = h * (-kl)
-    ar = h * (-kr)
-    il = i - 1 if i >= 1 else n - 1
-    ir = i + 1 if i < n - 1 else 0
-    for j in range(k):
-        w = V[j, n + i] - a * V[j, i]
-        if i >= 1 or periodic:
-            w -= al * V[j, il]
-        if i < n - 1 or periodic:
-            w -= ar * V[j, ir]
-        V[j, n + i] = w
-
-
-@njit(cache=True, error_model="numpy")
-def _kick(x, V, k, h, par):
-    n = x.shape[0] // 2
-    alpha, beta = par[_ALPHA], par[_BETA]
-    periodic = par[3] != 0.0
-    _kick_site(x, V, k, h, alpha, beta, 0, n, periodic)
-    # The right bond of site i is the left bond of site i + 1: its force
-    # and stiffness are carried to the next site (one φ', φ'' per bond, not
-    # two; the same values, the kick only moves momenta).
-    rl = x[1] - x[0]
-    fl = force(rl, alpha, beta)
-    kl = stiffness(rl, alpha, beta)
-    for i in range(1, n - 1):
-        rr = x[i + 1] - x[i]
-        fr = force(rr, alpha, beta)
-        kr = stiffness(rr, alpha, beta)
-        x[n + i] -= h * ((0.0 + fl) - fr)
-        a = h * ((0.0 + kl) + kr)
-        al = h * (-kl)
-        ar = h * (-kr)
-        for j in range(k):
-            V[j, n + i] = ((V[j, n + i] - a * V[j, i]) - al * V[j, i - 1]) - ar * V[j, i + 1]
-        fl, kl = fr, kr
-    _kick_site(x, V, k, h, alpha, beta, n - 1, n, periodic)
-
-
-@njit(cache=True, error_model="numpy")
-def _apply(part, h, x, V, k, par, work):
-    n = x.shape[0] // 2
-    if part == 0:
-        drift(x, V, h, k, n)
-    else:
-        _kick(x, V, k, h, par)
-
-
-@njit(cache=True, error_model="numpy")
-def _field(x, par, out):
-    n = x.shape[0] // 2
-    alpha, beta = par[_ALPHA], par[_BETA]
-    periodic = par[3] != 0.0
-    for i in range(n):
-        out[i] = x[n + i]
-        out[n + i] = -((0.0 + force(bond(x, i, n, periodic), alpha, beta))
-                       - force(bond(x, i + 1, n, periodic), alpha, beta))
 
 
 def check_size(n):
@@ -202,7 +97,7 @@ def check_coupling(value, name):
     return float(value)
 
 
-class FPUT(LatticeModel):
+class FPUT(StencilLattice):
     """The α-β Fermi–Pasta–Ulam–Tsingou chain of ``n`` particles.
 
     Parameters
@@ -228,29 +123,9 @@ class FPUT(LatticeModel):
         n = check_size(n)
         self.alpha = check_coupling(alpha, "alpha")
         self.beta = check_coupling(beta, "beta")
-        band = boundary == "fixed"
         name = name or f"FPUT(n={n}, alpha={self.alpha:g}, beta={self.beta:g})"
-        header = [1.0, 1.0, float(n), 1.0 if boundary == "periodic" else 0.0]
-        self._setup(n, boundary, name, self._V, _grad, _hess if band else no_band_kernel,
-                    _third if band else no_third_kernel, 1 if band else 0,
-                    header + [self.alpha, self.beta], band)
-        self.parts = Parts(names=("T", "V"), apply=_apply, field=_field, splits={2: ("T", "V")},
-                           par=self.params, default_scheme="ABA864")
-
-    def _potential_of_bonds(self, r):
-        return 0.5 * r * r + self.alpha * r ** 3 / 3.0 + 0.25 * self.beta * r ** 4
-
-    def _V(self, q):
-        r, _ = self.bonds(q)
-        return np.sum(self._potential_of_bonds(r), axis=-1)
-
-    def densities(self, x):
-        """Energy per particle: p_i²/2 plus half of each of its two bonds'
-        energies (all of a bond to a wall), so that Σ_i h_i = H."""
-        x = np.asarray(x, dtype=float)
-        n = self.n_sites
-        r, pairs = self.bonds(x[..., :n])
-        return 0.5 * x[..., n:] ** 2 + self.split_bonds(self._potential_of_bonds(r), pairs)
+        self._setup_stencil(STENCIL, n, boundary, name, bond_coeffs=(self.alpha, self.beta),
+                            kernels=_KERNELS)
 
     def initial_block(self, width=1, density=0.1, seed=0):
         """Momenta p = ±√(2h) on a central block of ``width`` particles (q =
@@ -268,19 +143,3 @@ class FPUT(LatticeModel):
         d = super().describe()
         d.update(n=self.n_dof, alpha=self.alpha, beta=self.beta)
         return d
-
-    def symbolic(self):
-        """The potential in SymPy, bond by bond (fixed ends); α and β enter
-        as the exact binary values of the floats."""
-        import sympy as sp
-
-        from .symbolic import SymbolicPotential
-
-        self._band()
-        n = self.n_dof
-        q = sp.symbols(f"q1:{n + 1}")
-        alpha, beta = sp.Rational(self.alpha), sp.Rational(self.beta)
-        walls = (sp.Integer(0),) + q + (sp.Integer(0),)
-        r = [walls[b + 1] - walls[b] for b in range(n + 1)]
-        V = sp.Add(*[ri**2 / 2 + alpha * ri**3 / 3 + beta * ri**4 / 4 for ri in r])
-        return SymbolicPotential(V, q, (sp.Integer(1),) * n)

@@ -19,7 +19,9 @@ Writing d_l = ε̃_l + z/W (z = 2 neighbours in 1D, 4 in 2D, counting walls):
 
 H = T(p) + V(q), so its parts are the kinetic drift and the potential
 kick, with their tangent maps (Skokos & Gerlach 2010, eqs. 46–47), fused:
-one pass over the sites kicks p and every δp.
+one pass over the sites kicks p and every δp. The lattice is its stencil
+(:mod:`varint.models.stencil`): the site potential and the linear bond
+below; its kernels, energy densities and SymPy potential follow.
 """
 
 from __future__ import annotations
@@ -28,114 +30,60 @@ import numpy as np
 from numba import njit
 
 from .._validate import array_bytes, check_memory
-from .lattice import (HEADER, LatticeModel, Parts, check_real, check_seed, drift, edge_site,
-                      n_edges, neighbour_sum, neighbour_sum_v, no_band_kernel, no_third_kernel)
+from .lattice import check_boundary, check_real, check_seed, lattice_shape
+from .stencil import Potential, Stencil, StencilLattice, stencil_kernels
 
-__all__ = ["DisorderedKG"]
+__all__ = ["DisorderedKG", "STENCIL"]
 
-# par = header (geometry), 1/W, then d_l = ε̃_l + z/W for every site.
-_C, _D0 = HEADER, HEADER + 1
+
+# The site: u(q; a) = a q²/2 + q⁴/4 with a = ε̃_l (the kernels add z/W).
+@njit(cache=True, error_model="numpy")
+def _site_force(q, a, c):
+    return (a + q * q) * q
 
 
 @njit(cache=True, error_model="numpy")
-def _grad(q, par, g):
-    nx, ny, dim, per = int(par[1]), int(par[2]), int(par[0]), par[3] != 0.0
-    c = par[_C]
-    for s in range(q.shape[0]):
-        g[s] = (par[_D0 + s] + q[s] * q[s]) * q[s] - c * neighbour_sum(q, 0, s, nx, ny, dim,
-                                                                      per)
+def _site_stiffness(q, a, c):
+    return a + 3.0 * q * q
 
 
 @njit(cache=True, error_model="numpy")
-def _hess(q, par, B):
-    # Fixed-end chains only (bandwidth 1).
-    c = par[_C]
-    n = q.shape[0]
-    for s in range(n):
-        B[0, s] = par[_D0 + s] + 3.0 * q[s] * q[s]
-        B[1, s] = -c if s < n - 1 else 0.0
+def _site_third(q, a, c):
+    return 6.0 * q
+
+
+# The bond: φ(r) = r²/(2W), c = (W,): linear, κ = 1/W.
+@njit(cache=True, error_model="numpy")
+def _bond_force(r, c):
+    return r / c[0]
 
 
 @njit(cache=True, error_model="numpy")
-def _third(q, par, v, B):
-    # Σ_k v_k D²(∂_k V): only ∂³V/∂q_l³ = 6 q_l is non-zero.
-    for s in range(q.shape[0]):
-        B[0, s] = 6.0 * q[s] * v[s]
-        B[1, s] = 0.0
+def _bond_stiffness(r, c):
+    return 1.0 / c[0]
 
 
 @njit(cache=True, error_model="numpy")
-def _kick_site(x, V, k, h, c, d0, s, n, nx, ny, dim, per):
-    q = x[s]
-    x[n + s] -= h * ((d0 + q * q) * q - c * neighbour_sum(x, 0, s, nx, ny, dim, per))
-    a = h * (d0 + 3.0 * q * q)
-    b = h * c
-    for j in range(k):
-        V[j, n + s] -= a * V[j, s] - b * neighbour_sum_v(V, 0, s, j, nx, ny, dim, per)
+def _bond_third(r, c):
+    return 0.0
 
 
-@njit(cache=True, error_model="numpy")
-def _kick(x, V, k, h, par):
-    """e^{h L_V} and its tangent map: p −= h ∇V(q), δp −= h D²V(q) δq,
-    every site once, the stencil applied on the fly."""
-    dim, nx, ny, per = int(par[0]), int(par[1]), int(par[2]), par[3] != 0.0
-    # N from the array, not from par: then the compiler can tell the q and
-    # p halves of x apart and vectorise the site loops (4x faster).
-    n = x.shape[0] // 2
-    c = par[_C]
-    b = h * c
-    for e in range(n_edges(nx, ny, dim)):
-        s = edge_site(e, nx, ny, dim)
-        _kick_site(x, V, k, h, c, par[_D0 + s], s, n, nx, ny, dim, per)
-    if dim == 1:
-        for s in range(1, n - 1):
-            q = x[s]
-            d0 = par[_D0 + s]
-            x[n + s] -= h * ((d0 + q * q) * q - c * (x[s - 1] + x[s + 1]))
-            a = h * (d0 + 3.0 * q * q)
-            for j in range(k):
-                V[j, n + s] -= a * V[j, s] - b * (V[j, s - 1] + V[j, s + 1])
-        return
-    # Row by row, through slices indexed from 1: numba then needs no
-    # negative-index fix-up on x[s − ny] (it cannot prove s − ny ≥ 0), and
-    # the site loops vectorise (3.5x faster; the same arithmetic).
-    for i in range(1, nx - 1):
-        r = i * ny
-        q, qu, qd, p = x[r:r + ny], x[r - ny:r], x[r + ny:r + 2 * ny], x[n + r:n + r + ny]
-        d = par[_D0 + r:_D0 + r + ny]
-        for j in range(1, ny - 1):
-            qj = q[j]
-            p[j] -= h * ((d[j] + qj * qj) * qj - c * ((q[j - 1] + q[j + 1]) + (qu[j] + qd[j])))
-        for m in range(k):
-            v, vu, vd = V[m, r:r + ny], V[m, r - ny:r], V[m, r + ny:r + 2 * ny]
-            w = V[m, n + r:n + r + ny]
-            for j in range(1, ny - 1):
-                qj = q[j]
-                w[j] -= h * (d[j] + 3.0 * qj * qj) * v[j] - b * ((v[j - 1] + v[j + 1])
-                                                                 + (vu[j] + vd[j]))
+#: The Klein–Gordon lattice as a stencil (:mod:`varint.models.stencil`).
+STENCIL = Stencil(
+    "Klein-Gordon",
+    site=Potential(_site_force, _site_stiffness, _site_third,
+                   terms=(lambda q, a, c: 0.5 * a * q * q, lambda q, a, c: 0.25 * q ** 4),
+                   expression=lambda q, a, c: a * q ** 2 / 2 + q ** 4 / 4),
+    bond=Potential(_bond_force, _bond_stiffness, _bond_third,
+                   terms=(lambda r, c: r * r / (2.0 * c[0]),),
+                   expression=lambda r, c: r ** 2 / (2 * c[0]),
+                   total=lambda r, c: np.sum(r * r, axis=-1) / (2.0 * c[0]), linear=True))
+
+_KERNELS = stencil_kernels(STENCIL)
+_apply, _field = _KERNELS.apply, _KERNELS.field
 
 
-@njit(cache=True, error_model="numpy")
-def _apply(part, h, x, V, k, par, work):
-    n = x.shape[0] // 2
-    if part == 0:
-        drift(x, V, h, k, n)
-    else:
-        _kick(x, V, k, h, par)
-
-
-@njit(cache=True, error_model="numpy")
-def _field(x, par, out):
-    n = x.shape[0] // 2
-    dim, nx, ny, per = int(par[0]), int(par[1]), int(par[2]), par[3] != 0.0
-    c = par[_C]
-    for s in range(n):
-        q = x[s]
-        out[s] = x[n + s]
-        out[n + s] = -((par[_D0 + s] + q * q) * q - c * neighbour_sum(x, 0, s, nx, ny, dim, per))
-
-
-class DisorderedKG(LatticeModel):
+class DisorderedKG(StencilLattice):
     """The disordered Klein–Gordon lattice (see the module docstring).
 
     Parameters
@@ -168,40 +116,14 @@ class DisorderedKG(LatticeModel):
     def __init__(self, shape, W=4.0, seed=0, boundary="fixed"):
         self.W = check_real(W, "W", positive=True)
         self.seed = check_seed(seed)
-        from .lattice import check_boundary, lattice_shape
-
-        nx, ny, dim = lattice_shape(shape, check_boundary(boundary))
+        nx, ny, _ = lattice_shape(shape, check_boundary(boundary))
         n = nx * ny
         name = f"DisorderedKG(shape={shape!r}, W={self.W:g}, seed={self.seed})"
         # Before the first array of size N: disorder, parameters, one state.
         check_memory(array_bytes(n, n, 2 * n, 2 * n), f"model {name} ({n} sites)")
         self.epsilon = np.random.default_rng(self.seed).uniform(0.5, 1.5, n)
-        z = 2 * dim
-        c = 1.0 / self.W
-        self._geometry = (nx, ny, dim, boundary)
-        band = dim == 1 and boundary == "fixed"
-        header = [float(dim), float(nx), float(ny), 1.0 if boundary == "periodic" else 0.0]
-        par = np.concatenate([header, [c], self.epsilon + z * c])
-        self._setup(shape, boundary, name, self._V, _grad, _hess if band else no_band_kernel,
-                    _third if band else no_third_kernel, 1 if band else 0, par, band)
-        self.parts = Parts(names=("T", "V"), apply=_apply, field=_field, splits={2: ("T", "V")},
-                           par=self.params, default_scheme="ABA864")
-
-    def _V(self, q):
-        dq, _ = self.bonds(q)
-        return (np.sum(0.5 * self.epsilon * q * q + 0.25 * q ** 4, axis=-1)
-                + np.sum(dq * dq, axis=-1) / (2.0 * self.W))
-
-    def densities(self, x):
-        """Energy per site h_l = p_l²/2 + ε̃_l q_l²/2 + q_l⁴/4 plus half of
-        each of its bonds' energies (all of a bond to a wall), so that
-        Σ_l h_l = H. Shape (..., N)."""
-        x = np.asarray(x, dtype=float)
-        n = self.n_sites
-        q, p = x[..., :n], x[..., n:]
-        dq, pairs = self.bonds(q)
-        return (0.5 * p * p + 0.5 * self.epsilon * q * q + 0.25 * q ** 4
-                + self.split_bonds(dq * dq / (2.0 * self.W), pairs))
+        self._setup_stencil(STENCIL, shape, boundary, name, a=self.epsilon,
+                            bond_coeffs=(self.W,), kernels=_KERNELS)
 
     def initial_block(self, width=1, density=0.4, seed=0):
         """All energy in momenta: p = ±√(2h) on a central block of
@@ -225,20 +147,3 @@ class DisorderedKG(LatticeModel):
         d = super().describe()
         d.update(W=self.W, seed=self.seed, disorder="uniform [1/2, 3/2]")
         return d
-
-    def symbolic(self):
-        """The potential in SymPy (fixed-end chains: what ``method="taylor"``
-        integrates); the ε̃_l and 1/W enter as the exact binary values of
-        the floats."""
-        import sympy as sp
-
-        from .symbolic import SymbolicPotential
-
-        self._band()
-        n = self.n_sites
-        q = sp.symbols(f"q1:{n + 1}")
-        c = sp.Rational(1.0 / self.W)
-        walls = (sp.Integer(0),) + q + (sp.Integer(0),)
-        V = sp.Add(*[sp.Rational(e) * qi ** 2 / 2 + qi ** 4 / 4 for e, qi in zip(self.epsilon, q, strict=True)])
-        V += c / 2 * sp.Add(*[(walls[b + 1] - walls[b]) ** 2 for b in range(n + 1)])
-        return SymbolicPotential(V, q, (sp.Integer(1),) * n)
