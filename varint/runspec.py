@@ -169,15 +169,8 @@ class RunSpec:
         indicator requires of them) with the reference their errors are
         measured against (:class:`varint.accuracy.Reference`); ``what``
         and ``kernels_what`` name the states and one state in messages."""
-        model = self.model
-        x, single = check.states(model, x0, what)
-        if model.kind != "map" and getattr(model, "band_kernels", True):
-            # A state where V or its derivatives are singular is refused here,
-            # not reported as a run failing at its first step (a lattice
-            # without band kernels is checked by its own stepper).
-            check.kernels(model, x, kernels_what)
-        reference = accuracy.Reference(model, x)
-        self.indicator.check_states(model, x, self.options)
+        x, single, reference = _checked_states(self.model, self.indicator, self.options, x0,
+                                               what, kernels_what)
         return dataclasses.replace(self, x0=x, single=single, reference=reference)
 
     def one_state(self, what="x0"):
@@ -210,7 +203,8 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
     """The :class:`RunSpec` of a call, every argument checked before any
     work (the arguments of :func:`varint.run`; ``what``, ``kernels_what``
     and ``t_out_name`` name the states, one state and the output times in
-    messages): :func:`specify_call`, then :meth:`RunSpec.with_states`.
+    messages): the checks of :func:`specify_call`, then those of
+    :meth:`RunSpec.with_states`.
 
     Raises
     ------
@@ -223,9 +217,12 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
         For an option that neither the indicator nor, when a pilot chooses
         τ, the method takes (the method checks its own when it is built).
     """
-    return specify_call(model, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
-                        escape_radius=escape_radius, energy_tol=energy_tol,
-                        t_out_name=t_out_name, **options).with_states(x0, what, kernels_what)
+    fields = _call_fields(model, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                          escape_radius=escape_radius, energy_tol=energy_tol,
+                          t_out_name=t_out_name, **options)
+    x, single, reference = _checked_states(fields["model"], fields["indicator"],
+                                           fields["options"], x0, what, kernels_what)
+    return RunSpec(x0=x, single=single, reference=reference, **fields)
 
 
 def specify_call(model, indicator: str | Indicator, t_end, tau=None, *, method="tm",
@@ -235,6 +232,16 @@ def specify_call(model, indicator: str | Indicator, t_end, tau=None, *, method="
     but ``x0`` checked (those of :func:`specify`), ``x0`` empty (0, 2N).
     :meth:`RunSpec.with_states` adds the states; a prepared run
     (:mod:`varint.prepared`) adds each call's."""
+    fields = _call_fields(model, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                          escape_radius=escape_radius, energy_tol=energy_tol,
+                          t_out_name=t_out_name, **options)
+    return RunSpec(x0=np.empty((0, fields["model"].dim)), single=False, reference=None,
+                   **fields)
+
+
+def _call_fields(model, indicator, t_end, tau, *, method, t_out, seed, escape_radius,
+                 energy_tol, t_out_name, **options):
+    """The fields of a :class:`RunSpec` but its states, checked."""
     model = check.model(model)
     ind, fixed = resolve(indicator)
     given = {k: v for k, v in options.items() if k in ind.options}
@@ -265,10 +272,23 @@ def specify_call(model, indicator: str | Indicator, t_end, tau=None, *, method="
     if tau is None:
         # Even the largest step a pilot may choose must fit the counter.
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-    return RunSpec(model=model, x0=np.empty((0, model.dim)), single=False, reference=None,
-                   indicator=ind, options=configured, method=method,
-                   method_options=method_options, t_end=t_end, tau=tau, t_out=t_out,
-                   seed=check_seed(seed), escape_radius=escape_radius, energy_tol=energy_tol)
+    return {"model": model, "indicator": ind, "options": configured, "method": method,
+            "method_options": method_options, "t_end": t_end, "tau": tau, "t_out": t_out,
+            "seed": check_seed(seed), "escape_radius": escape_radius, "energy_tol": energy_tol}
+
+
+def _checked_states(model, indicator, options, x0, what, kernels_what):
+    """(x (M, 2N), single, reference) of the states ``x0`` (see
+    :meth:`RunSpec.with_states`)."""
+    x, single = check.states(model, x0, what)
+    if model.kind != "map" and getattr(model, "band_kernels", True):
+        # A state where V or its derivatives are singular is refused here,
+        # not reported as a run failing at its first step (a lattice
+        # without band kernels is checked by its own stepper).
+        check.kernels(model, x, kernels_what)
+    reference = accuracy.Reference(model, x)
+    indicator.check_states(model, x, options)
+    return x, single, reference
 
 
 def described(options):
