@@ -281,11 +281,11 @@ class Run:
         ``spec`` is this run's specification with other states
         (:meth:`RunSpec.with_states`; τ, output steps and everything else
         the same); ``deviations`` as for :func:`prepare`, as many vectors as
-        this run's; None: this run's vectors (for as many orbits; else
-        seeded ones of the specification's seed). The propagator (and its compiled kernels) is this run's:
-        it holds no state of a run, so the new run's result is bitwise that
-        of a run built from scratch. Not for a run with a checkpoint (a file
-        belongs to one run).
+        this run's, or None: this run's vectors (for as many orbits; else
+        seeded ones of the specification's seed). The propagator (and its
+        compiled kernels) is this run's: it holds no state of a run, so the
+        new run's result is bitwise that of a run built from scratch. Not
+        for a run with a checkpoint (a file belongs to one run).
         """
         if self.checkpoint is not None:
             raise ValueError("a run with a checkpoint cannot be run again over other orbits")
@@ -580,4 +580,3 @@ class Run:
         """Seconds of this session's compilation, pilot, setup and run
         (each without the compilations inside it; :mod:`varint.compiling`)."""
         return {k: round(v, 6) for k, v in self.clock.timing.items()}
-

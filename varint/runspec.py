@@ -34,7 +34,8 @@ from .methods import METHODS
 from .results import package_versions
 from .state import output_steps
 
-__all__ = ["RunSpec", "specify", "specify_call", "check_seed", "described", "DEFAULT_TAU", "default_tau"]
+__all__ = ["RunSpec", "specify", "specify_call", "check_seed", "described", "DEFAULT_TAU",
+           "default_tau"]
 
 #: The step when no pilot can choose one (methods without a splitting
 #: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
