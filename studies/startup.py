@@ -16,8 +16,8 @@ this tree's (a, b, a, b, …), so that the load of the shared machine falls
 on both alike; each tree keeps its own kernel cache directory.
 
 Usage: ``python studies/startup.py [--quick] [--out DIR] [--against DIR]
-[--cases floor r1 map1 map2 lattice potential] [--processes N]``; stored as
-``startup.json``.
+[--cases floor r1 map1 map2 lattice potential] [--processes N] [--label L]``;
+stored as ``startup.json`` (``startup_<label>.json``).
 
 The ``potential`` case is the first use of a model no process has built
 before (:data:`CASES`: a coupling drawn at random per process, so its
@@ -120,6 +120,8 @@ def main(argv=None):
                             help="which first runs to time (default all)")
         parser.add_argument("--processes", type=int, default=7,
                             help="timed fresh processes per tree (default 7)")
+        parser.add_argument("--label", default=None,
+                            help="stored as startup_<label>.json (e.g. a subset of cases)")
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     n = 3 if args.quick else max(5, args.processes)
     trees = {"this": Path(__file__).resolve().parent.parent}
@@ -163,7 +165,7 @@ def main(argv=None):
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     data["load"] = load
     print(f"load {load['before']} -> {load['after']} on {load['cpus']} CPUs")
-    print(save_json(args.out, "startup", data,
+    print(save_json(args.out, "startup" if args.label is None else f"startup_{args.label}", data,
                     times="measured: wall time inside fresh child processes, medians"))
     return data
 
