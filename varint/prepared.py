@@ -31,7 +31,7 @@ __all__ = ["prepare", "PreparedRun"]
 
 
 def prepare(model: Model, indicator: str | Indicator, t_end: float, tau: float | None = None,
-            *, deviations: ArrayLike | None = None, progress: bool | None = False,
+            *, deviations: ArrayLike | None = None, progress: bool | None = None,
             errors: str = "raise", **options: Any) -> PreparedRun:
     """A run of ``indicator`` along ``model`` to ``t_end`` with step ``tau``,
     checked once, to be called with each initial state.
@@ -49,8 +49,10 @@ def prepare(model: Model, indicator: str | Indicator, t_end: float, tau: float |
         Initial deviation vectors of every call that passes none (else
         seeded random ones, ``seed``); they fix how many vectors each call
         carries.
-    progress : bool, default False
-        Progress bar on stderr (short runs: none by default).
+    progress : bool, optional
+        As for :func:`varint.run`: a progress bar on stderr (after a second)
+        and the announcement of a long first compilation, by default only
+        on a terminal.
     errors : {"raise", "flag"}
         As for :func:`varint.run`.
     **options
