@@ -22,13 +22,21 @@ minimum and median are kept, in wall and CPU time (``time.process_time``).
 The load of the shared machine (``os.getloadavg``) is stored with them: only
 the shares and the call's own minimum mean much.
 
+The prepared path (``varint.prepare(model, "integrate", t_end, tau=τ,
+scheme=…, deviations=w)`` once, then ``run(x0)``; :mod:`varint.prepared`)
+is profiled in the same run, its calls interleaved with the one-shot
+call's (:data:`PREPARED_STAGES`; ``--path`` picks one).
+
 Stored as ``call_profile_<label>.json``/``.csv``: ``before`` is the code
 as the fixed-cost work started (main a885a59, its ``varint`` exported with
 ``git archive`` and imported first, then this script run with
 :func:`runpy.run_path`), ``after`` this code, run right after it in the
-same load window (only figures of one window compare).
+same load window (only figures of one window compare). Issue 28's second
+round: ``round2_before`` (main 93ccc3a, one-shot only) and
+``round2_after`` (both paths).
 
-Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]``
+Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
+[--path oneshot prepared]``
 """
 
 from __future__ import annotations
@@ -79,6 +87,27 @@ STAGES = (
     (2, "accuracy warning", "varint.run:accuracy", "warn"),
 )
 
+#: The stages of a prepared run's call (:class:`varint.prepared.PreparedRun`),
+#: as :data:`STAGES`.
+PREPARED_STAGES = (
+    (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
+    (1, "check x0", "varint.runspec:RunSpec", "with_states"),
+    (2, "states check", "varint.runspec:check", "states"),
+    (2, "kernels finite at x0", "varint.runspec:check", "kernels"),
+    (2, "reference energy and scales", "varint.runspec:accuracy", "Reference"),
+    (1, "Run: over new orbits", "varint.run:Run", "with_orbits"),
+    (2, "machine identity", "varint.run:identity", "machine"),
+    (2, "start state", "varint.run:Run", "_start_state"),
+    (1, "execute", "varint.run:Run", "execute"),
+    (2, "drive", "varint.run", "drive"),
+    (3, "record (indicator, energy error)", "varint.run:Run", "record"),
+    (2, "result", "varint.run:Run", "_result"),
+    (3, "accuracy verdict", "varint.run:accuracy", "assess"),
+    (3, "accuracy annotate", "varint.run:accuracy", "annotate"),
+    (3, "provenance", "varint.run:Run", "provenance"),
+    (2, "accuracy warning", "varint.run:accuracy", "warn"),
+)
+
 
 def _owner(path):
     """The object a dotted ``module[:attr]`` path names."""
@@ -89,11 +118,11 @@ def _owner(path):
     return getattr(obj, attr) if attr else obj
 
 
-def wrap_stages(spent):
+def wrap_stages(spent, stages=STAGES):
     """Wrap every stage with a timer adding to ``spent[label]``; returns a
     function that restores the originals."""
     undo = []
-    for _, label, path, name in STAGES:
+    for _, label, path, name in stages:
         owner = _owner(path)
         original = getattr(owner, name)
 
@@ -119,26 +148,10 @@ def wrap_stages(spent):
     return restore
 
 
-def main(argv=None):
-    def extra(parser):
-        parser.add_argument("--calls", type=int, default=2000)
-        parser.add_argument("--label", default="now",
-                            help="suffix of the stored files (e.g. before/after a change)")
-
-    args = parse_args(__doc__.splitlines()[0], argv, extra)
-    calls = 100 if args.quick else args.calls
-    model, x0 = varint.paper_orbit("R1")
-    w0 = np.random.default_rng(1).standard_normal(len(x0))
-    w0 /= np.linalg.norm(w0)
-
-    def call():
-        return varint.integrate(model, x0, 0.05, tau=0.05, scheme="s15odr8",
-                                deviations=w0[:, None])
-
-    for _ in range(20):
-        call()
-    load_before = os.getloadavg()
-    per_stage = {label: [] for _, label, _, _ in STAGES}
+def profile(call, stages, calls):
+    """Stage medians (µs, share of the whole) and the unwrapped call's wall
+    and CPU times over ``calls`` calls, wrapped and unwrapped in turns."""
+    per_stage = {label: [] for _, label, _, _ in stages}
     wall, cpu = [], []
     for _ in range(calls):
         c0, t0 = time.process_time(), time.perf_counter()
@@ -146,33 +159,98 @@ def main(argv=None):
         wall.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
         spent = {}
-        restore = wrap_stages(spent)
+        restore = wrap_stages(spent, stages)
         try:
             call()
         finally:
             restore()
         for label in per_stage:
             per_stage[label].append(spent.get(label, 0.0))
-    total = statistics.median(per_stage[STAGES[0][1]])
+    total = statistics.median(per_stage[stages[0][1]])
     rows = [{"depth": depth, "stage": label, "median_us": statistics.median(per_stage[label]) * 1e6,
              "share": statistics.median(per_stage[label]) / total}
-            for depth, label, _, _ in STAGES]
+            for depth, label, _, _ in stages]
     whole = {"wall_min_us": min(wall) * 1e6, "wall_median_us": statistics.median(wall) * 1e6,
              "cpu_min_us": min(cpu) * 1e6, "cpu_median_us": statistics.median(cpu) * 1e6}
+    return rows, whole
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--calls", type=int, default=2000)
+        parser.add_argument("--label", default="now",
+                            help="suffix of the stored files (e.g. before/after a change)")
+        parser.add_argument("--path", nargs="+", choices=("oneshot", "prepared"),
+                            default=["oneshot", "prepared"],
+                            help="which calls to profile (default both, interleaved)")
+
+    args = parse_args(__doc__.splitlines()[0], argv, extra)
+    calls = 100 if args.quick else args.calls
+    model, x0 = varint.paper_orbit("R1")
+    w0 = np.random.default_rng(1).standard_normal(len(x0))
+    w0 /= np.linalg.norm(w0)
+
+    def oneshot():
+        return varint.integrate(model, x0, 0.05, tau=0.05, scheme="s15odr8",
+                                deviations=w0[:, None])
+
+    paths = {"oneshot": (oneshot, STAGES)}
+    if "prepared" in args.path:
+        prepared = varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
+                                  deviations=w0[:, None])
+        paths["prepared"] = (functools.partial(prepared, x0), PREPARED_STAGES)
+    paths = {k: v for k, v in paths.items() if k in args.path}
+    for call, _ in paths.values():
+        for _ in range(20):
+            call()
+    load_before = os.getloadavg()
+    # Interleaved in rounds of 50 calls, so that the load falls on both.
+    found = {k: ([], []) for k in paths}
+    for _ in range(max(1, calls // 50)):
+        for key, (call, stages) in paths.items():
+            rows, whole = profile(call, stages, min(calls, 50))
+            found[key][0].append(rows)
+            found[key][1].append(whole)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
-    name = f"call_profile_{args.label}"
-    save_csv(args.out, name, rows, ["depth", "stage", "median_us", "share"])
-    save_json(args.out, name, {"stages": rows, "whole_call": whole, "calls": calls,
-                               "load": load, "quick": args.quick, "label": args.label})
-    print(f"one-step call, R1, s15odr8: {calls} calls, load {load['before']} -> "
+    out = {"calls": calls, "load": load, "quick": args.quick, "label": args.label}
+    csv_rows = []
+    print(f"one-step call, R1, s15odr8: {calls} calls a path, load {load['before']} -> "
           f"{load['after']} on {load['cpus']} CPUs")
-    print(f"unwrapped: wall min {whole['wall_min_us']:.0f} µs, median "
-          f"{whole['wall_median_us']:.0f}; CPU min {whole['cpu_min_us']:.0f}, median "
-          f"{whole['cpu_median_us']:.0f}")
-    for r in rows:
-        print(f"{'  ' * r['depth']}{r['stage']:<{44 - 2 * r['depth']}} "
-              f"{r['median_us']:8.1f} µs {r['share']:6.1%}")
-    return {"stages": rows, "whole_call": whole}
+    for key, (rounds, wholes) in found.items():
+        # The median of the rounds' medians per stage; the whole call's
+        # minimum over all rounds and its median of medians.
+        rows = [{**r, "median_us": statistics.median(rr[i]["median_us"] for rr in rounds)}
+                for i, r in enumerate(rounds[0])]
+        total = rows[0]["median_us"]
+        for r in rows:
+            r["share"] = r["median_us"] / total
+        whole = {"wall_min_us": min(w["wall_min_us"] for w in wholes),
+                 "wall_median_us": statistics.median(w["wall_median_us"] for w in wholes),
+                 "cpu_min_us": min(w["cpu_min_us"] for w in wholes),
+                 "cpu_median_us": statistics.median(w["cpu_median_us"] for w in wholes)}
+        if key == "oneshot":
+            out.update(stages=rows, whole_call=whole)     # as stored before
+        else:
+            out[key] = {"stages": rows, "whole_call": whole}
+        csv_rows += [{"path": key, **r} for r in rows]
+        print(f"{key}: unwrapped wall min {whole['wall_min_us']:.0f} µs, median "
+              f"{whole['wall_median_us']:.0f}; CPU min {whole['cpu_min_us']:.0f}, median "
+              f"{whole['cpu_median_us']:.0f}")
+        for r in rows:
+            print(f"{'  ' * r['depth']}{r['stage']:<{44 - 2 * r['depth']}} "
+                  f"{r['median_us']:8.1f} µs {r['share']:6.1%}")
+    if len(found) == 2:
+        out["prepared_over_oneshot"] = {
+            "wall_min": out["prepared"]["whole_call"]["wall_min_us"]
+            / out["whole_call"]["wall_min_us"],
+            "wall_median": out["prepared"]["whole_call"]["wall_median_us"]
+            / out["whole_call"]["wall_median_us"]}
+        print(f"prepared / one-shot: wall min {out['prepared_over_oneshot']['wall_min']:.2f}, "
+              f"median {out['prepared_over_oneshot']['wall_median']:.2f}")
+    name = f"call_profile_{args.label}"
+    save_csv(args.out, name, csv_rows, ["path", "depth", "stage", "median_us", "share"])
+    save_json(args.out, name, out)
+    return out
 
 
 if __name__ == "__main__":

@@ -16,7 +16,14 @@ this tree's (a, b, a, b, …), so that the load of the shared machine falls
 on both alike; each tree keeps its own kernel cache directory.
 
 Usage: ``python studies/startup.py [--quick] [--out DIR] [--against DIR]
-[--cases floor r1 map1 map2 lattice] [--processes N]``; stored as ``startup.json``.
+[--cases floor r1 map1 map2 lattice potential] [--processes N] [--label L]``;
+stored as ``startup.json`` (``startup_<label>.json``).
+
+The ``potential`` case is the first use of a model no process has built
+before (:data:`CASES`: a coupling drawn at random per process, so its
+kernels are compiled in the timed process while every other cache is
+warm); its ``announced`` says whether the process printed the compile
+message ("compiling kernels …", :mod:`varint.compiling`) on stderr.
 """
 
 from __future__ import annotations
@@ -65,6 +72,15 @@ CASES = {
                "x = m.initial_block(width=8, seed=1); "
                "varint.lyapunov_spectrum(m, x, t_end=10.0, tau=0.1, n_exponents=1, "
                "progress=False)",
+    # A new model: its coupling is drawn per process, so that its ∇V, D²V,
+    # third-derivative kernels and its stepper are compiled now (progress
+    # on, as on a terminal, so that the compile is announced).
+    "potential": "import random, sympy as sp; q1, q2 = sp.symbols('q1 q2'); "
+                 "c = sp.Rational(random.SystemRandom().randrange(1, 10**9), 10**9); "
+                 "m = varint.models.from_potential((q1**2 + q2**2) / 2 + c * q1**2 * q2 "
+                 "- q2**3 / 3, [q1, q2]); "
+                 "varint.lyapunov_spectrum(m, [0.0, 0.1, 0.3, 0.0], t_end=10.0, tau=0.05, "
+                 "scheme='ABA864', progress=True)",
 }
 CHILD = f"""
 import sys, time, json
@@ -91,7 +107,9 @@ def child(root, cache, case, pycache):
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     done = subprocess.run([sys.executable, "-c", CHILD, CASES[case]], cwd=root, env=env,
                           check=True, capture_output=True, text=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    out["announced"] = "compiling" in done.stderr
+    return out
 
 
 def main(argv=None):
@@ -102,6 +120,8 @@ def main(argv=None):
                             help="which first runs to time (default all)")
         parser.add_argument("--processes", type=int, default=7,
                             help="timed fresh processes per tree (default 7)")
+        parser.add_argument("--label", default=None,
+                            help="stored as startup_<label>.json (e.g. a subset of cases)")
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     n = 3 if args.quick else max(5, args.processes)
     trees = {"this": Path(__file__).resolve().parent.parent}
@@ -116,6 +136,7 @@ def main(argv=None):
         for case in args.cases:
             child(root, caches[label], case, pycache)   # compiles and caches the kernels
     samples = {(label, case): [] for label in trees for case in args.cases}
+    load_before = os.getloadavg()
     for _ in range(n):
         for case in args.cases:
             for label, root in trees.items():
@@ -133,6 +154,7 @@ def main(argv=None):
             "import_plus_first_run_range_s": [min(totals), max(totals)],
             "heavy_after_import": rows[-1]["heavy"],
             "heavy_after_run": rows[-1]["heavy_run"],
+            "announced": sum(r["announced"] for r in rows),
         }
         row = data[label][case]
         print(f"{label:8s} {case:5s} import {row['import_median_s']:.3f} s, first run "
@@ -140,7 +162,10 @@ def main(argv=None):
               f"{row['import_plus_first_run_median_s']:.3f} s (medians of {n}); "
               f"import loaded {', '.join(rows[-1]['heavy']) or 'none of ' + '/'.join(HEAVY)}; "
               f"the run {', '.join(rows[-1]['heavy_run'])}")
-    print(save_json(args.out, "startup", data,
+    load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
+    data["load"] = load
+    print(f"load {load['before']} -> {load['after']} on {load['cpus']} CPUs")
+    print(save_json(args.out, "startup" if args.label is None else f"startup_{args.label}", data,
                     times="measured: wall time inside fresh child processes, medians"))
     return data
 

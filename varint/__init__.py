@@ -100,6 +100,7 @@ _EXPORTS = {
     "IntegrationResult": "results", "LyapunovResult": "results", "MEGNOResult": "results",
     "SALIResult": "results", "SectionResult": "results", "load_result": "results",
     "run": "run",
+    "PreparedRun": "prepared", "prepare": "prepared",
     "SCHEMES": "schemes", "SplittingScheme": "schemes", "get_scheme": "schemes",
     "register_scheme": "schemes",
     "section_grid": "sections", "surface_of_section": "sections",
@@ -137,6 +138,7 @@ if _TYPE_CHECKING:
     from .methods import METHODS as METHODS, register_method as register_method
     from .models import paper_orbit as paper_orbit, solve_momentum as solve_momentum
     from .protocol import Renorm as Renorm, Status as Status
+    from .prepared import PreparedRun as PreparedRun, prepare as prepare
     from .results import (
         ChaosMapResult as ChaosMapResult,
         GALIResult as GALIResult,

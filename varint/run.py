@@ -16,6 +16,7 @@ provenance and its accuracy.
 
 from __future__ import annotations
 
+import copy
 import os
 import time
 import warnings
@@ -271,6 +272,47 @@ class Run:
         self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+
+    def with_orbits(self, spec, deviations=None):
+        """A new run of this run's setup over other orbits, nothing that
+        depends only on the specification done again (what a prepared run,
+        :mod:`varint.prepared`, does at each call).
+
+        ``spec`` is this run's specification with other states
+        (:meth:`RunSpec.with_states`; τ, output steps and everything else
+        the same); ``deviations`` as for :func:`prepare`, as many vectors as
+        this run's, or None: this run's vectors (for as many orbits; else
+        seeded ones of the specification's seed). The propagator (and its
+        compiled kernels) is this run's: it holds no state of a run, so the
+        new run's result is bitwise that of a run built from scratch. Not
+        for a run with a checkpoint (a file belongs to one run).
+        """
+        if self.checkpoint is not None:
+            raise ValueError("a run with a checkpoint cannot be run again over other orbits")
+        new = copy.copy(self)
+        new.spec, new.x0, new.single, new.reference = spec, spec.x0, spec.single, spec.reference
+        new.options = dict(self.options)
+        m = spec.x0.shape[0]
+        if deviations is None and m == self.x0.shape[0] and (
+                self.seed is None or spec.seed is not None):
+            # This run's vectors, given and checked or seeded, for as many
+            # orbits (the state starts from a copy of them); a run whose
+            # seed is drawn (seed=None) draws a new one.
+            new.W0 = self.W0
+        else:
+            new.W0, new.seed = new._initial_vectors(deviations, spec.seed, None)
+            if new.W0.shape[2] != self.W0.shape[2]:
+                raise ValueError(f"deviations must hold {self.W0.shape[2]} vectors (columns), "
+                                 f"as this run's do, got {new.W0.shape[2]}")
+            if m != self.x0.shape[0]:
+                new._check_size()
+        new.machine = identity.machine()
+        new.clock = compiling.Clock(self.clock.what, self.progress)
+        new.state, new.records = new._start_state(), Records()
+        new.wall_before, new.cpu_before, new.cpu_session = 0.0, 0.0, 0.0
+        new.energy0 = spec.reference.values["energy"]
+        new.energy_scale = spec.reference.scales["energy"]
+        return new
 
     def _start_state(self):
         """The state the run starts from: the orbits, the initial vectors and

@@ -34,7 +34,8 @@ from .methods import METHODS
 from .results import package_versions
 from .state import output_steps
 
-__all__ = ["RunSpec", "specify", "check_seed", "described", "DEFAULT_TAU", "default_tau"]
+__all__ = ["RunSpec", "specify", "specify_call", "check_seed", "described", "DEFAULT_TAU",
+           "default_tau"]
 
 #: The step when no pilot can choose one (methods without a splitting
 #: scheme, or when no step meets the tolerance; see :mod:`varint.stepsize`).
@@ -163,6 +164,16 @@ class RunSpec:
                 "options": {**self.options, **self.run_options},
                 "versions": package_versions(), "code": identity.source_digest()}
 
+    def with_states(self, x0, what="x0", kernels_what="the initial state"):
+        """This specification over the states ``x0`` ((2N,) or (M, 2N)),
+        checked (shape, finite, the model's kernels finite there, what the
+        indicator requires of them) with the reference their errors are
+        measured against (:class:`varint.accuracy.Reference`); ``what``
+        and ``kernels_what`` name the states and one state in messages."""
+        x, single, reference = _checked_states(self.model, self.indicator, self.options, x0,
+                                               what, kernels_what)
+        return dataclasses.replace(self, x0=x, single=single, reference=reference)
+
     def one_state(self, what="x0"):
         """The state of a specification of one orbit (2N,); a batch is
         refused (for workflows of one orbit: departure, scheme selection)."""
@@ -193,7 +204,8 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
     """The :class:`RunSpec` of a call, every argument checked before any
     work (the arguments of :func:`varint.run`; ``what``, ``kernels_what``
     and ``t_out_name`` name the states, one state and the output times in
-    messages).
+    messages): the checks of :func:`specify_call`, then those of
+    :meth:`RunSpec.with_states`.
 
     Raises
     ------
@@ -206,6 +218,31 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
         For an option that neither the indicator nor, when a pilot chooses
         τ, the method takes (the method checks its own when it is built).
     """
+    fields = _call_fields(model, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                          escape_radius=escape_radius, energy_tol=energy_tol,
+                          t_out_name=t_out_name, **options)
+    x, single, reference = _checked_states(fields["model"], fields["indicator"],
+                                           fields["options"], x0, what, kernels_what)
+    return RunSpec(x0=x, single=single, reference=reference, **fields)
+
+
+def specify_call(model, indicator: str | Indicator, t_end, tau=None, *, method="tm",
+                 t_out=None, seed: int | None = 0, escape_radius=None, energy_tol=None,
+                 t_out_name="t_out", **options) -> RunSpec:
+    """The :class:`RunSpec` of a call without its states: every argument
+    but ``x0`` checked (those of :func:`specify`), ``x0`` empty (0, 2N).
+    :meth:`RunSpec.with_states` adds the states; a prepared run
+    (:mod:`varint.prepared`) adds each call's."""
+    fields = _call_fields(model, indicator, t_end, tau, method=method, t_out=t_out, seed=seed,
+                          escape_radius=escape_radius, energy_tol=energy_tol,
+                          t_out_name=t_out_name, **options)
+    return RunSpec(x0=np.empty((0, fields["model"].dim)), single=False, reference=None,
+                   **fields)
+
+
+def _call_fields(model, indicator, t_end, tau, *, method, t_out, seed, escape_radius,
+                 energy_tol, t_out_name, **options):
+    """The fields of a :class:`RunSpec` but its states, checked."""
     model = check.model(model)
     ind, fixed = resolve(indicator)
     given = {k: v for k, v in options.items() if k in ind.options}
@@ -220,14 +257,7 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
         escape_radius = check.positive_float(escape_radius, "escape_radius")
         model = copy.copy(model)
         model.escape_radius = escape_radius
-    x, single = check.states(model, x0, what)
     is_map = model.kind == "map"
-    if not is_map and getattr(model, "band_kernels", True):
-        # A state where V or its derivatives are singular is refused here,
-        # not reported as a run failing at its first step (a lattice
-        # without band kernels is checked by its own stepper).
-        check.kernels(model, x, kernels_what)
-    reference = accuracy.Reference(model, x)
     energy_tol = accuracy.energy_tolerance(energy_tol)
     if tau is None and is_map:
         tau = default_tau(model)      # one iteration: no step to choose
@@ -237,17 +267,29 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
     t_out = check.output_times(t_out, t_out_name, t_end if tau is None and isinstance(
         t_end, (int, float)) and np.isfinite(t_end) else None)
     configured = ind.configure(model, {**fixed, **given})
-    ind.check_states(model, x, configured)
     method = check.choice(method, METHODS, "method")
     if tau is None and stepsize.pilots(method):
         stepsize.check_options(method, method_options)
     if tau is None:
         # Even the largest step a pilot may choose must fit the counter.
         check.step_count(check.end_time(t_end), stepsize.TAU_MAX)
-    return RunSpec(model=model, x0=x, single=single, reference=reference, indicator=ind,
-                   options=configured, method=method, method_options=method_options,
-                   t_end=t_end, tau=tau, t_out=t_out, seed=check_seed(seed),
-                   escape_radius=escape_radius, energy_tol=energy_tol)
+    return {"model": model, "indicator": ind, "options": configured, "method": method,
+            "method_options": method_options, "t_end": t_end, "tau": tau, "t_out": t_out,
+            "seed": check_seed(seed), "escape_radius": escape_radius, "energy_tol": energy_tol}
+
+
+def _checked_states(model, indicator, options, x0, what, kernels_what):
+    """(x (M, 2N), single, reference) of the states ``x0`` (see
+    :meth:`RunSpec.with_states`)."""
+    x, single = check.states(model, x0, what)
+    if model.kind != "map" and getattr(model, "band_kernels", True):
+        # A state where V or its derivatives are singular is refused here,
+        # not reported as a run failing at its first step (a lattice
+        # without band kernels is checked by its own stepper).
+        check.kernels(model, x, kernels_what)
+    reference = accuracy.Reference(model, x)
+    indicator.check_states(model, x, options)
+    return x, single, reference
 
 
 def described(options):
