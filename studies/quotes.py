@@ -1056,3 +1056,16 @@ def _suite_time(R):
 
 if __name__ == "__main__":
     main()
+
+
+@quote("prepared_cost")
+def _prepared_cost(R):
+    """A prepared one-step R1 call against the one-shot call
+    (studies/call_profile.py, round2_after: minimum wall time of interleaved
+    rounds)."""
+    d = R.json("call_profile_round2_after")
+    load = d["load"]["after"][0]
+    return (f"{d['prepared_over_oneshot']['wall_min']:.2f} of the one-shot call's time "
+            f"({d['prepared']['whole_call']['wall_min_us']:.0f} µs against "
+            f"{d['whole_call']['wall_min_us']:.0f} µs, minimum of {d['calls']} calls, load "
+            f"{load:.0f} on {d['load']['cpus']} cores)")
