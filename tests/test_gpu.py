@@ -27,6 +27,9 @@ pytest.importorskip("numba.cuda")
 _SIM_SCRIPT = r'''
 import json, numpy as np, sympy as sp, varint
 import varint.gpu.advance as advance
+from varint.gpu.resident import STAGES
+from varint.methods import make_propagator
+from varint.state import RunState, initial_deviations
 from varint.models import HenonHeiles
 
 launched = []
@@ -65,8 +68,30 @@ px = np.sqrt(np.maximum(2 * (0.16 - (y * y / 2 - y ** 3 / 3)) - py * py, 0.0))
 C = np.column_stack([np.zeros(10), y, px, py])
 kw = dict(t_end=60, tau=0.05, threshold=1e-2, progress=False)
 cpu = varint.chaos_map(hh, C, "sali", **kw)
+before = dict(STAGES)
 gpu = varint.chaos_map(hh, C, "sali", backend="cuda", chunk_size=4, **kw)
 out["early"] = [same(cpu, gpu), int((cpu.status == -1).sum())]
+out["early_stages"] = {key: STAGES[key] - before[key]
+                       for key in ("uploads", "compactions", "launches")}
+# The state stays on the device between calls of a run: uploaded once; a
+# call on the CPU in between (the host's rows change) makes the next GPU
+# call upload it again; bitwise the CPU's run throughout.
+W0 = initial_deviations(4, 2, 10, 3)
+p_cpu = make_propagator("tm", hh, 0.05, "qr")
+p_gpu = make_propagator("tm", hh, 0.05, "qr", backend="cuda")
+a = RunState.start(X, W0)
+p_cpu.advance(a, 35)
+b = RunState.start(X, W0)
+u0 = STAGES["uploads"]
+p_gpu.advance(b, 10)
+p_gpu.advance(b, 10)
+kept = STAGES["uploads"] - u0
+p_cpu.advance(b, 5)
+p_gpu.advance(b, 10)
+out["resident"] = [all(np.array_equal(getattr(a, f), getattr(b, f))
+                       for f in ("x", "W", "acc_m", "acc_e", "status", "step"))
+                   and all(np.array_equal(a.extra[key], b.extra[key]) for key in a.extra),
+                   kept, STAGES["uploads"] - u0]
 # Escapes (E > 1/6): failed on the GPU, recomputed by the CPU's stepper.
 E = np.array([[0.0, 0.1, 0.6, 0.1], [0.0, 0.0, 0.3, 0.2], [0.05, 0.0, 0.7, 0.0]])
 kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
@@ -107,6 +132,23 @@ def test_simulated_kernel_is_bitwise_the_cpu(simulated, case):
 def test_simulated_early_stopping_and_compaction_match(simulated):
     bitwise, decided = simulated["early"]
     assert decided > 0, "no orbit decided: the check proves nothing"
+    assert bitwise
+
+
+def test_simulated_compaction_happens_on_the_device(simulated):
+    """A map with early stopping uploads its state once per chunk and drops
+    the decided orbits on the device (compactions), not by a new upload."""
+    stages = simulated["early_stages"]
+    chunks = 3   # 10 orbits, chunk_size=4
+    assert stages["uploads"] == chunks
+    assert stages["compactions"] > 0
+    assert stages["launches"] > stages["uploads"]
+
+
+def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated):
+    bitwise, kept, uploads = simulated["resident"]
+    assert kept == 1, "the second call uploaded the state again"
+    assert uploads == 2, "a call on the CPU in between was not noticed"
     assert bitwise
 
 
