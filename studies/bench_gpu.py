@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import json
 import os
 import platform
@@ -56,6 +57,7 @@ if str(HERE.parent) not in sys.path:
 import varint  # noqa: E402
 from studies import gpu_difference  # noqa: E402
 from studies.gpu_difference import ENERGY  # noqa: E402
+from studies.gpu_stages import describe, staged  # noqa: E402
 from varint.models import HenonHeiles  # noqa: E402
 
 
@@ -185,6 +187,14 @@ def table(res):
                      f"{f(r.get('gpu_kernel_s'), '.3g')} / {f(r.get('gpu_s'), '.3g')} | "
                      f"{f(r.get('kernel_tflops'), '.2f')} | "
                      f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
+    for r in res["speed"]:
+        if r.get("gpu_stages"):
+            lines += ["", f"GPU map of {r['orbits']} orbits by stage (s; nested: records "
+                      "include energy errors, propagator calls the gpu: stages):", "",
+                      "| stage | s | of map |", "|---|---|---|"]
+            total = r["gpu_stages"]["total"]
+            lines += [f"| {k} | {v:.4g} | {v / total:.1%} |" if isinstance(v, float)
+                      else f"| {k} | {v} | |" for k, v in r["gpu_stages"].items()]
     lines += ["", "Agreement: " + json.dumps(res["agreement"])]
     diff = res.get("difference", {})
     for way, ops in diff.get("primitives", {}).items():
@@ -295,9 +305,12 @@ def main(argv=None):
                 # minimum of two.
                 for _ in range(1 if m >= 1_000_000 else 2):
                     STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
-                    dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
+                    # The GPU map's stages (timers around the host's
+                    # functions and in the GPU calls: gpu_stages.py).
+                    with (staged() if c == "gpu" else contextlib.nullcontext({})) as stages:
+                        dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
                     if dt < best:
-                        best, stats = dt, dict(STATS)
+                        best, stats, best_stages = dt, dict(STATS), stages
             except Exception as exc:
                 res["errors"].append(f"{c} at {m}: {exc!r}")
                 continue
@@ -310,6 +323,8 @@ def main(argv=None):
                 row["gpu_steps"], row["tau"] = steps, r.accuracy.tau
                 row["gpu_launches"] = stats["launches"]
                 row["gpu_kernel_s"], row["gpu_host_s"] = stats["kernel_s"], stats["host_s"]
+                row["gpu_stages"] = best_stages
+                log(f"GPU map of {m} orbits, by stage:\n" + describe(best_stages))
                 if isinstance(res["gpu"], dict):
                     rate = flops * steps / best / 1e12
                     row["gpu_tflops"] = rate
