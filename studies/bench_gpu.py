@@ -153,6 +153,24 @@ def gpu_info():
             "peak_fp64_tflops": sms * fp64 * 2 * clock_hz / 1e12}
 
 
+@contextlib.contextmanager
+def call_of(contender):
+    """For ``gpu_before``, the GPU call of main 93ccc3a in the place of
+    today's (the TM propagator looks ``advance_cuda`` up at each call)."""
+    if contender != "gpu_before":
+        yield
+        return
+    from studies import gpu_advance_before
+    from varint.gpu import advance
+
+    today = advance.advance_cuda
+    advance.advance_cuda = gpu_advance_before.advance_cuda
+    try:
+        yield
+    finally:
+        advance.advance_cuda = today
+
+
 def timed(fn):
     t = time.perf_counter()
     r = fn()
@@ -188,6 +206,12 @@ def table(res):
                      f"{f(r.get('kernel_tflops'), '.2f')} | "
                      f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
     for r in res["speed"]:
+        if "gpu_before_s" in r:
+            lines += ["", f"{r['orbits']} orbits: the GPU map {r['gpu_s']:.4g} s, with the GPU "
+                      f"call of main 93ccc3a {r['gpu_before_s']:.4g} s "
+                      f"({r.get('gpu_over_before', float('nan')):.2f}×; host part in the calls "
+                      f"{r['gpu_host_s']:.3g} s against {r['gpu_before_host_s']:.3g} s); "
+                      f"same values: {r.get('gpu_same_as_before')}"]
         if r.get("gpu_stages"):
             lines += ["", f"GPU map of {r['orbits']} orbits by stage (s; nested: records "
                       "include energy errors, propagator calls the gpu: stages):", "",
@@ -266,7 +290,10 @@ def main(argv=None):
 
     sizes = [400, 200] if args.quick else [int(float(v)) for v in args.sizes.split(",")]
     t_end = 20.0 if args.quick else args.t_end
-    contenders = (["gpu"] if gpu else []) + ["cpu_all", "cpu_1"]
+    # gpu_before: the same kernel with the GPU call as at main 93ccc3a
+    # (studies/gpu_advance_before.py: the state packed, copied and
+    # allocated at every call), for the before/after ratio of the host work.
+    contenders = (["gpu", "gpu_before"] if gpu else []) + ["cpu_all", "cpu_1"]
     all_threads = numba.config.NUMBA_NUM_THREADS
     # Compile every contender's kernels first (numba compiles the parallel
     # CPU kernel once per process, and the GPU kernel once per process).
@@ -274,9 +301,12 @@ def main(argv=None):
     res["compile_s"] = {}
     for c in list(contenders):
         numba.set_num_threads(1 if c == "cpu_1" else all_threads)
-        kw = dict(t_end=t_end, progress=False, **({"backend": "cuda"} if c == "gpu" else {}))
+        kw = dict(t_end=t_end, progress=False,
+                  **({"backend": "cuda"} if c.startswith("gpu") else {}))
         try:
-            res["compile_s"][c] = timed(lambda kw=kw: varint.chaos_map(hh, W, "fli", **kw))[0]
+            with call_of(c):
+                res["compile_s"][c] = timed(lambda kw=kw: varint.chaos_map(hh, W, "fli",
+                                                                           **kw))[0]
         except Exception as exc:   # this contender cannot run; the others still do
             res["errors"].append(f"{c} warm-up: {exc!r}")
             contenders.remove(c)
@@ -291,12 +321,13 @@ def main(argv=None):
             continue
         X = section_points(hh, m)
         row = {"orbits": m, "t_end": t_end}
+        values = {}
         res["speed"].append(row)
         for c in contenders:
             if (c == "cpu_1" and m > args.cpu1_max and not args.quick) or late():
                 continue
             kw = dict(t_end=t_end, progress=False, chunk_size=m)
-            if c == "gpu":
+            if c.startswith("gpu"):
                 kw["backend"] = "cuda"
             numba.set_num_threads(1 if c == "cpu_1" else all_threads)
             best = np.inf
@@ -307,10 +338,12 @@ def main(argv=None):
                     STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
                     # The GPU map's stages (timers around the host's
                     # functions and in the GPU calls: gpu_stages.py).
-                    with (staged() if c == "gpu" else contextlib.nullcontext({})) as stages:
+                    with (staged() if c == "gpu" else contextlib.nullcontext({})) as stages, \
+                            call_of(c):
                         dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
                     if dt < best:
                         best, stats, best_stages = dt, dict(STATS), stages
+                    values[c] = r.values
             except Exception as exc:
                 res["errors"].append(f"{c} at {m}: {exc!r}")
                 continue
@@ -318,6 +351,14 @@ def main(argv=None):
                 numba.set_num_threads(all_threads)
             row[f"{c}_s"] = best
             row[f"{c}_orbits_per_s"] = m / best
+            if c == "gpu_before":
+                row["gpu_before_launches"] = stats["launches"]
+                row["gpu_before_host_s"] = stats["host_s"]
+                if "gpu_s" in row:
+                    row["gpu_over_before"] = best / row["gpu_s"]
+                if "gpu" in values:
+                    row["gpu_same_as_before"] = bool(np.array_equal(
+                        values["gpu"], values["gpu_before"], equal_nan=True))
             if c == "gpu":
                 steps = float(np.round(r.t_stop / r.accuracy.tau).sum())
                 row["gpu_steps"], row["tau"] = steps, r.accuracy.tau
