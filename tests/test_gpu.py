@@ -263,3 +263,56 @@ def test_gpu_map_is_bitwise_the_cpu():
     a = varint.chaos_map(hh, X, "fli", **kw)
     b = varint.chaos_map(hh, X, "fli", backend="cuda", **kw)
     assert np.array_equal(a.values, b.values, equal_nan=True)
+
+
+_CLUSTER_SCRIPT = r'''
+import json, os, numpy as np, varint
+from distributed import Client
+from varint.gpu.cluster import local_gpu_cluster
+from varint.models import HenonHeiles
+
+def launches():
+    from varint.gpu.resident import STAGES
+    return STAGES["launches"]
+
+hh = HenonHeiles()
+rng = np.random.default_rng(3)
+X = np.zeros((12, 4))
+X[:, 1] = rng.uniform(-0.25, 0.35, 12)
+X[:, 2] = rng.uniform(0.05, 0.35, 12)
+X[:, 3] = rng.uniform(0.05, 0.3, 12)
+kw = dict(t_end=5, tau=0.05, threshold=None, progress=False)
+cpu = varint.chaos_map(hh, X, "fli", **kw)
+with local_gpu_cluster(2) as cluster, Client(cluster) as client:
+    gpu = varint.chaos_map(hh, X, "fli", backend="cuda", client=client, chunk_size=3, **kw)
+    seen = sorted(client.run(lambda: os.environ["CUDA_VISIBLE_DEVICES"]).values())
+    ran = sorted(client.run(launches).values())
+same = all(np.array_equal(getattr(cpu, f), getattr(gpu, f), equal_nan=True)
+           for f in ("values", "t_stop", "status", "state"))
+print(json.dumps({"same": same, "devices": seen, "launches": ran}))
+'''
+
+
+def test_simulated_gpus_of_a_dask_cluster_give_the_cpus_bits():
+    """One worker per GPU (two simulated ones), chunks of 3 orbits spread
+    over them: the CPU's map without chunking, bit for bit."""
+    pytest.importorskip("distributed")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    run = subprocess.run([sys.executable, "-c", _CLUSTER_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = json.loads(run.stdout.strip().splitlines()[-1])
+    assert out["devices"] == ["0", "1"]
+    assert all(n > 0 for n in out["launches"]), "a worker ran no chunk on its GPU"
+    assert out["same"]
+
+
+def test_gpu_cluster_refuses_bad_devices():
+    from varint.gpu import cluster
+
+    if cluster.gpu_count() == 0:
+        with pytest.raises(RuntimeError, match="no CUDA GPU was found"):
+            cluster.local_gpu_cluster()
+    else:
+        with pytest.raises(ValueError, match="devices must be distinct GPUs"):
+            cluster.local_gpu_cluster([0, 0])
