@@ -43,9 +43,6 @@ WRAPPED = (
     ("assembly", "varint.maps", "_assemble"),
 )
 
-#: The GPU calls' stages (varint.gpu.resident.STAGES) that are seconds.
-GPU_STAGES = ("pack", "h2d", "compact", "kernel", "d2h", "unpack", "rerun")
-
 
 def _timed(fn, seconds, stage):
     def wrapper(*args, **kwargs):

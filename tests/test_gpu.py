@@ -92,6 +92,15 @@ out["resident"] = [all(np.array_equal(getattr(a, f), getattr(b, f))
                        for f in ("x", "W", "acc_m", "acc_e", "status", "step"))
                    and all(np.array_equal(a.extra[key], b.extra[key]) for key in a.extra),
                    kept, STAGES["uploads"] - u0]
+# Page-locked buffers are allocated once: a second map of the same size
+# takes them from the pool its first map's states returned them to.
+import gc
+kw = dict(t_end=2, tau=0.05, threshold=None, progress=False, backend="cuda")
+varint.chaos_map(hh, X, "fli", **kw)
+gc.collect()
+alloc = STAGES["alloc"]
+varint.chaos_map(hh, X, "fli", **kw)
+out["pool"] = STAGES["alloc"] - alloc
 # Escapes (E > 1/6): failed on the GPU, recomputed by the CPU's stepper.
 E = np.array([[0.0, 0.1, 0.6, 0.1], [0.0, 0.0, 0.3, 0.2], [0.05, 0.0, 0.7, 0.0]])
 kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
@@ -150,6 +159,10 @@ def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated)
     assert kept == 1, "the second call uploaded the state again"
     assert uploads == 2, "a call on the CPU in between was not noticed"
     assert bitwise
+
+
+def test_simulated_pinned_buffers_are_reused(simulated):
+    assert simulated["pool"] == 0.0, "the second map page-locked new buffers"
 
 
 def test_simulated_failed_orbits_are_the_cpus(simulated):

@@ -38,6 +38,7 @@ the device copy is dropped and the next call uploads.
 
 from __future__ import annotations
 
+import threading
 import time
 import weakref
 
@@ -52,15 +53,16 @@ from . import device
 __all__ = ["Resident", "resident_for", "STAGES"]
 
 #: Seconds and counts per stage of the GPU calls in this process, for the
-#: benchmarks (``studies/bench_gpu.py`` prints them): ``pack`` (the state
+#: benchmarks (``studies/bench_gpu.py`` prints them): ``alloc`` (page-locked
+#: host buffers, where none is free for reuse), ``pack`` (the state
 #: gathered into pinned buffers, at an upload), ``h2d`` (copies to the
 #: device), ``compact`` (dropping stopped orbits on the device), ``kernel``
 #: (the launch, synchronised), ``d2h`` (copies back), ``unpack`` (written
 #: into the run state and the snapshots), ``rerun`` (failed orbits on the
 #: CPU and the state's bookkeeping); ``uploads``, ``compactions``,
 #: ``launches`` count calls.
-STAGES = {"pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "d2h": 0.0, "unpack": 0.0,
-          "rerun": 0.0, "uploads": 0, "compactions": 0, "launches": 0}
+STAGES = {"alloc": 0.0, "pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "d2h": 0.0,
+          "unpack": 0.0, "rerun": 0.0, "uploads": 0, "compactions": 0, "launches": 0}
 
 
 class _Clock:
@@ -115,14 +117,44 @@ def _gather(name):
 
 
 class _Pinned:
-    """A page-locked host buffer of ``size`` numbers, handed out as
-    C-contiguous views of any shape that fits (the active orbits shrink)."""
+    """A page-locked host buffer of at least ``size`` numbers, handed out as
+    C-contiguous views of any shape that fits (the active orbits shrink).
+    Page-locking costs time (the pages are pinned one by one): a buffer
+    comes from :data:`_POOL` where one fits, and goes back there when the
+    run state that used it is collected."""
 
-    def __init__(self, size, dtype):
-        self.buffer = cuda.pinned_array(max(int(size), 1), dtype=dtype)
+    def __init__(self, size, dtype, owner):
+        size, dtype = max(int(size), 1), np.dtype(dtype)
+        with _POOL_LOCK:
+            fits = [i for i, b in enumerate(_POOL) if b.dtype == dtype and b.size >= size]
+            best = min(fits, key=lambda i: _POOL[i].size) if fits else None
+            self.buffer = _POOL.pop(best) if best is not None else None
+        if self.buffer is None:
+            clock = _Clock()
+            self.buffer = cuda.pinned_array(size, dtype=dtype)
+            clock.mark("alloc")
+        owner.append(self.buffer)
 
     def view(self, shape):
         return self.buffer[:int(np.prod(shape))].reshape(shape)
+
+
+#: Page-locked buffers free for the next run, the newest last (at most
+#: :data:`_POOL_BYTES` in all: pinned memory is memory the system cannot
+#: page out).
+_POOL: list = []
+_POOL_BYTES = 1 << 30
+_POOL_LOCK = threading.Lock()
+
+
+def _release(key, buffers):
+    """A run state was collected: its device copy goes, its page-locked
+    buffers return to the pool (no call can be using them any more)."""
+    _LIVE.pop(key, None)
+    with _POOL_LOCK:
+        _POOL.extend(buffers)
+        while sum(b.nbytes for b in _POOL) > _POOL_BYTES:
+            del _POOL[0]
 
 
 class Resident:
@@ -153,9 +185,13 @@ class Resident:
         self.dtype = {"X": float, "W": float, "am": float, "ae": np.int64, "nxt": np.int64,
                       "itv": np.int64}
         self.has_aux = bool(aux.size)
-        self.pinned = {name: _Pinned(n * a, self.dtype[name]) for name, n in lengths.items()}
-        self.pinned["aux"] = _Pinned(a * int(np.prod(self.aux_shape)), float)
-        self.pinned["st"] = _Pinned(a, np.int64)
+        # Every page-locked buffer this copy takes, returned to the pool
+        # when the state is collected.
+        self.buffers = []
+        self.pinned = {name: _Pinned(n * a, self.dtype[name], self.buffers)
+                       for name, n in lengths.items()}
+        self.pinned["aux"] = _Pinned(a * int(np.prod(self.aux_shape)), float, self.buffers)
+        self.pinned["st"] = _Pinned(a, np.int64, self.buffers)
         self.constants = (cuda.to_device(prop._h), cuda.to_device(prop._hc))
         self.snap_cache = {}
         self.dev = {}
@@ -166,7 +202,7 @@ class Resident:
         for key in [key for key, res in _LIVE.items() if res.prop is prop]:
             del _LIVE[key]
         _LIVE[id(state)] = self
-        weakref.finalize(state, _LIVE.pop, id(state), None)
+        weakref.finalize(state, _release, id(state), self.buffers)
 
     @staticmethod
     def _identity(state):
@@ -272,7 +308,7 @@ class Resident:
             for name, arr in self.snap_cache[key].items():
                 have = self.pinned.get("snap_" + name)
                 if have is None or have.buffer.size < arr.size:
-                    self.pinned["snap_" + name] = _Pinned(arr.size, arr.dtype)
+                    self.pinned["snap_" + name] = _Pinned(arr.size, arr.dtype, self.buffers)
         return self.snap_cache[key]
 
     def download(self, names):
