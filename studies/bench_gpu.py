@@ -11,7 +11,10 @@ it is measured (a run stopped at its time limit keeps what it measured):
 1. **Speed, the target's size first.** The FLI map (chaos_map defaults,
    t = 1e3) of random points of the section at 1e6, then 1e5 orbits
    (``--sizes``): orbits per second on the GPU (one chunk per map, with the
-   kernel's own seconds), on all CPU cores and (up to ``--cpu1-max``
+   kernel's own seconds and the map's time by stage,
+   ``studies/gpu_stages.py``), on the GPU with the GPU call of main 93ccc3a
+   (``gpu_before``: the state packed and copied at every call,
+   ``studies/gpu_advance_before.py``), on all CPU cores and (up to ``--cpu1-max``
    orbits, its rate being flat in the size) on one, interleaved, one run
    each at 1e6 and the minimum of two below.
 2. **Agreement.** The FLI map of a 16 × 16 grid on the section x = 0,
@@ -21,9 +24,11 @@ it is measured (a run stopped at its time limit keeps what it measured):
    the CPU: the defaults' error, the same for both); then where the two
    first differ (``studies/gpu_difference.py``: the device's primitives
    against the host's, and the first step of the propagation at which
-   any orbit differs); then SALI and MEGNO (SBAB2C, τ = 0.05) and the FLI
-   map of a Toda lattice from ``from_potential`` (exp: libdevice against
-   the C library), while ``--deadline`` allows.
+   any orbit differs); then SALI and MEGNO (SBAB2C, τ = 0.05), SALI with
+   early stopping to t = 500 (the decided orbits dropped on the device:
+   uploads, compactions and launches counted) and the FLI map of a Toda
+   lattice from ``from_potential`` (exp: libdevice against the C library),
+   while ``--deadline`` allows.
 3. **Fraction of peak.** The floating-point operations of one step of the
    generated kernel, counted in its source (an fma counts 2, a √ or log 1,
    varint's ``vlog`` too; comparisons and integer work 0), times the steps,
@@ -418,6 +423,25 @@ def main(argv=None):
                 except Exception as exc:
                     res["errors"].append(f"tight reference: {exc!r}")
 
+    def agree_early():
+        # Early stopping (SALI's default threshold, t = 500 so that chaotic
+        # orbits decide): the decided orbits are dropped on the device
+        # (varint.gpu.resident); the same bits as the CPU's map.
+        from varint.gpu.resident import STAGES
+
+        # (55 of the grid's 180 orbits decide by t = 500; the dry run's few
+        # with a looser threshold.)
+        kw = dict(t_end=500.0, tau=0.05, scheme="SBAB2C", progress=False)
+        if args.quick:
+            kw.update(t_end=100.0, threshold=1e-2)
+        cpu = varint.chaos_map(hh, grid, "sali", **kw)
+        before = dict(STAGES)
+        got = varint.chaos_map(hh, grid, "sali", backend="cuda", **kw)
+        res["agreement"]["hh_sali_early_stopping"] = compare(cpu, got)
+        res["agreement"]["hh_sali_early_stopping_decided"] = int((cpu.status == -1).sum())
+        res["agreement"]["hh_sali_early_stopping_calls"] = {
+            key: STAGES[key] - before[key] for key in ("uploads", "compactions", "launches")}
+
     def agree_toda():
         T = np.array([[0.0, 0.0, 0.35, 0.25], [0.1, -0.1, 0.3, 0.3], [0.0, 0.2, 0.4, 0.1],
                       [0.05, 0.05, 0.2, 0.4]])
@@ -437,7 +461,7 @@ def main(argv=None):
 
     for name, check in (("fli", lambda: agree("fli")), ("difference", difference),
                         ("sali", lambda: agree("sali")), ("megno", lambda: agree("megno")),
-                        ("toda", agree_toda)):
+                        ("early stopping", agree_early), ("toda", agree_toda)):
         if not gpu or late():
             res["errors"].append(f"agreement {name}: not run (deadline or no GPU)")
             continue
