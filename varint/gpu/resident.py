@@ -219,6 +219,8 @@ class Resident:
                 a is not b if isinstance(a, np.ndarray) else a != b
                 for a, b in zip(ident, self.arrays, strict=True)):
             return False
+        if len(active) == len(self.rows):   # the common case: one comparison pass
+            return bool(np.array_equal(active, self.rows))
         slots = np.searchsorted(self.rows, active)
         return bool(np.all(slots < len(self.rows)) and np.array_equal(
             self.rows[np.minimum(slots, len(self.rows) - 1)], active))
