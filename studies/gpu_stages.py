@@ -13,7 +13,13 @@ attributes) and removed on leaving. Nested stages are not subtracted:
 Run on its own (numba's CUDA simulator without a GPU, the kernel's launch
 replaced by one that takes no step, so only the host's work is timed)::
 
-    NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits 20000
+    NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits 20000 \
+        [--out studies/results/gpu_stages_simulator]
+
+(``--out NAME``: writes ``NAME.json`` and ``NAME.md``.) On the simulator
+the copies to and from the "device" are NumPy copies and the kernel's
+place is taken by copies of the state into the snapshots: the figures are
+the host's share of the work, not a GPU's.
 """
 
 from __future__ import annotations
@@ -118,7 +124,12 @@ def main(argv=None):
     p.add_argument("--t-end", type=float, default=1000.0)
     p.add_argument("--threshold", type=float, default=None,
                    help="early stopping's threshold (default: chaos_map's)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write the breakdown to OUT.json and OUT.md")
     args = p.parse_args(argv)
+    import os
+    import platform
+
     import numpy as np
 
     import varint
@@ -136,10 +147,23 @@ def main(argv=None):
     if args.threshold is not None:
         kw["threshold"] = args.threshold
     varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
+    load = os.getloadavg()
     with staged() as stages:
         varint.chaos_map(hh, X, "fli", **kw)
-    print(describe(stages))
+    text = (f"# A GPU map's host work by stage, on numba's CUDA simulator\n\n"
+            f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
+            f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that takes "
+            f"no step. {os.cpu_count()} CPU cores, load {load[0]:.1f} at the start, "
+            f"{os.getloadavg()[0]:.1f} at the end; Python {platform.python_version()}.\n"
+            f"`NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits {args.orbits}`\n\n"
+            f"```\n{describe(stages)}\n```\n")
+    print(text)
     print(json.dumps(stages))
+    if args.out is not None:
+        args.out.with_suffix(".json").write_text(json.dumps(
+            {"orbits": args.orbits, "t_end": args.t_end, "load": load, "stages": stages},
+            indent=1))
+        args.out.with_suffix(".md").write_text(text)
 
 
 if __name__ == "__main__":
