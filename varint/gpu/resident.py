@@ -19,10 +19,11 @@ the kernel with its own shapes), and stays there for the state's lifetime:
   warps stay full), from their column numbers — the only copy to the
   device;
 * after every launch the state is copied back once per array into
-  page-locked (pinned) host buffers, allocated once, and written into the
-  run state's rows, so every reader on the host (records, checkpoints, the
-  result) sees what it saw before: the host copy stays the run's state of
-  record.
+  page-locked (pinned) host buffers, which copy at the bus's full rate
+  and are allocated once per process (a pool: pinning pages is slow), and
+  written into the run state's rows, so every reader on the host
+  (records, checkpoints, the result) sees what it saw before: the host
+  copy stays the run's state of record.
 
 The device copy is valid only while nothing but the propagator writes the
 state's rows, which is how a run advances (``RunState`` is changed between
