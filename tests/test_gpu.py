@@ -3,8 +3,8 @@
 Without a GPU the kernels run on numba's CUDA simulator
 (``NUMBA_ENABLE_CUDASIM=1``, set before numba.cuda is imported, hence in a
 subprocess): the same generated source, thread by thread in Python, on small
-maps. The promise checked: bitwise the CPU's values, stopping times, status
-and final states for polynomial potentials, within 1e-12 relative otherwise
+maps. The promise checked: bitwise the CPU's values, stopping times, status,
+final states and energy errors for polynomial potentials, within 1e-12 relative otherwise
 (on the simulator, whose exp is the CPU's, also bitwise). Tests marked
 ``cuda`` need a real GPU and skip without one.
 """
@@ -41,7 +41,7 @@ advance.advance_cuda = counted   # the TM propagator imports it at each GPU call
 
 def same(a, b):
     return all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
-               for f in ("values", "t_stop", "status", "state"))
+               for f in ("values", "t_stop", "status", "state", "energy_error"))
 
 def rel(a, b):
     ok = np.isfinite(a.values)

@@ -94,7 +94,13 @@ def advance_cuda(prop, module, state, n, snaps, active):
     out = res.download(["st", "X", "W", "am", "ae", "nxt", "itv"]
                        + (["aux"] if res.has_aux else []))
     names = ["x", "W", "m", "e"] + (["aux"] if res.has_aux else [])
-    snap_host = res.download_snapshots(snap, names) if s else {}
+    # An output at the call's last step (where a chunk of a map usually
+    # ends) is the state the kernel leaves: the same numbers, written at
+    # that step and after the loop. It is read from the state copied back,
+    # not copied from the device a second time.
+    last = bool(s) and int(snaps.steps[-1]) == int(state.step) + int(n)
+    head = s - 1 if last else s
+    snap_host = res.download_snapshots(snap, names, head) if head else {}
     clock.mark("d2h")
     failed = active[out["st"] != 0]
     # The call's start, for the orbits that fail (rare): the host's rows,
@@ -113,12 +119,18 @@ def advance_cuda(prop, module, state, n, snaps, active):
     aux = prop._accumulator(state)
     if res.has_aux:
         aux[active] = out["aux"].reshape((a,) + aux.shape[1:])
-    if s:
-        # Snapshots (S, M, ...): the orbit index is the second.
+    # Snapshots (S, M, ...): the orbit index is the second.
+    if head:
         for name, key in (("x", "x"), ("W", "W"), ("m", "acc_m"), ("e", "acc_e")):
-            _put(getattr(snaps, key), rows, snap_host[name], axis=1)
+            _put(getattr(snaps, key)[:head], rows, snap_host[name], axis=1)
         if res.has_aux:
-            snaps.extra[prop.accumulator.key][:, active] = snap_host["aux"]
+            snaps.extra[prop.accumulator.key][:head, active] = snap_host["aux"]
+    if last:
+        every = slice(None) if rows is None else active
+        for key in ("x", "W", "acc_m", "acc_e"):
+            getattr(snaps, key)[-1, every] = getattr(state, key)[every]
+        if res.has_aux:
+            snaps.extra[prop.accumulator.key][-1, every] = aux[every]
     clock.mark("unpack")
     per, first = prop._step_counts(k)
     done = np.zeros(m, dtype=np.int64)

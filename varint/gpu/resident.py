@@ -325,11 +325,12 @@ class Resident:
             out[name] = buf
         return out
 
-    def download_snapshots(self, snap, names):
-        """Snapshot device arrays copied into pinned host buffers."""
+    def download_snapshots(self, snap, names, count):
+        """The first ``count`` output steps of the snapshot device arrays
+        ``names``, copied into pinned host buffers."""
         out = {}
         for name in names:
-            arr = snap[name]
+            arr = snap[name][:count]
             buf = self.pinned["snap_" + name].view(arr.shape)
             arr.copy_to_host(ary=buf)
             out[name] = buf
