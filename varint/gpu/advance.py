@@ -77,6 +77,7 @@ def advance_cuda(prop, module, state, n, snaps, active):
         res.compact(active)
     # All rows (no orbit decided or failed yet): views, no gathering.
     rows = None if a == m else active
+    sel = slice(None) if rows is None else active
     s = len(snaps.steps)
     # The kernel's sentinel −1 lies before every call: no output step.
     outs = np.ascontiguousarray(snaps.steps, np.int64) if s else np.array([-1], np.int64)
@@ -118,24 +119,23 @@ def advance_cuda(prop, module, state, n, snaps, active):
     _put(sched[:, 1:], rows, out["itv"])
     aux = prop._accumulator(state)
     if res.has_aux:
-        aux[active] = out["aux"].reshape((a,) + aux.shape[1:])
+        aux[sel] = out["aux"].reshape((a,) + aux.shape[1:])
     # Snapshots (S, M, ...): the orbit index is the second.
     if head:
         for name, key in (("x", "x"), ("W", "W"), ("m", "acc_m"), ("e", "acc_e")):
             _put(getattr(snaps, key)[:head], rows, snap_host[name], axis=1)
         if res.has_aux:
-            snaps.extra[prop.accumulator.key][:head, active] = snap_host["aux"]
+            snaps.extra[prop.accumulator.key][:head, sel] = snap_host["aux"]
     if last:
-        every = slice(None) if rows is None else active
         for key in ("x", "W", "acc_m", "acc_e"):
-            getattr(snaps, key)[-1, every] = getattr(state, key)[every]
+            getattr(snaps, key)[-1, sel] = getattr(state, key)[sel]
         if res.has_aux:
-            snaps.extra[prop.accumulator.key][-1, every] = aux[every]
+            snaps.extra[prop.accumulator.key][-1, sel] = aux[sel]
     clock.mark("unpack")
     per, first = prop._step_counts(k)
     done = np.zeros(m, dtype=np.int64)
     counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
-    done[active], counters[active] = n, per * int(n) + first
+    done[sel], counters[sel] = n, per * int(n) + first
     prop._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
                        counters)
     # The device copy is at the new step; a failed orbit that the CPU did
