@@ -75,6 +75,9 @@ def advance_cuda(prop, module, state, n, snaps, active):
         res = Resident(prop, state, active)
     elif len(res.rows) != a:
         res.compact(active)
+    # Valid again only once the call has ended (an exception half-way
+    # leaves host and device apart: the next call uploads).
+    res.step = None
     # All rows (no orbit decided or failed yet): views, no gathering.
     rows = None if a == m else active
     sel = slice(None) if rows is None else active
