@@ -11,7 +11,10 @@ it is measured (a run stopped at its time limit keeps what it measured):
 1. **Speed, the target's size first.** The FLI map (chaos_map defaults,
    t = 1e3) of random points of the section at 1e6, then 1e5 orbits
    (``--sizes``): orbits per second on the GPU (one chunk per map, with the
-   kernel's own seconds), on all CPU cores and (up to ``--cpu1-max``
+   kernel's own seconds and the map's time by stage,
+   ``studies/gpu_stages.py``), on the GPU with the GPU call of main 93ccc3a
+   (``gpu_before``: the state packed and copied at every call,
+   ``studies/gpu_advance_before.py``), on all CPU cores and (up to ``--cpu1-max``
    orbits, its rate being flat in the size) on one, interleaved, one run
    each at 1e6 and the minimum of two below.
 2. **Agreement.** The FLI map of a 16 × 16 grid on the section x = 0,
@@ -21,9 +24,11 @@ it is measured (a run stopped at its time limit keeps what it measured):
    the CPU: the defaults' error, the same for both); then where the two
    first differ (``studies/gpu_difference.py``: the device's primitives
    against the host's, and the first step of the propagation at which
-   any orbit differs); then SALI and MEGNO (SBAB2C, τ = 0.05) and the FLI
-   map of a Toda lattice from ``from_potential`` (exp: libdevice against
-   the C library), while ``--deadline`` allows.
+   any orbit differs); then SALI and MEGNO (SBAB2C, τ = 0.05), SALI with
+   early stopping to t = 500 (the decided orbits dropped on the device:
+   uploads, compactions and launches counted) and the FLI map of a Toda
+   lattice from ``from_potential`` (exp: libdevice against the C library),
+   while ``--deadline`` allows.
 3. **Fraction of peak.** The floating-point operations of one step of the
    generated kernel, counted in its source (an fma counts 2, a √ or log 1,
    varint's ``vlog`` too; comparisons and integer work 0), times the steps,
@@ -40,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import json
 import os
 import platform
@@ -56,6 +62,7 @@ if str(HERE.parent) not in sys.path:
 import varint  # noqa: E402
 from studies import gpu_difference  # noqa: E402
 from studies.gpu_difference import ENERGY  # noqa: E402
+from studies.gpu_stages import describe, staged  # noqa: E402
 from varint.models import HenonHeiles  # noqa: E402
 
 
@@ -151,6 +158,24 @@ def gpu_info():
             "peak_fp64_tflops": sms * fp64 * 2 * clock_hz / 1e12}
 
 
+@contextlib.contextmanager
+def call_of(contender):
+    """For ``gpu_before``, the GPU call of main 93ccc3a in the place of
+    today's (the TM propagator looks ``advance_cuda`` up at each call)."""
+    if contender != "gpu_before":
+        yield
+        return
+    from studies import gpu_advance_before
+    from varint.gpu import advance
+
+    today = advance.advance_cuda
+    advance.advance_cuda = gpu_advance_before.advance_cuda
+    try:
+        yield
+    finally:
+        advance.advance_cuda = today
+
+
 def timed(fn):
     t = time.perf_counter()
     r = fn()
@@ -185,6 +210,20 @@ def table(res):
                      f"{f(r.get('gpu_kernel_s'), '.3g')} / {f(r.get('gpu_s'), '.3g')} | "
                      f"{f(r.get('kernel_tflops'), '.2f')} | "
                      f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
+    for r in res["speed"]:
+        if "gpu_before_s" in r:
+            lines += ["", f"{r['orbits']} orbits: the GPU map {r['gpu_s']:.4g} s, with the GPU "
+                      f"call of main 93ccc3a {r['gpu_before_s']:.4g} s "
+                      f"({r.get('gpu_over_before', float('nan')):.2f}×; host part in the calls "
+                      f"{r['gpu_host_s']:.3g} s against {r['gpu_before_host_s']:.3g} s); "
+                      f"same values: {r.get('gpu_same_as_before')}"]
+        if r.get("gpu_stages"):
+            lines += ["", f"GPU map of {r['orbits']} orbits by stage (s; nested: records "
+                      "include energy errors, propagator calls the gpu: stages):", "",
+                      "| stage | s | of map |", "|---|---|---|"]
+            total = r["gpu_stages"]["total"]
+            lines += [f"| {k} | {v:.4g} | {v / total:.1%} |" if isinstance(v, float)
+                      else f"| {k} | {v} | |" for k, v in r["gpu_stages"].items()]
     lines += ["", "Agreement: " + json.dumps(res["agreement"])]
     diff = res.get("difference", {})
     for way, ops in diff.get("primitives", {}).items():
@@ -256,7 +295,10 @@ def main(argv=None):
 
     sizes = [400, 200] if args.quick else [int(float(v)) for v in args.sizes.split(",")]
     t_end = 20.0 if args.quick else args.t_end
-    contenders = (["gpu"] if gpu else []) + ["cpu_all", "cpu_1"]
+    # gpu_before: the same kernel with the GPU call as at main 93ccc3a
+    # (studies/gpu_advance_before.py: the state packed, copied and
+    # allocated at every call), for the before/after ratio of the host work.
+    contenders = (["gpu", "gpu_before"] if gpu else []) + ["cpu_all", "cpu_1"]
     all_threads = numba.config.NUMBA_NUM_THREADS
     # Compile every contender's kernels first (numba compiles the parallel
     # CPU kernel once per process, and the GPU kernel once per process).
@@ -264,9 +306,12 @@ def main(argv=None):
     res["compile_s"] = {}
     for c in list(contenders):
         numba.set_num_threads(1 if c == "cpu_1" else all_threads)
-        kw = dict(t_end=t_end, progress=False, **({"backend": "cuda"} if c == "gpu" else {}))
+        kw = dict(t_end=t_end, progress=False,
+                  **({"backend": "cuda"} if c.startswith("gpu") else {}))
         try:
-            res["compile_s"][c] = timed(lambda kw=kw: varint.chaos_map(hh, W, "fli", **kw))[0]
+            with call_of(c):
+                res["compile_s"][c] = timed(lambda kw=kw: varint.chaos_map(hh, W, "fli",
+                                                                           **kw))[0]
         except Exception as exc:   # this contender cannot run; the others still do
             res["errors"].append(f"{c} warm-up: {exc!r}")
             contenders.remove(c)
@@ -281,12 +326,13 @@ def main(argv=None):
             continue
         X = section_points(hh, m)
         row = {"orbits": m, "t_end": t_end}
+        values = {}
         res["speed"].append(row)
         for c in contenders:
             if (c == "cpu_1" and m > args.cpu1_max and not args.quick) or late():
                 continue
             kw = dict(t_end=t_end, progress=False, chunk_size=m)
-            if c == "gpu":
+            if c.startswith("gpu"):
                 kw["backend"] = "cuda"
             numba.set_num_threads(1 if c == "cpu_1" else all_threads)
             best = np.inf
@@ -295,9 +341,14 @@ def main(argv=None):
                 # minimum of two.
                 for _ in range(1 if m >= 1_000_000 else 2):
                     STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
-                    dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
+                    # The GPU map's stages (timers around the host's
+                    # functions and in the GPU calls: gpu_stages.py).
+                    with (staged() if c == "gpu" else contextlib.nullcontext({})) as stages, \
+                            call_of(c):
+                        dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
                     if dt < best:
-                        best, stats = dt, dict(STATS)
+                        best, stats, best_stages = dt, dict(STATS), stages
+                    values[c] = r.values
             except Exception as exc:
                 res["errors"].append(f"{c} at {m}: {exc!r}")
                 continue
@@ -305,11 +356,21 @@ def main(argv=None):
                 numba.set_num_threads(all_threads)
             row[f"{c}_s"] = best
             row[f"{c}_orbits_per_s"] = m / best
+            if c == "gpu_before":
+                row["gpu_before_launches"] = stats["launches"]
+                row["gpu_before_host_s"] = stats["host_s"]
+                if "gpu_s" in row:
+                    row["gpu_over_before"] = best / row["gpu_s"]
+                if "gpu" in values:
+                    row["gpu_same_as_before"] = bool(np.array_equal(
+                        values["gpu"], values["gpu_before"], equal_nan=True))
             if c == "gpu":
                 steps = float(np.round(r.t_stop / r.accuracy.tau).sum())
                 row["gpu_steps"], row["tau"] = steps, r.accuracy.tau
                 row["gpu_launches"] = stats["launches"]
                 row["gpu_kernel_s"], row["gpu_host_s"] = stats["kernel_s"], stats["host_s"]
+                row["gpu_stages"] = best_stages
+                log(f"GPU map of {m} orbits, by stage:\n" + describe(best_stages))
                 if isinstance(res["gpu"], dict):
                     rate = flops * steps / best / 1e12
                     row["gpu_tflops"] = rate
@@ -362,6 +423,25 @@ def main(argv=None):
                 except Exception as exc:
                     res["errors"].append(f"tight reference: {exc!r}")
 
+    def agree_early():
+        # Early stopping (SALI's default threshold, t = 500 so that chaotic
+        # orbits decide): the decided orbits are dropped on the device
+        # (varint.gpu.resident); the same bits as the CPU's map.
+        from varint.gpu.resident import STAGES
+
+        # (55 of the grid's 180 orbits decide by t = 500; the dry run's few
+        # with a looser threshold.)
+        kw = dict(t_end=500.0, tau=0.05, scheme="SBAB2C", progress=False)
+        if args.quick:
+            kw.update(t_end=100.0, threshold=1e-2)
+        cpu = varint.chaos_map(hh, grid, "sali", **kw)
+        before = dict(STAGES)
+        got = varint.chaos_map(hh, grid, "sali", backend="cuda", **kw)
+        res["agreement"]["hh_sali_early_stopping"] = compare(cpu, got)
+        res["agreement"]["hh_sali_early_stopping_decided"] = int((cpu.status == -1).sum())
+        res["agreement"]["hh_sali_early_stopping_calls"] = {
+            key: STAGES[key] - before[key] for key in ("uploads", "compactions", "launches")}
+
     def agree_toda():
         T = np.array([[0.0, 0.0, 0.35, 0.25], [0.1, -0.1, 0.3, 0.3], [0.0, 0.2, 0.4, 0.1],
                       [0.05, 0.05, 0.2, 0.4]])
@@ -381,7 +461,7 @@ def main(argv=None):
 
     for name, check in (("fli", lambda: agree("fli")), ("difference", difference),
                         ("sali", lambda: agree("sali")), ("megno", lambda: agree("megno")),
-                        ("toda", agree_toda)):
+                        ("early stopping", agree_early), ("toda", agree_toda)):
         if not gpu or late():
             res["errors"].append(f"agreement {name}: not run (deadline or no GPU)")
             continue

@@ -16,8 +16,12 @@ the unpacked wheel on ``PYTHONPATH``::
 begins; ``--sizes`` the speed part's orbits, measured in that order;
 ``--quick`` with ``NUMBA_ENABLE_CUDASIM=1`` is a dry run on the simulator)
 
-Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement)
-and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
+Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement:
+per size the GPU map's time by stage — validation, seeds, snapshot arrays,
+records, energy errors, assembly and, inside the GPU calls, buffer
+allocation, packing, copies each way, compaction, kernel, writing back —
+and the same map with the GPU call of main 93ccc3a, for the before/after
+ratio) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
 the FP64 instructions whose rounding decides bitwise agreement with the
 CPU — ``fma.rn``; ``mul``, ``add``, ``sub`` with ``.rn``, which ptxas
 never fuses, and without it, which it may; ``div.rn`` against

@@ -90,7 +90,9 @@ def worker(part, m, t_end, indicator="fli"):
 def _no_steps(self, n_threads, X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc,
               escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):
     """The kernel's launch, doing no step: the snapshots get the state as it
-    is (so that the records are of finite values, as after real steps)."""
+    is (so that the records are of finite values, as after real steps);
+    every orbit's status OK, as the kernel writes it."""
+    st[:] = 0
     for j in range(snap_x.shape[0]):
         snap_x[j], snap_W[j], snap_m[j], snap_e[j] = X, W, am, ae
         snap_aux[j] = aux

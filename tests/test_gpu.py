@@ -3,8 +3,8 @@
 Without a GPU the kernels run on numba's CUDA simulator
 (``NUMBA_ENABLE_CUDASIM=1``, set before numba.cuda is imported, hence in a
 subprocess): the same generated source, thread by thread in Python, on small
-maps. The promise checked: bitwise the CPU's values, stopping times, status
-and final states for polynomial potentials, within 1e-12 relative otherwise
+maps. The promise checked: bitwise the CPU's values, stopping times, status,
+final states and energy errors for polynomial potentials, within 1e-12 relative otherwise
 (on the simulator, whose exp is the CPU's, also bitwise). Tests marked
 ``cuda`` need a real GPU and skip without one.
 """
@@ -27,6 +27,9 @@ pytest.importorskip("numba.cuda")
 _SIM_SCRIPT = r'''
 import json, numpy as np, sympy as sp, varint
 import varint.gpu.advance as advance
+from varint.gpu.resident import STAGES
+from varint.methods import make_propagator
+from varint.state import RunState, initial_deviations
 from varint.models import HenonHeiles
 
 launched = []
@@ -38,7 +41,7 @@ advance.advance_cuda = counted   # the TM propagator imports it at each GPU call
 
 def same(a, b):
     return all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
-               for f in ("values", "t_stop", "status", "state"))
+               for f in ("values", "t_stop", "status", "state", "energy_error"))
 
 def rel(a, b):
     ok = np.isfinite(a.values)
@@ -65,8 +68,39 @@ px = np.sqrt(np.maximum(2 * (0.16 - (y * y / 2 - y ** 3 / 3)) - py * py, 0.0))
 C = np.column_stack([np.zeros(10), y, px, py])
 kw = dict(t_end=60, tau=0.05, threshold=1e-2, progress=False)
 cpu = varint.chaos_map(hh, C, "sali", **kw)
+before = dict(STAGES)
 gpu = varint.chaos_map(hh, C, "sali", backend="cuda", chunk_size=4, **kw)
 out["early"] = [same(cpu, gpu), int((cpu.status == -1).sum())]
+out["early_stages"] = {key: STAGES[key] - before[key]
+                       for key in ("uploads", "compactions", "launches")}
+# The state stays on the device between calls of a run: uploaded once; a
+# call on the CPU in between (the host's rows change) makes the next GPU
+# call upload it again; bitwise the CPU's run throughout.
+W0 = initial_deviations(4, 2, 10, 3)
+p_cpu = make_propagator("tm", hh, 0.05, "qr")
+p_gpu = make_propagator("tm", hh, 0.05, "qr", backend="cuda")
+a = RunState.start(X, W0)
+p_cpu.advance(a, 35)
+b = RunState.start(X, W0)
+u0 = STAGES["uploads"]
+p_gpu.advance(b, 10)
+p_gpu.advance(b, 10)
+kept = STAGES["uploads"] - u0
+p_cpu.advance(b, 5)
+p_gpu.advance(b, 10)
+out["resident"] = [all(np.array_equal(getattr(a, f), getattr(b, f))
+                       for f in ("x", "W", "acc_m", "acc_e", "status", "step"))
+                   and all(np.array_equal(a.extra[key], b.extra[key]) for key in a.extra),
+                   kept, STAGES["uploads"] - u0]
+# Page-locked buffers are allocated once: a second map of the same size
+# takes them from the pool its first map's states returned them to.
+import gc
+kw = dict(t_end=2, tau=0.05, threshold=None, progress=False, backend="cuda")
+varint.chaos_map(hh, X, "fli", **kw)
+gc.collect()
+alloc = STAGES["alloc"]
+varint.chaos_map(hh, X, "fli", **kw)
+out["pool"] = STAGES["alloc"] - alloc
 # Escapes (E > 1/6): failed on the GPU, recomputed by the CPU's stepper.
 E = np.array([[0.0, 0.1, 0.6, 0.1], [0.0, 0.0, 0.3, 0.2], [0.05, 0.0, 0.7, 0.0]])
 kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
@@ -108,6 +142,27 @@ def test_simulated_early_stopping_and_compaction_match(simulated):
     bitwise, decided = simulated["early"]
     assert decided > 0, "no orbit decided: the check proves nothing"
     assert bitwise
+
+
+def test_simulated_compaction_happens_on_the_device(simulated):
+    """A map with early stopping uploads its state once per chunk and drops
+    the decided orbits on the device (compactions), not by a new upload."""
+    stages = simulated["early_stages"]
+    chunks = 3   # 10 orbits, chunk_size=4
+    assert stages["uploads"] == chunks
+    assert stages["compactions"] > 0
+    assert stages["launches"] > stages["uploads"]
+
+
+def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated):
+    bitwise, kept, uploads = simulated["resident"]
+    assert kept == 1, "the second call uploaded the state again"
+    assert uploads == 2, "a call on the CPU in between was not noticed"
+    assert bitwise
+
+
+def test_simulated_pinned_buffers_are_reused(simulated):
+    assert simulated["pool"] == 0.0, "the second map page-locked new buffers"
 
 
 def test_simulated_failed_orbits_are_the_cpus(simulated):
@@ -221,3 +276,56 @@ def test_gpu_map_is_bitwise_the_cpu():
     a = varint.chaos_map(hh, X, "fli", **kw)
     b = varint.chaos_map(hh, X, "fli", backend="cuda", **kw)
     assert np.array_equal(a.values, b.values, equal_nan=True)
+
+
+_CLUSTER_SCRIPT = r'''
+import json, os, numpy as np, varint
+from distributed import Client
+from varint.gpu.cluster import local_gpu_cluster
+from varint.models import HenonHeiles
+
+def launches():
+    from varint.gpu.resident import STAGES
+    return STAGES["launches"]
+
+hh = HenonHeiles()
+rng = np.random.default_rng(3)
+X = np.zeros((12, 4))
+X[:, 1] = rng.uniform(-0.25, 0.35, 12)
+X[:, 2] = rng.uniform(0.05, 0.35, 12)
+X[:, 3] = rng.uniform(0.05, 0.3, 12)
+kw = dict(t_end=5, tau=0.05, threshold=None, progress=False)
+cpu = varint.chaos_map(hh, X, "fli", **kw)
+with local_gpu_cluster(2) as cluster, Client(cluster) as client:
+    gpu = varint.chaos_map(hh, X, "fli", backend="cuda", client=client, chunk_size=3, **kw)
+    seen = sorted(client.run(lambda: os.environ["CUDA_VISIBLE_DEVICES"]).values())
+    ran = sorted(client.run(launches).values())
+same = all(np.array_equal(getattr(cpu, f), getattr(gpu, f), equal_nan=True)
+           for f in ("values", "t_stop", "status", "state"))
+print(json.dumps({"same": same, "devices": seen, "launches": ran}))
+'''
+
+
+def test_simulated_gpus_of_a_dask_cluster_give_the_cpus_bits():
+    """One worker per GPU (two simulated ones), chunks of 3 orbits spread
+    over them: the CPU's map without chunking, bit for bit."""
+    pytest.importorskip("distributed")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    run = subprocess.run([sys.executable, "-c", _CLUSTER_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = json.loads(run.stdout.strip().splitlines()[-1])
+    assert out["devices"] == ["0", "1"]
+    assert all(n > 0 for n in out["launches"]), "a worker ran no chunk on its GPU"
+    assert out["same"]
+
+
+def test_gpu_cluster_refuses_bad_devices():
+    from varint.gpu import cluster
+
+    if cluster.gpu_count() == 0:
+        with pytest.raises(RuntimeError, match="no CUDA GPU was found"):
+            cluster.local_gpu_cluster()
+    else:
+        with pytest.raises(ValueError, match="devices must be distinct GPUs"):
+            cluster.local_gpu_cluster([0, 0])

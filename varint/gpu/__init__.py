@@ -4,5 +4,8 @@
   one orbit per CUDA thread;
 * :mod:`~varint.gpu.device` — finding a GPU, exact compilation, choosing
   the backend;
-* :mod:`~varint.gpu.advance` — a call of the TM propagator on the GPU.
+* :mod:`~varint.gpu.advance` — a call of the TM propagator on the GPU;
+* :mod:`~varint.gpu.resident` — the orbits' state kept on the device
+  between calls;
+* :mod:`~varint.gpu.cluster` — one Dask worker per GPU.
 """

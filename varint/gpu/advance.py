@@ -1,14 +1,15 @@
-"""One call of the TM propagator on the GPU: the active orbits, packed.
+"""One call of the TM propagator on the GPU: the active orbits, on the device.
 
-The run state holds one row per orbit, (M, ...). A call takes only the
-orbits still active (status OK: not decided, not failed), so after every
+The run state holds one row per orbit, (M, ...). A call advances only the
+orbits still active (status OK: not decided, not failed). Their state lives
+on the device between calls (:mod:`varint.gpu.resident`): uploaded at a
+run's first call, with the orbit index innermost (structure of arrays, so
+that loads coalesce), and compacted on the device when orbits stop (after a
 check time of a chaos map with early stopping the orbits that decided are
-gone from the launch: the packed arrays keep every warp full of live
-orbits (compaction between launches). Each quantity goes to the GPU as one
-array with the orbit index innermost (structure of arrays, so that loads
-coalesce), the kernel (:mod:`varint.gpu.emit`) advances every orbit by
-``n`` steps in one launch, and the state, the snapshots at output steps and
-the status come back.
+gone from the launch, so every warp stays full of live orbits). The kernel
+(:mod:`varint.gpu.emit`) advances every orbit by ``n`` steps in one launch;
+the state, the snapshots at output steps and the status come back into
+pinned buffers and are written into the run state's rows.
 
 An orbit that failed on the GPU is recomputed on the CPU by the one-orbit
 stepper from the call's start (exactly as after the CPU's SIMD lanes), so it
@@ -24,26 +25,20 @@ import numpy as np
 from ..protocol import COUNTERS
 from ..schemes import DRIFT
 from .emit import cuda_stepper
+from .resident import STAGES, Resident, _Clock, resident_for
 
-__all__ = ["advance_cuda", "STATS"]
+__all__ = ["advance_cuda", "STATS", "STAGES"]
 
 #: Launches in this process and their seconds (kernel alone, synchronised;
-#: transfers and repacking on the host), for benchmarks: how much of a
-#: map's time the GPU computes.
+#: the rest of a call on the host), for benchmarks: how much of a map's
+#: time the GPU computes. :data:`~varint.gpu.resident.STAGES` splits the
+#: host's part by stage.
 STATS = {"launches": 0, "kernel_s": 0.0, "host_s": 0.0}
 
 
-def _soa(a, rows):
-    """(M, ...) -> (..., len(rows)), contiguous: the orbit index innermost,
-    in one pass (the rows gathered from the transposed view; all rows, a
-    plain transposed copy)."""
-    view = np.moveaxis(a, 0, -1)
-    return np.ascontiguousarray(view if rows is None else view[..., rows])
-
-
 def _put(a, rows, soa, axis=0):
-    """The inverse of :func:`_soa`: ``soa`` (..., len(rows)) written back
-    into the rows of ``a`` whose orbit index is ``axis``, in one pass."""
+    """``soa`` (..., len(rows)), the orbit index innermost, written into the
+    rows of ``a`` whose orbit index is ``axis``, in one pass."""
     view = np.moveaxis(a, axis, -1)
     if rows is None:
         view[...] = soa
@@ -65,7 +60,7 @@ def advance_cuda(prop, module, state, n, snaps, active):
     snaps : Snapshots
         Filled at their output steps.
     active : ndarray of int
-        Rows of ``state`` to advance (status OK), at least one.
+        Rows of ``state`` to advance (status OK), at least one, increasing.
     """
     from numba import cuda
 
@@ -75,60 +70,82 @@ def advance_cuda(prop, module, state, n, snaps, active):
     kinds = prop._kinds
     kernel = cuda_stepper(prop.model, kinds, (prop._hc != 0.0) & (kinds != DRIFT), k,
                           prop.accumulator)
-    sched = prop._schedule(state)
+    res = resident_for(state)
+    if res is None or not res.usable(prop, state, active):
+        res = Resident(prop, state, active)
+    elif len(res.rows) != a:
+        res.compact(active)
+    # Valid again only once the call has ended (an exception half-way
+    # leaves host and device apart: the next call uploads).
+    res.step = None
     # All rows (no orbit decided or failed yet): views, no gathering.
     rows = None if a == m else active
-    extra_start = {key: arr[active] for key, arr in state.extra.items()}
-    aux = prop._accumulator(state)
-    # Arrays the kernel does not touch (no accumulator columns, no output
-    # steps: the sentinel −1 lies before every call) get one element, not
-    # none: a zero-size array is not allocated on every device alike.
-    lane_aux = np.ascontiguousarray(aux[active]) if aux.size else np.zeros((a, 1, 1))
+    sel = slice(None) if rows is None else active
     s = len(snaps.steps)
+    # The kernel's sentinel −1 lies before every call: no output step.
     outs = np.ascontiguousarray(snaps.steps, np.int64) if s else np.array([-1], np.int64)
-    host = {"X": _soa(state.x, rows), "W": _soa(state.W, rows), "am": _soa(state.acc_m, rows),
-            "ae": _soa(state.acc_e, rows), "st": np.zeros(a, np.int64),
-            "fs": np.zeros(a, np.int64), "nxt": np.ascontiguousarray(sched[active, 0]),
-            "itv": np.ascontiguousarray(sched[active, 1]), "aux": lane_aux}
-    # The call's start, for the orbits that fail: the host's copies.
-    start = {"x": np.moveaxis(host["X"], -1, 0), "W": np.moveaxis(host["W"], -1, 0),
-             "acc_m": np.moveaxis(host["am"], -1, 0), "acc_e": np.moveaxis(host["ae"], -1, 0)}
-    dev = {name: cuda.to_device(arr) for name, arr in host.items()}
-    rows_out = max(s, 1)
-    snap = {"x": cuda.device_array((rows_out, d, a)), "W": cuda.device_array((rows_out, d, k, a)),
-            "m": cuda.device_array((rows_out, k, a)),
-            "e": cuda.device_array((rows_out, k, a), np.int64),
-            "aux": cuda.device_array((rows_out,) + lane_aux.shape)}
+    snap = res.snapshots(s, d, k)
+    clock = _Clock()
+    outs_dev = cuda.to_device(outs)
+    clock.mark("h2d")
     t1 = time.perf_counter()
-    kernel.launch(a, dev["X"], dev["W"], dev["am"], dev["ae"], dev["st"], dev["fs"], dev["nxt"],
-                  dev["itv"], int(n), int(state.step), prop.tau,
-                  cuda.to_device(prop._h), cuda.to_device(prop._hc), prop._escape_r2,
-                  int(prop.renorm), prop.sparse, dev["aux"],
-                  cuda.to_device(outs),
+    kernel.launch(a, *res.kernel_args(), int(n), int(state.step), prop.tau, *res.constants,
+                  prop._escape_r2, int(prop.renorm), prop.sparse, res.aux_arg(), outs_dev,
                   snap["x"], snap["W"], snap["m"], snap["e"], snap["aux"])
     cuda.synchronize()
     t2 = time.perf_counter()
-    out = {name: arr.copy_to_host() for name, arr in dev.items()}
+    clock.mark("kernel")
+    out = res.download(["st", "X", "W", "am", "ae", "nxt", "itv"]
+                       + (["aux"] if res.has_aux else []))
+    names = ["x", "W", "m", "e"] + (["aux"] if res.has_aux else [])
+    # An output at the call's last step (where a chunk of a map usually
+    # ends) is the state the kernel leaves: the same numbers, written at
+    # that step and after the loop. It is read from the state copied back,
+    # not copied from the device a second time.
+    last = bool(s) and int(snaps.steps[-1]) == int(state.step) + int(n)
+    head = s - 1 if last else s
+    snap_host = res.download_snapshots(snap, names, head) if head else {}
+    clock.mark("d2h")
+    failed = active[out["st"] != 0]
+    # The call's start, for the orbits that fail (rare): the host's rows,
+    # not yet overwritten.
+    start, extra_start = {}, {}
+    if failed.size:
+        start = {name: getattr(state, name)[active] for name in ("x", "W", "acc_m", "acc_e")}
+        extra_start = {key: arr[active] for key, arr in state.extra.items()}
     _put(state.x, rows, out["X"])
-    _put(state.W, rows, out["W"])
+    _put(state.W, rows, out["W"].reshape(d, k, a))
     _put(state.acc_m, rows, out["am"])
     _put(state.acc_e, rows, out["ae"])
-    sched[active, 0], sched[active, 1] = out["nxt"], out["itv"]
-    if aux.size:
-        aux[active] = out["aux"]
-    if s:
-        # Snapshots (S, M, ...): the orbit index is the second.
+    sched = prop._schedule(state)
+    _put(sched[:, :1], rows, out["nxt"])
+    _put(sched[:, 1:], rows, out["itv"])
+    aux = prop._accumulator(state)
+    if res.has_aux:
+        aux[sel] = out["aux"].reshape((a,) + aux.shape[1:])
+    # Snapshots (S, M, ...): the orbit index is the second.
+    if head:
         for name, key in (("x", "x"), ("W", "W"), ("m", "acc_m"), ("e", "acc_e")):
-            _put(getattr(snaps, key), rows, snap[name].copy_to_host(), axis=1)
-        if aux.size:
-            snaps.extra[prop.accumulator.key][:, active] = snap["aux"].copy_to_host()
+            _put(getattr(snaps, key)[:head], rows, snap_host[name], axis=1)
+        if res.has_aux:
+            snaps.extra[prop.accumulator.key][:head, sel] = snap_host["aux"]
+    if last:
+        for key in ("x", "W", "acc_m", "acc_e"):
+            getattr(snaps, key)[-1, sel] = getattr(state, key)[sel]
+        if res.has_aux:
+            snaps.extra[prop.accumulator.key][-1, sel] = aux[sel]
+    clock.mark("unpack")
     per, first = prop._step_counts(k)
     done = np.zeros(m, dtype=np.int64)
     counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
-    done[active], counters[active] = n, per * int(n) + first
-    failed = active[out["st"] != 0]
-    STATS["launches"] += 1
-    STATS["kernel_s"] += t2 - t1
-    STATS["host_s"] += time.perf_counter() - t2 + t1 - t0
+    done[sel], counters[sel] = n, per * int(n) + first
     prop._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
                        counters)
+    # The device copy is at the new step; a failed orbit that the CPU did
+    # not fail again has host values the device lacks: upload next time.
+    res.step = state.step if not (state.status[failed] == 0).any() else None
+    clock.mark("rerun")
+    STATS["launches"] += 1
+    STAGES["launches"] += 1
+    STATS["kernel_s"] += t2 - t1
+    STATS["host_s"] += time.perf_counter() - t2 + t1 - t0

@@ -1,0 +1,170 @@
+"""Where a GPU chaos map's time goes, stage by stage (issue 33).
+
+``staged()`` is a context manager around one call of ``varint.chaos_map``:
+inside it, the host functions of the map's path are wrapped with timers
+(seconds summed over their calls), and the GPU calls' own stages come from
+:data:`varint.gpu.resident.STAGES` (packing, copies each way, compaction,
+the kernel, writing back, failed orbits). The wrappers are put on the
+names the map's code looks up at call time (module globals and class
+attributes) and removed on leaving. Nested stages are not subtracted:
+``records`` includes ``energy errors``; ``read snapshots`` includes
+``records``.
+
+Run on its own (numba's CUDA simulator without a GPU, the kernel's launch
+replaced by one that takes no step, so only the host's work is timed)::
+
+    NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits 20000 \
+        [--out studies/results/gpu_stages_simulator]
+
+(``--out NAME``: writes ``NAME.json`` and ``NAME.md``.) On the simulator
+the copies to and from the "device" are NumPy copies and the kernel's
+place is taken by copies of the state into the snapshots: the figures are
+the host's share of the work, not a GPU's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))
+
+#: (stage, module, attribute path) of the host functions timed.
+WRAPPED = (
+    ("validation", "varint._validate", "kernels"),
+    ("full-rank check", "varint._validate", "full_rank"),
+    ("seeded vectors", "varint.maps", "initial_deviations"),
+    ("initial energies", "varint.accuracy", "Reference.__init__"),
+    ("snapshot arrays", "varint.methods.tm", "TangentMapPropagator._snapshots"),
+    ("propagator calls", "varint.methods.tm", "TangentMapPropagator.advance"),
+    ("read snapshots", "varint.driver", "_read_snapshots"),
+    ("records", "varint.run", "Run.record"),
+    ("energy errors", "varint.accuracy", "Reference.errors"),
+    ("assembly", "varint.maps", "_assemble"),
+)
+
+
+def _timed(fn, seconds, stage):
+    def wrapper(*args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            seconds[stage] += time.perf_counter() - t
+
+    wrapper.__wrapped__ = fn
+    return wrapper
+
+
+@contextlib.contextmanager
+def staged():
+    """Times the stages of the map run inside; yields the dict that is
+    filled on leaving: {stage: seconds} of :data:`WRAPPED`, ``gpu: <stage>``
+    of the GPU calls, their counts and ``total``."""
+    import importlib
+
+    from varint.gpu.resident import STAGES
+
+    seconds = {stage: 0.0 for stage, _, _ in WRAPPED}
+    undo = []
+    for stage, module, path in WRAPPED:
+        owner = importlib.import_module(module)
+        *outer, name = path.split(".")
+        for part in outer:
+            owner = getattr(owner, part)
+        original = owner.__dict__[name]
+        setattr(owner, name, _timed(original, seconds, stage))
+        undo.append((owner, name, original))
+    before = dict(STAGES)
+    out: dict = {}
+    t = time.perf_counter()
+    try:
+        yield out
+    finally:
+        total = time.perf_counter() - t
+        for owner, name, original in reversed(undo):
+            setattr(owner, name, original)
+        out.update(seconds)
+        for key, value in STAGES.items():
+            out[f"gpu: {key}"] = value - before[key]
+        out["total"] = total
+
+
+def describe(stages):
+    """One line per stage: seconds and share of the total."""
+    total = stages["total"]
+    lines = []
+    for key, value in stages.items():
+        if isinstance(value, float) and key != "total":
+            lines.append(f"  {key:<22} {value:9.4f} s  {value / total:6.1%}")
+        elif key != "total":
+            lines.append(f"  {key:<22} {value:9d}")
+    return "\n".join(lines + [f"  {'total':<22} {total:9.4f} s"])
+
+
+def _no_steps(self, n_threads, X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc,
+              escape_r2, mode, every, aux, outs, snap_x, snap_W, snap_m, snap_e, snap_aux):
+    """The kernel's launch on the simulator, doing no step: the snapshots
+    get the state as it is, the status is OK."""
+    st[:] = 0
+    for j in range(snap_x.shape[0]):
+        snap_x[j], snap_W[j], snap_m[j], snap_e[j] = X, W, am, ae
+        snap_aux[j] = aux
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--orbits", type=int, default=20000)
+    p.add_argument("--t-end", type=float, default=1000.0)
+    p.add_argument("--threshold", type=float, default=None,
+                   help="early stopping's threshold (default: chaos_map's)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write the breakdown to OUT.json and OUT.md")
+    args = p.parse_args(argv)
+    import os
+    import platform
+
+    import numpy as np
+
+    import varint
+    from varint.gpu import device
+    from varint.models import HenonHeiles
+
+    if not device.simulated():
+        raise SystemExit("run with NUMBA_ENABLE_CUDASIM=1 (the device script times a GPU)")
+    device._Kernel.launch = _no_steps
+    hh = HenonHeiles()
+    side = int(np.ceil(np.sqrt(args.orbits * 1.6)))   # ~60 % of the square is allowed
+    X = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.7, side),
+                            np.linspace(-0.45, 0.45, side)).states[:args.orbits]
+    kw = dict(t_end=args.t_end, progress=False, chunk_size=args.orbits, backend="cuda")
+    if args.threshold is not None:
+        kw["threshold"] = args.threshold
+    varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
+    load = os.getloadavg()
+    with staged() as stages:
+        varint.chaos_map(hh, X, "fli", **kw)
+    text = (f"# A GPU map's host work by stage, on numba's CUDA simulator\n\n"
+            f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
+            f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that takes "
+            f"no step. {os.cpu_count()} CPU cores, load {load[0]:.1f} at the start, "
+            f"{os.getloadavg()[0]:.1f} at the end; Python {platform.python_version()}.\n"
+            f"`NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits {args.orbits}`\n\n"
+            f"```\n{describe(stages)}\n```\n")
+    print(text)
+    print(json.dumps(stages))
+    if args.out is not None:
+        args.out.with_suffix(".json").write_text(json.dumps(
+            {"orbits": args.orbits, "t_end": args.t_end, "load": load, "stages": stages},
+            indent=1))
+        args.out.with_suffix(".md").write_text(text)
+
+
+if __name__ == "__main__":
+    main()
