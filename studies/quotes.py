@@ -1054,10 +1054,6 @@ def _suite_time(R):
             f"{s['cores']} cores at load {s['load_start'][0]:.1f}: {s['summary']}")
 
 
-if __name__ == "__main__":
-    main()
-
-
 @quote("prepared_cost")
 def _prepared_cost(R):
     """A prepared one-step R1 call against the one-shot call
@@ -1069,3 +1065,8 @@ def _prepared_cost(R):
             f"({d['prepared']['whole_call']['wall_min_us']:.0f} µs against "
             f"{d['whole_call']['wall_min_us']:.0f} µs, minimum of {d['calls']} calls, load "
             f"{load:.0f} on {d['load']['cpus']} cores)")
+
+
+if __name__ == "__main__":
+    main()
+

@@ -197,6 +197,30 @@ def test_megno_stability_map_over_elements(jupiter_saturn):
     assert r.values.tobytes() == again.values.tobytes()
 
 
+def test_megno_map_on_a_dask_cluster_is_bitwise_the_local_map(jupiter_saturn):
+    """A large planetary grid goes to a Dask cluster like any map: the
+    model pickles to the workers, chunks run there (in lanes), and the
+    values, stop times and statuses are the local map's bit for bit."""
+    distributed = pytest.importorskip("distributed")
+    model, _ = jupiter_saturn
+    grid = varint.element_grid(model, [JUPITER, dict(a=9.0, e=0.05, M=0.871, omega=1.616)], 2,
+                               [7.43, 7.86, 8.7, 9.0], [0.05, 0.214])
+    args = dict(t_end=5e3, tau=10.0, scheme=WH10, threshold=8.0, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        local = varint.chaos_map(model, grid, "megno", **args)
+        # Threads, not processes: the workers share this process's
+        # compiled kernels (the distribution, not the compile, is tested).
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                      dashboard_address=None) as cluster, \
+                distributed.Client(cluster) as client:
+            remote = varint.chaos_map(model, grid, "megno", chunk_size=3, client=client, **args)
+    assert remote.provenance.options["client"].startswith("dask")
+    assert local.decided.any() and not local.decided.all()   # both kinds of point
+    for name in ("values", "t_stop", "status"):
+        assert getattr(remote, name).tobytes() == getattr(local, name).tobytes(), name
+
+
 def test_close_encounters_stop_orbits():
     """Two planets 0.15 apart (2 mutual Hill radii of 0.076): with
     close_encounter = 3 the orbit stops with status CLOSE_ENCOUNTER at once
