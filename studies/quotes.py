@@ -1050,8 +1050,10 @@ def _suite_time(R):
     """How long the default suite took, cold, as CI runs it
     (``studies/suite_time.py``): wall and CPU time, cores, load."""
     s = R.json("suite_time")["cold"]
+    # pytest's closing line without its rule and time (older results kept both).
+    summary = re.sub(r"^=+\s*|\s+in [\d.]+s.*$", "", s["summary"])
     return (f"{s['wall_s'] / 60:.0f} min cold ({s['cpu_s'] / 60:.0f} min of CPU) on "
-            f"{s['cores']} cores at load {s['load_start'][0]:.1f}: {s['summary']}")
+            f"{s['cores']} cores at load {s['load_start'][0]:.1f}: {summary}")
 
 
 @quote("prepared_cost")

@@ -35,8 +35,9 @@ except ImportError:  # imported as studies.suite_time
     from .suite_profile import main as profile_main
 
 ROOT = Path(__file__).resolve().parent.parent
-#: pytest's closing line: "1470 passed, 60 deselected in 512.3s".
-SUMMARY = re.compile(r"^=*\s*(\d+ passed.*?) in [\d.]+s", re.M)
+#: pytest's closing line: "1470 passed, 60 deselected in 512.3s" (failures,
+#: when there are any, come first: "1 failed, 1469 passed ...").
+SUMMARY = re.compile(r"^=*\s*(\d+ (?:failed|passed|error).*?) in [\d.]+s", re.M)
 #: one line of ``--durations``: "12.34s setup tests/x.py::test_y".
 DURATION = re.compile(r"^([\d.]+)s (call|setup|teardown)\s+(\S+)", re.M)
 
