@@ -59,7 +59,10 @@ def test_lanes_mark_an_encounter_as_the_one_orbit_flow_does():
     model = Planetary([1.0, 0.000954, 0.000285], close_encounter=1.0)
     # Saturn on Jupiter's orbit, a little ahead: within a Hill radius.
     x = model.from_elements([JUPITER, dict(a=5.204, e=0.048, M=0.62, omega=0.257)])
-    X = np.vstack([x, _grid(model)[:3]])
+    # As many lanes as the grid (the lane kernels compile per width: these
+    # are the ones the test above compiled), the encounter in the first.
+    X = _grid(model)
+    X[0] = x
     W = np.ones((len(X), model.dim, 1))
     Xl, _, _ = _lanes(model, X, W, 10.0, 1, WH10)
     assert Xl[0, 0] == np.inf
