@@ -320,8 +320,11 @@ def _read_snapshots(snaps, state, record, renorm):
     failed = is_failure(state.status)
     # Rows of orbits that had failed by an output were never written: show
     # them the frozen state (then blank their values), so no reader sees NaN.
-    dead = failed[None, :] & (state.fail_step[None, :] <= snaps.steps[:, None])
-    blank = bool(dead.any())
+    # (Nothing to find without a failure, the common case.)
+    blank = bool(failed.any())
+    if blank:
+        dead = failed[None, :] & (state.fail_step[None, :] <= snaps.steps[:, None])
+        blank = bool(dead.any())
     if blank:
         out, orb = np.nonzero(dead)
         snaps.x[out, orb] = state.x[orb]
