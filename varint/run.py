@@ -272,6 +272,10 @@ class Run:
         self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+        # The provenance's parts that no orbit changes (:meth:`provenance`),
+        # worked out at the first result and shared by the runs
+        # :meth:`with_orbits` makes of this one.
+        self._fixed = None
 
     def with_orbits(self, spec, deviations=None):
         """A new run of this run's setup over other orbits, nothing that
@@ -566,12 +570,21 @@ class Run:
         time than its checkpoint does)."""
         total = (self.wall_before + wall if self.checkpoint is None
                  else max(self.wall_before + wall, self.checkpoint.wall_time()))
+        fixed = self._fixed
+        if fixed is None:
+            # Model, method, options and versions: the same for every orbit
+            # (a prepared run's calls share them; each result gets its own
+            # dicts, as it does of the code and the machine).
+            fixed = self._fixed = {
+                "model": self.model.describe(), "method_options": self.propagator.describe(),
+                "options": canonical({**self.options, **self.run_options}),
+                "versions": self.versions()}
         return Provenance(
-            kind=self.indicator.name, model=self.model.describe(),
+            kind=self.indicator.name, model=dict(fixed["model"]),
             x0=self.squeeze(self.x0).tolist(), method=self.method,
-            method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
-            seed=self.seed, options=canonical({**self.options, **self.run_options}),
-            versions=self.versions(), counts=dict(self.state.counts),
+            method_options=dict(fixed["method_options"]), tau=self.tau, t_end=self.t_end,
+            seed=self.seed, options=dict(fixed["options"]),
+            versions=dict(fixed["versions"]), counts=dict(self.state.counts),
             wall_time=total, tau_choice=dict(self.tau_choice),
             code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
             cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
