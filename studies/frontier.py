@@ -458,15 +458,21 @@ def main(argv=None):
             continue
         ratio = r["cpu_ratio_all"]
         floor = {f["contender"]: f["floor"] for f in floors if f["orbit"] == r["orbit"]}
-        note, ours = "", None
+
+        def unreached(group, best, floor=floor, target=r["target"]):
+            """Why there is no ratio for ``group``, or None."""
+            if floor[group] > target:
+                return f"unreachable: below varint's floor ({floor[group]:.1e})"
+            if floor["heyoka"] > target:
+                # No ratio: heyoka's own floor is above the target.
+                return (f"heyoka cannot reach it (its floor {floor['heyoka']:.1e}); varint "
+                        f"does ({best}, floor {floor[group]:.1e})")
+            return None
+
+        note, ours = "", unreached("all", r["best_run"])
         if floor["all"] > r["target"]:
-            ours = f"unreachable: below varint's floor ({floor['all']:.1e})"
             note = "below varint's floor at this horizon"
-        elif floor["heyoka"] > r["target"]:
-            # No ratio: heyoka's own floor is above the target.
-            ours = (f"heyoka cannot reach it (its floor {floor['heyoka']:.1e}); varint does "
-                    f"({r['best_run']}, floor {floor['all']:.1e})")
-        elif ratio < r["goal"]:
+        elif ours is None and ratio < r["goal"]:
             note = (f"one step's call (varint's fixed cost per call) is "
                     f"{r['overhead_share']:.0%} of varint's CPU time here; heyoka's Taylor "
                     "order rises with accuracy, a fixed-order scheme's cost grows as "
@@ -488,7 +494,8 @@ def main(argv=None):
                    f"{r['target']:g}, prepared run (varint.prepare) against heyoka's reused "
                    f"taylor_adaptive: varint ≥ {r['goal']:g}× heyoka",
                    paper="issue 27 target, as experts drive both (issue 28 item 5)",
-                   ours=ours or (f"{times(prepared)} CPU time, {times(r['ratio_prepared'])} "
+                   ours=unreached("prepared", r["best_prepared_run"])
+                   or (f"{times(prepared)} CPU time, {times(r['ratio_prepared'])} "
                                  f"wall time ({r['cpu_prepared_scheme']}; one-shot "
                                  f"{times(ratio)} CPU; one step's prepared call "
                                  f"{fmt(r['prepared_overhead_share'])} of its CPU time)"),
