@@ -176,6 +176,16 @@ def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: floa
                checkpoint=checkpoint, checkpoint_interval=checkpoint_interval)
 
 
+def _copied(obj):
+    """A copy of the JSON-like ``obj``, its dicts and lists copied at every
+    level: no result's provenance shares what another's holds."""
+    if isinstance(obj, dict):
+        return {key: _copied(value) for key, value in obj.items()}
+    if isinstance(obj, list):
+        return [_copied(value) for value in obj]
+    return obj
+
+
 def energy_scale(model, x):
     """The energy scale against which energy errors are relative, per orbit
     (:meth:`varint.models.base.Model.energy_scale`: |T| + |V| at t = 0)."""
@@ -574,16 +584,16 @@ class Run:
         if fixed is None:
             # Model, method, options and versions: the same for every orbit
             # (a prepared run's calls share them; each result gets its own
-            # dicts, as it does of the code and the machine).
+            # copies, :func:`_copied`).
             fixed = self._fixed = {
                 "model": self.model.describe(), "method_options": self.propagator.describe(),
                 "options": canonical({**self.options, **self.run_options}),
                 "versions": self.versions()}
         return Provenance(
-            kind=self.indicator.name, model=dict(fixed["model"]),
+            kind=self.indicator.name, model=_copied(fixed["model"]),
             x0=self.squeeze(self.x0).tolist(), method=self.method,
-            method_options=dict(fixed["method_options"]), tau=self.tau, t_end=self.t_end,
-            seed=self.seed, options=dict(fixed["options"]),
+            method_options=_copied(fixed["method_options"]), tau=self.tau, t_end=self.t_end,
+            seed=self.seed, options=_copied(fixed["options"]),
             versions=dict(fixed["versions"]), counts=dict(self.state.counts),
             wall_time=total, tau_choice=dict(self.tau_choice),
             code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
