@@ -283,8 +283,7 @@ class Run:
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
         # The provenance's parts that no orbit changes (:meth:`provenance`),
-        # worked out at the first result and shared by the runs
-        # :meth:`with_orbits` makes of this one.
+        # worked out once for the runs :meth:`with_orbits` makes of this one.
         self._fixed = None
 
     def with_orbits(self, spec, deviations=None):
@@ -303,6 +302,8 @@ class Run:
         """
         if self.checkpoint is not None:
             raise ValueError("a run with a checkpoint cannot be run again over other orbits")
+        if self._fixed is None:
+            self._fixed = self._fixed_provenance()     # shared by every new run
         new = copy.copy(self)
         new.spec, new.x0, new.single, new.reference = spec, spec.x0, spec.single, spec.reference
         new.options = dict(self.options)
@@ -580,24 +581,24 @@ class Run:
         time than its checkpoint does)."""
         total = (self.wall_before + wall if self.checkpoint is None
                  else max(self.wall_before + wall, self.checkpoint.wall_time()))
-        fixed = self._fixed
-        if fixed is None:
-            # Model, method, options and versions: the same for every orbit
-            # (a prepared run's calls share them; each result gets its own
-            # copies, :func:`_copied`).
-            fixed = self._fixed = {
-                "model": self.model.describe(), "method_options": self.propagator.describe(),
-                "options": canonical({**self.options, **self.run_options}),
-                "versions": self.versions()}
+        # A run over new orbits (with_orbits) copies the parts worked out
+        # once: each result gets its own (:func:`_copied`).
+        fixed = (self._fixed_provenance() if self._fixed is None
+                 else {key: _copied(value) for key, value in self._fixed.items()})
         return Provenance(
-            kind=self.indicator.name, model=_copied(fixed["model"]),
-            x0=self.squeeze(self.x0).tolist(), method=self.method,
-            method_options=_copied(fixed["method_options"]), tau=self.tau, t_end=self.t_end,
-            seed=self.seed, options=_copied(fixed["options"]),
-            versions=dict(fixed["versions"]), counts=dict(self.state.counts),
+            kind=self.indicator.name, x0=self.squeeze(self.x0).tolist(), method=self.method,
+            tau=self.tau, t_end=self.t_end, seed=self.seed, **fixed,
+            counts=dict(self.state.counts),
             wall_time=total, tau_choice=dict(self.tau_choice),
             code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
             cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
+
+    def _fixed_provenance(self):
+        """The parts of the provenance no orbit changes: the model's and the
+        method's descriptions, the options and the versions."""
+        return {"model": self.model.describe(), "method_options": self.propagator.describe(),
+                "options": canonical({**self.options, **self.run_options}),
+                "versions": self.versions()}
 
     def timing(self):
         """Seconds of this session's compilation, pilot, setup and run
