@@ -33,7 +33,9 @@ as the fixed-cost work started (main a885a59, its ``varint`` exported with
 :func:`runpy.run_path`), ``after`` this code, run right after it in the
 same load window (only figures of one window compare). Issue 28's second
 round: ``round2_before`` (main 93ccc3a, one-shot only) and
-``round2_after`` (both paths).
+``round2_after`` (both paths); its third (the prepared call's fixed cost):
+``round3_before`` (main a875246, both paths) and ``round3_after``, run
+one after the other in one load window.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared]``

@@ -266,3 +266,40 @@ def test_a_map_reports_the_fraction_of_orbits_over_the_tolerance():
         warnings.simplefilter("error", AccuracyWarning)
         fine = varint.chaos_map(model, grid, "sali", t_end=200.0, tau=0.05, progress=False)
     assert fine.accuracy.fraction_over == 0.0
+
+
+def test_the_reference_of_a_plain_model_is_its_energy_and_scale_bit_for_bit():
+    # Reference and its errors evaluate T and V once for a model whose
+    # energy is the base model's; they must equal Model.energy and
+    # Model.energy_scale to the last bit (a model with its own conserved
+    # quantities takes the general path, checked by the test above).
+    from varint.accuracy import Reference, _plain_energy
+
+    model, x0 = varint.paper_orbit("R1")
+    X = np.random.default_rng(3).normal(scale=0.3, size=(7, 4))
+    assert _plain_energy(model)
+    ref = Reference(model, X)
+    assert ref.values["energy"].tobytes() == model.energy(X).tobytes()
+    assert ref.scales["energy"].tobytes() == model.energy_scale(X).tobytes()
+    Y = X[::-1] * 1.01
+    err = ref.errors(Y)["energy_error"]
+    want = np.abs(model.energy(Y) - model.energy(X)) / model.energy_scale(X)
+    assert err.tobytes() == want.tobytes()
+
+
+def test_assess_keeps_the_worst_time_across_quantities_and_failures():
+    # Two quantities, NaN after a failure, an orbit with no finite value:
+    # the largest of each, the time of the larger one, NaN where none.
+    from varint.accuracy import assess
+
+    t = np.array([1.0, 2.0, 3.0])
+    energy = np.array([[1e-9, 3e-9, 2e-9], [1e-9, np.nan, np.nan], [np.nan] * 3])
+    other = np.array([[5e-9, 1e-9, 1e-9], [1e-10, 1e-10, np.nan], [np.nan] * 3])
+    acc = assess(t, {"energy_error": energy, "conserved_error:norm": other},
+                 np.array([0, 2, 2]), 4e-9, 0.1, False)
+    np.testing.assert_array_equal(acc.conserved["energy"], [3e-9, 1e-9, np.nan])
+    np.testing.assert_array_equal(acc.conserved["norm"], [5e-9, 1e-10, np.nan])
+    np.testing.assert_array_equal(acc.t_worst, [1.0, 1.0, np.nan])
+    np.testing.assert_array_equal(acc.accurate, [False, False, False])
+    acc = assess(t, {"energy_error": energy[:1]}, np.array([0]), 4e-9, 0.1, True)
+    assert acc.t_worst == 2.0 and acc.energy_error == 3e-9 and bool(acc.accurate)

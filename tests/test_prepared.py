@@ -156,3 +156,18 @@ def test_what_a_prepared_run_refuses_before_any_work():
         varint.prepare(model, "lyapunov", 10.0, tau=0.05, errors="ignore")
     assert "lyapunov of HenonHeiles by tm, tau=0.05, t_end=10" in repr(
         varint.prepare(model, "lyapunov", 10.0, tau=0.05))
+
+
+def test_results_of_one_prepared_run_share_no_provenance():
+    # The provenance's fixed parts are worked out once per prepared run;
+    # each result still holds its own copies, so changing one result's
+    # provenance leaves the next one's as the one-shot call's.
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "lyapunov", 1.0, tau=0.05)
+    first = run(x0)
+    first.provenance.model["inverse_mass"].append(0.0)
+    first.provenance.method_options["scheme"]["name"] = "changed"
+    first.provenance.versions["numpy"] = "changed"
+    again, alone = run(x0).provenance, varint.lyapunov_spectrum(model, x0, 1.0, tau=0.05).provenance
+    for field in ("model", "method_options", "options", "versions"):
+        assert getattr(again, field) == getattr(alone, field), field

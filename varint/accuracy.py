@@ -104,8 +104,18 @@ class Reference:
     def __init__(self, model, x0):
         self.model = model
         with np.errstate(all="ignore"):
-            values = _conserved(model, x0)
-            scale = np.asarray(model.energy_scale(x0), dtype=float)
+            if _plain_energy(model):
+                # T and V evaluated once for both (the same operations as
+                # Model.energy and Model.energy_scale, so the same bits).
+                x0 = np.asarray(x0, dtype=float)
+                n = model.n_dof
+                kinetic, potential = model.kinetic(x0[..., n:]), model.potential(x0[..., :n])
+                values = {"energy": kinetic + potential}
+                scale = np.abs(kinetic) + np.abs(potential)
+                scale = np.where(scale > 0, scale, 1.0)
+            else:
+                values = _conserved(model, x0)
+                scale = np.asarray(model.energy_scale(x0), dtype=float)
         for name, v in values.items():
             finite = np.isfinite(v)
             if not finite.all():
@@ -130,7 +140,13 @@ class Reference:
         # A failed orbit's frozen state may overflow here; its records are
         # replaced by NaN anyway, so NumPy's warnings would be noise.
         with np.errstate(all="ignore"):
-            now = _conserved(self.model, x, t, p_t)
+            if _plain_energy(self.model):
+                # Model.energy's operations, without its layers of calls.
+                x = np.asarray(x, dtype=float)
+                n = self.model.n_dof
+                now = {"energy": self.model.kinetic(x[..., n:]) + self.model.potential(x[..., :n])}
+            else:
+                now = _conserved(self.model, x, t, p_t)
             out = {}
             for name, v in now.items():
                 key = "energy_error" if name == "energy" else _PREFIX + name
@@ -139,6 +155,26 @@ class Reference:
                     v0, scale = np.tile(v0, reps), np.tile(scale, reps)
                 out[key] = np.abs(v - v0) / scale
         return out
+
+
+#: Per model class: whether its energy, energy scale and conserved
+#: quantities are the base model's (:func:`_plain_energy`).
+_PLAIN: dict = {}
+
+
+def _plain_energy(model):
+    """Whether ``model``'s energy, energy scale and conserved quantities
+    are :class:`varint.models.base.Model`'s own (H = T + V, scale
+    |T| + |V|, the energy alone) for a time-independent V: then
+    :class:`Reference` evaluates T and V once for both (a prepared run's
+    call measures its states' reference at each call)."""
+    cls = type(model)
+    plain = _PLAIN.get(cls)
+    if plain is None:
+        plain = all(getattr(getattr(cls, name, None), "__module__", None)
+                    == "varint.models.base" for name in ("energy", "energy_scale", "conserved"))
+        _PLAIN[cls] = plain
+    return plain and not getattr(model, "time_dependent", False)
 
 
 def _conserved(model, x, t=0.0, p_t=0.0):
@@ -164,6 +200,8 @@ def flag_nonfinite(state, errors, steps):
     it) as failed, at the first output step where they are: no NaN is
     passed on as a result. ``errors`` and ``steps`` have one row per orbit
     and output (output-major, as :meth:`Reference.errors`)."""
+    if all(np.isfinite(v).all() for v in errors.values()):
+        return      # the common case, in one test per quantity
     m = state.n_orbits
     steps = np.asarray(steps).reshape(-1, m)
     bad = np.zeros(steps.shape, dtype=bool)
@@ -298,27 +336,34 @@ def assess(t, errors, status, energy_tol, tau, single):
     single : bool
         Drop the orbit axis.
     """
-    conserved = {("energy" if key == "energy_error" else key[len(_PREFIX):]): np.asarray(v)
-                 for key, v in errors.items()}
     m = len(status)
     t = np.asarray(t, dtype=float)
-    largest, when = {}, np.full(m, np.nan)
-    overall = np.full(m, -np.inf)
-    for name, v in conserved.items():
-        v = v.reshape(m, -1)
+    largest = {}
+    when = overall = None       # nothing found yet: NaN and -inf
+    for key, v in errors.items():
+        name = "energy" if key == "energy_error" else key[len(_PREFIX):]
+        v = np.asarray(v).reshape(m, -1)
         if v.shape[1] == 0:
             largest[name] = np.full(m, np.nan)
             continue
         # NaN (after a failure) never wins; an orbit with only NaN keeps NaN
         # (fmax, unlike nanmax, does so without a warning).
-        largest[name] = np.fmax.reduce(v, axis=1)
+        largest[name] = big = np.fmax.reduce(v, axis=1)
         at = np.argmax(np.where(np.isnan(v), -np.inf, v), axis=1)
-        better = largest[name] > overall
+        t_at = t[at] if t.ndim == 1 else t[np.arange(m), at]
+        if overall is None:
+            # Against -inf every value but NaN is larger (errors are ≥ 0).
+            better = ~np.isnan(big)
+            when = np.where(better, t_at, np.nan)
+            overall = np.where(better, big, -np.inf)
+            continue
+        better = big > overall
         if better.any():
-            when[better] = (t[at] if t.ndim == 1 else t[np.arange(m), at])[better]
-            overall = np.where(better, largest[name], overall)
-    failed = np.asarray(status) > STATUS_OK
-    accurate = ~failed
+            when[better] = t_at[better]
+            overall = np.where(better, big, overall)
+    if when is None:
+        when = np.full(m, np.nan)
+    accurate = ~(np.asarray(status) > STATUS_OK)
     for v in largest.values():
         accurate &= v <= energy_tol           # NaN compares False: not accurate
 
@@ -360,9 +405,10 @@ def user_stacklevel():
 def warn(accuracy, method="tm", what="the run"):
     """Warn (:class:`AccuracyWarning`, at the user's line) if any orbit of
     ``accuracy`` is over its tolerance: the figure, when, and what to do."""
+    tol = accuracy.energy_tol
+    if not any((np.asarray(v) > tol).any() for v in accuracy.conserved.values()):
+        return          # (what `accuracy.over` finds, in one test per quantity)
     over = accuracy.over
-    if not over.any():
-        return
     worst = np.atleast_1d(accuracy.worst)
     m = int(np.nanargmax(np.where(over, worst, -np.inf)))
     t = float(np.atleast_1d(accuracy.t_worst)[m])

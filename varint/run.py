@@ -176,6 +176,16 @@ def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: floa
                checkpoint=checkpoint, checkpoint_interval=checkpoint_interval)
 
 
+def _copied(obj):
+    """A copy of the JSON-like ``obj``, its dicts and lists copied at every
+    level: no result's provenance shares what another's holds."""
+    if isinstance(obj, dict):
+        return {key: _copied(value) for key, value in obj.items()}
+    if isinstance(obj, list):
+        return [_copied(value) for value in obj]
+    return obj
+
+
 def energy_scale(model, x):
     """The energy scale against which energy errors are relative, per orbit
     (:meth:`varint.models.base.Model.energy_scale`: |T| + |V| at t = 0)."""
@@ -272,6 +282,9 @@ class Run:
         self.cpu_session = 0.0
         self.energy0 = self.reference.values["energy"]
         self.energy_scale = self.reference.scales["energy"]
+        # The provenance's parts that no orbit changes (:meth:`provenance`),
+        # worked out once for the runs :meth:`with_orbits` makes of this one.
+        self._fixed = None
 
     def with_orbits(self, spec, deviations=None):
         """A new run of this run's setup over other orbits, nothing that
@@ -289,6 +302,8 @@ class Run:
         """
         if self.checkpoint is not None:
             raise ValueError("a run with a checkpoint cannot be run again over other orbits")
+        if self._fixed is None:
+            self._fixed = self._fixed_provenance()     # shared by every new run
         new = copy.copy(self)
         new.spec, new.x0, new.single, new.reference = spec, spec.x0, spec.single, spec.reference
         new.options = dict(self.options)
@@ -566,15 +581,24 @@ class Run:
         time than its checkpoint does)."""
         total = (self.wall_before + wall if self.checkpoint is None
                  else max(self.wall_before + wall, self.checkpoint.wall_time()))
+        # A run over new orbits (with_orbits) copies the parts worked out
+        # once: each result gets its own (:func:`_copied`).
+        fixed = (self._fixed_provenance() if self._fixed is None
+                 else {key: _copied(value) for key, value in self._fixed.items()})
         return Provenance(
-            kind=self.indicator.name, model=self.model.describe(),
-            x0=self.squeeze(self.x0).tolist(), method=self.method,
-            method_options=self.propagator.describe(), tau=self.tau, t_end=self.t_end,
-            seed=self.seed, options=canonical({**self.options, **self.run_options}),
-            versions=self.versions(), counts=dict(self.state.counts),
+            kind=self.indicator.name, x0=self.squeeze(self.x0).tolist(), method=self.method,
+            tau=self.tau, t_end=self.t_end, seed=self.seed, **fixed,
+            counts=dict(self.state.counts),
             wall_time=total, tau_choice=dict(self.tau_choice),
             code=dict(self.code), machine=dict(self.machine), timing=self.timing(),
             cpu_time=None if self.cpu_before is None else self.cpu_before + self.cpu_session)
+
+    def _fixed_provenance(self):
+        """The parts of the provenance no orbit changes: the model's and the
+        method's descriptions, the options and the versions."""
+        return {"model": self.model.describe(), "method_options": self.propagator.describe(),
+                "options": canonical({**self.options, **self.run_options}),
+                "versions": self.versions()}
 
     def timing(self):
         """Seconds of this session's compilation, pilot, setup and run

@@ -194,12 +194,18 @@ class RunState:
         it), move the clock on by ``n``, and add the per-orbit ``counters``
         (M, len(names)) to :attr:`counts`."""
         failed = was_active & (self.status != 0)
-        self.fail_step[failed] = self.step + done[failed] + 1
+        n_failed = int(np.count_nonzero(failed))
+        if n_failed:
+            self.fail_step[failed] = self.step + done[failed] + 1
         self.step += int(n)
         # Some kernels (the TDH methods) keep spare counter columns beyond
-        # the named ones: only the named columns are counts.
-        self.add_counts(steps=done[was_active].sum() + failed.sum(),
-                        **dict(zip(names, counters.sum(axis=0), strict=False)))
+        # the named ones: only the named columns are counts (summed as
+        # Python ints, one conversion for all).
+        counts = self.counts
+        for key, value in zip(("steps", *names),
+                              (int(done[was_active].sum()) + n_failed,
+                               *counters.sum(axis=0).tolist()), strict=False):
+            counts[key] = counts.get(key, 0) + int(value)
 
 
 @dataclass
