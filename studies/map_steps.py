@@ -106,7 +106,7 @@ from varint.indicators import resolve
 from varint.maps import MAP_SCHEME, pilot_tolerance
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 
-PARTS = ("profile", "race", "fixed")
+PARTS = ("profile", "race", "fixed", "log")
 CASES = ("cr3bp", "core")
 INDICATOR = "fli"
 REPEATS = 3
@@ -115,6 +115,13 @@ SAMPLE = 16
 BATCH, EVERY, TOLS, REF_TOL, REF_EVERY = 8, 10.0, (1e-6, 1e-8, 1e-10, 1e-12), 1e-15, 1.0
 #: The fixed steps of part "fixed".
 FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
+#: The LH contenders of part "log": per map, (scheme, fictitious step h,
+#: offset δ of C = E + δ; None: the rule of varint.time_transform).
+LOG_CONTENDERS = {
+    "cr3bp": [(s, h, None) for s in ("ABA864", "SRKN14a") for h in (1.6, 0.8, 0.4)],
+    "core": [(s, h, off) for s in ("SBAB2", "ABA864") for h in (0.1, 0.05, 0.025)
+             for off in (None, 0.25)],
+}
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8
 
@@ -334,6 +341,62 @@ def fixed_case(name, quick, repeats):
     return rows
 
 
+def log_case(name, quick, repeats):
+    """The logarithmic-Hamiltonian steps (:mod:`varint.time_transform`,
+    ``LOG_CONTENDERS``) against heyoka batch 8 at every tolerance and
+    varint's defaults, one thread each, interleaved, the minimum of the
+    repeats; FLI as heyoka's driver computes it (sup of ln‖w‖ at the
+    normalisations every 10 time units)."""
+    from varint.time_transform import LogHamiltonian
+
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    W0, truth, threshold, rule = reference(model, X, t_end)
+    tasks, counts = {}, {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False)   # compiles
+        tasks["varint defaults"] = lambda: varint.chaos_map(model, grid, INDICATOR,
+                                                            t_end=t_end, progress=False)
+        for scheme, h, offset in LOG_CONTENDERS[name]:
+            lh = LogHamiltonian(model, scheme, offset=offset)
+            label = f"varint LH {scheme}, h {h:g}, offset {offset}"
+
+            def go(lh=lh, h=h, label=label):
+                values, c, _ = lh.fli(X, W0[:, :, 0], t_end, h, every=EVERY)
+                counts[label] = c
+                return values
+
+            go()   # compiles, untimed
+            tasks[label] = go
+        for tol in TOLS:
+            hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, tol, every=EVERY)
+            tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = lambda hm=hm: hm.run(X, W0, t_end)
+        best, outs = interleaved(tasks, repeats)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    rows = []
+    for label, seconds in best.items():
+        out = outs[label]
+        values = np.asarray(out.values if hasattr(out, "values") else out)
+        row = {"map": name, "contender": label, "seconds": seconds,
+               "agreement": agreement(INDICATOR, values, truth, threshold),
+               "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+        if label in counts:
+            c = counts[label]
+            row["steps"] = int(c[:, 0].sum() + c[:, 1].sum())
+            row["steps_per_orbit"] = row["steps"] / len(X)
+            row["tail_steps"] = int(c[:, 1].sum())
+            row["us_per_step"] = 1e6 * seconds / row["steps"]
+        elif hasattr(out, "provenance"):
+            row["steps"] = out.provenance.counts["steps"]
+            row["steps_per_orbit"] = row["steps"] / len(X)
+        rows.append(row)
+    summary = {label: _equal_agreement(rows, label) for label in tasks
+               if label.startswith("varint")}
+    return rows, summary
+
+
 def _equal_agreement(rows, label):
     """``label``'s time against the cheapest heyoka tolerance whose agreement
     reaches its own (or the most accurate heyoka, if none does), as
@@ -393,6 +456,21 @@ def main(argv=None):
         save_csv(args.out, f"{name}_fixed", rows,
                  ["map", "contender", "seconds", "ratio_to_heyoka", "agreement", "orbits", "t_end"])
         result["fixed"] = {"rows": rows, "load": start, "load_end": load()}
+    if "log" in parts:
+        start = load()
+        rows, summary = [], {}
+        for c in cases:
+            r, sm = log_case(c, args.quick, args.repeats)
+            rows += r
+            summary[c] = sm
+            for row in r:
+                print(f"{c}: {row['contender']}: {row['seconds']:.4g} s, agreement "
+                      f"{row['agreement']:.4f}, steps/orbit {row.get('steps_per_orbit')}, "
+                      f"ratio {sm.get(row['contender'], {}).get('ratio')}", flush=True)
+        save_csv(args.out, f"{name}_log", rows,
+                 ["map", "contender", "seconds", "agreement", "steps", "steps_per_orbit",
+                  "tail_steps", "us_per_step", "orbits", "t_end"])
+        result["log"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     for part in parts:
         save_json(args.out, f"{name}_{part}", {"quick": args.quick, part: result[part]})
     return result

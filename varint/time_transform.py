@@ -10,10 +10,11 @@ dt/ds = 1/U(q), U = C − V(q): where the orbit falls deep into the potential
 (a near-singular core, a close passage by a primary) the physical steps
 shrink in proportion to 1/U.
 
-The constant C is chosen once per orbit from its energy E: C = E + δ, with
-δ = −E for a bound orbit of a potential that vanishes far away (E < 0: C = 0
-and U = −V, the classical LH of Mikkola & Tanikawa) and δ = 1 otherwise, in
-the model's energy units (δ = ``offset`` always, when it is given). The ratio of the physical
+The constant C is chosen once per orbit from its energy E: C = E + δ with
+δ = max(−E, 1) in the model's energy units (δ = ``offset`` when it is
+given): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
+potential that vanishes far away, for orbits bound below E = −1, and U ≥ 1
+otherwise. The ratio of the physical
 steps at two points of an orbit is the inverse ratio of U there, so a small δ
 adapts strongly. For a kinetic A ≥ 0, V ≤ E on the orbit and U ≥ δ > 0; for a
 rotating frame A is not positive and a kick that finds U ≤ 0 stops the orbit
@@ -194,9 +195,7 @@ class LogHamiltonian:
     def constants(self, X):
         """C of every orbit of ``X`` (module docstring)."""
         E = self.energy(X)
-        if self.offset is not None:
-            return E + self.offset
-        return np.where(E < 0.0, 0.0, E + 1.0)
+        return E + (np.maximum(-E, 1.0) if self.offset is None else self.offset)
 
     # -- runs --------------------------------------------------------------------------
     def advance(self, X, W, t_end, h, t0=0.0, C=None, pt=None, max_steps=MAX_STEPS):
@@ -226,9 +225,10 @@ class LogHamiltonian:
                         np.array(C, dtype=float), np.array(pt, dtype=float))
 
     def fli(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
-        """ln‖w(t_end)‖ of every orbit (normalised every ``every``) and the
-        per-orbit counts [LH steps, tail steps, gradients]; raises on an
-        orbit that stopped early, naming it and why."""
+        """The FLI sup ln‖w‖ of every orbit over the multiples of ``every``
+        (where the vector is normalised) and t_end, the per-orbit counts
+        [LH steps, tail steps, gradients] and status (:func:`describe`
+        says why an orbit stopped; its FLI is NaN)."""
         X, W0, t_end, h = _checked(X, W0[..., None], t_end, h)
         C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), len(X))
         M = len(X)
@@ -238,10 +238,8 @@ class LogHamiltonian:
         self.fli_kernel(X, np.ascontiguousarray(W0[..., 0]), pt, np.ascontiguousarray(C),
                         self.kinds, self.coef, h, t_end, float(every), max_steps, self.par,
                         out, status, counts)
-        bad = np.flatnonzero(status)
-        if bad.size:
-            raise RuntimeError(f"orbit {bad[0]} stopped early: {describe(status[bad[0]])}")
-        return out, counts
+        out[status != 0] = np.nan   # nothing computed is passed off as a value
+        return out, counts, status
 
 
 def describe(status):

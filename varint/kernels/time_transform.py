@@ -253,10 +253,10 @@ def lh_kernels(flow, kinetic, potential):
 
     @njit(error_model="numpy")
     def fli(X, W0, pt, C, kinds, coef, h, t_end, every, max_steps, par, out, status, counts):
-        """ln‖w(t_end)‖ of every orbit ``X[m]`` (M, 2N) from the vector
-        ``W0[m]`` (M, 2N) (the fast Lyapunov indicator as its final value,
-        Froeschlé, Lega & Gonczi 1997), normalising at every multiple of
-        ``every``; ``pt`` (M,) = −E and ``C`` (M,) per orbit; ``out`` (M,),
+        """The fast Lyapunov indicator sup ln‖w(t)‖ over t = 0 and the
+        multiples of ``every`` up to ``t_end`` (where the vector is
+        normalised; Froeschlé, Lega & Gonczi 1997) of every orbit ``X[m]``
+        (M, 2N) from the vector ``W0[m]`` (M, 2N); ``pt`` (M,) = −E and ``C`` (M,) per orbit; ``out`` (M,),
         ``status`` (M,), ``counts`` (M, 3) receive the results."""
         M, d = X.shape
         for m in range(M):
@@ -265,7 +265,7 @@ def lh_kernels(flow, kinetic, potential):
             V[0, :] = W0[m]
             dt = np.zeros(1)
             clock = np.array([0.0, pt[m] + C[m]])
-            acc = 0.0
+            acc = best = 0.0
             j = 0
             st = _OK
             while clock[0] < t_end and st == _OK:
@@ -278,9 +278,10 @@ def lh_kernels(flow, kinetic, potential):
                     norm += V[0, i] * V[0, i]
                 norm = math.sqrt(norm)
                 acc += math.log(norm)
+                best = max(best, acc)
                 for i in range(d):
                     V[0, i] /= norm
-            out[m] = acc
+            out[m] = best
             status[m] = st
 
     return advance, step, project, fli
