@@ -57,6 +57,18 @@ Parts (``--part``):
     (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
     interleaved as in ``race``.
 
+``log``
+    The logarithmic-Hamiltonian time transformation
+    (:mod:`varint.time_transform`; issue 27 item 4b): steps uniform in a
+    fictitious time, dt/ds = 1/U(q), U = C − V, so short near the core and
+    the primaries. Contenders ``LOG_CONTENDERS`` (scheme, fictitious step h,
+    offset δ of C = E + δ) against heyoka batch 8 at every tolerance of
+    ``race`` and varint's defaults, interleaved as there; each LH row keeps
+    its steps per orbit (LH steps + the physical-time tail that lands on
+    each normalisation time) and microseconds per step. The LH step is the
+    generic numba kernel, not a generated stepper, and has no automatic h:
+    the rows are the race of fixed h (the "tuned" contenders of the issue).
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
@@ -74,9 +86,9 @@ What is left: steps (5 660 per orbit on average to t = 500 at the pilot's
 step for the map's energy tolerance, 14 kicks each of SRKN14a) — 3×
 heyoka needs the map in ~0.5 s, ~16× less than now.
 
-Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
-[--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
-``--quick``).
+Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed,log]
+[--case cr3bp,core] [--repeats N]``; results ``map_steps_{profile,race,fixed,log}.json``
+(``map_steps_quick_*`` with ``--quick``).
 State the machine load (recorded in the JSON) with every figure.
 """
 
@@ -118,9 +130,11 @@ FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
 #: The LH contenders of part "log": per map, (scheme, fictitious step h,
 #: offset δ of C = E + δ; None: the rule of varint.time_transform).
 LOG_CONTENDERS = {
-    "cr3bp": [(s, h, None) for s in ("ABA864", "SRKN14a") for h in (1.6, 0.8, 0.4)],
-    "core": [(s, h, off) for s in ("SBAB2", "ABA864") for h in (0.1, 0.05, 0.025)
-             for off in (None, 0.25)],
+    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 1.6, 0.8)]
+    + [("SRKN14a", h, None) for h in (3.2, 1.6)],
+    "core": [("SBAB2", 0.05, None)]
+    + [("SBAB2", h, off) for h in (0.1, 0.05) for off in (0.25, 0.1, 0.05)]
+    + [("ABA864", h, off) for h in (0.2, 0.1) for off in (0.25, 0.1)],
 }
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8

@@ -40,8 +40,9 @@ import numpy as np
 import sympy as sp  # type: ignore[import-untyped]
 
 from . import codecache
-from .flows.split import planar_flow
+from .flows.split import planar_flow, planar_params
 from .kernels.time_transform import BUDGET, U_NOT_POSITIVE, free_flow, lh_kernels
+from .models.symbolic import KernelPrinter, _assignments
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
@@ -96,8 +97,6 @@ def _symbolic_parts(model):
     if structure == "integrable":
         s = model.symbolic()
         pl = model.planar
-        from .flows.split import planar_params
-
         par = planar_params(model.n_dof, pl["plane"], pl["a"], pl["b"], pl["omega"],
                             pl["others"])
         return s.A, s.V, tuple(s.q), tuple(s.p), planar_flow, par
@@ -115,8 +114,6 @@ def _symbolic_parts(model):
 
 def _source(A, V, q, p):
     """Source of ``kinetic(x, gA) -> A`` and ``potential(q, gV, HV, hess) -> V``."""
-    from .models.symbolic import KernelPrinter, _assignments
-
     n = len(q)
     xs = (*q, *p)
     printer = KernelPrinter()
