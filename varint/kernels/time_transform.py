@@ -21,12 +21,16 @@ long where it is small. Both parts of Γ have exact flows:
 So every two-part scheme and its order apply unchanged (Mikkola & Tanikawa
 1999, Sect. 2; Preto & Tremaine 1999, eqs. 12–16). p_t is conserved.
 
-Tangent map. Deviations (δq, δp) with δp_t = 0 and δt carried per vector
-(``dt``; t is cyclic, so δt never feeds back into δq, δp). Each flow is
-its fixed-length map plus a rank-one term from the state dependence of its
-length:
+Tangent map. Deviations (δq, δp) with δt carried per vector (``dt``; t is
+cyclic, so δt never feeds back into δq, δp) and δp_t = −∇H(x)·δx, set when
+a run starts from the vectors it is given: Γ's flow is H's only on the
+shell Γ = 0, p_t = −H, so a deviation must stay on it (with δp_t = 0 the
+off-shell flow scales the forces by (A + p_t + C)/U and the vectors are
+those of another flow). δp_t is conserved. Each flow is its fixed-length map
+plus a rank-one term from the state dependence of its length:
 
-* drift: δx' = Dφ_A(τ) δx + f_A(x') δτ, δτ = −(τ/W) ∇A(x)·δx, δt' = δt + δτ,
+* drift: δx' = Dφ_A(τ) δx + f_A(x') δτ, δτ = −(τ/W)(∇A(x)·δx + δp_t),
+  δt' = δt + δτ,
   with f_A = J∇A (A's vector field) at the end point;
 * kick: δp' = δp − (h/U) D²V δq − (h/U²) ∇V (∇V·δq) (a symmetric term: the
   kick stays symplectic).
@@ -104,9 +108,10 @@ def lh_kernels(flow, kinetic, potential):
     :class:`~varint.protocol.Status`, :data:`U_NOT_POSITIVE` or
     :data:`BUDGET`, with the state of the last completed step.
 
-    ``step(x, V, dt, clock, kinds, coef, h, par, log, C, counts, gA, gV,
-    HV, dtau) -> status`` is one step (``log``: LH; else the ordinary step
-    of length ``h``; the last four are scratch: (2N,), (N,), (N, N), (k,)).
+    ``step(x, V, dt, dpt, clock, kinds, coef, h, par, log, C, counts, gA,
+    gV, HV, dtau) -> status`` is one step (``dpt`` (k,): the vectors'
+    δp_t; ``log``: LH, else the ordinary step of length ``h``; the last
+    four are scratch: (2N,), (N,), (N, N), (k,)).
 
     ``project(x, V, dt, par, gA, gV, HV)`` turns the vectors into
     physical-time deviations: δx ← δx − f_H(x) δt, δt ← 0.
@@ -116,7 +121,7 @@ def lh_kernels(flow, kinetic, potential):
     """
 
     @njit(error_model="numpy")
-    def drift(hs, x, V, dt, k, clock, par, gA, dtau, log):
+    def drift(hs, x, V, dt, dpt, k, clock, par, gA, dtau, log):
         if not log:
             flow(hs, x, V, k, par)
             clock[0] += hs
@@ -126,7 +131,7 @@ def lh_kernels(flow, kinetic, potential):
         W = kinetic(x, gA) + clock[1]
         tau = hs / W
         for c in range(k):
-            s = 0.0
+            s = dpt[c]   # δW = ∇A·δx + δp_t
             for i in range(d):
                 s += gA[i] * V[c, i]
             dtau[c] = -(tau / W) * s
@@ -142,14 +147,14 @@ def lh_kernels(flow, kinetic, potential):
             dt[c] += dtau[c]
 
     @njit(error_model="numpy")
-    def step(x, V, dt, clock, kinds, coef, h, par, log, C, counts, gA, gV, HV, dtau):
+    def step(x, V, dt, dpt, clock, kinds, coef, h, par, log, C, counts, gA, gV, HV, dtau):
         d = x.shape[0]
         n = d // 2
         k = V.shape[0]
         for st in range(kinds.shape[0]):
             hs = coef[st] * h
             if kinds[st] == 0:
-                drift(hs, x, V, dt, k, clock, par, gA, dtau, log)
+                drift(hs, x, V, dt, dpt, k, clock, par, gA, dtau, log)
                 continue
             v = potential(x[:n], gV, HV, k > 0)
             counts[2] += 1
@@ -205,6 +210,16 @@ def lh_kernels(flow, kinetic, potential):
         k = V.shape[0]
         gA, gV, HV = np.empty(d), np.empty(n), np.empty((n, n))
         dtau = np.empty(k)
+        # Each vector stays on the energy shell: δp_t = −∇H(x)·δx, constant.
+        dpt = np.zeros(k)
+        if k > 0:
+            kinetic(x, gA)
+            potential(x[:n], gV, HV, False)
+            for c in range(k):
+                s = 0.0
+                for i in range(n):
+                    s += (gA[i] + gV[i]) * V[c, i] + gA[n + i] * V[c, n + i]
+                dpt[c] = -s
         x0, V0, dt0, c0 = x.copy(), V.copy(), dt.copy(), clock.copy()
         last = 0.0
         steps = 0
@@ -216,8 +231,8 @@ def lh_kernels(flow, kinetic, potential):
             V0[:, :] = V
             dt0[:] = dt
             c0[:] = clock
-            status = step(x, V, dt, clock, kinds, coef, h, par, True, C, counts, gA, gV, HV,
-                          dtau)
+            status = step(x, V, dt, dpt, clock, kinds, coef, h, par, True, C, counts, gA, gV,
+                          HV, dtau)
             if status != _OK:
                 x[:] = x0
                 V[:, :] = V0
@@ -243,8 +258,8 @@ def lh_kernels(flow, kinetic, potential):
         m = max(1, int(math.ceil(rest / last)))
         tau = rest / m
         for _ in range(m):
-            status = step(x, V, dt, clock, kinds, coef, tau, par, False, C, counts, gA, gV,
-                          HV, dtau)
+            status = step(x, V, dt, dpt, clock, kinds, coef, tau, par, False, C, counts, gA,
+                          gV, HV, dtau)
             if status != _OK:
                 return status
             counts[1] += 1
