@@ -139,7 +139,7 @@ def test_vectors_are_physical_time_deviations(plummer):
     # Each perturbed orbit lands through its own tail: the maps differ at
     # the integration error, not round-off. Without the projection δx −
     # f_H δt the difference would be of the order of f_H δt.
-    assert np.abs(J - r.W[0]).max() < 1e-7 * np.abs(r.W[0]).max()   # measured 2e-9
+    assert np.abs(J - r.W[0]).max() < 1e-7 * np.abs(r.W[0]).max()   # measured 1e-9
 
 
 def test_resume_from_an_output_repeats_the_bits(plummer, tmp_path):
