@@ -68,13 +68,15 @@ Parts (``--part``):
     each normalisation time) and microseconds per step. The LH step is the
     generic numba kernel, not a generated stepper, and has no automatic h:
     the rows are the race of fixed h (the "tuned" contenders of the issue).
-    Quick maps, load 8–11 (``map_steps_quick_log.json``), at 100 %
-    agreement: CR3BP ABA864 h = 1.6 0.95× (197 steps per orbit; defaults
-    0.18×, 1 600), h = 6.4 2.36× but at 98.7 % (one borderline orbit of 76);
-    cored SBAB2 h = 0.05, δ = 0.25 0.55× (3 001; defaults 0.045×, 30 444).
-    Targets 3× and 1× not met: the LH step costs 4–5 µs on the three-body
-    problem (a rotating-frame drift of state-dependent length needs its sine
-    and cosine every drift) and δ ≤ 0.1 is unstable on the cored potential.
+    Quick maps, load 8–10 (``map_steps_quick_log.json``): CR3BP ABA864
+    h = 1.6 0.93× at 100 % agreement (197 steps per orbit; defaults 0.19×,
+    1 600), h = 6.4 2.8× at 98.7 % (68; one orbit of 76 missed); cored
+    ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 % (1 504; defaults 0.047×,
+    30 444), no LH row at 100 %. Targets 3× and 1× not met: the LH step is
+    the generic kernel (4–5 µs a step on the three-body problem, whose
+    rotating-frame drift of state-dependent length needs a sine and cosine
+    every drift), and on the cored potential δ ≤ 0.1 (a run before this one,
+    same driver) lost most orbits.
 
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
