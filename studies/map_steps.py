@@ -57,6 +57,27 @@ Parts (``--part``):
     (order 2), ABA864 (order 4) and SRKN14a (order 6) against heyoka at tol 1e-6,
     interleaved as in ``race``.
 
+``log``
+    The logarithmic-Hamiltonian time transformation
+    (:mod:`varint.time_transform`; issue 27 item 4b): steps uniform in a
+    fictitious time, dt/ds = 1/U(q), U = C − V, so short near the core and
+    the primaries. Contenders ``LOG_CONTENDERS`` (scheme, fictitious step h,
+    offset δ of C = E + δ) against heyoka batch 8 at every tolerance of
+    ``race`` and varint's defaults, interleaved as there; each LH row keeps
+    its steps per orbit (LH steps + the physical-time tail that lands on
+    each normalisation time) and microseconds per step. The LH step is the
+    generic numba kernel, not a generated stepper, and has no automatic h:
+    the rows are the race of fixed h (the "tuned" contenders of the issue).
+    Quick maps, load 8–10 (``map_steps_quick_log.json``): CR3BP ABA864
+    h = 1.6 0.93× at 100 % agreement (197 steps per orbit; defaults 0.19×,
+    1 600), h = 6.4 2.8× at 98.7 % (68; one orbit of 76 missed); cored
+    ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 % (1 504; defaults 0.047×,
+    30 444), no LH row at 100 %. Targets 3× and 1× not met: the LH step is
+    the generic kernel (4–5 µs a step on the three-body problem, whose
+    rotating-frame drift of state-dependent length needs a sine and cosine
+    every drift), and on the cored potential δ ≤ 0.1 (a run before this one,
+    same driver) lost most orbits.
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
@@ -74,9 +95,9 @@ What is left: steps (5 660 per orbit on average to t = 500 at the pilot's
 step for the map's energy tolerance, 14 kicks each of SRKN14a) — 3×
 heyoka needs the map in ~0.5 s, ~16× less than now.
 
-Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed] [--case cr3bp,core]
-[--repeats N]``; results ``map_steps_{profile,race,fixed}.json`` (``map_steps_quick_*`` with
-``--quick``).
+Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed,log]
+[--case cr3bp,core] [--repeats N]``; results ``map_steps_{profile,race,fixed,log}.json``
+(``map_steps_quick_*`` with ``--quick``).
 State the machine load (recorded in the JSON) with every figure.
 """
 
@@ -106,7 +127,7 @@ from varint.indicators import resolve
 from varint.maps import MAP_SCHEME, pilot_tolerance
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 
-PARTS = ("profile", "race", "fixed")
+PARTS = ("profile", "race", "fixed", "log")
 CASES = ("cr3bp", "core")
 INDICATOR = "fli"
 REPEATS = 3
@@ -115,6 +136,13 @@ SAMPLE = 16
 BATCH, EVERY, TOLS, REF_TOL, REF_EVERY = 8, 10.0, (1e-6, 1e-8, 1e-10, 1e-12), 1e-15, 1.0
 #: The fixed steps of part "fixed".
 FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
+#: The LH contenders of part "log": per map, (scheme, fictitious step h,
+#: offset δ of C = E + δ; None: the rule of varint.time_transform).
+LOG_CONTENDERS = {
+    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 1.6, 0.8)] + [("SRKN14a", 3.2, None)],
+    "core": [("SBAB2", h, off) for h in (0.1, 0.05) for off in (None, 0.25)]
+    + [("ABA864", h, 0.25) for h in (0.2, 0.1)],
+}
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8
 
@@ -334,6 +362,62 @@ def fixed_case(name, quick, repeats):
     return rows
 
 
+def log_case(name, quick, repeats):
+    """The logarithmic-Hamiltonian steps (:mod:`varint.time_transform`,
+    ``LOG_CONTENDERS``) against heyoka batch 8 at every tolerance and
+    varint's defaults, one thread each, interleaved, the minimum of the
+    repeats; FLI as heyoka's driver computes it (sup of ln‖w‖ at the
+    normalisations every 10 time units)."""
+    from varint.time_transform import LogHamiltonian
+
+    model, grid, t_end = case(name, quick)
+    X = grid.states
+    numba.set_num_threads(1)
+    W0, truth, threshold, rule = reference(model, X, t_end)
+    tasks, counts = {}, {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False)   # compiles
+        tasks["varint defaults"] = lambda: varint.chaos_map(model, grid, INDICATOR,
+                                                            t_end=t_end, progress=False)
+        for scheme, h, offset in LOG_CONTENDERS[name]:
+            lh = LogHamiltonian(model, scheme, offset=offset)
+            label = f"varint LH {scheme}, h {h:g}, offset {offset}"
+
+            def go(lh=lh, h=h, label=label):
+                values, c, _ = lh.fli(X, W0[:, :, 0], t_end, h, every=EVERY)
+                counts[label] = c
+                return values
+
+            go()   # compiles, untimed
+            tasks[label] = go
+        for tol in TOLS:
+            hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, tol, every=EVERY)
+            tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = lambda hm=hm: hm.run(X, W0, t_end)
+        best, outs = interleaved(tasks, repeats)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    rows = []
+    for label, seconds in best.items():
+        out = outs[label]
+        values = np.asarray(out.values if hasattr(out, "values") else out)
+        row = {"map": name, "contender": label, "seconds": seconds,
+               "agreement": agreement(INDICATOR, values, truth, threshold),
+               "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+        if label in counts:
+            c = counts[label]
+            row["steps"] = int(c[:, 0].sum() + c[:, 1].sum())
+            row["steps_per_orbit"] = row["steps"] / len(X)
+            row["tail_steps"] = int(c[:, 1].sum())
+            row["us_per_step"] = 1e6 * seconds / row["steps"]
+        elif hasattr(out, "provenance"):
+            row["steps"] = out.provenance.counts["steps"]
+            row["steps_per_orbit"] = row["steps"] / len(X)
+        rows.append(row)
+    summary = {label: _equal_agreement(rows, label) for label in tasks
+               if label.startswith("varint")}
+    return rows, summary
+
+
 def _equal_agreement(rows, label):
     """``label``'s time against the cheapest heyoka tolerance whose agreement
     reaches its own (or the most accurate heyoka, if none does), as
@@ -393,6 +477,21 @@ def main(argv=None):
         save_csv(args.out, f"{name}_fixed", rows,
                  ["map", "contender", "seconds", "ratio_to_heyoka", "agreement", "orbits", "t_end"])
         result["fixed"] = {"rows": rows, "load": start, "load_end": load()}
+    if "log" in parts:
+        start = load()
+        rows, summary = [], {}
+        for c in cases:
+            r, sm = log_case(c, args.quick, args.repeats)
+            rows += r
+            summary[c] = sm
+            for row in r:
+                print(f"{c}: {row['contender']}: {row['seconds']:.4g} s, agreement "
+                      f"{row['agreement']:.4f}, steps/orbit {row.get('steps_per_orbit')}, "
+                      f"ratio {sm.get(row['contender'], {}).get('ratio')}", flush=True)
+        save_csv(args.out, f"{name}_log", rows,
+                 ["map", "contender", "seconds", "agreement", "steps", "steps_per_orbit",
+                  "tail_steps", "us_per_step", "orbits", "t_end"])
+        result["log"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     for part in parts:
         save_json(args.out, f"{name}_{part}", {"quick": args.quick, part: result[part]})
     return result

@@ -1,0 +1,265 @@
+"""Steps that follow the orbit: the logarithmic-Hamiltonian time
+transformation of the TM method (Mikkola & Tanikawa 1999; Preto & Tremaine
+1999), for H = A(q, p) + V(q) with A's flow exact.
+
+:class:`LogHamiltonian` builds the compiled LH stepper of a model
+(:mod:`varint.kernels.time_transform`: the step, its exact tangent map, the
+landing on physical output times) and runs orbits with their deviation
+vectors to a physical time. Steps are uniform in the fictitious time s,
+dt/ds = 1/U(q), U = C − V(q): where the orbit falls deep into the potential
+(a near-singular core, a close passage by a primary) the physical steps
+shrink in proportion to 1/U.
+
+The constant C is chosen once per orbit from its energy E: C = E + δ with
+δ = max(−E, 1) in the model's energy units (δ = ``offset`` when it is
+given): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
+potential that vanishes far away, for orbits bound below E = −1, and U ≥ 1
+otherwise. The ratio of the physical
+steps at two points of an orbit is the inverse ratio of U there, so a small δ
+adapts strongly. For a kinetic A ≥ 0, V ≤ E on the orbit and U ≥ δ > 0; for a
+rotating frame A is not positive and a kick that finds U ≤ 0 stops the orbit
+with a message naming C.
+
+Indicators read physical time: every output's vectors are the deviations at
+equal physical time (δt projected out, see the kernel module), and the
+state lands on each output time exactly.
+
+References
+----------
+S. Mikkola & K. Tanikawa, MNRAS 310, 745 (1999).
+H. Preto & S. Tremaine, AJ 118, 2532 (1999).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp  # type: ignore[import-untyped]
+
+from . import codecache
+from .flows.split import planar_flow, planar_params
+from .kernels.time_transform import BUDGET, U_NOT_POSITIVE, free_flow, lh_kernels
+from .models.symbolic import KernelPrinter, _assignments
+from .protocol import Status
+from .schemes import DRIFT, get_scheme, stage_arrays
+
+__all__ = ["LogHamiltonian", "LHResult", "TIME_TRANSFORMS"]
+
+#: The values of ``time_transform``.
+TIME_TRANSFORMS = ("log",)
+
+#: Steps one output interval may take before the orbit is stopped.
+MAX_STEPS = 10_000_000
+
+
+@dataclass(frozen=True)
+class LHResult:
+    """Orbits moved to a physical time by :meth:`LogHamiltonian.advance`.
+
+    Attributes
+    ----------
+    x : ndarray (M, 2N)
+        The orbits at ``t``.
+    W : ndarray (M, 2N, k)
+        Their deviation vectors at equal physical time.
+    t : ndarray (M,)
+        The physical time reached (``t_end`` unless ``status`` says why not).
+    status : ndarray (M,)
+        0, a :class:`~varint.protocol.Status`, or −1 (U ≤ 0: C too low),
+        −2 (the step budget ran out).
+    steps, tail_steps, gradients : ndarray (M,)
+        LH steps, physical-time tail steps and force evaluations.
+    C, pt : ndarray (M,)
+        Each orbit's constant of U = C − V and its momentum conjugate to
+        time, p_t = −E at the start (conserved: part of the state, which a
+        resumed run must be given back, not recompute from x).
+    """
+
+    x: np.ndarray
+    W: np.ndarray
+    t: np.ndarray
+    status: np.ndarray
+    steps: np.ndarray
+    tail_steps: np.ndarray
+    gradients: np.ndarray
+    C: np.ndarray
+    pt: np.ndarray
+
+
+def _symbolic_parts(model):
+    """(A, V, q, p, flow, par) of ``model``: A(q, p) and V(q) as SymPy in
+    the symbols q, p, A's exact flow kernel and its parameters; a one-line
+    ``ValueError`` for a model of another form."""
+    structure = getattr(model, "structure", None)
+    if structure == "integrable":
+        s = model.symbolic()
+        pl = model.planar
+        par = planar_params(model.n_dof, pl["plane"], pl["a"], pl["b"], pl["omega"],
+                            pl["others"])
+        return s.A, s.V, tuple(s.q), tuple(s.p), planar_flow, par
+    s = model.symbolic() if callable(getattr(model, "symbolic", None)) else None
+    if structure is None and hasattr(s, "inverse_mass") and s.time is None:
+        q = tuple(s.q)
+        p = sp.symbols(f"p_0:{len(q)}")
+        A = sum((m * pi**2 / 2 for m, pi in zip(s.inverse_mass, p, strict=True)), sp.Integer(0))
+        par = np.array([float(m) for m in s.inverse_mass])
+        return A, s.V, q, p, free_flow, par
+    raise ValueError(f"time_transform='log' needs an autonomous H = ½pᵀM⁻¹p + V(q) from "
+                     f"from_potential or an integrable H = A + V(q) (a rotating frame), "
+                     f"got {model!r}")
+
+
+def _source(A, V, q, p):
+    """Source of ``kinetic(x, gA) -> A`` and ``potential(q, gV, HV, hess) -> V``."""
+    n = len(q)
+    xs = (*q, *p)
+    printer = KernelPrinter()
+    gA = [sp.diff(A, s) for s in xs]
+    gV = [sp.diff(V, s) for s in q]
+    HV = [sp.diff(gV[i], q[j]) for i in range(n) for j in range(n)]
+    names = {s: sp.Symbol(f"x_{i}") for i, s in enumerate(xs)}
+    A, V = A.xreplace(names), V.xreplace(names)
+    gA = [e.xreplace(names) for e in gA]
+    gV = [e.xreplace(names) for e in gV]
+    HV = [e.xreplace(names) for e in HV]
+    unpack_x = [f"    x_{i} = x[{i}]" for i in range(2 * n)]
+    unpack_q = [f"    x_{i} = q[{i}]" for i in range(n)]
+    hess = _assignments(printer, [f"HV[{i}, {j}]" for i in range(n) for j in range(n)], HV)
+    return "\n".join([
+        '"""Generated by varint.time_transform; do not edit."""',
+        "import math", "from numba import njit", "",
+        "", "@njit(cache=True, error_model='numpy')", "def kinetic(x, gA):", *unpack_x,
+        *_assignments(printer, [f"gA[{i}]" for i in range(2 * n)] + ["a"], [*gA, A]),
+        "    return a",
+        "", "", "@njit(cache=True, error_model='numpy')", "def potential(q, gV, HV, hess):",
+        *unpack_q,
+        *_assignments(printer, [f"gV[{i}]" for i in range(n)] + ["v"], [*gV, V]),
+        "    if hess:", *("    " + line for line in hess),
+        "    return v", ""])
+
+
+class LogHamiltonian:
+    """The LH-transformed TM method for ``model`` with a two-part
+    ``scheme`` (module docstring).
+
+    Parameters
+    ----------
+    model : Model
+        From :func:`~varint.models.from_potential` (autonomous) or an
+        integrable :func:`~varint.models.from_hamiltonian` (e.g.
+        :class:`~varint.models.CR3BP`).
+    scheme : str or SplittingScheme
+        A two-part scheme without a corrector: A's flow is its drift, the
+        kick of V its kick (every order applies unchanged).
+    offset : float, optional
+        δ of C = E + δ for every orbit (module docstring); > 0.
+    """
+
+    def __init__(self, model, scheme="ABA864", offset=None):
+        A, V, q, p, flow, par = _symbolic_parts(model)
+        sch = get_scheme(scheme)
+        if getattr(sch, "corrector", None) is not None or not hasattr(sch, "stages"):
+            raise ValueError(f"time_transform='log' needs a two-part scheme without a "
+                             f"corrector or processor, got {sch.name!r}")
+        if offset is not None and (isinstance(offset, bool)
+                                   or not isinstance(offset, numbers.Real)
+                                   or not float(offset) > 0.0 or not np.isfinite(offset)):
+            raise ValueError(f"offset must be a finite number > 0, got {offset!r}")
+        kinds, h, _ = stage_arrays(sch, 1.0)
+        self.model, self.scheme, self.offset = model, sch, None if offset is None else float(offset)
+        self.kinds = np.where(kinds == DRIFT, 0, 1).astype(np.int64)
+        self.coef = h.astype(float)
+        self.par = np.asarray(par, dtype=float)
+        source = _source(A, V, q, p)
+        digest = hashlib.sha256(source.encode()).hexdigest()[:20]
+        mod = codecache.load_module(f"varint_lh_{digest}", "models", lambda: source)
+        self._kinetic, self._potential = mod.kinetic, mod.potential
+        self.advance_kernel, self.step_kernel, self.project_kernel, self.fli_kernel = \
+            lh_kernels(flow, mod.kinetic, mod.potential)
+
+    # -- values ------------------------------------------------------------------------
+    def energy(self, X):
+        """H = A + V of states ``X`` (M, 2N), by the generated kernels."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        n = X.shape[1] // 2
+        gA, gV, HV = np.empty(2 * n), np.empty(n), np.empty((n, n))
+        return np.array([self._kinetic(x, gA) + self._potential(x[:n].copy(), gV, HV, False)
+                         for x in X])
+
+    def constants(self, X):
+        """C of every orbit of ``X`` (module docstring)."""
+        E = self.energy(X)
+        return E + (np.maximum(-E, 1.0) if self.offset is None else self.offset)
+
+    # -- runs --------------------------------------------------------------------------
+    def advance(self, X, W, t_end, h, t0=0.0, C=None, pt=None, max_steps=MAX_STEPS):
+        """Move orbits ``X`` (M, 2N) and vectors ``W`` (M, 2N, k) from
+        ``t0`` to the physical time ``t_end`` with LH steps of fictitious
+        length ``h`` (:class:`LHResult`); a resumed run passes the ``C``
+        and ``pt`` of the result it continues."""
+        X, W, t_end, h = _checked(X, W, t_end, h)
+        if not t0 < t_end:
+            raise ValueError(f"t_end must be after t0 = {t0!r}, got {t_end!r}")
+        M = len(X)
+        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M)
+        pt = -self.energy(X) if pt is None else np.broadcast_to(np.asarray(pt, float), M)
+        out_x, out_W = X.copy(), W.copy()
+        t, status = np.zeros(M), np.zeros(M, dtype=np.int64)
+        counts = np.zeros((M, 3), dtype=np.int64)
+        for m in range(M):
+            x = out_x[m]
+            V = np.ascontiguousarray(out_W[m].T)
+            dt = np.zeros(V.shape[0])
+            clock = np.array([float(t0), pt[m] + C[m]])
+            status[m] = self.advance_kernel(x, V, dt, clock, self.kinds, self.coef, h, t_end,
+                                            max_steps, self.par, float(C[m]), counts[m])
+            out_W[m] = V.T
+            t[m] = clock[0]
+        return LHResult(out_x, out_W, t, status, counts[:, 0], counts[:, 1], counts[:, 2],
+                        np.array(C, dtype=float), np.array(pt, dtype=float))
+
+    def fli(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
+        """The FLI sup ln‖w‖ of every orbit over the multiples of ``every``
+        (where the vector is normalised) and t_end, the per-orbit counts
+        [LH steps, tail steps, gradients] and status (:func:`describe`
+        says why an orbit stopped; its FLI is NaN)."""
+        X, W0, t_end, h = _checked(X, W0[..., None], t_end, h)
+        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), len(X))
+        M = len(X)
+        out, status = np.zeros(M), np.zeros(M, dtype=np.int64)
+        counts = np.zeros((M, 3), dtype=np.int64)
+        pt = -self.energy(X)
+        self.fli_kernel(X, np.ascontiguousarray(W0[..., 0]), pt, np.ascontiguousarray(C),
+                        self.kinds, self.coef, h, t_end, float(every), max_steps, self.par,
+                        out, status, counts)
+        out[status != 0] = np.nan   # nothing computed is passed off as a value
+        return out, counts, status
+
+
+def describe(status):
+    """The reason for an LH ``status``."""
+    if status == U_NOT_POSITIVE:
+        return "U = C − V(q) ≤ 0 on the orbit: C is not above V there (give a larger offset)"
+    if status == BUDGET:
+        return "the step budget ran out before the output time (a larger h?)"
+    return Status(int(status)).name
+
+
+def _checked(X, W, t_end, h):
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    W = np.asarray(W, dtype=float)
+    if W.ndim == 2:
+        W = W[None]
+    if W.shape[:2] != X.shape:
+        raise ValueError(f"W must have shape (M, 2N, k) = ({X.shape[0]}, {X.shape[1]}, k), "
+                         f"got {W.shape}")
+    for name, v in (("t_end", t_end), ("h", h)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not float(v) > 0.0 \
+                or not np.isfinite(v):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    if not np.all(np.isfinite(X)):
+        raise ValueError("X must be finite")
+    return X, W, float(t_end), float(h)
