@@ -14,8 +14,10 @@ and numba's per-pass times of the one-orbit kernel (its
 ``speed``: in one process, the one-orbit stepper as generated now (the
 schedule's logarithm called, ``vlog_called``) against the same source with
 it inlined (``vlog``, as before), the same run (R1, four vectors, t = 20000,
-τ = 0.05, adaptive schedule) interleaved, minimum of ``--repeats`` (CPU
-time), their ratio and spread; the results must be the same bits.
+τ = 0.05, adaptive schedule), and a chaos map of 64 orbits as SIMD lanes
+(X1 to t = 500, the generated ``lanes``), interleaved, minimum of
+``--repeats`` (CPU time; run it with ``NUMBA_NUM_THREADS=1``), their
+ratios and spread; the results must be the same bits.
 
 Run: ``python studies/stepper_compile.py compile --tree after=<copy>
 --tree before=<copy>`` and ``python studies/stepper_compile.py speed``.
@@ -102,8 +104,13 @@ def speed(args):
 
     x = np.array(R1)
 
+    grid = x + 1e-3 * np.arange(64)[:, None] * np.array([0.0, 1.0, 0.0, 0.0])
+
     def run(model):
         return varint.lyapunov_spectrum(model, x, t_end=20000.0, tau=0.05, progress=False)
+
+    def lanes(model):
+        return varint.chaos_map(model, grid, "x1", t_end=500.0, tau=0.05, progress=False)
 
     now = varint.models.HenonHeiles()
     first = run(now)                                     # compiled: vlog called
@@ -117,16 +124,22 @@ def speed(args):
         logarithm.vlog_called = logarithm.vlog
         inlined = varint.models.HenonHeiles()
         second = run(inlined)
+        lanes(inlined)
     finally:
         logarithm.vlog_called = called
+    lanes(now)
     assert first.exponents.tobytes() == second.exponents.tobytes()
-    tasks = {"called": lambda: run(now), "inlined": lambda: run(inlined)}
+    tasks = {"called": lambda: run(now), "inlined": lambda: run(inlined),
+             "lanes called": lambda: lanes(now), "lanes inlined": lambda: lanes(inlined)}
     turns: dict = {}
     best, outputs = interleaved(tasks, 1 if args.quick else args.repeats,
                                 clock=time.process_time, turns=turns)
     assert outputs["called"].exponents.tobytes() == outputs["inlined"].exponents.tobytes()
+    assert outputs["lanes called"].values.tobytes() == outputs["lanes inlined"].values.tobytes()
     result = {"best CPU s": best, "ratio called/inlined": best["called"] / best["inlined"],
               "spread": ratio_spread(turns, "inlined", "called"),
+              "lanes ratio called/inlined": best["lanes called"] / best["lanes inlined"],
+              "lanes spread": ratio_spread(turns, "lanes inlined", "lanes called"),
               "bitwise": True, "load": os.getloadavg()}
     print(json.dumps(result, indent=1))
     shutil.rmtree(scratch, ignore_errors=True)
