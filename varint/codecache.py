@@ -48,7 +48,8 @@ from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
-           "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER", "CacheDirWarning"]
+           "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
+           "CacheDirWarning"]
 
 #: One generated module is loaded at a time: threads of one process (a Dask
 #: worker's) ask for the same kernels at once, and CPython 3.11's AST

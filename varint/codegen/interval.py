@@ -472,8 +472,9 @@ class Interval:
         adaptive rule's (:func:`~varint.kernels.interval.next_interval`), at
         most ``every`` steps when one is given."""
         src, v, k = self.src, self.t.value, self.k
-        # Called, not inlined: numba inlining the logarithm's IR here (off
-        # the hot path) more than doubled the one-orbit stepper's compile.
+        # Called, not inlined: numba inlining the logarithm's IR at each of
+        # these calls (off the hot path) cost a third of a stepper's compile,
+        # in numba's SSA reconstruction above all (studies/stepper_compile.py).
         logs = [f"lg{j}" for j in range(k)]
         src(*(f"lg{j} = vlog_called({v(f'r{j}')})" for j in range(k)))
         nxt, itv = v("next_renorm"), v("interval")
