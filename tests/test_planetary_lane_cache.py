@@ -35,7 +35,7 @@ print(json.dumps([compiling.compile_seconds(), r.values.tobytes().hex(),
 """
 
 
-def fresh(cache_dir, marker=None):
+def fresh(cache_dir):
     """The map in a new interpreter on this source tree, with the cache
     directory ``cache_dir``: (seconds compiled, values, warnings)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), VARINT_CACHE_DIR=str(cache_dir),
