@@ -1045,6 +1045,22 @@ def _planetary_map_lanes(R):
             f"{hi:.0f})")
 
 
+@quote("planetary_lane_cache")
+def _planetary_lane_cache(R):
+    """The first planetary MEGNO map of a new process, its kernels' cache
+    warm against cold, and before the lanes were cached
+    (``studies/planetary_lane_cache.py``: medians of new processes, wall
+    time)."""
+    d = R.json("planetary_lane_cache")
+    s = d["summary"]
+    lo, hi = d["_provenance"]["machine"]["load"], d["_provenance"]["load_end"]
+    return (f"{s['after warm']['median wall s']:.1f} s against "
+            f"{s['after cold']['median wall s']:.0f} s cold, and "
+            f"{s['before warm']['median wall s']:.0f} s when the lanes compiled in every "
+            f"process (medians of {len(d['runs']['after warm'])} new processes, the same bits; "
+            f"load {lo:.0f} → {hi:.0f} on 2 cores)")
+
+
 @quote("suite_time")
 def _suite_time(R):
     """How long the default suite took, cold, as CI runs it

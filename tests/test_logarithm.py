@@ -7,7 +7,9 @@ import mpmath
 import numpy as np
 import pytest
 
-from varint.kernels.logarithm import SOURCE, py_as_bits, py_from_bits, vlog
+from numba import njit
+
+from varint.kernels.logarithm import SOURCE, py_as_bits, py_from_bits, vlog, vlog_called
 
 
 def _ulps(x):
@@ -62,7 +64,6 @@ def test_the_python_source_is_the_compiled_function():
     # The CUDA kernels embed SOURCE; run as plain Python (the simulator
     # does) it gives the compiled function's bits.
     from varint.kernels.fma import fma
-    from numba import njit
 
     @njit
     def host_fma(a, b, c):
@@ -72,3 +73,19 @@ def test_the_python_source_is_the_compiled_function():
     exec(SOURCE, scope)
     X = _arguments()[::7]
     assert all(scope["vlog"](float(x)) == vlog(float(x)) for x in X)
+
+
+def test_the_called_logarithm_is_the_inlined_one_bit_for_bit():
+    """Generated steppers call ``vlog_called`` where numba inlined ``vlog``
+    (the sparse schedule, varint.codegen.interval): inside one compiled
+    loop the two give the same bits for every argument."""
+    @njit
+    def both(X, inlined, called):
+        for i in range(X.shape[0]):
+            inlined[i] = vlog(X[i])
+            called[i] = vlog_called(X[i])
+
+    X = np.concatenate([_arguments(), [0.0, -0.0, -1.0, math.inf, -math.inf, math.nan]])
+    inlined, called = np.empty_like(X), np.empty_like(X)
+    both(X, inlined, called)
+    assert inlined.tobytes() == called.tobytes()

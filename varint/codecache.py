@@ -13,7 +13,7 @@ anything runs:
 * a generated module is executed from the very bytes that were verified
   (never re-read from disk, never from a ``.pyc``), and only after the check;
 * numba's cache files of a generated module (``*.nbi``, ``*.nbc``: pickles
-  that numba loads) are written signed by :class:`_SignedCache` and
+  that numba loads) are written signed by :class:`SignedCache` and
   unpickled only after their MAC verifies;
 * a file that fails its check (tampered, truncated, written by another user
   or with another secret) is discarded with one :class:`CacheDirWarning`
@@ -48,7 +48,8 @@ from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
-           "tolerate_full_disks", "HEADER", "CacheDirWarning"]
+           "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
+           "CacheDirWarning"]
 
 #: One generated module is loaded at a time: threads of one process (a Dask
 #: worker's) ask for the same kernels at once, and CPython 3.11's AST
@@ -264,7 +265,7 @@ def tolerate_full_disks():
         for value in list(vars(module).values()):
             if isinstance(value, Dispatcher) and \
                     isinstance(getattr(value, "_cache", None), caching.FunctionCache) and \
-                    not isinstance(value._cache, _SignedCache):
+                    not isinstance(value._cache, SignedCache):
                 value._cache = _TolerantCache(value._cache)
 
 
@@ -293,17 +294,19 @@ _NUMBA_HOOKS = ("_load_index", "_save_index", "_load_data", "_save_data", "_open
                 "_dump", "_data_path")
 
 
-def _numba_hooks_present():
+def numba_hooks_present():
+    """Whether this numba's cache is the one :class:`_SignedCacheFile` knows
+    (else numba would read signed files as plain pickles)."""
     return (all(hasattr(caching.IndexDataCacheFile, name) for name in _NUMBA_HOOKS)
             and hasattr(caching.FunctionCache, "load_overload"))
 
 
 def _sign_numba_caches(module, key):
-    """Give every cached kernel defined in ``module`` a :class:`_SignedCache`
+    """Give every cached kernel defined in ``module`` a :class:`SignedCache`
     (signing with ``key``) before it is first called (numba loads its cache
     at the first call); if this numba's cache is not the one
     :class:`_SignedCacheFile` knows, switch its disk cache off."""
-    usable = _numba_hooks_present()
+    usable = numba_hooks_present()
     for value in vars(module).values():
         if not isinstance(value, Dispatcher):
             continue
@@ -313,18 +316,31 @@ def _sign_numba_caches(module, key):
             try:
                 if not usable:
                     raise NotImplementedError("another numba cache layout")
-                value._cache = _SignedCache(value.py_func, key)
+                value._cache = SignedCache(value.py_func, key)
             except Exception:   # no usable location: compile in memory
                 value._cache = caching.NullCache()
 
 
-class _SignedCache(caching.FunctionCache):
+class SignedCache(caching.FunctionCache):
     """numba's per-function cache, with files signed by varint's secret and
     every failure to read or write one turned into a recompilation or a
-    warning."""
+    warning.
 
-    def __init__(self, py_func, key):
+    Parameters
+    ----------
+    py_func : function
+        The kernel's Python function.
+    key : bytes
+        The secret that signs and verifies its files.
+    folder : Path, optional
+        Where its files are kept; by default where numba would keep them
+        (beside a generated module, in the cache directory).
+    """
+
+    def __init__(self, py_func, key, folder=None):
         super().__init__(py_func)
+        if folder is not None:
+            self._cache_path = str(folder)
         self._cache_file = _SignedCacheFile(
             cache_path=self._cache_path, filename_base=self._impl.filename_base,
             source_stamp=self._impl.locator.get_source_stamp())
@@ -350,7 +366,7 @@ class _SignedCacheFile(caching.IndexDataCacheFile):
     of its name and content, and numba's own bytes; read back only when the
     HMAC verifies."""
 
-    #: The secret that signs them (set by :class:`_SignedCache`).
+    #: The secret that signs them (set by :class:`SignedCache`).
     key = None
 
     def _read(self, path):

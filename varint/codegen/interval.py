@@ -472,7 +472,11 @@ class Interval:
         adaptive rule's (:func:`~varint.kernels.interval.next_interval`), at
         most ``every`` steps when one is given."""
         src, v, k = self.src, self.t.value, self.k
-        logs = [f"vlog({v(f'r{j}')})" for j in range(k)]
+        # Called, not inlined: numba inlining the logarithm's IR at each of
+        # these calls (off the hot path) cost a third of a stepper's compile,
+        # in numba's SSA reconstruction above all (studies/stepper_compile.py).
+        logs = [f"lg{j}" for j in range(k)]
+        src(*(f"lg{j} = vlog_called({v(f'r{j}')})" for j in range(k)))
         nxt, itv = v("next_renorm"), v("interval")
         src(f"lmax = max({', '.join(logs)})" if k > 1 else f"lmax = {logs[0]}")
         src(f"spread = lmax - min({', '.join(logs)}) if mode == QR else 0.0" if k > 1
@@ -538,7 +542,7 @@ class Interval:
             "StepperOrbit",
             "from varint.kernels.fma import fma",
             "from varint.kernels.interval import next_interval",
-            "from varint.kernels.logarithm import vlog", "",
+            "from varint.kernels.logarithm import vlog, vlog_called", "",
             f"ACC_BIG = {2.0 ** 500!r}", f"ACC_SMALL = {2.0 ** -500!r}",
             f"TANGENT_LIMIT = {TANGENT_LIMIT!r}", f"EARLY = {EARLY!r}", f"HUGE = {HUGE_Q2!r}",
             f"CHECK_EVERY = {CHECK_EVERY}", f"LANE_WIDTH = {LANE_WIDTH}", f"LN2 = {_LN2!r}",

@@ -21,14 +21,19 @@ that names what the kernel is compiled from, the same in every process:
 
 A kernel that closes over anything else — a function of the user's own
 (whose helpers the key could not follow) or of code without a file — is
-left compiled in memory, as before. The files are numba's own, beside the
-package's other cached kernels (``__pycache__`` or numba's cache
-directory), trusted as those are; a cache that cannot be written costs a
+left compiled in memory, as before. numba's files of these kernels are
+pickles that numba loads, so they are kept as a generated module's are
+(:class:`varint.codecache.SignedCache`): in ``<cache dir>/closures/``,
+signed with the cache directory's secret and unpickled only after their
+signature verifies; a file that fails is discarded with a warning and the
+kernel compiled again. Without a usable cache directory or secret the
+kernel is compiled in memory; a cache that cannot be written costs a
 warning, one that cannot be read a recompilation.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import enum
 import hashlib
@@ -36,12 +41,10 @@ import types
 from pathlib import Path
 
 import numpy as np
-from numba.core import caching
 from numba.core.dispatcher import Dispatcher
 from numba.core.extending import _Intrinsic
 
-from .. import baselines
-from ..cachedir import warn_once
+from .. import baselines, cachedir, codecache
 from ..identity import source_digest
 
 __all__ = ["cache_on_disk", "closure_key"]
@@ -56,6 +59,9 @@ _SOURCES = (Path(__file__).resolve().parent.parent, Path(baselines.__file__).res
 #: runs, must not give the kernels it compiles the key of the new code.
 _SOURCE_DIGEST = source_digest()
 
+#: The cache directory's folder of these kernels' numba files.
+_FOLDER = "closures"
+
 
 class _Unnamed(Exception):
     """A value that no key can name (a user's function, an object)."""
@@ -63,13 +69,19 @@ class _Unnamed(Exception):
 
 def cache_on_disk(dispatcher):
     """Give the closure kernel ``dispatcher`` numba's disk cache under
-    :func:`closure_key`, unless a key cannot name what it closes over (then
-    it stays compiled in memory). Returns ``dispatcher``."""
+    :func:`closure_key`, signed in ``<cache dir>/closures/``, unless a key
+    cannot name what it closes over or there is no usable cache directory
+    and secret (then it stays compiled in memory). Returns ``dispatcher``."""
     try:
         key = closure_key(dispatcher)
-        dispatcher._cache = _ClosureCache(dispatcher.py_func, key)
-    except (_Unnamed, RuntimeError):   # RuntimeError: numba found nowhere to cache
-        pass
+    except _Unnamed:
+        return dispatcher
+    folder = cachedir.subdir(_FOLDER)
+    secret = None if folder is None else cachedir.secret()
+    if secret is None or not codecache.numba_hooks_present():
+        return dispatcher               # (cachedir has said why, once)
+    with contextlib.suppress(RuntimeError):   # numba found no locator for the file
+        dispatcher._cache = _ClosureCache(dispatcher.py_func, key, secret, folder)
     return dispatcher
 
 
@@ -162,24 +174,19 @@ def _describe_code(code, depth):
     return ("code", digest, consts, code.co_names, code.co_freevars)
 
 
-class _ClosureCache(caching.FunctionCache):
+class _ClosureCache(codecache.SignedCache):
     """numba's cache of one closure kernel, its entries found by
-    :func:`closure_key` instead of its pickled cells; a failure to write is
-    a warning, one to read a recompilation."""
+    :func:`closure_key` instead of its pickled cells, its files signed with
+    ``secret`` in ``folder``; a failure to write is a warning, one to read
+    (or to verify) a recompilation."""
 
-    def __init__(self, py_func, key):
-        super().__init__(py_func)
+    def __init__(self, py_func, key, secret, folder):
+        super().__init__(py_func, secret, folder)
         self._closure_key = key
 
     def _index_key(self, sig, codegen):
         code = hashlib.sha256(self._py_func.__code__.co_code).hexdigest()
         return (sig, codegen.magic_tuple(), (code, self._closure_key))
-
-    def load_overload(self, sig, target_context):
-        try:
-            return super().load_overload(sig, target_context)
-        except Exception:   # written by another numba, or damaged: compile again
-            return None
 
     def save_overload(self, sig, data):
         if getattr(data.library, "has_dynamic_globals", False):
@@ -187,10 +194,4 @@ class _ClosureCache(caching.FunctionCache):
             # right-hand side's) cannot be cached: it stays compiled in
             # memory, as before, without numba's warning in every run.
             return
-        try:
-            super().save_overload(sig, data)
-        except OSError as exc:
-            warn_once(("closure cache", str(self._cache_path)),
-                      f"cannot write numba's cache in {self._cache_path} "
-                      f"({exc.strerror or exc}); the kernel is compiled again in later "
-                      "processes", stacklevel=4)
+        super().save_overload(sig, data)

@@ -128,11 +128,17 @@ def py_from_bits(i):
     return struct.unpack("<d", struct.pack("<q", i))[0]
 
 
-def _compiled():
+def _compiled(inline):
     scope = {"math": math, "fma": fma, "as_bits": as_bits, "from_bits": from_bits}
     exec(compile(SOURCE, "<varint.kernels.logarithm>", "exec"), scope)
-    return njit(inline="always", error_model="numpy")(scope["vlog"])
+    return njit(inline=inline, error_model="numpy")(scope["vlog"])
 
 
 #: :data:`SOURCE` compiled for the CPU (inlined where it is called).
-vlog = _compiled()
+vlog = _compiled("always")
+#: The same, called (numba compiles it once per process, LLVM may still
+#: inline it): where the logarithm is off the hot path, numba's inlining of
+#: its IR at every call site costs compile time for nothing (a generated
+#: stepper's sparse schedule: its first process took 11.1 CPU s with it
+#: inlined, 7.6 called, the same bits and speed; studies/stepper_compile.py).
+vlog_called = _compiled("never")

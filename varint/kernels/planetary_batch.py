@@ -28,6 +28,7 @@ from numba import njit, prange
 
 from ..protocol import Renorm, Status
 from .checks import CHECK_EVERY, orbit_status, renormalize, tangent_overflow
+from .closures import cache_on_disk
 from .planetary_lanes import _FIELDS, lane_word
 
 __all__ = ["lane_batch", "LANES"]
@@ -159,4 +160,4 @@ def lane_batch(n, k, apply, field, accumulate, flow, parallel, width=LANES):
             block(x, Wst, acc_m, acc_e, aux, counters, parts, h, par, n_work, call, status,
                   done, order, groups[g], groups[g + 1], per_part)
 
-    return batch
+    return cache_on_disk(batch)

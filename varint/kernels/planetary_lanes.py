@@ -49,6 +49,7 @@ import numpy as np
 from numba import njit
 
 from . import kepler as kep
+from .closures import cache_on_disk
 from .kepler import RESIDUAL
 from .nbody import ENCOUNTER, INTERACTION, KEPLER
 from .nbody_unrolled import _source
@@ -386,4 +387,4 @@ def lane_steps(n, jacobi, k, apply, width):
             alone += word(X, V, Xf, Vf, parts, h, par, S, bad, met, x, W, work)
         return alone
 
-    return steps
+    return cache_on_disk(steps)
