@@ -29,7 +29,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from .checks import orbit_status
+from .checks import orbit_status_wide
 from .interval import StepBody, batch_loop, no_accumulator, orbit_record
 
 __all__ = ["parts_body", "parts_batch", "PartsOrbit", "TimedPartsOrbit", "PartsSetup",
@@ -106,7 +106,7 @@ def parts_body(apply, field, K_C, TIME=False):
 
     @njit(inline="always")
     def check(state, setup, ws, xe, call):
-        return orbit_status(xe, ws.n, call.escape_r2)
+        return orbit_status_wide(xe, ws.n, call.escape_r2)
 
     @njit(inline="always")
     def flow(state, setup, ws, carry, xe, s, call, out):
