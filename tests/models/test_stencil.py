@@ -18,7 +18,9 @@ from tests.models.test_lattices import hamiltonian_field, one_flow
 from varint.models import FPUT, DisorderedKG, Potential, Stencil, StencilLattice
 from varint.models import fput as fput_module
 from varint.models import kg as kg_module
-from varint.models.stencil import N_COEFFS
+from varint.kernels.interval import Call
+from varint.kernels.parts import PartsOrbit, PartsSetup, parts_batch
+from varint.models.stencil import A0, BOND_C, N_COEFFS, SITE_C
 
 RNG = np.random.default_rng(20261127)
 
@@ -261,3 +263,72 @@ def test_built_in_lattices_are_their_stencils():
     assert DisorderedKG(8).stencil is kg_module.STENCIL
     assert FPUT(8).stencil is fput_module.STENCIL
     assert DisorderedKG(8).parts.apply is kg_module._apply
+
+
+def _kick(model, h, x, W):
+    """One kick of the model's part stepper on the orbit x and the columns
+    of W (k vectors, a compile-time constant as in a run)."""
+    parts, k = model.parts, W.shape[1]
+    par, n_work = parts.params(max(parts.splits))
+    x, W = x[None].copy(), W[None].copy()
+    status, done = np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    parts_batch(parts.apply, parts.field, k, False)(
+        PartsOrbit(x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), np.empty((1, 0, 0)),
+                   np.zeros((1, len(parts.names)), dtype=np.int64)),
+        PartsSetup(np.array([parts.index("V")]), np.array([h]), par, n_work),
+        Call(1, 0, 1.0, 0, np.inf), status, done)
+    assert status[0] == 0
+    return x[0], W[0]
+
+
+def site_by_site_kick(model, h, x, W):
+    """The chain's kick written site by site, each site's two bonds computed
+    anew, in the order of the band kernels (grad, hess, band_kick_block):
+    p_i −= h((u' + φ'_l) − φ'_r), δp_i = ((δp_i − c δq_i) − a_l δq_l) − a_r δq_r."""
+    par, st, n = model.params, model.stencil, model.n_sites
+    per = model.boundary == "periodic"
+    cs, cb = tuple(par[SITE_C:SITE_C + 3]), tuple(par[BOND_C:BOND_C + 3])
+    q, x, W = x[:n].copy(), x.copy(), W.copy()
+
+    def bond(b):
+        if per:
+            return q[b % n] - q[(b - 1) % n]
+        return (q[b] if b < n else 0.0) - (q[b - 1] if b >= 1 else 0.0)
+
+    for i in range(n):
+        a = par[A0 + i]
+        u1 = st.site.force(q[i], a, cs) if st.site else 0.0
+        u2 = st.site.stiffness(q[i], a, cs) if st.site else 0.0
+        rl, rr = bond(i), bond(i + 1)
+        x[n + i] -= h * ((u1 + st.bond.force(rl, cb)) - st.bond.force(rr, cb))
+        kl, kr = st.bond.stiffness(rl, cb), st.bond.stiffness(rr, cb)
+        c, al, ar = h * ((u2 + kl) + kr), h * (-kl), h * (-kr)
+        for j in range(W.shape[1]):
+            w = W[n + i, j] - c * W[i, j]
+            if i >= 1 or per:
+                w -= al * W[(i - 1) % n, j]
+            if i < n - 1 or per:
+                w -= ar * W[(i + 1) % n, j]
+            W[n + i, j] = w
+    return x, W
+
+
+@pytest.mark.parametrize("make", [
+    lambda: FPUT(9, 0.0, 1.5), lambda: FPUT(9, 0.0, 1.5, boundary="periodic"),
+    lambda: FPUT(9, 0.25, 1.0), lambda: FPUT(9, 0.25, 1.0, boundary="periodic"),
+    lambda: FPUT(2, 0.0, 1.5), lambda: FPUT(3, 0.25, 1.0, boundary="periodic"),
+    lambda: toda(6), lambda: toda(6, "periodic")],
+    ids=["FPU-beta", "FPU-beta ring", "FPUT", "FPUT ring", "FPU-beta n=2", "FPUT ring n=3",
+         "Toda chain", "Toda ring"])
+def test_chain_kick_is_the_site_by_site_kick_bit_for_bit(make):
+    """The kick carries each bond's φ', φ'' from one site to the next and
+    takes both regimes of a branching bond (FPUT: α = 0 or not) in copies
+    of its loop: the same operations on the same values as computing every
+    site's bonds anew, so the same bits, walls and rings alike (two
+    vectors: the loop over them a constant, as in a run)."""
+    model = make()
+    x = RNG.uniform(-0.6, 0.6, model.dim)
+    W = RNG.standard_normal((model.dim, 2))
+    got, expected = _kick(model, 0.37, x, W), site_by_site_kick(model, 0.37, x, W)
+    assert np.array_equal(got[0], expected[0])
+    assert np.array_equal(got[1], expected[1])
