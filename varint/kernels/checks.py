@@ -25,8 +25,8 @@ from numba import njit
 from ..protocol import Renorm, Status, TANGENT_LIMIT
 from .inlining import into_kernels
 
-__all__ = ["orbit_status", "orbit_status_wide", "square_sums", "state_status", "renormalize", "renormalize_block",
-           "renormalized_rows",
+__all__ = ["orbit_status", "orbit_status_wide", "square_sums", "state_status", "renormalize",
+           "renormalize_block", "renormalized_rows",
            "tangent_overflow", "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL",
            "CHECK_EVERY", "HUGE_Q2"]
 
@@ -67,8 +67,8 @@ def orbit_status(x, n, escape_r2):
 #: Below this |q|² + |p|² the sums of :func:`orbit_status_wide` cannot have
 #: overflowed in any order (2^1000: far from the largest double, 2^1024).
 _WIDE_MAX = 2.0 ** 1000
-#: 8u (u = 2^-53, the unit round-off) per site: four times the bound 2γ_n ≈ 2nu
-#: on the difference of two summation orders of n non-negative terms
+#: 8u (u = 2^-53, the unit round-off) per site: four times the bound
+#: 2γ_n ≈ 2nu on the difference of two summation orders of n non-negative terms
 #: (Higham 2002, Accuracy and Stability of Numerical Algorithms, eq. 4.4).
 _ORDER_SLACK = 2.0 ** -50
 

@@ -22,8 +22,8 @@ studies/fpu_gap.py:
   a run-time k, a Klein–Gordon kick took 5–7 times longer);
 * the orbit's end-of-step check adds its squares in vector lanes
   (:func:`~varint.kernels.checks.orbit_status_wide`, the chained check's
-  answer on every state): chained, it took 3.4 of a 44 µs FPU-β step at
-  N = 4096.
+  answer on every state): chained, it took 3.4 µs of a 42 µs FPU-β step
+  at N = 4096.
 """
 
 from __future__ import annotations

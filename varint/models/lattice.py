@@ -315,8 +315,8 @@ def drift(x, V, h, k, n):
     vectors (one site loop over the orbit and k vectors at once, k a
     constant, took 1.9 times as long for k = 4 at N = 1024,
     studies/bench_stencil.py), the orbit's and the one vector's together
-    for k = 1, and inlined into the part stepper, where k is a constant
-    (FPU-β, n = 64: 19 → 11 ns, studies/fpu_gap.py)."""
+    for k = 1 (FPU-β's drift at n = 64 then took a third less time, measured
+    alone), and inlined into the part stepper, where k is a constant."""
     q, p = x[:n], x[n:2 * n]
     if k == 1:
         dq, dp = V[0, :n], V[0, n:2 * n]

@@ -334,8 +334,8 @@ def _kernels(site, bond):
     # Inlined, as kick is: k is then a constant in the loops over vectors.
     # The edge sites take their bonds from the sweep too (bond 0 and bond n
     # are one bond on a ring, the walls' for fixed ends): computed anew with
-    # a run-time boundary flag, they cost 12 of FPU-beta's 75 ns kick at
-    # n = 64 (studies/fpu_gap.py).
+    # a run-time boundary flag, they cost ~12 of FPU-beta's 75 ns kick at
+    # n = 64 (measured alone).
     @njit(inline="always", error_model="numpy")
     def chain_kick(x, V, k, h, par):
         n = x.shape[0] // 2
@@ -348,6 +348,8 @@ def _kernels(site, bond):
         fl = bond_force(r, cb)
         kl = bond_stiff(r, cb)
         chain_site(x, V, k, h, cs, par[A0], 0, n, f0, k0, fl, kl, periodic, n - 1, True, 1)
+        # The same loop twice: in each copy the regime is known, so the
+        # derivatives' branch on it folds away and the loop vectorises.
         if bond_regime(cb):
             fl, kl = chain_interior(x, V, k, h, cs, cb, par, n, fl, kl)
         else:
