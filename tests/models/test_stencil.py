@@ -20,6 +20,7 @@ from varint.models import fput as fput_module
 from varint.models import kg as kg_module
 from varint.kernels.interval import Call
 from varint.kernels.parts import PartsOrbit, PartsSetup, parts_batch
+from varint.models.lattice import drift
 from varint.models.stencil import A0, BOND_C, N_COEFFS, SITE_C
 
 RNG = np.random.default_rng(20261127)
@@ -332,3 +333,22 @@ def test_chain_kick_is_the_site_by_site_kick_bit_for_bit(make):
     got, expected = _kick(model, 0.37, x, W), site_by_site_kick(model, 0.37, x, W)
     assert np.array_equal(got[0], expected[0])
     assert np.array_equal(got[1], expected[1])
+
+
+@njit
+def _drift(x, V, h, k):
+    drift(x, V, h, k, x.shape[0] // 2)
+
+
+@pytest.mark.parametrize("k", [1, 3])
+def test_drift_is_q_plus_h_p_entry_by_entry(k):
+    """The drift's loops (the orbit's row with the one vector's for k = 1,
+    one loop per row otherwise) give every entry q + h·p, bit for bit."""
+    n, h = 37, 0.3
+    x, V = RNG.standard_normal(2 * n), RNG.standard_normal((k, 2 * n))
+    got_x, got_V = x.copy(), V.copy()
+    _drift(got_x, got_V, h, k)
+    for row, got in ((x, got_x), *zip(V, got_V, strict=True)):
+        expected = row.copy()
+        expected[:n] = row[:n] + h * row[n:]
+        assert np.array_equal(got, expected)
