@@ -350,9 +350,11 @@ def test_chain_kick_is_the_site_by_site_kick_bit_for_bit():
     takes both regimes of a branching bond (FPUT: α = 0 or not) in copies
     of its loop: the same operations on the same values as computing every
     site's bonds anew, so the same bits, walls and rings alike. Checked in
-    a process of its own: after some other lattice tests in the same
-    process the comparison failed for the FPUT chains (cause not found;
-    the fingerprints of FPU-β and FPUT runs are unchanged)."""
+    a process of its own: in a process that first ran
+    test_lattices.test_whole_steps_match_finite_differences (part steppers
+    of KG and DDNLS), FPUT's kick gave other bits, on the code before this
+    kick too (a state dependence of the part stepper, cause not found; the
+    fingerprints of FPU-β and FPUT runs, fresh processes, are unchanged)."""
     code = "from tests.models.test_stencil import kicks_differing; print(kicks_differing())"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=Path(__file__).resolve().parents[2], timeout=900)
