@@ -9,7 +9,13 @@ One process, interleaved, minimum of repeats (CPU time), for each n:
   part flows (the FPUT stencil's ``apply``, one vector as a constant, as the
   part stepper compiles it) and the plain loop's, alone in a compiled loop;
 * what is left of varint's step: step − (kicks × kick + drifts × drift),
-  the skeleton's end of step (status check, renormalisation, accumulator).
+  the skeleton's end of step (status check, renormalisation, accumulator);
+* its parts, each alone in a compiled loop: the orbit's status check as
+  the part stepper runs it (``orbit_status_wide``) and chained
+  (``orbit_status``, as before), and the renormalisation of the vector
+  (``renormalize`` on the stepper's (2N, 1) view of its row: one chain of
+  2N additions, whose order the bits depend on) against the plain loop's
+  (N additions of δq_i² + δp_i²).
 
 Stored as ``fpu_gap.csv``.
 
@@ -18,6 +24,7 @@ Usage: ``python studies/fpu_gap.py [--quick] [--out DIR]``
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -31,7 +38,9 @@ if __package__ in (None, ""):
 import varint  # noqa: E402
 from studies.bench_peers import fpu_state, fpu_tangent, seeded_vectors, stage_tables  # noqa: E402
 from studies.common import interleaved, parse_args, save_csv  # noqa: E402
+from varint.kernels.checks import orbit_status, orbit_status_wide, renormalize  # noqa: E402
 from varint.models import fput  # noqa: E402
+from varint.protocol import Renorm  # noqa: E402
 
 TAU, SCHEME, BETA = 0.05, "ABA864", 1.5
 
@@ -69,6 +78,43 @@ def varint_flows(x, V, h, par, part, reps):
         fput._apply(part, h, x, V, 1, par, par)
 
 
+@njit(error_model="numpy")
+def varint_end(x, V, n, chained, reps):
+    """The part stepper's end of step, ``reps`` times: the orbit's check
+    (``chained``: the check before, one chain of additions) or the
+    renormalisation of the vector rows ``V`` through their (2N, k) view."""
+    acc_m, acc_e, r = np.ones(V.shape[0]), np.zeros(V.shape[0], dtype=np.int64), np.empty(0)
+    s = 0
+    for _ in range(reps):
+        if chained < 0:
+            s += renormalize(V.T, _QR, acc_m, acc_e, r, 2 * n, V.shape[0])
+        elif chained:
+            s += orbit_status(x, n, np.inf)
+        else:
+            s += orbit_status_wide(x, n, np.inf)
+    return s
+
+
+@njit(error_model="numpy")
+def plain_end(dq, dp, reps):
+    """The plain loop's end of step (:func:`bench_peers.fpu_tangent`)."""
+    n = dq.shape[0]
+    total = 0.0
+    for _ in range(reps):
+        norm = 0.0
+        for i in range(n):
+            norm += dq[i] * dq[i] + dp[i] * dp[i]
+        norm = math.sqrt(norm)
+        total += math.log(norm)
+        for i in range(n):
+            dq[i] /= norm
+            dp[i] /= norm
+    return total
+
+
+_QR = int(Renorm.QR)
+
+
 def main(argv=None):
     args = parse_args(__doc__.splitlines()[0], argv)
     sizes = (64,) if args.quick else (64, 4096)
@@ -100,6 +146,10 @@ def main(argv=None):
                 x, V, 1e-12, par, 0, r),
             "plain drift": lambda q=q, p=p, dq=dq, dp=dp, r=reps: plain_flows(
                 q, p, dq, dp, 1e-12, BETA, False, r),
+            "varint check": lambda x=x, V=V, n=n, r=reps: varint_end(x, V, n, 0, r),
+            "chained check": lambda x=x, V=V, n=n, r=reps: varint_end(x, V, n, 1, r),
+            "varint renorm": lambda x=x, V=V, n=n, r=reps: varint_end(x, V, n, -1, r),
+            "plain renorm": lambda dq=dq, dp=dp, r=reps: plain_end(dq, dp, r),
         }
         for task in tasks.values():
             task()   # compile
@@ -114,6 +164,9 @@ def main(argv=None):
         row["step_ratio"] = ns["varint step"] / ns["plain step"]
         row["kick_ratio"] = ns["varint kick"] / ns["plain kick"]
         row["drift_ratio"] = ns["varint drift"] / ns["plain drift"]
+        row.update({"varint_check_ns": ns["varint check"], "chained_check_ns": ns["chained check"],
+                    "varint_renorm_ns": ns["varint renorm"],
+                    "plain_renorm_ns": ns["plain renorm"]})
         rows.append(row)
         print(", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                         for k, v in row.items()), flush=True)

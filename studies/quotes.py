@@ -844,11 +844,13 @@ def how_fast(R):
                      "—", "1 thread",
                      " / ".join(ratio(by[i]["default_over_1"]) for i in inds) + " (one run)",
                      measured_in(th, "threads")))
-    fpu = peers["fpu"]["rows"][-1]
-    rows.append((f"FPU-β n = {fpu['n']}, one vector, ABA864",
-                 f"{fpu['varint_ns_per_step'] / 1e3:.1f} µs/step",
-                 f"plain numba loop of the same step, {fpu['numba_ns_per_step'] / 1e3:.1f} µs",
-                 _ratio_cell(fpu["varint_over_numba"], None), _peers_measured(R, "fpu")))
+    # The smallest size of issue 28's target (n = 64 … 4096) and the largest.
+    for fpu in (r for r in peers["fpu"]["rows"] if r["n"] in (64, 4096)):
+        rows.append((f"FPU-β n = {fpu['n']}, one vector, ABA864",
+                     f"{fpu['varint_ns_per_step'] / 1e3:.2f} µs/step (CPU)",
+                     f"plain numba loop of the same step, "
+                     f"{fpu['numba_ns_per_step'] / 1e3:.2f} µs",
+                     _ratio_cell(fpu["varint_over_numba"], None), _peers_measured(R, "fpu")))
     if "lattice" in peers:
         lt = peers["lattice"]
         for e in lt["equal_energy_error"]:

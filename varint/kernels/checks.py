@@ -25,8 +25,8 @@ from numba import njit
 from ..protocol import Renorm, Status, TANGENT_LIMIT
 from .inlining import into_kernels
 
-__all__ = ["orbit_status", "state_status", "renormalize", "renormalize_block",
-           "renormalized_rows",
+__all__ = ["orbit_status", "orbit_status_wide", "square_sums", "state_status", "renormalize",
+           "renormalize_block", "renormalized_rows",
            "tangent_overflow", "all_finite", "derivative_status", "ACC_BIG", "ACC_SMALL",
            "CHECK_EVERY", "HUGE_Q2"]
 
@@ -62,6 +62,51 @@ def orbit_status(x, n, escape_r2):
     if not (rq + rp < np.inf):
         return _NONFINITE
     return _OK
+
+
+#: Below this |q|² + |p|² the sums of :func:`orbit_status_wide` cannot have
+#: overflowed in any order (2^1000: far from the largest double, 2^1024).
+_WIDE_MAX = 2.0 ** 1000
+#: 8u (u = 2^-53, the unit round-off) per site: four times the bound
+#: 2γ_n ≈ 2nu on the difference of two summation orders of n non-negative terms
+#: (Higham 2002, Accuracy and Stability of Numerical Algorithms, eq. 4.4).
+_ORDER_SLACK = 2.0 ** -50
+
+
+@njit(cache=True, fastmath={"reassoc"})
+def square_sums(x, n):
+    """|q|² and |p|² of the state ``x`` (2N,), ``n`` = N, added in whatever
+    order the compiler finds fastest (``reassoc`` alone: NaN and infinity
+    still propagate). Called, not inlined, so that the flag stays with it
+    (numba inlines a function into its caller with the caller's flags)."""
+    rq = 0.0
+    rp = 0.0
+    for i in range(n):
+        rq += x[i] * x[i]
+        rp += x[n + i] * x[n + i]
+    return rq, rp
+
+
+@njit(inline=into_kernels)
+def orbit_status_wide(x, n, escape_r2):
+    """:func:`orbit_status` of ``x``, the same status for every ``x``, in a
+    fraction of its time for a long state.
+
+    :func:`orbit_status` adds the squares in one chain, one dependent
+    addition per site (3.3 µs at N = 4096, as much as a kick of FPU-β).
+    Here they are added in vector lanes (:func:`square_sums`, 0.6 µs), and
+    only the answer is kept: the order of a sum of n non-negative terms
+    moves it by at most 2γ_n ≈ 2nu of itself (Higham 2002, Accuracy and
+    Stability of Numerical Algorithms, eq. 4.4), so when these sums are
+    finite, far from overflow and |q|² is below ``escape_r2`` by more than
+    :data:`_ORDER_SLACK` · n · |q|², the chained sums give OK too. In any
+    other case (an orbit that escaped, failed, or stands within round-off
+    of the escape radius) the answer is :func:`orbit_status`'s own.
+    """
+    rq, rp = square_sums(x, n)
+    if rq + rp < _WIDE_MAX and rq < escape_r2 - rq * (n * _ORDER_SLACK):
+        return _OK
+    return orbit_status(x, n, escape_r2)
 
 
 @njit(inline=into_kernels)

@@ -53,7 +53,13 @@ def third(r, alpha, beta):
     return 2.0 * alpha + 6.0 * beta * r
 
 
-# The bond of the stencil, c = (α, β).
+# The bond of the stencil, c = (α, β); its derivatives branch on α = 0
+# (FPU-β), the stencil's regime.
+@njit(cache=True, error_model="numpy")
+def _beta_only(c):
+    return c[0] == 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def _bond_force(r, c):
     return force(r, c[0], c[1])
@@ -75,7 +81,8 @@ STENCIL = Stencil(
     bond=Potential(_bond_force, _bond_stiffness, _bond_third,
                    terms=(lambda r, c: 0.5 * r * r, lambda r, c: c[0] * r ** 3 / 3.0,
                           lambda r, c: 0.25 * c[1] * r ** 4),
-                   expression=lambda r, c: r**2 / 2 + c[0] * r**3 / 3 + c[1] * r**4 / 4))
+                   expression=lambda r, c: r**2 / 2 + c[0] * r**3 / 3 + c[1] * r**4 / 4,
+                   regime=_beta_only))
 
 _KERNELS = stencil_kernels(STENCIL)
 _apply, _field = _KERNELS.apply, _KERNELS.field

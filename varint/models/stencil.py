@@ -92,6 +92,12 @@ class Potential:
     linear : bool
         A bond φ = κ r²/2 whose stiffness κ = ``stiffness(0, c)`` is
         constant (the kernels then sum neighbours; module docstring).
+    regime : numba dispatcher or None
+        ``regime(c) -> bool``, the test on the coefficients that the
+        derivatives branch on (FPUT: α = 0), if any. A chain's kick then
+        runs its site loop in one of two copies, chosen once per kick, in
+        which the test is known and the branch folds away: left in the
+        loop, it kept the loop from vectorising.
     """
 
     force: Any
@@ -101,6 +107,7 @@ class Potential:
     expression: Callable
     total: Callable | None = None
     linear: bool = False
+    regime: Any = None
 
 
 @dataclass(frozen=True)
@@ -135,6 +142,12 @@ def _coefficients(values, what):
 
 # -- the kernels ------------------------------------------------------------------------
 
+@njit(error_model="numpy")
+def _one_regime(c):
+    """The regime of a bond whose derivatives do not branch: always one."""
+    return True
+
+
 def stencil_kernels(stencil):
     """The kernels of ``stencil`` (generic over it: its functions compiled
     in, absent potentials compiled out): ``grad``, ``hess``, ``third``
@@ -154,6 +167,7 @@ def _kernels(site, bond):
     bond_force = bond.force if chain_bond else None
     bond_stiff = bond.stiffness if chain_bond else None
     bond_third = bond.third if chain_bond else None
+    bond_regime = bond.regime if chain_bond and bond.regime is not None else _one_regime
 
     @njit(error_model="numpy")
     def coeffs(par, o):
@@ -278,47 +292,34 @@ def _kernels(site, bond):
         sweep(x, V, k, x.shape[0] // 2, 0, cst, nx, ny, dim, per)
 
     # -- the kick of a bond chain: each bond's force carried to the next site --
-    # (the edge sites inlined too: 12 % of FPU-beta's kick at n = 64 as calls)
     @njit(inline="always", error_model="numpy")
-    def chain_site(x, V, k, h, cs, cb, a, i, n, periodic):
-        # Particle i between bond i (left) and bond i + 1 (right). The order
-        # of the operations is that of grad, hess and band_kick_block:
-        # ∇V_i = (u' + φ'_left) − φ'_right; δp_i −= h(u'' + k_l + k_r)δq_i,
-        # then the left and the right neighbour.
-        rl = bond_r(x, i, n, periodic)
-        rr = bond_r(x, i + 1, n, periodic)
-        x[n + i] -= h * ((u1(x[i], a, cs) + bond_force(rl, cb)) - bond_force(rr, cb))
-        kl = bond_stiff(rl, cb)
-        kr = bond_stiff(rr, cb)
+    def chain_site(x, V, k, h, cs, a, i, n, fl, kl, fr, kr, left, il, right, ir):
+        # Particle i between bond i (left: φ' = fl, φ'' = kl) and bond i + 1
+        # (right: fr, kr); ``left``/``right``: whether a particle (at il/ir)
+        # rather than a wall is there. The order of the operations is that
+        # of grad, hess and band_kick_block: ∇V_i = (u' + φ'_left) − φ'_right;
+        # δp_i −= h(u'' + k_l + k_r)δq_i, then the left and the right neighbour.
+        x[n + i] -= h * ((u1(x[i], a, cs) + fl) - fr)
         c = h * ((u2(x[i], a, cs) + kl) + kr)
         al = h * (-kl)
         ar = h * (-kr)
-        il = i - 1 if i >= 1 else n - 1
-        ir = i + 1 if i < n - 1 else 0
         for j in range(k):
             w = V[j, n + i] - c * V[j, i]
-            if i >= 1 or periodic:
+            if left:
                 w -= al * V[j, il]
-            if i < n - 1 or periodic:
+            if right:
                 w -= ar * V[j, ir]
             V[j, n + i] = w
 
-    @njit(error_model="numpy")
-    def chain_kick(x, V, k, h, par):
-        n = x.shape[0] // 2
-        periodic = par[3] != 0.0
-        cs, cb = coeffs(par, SITE_C), coeffs(par, BOND_C)
-        chain_site(x, V, k, h, cs, cb, par[A0], 0, n, periodic)
-        # The right bond of site i is the left bond of site i + 1: its force
-        # and stiffness are carried to the next site (one φ', φ'' per bond,
-        # not two; the same values, the kick only moves momenta).
-        rl = x[1] - x[0]
-        fl = bond_force(rl, cb)
-        kl = bond_stiff(rl, cb)
+    @njit(inline="always", error_model="numpy")
+    def chain_interior(x, V, k, h, cs, cb, par, n, fl, kl):
+        # Sites 1 … n − 2: the right bond of site i is the left bond of site
+        # i + 1, so its force and stiffness are carried to the next site (one
+        # φ', φ'' per bond; the same values, the kick only moves momenta).
         for i in range(1, n - 1):
-            rr = x[i + 1] - x[i]
-            fr = bond_force(rr, cb)
-            kr = bond_stiff(rr, cb)
+            r = x[i + 1] - x[i]
+            fr = bond_force(r, cb)
+            kr = bond_stiff(r, cb)
             a = par[A0 + i]
             x[n + i] -= h * ((u1(x[i], a, cs) + fl) - fr)
             c = h * ((u2(x[i], a, cs) + kl) + kr)
@@ -326,8 +327,41 @@ def _kernels(site, bond):
             ar = h * (-kr)
             for j in range(k):
                 V[j, n + i] = ((V[j, n + i] - c * V[j, i]) - al * V[j, i - 1]) - ar * V[j, i + 1]
-            fl, kl = fr, kr
-        chain_site(x, V, k, h, cs, cb, par[A0 + n - 1], n - 1, n, periodic)
+            fl = fr
+            kl = kr
+        return fl, kl
+
+    # Inlined, as kick is: k is then a constant in the loops over vectors.
+    # The edge sites take their bonds from the sweep too (bond 0 and bond n
+    # are one bond on a ring, the walls' for fixed ends): computed anew with
+    # a run-time boundary flag, they cost ~12 of FPU-beta's 75 ns kick at
+    # n = 64 (measured alone).
+    @njit(inline="always", error_model="numpy")
+    def chain_kick(x, V, k, h, par):
+        n = x.shape[0] // 2
+        periodic = par[3] != 0.0
+        cs, cb = coeffs(par, SITE_C), coeffs(par, BOND_C)
+        r0 = bond_r(x, 0, n, True) if periodic else bond_r(x, 0, n, False)
+        f0 = bond_force(r0, cb)
+        k0 = bond_stiff(r0, cb)
+        r = x[1] - x[0]
+        fl = bond_force(r, cb)
+        kl = bond_stiff(r, cb)
+        chain_site(x, V, k, h, cs, par[A0], 0, n, f0, k0, fl, kl, periodic, n - 1, True, 1)
+        # The same loop twice: in each copy the regime is known, so the
+        # derivatives' branch on it folds away and the loop vectorises.
+        if bond_regime(cb):
+            fl, kl = chain_interior(x, V, k, h, cs, cb, par, n, fl, kl)
+        else:
+            fl, kl = chain_interior(x, V, k, h, cs, cb, par, n, fl, kl)
+        if periodic:
+            fr, kr = f0, k0
+        else:
+            r = bond_r(x, n, n, False)
+            fr = bond_force(r, cb)
+            kr = bond_stiff(r, cb)
+        chain_site(x, V, k, h, cs, par[A0 + n - 1], n - 1, n, fl, kl, fr, kr, True, n - 2,
+                   periodic, 0)
 
     @njit(inline="always", error_model="numpy")
     def kick(x, V, k, h, par):
