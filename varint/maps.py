@@ -381,7 +381,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     time_transform : None or "log"
         "log": FLI maps with steps that follow the orbit, the logarithmic
         Hamiltonian of :class:`varint.time_transform.LogHamiltonian`
-        (:func:`_log_map`). ``tau`` is then the step h in the fictitious
+        (refused for other indicators, backends and schemes with a
+        corrector or processor, early stopping, ``t_check``, ``client``,
+        ``checkpoint``). ``tau`` is then the step h in the fictitious
         time s, required (there is no automatic choice yet); the options
         ``scheme`` (a two-part scheme without corrector or processor,
         default ABA864), ``offset`` (δ of C = E + δ) and ``every`` (the
@@ -725,7 +727,6 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                          f"{int(np.argmin(np.isfinite(X).all(axis=1)))}")
     m = len(X)
     chunk_size = _chunk_size(chunk_size, m, None)
-    # The model and scheme are refused before the kernels compile.
     lh = LogHamiltonian(model, opts["scheme"], offset=opts["offset"])
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
