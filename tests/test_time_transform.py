@@ -172,3 +172,73 @@ def test_u_not_positive_stops_with_a_reason(plummer):
     values, _, status = lh.fli(X0[None], np.eye(4)[:1], 1.0, 0.05, C=-5.0)
     assert np.isnan(values[0]) and status[0] == -1
     assert "U = C − V" in describe(status[0])
+
+
+# -- maps: varint.chaos_map(..., time_transform="log") ----------------------------------
+
+def _cr3bp_orbits():
+    """Twelve Sun–Jupiter orbits; with δ = 0.5 orbit 9 meets U ≤ 0 (δ = 1: none)."""
+    rng = np.random.default_rng(1)
+    return np.column_stack([rng.uniform(0.3, 0.9, 12), rng.uniform(-0.1, 0.1, 12),
+                            rng.uniform(-0.2, 0.2, 12), rng.uniform(0.3, 1.0, 12)])
+
+
+def test_chaos_map_log_is_the_fli_of_the_same_orbits_in_any_chunks():
+    """The map's values are LogHamiltonian.fli's bits on the same orbits
+    and vectors (default_rng([seed, m])), for chunks of 5 and of all 12;
+    an orbit the LH stops (U ≤ 0) is NaN with a failure status, and its
+    reason is counted in the provenance."""
+    from varint import chaos_map
+    from varint.protocol import Status
+    from varint.state import initial_deviations
+
+    model, X = CR3BP(SUN_JUPITER_MU), _cr3bp_orbits()
+    lh = LogHamiltonian(model, "ABA864", offset=0.5)
+    W0 = initial_deviations(4, 1, len(X), 3, np.arange(len(X)))[:, :, 0]
+    values, _, status = lh.fli(X, W0, 20.0, 0.2, every=5.0)
+    assert status[9] == -1 and (np.delete(status, 9) == 0).all()   # the case is exercised
+    maps = []
+    for size in (5, None):
+        with pytest.warns(RuntimeWarning, match="1 of 12 orbits were stopped by the "
+                          "logarithmic Hamiltonian .*U = C − V"):
+            maps.append(chaos_map(model, X, "fli", t_end=20.0, tau=0.2, time_transform="log",
+                                  seed=3, scheme="ABA864", offset=0.5, every=5.0,
+                                  chunk_size=size, progress=False))
+    for r in maps:
+        assert np.array_equal(r.values, values, equal_nan=True)
+        assert np.array_equal(r.status, np.where(status < 0, int(Status.INTEGRATOR_FAILED),
+                                                 status))
+        assert np.isnan(r.values[9]) and np.isnan(r.t_stop[9])
+        assert (np.delete(r.t_stop, 9) == 20.0).all()
+        prov = r.provenance
+        assert prov.method == "tm+log" and prov.tau == 0.2 and prov.seed == 3
+        assert prov.method_options["scheme"] == "ABA864" and prov.method_options["h"] == 0.2
+        assert prov.method_options["offset"] == 0.5 and prov.method_options["every"] == 5.0
+        assert prov.options["lh_failures"] == {describe(-1): 1}
+    assert maps[0].provenance.options["chunks"] == 3 and maps[1].provenance.options["chunks"] == 1
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"indicator": "sali"}, "FLI maps only, got indicator 'sali'"),
+    ({"tau": None}, "needs tau, the step h in the fictitious time .* got None"),
+    ({"tau": -0.1}, r"tau \(the fictitious step h\) must be a positive finite number, got -0.1"),
+    ({"backend": "cuda"}, "CPU only, got backend 'cuda'"),
+    ({"scheme": "SBAB2C"}, "two-part scheme without a corrector or processor, got 'SBAB2C'"),
+    ({"threshold": 3.0}, "does not take threshold=3.0"),
+    ({"checkpoint": "somewhere"}, "does not take checkpoint='somewhere'"),
+    ({"k": 2}, "takes the options .* got 'k'"),
+    ({"time_transform": "sundman"}, "time_transform must be None or one of .* got 'sundman'"),
+    ({"model": "standard"}, "needs an autonomous H"),
+])
+def test_chaos_map_log_refusals_name_the_value(kwargs, message, plummer):
+    """Each refused before any kernel compiles."""
+    from varint import chaos_map
+    from varint.models import StandardMap
+
+    args = {"model": plummer, "indicator": "fli", "tau": 0.05, "time_transform": "log"}
+    args.update(kwargs)
+    if args["model"] == "standard":
+        args["model"] = StandardMap(1.0)
+    model, indicator = args.pop("model"), args.pop("indicator")
+    with pytest.raises(ValueError, match=message):
+        chaos_map(model, X0[None], indicator, t_end=1.0, **args)

@@ -310,7 +310,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
               progress: bool | None = None, escape_radius: float | None = None,
-              energy_tol: float | None = None, **options: Any) -> ChaosMapResult:
+              energy_tol: float | None = None, time_transform: str | None = None,
+              **options: Any) -> ChaosMapResult:
     """An indicator for many initial conditions (final SALI, GALI_k, X1,
     MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
     map value), with early stopping once an orbit is decided.
@@ -377,6 +378,16 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         terminal).
     escape_radius : float, optional
         Stop orbits whose |q| exceeds this (they count as failed).
+    time_transform : None or "log"
+        "log": FLI maps with steps that follow the orbit, the logarithmic
+        Hamiltonian of :class:`varint.time_transform.LogHamiltonian`
+        (refused for other indicators, backends and schemes with a
+        corrector or processor, early stopping, ``t_check``, ``client``,
+        ``checkpoint``). ``tau`` is then the step h in the fictitious
+        time s, required (there is no automatic choice yet); the options
+        ``scheme`` (a two-part scheme without corrector or processor,
+        default ABA864), ``offset`` (δ of C = E + δ) and ``every`` (the
+        physical time between normalisations of the vector, default 10).
 
     Returns
     -------
@@ -409,6 +420,12 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              checkpoint="hh_sali_map")
     """
     start = time.perf_counter()
+    if time_transform is not None:
+        return _log_map(model, initial_conditions, indicator, t_end=t_end, tau=tau,
+                        method=method, threshold=threshold, seed=seed, t_check=t_check,
+                        chunk_size=chunk_size, client=client, checkpoint=checkpoint,
+                        progress=progress, escape_radius=escape_radius,
+                        energy_tol=energy_tol, time_transform=time_transform, **options)
     client = check.dask_client(client)
     grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
     if grid is not None and grid.states.size == 0:
@@ -638,3 +655,140 @@ def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, inter
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
         mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
         log_scale=ind.log_scale)
+
+
+#: The options of a ``time_transform="log"`` map besides those of
+#: :func:`chaos_map` itself, and their defaults (``None``: the rule of
+#: :class:`~varint.time_transform.LogHamiltonian`).
+LOG_MAP_OPTIONS = {"scheme": "ABA864", "offset": None, "every": 10.0, "backend": "cpu"}
+
+
+def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, threshold, seed,
+             t_check, chunk_size, client, checkpoint, progress, escape_radius, energy_tol,
+             time_transform, **options):
+    """The FLI map of :func:`chaos_map` with ``time_transform="log"``: the
+    orbits in chunks (the map's fixed shuffle, :func:`_chunk_size`), each
+    chunk one call of :meth:`LogHamiltonian.fli
+    <varint.time_transform.LogHamiltonian.fli>` from orbit m's vector of
+    ``default_rng([seed, m])``, so a value does not depend on the chunking.
+    Everything it does not support is refused in one line before any work.
+    A failed orbit's value is NaN; its status is the map's
+    ``INTEGRATOR_FAILED`` for the LH's own stops (U ≤ 0, the step budget),
+    whose reasons ``provenance.options["lh_failures"]`` counts, or the
+    :class:`~varint.protocol.Status` the step reported. The final states
+    and energy errors are not computed (NaN), nor the time of a failure
+    (``t_stop`` NaN)."""
+    from .time_transform import TIME_TRANSFORMS, LogHamiltonian, describe, refuse
+
+    if time_transform not in TIME_TRANSFORMS:
+        raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
+                         f"got {time_transform!r}")
+    name = indicator.name if isinstance(indicator, Indicator) else indicator
+    if name != "fli":
+        raise ValueError(f"time_transform='log' computes FLI maps only, got indicator {name!r}")
+    if tau is None:
+        raise ValueError("time_transform='log' needs tau, the step h in the fictitious time "
+                         "(there is no automatic choice yet), got None")
+    h = check.positive_float(tau, "tau (the fictitious step h)")
+    t_end = check.end_time(t_end)
+    model = check.model(model)
+    unknown = sorted(set(options) - set(LOG_MAP_OPTIONS))
+    if unknown:
+        raise ValueError(f"time_transform='log' takes the options {list(LOG_MAP_OPTIONS)}, "
+                         f"got {unknown[0]!r}")
+    opts = {**LOG_MAP_OPTIONS, **options}
+    if opts["backend"] != "cpu":
+        raise ValueError(f"time_transform='log' runs on the CPU only, got backend "
+                         f"{opts['backend']!r}")
+    every = check.positive_float(opts["every"], "every")
+    progress = check.flag(progress, "progress")
+    for what, value, allowed in (("method", method, "tm"),
+                                 ("threshold", threshold, "default or None"),
+                                 ("t_check", t_check, None), ("client", client, None),
+                                 ("checkpoint", checkpoint, None),
+                                 ("escape_radius", escape_radius, None),
+                                 ("energy_tol", energy_tol, None)):
+        fine = (value in ("default", None) if what == "threshold"
+                else value is None if allowed is None else value == allowed)
+        if not fine:
+            raise ValueError(f"time_transform='log' does not take {what}={value!r} (yet): "
+                             f"give {allowed!r}")
+    seed = check_seed(seed, none=False)
+    refuse(model, opts["scheme"], opts["offset"])
+    grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
+    if grid is not None and grid.states.size == 0:
+        raise ValueError("the section grid holds no allowed point at this energy")
+    X = np.asarray(initial_conditions if grid is None else grid.states, dtype=float)
+    if X.ndim != 2 or X.shape[1] != model.dim or len(X) == 0:
+        raise ValueError(f"initial_conditions must have shape (M, {model.dim}) (one row per "
+                         f"orbit), got shape {X.shape}")
+    if not np.all(np.isfinite(X)):
+        raise ValueError(f"initial_conditions must be finite, got a non-finite value in row "
+                         f"{int(np.argmin(np.isfinite(X).all(axis=1)))}")
+    m = len(X)
+    chunk_size = _chunk_size(chunk_size, m, None)
+    lh = LogHamiltonian(model, opts["scheme"], offset=opts["offset"])
+    order = np.random.default_rng(20100927).permutation(m)
+    chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
+    done = {}
+    cpu, start = time.process_time(), time.perf_counter()
+
+    def run(c):
+        idx = chunks[c]
+        W0 = initial_deviations(model.dim, 1, len(idx), seed, idx)[:, :, 0]
+        return lh.fli(X[idx], W0, t_end, h, every=every)
+
+    def keep(c, outcome):
+        done[c] = outcome
+        return len(chunks[c])
+
+    class _Outcome(tuple):
+        interrupted = False
+
+    with bar(progress, m, 0, "chaos_map", "orbit") as shown:
+        interrupted = fan_out(None, range(len(chunks)), lambda c: _Outcome(run(c)),
+                              lambda c: (c,), keep, shown)
+    values, lh_status = np.full(m, np.nan), np.zeros(m, dtype=np.int64)
+    counts = np.zeros(3, dtype=np.int64)
+    computed = np.zeros(m, dtype=bool)
+    for c, (v, n, st) in done.items():
+        values[chunks[c]], lh_status[chunks[c]] = v, st
+        counts += n.sum(axis=0)
+        computed[chunks[c]] = True
+    # The map's negative codes mean "decided": the LH's own stops (U ≤ 0,
+    # budget) become failures, their reasons kept by name.
+    status = np.where(lh_status < 0, int(Status.INTEGRATOR_FAILED), lh_status)
+    reasons = {describe(code): int(np.sum(lh_status == code))
+               for code in np.unique(lh_status[lh_status != 0]).tolist()}
+    warn_failures(lh_status, "orbits", "their values are NaN")
+    stops = [f"{int(np.sum(lh_status == code))}: {describe(code)}"
+             for code in np.unique(lh_status[lh_status < 0]).tolist()]
+    if stops:
+        warnings.warn(f"{int(np.sum(lh_status < 0))} of {m} orbits were stopped by the "
+                      f"logarithmic Hamiltonian ({'; '.join(stops)}); their values are NaN",
+                      RuntimeWarning, stacklevel=accuracy.user_stacklevel())
+    if interrupted:
+        warn_interrupted("chaos map", len(done), len(chunks), "chunks", False)
+    t_stop = np.where(computed & (status == STATUS_OK), t_end, np.nan)
+    prov = Provenance(
+        kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
+        method_options={"time_transform": "log", "scheme": lh.scheme.name, "h": h,
+                        "offset": lh.offset, "every": every, "backend": "cpu"},
+        tau=h, t_end=t_end, seed=seed,
+        options={"indicator": "fli", "threshold": None, "x0": digest(X),
+                 "chunk_size": int(chunk_size), "chunks": len(chunks), "chunks_resumed": 0,
+                 "client": client_label(None), "lh_failures": reasons},
+        versions=package_versions(),
+        counts={"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
+                "gradient_evaluations": int(counts[2])},
+        wall_time=time.perf_counter() - start, tau_choice={}, code=identity.code_identity(),
+        machine=identity.machine(), cpu_time=time.process_time() - cpu)
+    empty = np.empty(0)
+    return ChaosMapResult(
+        t=np.array([t_end]), energy_error=np.full(m, np.nan),
+        state=np.full(X.shape, np.nan), provenance=prov, status=status,
+        interrupted=interrupted, accuracy=None, indicator="fli", values=values, t_stop=t_stop,
+        threshold=None, x0=X, axes=None if grid is None else list(grid.axes),
+        u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
+        mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
+        log_scale=INDICATORS["fli"].log_scale)

@@ -159,15 +159,7 @@ class LogHamiltonian:
     """
 
     def __init__(self, model, scheme="ABA864", offset=None):
-        A, V, q, p, flow, par = _symbolic_parts(model)
-        sch = get_scheme(scheme)
-        if getattr(sch, "corrector", None) is not None or not hasattr(sch, "stages"):
-            raise ValueError(f"time_transform='log' needs a two-part scheme without a "
-                             f"corrector or processor, got {sch.name!r}")
-        if offset is not None and (isinstance(offset, bool)
-                                   or not isinstance(offset, numbers.Real)
-                                   or not float(offset) > 0.0 or not np.isfinite(offset)):
-            raise ValueError(f"offset must be a finite number > 0, got {offset!r}")
+        (A, V, q, p, flow, par), sch = refuse(model, scheme, offset)
         kinds, h, _ = stage_arrays(sch, 1.0)
         self.model, self.scheme, self.offset = model, sch, None if offset is None else float(offset)
         self.kinds = np.where(kinds == DRIFT, 0, 1).astype(np.int64)
@@ -237,6 +229,23 @@ class LogHamiltonian:
                         out, status, counts)
         out[status != 0] = np.nan   # nothing computed is passed off as a value
         return out, counts, status
+
+
+def refuse(model, scheme="ABA864", offset=None):
+    """The symbolic parts of ``model`` (:func:`_symbolic_parts`) and the
+    scheme, after refusing in one line, before anything compiles, a model
+    of another form, a scheme with a corrector or processor and an offset
+    that is not a finite number > 0."""
+    parts = _symbolic_parts(model)
+    sch = get_scheme(scheme)
+    if getattr(sch, "corrector", None) is not None or not hasattr(sch, "stages"):
+        raise ValueError(f"time_transform='log' needs a two-part scheme without a "
+                         f"corrector or processor, got {sch.name!r}")
+    if offset is not None and (isinstance(offset, bool)
+                               or not isinstance(offset, numbers.Real)
+                               or not float(offset) > 0.0 or not np.isfinite(offset)):
+        raise ValueError(f"offset must be a finite number > 0, got {offset!r}")
+    return parts, sch
 
 
 def describe(status):
