@@ -35,7 +35,9 @@ same load window (only figures of one window compare). Issue 28's second
 round: ``round2_before`` (main 93ccc3a, one-shot only) and
 ``round2_after`` (both paths); its third (the prepared call's fixed cost):
 ``round3_before`` (main a875246, both paths) and ``round3_after``, run
-one after the other in one load window.
+one after the other in one load window; its fourth (the prepared call's
+kernel check and the TM propagator's per-call set-up): ``round4_before``
+(main fc6a4bb) and ``round4_after``, likewise.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared]``
