@@ -7,6 +7,7 @@ import errno
 import numbers
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -401,7 +402,10 @@ class KernelCheck:
 
     def __init__(self, model):
         self.model = model
-        self._buffers = None     # made at the first check (a map has none)
+        # Buffers per thread (a prepared run called from several threads
+        # must not test one thread's values for another's state), made at
+        # a thread's first check (a map has none).
+        self._local = threading.local()
 
     def _made(self):
         """(all values, ∇V, D²V, third derivatives, v): ∇V, D²V and the
@@ -409,9 +413,9 @@ class KernelCheck:
         model = self.model
         n, rows = model.n_dof, model.bandwidth + 1
         values = np.zeros(n * (1 + 2 * rows))
-        self._buffers = (values, values[:n], values[n:n * (1 + rows)].reshape(rows, n),
-                         values[n * (1 + rows):].reshape(rows, n), np.ones(n))
-        return self._buffers
+        self._local.buffers = (values, values[:n], values[n:n * (1 + rows)].reshape(rows, n),
+                               values[n * (1 + rows):].reshape(rows, n), np.ones(n))
+        return self._local.buffers
 
     def __call__(self, X, what="the initial state"):
         """Check the states ``X`` (M, 2N) as :func:`kernels` does."""
@@ -420,7 +424,7 @@ class KernelCheck:
             kernels(model, X, what)
             return
         q = np.ascontiguousarray(X[0, :model.n_dof], dtype=float)
-        values, G, H, T, v = self._buffers or self._made()
+        values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
         values.fill(0.0)     # a banded kernel need not write every entry
         try:
             model.grad_kernel(q, model.params, G)

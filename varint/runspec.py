@@ -176,7 +176,7 @@ class RunSpec:
                                                what, kernels_what, kernel_check)
         # A copy with three fields changed, without dataclasses.replace's
         # __init__ over every field (a prepared run's call makes one).
-        new = object.__new__(RunSpec)
+        new = object.__new__(type(self))
         new.__dict__.update(self.__dict__, x0=x, single=single, reference=reference)
         return new
 
