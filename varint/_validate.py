@@ -7,6 +7,7 @@ import errno
 import numbers
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -386,6 +387,54 @@ def kernels(model, X, what="the initial state"):
         _evaluate(model, q_all, np.arange(len(q_all)), what, len(X))
     elif first >= 0:
         _evaluate(model, q_all, np.array([first]), what, len(X))
+
+
+class KernelCheck:
+    """:func:`kernels` for the calls of one prepared run: the buffers and
+    set-up of one state's evaluation made once (a prepared run's call
+    checks its states every time).
+
+    One state is evaluated into the kept buffers and only tested finite;
+    where a kernel raises or is not finite there, or for several states,
+    :func:`kernels` does the whole check, which names what is wrong (the
+    same message as a one-shot call's).
+    """
+
+    def __init__(self, model):
+        self.model = model
+        # Buffers per thread (a prepared run called from several threads
+        # must not test one thread's values for another's state), made at
+        # a thread's first check (a map has none).
+        self._local = threading.local()
+
+    def _made(self):
+        """(all values, ∇V, D²V, third derivatives, v): ∇V, D²V and the
+        third derivatives side by side, so that one test covers all three."""
+        model = self.model
+        n, rows = model.n_dof, model.bandwidth + 1
+        values = np.zeros(n * (1 + 2 * rows))
+        self._local.buffers = (values, values[:n], values[n:n * (1 + rows)].reshape(rows, n),
+                               values[n * (1 + rows):].reshape(rows, n), np.ones(n))
+        return self._local.buffers
+
+    def __call__(self, X, what="the initial state"):
+        """Check the states ``X`` (M, 2N) as :func:`kernels` does."""
+        model = self.model
+        if len(X) != 1:
+            kernels(model, X, what)
+            return
+        q = np.ascontiguousarray(X[0, :model.n_dof], dtype=float)
+        values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
+        values.fill(0.0)     # a banded kernel need not write every entry
+        try:
+            model.grad_kernel(q, model.params, G)
+            model.hess_kernel(q, model.params, H)
+            model.third_kernel(q, model.params, v, T)
+        except Exception:
+            kernels(model, X, what)    # raises, naming what is wrong
+            raise
+        if not np.isfinite(values).all():
+            kernels(model, X, what)
 
 
 def _scan(model, Q):

@@ -109,6 +109,8 @@ class PreparedRun:
         self.spec = spec
         self._deviations = deviations
         self._progress, self._errors = progress, errors
+        # The kernels' check at each call's states, its buffers kept.
+        self._kernel_check = check.KernelCheck(spec.model)
         # The first call's run: its propagator and set-up serve every later
         # call (Run.with_orbits).
         self._first: Run | None = None
@@ -117,7 +119,7 @@ class PreparedRun:
         """The result of the run from ``x0`` ((2N,) or (M, 2N)), with
         ``deviations`` (([M,] 2N, k), as many vectors as the prepared run
         carries) or the prepared run's vectors."""
-        spec = self.spec.with_states(x0)
+        spec = self.spec.with_states(x0, kernel_check=self._kernel_check)
         first = self._first
         if first is None:
             vectors = self._deviations if deviations is None else deviations

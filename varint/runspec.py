@@ -164,15 +164,21 @@ class RunSpec:
                 "options": {**self.options, **self.run_options},
                 "versions": package_versions(), "code": identity.source_digest()}
 
-    def with_states(self, x0, what="x0", kernels_what="the initial state"):
+    def with_states(self, x0, what="x0", kernels_what="the initial state", kernel_check=None):
         """This specification over the states ``x0`` ((2N,) or (M, 2N)),
         checked (shape, finite, the model's kernels finite there, what the
         indicator requires of them) with the reference their errors are
         measured against (:class:`varint.accuracy.Reference`); ``what``
-        and ``kernels_what`` name the states and one state in messages."""
+        and ``kernels_what`` name the states and one state in messages;
+        ``kernel_check`` (a :class:`varint._validate.KernelCheck` of this
+        model) checks the kernels with buffers kept between calls."""
         x, single, reference = _checked_states(self.model, self.indicator, self.options, x0,
-                                               what, kernels_what)
-        return dataclasses.replace(self, x0=x, single=single, reference=reference)
+                                               what, kernels_what, kernel_check)
+        # A copy with three fields changed, without dataclasses.replace's
+        # __init__ over every field (a prepared run's call makes one).
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__, x0=x, single=single, reference=reference)
+        return new
 
     def one_state(self, what="x0"):
         """The state of a specification of one orbit (2N,); a batch is
@@ -278,7 +284,7 @@ def _call_fields(model, indicator, t_end, tau, *, method, t_out, seed, escape_ra
             "seed": check_seed(seed), "escape_radius": escape_radius, "energy_tol": energy_tol}
 
 
-def _checked_states(model, indicator, options, x0, what, kernels_what):
+def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_check=None):
     """(x (M, 2N), single, reference) of the states ``x0`` (see
     :meth:`RunSpec.with_states`)."""
     x, single = check.states(model, x0, what)
@@ -286,7 +292,10 @@ def _checked_states(model, indicator, options, x0, what, kernels_what):
         # A state where V or its derivatives are singular is refused here,
         # not reported as a run failing at its first step (a lattice
         # without band kernels is checked by its own stepper).
-        check.kernels(model, x, kernels_what)
+        if kernel_check is None:
+            check.kernels(model, x, kernels_what)
+        else:
+            kernel_check(x, kernels_what)
     reference = accuracy.Reference(model, x)
     indicator.check_states(model, x, options)
     return x, single, reference

@@ -295,8 +295,10 @@ class TangentMapPropagator:
         if "tm_schedule" not in state.extra:
             # The first interval is one step, also for a given interval:
             # nothing is known yet of the stretching it must bound.
-            state.extra["tm_schedule"] = np.tile(np.array([state.step + 1, 1], dtype=np.int64),
-                                                 (state.n_orbits, 1))
+            # (Filled by column, not np.tile: a prepared run's call makes one.)
+            sched = np.empty((state.n_orbits, 2), dtype=np.int64)
+            sched[:, 0], sched[:, 1] = state.step + 1, 1
+            state.extra["tm_schedule"] = sched
         return state.extra["tm_schedule"]
 
     def _compensation(self, state):
@@ -322,13 +324,22 @@ class TangentMapPropagator:
         m, d, k = state.W.shape
         outs = np.zeros(0, dtype=np.int64) if outputs is None else np.asarray(outputs, np.int64)
         s = len(outs)
-        aux = self._accumulator(state)
-        return Snapshots(
-            steps=outs, x=np.full((s, m, d), np.nan), W=np.full((s, m, d, k), np.nan),
-            acc_m=np.ones((s, m, k)), acc_e=np.zeros((s, m, k), dtype=np.int64),
-            extra={} if self.accumulator is None else {
-                self.accumulator.key: np.full((s,) + aux.shape, np.nan)},
-            renormalized=self.sparse == 0)
+        # Fresh arrays at every call (the records copy them, but a
+        # propagator holds no state of a run), filled in place: cheaper
+        # than np.full for the few numbers of a short call.
+        x, W = np.empty((s, m, d)), np.empty((s, m, d, k))
+        x.fill(np.nan)
+        W.fill(np.nan)
+        acc_m = np.empty((s, m, k))
+        acc_m.fill(1.0)
+        extra = {}
+        if self.accumulator is not None:
+            aux = np.empty((s,) + self._accumulator(state).shape)
+            aux.fill(np.nan)
+            extra[self.accumulator.key] = aux
+        return Snapshots(steps=outs, x=x, W=W, acc_m=acc_m,
+                         acc_e=np.zeros((s, m, k), dtype=np.int64), extra=extra,
+                         renormalized=self.sparse == 0)
 
     def _setup(self):
         """What a generated stepper reads besides the call's numbers."""
