@@ -1077,14 +1077,54 @@ def _suite_time(R):
 @quote("prepared_cost")
 def _prepared_cost(R):
     """A prepared one-step R1 call against the one-shot call
-    (studies/call_profile.py, round2_after: minimum wall time of interleaved
+    (studies/call_profile.py, round4_after: minimum wall time of interleaved
     rounds)."""
-    d = R.json("call_profile_round2_after")
+    d = R.json("call_profile_round4_after")
     load = d["load"]["after"][0]
     return (f"{d['prepared_over_oneshot']['wall_min']:.2f} of the one-shot call's time "
             f"({d['prepared']['whole_call']['wall_min_us']:.0f} µs against "
             f"{d['whole_call']['wall_min_us']:.0f} µs, minimum of {d['calls']} calls, load "
             f"{load:.0f} on {d['load']['cpus']} cores)")
+
+
+@quote("lh_race")
+def _lh_race(R):
+    """The logarithmic-Hamiltonian step on the chaos maps of
+    studies/map_steps.py (part log, quick maps): steps per orbit, agreement
+    and heyoka batch 8's time over varint's at the cheapest tolerance that
+    reaches the same agreement."""
+    d = R.json("map_steps_quick_log")["log"]
+    rows = {(r["map"], r["contender"]): r for r in d["rows"]}
+    summary = d["summary"]
+
+    def one(name, contender):
+        r, s = rows[name, contender], summary[name][contender]
+        return (f"{thousands(round(r['steps_per_orbit']))} steps per orbit, "
+                f"{s['varint_agreement']:.1%} of the orbits classified as the reference does, "
+                f"{ratio(s['ratio'])}× heyoka")
+
+    cr3, core = "varint LH ABA864, h 1.6, offset None", "varint LH ABA864, h 0.1, offset 0.25"
+    fast = "varint LH ABA864, h 6.4, offset None"
+    load = max(d["load"][0], d["load_end"][0])
+    return (f"on the restricted three-body map (Sun–Jupiter, {rows['cr3bp', cr3]['orbits']} "
+            f"orbits) ABA864 with h = 1.6: {one('cr3bp', cr3)} (the defaults: "
+            f"{one('cr3bp', 'varint defaults')}; h = 6.4: {one('cr3bp', fast)}); on the cored "
+            f"logarithmic potential ({rows['core', core]['orbits']} orbits) ABA864 with h = 0.1 "
+            f"and δ = 0.25: {one('core', core)} (the defaults: {one('core', 'varint defaults')})"
+            f"; one thread, machine load up to {load:.0f} on 2 cores")
+
+
+@quote("numba_opt")
+def _numba_opt(R):
+    """CPU seconds of a cold test file at LLVM levels 0 and 1 over level 3
+    (studies/numba_opt.py)."""
+    d = R.json("numba_opt")
+    best = d["best"]
+    loads = [r["load"][0] for r in d["runs"]]
+    return (f"on {', '.join(d['files'])} -O0 took {best['0']['cpu_ratio_to_O3']:.3f} times "
+            f"the CPU seconds of -O3 and left {best['0']['uncacheable']} kernels numba cannot "
+            f"cache, -O1 {best['1']['cpu_ratio_to_O3']:.3f} times (one cold run per level, load "
+            f"{min(loads):.0f}–{max(loads):.0f} on 2 cores)")
 
 
 if __name__ == "__main__":
