@@ -95,6 +95,12 @@ def advance_cuda(prop, module, state, n, snaps, active):
     cuda.synchronize()
     t2 = time.perf_counter()
     clock.mark("kernel")
+    if s and res.energy is not None:
+        # H of every snapshot, where they are: one number per orbit and
+        # output comes back instead of the host's NumPy energy of the state.
+        res.energy.launch(a, snap["x"], s, snap["energy"])
+        cuda.synchronize()
+        clock.mark("energy")
     out = res.download(["st", "X", "W", "am", "ae", "nxt", "itv"]
                        + (["aux"] if res.has_aux else []))
     names = ["x", "W", "m", "e"] + (["aux"] if res.has_aux else [])
@@ -105,6 +111,8 @@ def advance_cuda(prop, module, state, n, snaps, active):
     last = bool(s) and int(snaps.steps[-1]) == int(state.step) + int(n)
     head = s - 1 if last else s
     snap_host = res.download_snapshots(snap, names, head) if head else {}
+    if s and res.energy is not None:
+        snap_host["energy"] = res.download_snapshots(snap, ["energy"], s)["energy"]
     clock.mark("d2h")
     failed = active[out["st"] != 0]
     # The call's start, for the orbits that fail (rare): the host's rows,
@@ -134,13 +142,31 @@ def advance_cuda(prop, module, state, n, snaps, active):
             getattr(snaps, key)[-1, sel] = getattr(state, key)[sel]
         if res.has_aux:
             snaps.extra[prop.accumulator.key][-1, sel] = aux[sel]
+    if "energy" in snap_host:
+        # Orbits not advanced have no energy here (NaN, as their snapshots).
+        snaps.energy = (snap_host["energy"].copy() if rows is None
+                        else np.full((s, m), np.nan))
+        if rows is not None:
+            snaps.energy[:, rows] = snap_host["energy"]
     clock.mark("unpack")
     per, first = prop._step_counts(k)
-    done = np.zeros(m, dtype=np.int64)
-    counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
-    done[sel], counters[sel] = n, per * int(n) + first
-    prop._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
-                       counters)
+    if failed.size:
+        done = np.zeros(m, dtype=np.int64)
+        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
+        done[sel], counters[sel] = n, per * int(n) + first
+        prop._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
+                           counters)
+        if snaps.energy is not None:
+            # Their snapshots are the CPU's now: so are their energies.
+            with np.errstate(all="ignore"):
+                snaps.energy[:, failed] = prop.model.energy(snaps.x[:, failed])
+    else:
+        # What RunState.after_kernel does after a call in which no orbit
+        # failed, without arrays of all M orbits: every active orbit took n
+        # steps and the same counts.
+        state.step += int(n)
+        state.add_counts(steps=np.int64(a) * int(n), **dict(zip(
+            COUNTERS, np.int64(a) * (per * int(n) + first), strict=False)))
     # The device copy is at the new step; a failed orbit that the CPU did
     # not fail again has host values the device lacks: upload next time.
     res.step = state.step if not (state.status[failed] == 0).any() else None

@@ -49,7 +49,7 @@ import numpy as np
 # runs a kernel with its own ``cuda`` put in the kernel's globals.
 from numba import cuda
 
-from . import device
+from . import device, energy
 
 __all__ = ["Resident", "resident_for", "STAGES"]
 
@@ -58,12 +58,14 @@ __all__ = ["Resident", "resident_for", "STAGES"]
 #: host buffers, where none is free for reuse), ``pack`` (the state
 #: gathered into pinned buffers, at an upload), ``h2d`` (copies to the
 #: device), ``compact`` (dropping stopped orbits on the device), ``kernel``
-#: (the launch, synchronised), ``d2h`` (copies back), ``unpack`` (written
-#: into the run state and the snapshots), ``rerun`` (failed orbits on the
-#: CPU and the state's bookkeeping); ``uploads``, ``compactions``,
-#: ``launches`` count calls.
-STAGES = {"alloc": 0.0, "pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "d2h": 0.0,
-          "unpack": 0.0, "rerun": 0.0, "uploads": 0, "compactions": 0, "launches": 0}
+#: (the launch, synchronised), ``energy`` (the snapshots' energies on the
+#: device, :mod:`varint.gpu.energy`, synchronised), ``d2h`` (copies back),
+#: ``unpack`` (written into the run state and the snapshots), ``rerun``
+#: (failed orbits on the CPU and the state's bookkeeping); ``uploads``,
+#: ``compactions``, ``launches`` count calls.
+STAGES = {"alloc": 0.0, "pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "energy": 0.0,
+          "d2h": 0.0, "unpack": 0.0, "rerun": 0.0, "uploads": 0, "compactions": 0,
+          "launches": 0}
 
 
 class _Clock:
@@ -194,6 +196,9 @@ class Resident:
         self.pinned["aux"] = _Pinned(a * int(np.prod(self.aux_shape)), float, self.buffers)
         self.pinned["st"] = _Pinned(a, np.int64, self.buffers)
         self.constants = (cuda.to_device(prop._h), cuda.to_device(prop._hc))
+        # The snapshots' energies are computed on the device where the
+        # model allows (varint.gpu.energy); else the host computes them.
+        self.energy = energy.energy_kernel(prop.model) if energy.supported(prop.model) else None
         self.snap_cache = {}
         self.dev = {}
         self._upload(state)
@@ -307,7 +312,8 @@ class Resident:
             self.snap_cache[key] = {
                 "x": cuda.device_array((r, d, a)), "W": cuda.device_array((r, d, k, a)),
                 "m": cuda.device_array((r, k, a)), "e": cuda.device_array((r, k, a), np.int64),
-                "aux": cuda.device_array((r, a) + tuple(self.aux_shape))}
+                "aux": cuda.device_array((r, a) + tuple(self.aux_shape)),
+                "energy": cuda.device_array((r, a))}
             for name, arr in self.snap_cache[key].items():
                 have = self.pinned.get("snap_" + name)
                 if have is None or have.buffer.size < arr.size:
