@@ -19,9 +19,11 @@ begins; ``--sizes`` the speed part's orbits, measured in that order;
 Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement:
 per size the GPU map's time by stage — validation, seeds, snapshot arrays,
 records, energy errors, assembly and, inside the GPU calls, buffer
-allocation, packing, copies each way, compaction, kernel, writing back —
-and the same map with the GPU call of main 93ccc3a, for the before/after
-ratio) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
+allocation, packing, copies each way, compaction, kernel, the snapshots'
+energies, writing back — and the same map with the GPU call of main
+a875246, whose host computed the energies, for the before/after ratio;
+and, stated as a projection, the ratio to all CPU cores if the host's work
+took no time) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
 the FP64 instructions whose rounding decides bitwise agreement with the
 CPU — ``fma.rn``; ``mul``, ``add``, ``sub`` with ``.rn``, which ptxas
 never fuses, and without it, which it may; ``div.rn`` against

@@ -132,13 +132,18 @@ def _no_energy(self, n_threads, snap_x, count, out):
 
 def _fake_launch(self, n_threads, *args):
     """The launches on the simulator: the stepper's by :func:`_no_steps`,
-    the energy kernel's by :func:`_no_energy`; the gathers of a compaction
-    as they are (NumPy on the simulator)."""
+    the energy kernel's by :func:`_no_energy`, the transpositions into the
+    host's layout by NumPy's (the simulator would run them thread by
+    thread in Python); the gathers of a compaction as they are."""
     name = self.dispatcher.py_func.__name__
     if name == "energy":
         return _no_energy(self, n_threads, *args)
     if name == "thread":
         return _no_steps(self, n_threads, *args)
+    if name == "_to_rows":   # a transposition on the device, in NumPy
+        src, dst, c0 = args
+        dst[:, c0:c0 + src.shape[0]] = src.T
+        return None
     return _REAL_LAUNCH[0](self, n_threads, *args)
 
 

@@ -110,12 +110,22 @@ def _gather_rows(src, slots, dst):
             dst[j, i] = src[s, i]
 
 
+def _to_rows(src, dst, c0):
+    """``dst[j, c0 + i] = src[i, j]``: columns with the orbit index
+    innermost written as the host's rows, the orbit first."""
+    j = cuda.grid(1)
+    if j < src.shape[1]:
+        for i in range(src.shape[0]):
+            dst[j, c0 + i] = src[i, j]
+
+
 _KERNELS: dict = {}
 
 
 def _gather(name):
     if name not in _KERNELS:
-        _KERNELS[name] = device.kernel({"columns": _gather_columns, "rows": _gather_rows}[name])
+        _KERNELS[name] = device.kernel({"columns": _gather_columns, "rows": _gather_rows,
+                                        "to_rows": _to_rows}[name])
     return _KERNELS[name]
 
 
@@ -200,6 +210,7 @@ class Resident:
         # model allows (varint.gpu.energy); else the host computes them.
         self.energy = energy.energy_kernel(prop.model) if energy.supported(prop.model) else None
         self.snap_cache = {}
+        self.rows_cache = {}
         self.dev = {}
         self._upload(state)
         # After the upload, which makes the schedule at a run's first call.
@@ -285,6 +296,7 @@ class Resident:
         cuda.synchronize()
         self.dev, self.rows = new, np.asarray(active, dtype=np.int64)
         self.snap_cache.clear()
+        self.rows_cache.clear()
         clock.mark("compact")
         STAGES["compactions"] += 1
 
@@ -330,6 +342,24 @@ class Resident:
             self.dev[name].copy_to_host(ary=buf)
             out[name] = buf
         return out
+
+    def into_rows(self, pairs):
+        """Device arrays with the orbit index innermost, ``(L, a)``, copied
+        into host arrays with the orbit first, ``(a, L')`` (C-contiguous),
+        from column ``c0`` on (``pairs``: (device array, host array, c0); the
+        pairs of one host array adjacent): transposed on the device, where
+        memory is fast, into an array of the host's layout, then copied once
+        straight into the host array, with no pass of the host's over it."""
+        for i, (src, host, c0) in enumerate(pairs):
+            key = (host.shape, host.dtype)
+            if key not in self.rows_cache:
+                self.rows_cache[key] = cuda.device_array(host.shape, host.dtype)
+            buf = self.rows_cache[key]
+            _gather("to_rows").launch(src.shape[1], src, buf, c0)
+            # The host array is complete after its last pair (a synchronous
+            # copy: the buffer is free again for the next array).
+            if i + 1 == len(pairs) or pairs[i + 1][1] is not host:
+                buf.copy_to_host(ary=host)
 
     def download_snapshots(self, snap, names, count):
         """The first ``count`` output steps of the snapshot device arrays
