@@ -30,7 +30,8 @@ never fuses, and without it, which it may; ``div.rn`` against
 ``div.approx``/``div.full``, ``rcp.rn`` against ``rcp.approx``,
 ``sqrt.rn`` against ``sqrt.approx``), one kernel's ``kernel.ptx``,
 ``ptx_lto.json`` (the FLI kernel's counts as NVVM writes it and as
-nvJitLink rewrites it under link-time optimisation), and
+nvJitLink rewrites it under link-time optimisation), ``gpu_energy.json``
+(the device's energies against the host's, ``studies/gpu_energy.py``), and
 ``profile.txt`` (cProfile of the FLI map of 1e5 orbits on the GPU, by
 cumulative time: where the map's time goes besides the kernel).
 """
@@ -110,6 +111,12 @@ def main(argv=None):
     if not device.available() or device.simulated():
         print("no GPU: no PTX or profile", flush=True)
         return
+    try:   # the device's energies against the host's (issue 33): seconds
+        from studies import gpu_energy
+
+        gpu_energy.main(["--out", str(out / "gpu_energy")])
+    except Exception as exc:
+        print("gpu_energy failed:", repr(exc), flush=True)
     # The PTX of what ran (seconds: compiled already).
     summary = []
     for k in launched.values():

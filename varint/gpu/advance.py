@@ -8,8 +8,12 @@ that loads coalesce), and compacted on the device when orbits stop (after a
 check time of a chaos map with early stopping the orbits that decided are
 gone from the launch, so every warp stays full of live orbits). The kernel
 (:mod:`varint.gpu.emit`) advances every orbit by ``n`` steps in one launch;
-the state, the snapshots at output steps and the status come back into
-pinned buffers and are written into the run state's rows.
+the energies of the snapshots are computed on the device
+(:mod:`varint.gpu.energy`: the host only forms the relative errors); the
+state, the snapshots at output steps and the status come back
+(:mod:`varint.gpu.resident`: transposed on the device and copied straight
+into the host's arrays where every orbit was advanced, else through pinned
+buffers written into the advanced orbits' rows).
 
 An orbit that failed on the GPU is recomputed on the CPU by the one-orbit
 stepper from the call's start (exactly as after the CPU's SIMD lanes), so it

@@ -18,12 +18,18 @@ the kernel with its own shapes), and stays there for the state's lifetime:
   orbits still active into new arrays, in their order (compaction, so that
   warps stay full), from their column numbers — the only copy to the
   device;
-* after every launch the state is copied back once per array into
-  page-locked (pinned) host buffers, which copy at the bus's full rate
-  and are allocated once per process (a pool: pinning pages is slow), and
-  written into the run state's rows, so every reader on the host
-  (records, checkpoints, the result) sees what it saw before: the host
-  copy stays the run's state of record.
+* after every launch the state is copied back once per array, so every
+  reader on the host (records, checkpoints, the result) sees what it saw
+  before: the host copy stays the run's state of record. A call of all
+  the run's orbits (a map's chunk until an orbit stops) transposes the
+  state and the snapshots on the device into the host's layout (orbit
+  first, :meth:`Resident.into_rows`) and copies them straight into the
+  run state's and the snapshots' arrays: the host makes no pass over
+  them (on an H200 writing them into the host's rows took 0.83 s of a
+  1e6-orbit map, ``studies/results/bench_gpu_h200.md``). A call of some
+  orbits copies into page-locked (pinned) host buffers, which copy at the
+  bus's full rate and are allocated once per process (a pool: pinning
+  pages is slow), and writes them into the orbits' rows.
 
 The device copy is valid only while nothing but the propagator writes the
 state's rows, which is how a run advances (``RunState`` is changed between
@@ -326,10 +332,6 @@ class Resident:
                 "m": cuda.device_array((r, k, a)), "e": cuda.device_array((r, k, a), np.int64),
                 "aux": cuda.device_array((r, a) + tuple(self.aux_shape)),
                 "energy": cuda.device_array((r, a))}
-            for name, arr in self.snap_cache[key].items():
-                have = self.pinned.get("snap_" + name)
-                if have is None or have.buffer.size < arr.size:
-                    self.pinned["snap_" + name] = _Pinned(arr.size, arr.dtype, self.buffers)
         return self.snap_cache[key]
 
     def download(self, names):
@@ -367,6 +369,12 @@ class Resident:
         out = {}
         for name in names:
             arr = snap[name][:count]
+            # Page-locked buffers for snapshots only where they are needed
+            # (a call of all orbits copies straight into the host's arrays).
+            have = self.pinned.get("snap_" + name)
+            if have is None or have.buffer.size < snap[name].size:
+                self.pinned["snap_" + name] = _Pinned(snap[name].size, snap[name].dtype,
+                                                      self.buffers)
             buf = self.pinned["snap_" + name].view(arr.shape)
             arr.copy_to_host(ary=buf)
             out[name] = buf
