@@ -110,6 +110,13 @@ out["resident"] = [all(np.array_equal(getattr(a, f), getattr(b, f))
                        for f in ("x", "W", "acc_m", "acc_e", "status", "step"))
                    and all(np.array_equal(a.extra[key], b.extra[key]) for key in a.extra),
                    kept, STAGES["uploads"] - u0]
+# The work counted per call (gradients, Hessians, ...) is the CPU's, also
+# when the GPU's bookkeeping skips the arrays of all orbits (no failure).
+c1, c2 = RunState.start(X, W0), RunState.start(X, W0)
+for steps in (7, 13):
+    p_cpu.advance(c1, steps)
+    p_gpu.advance(c2, steps)
+out["counts"] = [c1.counts == c2.counts, c1.step == c2.step, c1.counts["steps"]]
 # Page-locked buffers are allocated once: a second map of the same size
 # takes them from the pool its first map's states returned them to.
 import gc
@@ -230,6 +237,11 @@ def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated)
     assert kept == 1, "the second call uploaded the state again"
     assert uploads == 2, "a call on the CPU in between was not noticed"
     assert bitwise
+
+
+def test_simulated_work_counts_are_the_cpus(simulated):
+    same_counts, same_step, steps = simulated["counts"]
+    assert same_counts and same_step and steps == 200
 
 
 def test_simulated_pinned_buffers_are_reused(simulated):

@@ -94,7 +94,6 @@ def _source(key):
     return "\n".join(lines + ["        " + line for line in body]) + "\n"
 
 
-
 def energy_kernel(model):
     """The compiled energy kernel of ``model`` (:func:`energy_source`),
     built once per process; on the simulator a simulated kernel."""
