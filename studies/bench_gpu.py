@@ -12,8 +12,10 @@ it is measured (a run stopped at its time limit keeps what it measured):
    t = 1e3) of random points of the section at 1e6, then 1e5 orbits
    (``--sizes``): orbits per second on the GPU (one chunk per map, with the
    kernel's own seconds and the map's time by stage,
-   ``studies/gpu_stages.py``), on the GPU with the GPU call of main 93ccc3a
-   (``gpu_before``: the state packed and copied at every call,
+   ``studies/gpu_stages.py``), on the GPU with the GPU call of main a875246
+   (``gpu_main``: the snapshots' energies computed on the host,
+   ``studies/gpu_advance_main.py``; with ``--with-93ccc3a`` also that of
+   main 93ccc3a, ``gpu_before``: the state packed and copied at every call,
    ``studies/gpu_advance_before.py``), on all CPU cores and (up to ``--cpu1-max``
    orbits, its rate being flat in the size) on one, interleaved, one run
    each at 1e6 and the minimum of two below.
@@ -161,15 +163,18 @@ def gpu_info():
 @contextlib.contextmanager
 def call_of(contender):
     """For ``gpu_before``, the GPU call of main 93ccc3a in the place of
-    today's (the TM propagator looks ``advance_cuda`` up at each call)."""
-    if contender != "gpu_before":
+    today's, for ``gpu_main`` that of main a875246 (the snapshots' energies
+    on the host); the TM propagator looks ``advance_cuda`` up at each
+    call."""
+    if contender not in ("gpu_before", "gpu_main"):
         yield
         return
-    from studies import gpu_advance_before
+    from studies import gpu_advance_before, gpu_advance_main
     from varint.gpu import advance
 
     today = advance.advance_cuda
-    advance.advance_cuda = gpu_advance_before.advance_cuda
+    advance.advance_cuda = (gpu_advance_before if contender == "gpu_before"
+                            else gpu_advance_main).advance_cuda
     try:
         yield
     finally:
@@ -211,6 +216,17 @@ def table(res):
                      f"{f(r.get('kernel_tflops'), '.2f')} | "
                      f"{f(r.get('kernel_fraction_of_peak'), '.1%')} |")
     for r in res["speed"]:
+        if "gpu_main_s" in r:
+            lines += ["", f"{r['orbits']} orbits: the GPU map {r['gpu_s']:.4g} s, with the GPU "
+                      f"call of main a875246 (energies on the host) {r['gpu_main_s']:.4g} s "
+                      f"({r.get('gpu_over_main', float('nan')):.2f}×; host part in the calls "
+                      f"{r['gpu_host_s']:.3g} s against {r['gpu_main_host_s']:.3g} s); "
+                      f"same values: {r.get('gpu_same_as_main')}"]
+        if "projected_device_only_over_cpu_all" in r:
+            lines += ["", f"{r['orbits']} orbits, a projection (not measured): with no host "
+                      f"work the GPU map would be "
+                      f"{r['projected_device_only_over_cpu_all']:.0f}× all cores (kernel and "
+                      f"energies alone); measured {r['gpu_over_cpu_all']:.1f}×"]
         if "gpu_before_s" in r:
             lines += ["", f"{r['orbits']} orbits: the GPU map {r['gpu_s']:.4g} s, with the GPU "
                       f"call of main 93ccc3a {r['gpu_before_s']:.4g} s "
@@ -224,6 +240,12 @@ def table(res):
             total = r["gpu_stages"]["total"]
             lines += [f"| {k} | {v:.4g} | {v / total:.1%} |" if isinstance(v, float)
                       else f"| {k} | {v} | |" for k, v in r["gpu_stages"].items()]
+        if r.get("gpu_main_stages") and r.get("gpu_stages"):
+            lines += ["", "The same by stage, main a875246's GPU call against today's (s):",
+                      "", "| stage | main a875246 | now |", "|---|---|---|"]
+            lines += [f"| {k} | {v:.4g} | {r['gpu_stages'].get(k, 0.0):.4g} |"
+                      if isinstance(v, float) else f"| {k} | {v} | {r['gpu_stages'].get(k)} |"
+                      for k, v in r["gpu_main_stages"].items()]
     lines += ["", "Agreement: " + json.dumps(res["agreement"])]
     diff = res.get("difference", {})
     for way, ops in diff.get("primitives", {}).items():
@@ -247,6 +269,8 @@ def main(argv=None):
                    help="the largest size timed on one CPU core (its rate is flat in the size)")
     p.add_argument("--deadline", type=float, default=float("inf"),
                    help="seconds from the start after which no further part or size is begun")
+    p.add_argument("--with-93ccc3a", action="store_true",
+                   help="also time the GPU call of main 93ccc3a (gpu_before)")
     p.add_argument("--table", type=Path, default=None,
                    help="only print the table of this bench_gpu.json")
     args = p.parse_args(argv)
@@ -298,7 +322,8 @@ def main(argv=None):
     # gpu_before: the same kernel with the GPU call as at main 93ccc3a
     # (studies/gpu_advance_before.py: the state packed, copied and
     # allocated at every call), for the before/after ratio of the host work.
-    contenders = (["gpu", "gpu_before"] if gpu else []) + ["cpu_all", "cpu_1"]
+    contenders = (["gpu", "gpu_main"] + (["gpu_before"] if args.with_93ccc3a else [])
+                  if gpu else []) + ["cpu_all", "cpu_1"]
     all_threads = numba.config.NUMBA_NUM_THREADS
     # Compile every contender's kernels first (numba compiles the parallel
     # CPU kernel once per process, and the GPU kernel once per process).
@@ -343,7 +368,8 @@ def main(argv=None):
                     STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
                     # The GPU map's stages (timers around the host's
                     # functions and in the GPU calls: gpu_stages.py).
-                    with (staged() if c == "gpu" else contextlib.nullcontext({})) as stages, \
+                    with (staged() if c in ("gpu", "gpu_main")
+                          else contextlib.nullcontext({})) as stages, \
                             call_of(c):
                         dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
                     if dt < best:
@@ -356,6 +382,16 @@ def main(argv=None):
                 numba.set_num_threads(all_threads)
             row[f"{c}_s"] = best
             row[f"{c}_orbits_per_s"] = m / best
+            if c == "gpu_main":
+                row["gpu_main_host_s"] = stats["host_s"]
+                row["gpu_main_stages"] = best_stages
+                log(f"GPU map of {m} orbits with main a875246's GPU call, by stage:\n"
+                    + describe(best_stages))
+                if "gpu_s" in row:
+                    row["gpu_over_main"] = best / row["gpu_s"]
+                if "gpu" in values:
+                    row["gpu_same_as_main"] = bool(np.array_equal(
+                        values["gpu"], values["gpu_main"], equal_nan=True))
             if c == "gpu_before":
                 row["gpu_before_launches"] = stats["launches"]
                 row["gpu_before_host_s"] = stats["host_s"]
@@ -380,6 +416,10 @@ def main(argv=None):
                     row["kernel_fraction_of_peak"] = kernel / res["gpu"]["peak_fp64_tflops"]
             if "gpu_s" in row and "cpu_all_s" in row:
                 row["gpu_over_cpu_all"] = row["cpu_all_s"] / row["gpu_s"]
+                # A projection, not a measurement: the ratio if the host's
+                # work took no time (the device's kernel and energies only).
+                device_s = row["gpu_kernel_s"] + row["gpu_stages"].get("gpu: energy", 0.0)
+                row["projected_device_only_over_cpu_all"] = row["cpu_all_s"] / device_s
             if "gpu_s" in row and "cpu_1_s" in row:
                 row["gpu_over_cpu_1"] = row["cpu_1_s"] / row["gpu_s"]
             save(f"speed {m} {c}")

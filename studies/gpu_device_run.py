@@ -19,16 +19,19 @@ begins; ``--sizes`` the speed part's orbits, measured in that order;
 Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement:
 per size the GPU map's time by stage — validation, seeds, snapshot arrays,
 records, energy errors, assembly and, inside the GPU calls, buffer
-allocation, packing, copies each way, compaction, kernel, writing back —
-and the same map with the GPU call of main 93ccc3a, for the before/after
-ratio) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
+allocation, packing, copies each way, compaction, kernel, the snapshots'
+energies, writing back — and the same map with the GPU call of main
+a875246, whose host computed the energies, for the before/after ratio;
+and, stated as a projection, the ratio to all CPU cores if the host's work
+took no time) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
 the FP64 instructions whose rounding decides bitwise agreement with the
 CPU — ``fma.rn``; ``mul``, ``add``, ``sub`` with ``.rn``, which ptxas
 never fuses, and without it, which it may; ``div.rn`` against
 ``div.approx``/``div.full``, ``rcp.rn`` against ``rcp.approx``,
 ``sqrt.rn`` against ``sqrt.approx``), one kernel's ``kernel.ptx``,
 ``ptx_lto.json`` (the FLI kernel's counts as NVVM writes it and as
-nvJitLink rewrites it under link-time optimisation), and
+nvJitLink rewrites it under link-time optimisation), ``gpu_energy.json``
+(the device's energies against the host's, ``studies/gpu_energy.py``), and
 ``profile.txt`` (cProfile of the FLI map of 1e5 orbits on the GPU, by
 cumulative time: where the map's time goes besides the kernel).
 """
@@ -108,6 +111,12 @@ def main(argv=None):
     if not device.available() or device.simulated():
         print("no GPU: no PTX or profile", flush=True)
         return
+    try:   # the device's energies against the host's (issue 33): seconds
+        from studies import gpu_energy
+
+        gpu_energy.main(["--out", str(out / "gpu_energy")])
+    except Exception as exc:
+        print("gpu_energy failed:", repr(exc), flush=True)
     # The PTX of what ran (seconds: compiled already).
     summary = []
     for k in launched.values():

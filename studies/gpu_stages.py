@@ -11,12 +11,15 @@ attributes) and removed on leaving. Nested stages are not subtracted:
 ``records``.
 
 Run on its own (numba's CUDA simulator without a GPU, the kernel's launch
-replaced by one that takes no step, so only the host's work is timed)::
+replaced by one that takes no step and the energy kernel's by one that
+computes nothing, so only the host's work is timed)::
 
     NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits 20000 \
-        [--out studies/results/gpu_stages_simulator]
+        [--compare 3] [--out studies/results/gpu_stages_simulator]
 
-(``--out NAME``: writes ``NAME.json`` and ``NAME.md``.) On the simulator
+(``--out NAME``: writes ``NAME.json`` and ``NAME.md``; ``--compare R``:
+main a875246's GPU call, whose host computed the snapshots' energies, and
+today's, interleaved, R runs each, the fastest of each reported.) On the simulator
 the copies to and from the "device" are NumPy copies and the kernel's
 place is taken by copies of the state into the snapshots: the figures are
 the host's share of the work, not a GPU's.
@@ -29,6 +32,7 @@ import contextlib
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -118,12 +122,79 @@ def _no_steps(self, n_threads, X, W, am, ae, st, fs, nxt, itv, n_steps, step0, t
         snap_aux[j] = aux
 
 
+def _no_energy(self, n_threads, snap_x, count, out):
+    """The energy kernel's launch on the simulator (:mod:`varint.gpu.energy`),
+    doing no arithmetic: each output gets the orbit's first coordinate
+    (the energy errors are then meaningless, and their warnings are
+    silenced; only the host's share of the work is timed)."""
+    out[:count] = snap_x[:count, 0]
+
+
+def _fake_launch(self, n_threads, *args):
+    """The launches on the simulator: the stepper's by :func:`_no_steps`,
+    the energy kernel's by :func:`_no_energy`, the transpositions into the
+    host's layout by NumPy's (the simulator would run them thread by
+    thread in Python); the gathers of a compaction as they are."""
+    name = self.dispatcher.py_func.__name__
+    if name == "energy":
+        return _no_energy(self, n_threads, *args)
+    if name == "thread":
+        return _no_steps(self, n_threads, *args)
+    if name == "_to_rows":   # a transposition on the device, in NumPy
+        src, dst, c0 = args
+        dst[:, c0:c0 + src.shape[0]] = src.T
+        return None
+    return _REAL_LAUNCH[0](self, n_threads, *args)
+
+
+_REAL_LAUNCH: list = []
+
+
+@contextlib.contextmanager
+def call_of(contender):
+    """``"main"``: the GPU call of main a875246 (the snapshots' energies on
+    the host, ``studies/gpu_advance_main.py``) in the place of today's
+    (the TM propagator looks ``advance_cuda`` up at each call); ``"now"``:
+    today's."""
+    if contender == "now":
+        yield
+        return
+    from studies import gpu_advance_main
+    from varint.gpu import advance
+
+    today = advance.advance_cuda
+    advance.advance_cuda = gpu_advance_main.advance_cuda
+    try:
+        yield
+    finally:
+        advance.advance_cuda = today
+
+
+def compare_table(best):
+    """Markdown: each stage's seconds for main a875246 and today, and their
+    ratio."""
+    lines = ["| stage | main a875246 s | now s | main / now |", "|---|---|---|---|"]
+    for key, before in best["main"].items():
+        now = best["now"].get(key, 0.0)
+        if isinstance(before, float) or isinstance(now, float):
+            ratio = f"{before / now:.2f}" if now > 0 else "—"
+            lines.append(f"| {key} | {before:.4f} | {now:.4f} | {ratio} |")
+        else:
+            lines.append(f"| {key} | {before} | {now} | |")
+    for key in best["now"].keys() - best["main"].keys():
+        lines.append(f"| {key} | — | {best['now'][key]:.4f} | |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--orbits", type=int, default=20000)
     p.add_argument("--t-end", type=float, default=1000.0)
     p.add_argument("--threshold", type=float, default=None,
                    help="early stopping's threshold (default: chaos_map's)")
+    p.add_argument("--compare", type=int, default=0, metavar="REPEATS",
+                   help="time main a875246's GPU call and today's, interleaved, REPEATS "
+                        "times each; the fastest run of each is reported")
     p.add_argument("--out", type=Path, default=None,
                    help="write the breakdown to OUT.json and OUT.md")
     args = p.parse_args(argv)
@@ -138,7 +209,8 @@ def main(argv=None):
 
     if not device.simulated():
         raise SystemExit("run with NUMBA_ENABLE_CUDASIM=1 (the device script times a GPU)")
-    device._Kernel.launch = _no_steps
+    _REAL_LAUNCH.append(device._Kernel.launch)
+    device._Kernel.launch = _fake_launch
     hh = HenonHeiles()
     side = int(np.ceil(np.sqrt(args.orbits * 1.6)))   # ~60 % of the square is allowed
     X = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.7, side),
@@ -146,23 +218,45 @@ def main(argv=None):
     kw = dict(t_end=args.t_end, progress=False, chunk_size=args.orbits, backend="cuda")
     if args.threshold is not None:
         kw["threshold"] = args.threshold
-    varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
+    contenders = ("main", "now") if args.compare else ("now",)
+    for c in contenders:
+        with call_of(c), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
     load = os.getloadavg()
-    with staged() as stages:
-        varint.chaos_map(hh, X, "fli", **kw)
+    best: dict = {}
+    values: dict = {}
+    for _ in range(max(args.compare, 1)):
+        for c in contenders:
+            with staged() as stages, call_of(c), warnings.catch_warnings():
+                warnings.simplefilter("ignore")   # the fake energies' accuracy warnings
+                values[c] = varint.chaos_map(hh, X, "fli", **kw).values
+            if c not in best or stages["total"] < best[c]["total"]:
+                best[c] = stages
+    stages = best["now"]
+    command = (f"`NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits {args.orbits}"
+               + (f" --compare {args.compare}`" if args.compare else "`"))
     text = (f"# A GPU map's host work by stage, on numba's CUDA simulator\n\n"
             f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
             f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that takes "
-            f"no step. {os.cpu_count()} CPU cores, load {load[0]:.1f} at the start, "
-            f"{os.getloadavg()[0]:.1f} at the end; Python {platform.python_version()}.\n"
-            f"`NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits {args.orbits}`\n\n"
-            f"```\n{describe(stages)}\n```\n")
+            f"no step, the energy kernel's by one that computes nothing. {os.cpu_count()} "
+            f"CPU cores, load {load[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the "
+            f"end; Python {platform.python_version()}.\n{command}\n\n")
+    if args.compare:
+        same = bool(np.array_equal(values["main"], values["now"], equal_nan=True))
+        text += (f"Main a875246's GPU call (energies on the host) and today's, interleaved, "
+                 f"the fastest of {args.compare} runs each; the same values: {same}. "
+                 "Nested: records include energy errors, propagator calls the gpu: "
+                 "stages; `gpu: kernel` and `gpu: energy` stand in for the device's "
+                 "work.\n\n" + compare_table(best) + "\n")
+    else:
+        text += f"```\n{describe(stages)}\n```\n"
     print(text)
-    print(json.dumps(stages))
+    print(json.dumps(best))
     if args.out is not None:
         args.out.with_suffix(".json").write_text(json.dumps(
-            {"orbits": args.orbits, "t_end": args.t_end, "load": load, "stages": stages},
-            indent=1))
+            {"orbits": args.orbits, "t_end": args.t_end, "load": load,
+             "stages": stages, "by_contender": best}, indent=1))
         args.out.with_suffix(".md").write_text(text)
 
 

@@ -41,7 +41,18 @@ advance.advance_cuda = counted   # the TM propagator imports it at each GPU call
 
 def same(a, b):
     return all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
-               for f in ("values", "t_stop", "status", "state", "energy_error"))
+               for f in ("values", "t_stop", "status", "state"))
+
+def energy_gap(a, b):
+    """The GPU's energies are its own (varint.gpu.energy): the largest
+    difference of the energy errors (relative to the energy scale already),
+    whether the same orbits have one, and whether the verdicts agree."""
+    ok = np.isfinite(a.energy_error)
+    gap = max(float(np.max(np.abs(a.energy_error[ok] - b.energy_error[ok]), initial=0.0)),
+              float(np.nanmax(np.abs(a.accuracy.energy_error - b.accuracy.energy_error),
+                              initial=0.0)))
+    return [gap, bool(np.array_equal(ok, np.isfinite(b.energy_error))),
+            bool(np.array_equal(a.accuracy.accurate, b.accuracy.accurate))]
 
 def rel(a, b):
     ok = np.isfinite(a.values)
@@ -61,6 +72,13 @@ for ind, scheme in (("fli", "SBAB2C"), ("sali", "SBAB2C"), ("megno", "SBAB2C"),
     cpu = varint.chaos_map(hh, X, ind, **kw)
     gpu = varint.chaos_map(hh, X, ind, backend="cuda", **kw)
     out[f"{ind}/{scheme}"] = [same(cpu, gpu), len(launched) > n0]
+    out[f"energy {ind}/{scheme}"] = energy_gap(cpu, gpu)
+# The verdict with a tolerance that splits the orbits (their errors lie
+# between 6e-9 and 1.1e-7 at t = 10): the same orbits are trusted.
+kw = dict(t_end=10, tau=0.05, threshold=None, progress=False, energy_tol=9e-8)
+cpu = varint.chaos_map(hh, X, "fli", **kw)
+gpu = varint.chaos_map(hh, X, "fli", backend="cuda", **kw)
+out["verdict"] = energy_gap(cpu, gpu) + [int(cpu.accuracy.accurate.sum())]
 # Early stopping (SALI below 1e-2 decides) at H = 0.16, where chaotic
 # orbits decide within t = 60: the same stopping times, values and states.
 y, py = rng.uniform(-0.3, 0.5, 10), rng.uniform(-0.2, 0.2, 10)
@@ -92,6 +110,13 @@ out["resident"] = [all(np.array_equal(getattr(a, f), getattr(b, f))
                        for f in ("x", "W", "acc_m", "acc_e", "status", "step"))
                    and all(np.array_equal(a.extra[key], b.extra[key]) for key in a.extra),
                    kept, STAGES["uploads"] - u0]
+# The work counted per call (gradients, Hessians, ...) is the CPU's, also
+# when the GPU's bookkeeping skips the arrays of all orbits (no failure).
+c1, c2 = RunState.start(X, W0), RunState.start(X, W0)
+for steps in (7, 13):
+    p_cpu.advance(c1, steps)
+    p_gpu.advance(c2, steps)
+out["counts"] = [c1.counts == c2.counts, c1.step == c2.step, c1.counts["steps"]]
 # Page-locked buffers are allocated once: a second map of the same size
 # takes them from the pool its first map's states returned them to.
 import gc
@@ -107,6 +132,7 @@ kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
 cpu = varint.chaos_map(hh, E, "fli", **kw)
 gpu = varint.chaos_map(hh, E, "fli", backend="cuda", **kw)
 out["escape"] = [same(cpu, gpu), int((cpu.status > 0).sum())]
+out["energy escape"] = energy_gap(cpu, gpu)
 # A from_potential model with exp (not polynomial): within 1e-12.
 q0, q1 = sp.symbols("q0 q1")
 toda = varint.models.from_potential(sp.exp(q1 + 2 * sp.sqrt(3) * q0) / 24
@@ -117,6 +143,24 @@ kw = dict(t_end=100, tau=0.05, threshold=None, progress=False)
 cpu = varint.chaos_map(toda, T, "fli", **kw)
 gpu = varint.chaos_map(toda, T, "fli", backend="cuda", **kw)
 out["toda"] = [rel(cpu, gpu), same(cpu, gpu)]
+out["energy toda"] = energy_gap(cpu, gpu)
+# The energy kernel alone, against the model's own NumPy energy, at states
+# spread over each model's range: |H_gpu − H_cpu| / (|T| + |V|).
+from numba import cuda
+from varint.gpu import energy as genergy
+masses = varint.models.from_potential(q0 ** 4 / 4 + q0 ** 2 * q1 - q1 ** 3 / 5 + q1 ** 2 / 2,
+                                      [q0, q1], inverse_mass=[2.0, sp.Rational(1, 3)],
+                                      name="masses")
+gaps = {}
+for name, model in (("hh", hh), ("toda", toda), ("masses", masses)):
+    S = rng.uniform(-0.6, 0.6, (3, 4, 50))
+    dev = cuda.device_array((3, 50))
+    genergy.energy_kernel(model).launch(50, cuda.to_device(S), 3, dev)
+    states = np.moveaxis(S, 1, 2)
+    scale = model.energy_scale(states)
+    gaps[name] = [float(np.max(np.abs(dev.copy_to_host() - model.energy(states)) / scale)),
+                  genergy.supported(model)]
+out["energy kernel"] = gaps
 print(json.dumps(out))
 '''
 
@@ -136,6 +180,40 @@ def test_simulated_kernel_is_bitwise_the_cpu(simulated, case):
     bitwise, launched = simulated[case]
     assert launched, "the map did not run on the (simulated) GPU"
     assert bitwise
+
+
+@pytest.mark.parametrize("case", ["fli/SBAB2C", "sali/SBAB2C", "megno/SBAB2C", "fli/ABA864",
+                                  "megno/SABA2C", "gali/SBAB2C", "escape", "toda"])
+def test_simulated_energy_errors_within_1e_12_of_the_hosts(simulated, case):
+    """The energies computed on the device (varint.gpu.energy) give energy
+    errors within 1e-12 of the energy scale of the host's, for the same
+    orbits, and the same accuracy verdicts."""
+    gap, same_orbits, same_verdict = simulated[f"energy {case}"]
+    assert gap <= 1e-12 and same_orbits and same_verdict, simulated[f"energy {case}"]
+
+
+def test_simulated_verdict_is_the_cpus_where_the_tolerance_splits_the_orbits(simulated):
+    gap, same_orbits, same_verdict, trusted = simulated["verdict"]
+    assert 0 < trusted < 10, trusted   # the tolerance does split them
+    assert same_verdict and same_orbits and gap <= 1e-12
+
+
+@pytest.mark.parametrize("model", ["hh", "toda", "masses"])
+def test_simulated_energy_kernel_is_the_models_energy(simulated, model):
+    """H on the device (polynomial, exp, unequal masses) against the
+    model's NumPy energy: within 1e-14 of |T| + |V| (a few roundings of
+    a sum of terms of that size)."""
+    gap, supported = simulated["energy kernel"][model]
+    assert supported and gap <= 1e-14, gap
+
+
+def test_energy_on_the_device_only_where_h_is_kinetic_plus_potential():
+    """Models whose H has a rotating frame's terms, or that declare other
+    conserved quantities, keep the host's energy."""
+    from varint.gpu import energy
+
+    assert energy.supported(varint.models.HenonHeiles())
+    assert not energy.supported(varint.models.CR3BP(0.01))
 
 
 def test_simulated_early_stopping_and_compaction_match(simulated):
@@ -159,6 +237,11 @@ def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated)
     assert kept == 1, "the second call uploaded the state again"
     assert uploads == 2, "a call on the CPU in between was not noticed"
     assert bitwise
+
+
+def test_simulated_work_counts_are_the_cpus(simulated):
+    same_counts, same_step, steps = simulated["counts"]
+    assert same_counts and same_step and steps == 200
 
 
 def test_simulated_pinned_buffers_are_reused(simulated):

@@ -130,17 +130,22 @@ class Reference:
         self.scales = {name: (scale if name == "energy" else np.where(v != 0, np.abs(v), 1.0))
                        for name, v in values.items()}
 
-    def errors(self, x, t=0.0, p_t=0.0):
+    def errors(self, x, t=0.0, p_t=0.0, energy=None):
         """Relative errors of the conserved quantities at states ``x``
         (R, 2N): ``{"energy_error": ..., "conserved_error:<name>": ...}``.
         The rows are the M orbits, or several outputs of them (R a multiple
         of M, output-major); for a time-dependent V, ``t`` and ``p_t`` (R,)
-        give the extended energy K = H(x, t) + p_t."""
+        give the extended energy K = H(x, t) + p_t. ``energy`` (R,), where
+        given, is H(x) already computed (on the GPU,
+        :mod:`varint.gpu.energy`, only for a model whose one conserved
+        quantity is its energy): it replaces the model's."""
         reps = len(x) // len(next(iter(self.values.values())))
         # A failed orbit's frozen state may overflow here; its records are
         # replaced by NaN anyway, so NumPy's warnings would be noise.
         with np.errstate(all="ignore"):
-            if _plain_energy(self.model):
+            if energy is not None:      # computed on the GPU from the same H
+                now = {"energy": np.asarray(energy, dtype=float)}
+            elif _plain_energy(self.model):
                 # Model.energy's operations, without its layers of calls.
                 x = np.asarray(x, dtype=float)
                 n = self.model.n_dof

@@ -431,7 +431,8 @@ class Run:
         (:func:`varint.accuracy.flag_nonfinite`)."""
         t = rows.step * self.tau
         rec = self.indicator.read(rows, self.model, t, self.options)
-        errors = self.reference.errors(rows.x, t, rows.extra.get(TIME_MOMENTUM, 0.0))
+        errors = self.reference.errors(rows.x, t, rows.extra.get(TIME_MOMENTUM, 0.0),
+                                       rows.energy)
         accuracy.flag_nonfinite(self.state, errors, rows.step)
         rec.update(errors)
         return rec

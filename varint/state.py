@@ -226,6 +226,10 @@ class Rows:
         Intervals τ completed at each row's time.
     extra : dict of str -> ndarray
         Accumulator arrays, rows first (e.g. ``extra["acc_megno"]`` (R, k, c)).
+    energy : ndarray, shape (R,), optional
+        H(x) of every row where the propagator computed it where the state
+        was (on the GPU, :mod:`varint.gpu.energy`); None: the reader
+        computes it from ``x``.
     """
 
     x: np.ndarray
@@ -234,6 +238,7 @@ class Rows:
     acc_e: np.ndarray
     step: np.ndarray
     extra: dict = field(default_factory=dict)
+    energy: np.ndarray | None = None
 
     @classmethod
     def of(cls, state):
@@ -255,7 +260,9 @@ class Snapshots:
     ``renormalized`` is False when the vectors were copied between two
     renormalisations (sparse renormalisation): :meth:`rows` then renormalises
     the copies, so indicators read the same values as if the vectors had
-    been renormalised at that step.
+    been renormalised at that step. ``energy`` (output, orbit), where not
+    None, is H of every snapshot, computed by the propagator
+    (:attr:`Rows.energy`).
     """
 
     steps: np.ndarray
@@ -265,6 +272,7 @@ class Snapshots:
     acc_e: np.ndarray
     extra: dict
     renormalized: bool = True
+    energy: np.ndarray | None = None
 
     def rows(self, renorm):
         """All snapshots as :class:`Rows` (output-major), with the vectors
@@ -278,7 +286,8 @@ class Snapshots:
             W, acc_m, acc_e = renormalized_copy(W, acc_m, acc_e, renorm)
         return Rows(x=self.x.reshape(s * m, -1), W=W, acc_m=acc_m, acc_e=acc_e,
                     step=np.repeat(self.steps, m),
-                    extra={k: v.reshape((s * m,) + v.shape[2:]) for k, v in self.extra.items()})
+                    extra={k: v.reshape((s * m,) + v.shape[2:]) for k, v in self.extra.items()},
+                    energy=None if self.energy is None else self.energy.reshape(s * m))
 
 
 def renormalized_copy(W, acc_m, acc_e, renorm):

@@ -7,5 +7,7 @@
 * :mod:`~varint.gpu.advance` — a call of the TM propagator on the GPU;
 * :mod:`~varint.gpu.resident` — the orbits' state kept on the device
   between calls;
+* :mod:`~varint.gpu.energy` — the snapshots' energies, computed on the
+  device (the accuracy verdict's input);
 * :mod:`~varint.gpu.cluster` — one Dask worker per GPU.
 """

@@ -18,12 +18,18 @@ the kernel with its own shapes), and stays there for the state's lifetime:
   orbits still active into new arrays, in their order (compaction, so that
   warps stay full), from their column numbers — the only copy to the
   device;
-* after every launch the state is copied back once per array into
-  page-locked (pinned) host buffers, which copy at the bus's full rate
-  and are allocated once per process (a pool: pinning pages is slow), and
-  written into the run state's rows, so every reader on the host
-  (records, checkpoints, the result) sees what it saw before: the host
-  copy stays the run's state of record.
+* after every launch the state is copied back once per array, so every
+  reader on the host (records, checkpoints, the result) sees what it saw
+  before: the host copy stays the run's state of record. A call of all
+  the run's orbits (a map's chunk until an orbit stops) transposes the
+  state and the snapshots on the device into the host's layout (orbit
+  first, :meth:`Resident.into_rows`) and copies them straight into the
+  run state's and the snapshots' arrays: the host makes no pass over
+  them (on an H200 writing them into the host's rows took 0.83 s of a
+  1e6-orbit map, ``studies/results/bench_gpu_h200.md``). A call of some
+  orbits copies into page-locked (pinned) host buffers, which copy at the
+  bus's full rate and are allocated once per process (a pool: pinning
+  pages is slow), and writes them into the orbits' rows.
 
 The device copy is valid only while nothing but the propagator writes the
 state's rows, which is how a run advances (``RunState`` is changed between
@@ -49,7 +55,7 @@ import numpy as np
 # runs a kernel with its own ``cuda`` put in the kernel's globals.
 from numba import cuda
 
-from . import device
+from . import device, energy
 
 __all__ = ["Resident", "resident_for", "STAGES"]
 
@@ -58,12 +64,14 @@ __all__ = ["Resident", "resident_for", "STAGES"]
 #: host buffers, where none is free for reuse), ``pack`` (the state
 #: gathered into pinned buffers, at an upload), ``h2d`` (copies to the
 #: device), ``compact`` (dropping stopped orbits on the device), ``kernel``
-#: (the launch, synchronised), ``d2h`` (copies back), ``unpack`` (written
-#: into the run state and the snapshots), ``rerun`` (failed orbits on the
-#: CPU and the state's bookkeeping); ``uploads``, ``compactions``,
-#: ``launches`` count calls.
-STAGES = {"alloc": 0.0, "pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "d2h": 0.0,
-          "unpack": 0.0, "rerun": 0.0, "uploads": 0, "compactions": 0, "launches": 0}
+#: (the launch, synchronised), ``energy`` (the snapshots' energies on the
+#: device, :mod:`varint.gpu.energy`, synchronised), ``d2h`` (copies back),
+#: ``unpack`` (written into the run state and the snapshots), ``rerun``
+#: (failed orbits on the CPU and the state's bookkeeping); ``uploads``,
+#: ``compactions``, ``launches`` count calls.
+STAGES = {"alloc": 0.0, "pack": 0.0, "h2d": 0.0, "compact": 0.0, "kernel": 0.0, "energy": 0.0,
+          "d2h": 0.0, "unpack": 0.0, "rerun": 0.0, "uploads": 0, "compactions": 0,
+          "launches": 0}
 
 
 class _Clock:
@@ -108,12 +116,22 @@ def _gather_rows(src, slots, dst):
             dst[j, i] = src[s, i]
 
 
+def _to_rows(src, dst, c0):
+    """``dst[j, c0 + i] = src[i, j]``: columns with the orbit index
+    innermost written as the host's rows, the orbit first."""
+    j = cuda.grid(1)
+    if j < src.shape[1]:
+        for i in range(src.shape[0]):
+            dst[j, c0 + i] = src[i, j]
+
+
 _KERNELS: dict = {}
 
 
 def _gather(name):
     if name not in _KERNELS:
-        _KERNELS[name] = device.kernel({"columns": _gather_columns, "rows": _gather_rows}[name])
+        _KERNELS[name] = device.kernel({"columns": _gather_columns, "rows": _gather_rows,
+                                        "to_rows": _to_rows}[name])
     return _KERNELS[name]
 
 
@@ -194,7 +212,11 @@ class Resident:
         self.pinned["aux"] = _Pinned(a * int(np.prod(self.aux_shape)), float, self.buffers)
         self.pinned["st"] = _Pinned(a, np.int64, self.buffers)
         self.constants = (cuda.to_device(prop._h), cuda.to_device(prop._hc))
+        # The snapshots' energies are computed on the device where the
+        # model allows (varint.gpu.energy); else the host computes them.
+        self.energy = energy.energy_kernel(prop.model) if energy.supported(prop.model) else None
         self.snap_cache = {}
+        self.rows_cache = {}
         self.dev = {}
         self._upload(state)
         # After the upload, which makes the schedule at a run's first call.
@@ -280,6 +302,7 @@ class Resident:
         cuda.synchronize()
         self.dev, self.rows = new, np.asarray(active, dtype=np.int64)
         self.snap_cache.clear()
+        self.rows_cache.clear()
         clock.mark("compact")
         STAGES["compactions"] += 1
 
@@ -307,11 +330,8 @@ class Resident:
             self.snap_cache[key] = {
                 "x": cuda.device_array((r, d, a)), "W": cuda.device_array((r, d, k, a)),
                 "m": cuda.device_array((r, k, a)), "e": cuda.device_array((r, k, a), np.int64),
-                "aux": cuda.device_array((r, a) + tuple(self.aux_shape))}
-            for name, arr in self.snap_cache[key].items():
-                have = self.pinned.get("snap_" + name)
-                if have is None or have.buffer.size < arr.size:
-                    self.pinned["snap_" + name] = _Pinned(arr.size, arr.dtype, self.buffers)
+                "aux": cuda.device_array((r, a) + tuple(self.aux_shape)),
+                "energy": cuda.device_array((r, a))}
         return self.snap_cache[key]
 
     def download(self, names):
@@ -325,12 +345,36 @@ class Resident:
             out[name] = buf
         return out
 
+    def into_rows(self, pairs):
+        """Device arrays with the orbit index innermost, ``(L, a)``, copied
+        into host arrays with the orbit first, ``(a, L')`` (C-contiguous),
+        from column ``c0`` on (``pairs``: (device array, host array, c0); the
+        pairs of one host array adjacent): transposed on the device, where
+        memory is fast, into an array of the host's layout, then copied once
+        straight into the host array, with no pass of the host's over it."""
+        for i, (src, host, c0) in enumerate(pairs):
+            key = (host.shape, host.dtype)
+            if key not in self.rows_cache:
+                self.rows_cache[key] = cuda.device_array(host.shape, host.dtype)
+            buf = self.rows_cache[key]
+            _gather("to_rows").launch(src.shape[1], src, buf, c0)
+            # The host array is complete after its last pair (a synchronous
+            # copy: the buffer is free again for the next array).
+            if i + 1 == len(pairs) or pairs[i + 1][1] is not host:
+                buf.copy_to_host(ary=host)
+
     def download_snapshots(self, snap, names, count):
         """The first ``count`` output steps of the snapshot device arrays
         ``names``, copied into pinned host buffers."""
         out = {}
         for name in names:
             arr = snap[name][:count]
+            # Page-locked buffers for snapshots only where they are needed
+            # (a call of all orbits copies straight into the host's arrays).
+            have = self.pinned.get("snap_" + name)
+            if have is None or have.buffer.size < snap[name].size:
+                self.pinned["snap_" + name] = _Pinned(snap[name].size, snap[name].dtype,
+                                                      self.buffers)
             buf = self.pinned["snap_" + name].view(arr.shape)
             arr.copy_to_host(ary=buf)
             out[name] = buf
