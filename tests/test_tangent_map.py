@@ -53,7 +53,7 @@ def test_log_accumulator_is_exact_over_huge_growth():
 
 
 # One scheme of each layout (kick or drift first, with or without corrector,
-# a frontier composition); SABA2C and SBAB3 are the ones whose tangent-map
+# an order-8 ABA composition); SABA2C and SBAB3 are the ones whose tangent-map
 # kernels test_force_evaluations_per_step_are_counted compiles anyway.
 @pytest.mark.parametrize("scheme", ["SBAB2C", "SABA2C", "ABA864", "SBAB3"])
 def test_orbit_without_vectors_is_bitwise_the_orbit_with_vectors(c1, scheme):
