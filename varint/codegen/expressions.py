@@ -103,6 +103,13 @@ def expressions(key):
                        planar=planar)
 
 
+def potential_form(key):
+    """The potential V of ``key`` (:func:`model_key`) as the SymPy
+    expression in q0 … q{N−1} the steppers' ∇V and D²V are made from
+    (a model's own form, never read from a file)."""
+    return _FORMS[key][0]
+
+
 def planar_key(planar, n):
     """A rotating frame's drift as a hashable tuple ``(u, v, a, b, Ω,
     ((a_i, b_i) for every i))`` from the ``planar`` dict of

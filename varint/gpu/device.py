@@ -34,9 +34,11 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import importlib.util
 import os
 import threading
+import types
 
 from numba import njit
 
@@ -151,6 +153,19 @@ def kernel(function):
     from numba import cuda
 
     return _Kernel(cuda.jit(function) if simulated() else cuda.jit(function, lto=False))
+
+
+def generated_kernel(source, prefix, entry):
+    """The CUDA kernel ``entry`` of the generated Python ``source``
+    (:func:`kernel`), in a module of its own named ``prefix`` + the
+    source's hash, whose globals are :func:`kernel_globals`."""
+    name = prefix + hashlib.sha256(source.encode()).hexdigest()[:24]
+    module = types.ModuleType(name)
+    module.__dict__.update(kernel_globals())
+    # The source is made in this process from a model's own form: nothing
+    # read from disk is run.
+    exec(compile(source, f"<{name}>", "exec"), module.__dict__)
+    return kernel(getattr(module, entry))
 
 
 def kernel_globals():

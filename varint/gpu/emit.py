@@ -46,9 +46,7 @@ are the CPU's bits, and a Toda map (``exp``) differs by 4.7e-15
 
 from __future__ import annotations
 
-import hashlib
 import re
-import types
 from functools import lru_cache
 
 import sympy as sp  # type: ignore[import-untyped]
@@ -248,10 +246,4 @@ def cuda_stepper(model, kinds, corrected, k, accumulator=None):
 
 @lru_cache(maxsize=64)
 def _compiled(source):
-    name = "varint_cuda_" + hashlib.sha256(source.encode()).hexdigest()[:24]
-    module = types.ModuleType(name)
-    module.__dict__.update(device.kernel_globals())
-    # The source is made in this process from the model's own form: nothing
-    # read from disk is run.
-    exec(compile(source, f"<{name}>", "exec"), module.__dict__)
-    return device.kernel(module.thread)
+    return device.generated_kernel(source, "varint_cuda_", "thread")

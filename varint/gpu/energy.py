@@ -33,11 +33,10 @@ keeps the host's NumPy (:func:`supported`).
 
 from __future__ import annotations
 
-import hashlib
-import types
 from functools import lru_cache
 
-from ..codegen.expressions import _FORMS, ensure_form, expressions, model_key, symbolic_fits
+from ..codegen.expressions import (ensure_form, expressions, model_key, potential_form,
+                                   symbolic_fits)
 from ..models.base import Model
 from . import device
 from .emit import _Printer
@@ -89,7 +88,7 @@ def _source(key):
     body.append(f"kinetic = 0.5 * ({kinetic})")
     # V as the model's own SymPy form, from which the steppers' ∇V and D²V
     # were made (in the symbols q0 … q{N−1}).
-    body.append(f"potential = {printer.doprint(_FORMS[key][0])}")
+    body.append(f"potential = {printer.doprint(potential_form(key))}")
     body.append("out[j, m] = kinetic + potential")
     return "\n".join(lines + ["        " + line for line in body]) + "\n"
 
@@ -102,10 +101,4 @@ def energy_kernel(model):
 
 @lru_cache(maxsize=32)
 def _compiled(source):
-    name = "varint_cuda_energy_" + hashlib.sha256(source.encode()).hexdigest()[:24]
-    module = types.ModuleType(name)
-    module.__dict__.update(device.kernel_globals())
-    # The source is made in this process from the model's own form: nothing
-    # read from disk is run.
-    exec(compile(source, f"<{name}>", "exec"), module.__dict__)
-    return device.kernel(module.energy)
+    return device.generated_kernel(source, "varint_cuda_energy_", "energy")
