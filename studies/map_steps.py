@@ -284,6 +284,15 @@ def agreeing_steps(model, grid, t_end, truth, threshold, smallest):
     return np.where(holds.any(axis=0), np.array(ladder)[first], np.nan), ladder
 
 
+def _row(name, label, seconds, out, truth, threshold, rule, orbits, t_end):
+    """A contender's row of a race: its time and its agreement with the
+    tight reference (``out``: a map result or heyoka's values)."""
+    values = np.asarray(out.values if hasattr(out, "values") else out)
+    return {"map": name, "contender": label, "seconds": seconds,
+            "agreement": agreement(INDICATOR, values, truth, threshold),
+            "orbits": orbits, "t_end": t_end, "threshold": threshold, "rule": rule}
+
+
 def race_case(name, quick, repeats):
     model, grid, t_end = case(name, quick)
     X = grid.states
@@ -305,10 +314,7 @@ def race_case(name, quick, repeats):
     rows = []
     for label, seconds in best.items():
         out = outs[label]
-        values = np.asarray(out.values if hasattr(out, "values") else out)
-        row = {"map": name, "contender": label, "seconds": seconds,
-               "agreement": agreement(INDICATOR, values, truth, threshold),
-               "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+        row = _row(name, label, seconds, out, truth, threshold, rule, len(X), t_end)
         if hasattr(out, "provenance"):
             choice = out.provenance.tau_choice
             row["steps"] = out.provenance.counts["steps"]
@@ -399,10 +405,7 @@ def log_case(name, quick, repeats):
     rows = []
     for label, seconds in best.items():
         out = outs[label]
-        values = np.asarray(out.values if hasattr(out, "values") else out)
-        row = {"map": name, "contender": label, "seconds": seconds,
-               "agreement": agreement(INDICATOR, values, truth, threshold),
-               "orbits": len(X), "t_end": t_end, "threshold": threshold, "rule": rule}
+        row = _row(name, label, seconds, out, truth, threshold, rule, len(X), t_end)
         if label in counts:
             c = counts[label]
             row["steps"] = int(c[:, 0].sum() + c[:, 1].sum())
