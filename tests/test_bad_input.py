@@ -719,3 +719,25 @@ def test_one_vector_is_independent_where_svd_says_so():
     assert list(s[:, -1] / np.maximum(s[:, 0], np.finfo(float).tiny) > 1e-12) == \
         [True, True, False, True]
     check.full_rank(W[[0, 1, 3]])
+
+
+@pytest.mark.parametrize("value", [0.0, 5e-324, 1e-320, 1e-310, 2.3e-308, 1.0, 1e300, 1e305,
+                                   1.7e308, np.inf, np.nan])
+def test_one_vector_verdict_is_the_svds_in_every_range_of_its_largest_entry(value):
+    # The one-column check skips the length where the largest entry lies in
+    # [tiny, 1e300]; at and beyond both ends it computes it: either way
+    # the verdict is the SVD's (NaN and inf refused, as there), whichever
+    # orbit of the batch holds the column.
+    col = np.array([value, -value / 3, 0.0, value / 7])
+    W = np.ones((3, 4, 1))
+    W[1, :, 0] = col
+    with np.errstate(all="ignore"):
+        s = np.linalg.svd(W[1:2], compute_uv=False) if np.isfinite(col).all() else \
+            np.full((1, 1), np.nan)
+        independent = bool(s[0, -1] / max(s[0, 0], np.finfo(float).tiny) > 1e-12)
+    if independent:
+        check.full_rank(W)
+        check.full_rank(W[1:2])
+    else:
+        with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
+            check.full_rank(W)
