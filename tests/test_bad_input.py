@@ -741,3 +741,12 @@ def test_one_vector_verdict_is_the_svds_in_every_range_of_its_largest_entry(valu
     else:
         with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
             check.full_rank(W)
+
+
+def test_one_vector_with_one_nan_entry_is_refused_like_an_all_nan_one():
+    # The largest entry propagates NaN (as max does): no pass for a column
+    # whose other entries are fine.
+    W = np.ones((2, 4, 1))
+    W[1, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
+        check.full_rank(W)

@@ -188,7 +188,12 @@ def full_rank(W, name="deviations"):
         # One column's singular value is its length (a chaos map's FLI
         # vectors: no SVD of 10⁵ matrices), scaled as LAPACK scales it so
         # that a subnormal column's squares do not underflow.
-        big = np.abs(W[:, :, 0]).max(axis=1)
+        # The largest entry of each column, component by component (a
+        # reduction along a row of 2N numbers is ~3x slower in NumPy).
+        entries = np.abs(W[:, :, 0])
+        big = entries[:, 0].copy()
+        for i in range(1, entries.shape[1]):
+            np.maximum(big, entries[:, i], out=big)   # NaN propagates, as in max()
         if ((big >= _TINY) & (big <= _ONE_COLUMN_MAX)).all():
             # Then the column scaled by its largest entry has that entry 1
             # and length in [1, √2N]: s is finite and at least the smallest
