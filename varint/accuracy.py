@@ -130,6 +130,25 @@ class Reference:
         self.scales = {name: (scale if name == "energy" else np.where(v != 0, np.abs(v), 1.0))
                        for name, v in values.items()}
 
+    def rows(self, idx):
+        """The reference of the orbits ``idx`` (indices of ``x0``'s rows):
+        the values and scales of those rows, not computed again (a chaos
+        map's chunks take theirs from the map's, which refused bad states
+        before any chunk ran). Each orbit's numbers are its own (NumPy's
+        arithmetic row by row), so they are those a reference of the
+        chunk's states alone would compute; a value that is one number
+        for all orbits is kept as it is."""
+        part = object.__new__(Reference)
+        part.model = self.model
+        m = len(next(iter(self.values.values())))
+
+        def pick(v):
+            return v[idx] if np.ndim(v) and len(v) == m else v
+
+        part.values = {name: pick(v) for name, v in self.values.items()}
+        part.scales = {name: pick(v) for name, v in self.scales.items()}
+        return part
+
     def errors(self, x, t=0.0, p_t=0.0, energy=None):
         """Relative errors of the conserved quantities at states ``x``
         (R, 2N): ``{"energy_error": ..., "conserved_error:<name>": ...}``.

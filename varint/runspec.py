@@ -197,10 +197,12 @@ class RunSpec:
         return dataclasses.replace(self, x0=self.x0[:0], single=False, reference=None,
                                    t_out=None)
 
-    def for_orbits(self, x0):
+    def for_orbits(self, x0, reference=None):
         """The specification of a run over ``x0`` (M, 2N), some of the
-        orbits this one was checked with (a chaos map's chunk)."""
-        return dataclasses.replace(self, x0=x0, single=False, reference=None)
+        orbits this one was checked with (a chaos map's chunk), with their
+        ``reference`` (:meth:`varint.accuracy.Reference.rows` of the map's)
+        or None: the run computes it."""
+        return dataclasses.replace(self, x0=x0, single=False, reference=reference)
 
 
 def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="tm",
