@@ -750,3 +750,20 @@ def test_one_vector_with_one_nan_entry_is_refused_like_an_all_nan_one():
     W[1, 1, 0] = np.nan
     with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
         check.full_rank(W)
+
+
+@pytest.mark.parametrize("power, kernel", [(0.5, "the gradient"), (1.5, "the Hessian"),
+                                           (2.5, "the third derivatives")])
+def test_the_compiled_pass_finds_the_first_state_where_one_kernel_is_not_finite(power, kernel):
+    # x^p at x = 0: only ∇V (p = 1/2), only D²V (3/2) or only the third
+    # derivatives (5/2) are infinite; the pass over 1000 states (beyond
+    # those checked from Python) stops at the first of two such states.
+    xs, ys = sp.symbols("x y")
+    model = varint.models.from_potential(xs**power + ys**2, [xs, ys],
+                                         name=f"x^{power} + y^2")
+    X = np.tile([1.0, 0.1, 0.0, 0.0], (1000, 1))
+    X[:, 0] += np.linspace(0.0, 0.5, 1000)
+    X[[700, 900], 0] = 0.0
+    with pytest.raises(ValueError, match=f"orbit 700, q = \\[0.0, 0.1\\]: {kernel}"):
+        check.kernels(model, X)
+    check.kernels(model, X[:700])
