@@ -159,7 +159,8 @@ def run_chunk(x0, indices, spec, reference=None):
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         W0 = initial_deviations(model.dim, spec.k, len(x0), spec.run.seed, indices)
-        job = Run(spec.run.for_orbits(x0, reference), deviations=W0, progress=False, errors="flag")
+        job = Run(spec.run.for_orbits(x0, reference), deviations=W0, progress=False,
+                  errors="flag")
 
         def record(rows):
             rec = job.record(rows)

@@ -60,4 +60,3 @@ def first_nonfinite(grad, hess, third, Q, par, rows):
         if not (_finite(g) and _finite(h.ravel()) and _finite(t.ravel())):
             return m
     return -1
-
