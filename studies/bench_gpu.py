@@ -14,7 +14,7 @@ it is measured (a run stopped at its time limit keeps what it measured):
    kernel's own seconds and the map's time by stage,
    ``studies/gpu_stages.py``), on the GPU with main 7b2b6c8's host
    functions of the map (``gpu_host_main``, ``studies/gpu_host_main.py``:
-   the initial energies computed again per chunk, the seeds' hash
+   the initial energies on the host and again per chunk, the seeds' hash
    vectorised, every length of the full-rank check, the initial states'
    finiteness with temporaries), with ``--with-a875246`` the GPU call of main a875246
    (``gpu_main``: the snapshots' energies computed on the host,

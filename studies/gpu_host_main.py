@@ -1,6 +1,7 @@
 """The host functions of a GPU map as they were at main 7b2b6c8, before
-this round's changes to them (issue 33): each chunk computed its initial
-energies again (``varint.maps.run_chunk`` without the map's reference),
+this round's changes to them (issue 33): the initial energies were the
+host's (``varint.runspec._device_energies``) and each chunk computed them
+again (``varint.maps.run_chunk`` without the map's reference),
 the seeds' hash ran as ~70 vectorised passes (``varint.seeds._draw``),
 the one-column full-rank check computed every length
 (``varint._validate.full_rank``), and the pass over the initial states
@@ -21,7 +22,7 @@ import contextlib
 import numpy as np
 from numba import njit, types
 
-from varint import _validate, maps, seeds
+from varint import _validate, maps, runspec, seeds
 from varint.kernels import finite
 from varint.seeds import _INIT_A, _INIT_B, _MASK64, _MIX_L, _MIX_R, _MULT_A, _MULT_B, \
     _PCG_MULT, _POOL, _normals
@@ -121,9 +122,16 @@ def run_chunk(x0, indices, spec, reference=None):
     return _TODAY_RUN_CHUNK(x0, indices, spec)
 
 
+def _device_energies(fields):
+    """``varint.runspec._device_energies`` as main 7b2b6c8 had it: none
+    (the initial energies on the host)."""
+    return None
+
+
 #: (owner, name, main 7b2b6c8's object) of the functions replaced.
 REPLACED = ((seeds, "_draw", _draw), (_validate, "full_rank", full_rank),
-            (finite, "first_nonfinite", first_nonfinite), (maps, "run_chunk", run_chunk))
+            (finite, "first_nonfinite", first_nonfinite), (maps, "run_chunk", run_chunk),
+            (runspec, "_device_energies", _device_energies))
 
 
 @contextlib.contextmanager

@@ -137,12 +137,17 @@ def _no_energy(self, n_threads, snap_x, count, out):
 
 def _fake_launch(self, n_threads, *args):
     """The launches on the simulator: the stepper's by :func:`_no_steps`,
-    the energy kernel's by :func:`_no_energy`, the transpositions into the
+    the energy kernel's by :func:`_no_energy`, the initial energies' by
+    copies of two numbers per state, the transpositions into the
     host's layout by NumPy's (the simulator would run them thread by
     thread in Python); the gathers of a compaction as they are."""
     name = self.dispatcher.py_func.__name__
     if name == "energy":
         return _no_energy(self, n_threads, *args)
+    if name == "parts":   # the initial energies' T and V: the first two numbers
+        x, kinetic, potential = args
+        kinetic[:], potential[:] = x[:, 0], x[:, 1]
+        return None
     if name == "thread":
         return _no_steps(self, n_threads, *args)
     if name == "_to_rows":   # a transposition on the device, in NumPy

@@ -93,6 +93,10 @@ class Reference:
     ----------
     model : Model
     x0 : ndarray, shape (M, 2N)
+    parts : (ndarray, ndarray) or None
+        T and V of ``x0`` computed elsewhere (on the GPU,
+        :func:`varint.gpu.energy.kinetic_and_potential`), for a model whose
+        energy is the base class's H = T + V; None: the model's NumPy.
 
     Raises
     ------
@@ -101,7 +105,7 @@ class Reference:
         that is not real there, such as log x at x < 0).
     """
 
-    def __init__(self, model, x0):
+    def __init__(self, model, x0, parts=None):
         self.model = model
         with np.errstate(all="ignore"):
             if _plain_energy(model):
@@ -109,7 +113,8 @@ class Reference:
                 # Model.energy and Model.energy_scale, so the same bits).
                 x0 = np.asarray(x0, dtype=float)
                 n = model.n_dof
-                kinetic, potential = model.kinetic(x0[..., n:]), model.potential(x0[..., :n])
+                kinetic, potential = parts if parts is not None else (
+                    model.kinetic(x0[..., n:]), model.potential(x0[..., :n]))
                 values = {"energy": kinetic + potential}
                 scale = np.abs(kinetic) + np.abs(potential)
                 scale = np.where(scale > 0, scale, 1.0)
