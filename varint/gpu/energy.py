@@ -140,10 +140,10 @@ def kinetic_and_potential(model, x):
 
     x = np.ascontiguousarray(x, dtype=float)
     m = len(x)
+    if not m:   # no zero-size device arrays
+        return np.empty(0), np.empty(0)
     kinetic, potential = cuda.device_array(m), cuda.device_array(m)
-    if m:
-        _compiled(parts_source(model), "parts").launch(m, cuda.to_device(x), kinetic,
-                                                       potential)
+    _compiled(parts_source(model), "parts").launch(m, cuda.to_device(x), kinetic, potential)
     return kinetic.copy_to_host(), potential.copy_to_host()
 
 
