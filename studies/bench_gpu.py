@@ -12,9 +12,13 @@ it is measured (a run stopped at its time limit keeps what it measured):
    t = 1e3) of random points of the section at 1e6, then 1e5 orbits
    (``--sizes``): orbits per second on the GPU (one chunk per map, with the
    kernel's own seconds and the map's time by stage,
-   ``studies/gpu_stages.py``), on the GPU with the GPU call of main a875246
+   ``studies/gpu_stages.py``), on the GPU with main 7b2b6c8's host
+   functions of the map (``gpu_host_main``, ``studies/gpu_host_main.py``:
+   the initial energies on the host and again per chunk, the seeds' hash
+   vectorised, every length of the full-rank check, the initial states'
+   finiteness with temporaries), with ``--with-a875246`` the GPU call of main a875246
    (``gpu_main``: the snapshots' energies computed on the host,
-   ``studies/gpu_advance_main.py``; with ``--with-93ccc3a`` also that of
+   ``studies/gpu_advance_main.py``), with ``--with-93ccc3a`` also that of
    main 93ccc3a, ``gpu_before``: the state packed and copied at every call,
    ``studies/gpu_advance_before.py``), on all CPU cores and (up to ``--cpu1-max``
    orbits, its rate being flat in the size) on one, interleaved, one run
@@ -164,8 +168,16 @@ def gpu_info():
 def call_of(contender):
     """For ``gpu_before``, the GPU call of main 93ccc3a in the place of
     today's, for ``gpu_main`` that of main a875246 (the snapshots' energies
-    on the host); the TM propagator looks ``advance_cuda`` up at each
-    call."""
+    on the host; the TM propagator looks ``advance_cuda`` up at each
+    call); for ``gpu_host_main`` main 7b2b6c8's host functions of the map
+    (``studies/gpu_host_main.py``). Entered outside ``staged()``, which
+    wraps the functions it finds when it starts."""
+    if contender == "gpu_host_main":
+        from studies.gpu_host_main import host_of_main
+
+        with host_of_main():
+            yield
+        return
     if contender not in ("gpu_before", "gpu_main"):
         yield
         return
@@ -222,6 +234,11 @@ def table(res):
                       f"({r.get('gpu_over_main', float('nan')):.2f}×; host part in the calls "
                       f"{r['gpu_host_s']:.3g} s against {r['gpu_main_host_s']:.3g} s); "
                       f"same values: {r.get('gpu_same_as_main')}"]
+        if "gpu_host_main_s" in r:
+            lines += ["", f"{r['orbits']} orbits: the GPU map {r['gpu_s']:.4g} s, with main "
+                      f"7b2b6c8's host functions {r['gpu_host_main_s']:.4g} s "
+                      f"({r.get('gpu_over_host_main', float('nan')):.2f}×); same values: "
+                      f"{r.get('gpu_same_as_host_main')}"]
         if "projected_device_only_over_cpu_all" in r:
             lines += ["", f"{r['orbits']} orbits, a projection (not measured): with no host "
                       f"work the GPU map would be "
@@ -240,6 +257,12 @@ def table(res):
             total = r["gpu_stages"]["total"]
             lines += [f"| {k} | {v:.4g} | {v / total:.1%} |" if isinstance(v, float)
                       else f"| {k} | {v} | |" for k, v in r["gpu_stages"].items()]
+        if r.get("gpu_host_main_stages") and r.get("gpu_stages"):
+            lines += ["", "The same by stage, main 7b2b6c8's host functions against "
+                      "today's (s):", "", "| stage | main 7b2b6c8 | now |", "|---|---|---|"]
+            lines += [f"| {k} | {v:.4g} | {r['gpu_stages'].get(k, 0.0):.4g} |"
+                      if isinstance(v, float) else f"| {k} | {v} | {r['gpu_stages'].get(k)} |"
+                      for k, v in r["gpu_host_main_stages"].items()]
         if r.get("gpu_main_stages") and r.get("gpu_stages"):
             lines += ["", "The same by stage, main a875246's GPU call against today's (s):",
                       "", "| stage | main a875246 | now |", "|---|---|---|"]
@@ -269,6 +292,8 @@ def main(argv=None):
                    help="the largest size timed on one CPU core (its rate is flat in the size)")
     p.add_argument("--deadline", type=float, default=float("inf"),
                    help="seconds from the start after which no further part or size is begun")
+    p.add_argument("--with-a875246", action="store_true",
+                   help="also the GPU call of main a875246 (gpu_main: energies on the host)")
     p.add_argument("--with-93ccc3a", action="store_true",
                    help="also time the GPU call of main 93ccc3a (gpu_before)")
     p.add_argument("--table", type=Path, default=None,
@@ -322,7 +347,8 @@ def main(argv=None):
     # gpu_before: the same kernel with the GPU call as at main 93ccc3a
     # (studies/gpu_advance_before.py: the state packed, copied and
     # allocated at every call), for the before/after ratio of the host work.
-    contenders = (["gpu", "gpu_main"] + (["gpu_before"] if args.with_93ccc3a else [])
+    contenders = (["gpu", "gpu_host_main"] + (["gpu_main"] if args.with_a875246 else [])
+                  + (["gpu_before"] if args.with_93ccc3a else [])
                   if gpu else []) + ["cpu_all", "cpu_1"]
     all_threads = numba.config.NUMBA_NUM_THREADS
     # Compile every contender's kernels first (numba compiles the parallel
@@ -368,9 +394,8 @@ def main(argv=None):
                     STATS.update(launches=0, kernel_s=0.0, host_s=0.0)
                     # The GPU map's stages (timers around the host's
                     # functions and in the GPU calls: gpu_stages.py).
-                    with (staged() if c in ("gpu", "gpu_main")
-                          else contextlib.nullcontext({})) as stages, \
-                            call_of(c):
+                    with call_of(c), (staged() if c in ("gpu", "gpu_main", "gpu_host_main")
+                                      else contextlib.nullcontext({})) as stages:
                         dt, r = timed(lambda kw=kw, X=X: varint.chaos_map(hh, X, "fli", **kw))
                     if dt < best:
                         best, stats, best_stages = dt, dict(STATS), stages
@@ -392,6 +417,15 @@ def main(argv=None):
                 if "gpu" in values:
                     row["gpu_same_as_main"] = bool(np.array_equal(
                         values["gpu"], values["gpu_main"], equal_nan=True))
+            if c == "gpu_host_main":
+                row["gpu_host_main_stages"] = best_stages
+                log(f"GPU map of {m} orbits with main 7b2b6c8's host functions, by stage:\n"
+                    + describe(best_stages))
+                if "gpu_s" in row:
+                    row["gpu_over_host_main"] = best / row["gpu_s"]
+                if "gpu" in values:
+                    row["gpu_same_as_host_main"] = bool(np.array_equal(
+                        values["gpu"], values["gpu_host_main"], equal_nan=True))
             if c == "gpu_before":
                 row["gpu_before_launches"] = stats["launches"]
                 row["gpu_before_host_s"] = stats["host_s"]

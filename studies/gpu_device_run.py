@@ -20,8 +20,9 @@ Writes to ``$OUT`` as it goes: ``bench_gpu.json`` (after every measurement:
 per size the GPU map's time by stage — validation, seeds, snapshot arrays,
 records, energy errors, assembly and, inside the GPU calls, buffer
 allocation, packing, copies each way, compaction, kernel, the snapshots'
-energies, writing back — and the same map with the GPU call of main
-a875246, whose host computed the energies, for the before/after ratio;
+energies, writing back — and the same map with main 7b2b6c8's host
+functions of the map, ``studies/gpu_host_main.py``, for the before/after
+ratio;
 and, stated as a projection, the ratio to all CPU cores if the host's work
 took no time) and ``bench_gpu.md`` (the benchmark), ``ptx.json`` (per kernel: counts of
 the FP64 instructions whose rounding decides bitwise agreement with the

@@ -19,7 +19,12 @@ computes nothing, so only the host's work is timed)::
 
 (``--out NAME``: writes ``NAME.json`` and ``NAME.md``; ``--compare R``:
 main a875246's GPU call, whose host computed the snapshots' energies, and
-today's, interleaved, R runs each, the fastest of each reported.) On the simulator
+today's, interleaved, R runs each, the fastest of each reported; with
+``--before host`` main 7b2b6c8's host functions of the map instead;
+``--against TREE --repeats R``: this script of another source tree, e.g.
+``git archive <commit> | tar -x -C TREE``, and of this one, each in a fresh
+process, alternating, R runs each, the fastest of each reported, for
+changes outside the GPU call.) On the simulator
 the copies to and from the "device" are NumPy copies and the kernel's
 place is taken by copies of the state into the snapshots: the figures are
 the host's share of the work, not a GPU's.
@@ -132,12 +137,17 @@ def _no_energy(self, n_threads, snap_x, count, out):
 
 def _fake_launch(self, n_threads, *args):
     """The launches on the simulator: the stepper's by :func:`_no_steps`,
-    the energy kernel's by :func:`_no_energy`, the transpositions into the
+    the energy kernel's by :func:`_no_energy`, the initial energies' by
+    copies of two numbers per state, the transpositions into the
     host's layout by NumPy's (the simulator would run them thread by
     thread in Python); the gathers of a compaction as they are."""
     name = self.dispatcher.py_func.__name__
     if name == "energy":
         return _no_energy(self, n_threads, *args)
+    if name == "parts":   # the initial energies' T and V: the first two numbers
+        x, kinetic, potential = args
+        kinetic[:], potential[:] = x[:, 0], x[:, 1]
+        return None
     if name == "thread":
         return _no_steps(self, n_threads, *args)
     if name == "_to_rows":   # a transposition on the device, in NumPy
@@ -154,10 +164,18 @@ _REAL_LAUNCH: list = []
 def call_of(contender):
     """``"main"``: the GPU call of main a875246 (the snapshots' energies on
     the host, ``studies/gpu_advance_main.py``) in the place of today's
-    (the TM propagator looks ``advance_cuda`` up at each call); ``"now"``:
-    today's."""
+    (the TM propagator looks ``advance_cuda`` up at each call);
+    ``"host_main"``: main 7b2b6c8's host functions of the map
+    (``studies/gpu_host_main.py``); ``"now"``: today's. Entered outside
+    :func:`staged` (which wraps the functions in place when it starts)."""
     if contender == "now":
         yield
+        return
+    if contender == "host_main":
+        from studies.gpu_host_main import host_of_main
+
+        with host_of_main():
+            yield
         return
     from studies import gpu_advance_main
     from varint.gpu import advance
@@ -170,20 +188,49 @@ def call_of(contender):
         advance.advance_cuda = today
 
 
-def compare_table(best):
-    """Markdown: each stage's seconds for main a875246 and today, and their
-    ratio."""
-    lines = ["| stage | main a875246 s | now s | main / now |", "|---|---|---|---|"]
-    for key, before in best["main"].items():
+def compare_table(best, other="main", label="main a875246"):
+    """Markdown: each stage's seconds for ``best[other]`` (``label``) and
+    today, and their ratio."""
+    lines = [f"| stage | {label} s | now s | before / now |", "|---|---|---|---|"]
+    for key, before in best[other].items():
         now = best["now"].get(key, 0.0)
         if isinstance(before, float) or isinstance(now, float):
             ratio = f"{before / now:.2f}" if now > 0 else "—"
             lines.append(f"| {key} | {before:.4f} | {now:.4f} | {ratio} |")
         else:
             lines.append(f"| {key} | {before} | {now} | |")
-    for key in best["now"].keys() - best["main"].keys():
+    for key in best["now"].keys() - best[other].keys():
         lines.append(f"| {key} | — | {best['now'][key]:.4f} | |")
     return "\n".join(lines)
+
+
+def _fresh_run(tree, orbits, t_end):
+    """This script of source tree ``tree`` run once in a new process on the
+    simulator: its stages (the JSON of its last line)."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
+    if tree.resolve() != HERE.parent:
+        # The other tree's kernels in a cache of their own.
+        env["VARINT_CACHE_DIR"] = env.get("VARINT_CACHE_DIR", "/tmp/varint-cache") + "-against"
+    out = subprocess.run([sys.executable, str(tree / "studies" / "gpu_stages.py"), "--orbits",
+                          str(orbits), "--t-end", repr(t_end)], cwd=tree, env=env,
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])["now"]
+
+
+def against(tree, orbits, t_end, repeats):
+    """``{"before": stages, "now": stages}``: the fastest (by total) of
+    ``repeats`` fresh runs of ``tree``'s script and of this tree's,
+    alternating."""
+    best: dict = {}
+    for _ in range(repeats):
+        for name, where in (("before", tree), ("now", HERE.parent)):
+            stages = _fresh_run(where, orbits, t_end)
+            if name not in best or stages["total"] < best[name]["total"]:
+                best[name] = stages
+    return best
 
 
 def main(argv=None):
@@ -195,6 +242,15 @@ def main(argv=None):
     p.add_argument("--compare", type=int, default=0, metavar="REPEATS",
                    help="time main a875246's GPU call and today's, interleaved, REPEATS "
                         "times each; the fastest run of each is reported")
+    p.add_argument("--against", type=Path, default=None, metavar="TREE",
+                   help="another source tree's run of this script against this tree's, "
+                        "each in fresh processes, alternating (--repeats each)")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--label", default="before",
+                   help="the other tree's name in the table (e.g. main 7b2b6c8)")
+    p.add_argument("--before", choices=("a875246", "host"), default="a875246",
+                   help="--compare's other contender: main a875246's GPU call, or main "
+                        "7b2b6c8's host functions of the map")
     p.add_argument("--out", type=Path, default=None,
                    help="write the breakdown to OUT.json and OUT.md")
     args = p.parse_args(argv)
@@ -207,6 +263,30 @@ def main(argv=None):
     from varint.gpu import device
     from varint.models import HenonHeiles
 
+    if args.against is not None:
+        load = os.getloadavg()
+        best = against(args.against, args.orbits, args.t_end, args.repeats)
+        text = (f"# A GPU map's host work by stage, on numba's CUDA simulator: "
+                f"{args.label} against this tree\n\n"
+                f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
+                f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that "
+                f"takes no step, the energy kernel's by one that computes nothing. Each run "
+                f"a fresh process, the two trees alternating, the fastest of "
+                f"{args.repeats} each. {os.cpu_count()} CPU cores, load {load[0]:.1f} at "
+                f"the start, {os.getloadavg()[0]:.1f} at the end; Python "
+                f"{platform.python_version()}.\n`NUMBA_ENABLE_CUDASIM=1 python "
+                f"studies/gpu_stages.py --orbits {args.orbits} --against TREE --repeats "
+                f"{args.repeats}` (TREE: {args.label})\n\nNested: records include energy "
+                "errors, propagator calls the gpu: stages.\n\n"
+                + compare_table(best, "before", args.label) + "\n")
+        print(text)
+        if args.out is not None:
+            args.out.with_suffix(".json").write_text(json.dumps(
+                {"orbits": args.orbits, "t_end": args.t_end, "load": load,
+                 "against": args.label, "repeats": args.repeats, "by_contender": best},
+                indent=1))
+            args.out.with_suffix(".md").write_text(text)
+        return
     if not device.simulated():
         raise SystemExit("run with NUMBA_ENABLE_CUDASIM=1 (the device script times a GPU)")
     _REAL_LAUNCH.append(device._Kernel.launch)
@@ -218,24 +298,31 @@ def main(argv=None):
     kw = dict(t_end=args.t_end, progress=False, chunk_size=args.orbits, backend="cuda")
     if args.threshold is not None:
         kw["threshold"] = args.threshold
-    contenders = ("main", "now") if args.compare else ("now",)
+    before = {"a875246": "main", "host": "host_main"}[args.before]
+    label = {"main": "main a875246", "host_main": "main 7b2b6c8's host"}[before]
+    contenders = (before, "now") if args.compare else ("now",)
     for c in contenders:
         with call_of(c), warnings.catch_warnings():
             warnings.simplefilter("ignore")
             varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
     load = os.getloadavg()
     best: dict = {}
+    fastest: dict = {}   # each stage's fastest run (a load's noise is per stage)
     values: dict = {}
     for _ in range(max(args.compare, 1)):
         for c in contenders:
-            with staged() as stages, call_of(c), warnings.catch_warnings():
+            with call_of(c), staged() as stages, warnings.catch_warnings():
                 warnings.simplefilter("ignore")   # the fake energies' accuracy warnings
                 values[c] = varint.chaos_map(hh, X, "fli", **kw).values
             if c not in best or stages["total"] < best[c]["total"]:
                 best[c] = stages
+            fastest.setdefault(c, {})
+            for key, value in stages.items():
+                fastest[c][key] = min(fastest[c].get(key, value), value)
     stages = best["now"]
     command = (f"`NUMBA_ENABLE_CUDASIM=1 python studies/gpu_stages.py --orbits {args.orbits}"
-               + (f" --compare {args.compare}`" if args.compare else "`"))
+               + (f" --compare {args.compare} --before {args.before}`" if args.compare
+                  else "`"))
     text = (f"# A GPU map's host work by stage, on numba's CUDA simulator\n\n"
             f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
             f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that takes "
@@ -243,12 +330,17 @@ def main(argv=None):
             f"CPU cores, load {load[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the "
             f"end; Python {platform.python_version()}.\n{command}\n\n")
     if args.compare:
-        same = bool(np.array_equal(values["main"], values["now"], equal_nan=True))
-        text += (f"Main a875246's GPU call (energies on the host) and today's, interleaved, "
+        same = bool(np.array_equal(values[before], values["now"], equal_nan=True))
+        what = ("Main a875246's GPU call (energies on the host)" if before == "main" else
+                "Main 7b2b6c8's host functions (studies/gpu_host_main.py)")
+        text += (f"{what} and today's, interleaved, "
                  f"the fastest of {args.compare} runs each; the same values: {same}. "
                  "Nested: records include energy errors, propagator calls the gpu: "
                  "stages; `gpu: kernel` and `gpu: energy` stand in for the device's "
-                 "work.\n\n" + compare_table(best) + "\n")
+                 "work. The fastest run of each (by total):\n\n"
+                 + compare_table(best, before, label)
+                 + "\n\nEach stage's fastest of its runs (the total: the fastest run's):\n\n"
+                 + compare_table(fastest, before, label) + "\n")
     else:
         text += f"```\n{describe(stages)}\n```\n"
     print(text)
@@ -256,7 +348,8 @@ def main(argv=None):
     if args.out is not None:
         args.out.with_suffix(".json").write_text(json.dumps(
             {"orbits": args.orbits, "t_end": args.t_end, "load": load,
-             "stages": stages, "by_contender": best}, indent=1))
+             "stages": stages, "by_contender": best, "fastest_by_stage": fastest},
+            indent=1))
         args.out.with_suffix(".md").write_text(text)
 
 

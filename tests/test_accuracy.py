@@ -303,3 +303,31 @@ def test_assess_keeps_the_worst_time_across_quantities_and_failures():
     np.testing.assert_array_equal(acc.accurate, [False, False, False])
     acc = assess(t, {"energy_error": energy[:1]}, np.array([0]), 4e-9, 0.1, True)
     assert acc.t_worst == 2.0 and acc.energy_error == 3e-9 and bool(acc.accurate)
+
+
+# -- a chaos map's chunks take their rows of the map's reference ------------------
+@pytest.mark.parametrize("make", [
+    lambda: varint.models.HenonHeiles(),
+    lambda: from_potential(sp.exp(x - y) + sp.cos(x) * y**2 + sp.log(2 + sp.sin(y)), [x, y],
+                           name="transcendental"),
+    lambda: varint.models.CR3BP(0.01),
+])
+def test_a_reference_of_some_rows_is_bitwise_the_reference_of_those_states(make):
+    # The map computes the reference once and hands each chunk its rows:
+    # the same bits as the chunk's states would give alone, for a plain
+    # energy, transcendental V (NumPy's vector loops on other lengths) and
+    # a model with its own conserved quantity (the Jacobi constant).
+    model = make()
+    X = 0.1 * np.random.default_rng(3).standard_normal((1037, model.dim))
+    if isinstance(model, varint.models.CR3BP):
+        X[:, 0] += 0.5
+    whole = varint.accuracy.Reference(model, X)
+    idx = np.random.default_rng(4).permutation(len(X))[:517]
+    part, alone = whole.rows(idx), varint.accuracy.Reference(model, X[idx])
+    assert part.values.keys() == alone.values.keys()
+    for name in alone.values:
+        assert part.values[name].tobytes() == alone.values[name].tobytes()
+        assert part.scales[name].tobytes() == alone.scales[name].tobytes()
+    errors = part.errors(X[idx] * 1.001)
+    assert {k: v.tobytes() for k, v in errors.items()} == \
+        {k: v.tobytes() for k, v in alone.errors(X[idx] * 1.001).items()}

@@ -719,3 +719,51 @@ def test_one_vector_is_independent_where_svd_says_so():
     assert list(s[:, -1] / np.maximum(s[:, 0], np.finfo(float).tiny) > 1e-12) == \
         [True, True, False, True]
     check.full_rank(W[[0, 1, 3]])
+
+
+@pytest.mark.parametrize("value", [0.0, 5e-324, 1e-320, 1e-310, 2.3e-308, 1.0, 1e300, 1e305,
+                                   1.7e308, np.inf, np.nan])
+def test_one_vector_verdict_is_the_svds_in_every_range_of_its_largest_entry(value):
+    # The one-column check skips the length where the largest entry lies in
+    # [tiny, 1e300]; at and beyond both ends it computes it: either way
+    # the verdict is the SVD's (NaN and inf refused, as there), whichever
+    # orbit of the batch holds the column.
+    col = np.array([value, -value / 3, 0.0, value / 7])
+    W = np.ones((3, 4, 1))
+    W[1, :, 0] = col
+    with np.errstate(all="ignore"):
+        s = np.linalg.svd(W[1:2], compute_uv=False) if np.isfinite(col).all() else \
+            np.full((1, 1), np.nan)
+        independent = bool(s[0, -1] / max(s[0, 0], np.finfo(float).tiny) > 1e-12)
+    if independent:
+        check.full_rank(W)
+        check.full_rank(W[1:2])
+    else:
+        with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
+            check.full_rank(W)
+
+
+def test_one_vector_with_one_nan_entry_is_refused_like_an_all_nan_one():
+    # The largest entry propagates NaN (as max does): no pass for a column
+    # whose other entries are fine.
+    W = np.ones((2, 4, 1))
+    W[1, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="deviations of orbit 1 are linearly dependent"):
+        check.full_rank(W)
+
+
+@pytest.mark.parametrize("power, kernel", [(0.5, "the gradient"), (1.5, "the Hessian"),
+                                           (2.5, "the third derivatives")])
+def test_the_compiled_pass_finds_the_first_state_where_one_kernel_is_not_finite(power, kernel):
+    # x^p at x = 0: only ∇V (p = 1/2), only D²V (3/2) or only the third
+    # derivatives (5/2) are infinite; the pass over 1000 states (beyond
+    # those checked from Python) stops at the first of two such states.
+    xs, ys = sp.symbols("x y")
+    model = varint.models.from_potential(xs**power + ys**2, [xs, ys],
+                                         name=f"x^{power} + y^2")
+    X = np.tile([1.0, 0.1, 0.0, 0.0], (1000, 1))
+    X[:, 0] += np.linspace(0.0, 0.5, 1000)
+    X[[700, 900], 0] = 0.0
+    with pytest.raises(ValueError, match=f"orbit 700, q = \\[0.0, 0.1\\]: {kernel}"):
+        check.kernels(model, X)
+    check.kernels(model, X[:700])

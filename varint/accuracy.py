@@ -93,6 +93,10 @@ class Reference:
     ----------
     model : Model
     x0 : ndarray, shape (M, 2N)
+    parts : (ndarray, ndarray) or None
+        T and V of ``x0`` computed elsewhere (on the GPU,
+        :func:`varint.gpu.energy.kinetic_and_potential`), for a model whose
+        energy is the base class's H = T + V; None: the model's NumPy.
 
     Raises
     ------
@@ -101,7 +105,7 @@ class Reference:
         that is not real there, such as log x at x < 0).
     """
 
-    def __init__(self, model, x0):
+    def __init__(self, model, x0, parts=None):
         self.model = model
         with np.errstate(all="ignore"):
             if _plain_energy(model):
@@ -109,7 +113,8 @@ class Reference:
                 # Model.energy and Model.energy_scale, so the same bits).
                 x0 = np.asarray(x0, dtype=float)
                 n = model.n_dof
-                kinetic, potential = model.kinetic(x0[..., n:]), model.potential(x0[..., :n])
+                kinetic, potential = parts if parts is not None else (
+                    model.kinetic(x0[..., n:]), model.potential(x0[..., :n]))
                 values = {"energy": kinetic + potential}
                 scale = np.abs(kinetic) + np.abs(potential)
                 scale = np.where(scale > 0, scale, 1.0)
@@ -129,6 +134,25 @@ class Reference:
         self.values = values
         self.scales = {name: (scale if name == "energy" else np.where(v != 0, np.abs(v), 1.0))
                        for name, v in values.items()}
+
+    def rows(self, idx):
+        """The reference of the orbits ``idx`` (indices of ``x0``'s rows):
+        the values and scales of those rows, not computed again (a chaos
+        map's chunks take theirs from the map's, which refused bad states
+        before any chunk ran). Each orbit's numbers are its own (NumPy's
+        arithmetic row by row), so they are those a reference of the
+        chunk's states alone would compute; a value that is one number
+        for all orbits is kept as it is."""
+        part = object.__new__(Reference)
+        part.model = self.model
+        m = len(next(iter(self.values.values())))
+
+        def pick(v):
+            return v[idx] if np.ndim(v) and len(v) == m else v
+
+        part.values = {name: pick(v) for name, v in self.values.items()}
+        part.scales = {name: pick(v) for name, v in self.scales.items()}
+        return part
 
     def errors(self, x, t=0.0, p_t=0.0, energy=None):
         """Relative errors of the conserved quantities at states ``x``

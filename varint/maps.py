@@ -145,20 +145,22 @@ class _Chunk:
     cpu_time: float | None = None
 
 
-def run_chunk(x0, indices, spec):
+def run_chunk(x0, indices, spec, reference=None):
     """One chunk of a map: the orbits ``x0`` (their ``indices`` in the whole
     map) as one batch run of the map's :class:`RunSpec`, stopping early at
-    its check times.
+    its check times; ``reference``: their rows of the map's
+    :class:`~varint.accuracy.Reference`, or None (computed again).
     """
     if spec.divisions is not None:
-        return stepsize_orbits.run_grouped(run_chunk, x0, indices, spec)
+        return stepsize_orbits.run_grouped(run_chunk, x0, indices, spec, reference)
     ind, model = spec.run.indicator, spec.run.model
     cpu = time.process_time()
     with worker_threads() as cancelled, warnings.catch_warnings():
         # Failed orbits are counted by the map, which warns once.
         warnings.simplefilter("ignore", RuntimeWarning)
         W0 = initial_deviations(model.dim, spec.k, len(x0), spec.run.seed, indices)
-        job = Run(spec.run.for_orbits(x0), deviations=W0, progress=False, errors="flag")
+        job = Run(spec.run.for_orbits(x0, reference), deviations=W0, progress=False,
+                  errors="flag")
 
         def record(rows):
             rec = job.record(rows)
@@ -484,8 +486,10 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
 
     with bar(progress, m, sum(len(chunks[c]) for c in done), "chaos_map", "orbit") as shown, \
             clock.part("run"):
-        interrupted = fan_out(client, todo, run_chunk,
-                              lambda c: (X[chunks[c]], chunks[c], shared), keep, shown)
+        # Each chunk's reference is its rows of the map's: the initial
+        # energies are computed once.
+        interrupted = fan_out(client, todo, run_chunk, lambda c: (
+            X[chunks[c]], chunks[c], shared, spec.reference.rows(chunks[c])), keep, shown)
     result = _assemble(spec, X, grid, chunks, done, limit, parameters, resumed, interrupted,
                        store is not None, time.perf_counter() - start, client)
     # This process's compilations (a cluster's workers compile on their own).

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -197,10 +198,12 @@ class RunSpec:
         return dataclasses.replace(self, x0=self.x0[:0], single=False, reference=None,
                                    t_out=None)
 
-    def for_orbits(self, x0):
+    def for_orbits(self, x0, reference=None):
         """The specification of a run over ``x0`` (M, 2N), some of the
-        orbits this one was checked with (a chaos map's chunk)."""
-        return dataclasses.replace(self, x0=x0, single=False, reference=None)
+        orbits this one was checked with (a chaos map's chunk), with their
+        ``reference`` (:meth:`varint.accuracy.Reference.rows` of the map's)
+        or None: the run computes it."""
+        return dataclasses.replace(self, x0=x0, single=False, reference=reference)
 
 
 def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="tm",
@@ -228,8 +231,24 @@ def specify(model, x0, indicator: str | Indicator, t_end, tau=None, *, method="t
                           escape_radius=escape_radius, energy_tol=energy_tol,
                           t_out_name=t_out_name, **options)
     x, single, reference = _checked_states(fields["model"], fields["indicator"],
-                                           fields["options"], x0, what, kernels_what)
+                                           fields["options"], x0, what, kernels_what,
+                                           energies=_device_energies(fields))
     return RunSpec(x0=x, single=single, reference=reference, **fields)
+
+
+def _device_energies(fields):
+    """For ``backend="cuda"`` where a GPU (or the simulator) is present
+    and computes the model's energy: the function giving T and V of the
+    states there (:func:`varint.gpu.energy.kinetic_and_potential`), else
+    None (the host's NumPy; a run without a GPU is refused later, in one
+    line, by its propagator)."""
+    if fields["method_options"].get("backend") != "cuda" or fields["model"].kind == "map":
+        return None
+    from .gpu import device, energy
+
+    if not (device.available() and energy.supported(fields["model"])):
+        return None
+    return functools.partial(energy.kinetic_and_potential, fields["model"])
 
 
 def specify_call(model, indicator: str | Indicator, t_end, tau=None, *, method="tm",
@@ -284,9 +303,11 @@ def _call_fields(model, indicator, t_end, tau, *, method, t_out, seed, escape_ra
             "seed": check_seed(seed), "escape_radius": escape_radius, "energy_tol": energy_tol}
 
 
-def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_check=None):
+def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_check=None,
+                    energies=None):
     """(x (M, 2N), single, reference) of the states ``x0`` (see
-    :meth:`RunSpec.with_states`)."""
+    :meth:`RunSpec.with_states`); ``energies``: None, or a function giving
+    T and V of the states (:func:`_device_energies`)."""
     x, single = check.states(model, x0, what)
     if model.kind != "map" and getattr(model, "band_kernels", True):
         # A state where V or its derivatives are singular is refused here,
@@ -296,7 +317,7 @@ def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_ch
             check.kernels(model, x, kernels_what)
         else:
             kernel_check(x, kernels_what)
-    reference = accuracy.Reference(model, x)
+    reference = accuracy.Reference(model, x, None if energies is None else energies(x))
     indicator.check_states(model, x, options)
     return x, single, reference
 

@@ -48,7 +48,6 @@ _INIT_A, _MULT_A = 0x43B0D7E5, 0x931E8875
 _INIT_B, _MULT_B = 0x8B51F9DD, 0x58F38DED
 _MIX_L, _MIX_R = 0xCA01F9DD, 0x4973F715
 _POOL = 4
-_SHIFT = np.uint32(16)
 # PCG64's 128-bit LCG multiplier and mask.
 _PCG_MULT = 0x2360ED051FC65DA44385DF649FCCF645
 _MASK128 = (1 << 128) - 1
@@ -103,7 +102,7 @@ def _draw(seed, indices, shape, out):
     words of every orbit at once (:func:`_pcg_seed_words`), then every
     orbit's PCG64 stream and normals in one compiled loop
     (:func:`_normals`)."""
-    words = _pcg_seed_words(seed, indices.astype(np.uint32))
+    words = _pcg_seed_words(np.uint64(seed), indices.astype(np.uint64))
     mult = np.array([_PCG_MULT >> 64, _PCG_MULT & _MASK64], dtype=np.uint64)
     _normals(words, mult, out.reshape(len(indices), -1))
 
@@ -208,37 +207,51 @@ def _normals(words, mult, out):
                     break
 
 
+_U16 = np.uint64(16)
+
+
+@njit(cache=True)
 def _pcg_seed_words(seed, indices):
     """``SeedSequence([seed, i]).generate_state(4, uint64)`` for every ``i``
-    of ``indices`` (uint32), shape (M, 4): the words PCG64 is seeded from."""
+    of ``indices`` (non-negative, below 2³²), shape (M, 4): the words PCG64
+    is seeded from, one orbit at a time (NumPy's ``mix_entropy`` and
+    ``generate_state`` on a pool of four uint32 words, each product and
+    difference reduced mod 2³²; a uint64 holds the uint32 arithmetic).
+    Compiled: the vectorised form made ~70 passes over arrays of M
+    numbers, 0.25 s for 10⁶ orbits."""
     m = len(indices)
-    entropy = [np.full(m, seed, dtype=np.uint32), indices]
-    h = np.uint32(_INIT_A)
-
-    def hashmix(value):
-        nonlocal h
-        value = value ^ h
-        h = h * np.uint32(_MULT_A)
-        value = value * h
-        return value ^ (value >> _SHIFT)
-
-    def mix(x, y):
-        r = np.uint32(_MIX_L) * x - np.uint32(_MIX_R) * y
-        return r ^ (r >> _SHIFT)
-
-    with np.errstate(over="ignore"):   # uint32 arithmetic wraps by design
-        zero = np.zeros(m, dtype=np.uint32)
-        pool = [hashmix(entropy[i] if i < len(entropy) else zero) for i in range(_POOL)]
+    out = np.empty((m, 4), dtype=np.uint64)
+    pool = np.empty(_POOL, dtype=np.uint64)
+    words = np.empty(2 * _POOL, dtype=np.uint64)
+    mult_a, mult_b = np.uint64(_MULT_A), np.uint64(_MULT_B)
+    mix_l, mix_r = np.uint64(_MIX_L), np.uint64(_MIX_R)
+    for j in range(m):
+        h = np.uint64(_INIT_A)
+        for i in range(_POOL):
+            value = np.uint64(seed) if i == 0 else (
+                np.uint64(indices[j]) if i == 1 else np.uint64(0))
+            # hashmix
+            value = value ^ h
+            h = (h * mult_a) & _LOW32
+            value = (value * h) & _LOW32
+            pool[i] = value ^ (value >> _U16)
         for src in range(_POOL):
             for dst in range(_POOL):
                 if src != dst:
-                    pool[dst] = mix(pool[dst], hashmix(pool[src]))
-        words = np.empty((m, 2 * _POOL), dtype=np.uint32)
-        h = np.uint32(_INIT_B)
+                    value = pool[src] ^ h
+                    h = (h * mult_a) & _LOW32
+                    value = (value * h) & _LOW32
+                    value = value ^ (value >> _U16)
+                    # mix(pool[dst], hashmix(pool[src]))
+                    r = ((mix_l * pool[dst]) - (mix_r * value)) & _LOW32
+                    pool[dst] = r ^ (r >> _U16)
+        h = np.uint64(_INIT_B)
         for i in range(2 * _POOL):
             value = pool[i % _POOL] ^ h
-            h = h * np.uint32(_MULT_B)
-            value = value * h
-            words[:, i] = value ^ (value >> _SHIFT)
-    # Pairs of uint32 read as little-endian uint64, as generate_state does.
-    return words.astype("<u4").view("<u8").astype(np.uint64)
+            h = (h * mult_b) & _LOW32
+            value = (value * h) & _LOW32
+            words[i] = value ^ (value >> _U16)
+        # Pairs of uint32 read as little-endian uint64, as generate_state does.
+        for i in range(_POOL):
+            out[j, i] = words[2 * i] | (words[2 * i + 1] << _U32)
+    return out

@@ -300,12 +300,13 @@ def _not_shrinking(tried_n, tried_e, level, error):
         return np.any(earlier & ~(error[:, None] <= tried_e / 2), axis=1)
 
 
-def run_grouped(run_chunk, x0, indices, spec):
+def run_grouped(run_chunk, x0, indices, spec, reference=None):
     """One chunk of a map whose orbits have their own steps: its orbits in
     groups of equal divisor ``spec.divisions[indices]``, each group one
     ``run_chunk`` call of the map's run (``spec.run``) with τ = τ / n and
     the check steps n times its steps (the same times), merged back in the
-    chunk's order.
+    chunk's order; ``reference`` (the chunk's rows of the map's, or None)
+    split with them.
 
     The stop times of orbits that ran to the end or were decided at a check
     are put on the unit's grid (the check steps times the unit τ) exactly, as the
@@ -317,7 +318,8 @@ def run_grouped(run_chunk, x0, indices, spec):
         rows = np.flatnonzero(divisions == level)
         sub = dataclasses.replace(spec, divisions=None, run=dataclasses.replace(
             run, tau=float(tau / level), steps=run.steps * level))
-        parts.append(run_chunk(x0[rows], indices[rows], sub))
+        parts.append(run_chunk(x0[rows], indices[rows], sub,
+                               None if reference is None else reference.rows(rows)))
         order.append(rows)
         if parts[-1].interrupted:
             # The chunk is not kept, as a chunk whose one run was
