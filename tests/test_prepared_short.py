@@ -32,23 +32,20 @@ def general(monkeypatch):
     ("integrate", {"t_out": [0.5, 1.0]}),
     ("lyapunov", {"t_out": [0.3, 1.0]}), ("megno", {}), ("gali", {"k": 3}),
     ("gali", {"k": 2, "renormalize_every": 4}), ("sali", {"t_out": 5}), ("fli", {}),
-    ("lyapunov", {"compensated": True})])
+    ("lyapunov", {"compensated": True}),
+    ("integrate", {"scheme": "s35odr10", "compensated": True, "deviations": np.eye(4)[:, :1]})])
 def test_short_calls_are_the_one_shot_calls(indicator, options, general):
     # Several states, one and two at a time, after the first call (which
-    # builds the run): all but the compensated run (one orbit at a time in
-    # its own stepper, the general path) take the short path.
+    # builds the run), take the short path.
     model, x0 = varint.paper_orbit("R1")
     run = varint.prepare(model, indicator, 1.0, tau=0.05, **options)
     states = _states(x0, 4)
     run(states[0])
     for x in (*states[1:], states[:2], states[2:]):
         _same(run(x), varint.run(model, x, indicator, 1.0, 0.05, **options))
-    if options.get("compensated"):
-        assert run._short is None and len(general) == 5
-    else:
-        # The first run was one orbit: the batches of two take the
-        # general path (as many orbits as the first call only).
-        assert run._short is not None and len(general) == 2
+    # The first run was one orbit: the batches of two take the general
+    # path (as many orbits as the first call only).
+    assert run._short is not None and len(general) == 2
 
 
 def test_a_failing_orbit_takes_the_general_path(general):

@@ -287,9 +287,9 @@ class TangentMapPropagator:
     def runs_fresh(self, m, k):
         """Whether :meth:`advance_fresh` can run ``m`` orbits with ``k``
         vectors: a generated stepper, one orbit at a time on the CPU (fewer
-        orbits than :attr:`MIN_LANES`), no processor, no compensation."""
-        return (self._processor is None and not self.compensated and self.backend == "cpu"
-                and m < self.MIN_LANES and self._stepper(k) is not None)
+        orbits than :attr:`MIN_LANES`, or compensated), no processor."""
+        return (self._processor is None and self.backend == "cpu"
+                and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
 
     def advance_fresh(self, x, W, aux, outs, pace):
         """Orbits started at step 0 advanced to step ``outs[-1]``, copied at
@@ -334,7 +334,11 @@ class TangentMapPropagator:
         sched = np.ones((m, 2), dtype=np.int64)     # as _schedule starts it at step 0
         module = self._stepper(k)
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
-        orbit, setup = StepperOrbit(x, W, acc_m, acc_e, aux, counters, sched), self._setup()
+        orbit = (x, W, acc_m, acc_e, aux, counters, sched)
+        # Compensated: the Kahan terms start at zero (as _compensation).
+        orbit = (CompensatedOrbit(*orbit, np.zeros((m, d, 1 + k))) if self.compensated
+                 else StepperOrbit(*orbit))
+        setup = self._setup()
         step = j = steps = 0
         last = int(outs[-1])
         while step < last:
