@@ -242,7 +242,7 @@ class _ShortCall:
         x0, single = spec.x0, spec.single
         cpu, start = time.process_time(), time.perf_counter()
         x, W = np.array(x0, dtype=np.float64, order="C"), np.array(first.W0)
-        snaps, status, steps, counters, acc_m, acc_e = prop.advance_fresh(
+        snaps, status, counters, acc_m, acc_e = prop.advance_fresh(
             x, W, self.aux0.copy(), outs, _Pace())
         if status.any():
             return None
@@ -275,7 +275,7 @@ class _ShortCall:
             if self.sparse:
                 W, _, _ = renormalized_copy(W, acc_m, acc_e, ind.renorm)
             fields["deviations"] = W[0] if single else W
-        counts = {"steps": steps,
+        counts = {"steps": m * int(outs[-1]),     # no orbit failed
                   **dict(zip(COUNTERS, counters.sum(axis=0).tolist(), strict=True))}
         provenance = Provenance(
             kind=ind.name, x0=(x0[0] if single else x0).tolist(), method=first.method,

@@ -312,22 +312,23 @@ class TangentMapPropagator:
         pace : varint.driver._Pace
 
         All three arrays are advanced in place. Returns ``(snapshots,
-        status, steps, counters, acc_m, acc_e)``: status (M,), the steps
-        done, the counters of :data:`~varint.protocol.COUNTERS` (M, 4) per
-        orbit, and the vectors' stretching (M, k) as mantissa and exponent.
-        The run stops at the first chunk after which an orbit has failed.
+        status, counters, acc_m, acc_e)``: status (M,), the counters of
+        :data:`~varint.protocol.COUNTERS` (M, 4) per orbit, and the
+        vectors' stretching (M, k) as mantissa and exponent. The run stops
+        at the first chunk after which an orbit has failed (its status
+        non-zero); without one, every orbit has made ``outs[-1]`` steps.
         """
         m, d, k = W.shape
         s = len(outs)
-        # Fresh arrays filled in place, as :meth:`_snapshots` makes them.
-        sx, sW = np.empty((s, m, d)), np.empty((s, m, d, k))
-        sx.fill(np.nan)
-        sW.fill(np.nan)
-        s_acc_m = np.empty((s, m, k))
-        s_acc_m.fill(1.0)
+        # Fresh snapshot arrays, NaN as :meth:`_snapshots` makes them: one
+        # block filled once (they are read and copied by the caller).
+        block = np.empty(s * m * (d * (k + 1) + aux[0].size))
+        block.fill(np.nan)
+        sx = block[:s * m * d].reshape(s, m, d)
+        sW = block[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
+        s_aux = block[s * m * d * (k + 1):].reshape((s,) + aux.shape)
+        s_acc_m = np.ones((s, m, k))
         s_acc_e = np.zeros((s, m, k), dtype=np.int64)
-        s_aux = np.empty((s,) + aux.shape)
-        s_aux.fill(np.nan)
         acc_m, acc_e = np.ones((m, k)), np.zeros((m, k), dtype=np.int64)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done, status = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
@@ -339,26 +340,25 @@ class TangentMapPropagator:
         orbit = (CompensatedOrbit(*orbit, np.zeros((m, d, 1 + k))) if self.compensated
                  else StepperOrbit(*orbit))
         setup = self._setup()
-        step = j = steps = 0
+        step = j = 0
         last = int(outs[-1])
         while step < last:
             # The driver's chunk (driver._batch; every snapshot fits).
             end = min(step + pace.chunk, last)
-            j1 = j + int(np.searchsorted(outs[j:], end, side="right"))
+            j1 = s if end == last else j + int(np.searchsorted(outs[j:], end, side="right"))
             t0 = time.perf_counter()
             kernel(orbit, setup, Call(end - step, step, self.tau, int(self.renorm),
                                       self._escape_r2),
                    Outputs(outs[j:j1], sx[j:j1], sW[j:j1], s_acc_m[j:j1], s_acc_e[j:j1],
                            s_aux[j:j1]), status, done)
             pace.took(end - step, time.perf_counter() - t0)
-            steps += int(done.sum())
             step, j = end, j1
             if status.any():
                 break
         extra = {} if self.accumulator is None else {self.accumulator.key: s_aux}
         snaps = Snapshots(steps=outs, x=sx, W=sW, acc_m=s_acc_m, acc_e=s_acc_e, extra=extra,
                           renormalized=self.sparse == 0)
-        return snaps, status, steps, counters, acc_m, acc_e
+        return snaps, status, counters, acc_m, acc_e
 
     def _accumulator(self, state):
         acc = self.accumulator
