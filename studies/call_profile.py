@@ -25,7 +25,8 @@ the shares and the call's own minimum mean much.
 The prepared path (``varint.prepare(model, "integrate", t_end, tau=τ,
 scheme=…, deviations=w)`` once, then ``run(x0)``; :mod:`varint.prepared`)
 is profiled in the same run, its calls interleaved with the one-shot
-call's (:data:`PREPARED_STAGES`; ``--path`` picks one).
+call's (:data:`SHORT_STAGES`), and so is the same prepared call by the
+general path (:data:`PREPARED_STAGES`; ``--path`` picks some).
 
 Stored as ``call_profile_<label>.json``/``.csv``: ``before`` is the code
 as the fixed-cost work started (main a885a59, its ``varint`` exported with
@@ -37,10 +38,15 @@ round: ``round2_before`` (main 93ccc3a, one-shot only) and
 ``round3_before`` (main a875246, both paths) and ``round3_after``, run
 one after the other in one load window; its fourth (the prepared call's
 kernel check and the TM propagator's per-call set-up): ``round4_before``
-(main fc6a4bb) and ``round4_after``, likewise.
+(main fc6a4bb) and ``round4_after``, likewise; its fifth (the prepared
+call's short path, :class:`varint.prepared._ShortCall`): ``round5``, the
+three paths of :data:`PATHS` interleaved (``prepared_general`` is the
+previous path of the same code), and ``round5_before`` (main 7b2b6c8, where
+``prepared`` is the general path), run one after the other in one load
+window.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
-[--path oneshot prepared]``
+[--path oneshot prepared prepared_general]``
 """
 
 from __future__ import annotations

@@ -9,9 +9,14 @@ once (:func:`varint.runspec.specify_call`, output steps fixed), builds its
 propagator at the first call and keeps it; each call then only checks its
 states (shape, finite, the model's kernels finite there, what the
 indicator requires), measures their reference energy, starts the state and
-drives it (:meth:`varint.run.Run.with_orbits`). The result is the one-shot
-call's, bitwise, with the same type and provenance (heyoka's counterpart is
-a built integrator's ``propagate_until`` from a new state).
+drives it (:meth:`varint.run.Run.with_orbits`). A short call (one expected
+to last less than one of the driver's chunks, 0.2 s, by a generated TM
+stepper on the CPU) takes a shorter path, :class:`_ShortCall`: the stepper
+called from fresh arrays, the outputs read once, the result assembled
+directly, everything that does not depend on the states made once. The
+result is the one-shot call's, bitwise, with the same type and provenance
+(heyoka's counterpart is a built integrator's ``propagate_until`` from a
+new state).
 """
 
 from __future__ import annotations
@@ -179,6 +184,9 @@ class _ShortCall:
     would wait no longer there) and whose snapshots fit its bound; a call
     in which an orbit fails, or a conserved quantity is not finite, is
     left to the general path, which reports it as a one-shot call does.
+    Ctrl-C during a short call raises ``KeyboardInterrupt`` (as between
+    two calls) instead of returning what it has: the general path's guard
+    costs more than the fraction of a chunk it would save.
     """
 
     def __init__(self, first: Run) -> None:
