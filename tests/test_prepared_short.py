@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import varint
+from varint import accuracy
 from varint.protocol import Status
 from varint.run import Run
 
@@ -93,3 +94,29 @@ def test_a_long_call_takes_the_general_path(general):
     assert len(general) == 1
     # That call's own time per step is taken as the next estimate.
     assert run._short.per_step < 1e-3
+
+
+@pytest.mark.parametrize("make", [
+    lambda: varint.paper_orbit("R1")[0], lambda: varint.models.ThreeDof(),
+    lambda: varint.models.FPUT(8, beta=1.0)])
+def test_reference_and_errors_is_the_reference_and_its_errors(make):
+    # One evaluation of T and V over the states and the outputs gives, bit
+    # for bit, the Reference of the states and its errors at the outputs.
+    model = make()
+    rng = np.random.default_rng(3)
+    for m, reps in ((1, 1), (1, 3), (2, 2)):
+        x0 = 0.1 * rng.standard_normal((m, model.dim))
+        x = x0[np.tile(np.arange(m), reps)] + 1e-3 * rng.standard_normal((m * reps, model.dim))
+        reference, errors = accuracy.reference_and_errors(model, x0, x)
+        alone = accuracy.Reference(model, x0)
+        for key in ("values", "scales"):
+            for name, v in getattr(alone, key).items():
+                np.testing.assert_array_equal(getattr(reference, key)[name], v, strict=True)
+        expected = alone.errors(x)
+        assert errors.keys() == expected.keys()
+        for key, v in expected.items():
+            np.testing.assert_array_equal(errors[key], v, strict=True)
+    x0 = np.zeros((1, model.dim))
+    x0[0, 0] = np.nan      # the Reference's own refusal
+    with pytest.raises(ValueError, match="not finite at the initial state"):
+        accuracy.reference_and_errors(model, x0, np.zeros((1, model.dim)))
