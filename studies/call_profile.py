@@ -25,7 +25,8 @@ the shares and the call's own minimum mean much.
 The prepared path (``varint.prepare(model, "integrate", t_end, tau=τ,
 scheme=…, deviations=w)`` once, then ``run(x0)``; :mod:`varint.prepared`)
 is profiled in the same run, its calls interleaved with the one-shot
-call's (:data:`PREPARED_STAGES`; ``--path`` picks one).
+call's (:data:`SHORT_STAGES`), and so is the same prepared call by the
+general path (:data:`PREPARED_STAGES`; ``--path`` picks some).
 
 Stored as ``call_profile_<label>.json``/``.csv``: ``before`` is the code
 as the fixed-cost work started (main a885a59, its ``varint`` exported with
@@ -37,10 +38,15 @@ round: ``round2_before`` (main 93ccc3a, one-shot only) and
 ``round3_before`` (main a875246, both paths) and ``round3_after``, run
 one after the other in one load window; its fourth (the prepared call's
 kernel check and the TM propagator's per-call set-up): ``round4_before``
-(main fc6a4bb) and ``round4_after``, likewise.
+(main fc6a4bb) and ``round4_after``, likewise; its fifth (the prepared
+call's short path, :class:`varint.prepared._ShortCall`): ``round5``, the
+three paths of :data:`PATHS` interleaved (``prepared_general`` is the
+previous path of the same code), and ``round5_before`` (main 7b2b6c8, where
+``prepared`` is the general path), run one after the other in one load
+window.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
-[--path oneshot prepared]``
+[--path oneshot prepared prepared_general]``
 """
 
 from __future__ import annotations
@@ -58,7 +64,13 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import varint  # noqa: E402
+import varint.prepared  # noqa: E402
 from studies.common import parse_args, save_csv, save_json  # noqa: E402
+
+#: The calls profiled: the one-shot call, a prepared run's call (its short
+#: path where the code has one) and the same prepared call by the general
+#: path (:meth:`varint.run.Run.with_orbits`, the short path switched off).
+PATHS = ("oneshot", "prepared", "prepared_general")
 
 #: (depth, label, owner, attribute): the stages, in call order; ``owner``
 #: is a dotted module path, optionally ``:Class``. A name imported into
@@ -91,8 +103,9 @@ STAGES = (
     (2, "accuracy warning", "varint.run:accuracy", "warn"),
 )
 
-#: The stages of a prepared run's call (:class:`varint.prepared.PreparedRun`),
-#: as :data:`STAGES`.
+#: The stages of a prepared run's call through the general path
+#: (:class:`varint.prepared.PreparedRun` without its short calls: each call
+#: a :meth:`varint.run.Run.with_orbits` run), as :data:`STAGES`.
 PREPARED_STAGES = (
     (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
     (1, "check x0", "varint.runspec:RunSpec", "with_states"),
@@ -111,6 +124,23 @@ PREPARED_STAGES = (
     (3, "accuracy annotate", "varint.run:accuracy", "annotate"),
     (3, "provenance", "varint.run:Run", "provenance"),
     (2, "accuracy warning", "varint.run:accuracy", "warn"),
+)
+
+#: The stages of a prepared run's short call (:class:`varint.prepared._ShortCall`),
+#: as :data:`STAGES`.
+SHORT_STAGES = (
+    (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
+    (1, "check x0", "varint.runspec:RunSpec", "with_states"),
+    (2, "states check", "varint.runspec:check", "states"),
+    (2, "kernels finite at x0, kept buffers", "varint._validate:KernelCheck", "__call__"),
+    (1, "short call", "varint.prepared:_ShortCall", "__call__"),
+    (2, "stepper from fresh arrays", "varint.methods.tm:TangentMapPropagator", "advance_fresh"),
+    (2, "snapshot rows", "varint.state:Snapshots", "rows"),
+    (2, "reference and energy errors", "varint.accuracy", "reference_and_errors"),
+    (2, "accuracy verdict", "varint.accuracy", "assess"),
+    (2, "provenance", "varint.prepared", "Provenance"),
+    (2, "machine identity", "varint.identity", "machine"),
+    (2, "accuracy warning", "varint.accuracy", "warn"),
 )
 
 
@@ -188,9 +218,8 @@ def main(argv=None):
         parser.add_argument("--calls", type=int, default=2000)
         parser.add_argument("--label", default="now",
                             help="suffix of the stored files (e.g. before/after a change)")
-        parser.add_argument("--path", nargs="+", choices=("oneshot", "prepared"),
-                            default=["oneshot", "prepared"],
-                            help="which calls to profile (default both, interleaved)")
+        parser.add_argument("--path", nargs="+", choices=PATHS, default=list(PATHS),
+                            help="which calls to profile (default all, interleaved)")
 
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     calls = 100 if args.quick else args.calls
@@ -202,11 +231,20 @@ def main(argv=None):
         return varint.integrate(model, x0, 0.05, tau=0.05, scheme="s15odr8",
                                 deviations=w0[:, None])
 
+    def prepared(short=True):
+        run = varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
+                             deviations=w0[:, None])
+        run(x0)
+        if not short:
+            run._short = None   # every call by the general path (older code has none)
+        return functools.partial(run, x0)
+
     paths = {"oneshot": (oneshot, STAGES)}
     if "prepared" in args.path:
-        prepared = varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
-                                  deviations=w0[:, None])
-        paths["prepared"] = (functools.partial(prepared, x0), PREPARED_STAGES)
+        paths["prepared"] = (prepared(), SHORT_STAGES if hasattr(
+            varint.prepared, "_ShortCall") else PREPARED_STAGES)
+    if "prepared_general" in args.path:
+        paths["prepared_general"] = (prepared(short=False), PREPARED_STAGES)
     paths = {k: v for k, v in paths.items() if k in args.path}
     for call, _ in paths.values():
         for _ in range(20):
@@ -247,14 +285,18 @@ def main(argv=None):
         for r in rows:
             print(f"{'  ' * r['depth']}{r['stage']:<{44 - 2 * r['depth']}} "
                   f"{r['median_us']:8.1f} µs {r['share']:6.1%}")
-    if len(found) == 2:
-        out["prepared_over_oneshot"] = {
-            "wall_min": out["prepared"]["whole_call"]["wall_min_us"]
-            / out["whole_call"]["wall_min_us"],
-            "wall_median": out["prepared"]["whole_call"]["wall_median_us"]
-            / out["whole_call"]["wall_median_us"]}
-        print(f"prepared / one-shot: wall min {out['prepared_over_oneshot']['wall_min']:.2f}, "
-              f"median {out['prepared_over_oneshot']['wall_median']:.2f}")
+    for key, over in (("prepared", "oneshot"), ("prepared", "prepared_general"),
+                      ("prepared_general", "oneshot")):
+        if key not in found or over not in found:
+            continue
+        a, b = (out[k]["whole_call"] if k != "oneshot" else out["whole_call"]
+                for k in (key, over))
+        ratio = out[f"{key}_over_{over}"] = {
+            "wall_min": a["wall_min_us"] / b["wall_min_us"],
+            "wall_median": a["wall_median_us"] / b["wall_median_us"],
+            "cpu_min": a["cpu_min_us"] / b["cpu_min_us"]}
+        print(f"{key} / {over}: wall min {ratio['wall_min']:.2f}, median "
+              f"{ratio['wall_median']:.2f}; CPU min {ratio['cpu_min']:.2f}")
     name = f"call_profile_{args.label}"
     save_csv(args.out, name, csv_rows, ["path", "depth", "stage", "median_us", "share"])
     save_json(args.out, name, out)

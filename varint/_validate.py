@@ -126,8 +126,13 @@ def output_times(t_out, name="t_out", t_end=None):
 def states(model, x0, name="x0"):
     """Initial states as a float64 array of shape (M, 2N), and whether the
     caller passed a single state (so results are squeezed)."""
-    x = real_array(x0, name)
     dim = model.dim
+    if (type(x0) is np.ndarray and x0.dtype == np.float64 and x0.shape == (dim,)
+            and np.isfinite(x0).all()):
+        # The common case (a prepared run's call), the same new array as
+        # below in two NumPy calls.
+        return x0[None].copy(), True
+    x = real_array(x0, name)
     single = x.ndim == 1
     if single:
         x = x[None, :]

@@ -186,6 +186,40 @@ class Reference:
         return out
 
 
+def reference_and_errors(model, x0, x, t=0.0):
+    """``(Reference(model, x0), reference.errors(x, t))`` for a
+    time-independent V, bitwise, T and V evaluated once over the rows of
+    both (a prepared run's short call, :mod:`varint.prepared`: the reference
+    at its states and the errors at its outputs, measured after its run).
+
+    Raises the :class:`Reference`'s ``ValueError`` where a quantity is not
+    finite at ``x0``.
+    """
+    if not _plain_energy(model):
+        reference = Reference(model, x0)
+        return reference, reference.errors(x, t)
+    m, n = len(x0), model.n_dof
+    both = np.concatenate((x0, x))
+    with np.errstate(all="ignore"):
+        # Reference.__init__'s and errors' operations, row by row.
+        kinetic, potential = model.kinetic(both[:, n:]), model.potential(both[:, :n])
+        energy = kinetic + potential
+        if not np.isfinite(energy[:m]).all():
+            Reference(model, x0)    # raises, naming the orbit
+        reference = object.__new__(Reference)
+        reference.model = model
+        reference.values = {"energy": energy[:m]}
+        scale = np.abs(kinetic[:m]) + np.abs(potential[:m])
+        scale = np.where(scale > 0, scale, 1.0)
+        reference.scales = {"energy": scale}
+        reps = len(x) // m
+        v0 = energy[:m]
+        if reps != 1:
+            v0, scale = np.tile(v0, reps), np.tile(scale, reps)
+        errors = {"energy_error": np.abs(energy[m:] - v0) / scale}
+    return reference, errors
+
+
 #: Per model class: whether its energy, energy scale and conserved
 #: quantities are the base model's (:func:`_plain_energy`).
 _PLAIN: dict = {}
@@ -378,8 +412,13 @@ def assess(t, errors, status, energy_tol, tau, single):
         # NaN (after a failure) never wins; an orbit with only NaN keeps NaN
         # (fmax, unlike nanmax, does so without a warning).
         largest[name] = big = np.fmax.reduce(v, axis=1)
-        at = np.argmax(np.where(np.isnan(v), -np.inf, v), axis=1)
+        nan = np.isnan(v)
+        whole = not nan.any()       # the common case: no NaN to step over
+        at = np.argmax(v if whole else np.where(nan, -np.inf, v), axis=1)
         t_at = t[at] if t.ndim == 1 else t[np.arange(m), at]
+        if overall is None and whole:
+            when, overall = t_at, big
+            continue
         if overall is None:
             # Against -inf every value but NaN is larger (errors are ≥ 0).
             better = ~np.isnan(big)

@@ -9,23 +9,35 @@ once (:func:`varint.runspec.specify_call`, output steps fixed), builds its
 propagator at the first call and keeps it; each call then only checks its
 states (shape, finite, the model's kernels finite there, what the
 indicator requires), measures their reference energy, starts the state and
-drives it (:meth:`varint.run.Run.with_orbits`). The result is the one-shot
-call's, bitwise, with the same type and provenance (heyoka's counterpart is
-a built integrator's ``propagate_until`` from a new state).
+drives it (:meth:`varint.run.Run.with_orbits`). A short call (one expected
+to last less than one of the driver's chunks, 0.2 s, by a generated TM
+stepper on the CPU) takes a shorter path, :class:`_ShortCall`: the stepper
+called from fresh arrays, the outputs read once, the result assembled
+directly, everything that does not depend on the states made once. The
+result is the one-shot call's, bitwise, with the same type and provenance
+(heyoka's counterpart is a built integrator's ``propagate_until`` from a
+new state).
 """
 
 from __future__ import annotations
 
-from typing import Any
+import pickle
+import time
+from typing import Any, cast
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
+from . import accuracy, identity
+from .driver import _CHUNK_SECONDS, _SNAPSHOT_BYTES, _Pace
 from .indicators import Indicator
 from .models.base import Model
-from .results import _Result
+from .protocol import COUNTERS
+from .results import Provenance, _Result
 from .run import Run
 from .runspec import RunSpec, specify_call
+from .state import renormalized_copy
 
 __all__ = ["prepare", "PreparedRun"]
 
@@ -114,25 +126,174 @@ class PreparedRun:
         # The first call's run: its propagator and set-up serve every later
         # call (Run.with_orbits).
         self._first: Run | None = None
+        # The short calls' path over the first run, where it has one.
+        self._short: _ShortCall | None = None
 
     def __call__(self, x0: ArrayLike, deviations: ArrayLike | None = None) -> _Result:
         """The result of the run from ``x0`` ((2N,) or (M, 2N)), with
         ``deviations`` (([M,] 2N, k), as many vectors as the prepared run
         carries) or the prepared run's vectors."""
+        first, short = self._first, self._short
+        if short is not None and deviations is None:
+            # Its reference is measured with its outputs, after its run.
+            spec = self.spec.with_states(x0, kernel_check=self._kernel_check, reference=False)
+            if short.takes(spec):
+                result = short(spec)
+                if result is not None:
+                    return result
         spec = self.spec.with_states(x0, kernel_check=self._kernel_check)
-        first = self._first
         if first is None:
             vectors = self._deviations if deviations is None else deviations
-            self._first = Run(spec, deviations=vectors, progress=self._progress,
-                              errors=self._errors)
-            return self._first.execute()
+            self._first = first = Run(spec, deviations=vectors, progress=self._progress,
+                                      errors=self._errors)
+            result = first.execute()
+            self._short = _ShortCall.over(first, result)
+            return result
         if deviations is None and spec.x0.shape[0] != first.x0.shape[0]:
             # The prepared vectors checked again for another number of
             # orbits (with as many, the first run's checked ones are used).
             deviations = self._deviations
-        return first.with_orbits(spec, deviations).execute()
+        result = first.with_orbits(spec, deviations).execute()
+        if short is not None:
+            short.timed(result)
+        return result
 
     def __repr__(self):
         s = self.spec
         return (f"PreparedRun({s.indicator.name} of {s.model.name} by {s.method}, "
                 f"tau={s.tau:g}, t_end={s.t_end:g})")
+
+
+class _ShortCall:
+    """A prepared run's call whose whole run is one compiled call: its
+    orbits stepped from their start to the last output by the propagator's
+    :meth:`~varint.methods.tm.TangentMapPropagator.advance_fresh`, every
+    output copied inside it, then recorded, assessed and returned with the
+    minimum of Python; everything that does not depend on the states (the
+    vectors, the accumulator's start, the schedule's, the provenance's
+    fixed part) made once, from the first call's run.
+
+    The arithmetic is the general path's (:meth:`Run.with_orbits` then
+    :meth:`Run.execute`): the same compiled stepper from the same state,
+    the outputs read by the same indicator and :class:`Reference`, the
+    verdict by the same :func:`~varint.accuracy.assess`; one chunk instead
+    of the driver's chunks, which the propagator protocol makes bitwise
+    (rule 3). So the result is the one-shot call's, bitwise. Taken only for
+    calls expected to last under the driver's chunk (``_CHUNK_SECONDS``,
+    from the time per step of the calls before: Ctrl-C and a progress bar
+    would wait no longer there) and whose snapshots fit its bound; a call
+    in which an orbit fails, or a conserved quantity is not finite, is
+    left to the general path, which reports it as a one-shot call does.
+    Ctrl-C during a short call raises ``KeyboardInterrupt`` (as between
+    two calls) instead of returning what it has: the general path's guard
+    costs more than the fraction of a chunk it would save.
+    """
+
+    def __init__(self, first: Run) -> None:
+        self.first = first
+        self.prop = prop = first.propagator
+        m, _, k = first.W0.shape
+        self.m = m
+        self.tau = cast(float, first.tau)      # fixed by then
+        self.outs = np.asarray(first.steps, dtype=np.int64)
+        acc = first.accumulator
+        self.aux0 = (np.empty((m, 0, 0)) if acc is None else
+                     np.tile(np.array(acc.initial, dtype=np.float64), (m, k, 1)))
+        #: Bytes of the snapshots of every output (as the driver counts them).
+        self.snapshot_bytes = len(self.outs) * (8 * m * (first.x0.shape[1] * (k + 1) + 2 * k)
+                                                + self.aux0.nbytes)
+        #: Seconds per step of the calls so far (:meth:`timed`).
+        self.per_step = np.inf
+        self.has_deviations = "deviations" in getattr(first.indicator.result,
+                                                      "__dataclass_fields__", {})
+        self.sparse = bool(prop.sparse) and k > 0
+        # The provenance's parts that no state changes, pickled: each
+        # result unpickles its own copy of every dict and list in one call
+        # (Run.provenance copies them level by level).
+        self.fixed = pickle.dumps({**first._fixed_provenance(), "seed": first.seed,
+                                   "tau_choice": first.tau_choice, "code": first.code},
+                                  protocol=pickle.HIGHEST_PROTOCOL)
+
+    @classmethod
+    def over(cls, first: Run, result: _Result) -> _ShortCall | None:
+        """The short path over the prepared run's first run (``result`` its
+        result), or None where it cannot take its calls."""
+        prop, spec = first.propagator, first.spec
+        m, _, k = first.W0.shape
+        runs_fresh = getattr(prop, "runs_fresh", None)
+        if (runs_fresh is None or first.checkpoint is not None or first.model.time_dependent
+                or (first.seed is not None and spec.seed is None) or not runs_fresh(m, k)):
+            return None
+        short = cls(first)
+        if short.snapshot_bytes > _SNAPSHOT_BYTES:
+            return None     # the driver's bound on one chunk's snapshots
+        short.timed(result)
+        return short
+
+    def timed(self, result: _Result) -> None:
+        """Take the time per step of a call's ``result`` as the next calls'
+        estimate."""
+        self.per_step = result.provenance.timing.get("run", np.inf) / max(int(self.outs[-1]), 1)
+
+    def takes(self, spec: RunSpec) -> bool:
+        """Whether the call of ``spec`` is a short one."""
+        return (spec.x0.shape[0] == self.m
+                and (self.outs[-1] <= 64 or self.per_step * self.outs[-1] <= _CHUNK_SECONDS))
+
+    def __call__(self, spec: RunSpec) -> _Result | None:
+        """The result of the run over ``spec``'s states, or None where the
+        general path must make it (a failure)."""
+        first, prop = self.first, self.prop
+        ind, model, tau = first.indicator, first.model, self.tau
+        options = dict(first.options)
+        outs = self.outs
+        x0, single = spec.x0, spec.single
+        cpu, start = time.process_time(), time.perf_counter()
+        x, W = np.array(x0, dtype=np.float64, order="C"), np.array(first.W0)
+        snaps, status, counters, acc_m, acc_e = prop.advance_fresh(
+            x, W, self.aux0.copy(), outs, _Pace())
+        if status.any():
+            return None
+        rows = snaps.rows(ind.renorm)
+        t_rows = rows.step * tau
+        rec = ind.read(rows, model, t_rows, options)
+        _, errors = accuracy.reference_and_errors(model, x0, rows.x, t_rows)
+        if not all(np.isfinite(v).all() for v in errors.values()):
+            return None
+        wall = time.perf_counter() - start
+        cpu = time.process_time() - cpu
+        self.per_step = wall / int(outs[-1])
+        rec.update(errors)
+        s, m = len(outs), self.m
+        # As the driver's records (its copy per key, (n_out, M, ...)) and
+        # Run._result (results (M, n_out, ...), the orbit axis dropped for
+        # one state).
+        fields, errors = {}, {}
+        for key, arr in rec.items():
+            block = np.array(arr).reshape((s, m) + np.shape(arr)[1:]).swapaxes(0, 1)
+            if key == "energy_error" or key.startswith("conserved_error:"):
+                errors[key] = block
+            else:
+                fields[key] = block[0] if single else block
+        t = outs * tau
+        verdict = accuracy.annotate(accuracy.assess(t, errors, status, first.energy_tol, tau,
+                                                    single), model, prop)
+        fields = ind.finish(fields, options)
+        if self.has_deviations:
+            if self.sparse:
+                W, _, _ = renormalized_copy(W, acc_m, acc_e, ind.renorm)
+            fields["deviations"] = W[0] if single else W
+        counts = {"steps": m * int(outs[-1]),     # no orbit failed
+                  **dict(zip(COUNTERS, counters.sum(axis=0).tolist(), strict=True))}
+        provenance = Provenance(
+            kind=ind.name, x0=(x0[0] if single else x0).tolist(), method=first.method,
+            tau=tau, t_end=first.t_end, **pickle.loads(self.fixed),
+            counts=counts, wall_time=wall, machine=identity.machine(),
+            timing={"compile": 0.0, "run": round(wall, 6)}, cpu_time=cpu)
+        energy_error = errors["energy_error"]
+        result = ind.result(t=t, energy_error=energy_error[0] if single else energy_error,
+                            state=x[0] if single else x, provenance=provenance,
+                            status=status[0] if single else status, interrupted=False,
+                            accuracy=verdict, **fields)
+        accuracy.warn(result.accuracy, first.method)
+        return result

@@ -165,16 +165,21 @@ class RunSpec:
                 "options": {**self.options, **self.run_options},
                 "versions": package_versions(), "code": identity.source_digest()}
 
-    def with_states(self, x0, what="x0", kernels_what="the initial state", kernel_check=None):
+    def with_states(self, x0, what="x0", kernels_what="the initial state", kernel_check=None,
+                    reference=True):
         """This specification over the states ``x0`` ((2N,) or (M, 2N)),
         checked (shape, finite, the model's kernels finite there, what the
         indicator requires of them) with the reference their errors are
         measured against (:class:`varint.accuracy.Reference`); ``what``
         and ``kernels_what`` name the states and one state in messages;
         ``kernel_check`` (a :class:`varint._validate.KernelCheck` of this
-        model) checks the kernels with buffers kept between calls."""
+        model) checks the kernels with buffers kept between calls;
+        ``reference=False`` leaves the reference to the caller (None; a
+        prepared run's short call measures it with its outputs,
+        :func:`varint.accuracy.reference_and_errors`)."""
         x, single, reference = _checked_states(self.model, self.indicator, self.options, x0,
-                                               what, kernels_what, kernel_check)
+                                               what, kernels_what, kernel_check,
+                                               measure=reference)
         # A copy with three fields changed, without dataclasses.replace's
         # __init__ over every field (a prepared run's call makes one).
         new = object.__new__(type(self))
@@ -304,10 +309,11 @@ def _call_fields(model, indicator, t_end, tau, *, method, t_out, seed, escape_ra
 
 
 def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_check=None,
-                    energies=None):
+                    energies=None, measure=True):
     """(x (M, 2N), single, reference) of the states ``x0`` (see
-    :meth:`RunSpec.with_states`); ``energies``: None, or a function giving
-    T and V of the states (:func:`_device_energies`)."""
+    :meth:`RunSpec.with_states`; ``measure=False``: reference None);
+    ``energies``: None, or a function giving T and V of the states
+    (:func:`_device_energies`)."""
     x, single = check.states(model, x0, what)
     if model.kind != "map" and getattr(model, "band_kernels", True):
         # A state where V or its derivatives are singular is refused here,
@@ -317,9 +323,16 @@ def _checked_states(model, indicator, options, x0, what, kernels_what, kernel_ch
             check.kernels(model, x, kernels_what)
         else:
             kernel_check(x, kernels_what)
-    reference = accuracy.Reference(model, x, None if energies is None else energies(x))
-    indicator.check_states(model, x, options)
-    return x, single, reference
+    if measure:
+        reference = accuracy.Reference(model, x, None if energies is None else energies(x))
+        indicator.check_states(model, x, options)
+        return x, single, reference
+    try:
+        indicator.check_states(model, x, options)
+    except ValueError:
+        accuracy.Reference(model, x)    # its refusal comes first, as above
+        raise
+    return x, single, None
 
 
 def described(options):

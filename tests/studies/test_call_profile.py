@@ -38,3 +38,25 @@ def test_every_stage_is_reached_nests_in_its_parent_and_is_restored():
                 break
             assert spent[child] <= spent[label], (child, label)
     assert [_original(path, name) for _, _, path, name in call_profile.STAGES] == before
+
+
+def test_every_stage_of_a_prepared_short_call_is_reached_and_restored():
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
+                         deviations=np.eye(4)[:, :1])
+    run(x0)
+    stages = call_profile.SHORT_STAGES
+    before = [_original(path, name) for _, _, path, name in stages]
+    spent = {}
+    restore = call_profile.wrap_stages(spent, stages)
+    try:
+        run(x0)
+    finally:
+        restore()
+    assert sorted(spent) == sorted(label for _, label, _, _ in stages)
+    for i, (depth, label, _, _) in enumerate(stages):
+        for d, child, _, _ in stages[i + 1:]:
+            if d <= depth:
+                break
+            assert spent[child] <= spent[label], (child, label)
+    assert [_original(path, name) for _, _, path, name in stages] == before

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import math
 import numbers
+import time
 import weakref
 
 import numpy as np
@@ -282,6 +283,82 @@ class TangentMapPropagator:
         else:
             self._advance_generated(module, state, n, snaps)
         return snaps
+
+    def runs_fresh(self, m, k):
+        """Whether :meth:`advance_fresh` can run ``m`` orbits with ``k``
+        vectors: a generated stepper, one orbit at a time on the CPU (fewer
+        orbits than :attr:`MIN_LANES`, or compensated), no processor."""
+        return (self._processor is None and self.backend == "cpu"
+                and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
+
+    def advance_fresh(self, x, W, aux, outs, pace):
+        """Orbits started at step 0 advanced to step ``outs[-1]``, copied at
+        the output steps ``outs``: what :meth:`advance` does for a fresh
+        :class:`~varint.state.RunState` driven by
+        :func:`varint.driver.drive` (chunks sized by ``pace``, a
+        :class:`varint.driver._Pace`, as the driver sizes them), with the
+        bookkeeping arrays made here and one snapshot buffer for all the
+        outputs (a prepared run's short call, :mod:`varint.prepared`). Only
+        where :meth:`runs_fresh`.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, 2N)
+        W : ndarray, shape (M, 2N, k)
+        aux : ndarray, shape (M, k, c)
+            The accumulator's values ((M, 0, 0) without one).
+        outs : ndarray of int
+            Increasing output steps, the last one the end.
+        pace : varint.driver._Pace
+
+        All three arrays are advanced in place. Returns ``(snapshots,
+        status, counters, acc_m, acc_e)``: status (M,), the counters of
+        :data:`~varint.protocol.COUNTERS` (M, 4) per orbit, and the
+        vectors' stretching (M, k) as mantissa and exponent. The run stops
+        at the first chunk after which an orbit has failed (its status
+        non-zero); without one, every orbit has made ``outs[-1]`` steps.
+        """
+        m, d, k = W.shape
+        s = len(outs)
+        # Fresh snapshot arrays, NaN as :meth:`_snapshots` makes them: one
+        # block filled once (they are read and copied by the caller).
+        block = np.empty(s * m * (d * (k + 1) + aux[0].size))
+        block.fill(np.nan)
+        sx = block[:s * m * d].reshape(s, m, d)
+        sW = block[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
+        s_aux = block[s * m * d * (k + 1):].reshape((s,) + aux.shape)
+        s_acc_m = np.ones((s, m, k))
+        s_acc_e = np.zeros((s, m, k), dtype=np.int64)
+        acc_m, acc_e = np.ones((m, k)), np.zeros((m, k), dtype=np.int64)
+        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
+        done, status = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
+        sched = np.ones((m, 2), dtype=np.int64)     # as _schedule starts it at step 0
+        module = self._stepper(k)
+        kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
+        orbit = (x, W, acc_m, acc_e, aux, counters, sched)
+        # Compensated: the Kahan terms start at zero (as _compensation).
+        orbit = (CompensatedOrbit(*orbit, np.zeros((m, d, 1 + k))) if self.compensated
+                 else StepperOrbit(*orbit))
+        setup = self._setup()
+        step = j = 0
+        last = int(outs[-1])
+        while step < last:
+            # The driver's chunk (driver._batch; every snapshot fits).
+            end = min(step + pace.chunk, last)
+            j1 = s if end == last else j + int(np.searchsorted(outs[j:], end, side="right"))
+            t0 = time.perf_counter()
+            kernel(orbit, setup, Call(end - step, step, self.tau, int(self.renorm),
+                                      self._escape_r2),
+                   Outputs(outs[j:j1], sx[j:j1], sW[j:j1], s_acc_m[j:j1], s_acc_e[j:j1],
+                           s_aux[j:j1]), status, done)
+            pace.took(end - step, time.perf_counter() - t0)
+            step, j = end, j1
+            if status.any():
+                break
+        extra = {} if self.accumulator is None else {self.accumulator.key: s_aux}
+        snaps = Snapshots(steps=outs, x=sx, W=sW, acc_m=s_acc_m, acc_e=s_acc_e, extra=extra,
+                          renormalized=self.sparse == 0)
+        return snaps, status, counters, acc_m, acc_e
 
     def _accumulator(self, state):
         acc = self.accumulator
