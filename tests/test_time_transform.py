@@ -3,12 +3,18 @@ the tangent map is the derivative of the same map, the schemes keep their
 order in physical time, a near-collision orbit keeps its energy where
 constant steps lose it, and a resumed run repeats the bits."""
 
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import sympy as sp
 
+from varint import codecache
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.time_transform import LogHamiltonian, describe
@@ -242,3 +248,58 @@ def test_chaos_map_log_refusals_name_the_value(kwargs, message, plummer):
     model, indicator = args.pop("model"), args.pop("indicator")
     with pytest.raises(ValueError, match=message):
         chaos_map(model, X0[None], indicator, t_end=1.0, **args)
+
+
+# -- the generated stepper: signed, cached, loaded without compiling -----------------------
+
+#: An LH FLI run of a softened 1-dof point mass in a new interpreter: prints
+#: the seconds compiled, the values' bytes and the warnings' text.
+_FRESH = """
+import json, warnings
+import numpy as np, sympy as sp
+from varint import compiling
+from varint.models import from_potential
+from varint.time_transform import LogHamiltonian
+x = sp.Symbol("x")
+model = from_potential(-1 / sp.sqrt(x**2 + sp.Float(1e-2)), [x])
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    lh = LogHamiltonian(model, "SBAB2")
+    values, counts, status = lh.fli(np.array([[1.0, 0.1], [0.5, 0.0]]), np.eye(2), 5.0, 0.05)
+print(json.dumps([compiling.compile_seconds(), values.tobytes().hex(), status.tolist(),
+                  [str(w.message) for w in caught]]))
+"""
+
+
+def _fresh(cache_dir):
+    """:data:`_FRESH` in a new interpreter on this tree with ``cache_dir``."""
+    root = Path(__file__).resolve().parent.parent
+    env = dict(os.environ, PYTHONPATH=str(root), VARINT_CACHE_DIR=str(cache_dir))
+    done = subprocess.run([sys.executable, "-c", _FRESH], env=env, check=True,
+                          capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_a_second_process_compiles_nothing_and_an_edited_stepper_never_runs(tmp_path):
+    """The LH stepper is generated source in the cache directory, signed
+    (varint.codecache): a second process loads it and numba's signed
+    files, compiles nothing and gets the same bits; a payload appended to
+    the cached source (it would create a marker file) fails the signature,
+    is discarded with a warning and the stepper rebuilt, with the same
+    bits."""
+    cache_dir, marker = tmp_path / "cache", tmp_path / "MARKER"
+    compiled, cold, status, _ = _fresh(cache_dir)
+    assert compiled > 0.0 and status == [0, 0]
+    (path,) = (cache_dir / "kernels").glob("varint_lh_*.py")
+    assert path.read_bytes().startswith(codecache.HEADER)
+    numba_files = list((cache_dir / "kernels" / "__pycache__").glob("varint_lh_*.nb[ic]"))
+    assert numba_files and all(f.read_bytes().startswith(codecache.HEADER) for f in numba_files)
+
+    compiled, warm, _, caught = _fresh(cache_dir)
+    assert compiled == 0.0 and warm == cold
+    assert not any("is not used" in w for w in caught)
+
+    path.write_text(path.read_text() + f"\nopen({str(marker)!r}, 'w').write('pwned')\n")
+    _, again, _, caught = _fresh(cache_dir)
+    assert any("generated kernel file" in w and "is not used" in w for w in caught)
+    assert again == cold and not marker.exists()
