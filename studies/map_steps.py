@@ -139,9 +139,9 @@ FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
 #: The LH contenders of part "log": per map, (scheme, fictitious step h,
 #: offset δ of C = E + δ; None: the rule of varint.time_transform).
 LOG_CONTENDERS = {
-    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 1.6, 0.8)] + [("SRKN14a", 3.2, None)],
+    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 2.4, 1.6, 0.8)] + [("SRKN14a", 3.2, None)],
     "core": [("SBAB2", h, off) for h in (0.1, 0.05) for off in (None, 0.25)]
-    + [("ABA864", h, 0.25) for h in (0.2, 0.1)],
+    + [("ABA864", h, 0.25) for h in (0.2, 0.1, 0.07)],
 }
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8

@@ -2,10 +2,12 @@
 transformation of the TM method (Mikkola & Tanikawa 1999; Preto & Tremaine
 1999), for H = A(q, p) + V(q) with A's flow exact.
 
-:class:`LogHamiltonian` builds the compiled LH stepper of a model
-(:mod:`varint.kernels.time_transform`: the step, its exact tangent map, the
-landing on physical output times) and runs orbits with their deviation
-vectors to a physical time. Steps are uniform in the fictitious time s,
+:class:`LogHamiltonian` builds the compiled LH stepper of a model and
+scheme (specified in :mod:`varint.kernels.time_transform`: the step, its
+exact tangent map, the landing on physical output times; emitted as
+straight-line source by :mod:`varint.codegen.lh`, signed and cached on
+disk, so a later process loads it without compiling) and runs orbits with
+their deviation vectors to a physical time. Steps are uniform in the fictitious time s,
 dt/ds = 1/U(q), U = C − V(q): where the orbit falls deep into the potential
 (a near-singular core, a close passage by a primary) the physical steps
 shrink in proportion to 1/U.

@@ -13,16 +13,24 @@ local variables for the whole step; A's flow (free motion or the rotating
 frame's :func:`varint.flows.split.planar_flow`) is written out with the
 model's constants as literals.
 
-Same bits as the generic kernel. Every quantity is computed by the same
-operations in the same order as the array kernel it replaces: A, ∇A,
-V, ∇V and D²V by the same common-subexpression groups (a group of SymPy's
-CSE changes its summation order, hence its bits, when its members change),
-the flows as :func:`~varint.flows.split.planar_flow` and
+Round-off. Every quantity is computed by the same operations in the same
+order as the generic loop over the stage arrays that this stepper replaced
+(stop 40): A, ∇A, V, ∇V and D²V by the same common-subexpression groups (a
+group of SymPy's CSE changes its summation order, hence its bits, when its
+members change), the flows as :func:`~varint.flows.split.planar_flow` and
 :func:`~varint.flows.split.oscillator` compute them, the tangent sums with
-the same initial values. So the emitted stepper's bits are those of the
-generic loop over the stage arrays (no fused multiply–adds: the time of an
-LH step goes to the derivatives and, in a rotating frame, to a sine and a
-cosine per drift, not to the latency of the updates).
+the same initial values — with one exception: a half-integer power
+b^(p/2), |p| ≥ 3 (the r⁻³ and r⁻⁵ of point masses), is written as
+products of b and √b (:class:`_Printer`), a square root and a few
+multiplications instead of a call of ``pow`` (which costs several times
+more and took most of a three-body step); its value differs from
+``pow``'s by a few units in the last place. So the emitted stepper gives
+the generic loop's bits on a model without such powers (the cored
+logarithmic potential: checked on its FLI map), and agrees with it to
+round-off on one with them (the three-body problem, a softened point
+mass). No fused multiply–adds: the time of an LH step goes to the
+derivatives and, in a rotating frame, to a sine and a cosine per drift,
+not to the latency of the updates.
 
 The loop around the step — ``advance`` (LH steps, the undone step, the
 physical-time tail, the projection), ``project`` and ``fli`` — is emitted
@@ -37,6 +45,7 @@ H. Preto & S. Tremaine, AJ 118, 2532 (1999).
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import math
 from functools import lru_cache
 from pathlib import Path
@@ -50,6 +59,28 @@ __all__ = ["lh_source", "lh_name", "Flow"]
 _OK = int(Status.OK)
 _NONFINITE = int(Status.ORBIT_NONFINITE)
 _GRAD = int(Status.GRADIENT_NONFINITE)
+
+
+def _printer():
+    """The printer of the emitted expressions (:class:`_Printer`), made
+    when a module is emitted: SymPy is imported only then."""
+    from ..models.symbolic import KernelPrinter
+
+    class _Printer(KernelPrinter):
+        """:class:`~varint.models.symbolic.KernelPrinter`, with b^(p/2),
+        |p| ≥ 3 odd, as ``b * … * math.sqrt(b)`` (and its reciprocal for
+        p < 0) instead of ``b**(p/2)``, a call of ``pow`` (module
+        docstring)."""
+
+        def _print_Pow(self, expr, rational=False):
+            e = expr.exp
+            if not (e.is_Rational and e.q == 2 and abs(e.p) >= 3):
+                return super()._print_Pow(expr, rational=rational)
+            base = f"({self._print(expr.base)})"
+            product = " * ".join([base] * ((abs(e.p) - 1) // 2) + [f"math.sqrt{base}"])
+            return f"({product})" if e.p > 0 else f"(1.0 / ({product}))"
+
+    return _Printer()
 
 
 class Flow:
@@ -68,12 +99,15 @@ class Flow:
 
 @lru_cache(maxsize=1)
 def _generator_id():
-    """A hash of this emitter and of the specification module whose
-    constants it writes in: a change of either names new modules."""
-    from ..kernels import time_transform
-
-    digest = hashlib.sha256(Path(__file__).read_bytes())
-    digest.update(Path(time_transform.__file__).read_bytes())
+    """A hash of what a module's source is made by besides the model: this
+    emitter, the specification module whose constants it writes in, the
+    printer (``varint.models.symbolic``) and SymPy, whose CSE and printing
+    write the expressions; a change of any names new modules."""
+    package = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256(importlib.metadata.version("sympy").encode())
+    for path in (Path(__file__), package / "kernels" / "time_transform.py",
+                 package / "models" / "symbolic.py"):
+        digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
@@ -95,8 +129,6 @@ def lh_source(A, V, q, p, flow, kinds):
     """
     import sympy as sp  # type: ignore[import-untyped]  # emitting only
 
-    from ..models.symbolic import KernelPrinter
-
     n = len(q)
     xs = (*q, *p)
     names = {s: sp.Symbol(f"x_{i}") for i, s in enumerate(xs)}
@@ -105,7 +137,7 @@ def lh_source(A, V, q, p, flow, kinds):
     HV = [sp.diff(gV[i], q[j]).xreplace(names) for i in range(n) for j in range(n)]
     gV = [e.xreplace(names) for e in gV]
     A, V = A.xreplace(names), V.xreplace(names)
-    em = _Emitter(KernelPrinter(), n, flow)
+    em = _Emitter(_printer(), n, flow)
     # The groups of common subexpressions (module docstring: the same bits).
     em.kinetic_group = ([f"gA_{i}" for i in range(2 * n)] + ["a"], [*gA, A])
     em.potential_group = ([f"gV_{i}" for i in range(n)] + ["v"], [*gV, V])
@@ -131,7 +163,8 @@ class _Emitter:
 
     def group(self, src, group, rename=None):
         """``targets = exprs`` of ``group`` with SymPy's CSE (as
-        :func:`varint.models.symbolic._assignments`)."""
+        :func:`varint.models.symbolic._assignments` did for the generic
+        loop)."""
         import sympy as sp  # type: ignore[import-untyped]
 
         targets, exprs = group
@@ -332,10 +365,16 @@ def advance(x, V, dt, clock, kinds, coef, h, t_end, max_steps, par, C, counts):
         if steps >= max_steps:
             project(x, V, dt, par, gA, gV, HV)
             return {BUDGET}
-        x0[:] = x
-        V0[:, :] = V
-        dt0[:] = dt
-        c0[:] = clock
+        # Copies by explicit loops: numba's slice assignment of small
+        # arrays costs more than the copy.
+        for i in range(d):
+            x0[i] = x[i]
+        for c in range(k):
+            dt0[c] = dt[c]
+            for i in range(d):
+                V0[c, i] = V[c, i]
+        c0[0] = clock[0]
+        c0[1] = clock[1]
         status = step(x, V, dt, dpt, clock, kinds, coef, h, par, True, C, counts, gA, gV,
                       HV, dtau)
         if status != {_OK}:
