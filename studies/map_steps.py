@@ -73,18 +73,18 @@ Parts (``--part``):
     100 % agreement, cored ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 %. The
     generated stepper (same bits on the cored map, round-off on the
     three-body map: half-integer powers by square roots instead of
-    ``pow``), quick maps, load 12–15 (``map_steps_quick_log.json``):
-    CR3BP ABA864 h = 1.6 4.7× at 100 % (198 steps per orbit; a run just
-    before of the same step, 3 repeats: 2.5×; the spread is the load's),
-    h = 6.4 9.4× at 98.7 %; cored ABA864 h = 0.1, δ = 0.25 0.89× at
-    99.0 %, h = 0.07 0.62× at 100 % (2 145 steps per orbit), SBAB2 h = 0.05,
-    δ = 0.25 0.92× at 98.1 %. Targets: 3× on the three-body map met at
-    100 % agreement in the stored run, not in every run; 1× on the cored
-    map not met (0.62× at equal agreement). Per step of the race (its
-    seconds over its steps, under that load): cored ABA864 1.4 µs (a
-    logarithm and a few divisions per kick; SBAB2 0.7 µs), three-body
-    ABA864 h = 1.6 1.9 µs (two square roots per kick, a sine and a cosine
-    per drift).
+    ``pow``), quick maps, 5 repeats, load 13–15
+    (``map_steps_quick_log.json``): CR3BP ABA864 h = 1.6 4.2× at 100 %
+    (198 steps per orbit; the same code, 3 repeats, a run before: 4.7×;
+    before the per-step copies were written as loops: 2.5×), h = 6.4 7.5×
+    at 98.7 %; cored ABA864 h = 0.1, δ = 0.25 0.98× at 99.0 %, h = 0.07
+    0.75× at 100 % (2 145 steps per orbit), SBAB2 h = 0.05, δ = 0.25 1.16×
+    at 98.1 %. Targets: 3× on the three-body map met at 100 % agreement;
+    1× on the cored map met only below full agreement (0.75× at 100 %).
+    Per step of the race (its seconds over its steps, under that load):
+    cored ABA864 1.0 µs (a logarithm and a few divisions per kick; SBAB2
+    0.45 µs), three-body ABA864 h = 1.6 1.9 µs (two square roots per kick,
+    a sine and a cosine per drift).
 
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
