@@ -65,18 +65,26 @@ Parts (``--part``):
     offset δ of C = E + δ) against heyoka batch 8 at every tolerance of
     ``race`` and varint's defaults, interleaved as there; each LH row keeps
     its steps per orbit (LH steps + the physical-time tail that lands on
-    each normalisation time) and microseconds per step. The LH step is the
-    generic numba kernel, not a generated stepper, and has no automatic h:
-    the rows are the race of fixed h (the "tuned" contenders of the issue).
-    Quick maps, load 8–10 (``map_steps_quick_log.json``): CR3BP ABA864
-    h = 1.6 0.93× at 100 % agreement (197 steps per orbit; defaults 0.19×,
-    1 600), h = 6.4 2.8× at 98.7 % (68; one orbit of 76 missed); cored
-    ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 % (1 504; defaults 0.047×,
-    30 444), no LH row at 100 %. Targets 3× and 1× not met: the LH step is
-    the generic kernel (4–5 µs a step on the three-body problem, whose
-    rotating-frame drift of state-dependent length needs a sine and cosine
-    every drift), and on the cored potential δ ≤ 0.1 (a run before this one,
-    same driver) lost most orbits.
+    each normalisation time) and microseconds per step. The LH stepper is
+    generated per model and scheme (:mod:`varint.codegen.lh`, cached on
+    disk) and has no automatic h: the rows are the race of fixed h (the
+    "tuned" contenders of the issue). Stop 40 (the generic numba closure,
+    4–5 µs per three-body step, load 8–10): CR3BP ABA864 h = 1.6 0.93× at
+    100 % agreement, cored ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 %. The
+    generated stepper (same bits on the cored map, round-off on the
+    three-body map: half-integer powers by square roots instead of
+    ``pow``), quick maps, 5 repeats, load 13–15
+    (``map_steps_quick_log.json``): CR3BP ABA864 h = 1.6 4.2× at 100 %
+    (198 steps per orbit; the same code, 3 repeats, a run before: 4.7×;
+    before the per-step copies were written as loops: 2.5×), h = 6.4 7.5×
+    at 98.7 %; cored ABA864 h = 0.1, δ = 0.25 0.98× at 99.0 %, h = 0.07
+    0.75× at 100 % (2 145 steps per orbit), SBAB2 h = 0.05, δ = 0.25 1.16×
+    at 98.1 %. Targets: 3× on the three-body map met at 100 % agreement;
+    1× on the cored map met only below full agreement (0.75× at 100 %).
+    Per step of the race (its seconds over its steps, under that load):
+    cored ABA864 1.0 µs (a logarithm and a few divisions per kick; SBAB2
+    0.45 µs), three-body ABA864 h = 1.6 1.9 µs (two square roots per kick,
+    a sine and a cosine per drift).
 
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
@@ -139,9 +147,9 @@ FIXED_SCHEMES, FIXED_TAUS = ("SBAB2", "ABA864", "SRKN14a"), (1.0, 0.5, 0.25)
 #: The LH contenders of part "log": per map, (scheme, fictitious step h,
 #: offset δ of C = E + δ; None: the rule of varint.time_transform).
 LOG_CONTENDERS = {
-    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 1.6, 0.8)] + [("SRKN14a", 3.2, None)],
+    "cr3bp": [("ABA864", h, None) for h in (6.4, 3.2, 2.4, 1.6, 0.8)] + [("SRKN14a", 3.2, None)],
     "core": [("SBAB2", h, off) for h in (0.1, 0.05) for off in (None, 0.25)]
-    + [("ABA864", h, 0.25) for h in (0.2, 0.1)],
+    + [("ABA864", h, 0.25) for h in (0.2, 0.1, 0.07)],
 }
 #: The cored logarithmic potential.
 CORE_RADIUS, CORE_FLATTENING = 0.03, 0.8

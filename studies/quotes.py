@@ -1108,13 +1108,15 @@ def _lh_race(R):
 
     cr3, core = "varint LH ABA864, h 1.6, offset None", "varint LH ABA864, h 0.1, offset 0.25"
     fast = "varint LH ABA864, h 6.4, offset None"
+    fine = "varint LH ABA864, h 0.07, offset 0.25"
     load = max(d["load"][0], d["load_end"][0])
     return (f"on the restricted three-body map (Sun–Jupiter, {rows['cr3bp', cr3]['orbits']} "
             f"orbits) ABA864 with h = 1.6: {one('cr3bp', cr3)} (the defaults: "
             f"{one('cr3bp', 'varint defaults')}; h = 6.4: {one('cr3bp', fast)}); on the cored "
             f"logarithmic potential ({rows['core', core]['orbits']} orbits) ABA864 with h = 0.1 "
-            f"and δ = 0.25: {one('core', core)} (the defaults: {one('core', 'varint defaults')})"
-            f"; one thread, machine load up to {load:.0f} on 2 cores")
+            f"and δ = 0.25: {one('core', core)} (h = 0.07: {one('core', fine)}; the defaults: "
+            f"{one('core', 'varint defaults')}); one thread, machine load up to {load:.0f} on "
+            f"2 cores")
 
 
 @quote("numba_opt")

@@ -13,5 +13,8 @@ for one model, scheme, number of vectors and accumulator:
   over steps and the end of every step, once for one orbit and for SIMD
   lanes;
 * :mod:`~varint.codegen.stepper` — the module assembled, cached on disk
-  and loaded.
+  and loaded;
+* :mod:`~varint.codegen.lh` — the logarithmic-Hamiltonian stepper of
+  :mod:`varint.time_transform` (its step unrolled, its loop, cached the
+  same way).
 """
