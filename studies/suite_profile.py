@@ -69,6 +69,7 @@ class CompileTimer:
         self.compiling = 0.0
         self.compiled = 0
         self.what = []
+        self.file = None
         self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0,
                                          "compiles": 0, "compiled": []})
 
@@ -115,6 +116,12 @@ class CompileTimer:
         row["compiles"] += self.compiled - self.item_compiled
         row["compiled"] += self.what
         self.what = []
+        # Written after each file too: a run cut short (a loaded machine,
+        # a killed worker) still leaves the rows of the files it finished.
+        path = nodeid.split("::")[0]
+        if path != self.file:
+            self.file = path
+            self.path.write_text(json.dumps(self.rows))
 
     def pytest_sessionfinish(self, session):
         self.path.write_text(json.dumps(self.rows))
