@@ -14,9 +14,11 @@ one process takes long.
 
 The same timer rides along any pytest run as a plugin: with
 ``VARINT_SUITE_PROFILE=DIR`` and ``-p studies.suite_profile`` each process
-(every xdist worker) writes ``DIR/<worker>.rows.json``; ``--rows DIR`` makes
-the table from them (so the cold suite run of ``studies/suite_time.py``, two
-workers as CI has them, gives its own profile).
+(every xdist worker) writes ``DIR/<worker>.rows.json``, with what each test
+compiled (:func:`compiled_key`); ``--rows DIR`` makes the table from them,
+and the table of functions compiled more than once (:func:`duplicates`; so
+the cold suite run of ``studies/suite_time.py``, two workers as CI has
+them, gives its own profile).
 
 Usage: ``python studies/suite_profile.py [--merge] [--cache DIR] [--rows DIR]
 [--out DIR] [-- PYTEST ARGS (files)]``
@@ -49,10 +51,12 @@ def compiled_key(data):
     argument types. Two events with one key compiled the same function for
     the same types twice: in two processes, or in one through two
     dispatchers (a closure or generated module made again)."""
-    func = data["dispatcher"].py_func
-    source = os.path.basename(func.__code__.co_filename)
-    return (f"{func.__module__}:{func.__qualname__}@{source}"
-            f"({', '.join(str(a) for a in data['args'])})")
+    func = getattr(data.get("dispatcher"), "py_func", None)
+    code = getattr(func, "__code__", None)
+    if code is None:    # a lifted loop or another dispatcher without a function
+        return repr(data.get("dispatcher"))
+    return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
+            f"({', '.join(str(a) for a in data.get('args', ()))})")
 
 
 class CompileTimer:
@@ -192,10 +196,11 @@ def duplicates(rows_by_process):
     """Functions numba compiled more than once for the same argument types
     (:func:`compiled_key`) in one suite run, from each process's rows (a
     dict: process name -> its rows): per key, how many times, the CPU
-    seconds of all but the longest, the processes and test files that compiled
-    it; the total of those seconds first. Compiles run in one process after
-    another (two xdist workers on cold caches) or again in one process (a
-    function made anew, e.g. in a fresh cache folder) show up here."""
+    seconds of all but the longest, the processes and test files that
+    compiled it; the total of those seconds first. A function both xdist
+    workers compiled (at once, before either had written it to the shared
+    cache) shows up here, and one compiled again in one process (made anew,
+    e.g. in a cache folder of its own)."""
     seen = defaultdict(list)
     for process, rows in rows_by_process.items():
         for nodeid, row in rows.items():
