@@ -47,7 +47,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def compiled_key(data):
     """What a ``numba:compile`` event compiles, the same in every process:
     the function's module, qualified name and source file's name (a
-    generated module's name carries its hash, not its folder) and the
+    generated module's name carries its hash, not its folder), what a
+    closure closes over (functions by name, other values by type) and the
     argument types. Two events with one key compiled the same function for
     the same types twice: in two processes, or in one through two
     dispatchers (a closure or generated module made again)."""
@@ -55,8 +56,14 @@ def compiled_key(data):
     code = getattr(func, "__code__", None)
     if code is None:    # a lifted loop or another dispatcher without a function
         return repr(data.get("dispatcher"))
+    # A closure (the skeleton's kernels) is told apart by what it closes
+    # over: the functions by name, other values by type.
+    cells = [getattr(c.cell_contents, "py_func", c.cell_contents)
+             for c in (func.__closure__ or ())]
+    over = ",".join(f"{getattr(v, '__module__', '')}.{v.__qualname__}"
+                    if hasattr(v, "__qualname__") else type(v).__name__ for v in cells)
     return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
-            f"({', '.join(str(a) for a in data.get('args', ()))})")
+            f"[{over}]({', '.join(str(a) for a in data.get('args', ()))})")
 
 
 class CompileTimer:
