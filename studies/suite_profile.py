@@ -48,20 +48,23 @@ def compiled_key(data):
     """What a ``numba:compile`` event compiles, the same in every process:
     the function's module, qualified name and source file's name (a
     generated module's name carries its hash, not its folder), what a
-    closure closes over (functions by name, other values by type) and the
-    argument types. Two events with one key compiled the same function for
+    closure closes over (functions by name, numbers and strings by value,
+    other values by type: closures differing only in those may share a key)
+    and the argument types. Two events with one key compiled the same function for
     the same types twice: in two processes, or in one through two
     dispatchers (a closure or generated module made again)."""
     func = getattr(data.get("dispatcher"), "py_func", None)
     code = getattr(func, "__code__", None)
     if code is None:    # a lifted loop or another dispatcher without a function
-        return repr(data.get("dispatcher"))
+        return type(data.get("dispatcher")).__name__
     # A closure (the skeleton's kernels) is told apart by what it closes
-    # over: the functions by name, other values by type.
+    # over: functions by name, numbers and strings by value, the rest by type.
     cells = [getattr(c.cell_contents, "py_func", c.cell_contents)
              for c in (func.__closure__ or ())]
     over = ",".join(f"{getattr(v, '__module__', '')}.{v.__qualname__}"
-                    if hasattr(v, "__qualname__") else type(v).__name__ for v in cells)
+                    if hasattr(v, "__qualname__")
+                    else repr(v) if isinstance(v, (bool, int, float, str))
+                    else type(v).__name__ for v in cells)
     return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
             f"[{over}]({', '.join(str(a) for a in data.get('args', ()))})")
 
