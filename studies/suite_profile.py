@@ -14,9 +14,11 @@ one process takes long.
 
 The same timer rides along any pytest run as a plugin: with
 ``VARINT_SUITE_PROFILE=DIR`` and ``-p studies.suite_profile`` each process
-(every xdist worker) writes ``DIR/<worker>.rows.json``; ``--rows DIR`` makes
-the table from them (so the cold suite run of ``studies/suite_time.py``, two
-workers as CI has them, gives its own profile).
+(every xdist worker) writes ``DIR/<worker>.rows.json``, with what each test
+compiled (:func:`compiled_key`); ``--rows DIR`` makes the table from them,
+and the table of functions compiled more than once (:func:`duplicates`; so
+the cold suite run of ``studies/suite_time.py``, two workers as CI has
+them, gives its own profile).
 
 Usage: ``python studies/suite_profile.py [--merge] [--cache DIR] [--rows DIR]
 [--out DIR] [-- PYTEST ARGS (files)]``
@@ -42,6 +44,31 @@ except ImportError:  # imported as studies.suite_profile
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def compiled_key(data):
+    """What a ``numba:compile`` event compiles, the same in every process:
+    the function's module, qualified name and source file's name (a
+    generated module's name carries its hash, not its folder), what a
+    closure closes over (functions by name, numbers and strings by value,
+    other values by type: closures differing only in those may share a key)
+    and the argument types. Two events with one key compiled the same function for
+    the same types twice: in two processes, or in one through two
+    dispatchers (a closure or generated module made again)."""
+    func = getattr(data.get("dispatcher"), "py_func", None)
+    code = getattr(func, "__code__", None)
+    if code is None:    # a lifted loop or another dispatcher without a function
+        return type(data.get("dispatcher")).__name__
+    # A closure (the skeleton's kernels) is told apart by what it closes
+    # over: functions by name, numbers and strings by value, the rest by type.
+    cells = [getattr(c.cell_contents, "py_func", c.cell_contents)
+             for c in (func.__closure__ or ())]
+    over = ",".join(f"{getattr(v, '__module__', '')}.{v.__qualname__}"
+                    if hasattr(v, "__qualname__")
+                    else repr(v) if isinstance(v, (bool, int, float, str))
+                    else type(v).__name__ for v in cells)
+    return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
+            f"[{over}]({', '.join(str(a) for a in data.get('args', ()))})")
+
+
 class CompileTimer:
     """A pytest plugin: per test id, the seconds of its setup, call and
     teardown, the seconds numba spent compiling during them and the number
@@ -55,19 +82,24 @@ class CompileTimer:
         self.started = 0.0
         self.compiling = 0.0
         self.compiled = 0
+        self.what = []
+        self.file = None
         self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0,
-                                         "compiles": 0})
+                                         "compiles": 0, "compiled": []})
 
     def on_start(self, event):
         if self.depth == 0:
             self.started = time.process_time()
+            self.key = compiled_key(event.data)
         self.depth += 1
 
     def on_end(self, event):
         self.depth -= 1
         if self.depth == 0:
-            self.compiling += time.process_time() - self.started
+            seconds = time.process_time() - self.started
+            self.compiling += seconds
             self.compiled += 1
+            self.what.append([self.key, round(seconds, 2)])
 
     def pytest_sessionstart(self, session):
         from numba.core import event
@@ -88,6 +120,7 @@ class CompileTimer:
         self.item_cpu = time.process_time()
         self.item_compile = self.compiling
         self.item_compiled = self.compiled
+        self.what = []
 
     def pytest_runtest_logfinish(self, nodeid, location):
         row = self.rows[nodeid]
@@ -95,6 +128,14 @@ class CompileTimer:
         row["cpu_s"] += time.process_time() - self.item_cpu
         row["compile_s"] += self.compiling - self.item_compile
         row["compiles"] += self.compiled - self.item_compiled
+        row["compiled"] += self.what
+        self.what = []
+        # Written after each file too: a run cut short (a loaded machine,
+        # a killed worker) still leaves the rows of the files it finished.
+        path = nodeid.split("::")[0]
+        if path != self.file:
+            self.file = path
+            self.path.write_text(json.dumps(self.rows))
 
     def pytest_sessionfinish(self, session):
         self.path.write_text(json.dumps(self.rows))
@@ -161,15 +202,43 @@ def by_file(rows):
             for name, f in sorted(files.items(), key=lambda kv: -kv[1]["cpu_s"])}
 
 
+def duplicates(rows_by_process):
+    """Functions numba compiled more than once for the same argument types
+    (:func:`compiled_key`) in one suite run, from each process's rows (a
+    dict: process name -> its rows): per key, how many times, the CPU
+    seconds of all but the longest, the processes and test files that
+    compiled it; the total of those seconds first. A function both xdist
+    workers compiled (at once, before either had written it to the shared
+    cache) shows up here, and one compiled again in one process (made anew,
+    e.g. in a cache folder of its own)."""
+    seen = defaultdict(list)
+    for process, rows in rows_by_process.items():
+        for nodeid, row in rows.items():
+            for key, seconds in row.get("compiled", []):
+                seen[key].append((seconds, process, nodeid.split("::")[0]))
+    table = {}
+    for key, events in seen.items():
+        if len(events) > 1:
+            times = sorted(s for s, _, _ in events)
+            table[key] = {"times": len(events), "extra_s": round(sum(times[:-1]), 2),
+                          "processes": sorted({p for _, p, _ in events}),
+                          "files": sorted({f for _, _, f in events})}
+    table = dict(sorted(table.items(), key=lambda kv: -kv[1]["extra_s"]))
+    return {"extra_s": round(sum(t["extra_s"] for t in table.values()), 1),
+            "keys": len(table), "functions": table}
+
+
 def main(argv=None):
     args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
     load_start = [round(x, 2) for x in os.getloadavg()]
     if args.rows is None:
         rows, code = profile(args.cache, args.pytest_args)
+        by_process = {"main": rows}
     else:
-        rows, code = {}, None
+        rows, code, by_process = {}, None, {}
         for path in sorted(args.rows.glob("*.rows.json")):
-            rows.update(json.loads(path.read_text()))
+            by_process[path.name.split(".")[0]] = json.loads(path.read_text())
+            rows.update(by_process[path.name.split(".")[0]])
     path = Path(args.out) / "suite_profile.json"
     stored = json.loads(path.read_text()) if args.merge and path.exists() else {}
     stored.pop("_provenance", None)
@@ -187,11 +256,18 @@ def main(argv=None):
              "load_start": load_start if measured else None,
              "load_end": [round(x, 2) for x in os.getloadavg()] if measured else None}]
     files = by_file(tests)
-    save_json(args.out, "suite_profile", {"files": files, "runs": runs, "tests": tests})
+    # The duplicates of this run alone (a merged table's runs did not share
+    # their processes).
+    twice = duplicates(by_process)
+    save_json(args.out, "suite_profile", {"files": files, "runs": runs,
+                                          "duplicates": twice, "tests": tests})
     for name, f in list(files.items())[:40]:
         print(f"{f['s']:8.1f} s {f['cpu_s']:8.1f} s CPU {f['compile_share']:5.0%} compile "
               f"{f['compiles'] if f['compiles'] is not None else '-':>5} fns "
               f"{f['tests']:4d}  {name}")
+    print(f"compiled again: {twice['keys']} functions, {twice['extra_s']:.0f} s CPU")
+    for key, t in list(twice["functions"].items())[:15]:
+        print(f"{t['extra_s']:8.1f} s {t['times']:3d}x  {key[:110]}")
     return files
 
 

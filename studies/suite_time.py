@@ -4,7 +4,10 @@ caches as a fresh CI checkout has them, or warm, on the caches a cold run
 left. Stores wall and CPU time (pytest and its workers together), the
 machine's cores and load before and after, pytest's summary line and its
 slowest tests, under ``cold`` or ``warm`` of ``suite_time.json`` (the other
-entry is kept); pytest's whole report is left in ``CACHE/pytest.log``. README states the figures through ``studies/quotes.py``.
+entry is kept; a run given pytest arguments, e.g. some files, under
+``cold ARGS``, its profile merged into the stored one); pytest's whole
+report is left in ``CACHE/pytest.log``. README states the figures through
+``studies/quotes.py``.
 The run carries the ``studies.suite_profile`` plugin: a cold run also
 leaves the per-file table of where the time went (CPU seconds, compile
 share, functions compiled) as ``suite_profile.json`` (a warm run keeps the
@@ -101,11 +104,17 @@ def main(argv=None):
     path = Path(out) / "suite_time.json"
     stored = json.loads(path.read_text()) if path.exists() else {}
     stored.pop("_provenance", None)
-    stored[entry["mode"]] = entry
+    # A run of some files only is stored beside the default suite's, under
+    # its files, and merged into the profile: it must not stand for the
+    # suite (README quotes ``cold``).
+    label = " ".join([entry["mode"], *args.pytest_args])
+    stored[label] = entry
     save_json(out, "suite_time", stored)
     if entry["mode"] == "cold":
-        profile_main(["--rows", str(args.cache / "rows"), "--out", str(out), "--note",
-                      f"the cold default suite of suite_time.py: {entry['summary']}, "
+        merge = ["--merge"] if args.pytest_args else []
+        profile_main([*merge, "--rows", str(args.cache / "rows"), "--out", str(out), "--note",
+                      f"the cold {' '.join(args.pytest_args) or 'default suite'} of "
+                      f"suite_time.py: {entry['summary']}, "
                       f"{entry['wall_s']:.0f} s wall, {entry['cpu_s']:.0f} s CPU, load "
                       f"{entry['load_start'][0]} -> {entry['load_end'][0]}"])
     print(f"{entry['mode']}: {entry['wall_s']:.0f} s wall, {entry['cpu_s']:.0f} s CPU, "

@@ -9,11 +9,6 @@ import varint
 CANDIDATES = [("tm", "SABA2", 0.1), ("tm", "ABA864", 0.1), ("tm", "ABA864", 0.05)]
 
 
-@pytest.fixture(autouse=True)
-def private_cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache"))
-
-
 def test_energy_choice_meets_the_target_to_t_end(r1):
     model, x0 = r1
     choice = varint.select_scheme(model, x0, 1e-7, metric="energy", t_end=2e3,
