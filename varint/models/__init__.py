@@ -23,8 +23,8 @@ __all__ = ["Model", "HenonHeiles", "ThreeDof", "FPUBeta", "FPUT", "DisorderedKG"
 
 # Loaded on first use (PEP 562): SymPy takes as long to import as the rest
 # of varint, and the lattices, stencils, planetary systems and maps define
-# a hundred compiled kernels that a run of another model never calls (their
-# import is a fifth of a first run's time over numba's, issue 28).
+# a hundred compiled kernels that a run of another model never calls, whose
+# import a fresh process's first run would wait for (issue 28).
 _LAZY = {
     "DDNLS": "ddnls", "FPUBeta": "fpu", "FPUT": "fput", "DisorderedKG": "kg",
     "LatticeModel": "lattice", "Parts": "lattice",
