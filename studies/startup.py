@@ -5,7 +5,8 @@ A researcher's session is many short processes, so the time before the
 first number matters as much as the time per step. Each figure is the
 median over fresh processes (wall time inside the child, from before
 ``import varint`` to after it, and from after it to the end of the first
-run, :data:`CASES`); one earlier process per case compiles and caches
+run, :data:`CASES`; and the CPU time of both, less inflated than the wall
+time when other processes share the machine); one earlier process per case compiles and caches
 the kernels first, so every timed process finds the caches warm. The
 heavy modules that ``import varint`` alone loaded are listed per source
 tree.
@@ -84,15 +85,16 @@ CASES = {
 }
 CHILD = f"""
 import sys, time, json
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 import varint
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), time.process_time()
 heavy = [m for m in {HEAVY!r} if m in sys.modules]
 import numba, numpy as np
 exec(sys.argv[1])
-t2 = time.perf_counter()
+t2, c2 = time.perf_counter(), time.process_time()
 after = [m for m in {HEAVY!r} if m in sys.modules]
-print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "heavy": heavy, "heavy_run": after}}))
+print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "cpu": c2 - c0, "heavy": heavy,
+                  "heavy_run": after}}))
 """
 
 
@@ -146,12 +148,14 @@ def main(argv=None):
         imports = [r["import"] for r in rows]
         runs = [r["run"] for r in rows]
         totals = [a + b for a, b in zip(imports, runs, strict=True)]
+        cpus = [r["cpu"] for r in rows]
         data.setdefault(label, {})[case] = {
             "import_median_s": statistics.median(imports),
             "import_range_s": [min(imports), max(imports)],
             "first_run_median_s": statistics.median(runs),
             "import_plus_first_run_median_s": statistics.median(totals),
             "import_plus_first_run_range_s": [min(totals), max(totals)],
+            "import_plus_first_run_cpu_median_s": statistics.median(cpus),
             "heavy_after_import": rows[-1]["heavy"],
             "heavy_after_run": rows[-1]["heavy_run"],
             "announced": sum(r["announced"] for r in rows),
@@ -159,7 +163,8 @@ def main(argv=None):
         row = data[label][case]
         print(f"{label:8s} {case:5s} import {row['import_median_s']:.3f} s, first run "
               f"{row['first_run_median_s']:.3f} s, together "
-              f"{row['import_plus_first_run_median_s']:.3f} s (medians of {n}); "
+              f"{row['import_plus_first_run_median_s']:.3f} s, CPU "
+              f"{row['import_plus_first_run_cpu_median_s']:.3f} s (medians of {n}); "
               f"import loaded {', '.join(rows[-1]['heavy']) or 'none of ' + '/'.join(HEAVY)}; "
               f"the run {', '.join(rows[-1]['heavy_run'])}")
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}

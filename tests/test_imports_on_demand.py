@@ -91,3 +91,30 @@ def test_a_process_on_cached_kernels_imports_no_sympy_and_compiles_nothing():
     assert heavy == []
     assert compiled == 0.0
     assert parallel_hits >= 1
+
+
+def test_version_and_metadata_on_demand():
+    """``import varint`` reads no file for its version and imports no
+    importlib.metadata (~15 ms); ``__version__`` is worked out when asked."""
+    got = fresh("import sys, json; before = 'importlib.metadata' in sys.modules; "
+                "import varint; after = 'importlib.metadata' in sys.modules; "
+                "print(json.dumps([before or not after, '__version__' in vars(varint), "
+                "varint.__version__, '__version__' in dir(varint)]))")
+    assert got == [True, False, varint.__version__, True]
+    text = (ROOT / "pyproject.toml").read_text()
+    assert f'\nversion = "{varint.__version__}"' in text
+
+
+def test_a_run_of_one_model_imports_no_other_models_kernels():
+    """The paper's R1 spectrum imports neither the lattices, stencils,
+    planetary systems nor symplectic maps (a hundred kernels), and every
+    lazy name of varint.models comes from the submodule that defines it."""
+    code = ("import sys, json, varint; m, x = varint.paper_orbit('R1'); "
+            "varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False); "
+            "mods = ('lattice', 'stencil', 'kg', 'fput', 'fpu', 'ddnls', 'planetary', 'maps', "
+            "'symbolic'); "
+            "print(json.dumps([m for m in mods if 'varint.models.' + m in sys.modules]))")
+    assert fresh(code) == []
+    for name, module in varint.models._LAZY.items():
+        assert getattr(varint.models, name).__module__ == f"varint.models.{module}", name
+    assert set(varint.models.__all__) <= set(dir(varint.models))

@@ -3,8 +3,16 @@
 import numpy as np
 import pytest
 
+from varint import seeds
 from varint.seeds import standard_normals
 from varint.state import initial_deviations
+
+
+@pytest.fixture(autouse=True)
+def compiled_loop_from_the_first_orbit(monkeypatch):
+    """Every test below checks the compiled loop, which a process otherwise
+    uses only after its first NUMPY_FIRST orbits."""
+    monkeypatch.setattr(seeds, "NUMPY_FIRST", 0)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 7, 20100927, 2 ** 31, 2 ** 32 - 1, 2 ** 32, 2 ** 70])
@@ -44,8 +52,6 @@ def test_initial_deviations_do_not_depend_on_the_batch():
 def test_a_numpy_that_seeds_otherwise_falls_back_to_its_own_path(monkeypatch):
     # A fast path that no longer matches NumPy (here: a wrong PCG64
     # multiplier) is caught by the once-per-process check.
-    from varint import seeds
-
     monkeypatch.setattr(seeds, "_PCG_MULT", seeds._PCG_MULT + 2)
     seeds._fast_path_is_numpys.cache_clear()
     try:
@@ -65,3 +71,19 @@ def test_every_branch_of_the_ziggurat_is_numpys():
     want = np.array([np.random.default_rng([5, int(i)]).standard_normal(1000) for i in idx])
     assert got.tobytes() == want.tobytes()
     assert (np.abs(got) > 3.654152885361009).sum() > 20
+
+
+def test_a_process_draws_its_first_orbits_with_numpy_then_compiled(monkeypatch):
+    # The compiled loop (loaded and checked against NumPy at its first use)
+    # is not consulted for the first NUMPY_FIRST orbits, then it is.
+    asked = []
+    fast = seeds._fast_path_is_numpys
+    monkeypatch.setattr(seeds, "_fast_path_is_numpys", lambda: asked.append(1) or fast())
+    monkeypatch.setattr(seeds, "NUMPY_FIRST", 8)
+    monkeypatch.setattr(seeds, "_numpy_drawn", 0)
+    for indices in ([0], [1, 2, 3, 4, 5], [6, 7], [8], [9, 10]):
+        got = standard_normals(3, indices, (4, 2))
+        want = np.array([np.random.default_rng([3, i]).standard_normal((4, 2))
+                         for i in indices])
+        assert got.tobytes() == want.tobytes()
+    assert len(asked) == 2          # [8] and [9, 10]: after 8 orbits

@@ -17,7 +17,6 @@ import importlib.util as _util
 import re as _re
 import sys as _sys
 import types as _types
-from importlib import metadata as _metadata
 from pathlib import Path as _Path
 from typing import TYPE_CHECKING as _TYPE_CHECKING
 
@@ -42,15 +41,20 @@ def _version():
         found = _re.search(r'^version\s*=\s*"([^"]+)"', project.group(1), _re.M)
         if found:
             return found.group(1)
+    # importlib.metadata takes ~15 ms to import (email parsing): only an
+    # installed copy, which has no pyproject.toml beside it, pays it.
+    from importlib import metadata
+
     try:
-        return _metadata.version("varint")
-    except _metadata.PackageNotFoundError:
+        return metadata.version("varint")
+    except metadata.PackageNotFoundError:
         return "0+unknown"
 
 
 #: The version of varint (PEP 440), e.g. "0.1.0"; results record it in
-#: their provenance.
-__version__ = _version()
+#: their provenance. Worked out on first use (:func:`__getattr__`), so that
+#: ``import varint`` reads no file.
+__version__: str
 
 
 def _source_checkout_baselines():
@@ -189,6 +193,9 @@ def _load():
 
 def __getattr__(name):
     # Called only for names not yet in the package (PEP 562).
+    if name == "__version__":
+        globals()[name] = _version()
+        return globals()[name]
     if name not in _EXPORTS:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     _load()
@@ -196,4 +203,4 @@ def __getattr__(name):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_EXPORTS) | {"__version__"})

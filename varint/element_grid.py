@@ -11,7 +11,6 @@ import numpy as np
 
 from ._validate import real_array
 from .grids import PhaseGrid
-from .models.planetary import ELEMENTS, Planetary
 
 __all__ = ["element_grid"]
 
@@ -59,6 +58,10 @@ def element_grid(model, elements, planet, u, v, axes=("a", "e"), frame="jacobi")
     >>> g.states.shape, g.axes
     ((6, 12), ('a', 'e'))
     """
+    # Imported here: ``import varint``'s first public name imports this
+    # module, and a run of another model needs no planetary kernels.
+    from .models.planetary import ELEMENTS, Planetary
+
     if not isinstance(model, Planetary):
         raise ValueError(f"element_grid needs a varint.models.Planetary, got {model!r}")
     if isinstance(planet, (bool, np.bool_)) or not isinstance(planet, numbers.Integral) \

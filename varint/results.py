@@ -16,8 +16,8 @@ import json
 import math
 import os
 import platform
+import sys
 from dataclasses import dataclass, field
-from importlib import metadata
 from typing import IO, ClassVar
 
 import numpy as np
@@ -37,19 +37,36 @@ _CLASSES: dict = {}
 @functools.cache
 def package_versions(*extra):
     """Versions of Python, varint and the numerical packages a run used
-    (cached: reading package metadata takes milliseconds)."""
+    (cached).
+
+    NumPy, SciPy and numba give the ``__version__`` of the copy imported,
+    the code that ran (a run has imported all three: numba loads SciPy's
+    BLAS with its registries), for free; one not imported yet, and every
+    name of ``extra`` (a distribution's name, e.g. "scikit-sundae"), is read
+    from the installed package metadata, which takes ~15 ms to import and
+    milliseconds a name.
+    """
     from . import __version__
 
-    names = ("numpy", "scipy", "numba") + tuple(extra)
     # varint's own version as varint reports it (a source checkout's, not
     # that of an older installed copy).
     out = {"python": platform.python_version(), "varint": __version__}
-    for name in names:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
+    for name in ("numpy", "scipy", "numba"):
+        version = getattr(sys.modules.get(name), "__version__", None)
+        out[name] = version if isinstance(version, str) else _installed_version(name)
+    for name in extra:
+        out[name] = _installed_version(name)
     return out
+
+
+def _installed_version(distribution):
+    """The version of an installed distribution (None if not installed)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:
+        return None
 
 
 @dataclass

@@ -17,7 +17,8 @@ normals from it (NumPy's tables, as numba copies them). Entropy words
 outside uint32 (a seed or index ≥ 2³²) take NumPy's own path, and so does
 everything if a NumPy release seeds or draws differently (checked once per
 process against ``default_rng``, over draws that reach the ziggurat's
-slower branches).
+slower branches). A process's first few hundred orbits take NumPy's
+path (:data:`NUMPY_FIRST`): they cost less than loading the compiled loop.
 """
 
 from __future__ import annotations
@@ -74,12 +75,31 @@ def standard_normals(seed, indices, shape):
     if not len(indices):
         return out
     if not (0 <= seed < 2 ** 32 and indices.min() >= 0 and indices.max() < 2 ** 32
-            and _fast_path_is_numpys()):
+            and not _numpy_first(len(indices)) and _fast_path_is_numpys()):
         for m, index in enumerate(indices):
             out[m] = np.random.default_rng([seed, int(index)]).standard_normal(shape)
         return out
     _draw(int(seed), indices, shape, out)
     return out
+
+
+#: Orbits a process draws with NumPy's own generator (~10 µs an orbit)
+#: before it loads the compiled loop and checks it (:func:`_fast_path_is_numpys`,
+#: ~5 ms, as long as ~500 orbits): a process's first small runs (one orbit
+#: for a spectrum) do not wait for it, a map or a series of runs gets it.
+#: Both paths give the same numbers.
+NUMPY_FIRST = 512
+_numpy_drawn = 0
+
+
+def _numpy_first(n):
+    """Whether ``n`` more orbits are drawn with NumPy's generator
+    (:data:`NUMPY_FIRST`); counts them if so."""
+    global _numpy_drawn
+    if _numpy_drawn + n > NUMPY_FIRST:
+        return False
+    _numpy_drawn += n
+    return True
 
 
 @functools.cache

@@ -6,7 +6,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .base import Model
-from .fpu import FPUBeta
 from .henon_heiles import HenonHeiles
 from .three_dof import ThreeDof
 
@@ -59,6 +58,13 @@ def _hh(y, py=0.0):
     return model, solve_momentum(model, [0.0, y], [0.0, py], 0.125, index=0)
 
 
+def _fpu():
+    # The lattices' kernels are imported with the first lattice built.
+    from .fpu import FPUBeta
+
+    return FPUBeta(8, 1.5), np.concatenate([np.full(8, 0.1), np.zeros(8)])
+
+
 #: The orbits of Skokos & Gerlach (2010), Sect. VI: builder, nature, notes.
 PAPER_ORBITS = {
     "R1": (lambda: _hh(0.558), "regular",
@@ -70,8 +76,7 @@ PAPER_ORBITS = {
            "χ1 ≈ 4e-6, sticky until t ≈ 1e6"),
     "R2": (lambda: (ThreeDof(), np.array([0.0, 0.0, 0.0, 0.1, 0.347, 0.0])), "regular",
            "3D system, x = y = z = 0, px = 0.1, py = 0.347, pz = 0; 3-torus"),
-    "R3": (lambda: (FPUBeta(8, 1.5), np.concatenate([np.full(8, 0.1), np.zeros(8)])),
-           "regular", "FPU-β, n = 8, β = 1.5, q_i = 0.1, p_i = 0; 4-dimensional torus"),
+    "R3": (_fpu, "regular", "FPU-β, n = 8, β = 1.5, q_i = 0.1, p_i = 0; 4-dimensional torus"),
 }
 
 
