@@ -668,16 +668,17 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
              time_transform, **options):
     """The FLI map of :func:`chaos_map` with ``time_transform="log"``: the
     orbits in chunks (the map's fixed shuffle, :func:`_chunk_size`), each
-    chunk one call of :meth:`LogHamiltonian.fli
-    <varint.time_transform.LogHamiltonian.fli>` from orbit m's vector of
+    chunk one call of :meth:`LogHamiltonian.outputs
+    <varint.time_transform.LogHamiltonian.outputs>` from orbit m's vector of
     ``default_rng([seed, m])``, so a value does not depend on the chunking.
     Everything it does not support is refused in one line before any work.
     A failed orbit's value is NaN; its status is the map's
     ``INTEGRATOR_FAILED`` for the LH's own stops (U ≤ 0, the step budget),
     whose reasons ``provenance.options["lh_failures"]`` counts, or the
-    :class:`~varint.protocol.Status` the step reported. The final states
-    and energy errors are not computed (NaN), nor the time of a failure
-    (``t_stop`` NaN)."""
+    :class:`~varint.protocol.Status` the step reported, and its ``t_stop``
+    the time its last completed step reached. The result carries the final
+    states, their energy errors and the accuracy verdict of every map
+    (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
     from .time_transform import TIME_TRANSFORMS, LogHamiltonian, describe, refuse
 
     if time_transform not in TIME_TRANSFORMS:
@@ -706,14 +707,14 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                                  ("threshold", threshold, "default or None"),
                                  ("t_check", t_check, None), ("client", client, None),
                                  ("checkpoint", checkpoint, None),
-                                 ("escape_radius", escape_radius, None),
-                                 ("energy_tol", energy_tol, None)):
+                                 ("escape_radius", escape_radius, None)):
         fine = (value in ("default", None) if what == "threshold"
                 else value is None if allowed is None else value == allowed)
         if not fine:
             raise ValueError(f"time_transform='log' does not take {what}={value!r} (yet): "
                              f"give {allowed!r}")
     seed = check_seed(seed, none=False)
+    energy_tol = accuracy.energy_tolerance(energy_tol)
     refuse(model, opts["scheme"], opts["offset"])
     grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
     if grid is not None and grid.states.size == 0:
@@ -736,25 +737,27 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     def run(c):
         idx = chunks[c]
         W0 = initial_deviations(model.dim, 1, len(idx), seed, idx)[:, :, 0]
-        return lh.fli(X[idx], W0, t_end, h, every=every)
+        return lh.outputs(X[idx], W0, t_end, h, every=every)
 
     def keep(c, outcome):
-        done[c] = outcome
+        done[c] = outcome.out
         return len(chunks[c])
 
-    class _Outcome(tuple):
-        interrupted = False
-
     with bar(progress, m, 0, "chaos_map", "orbit") as shown:
-        interrupted = fan_out(None, range(len(chunks)), lambda c: _Outcome(run(c)),
+        interrupted = fan_out(None, range(len(chunks)), lambda c: _LogChunk(run(c)),
                               lambda c: (c,), keep, shown)
     values, lh_status = np.full(m, np.nan), np.zeros(m, dtype=np.int64)
+    state, x_worst = np.full(X.shape, np.nan), np.full(X.shape, np.nan)
+    t_reached, t_worst = np.full(m, np.nan), np.full(m, np.nan)
     counts = np.zeros(3, dtype=np.int64)
     computed = np.zeros(m, dtype=bool)
-    for c, (v, n, st) in done.items():
-        values[chunks[c]], lh_status[chunks[c]] = v, st
-        counts += n.sum(axis=0)
-        computed[chunks[c]] = True
+    for c, out in done.items():
+        idx = chunks[c]
+        values[idx], lh_status[idx] = out.fli, out.status
+        state[idx], t_reached[idx] = out.x, out.t
+        x_worst[idx], t_worst[idx] = out.x_worst, out.t_worst
+        counts += out.counts.sum(axis=0)
+        computed[idx] = True
     # The map's negative codes mean "decided": the LH's own stops (U ≤ 0,
     # budget) become failures, their reasons kept by name.
     status = np.where(lh_status < 0, int(Status.INTEGRATOR_FAILED), lh_status)
@@ -769,7 +772,9 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                       RuntimeWarning, stacklevel=accuracy.user_stacklevel())
     if interrupted:
         warn_interrupted("chaos map", len(done), len(chunks), "chunks", False)
-    t_stop = np.where(computed & (status == STATUS_OK), t_end, np.nan)
+    # A stopped orbit's time is where its last completed step left it.
+    t_stop = np.where(computed & (status == STATUS_OK), t_end, t_reached)
+    verdict, energy = _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h)
     prov = Provenance(
         kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
         method_options={"time_transform": "log", "scheme": lh.scheme.name, "h": h,
@@ -784,11 +789,50 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         wall_time=time.perf_counter() - start, tau_choice={}, code=identity.code_identity(),
         machine=identity.machine(), cpu_time=time.process_time() - cpu)
     empty = np.empty(0)
-    return ChaosMapResult(
-        t=np.array([t_end]), energy_error=np.full(m, np.nan),
-        state=np.full(X.shape, np.nan), provenance=prov, status=status,
-        interrupted=interrupted, accuracy=None, indicator="fli", values=values, t_stop=t_stop,
+    result = ChaosMapResult(
+        t=np.array([t_end]), energy_error=energy,
+        state=state, provenance=prov, status=status,
+        interrupted=interrupted, accuracy=verdict, indicator="fli", values=values, t_stop=t_stop,
         threshold=None, x0=X, axes=None if grid is None else list(grid.axes),
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
         mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
         log_scale=INDICATORS["fli"].log_scale)
+    accuracy.warn(verdict, "tm+log", what="the chaos map")
+    return result
+
+
+@dataclass
+class _LogChunk:
+    """A chunk of a logarithmic-Hamiltonian map as :func:`fan_out` takes
+    it (it runs to its end: never interrupted inside)."""
+
+    out: Any
+    interrupted: bool = False
+
+
+def _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h):
+    """The accuracy verdict of a logarithmic-Hamiltonian map and its final
+    relative energy errors: the errors of the conserved quantities
+    (:class:`varint.accuracy.Reference`, as every map measures them) at the
+    final states and at each orbit's output state furthest from its initial
+    energy (:class:`~varint.time_transform.LHOutputs`), the larger of the
+    two the orbit's largest over its outputs; an orbit is accurate if it
+    did not fail and every quantity is within ``energy_tol``. An orbit
+    that was not computed (an interrupted map) has NaN errors."""
+    ref = accuracy.Reference(model, X)
+    with np.errstate(invalid="ignore"):
+        final = ref.errors(state)
+        worst = ref.errors(x_worst)
+    largest = {key: np.fmax(final[key], worst[key]) for key in final}
+    failed = is_failure(status)
+    for errors in (final, largest):   # nothing of a failed orbit passes for a value
+        for v in errors.values():
+            v[failed] = np.nan
+    conserved = {("energy" if key == "energy_error" else key.split(":", 1)[1]): v
+                 for key, v in largest.items()}
+    with np.errstate(invalid="ignore"):
+        accurate = ~failed & (np.fmax.reduce(list(largest.values())) <= energy_tol)
+    verdict = accuracy.Accuracy(energy_error=largest["energy_error"], conserved=conserved,
+                                t_worst=np.where(failed, np.nan, t_worst),
+                                energy_tol=energy_tol, accurate=accurate, tau=h)
+    return accuracy.annotate(verdict, model), final["energy_error"]
