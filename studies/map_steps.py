@@ -68,6 +68,9 @@ Parts (``--part``):
     each normalisation time) and microseconds per step. The LH step is the
     generic numba kernel, not a generated stepper, and has no automatic h:
     the rows are the race of fixed h (the "tuned" contenders of the issue).
+    "varint defaults" is the LH at its automatic h where the defaults
+    choose it (its ``method`` "tm+log"), and "varint constant steps" the
+    map with ``time_transform=None``.
     Quick maps, load 8–10 (``map_steps_quick_log.json``): CR3BP ABA864
     h = 1.6 0.93× at 100 % agreement (197 steps per orbit; defaults 0.19×,
     1 600), h = 6.4 2.8× at 98.7 % (68; one orbit of 76 missed); cored
@@ -384,8 +387,12 @@ def log_case(name, quick, repeats):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False)   # compiles
+        # The defaults (the LH at its automatic h where they choose it,
+        # varint.maps._log_default) and constant steps always.
         tasks["varint defaults"] = lambda: varint.chaos_map(model, grid, INDICATOR,
                                                             t_end=t_end, progress=False)
+        tasks["varint constant steps"] = lambda: varint.chaos_map(
+            model, grid, INDICATOR, t_end=t_end, progress=False, time_transform=None)
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -413,8 +420,11 @@ def log_case(name, quick, repeats):
             row["tail_steps"] = int(c[:, 1].sum())
             row["us_per_step"] = 1e6 * seconds / row["steps"]
         elif hasattr(out, "provenance"):
-            row["steps"] = out.provenance.counts["steps"]
+            c = out.provenance.counts
+            row["method"] = out.provenance.method
+            row["steps"] = c["steps"] if "steps" in c else c["lh_steps"] + c["tail_steps"]
             row["steps_per_orbit"] = row["steps"] / len(X)
+            row["tau"] = out.provenance.tau
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}

@@ -1087,6 +1087,32 @@ def _prepared_cost(R):
             f"{load:.0f} on {d['load']['cpus']} cores)")
 
 
+@quote("lh_defaults")
+def _lh_defaults(R):
+    """studies/lh_defaults.py: per FLI map, the spread of U over its
+    initial conditions and the constant-step map's time over the LH map's,
+    both with their automatic steps (pilots included) at the same energy
+    tolerance, with the force evaluations of each."""
+    d = R.json("lh_defaults_quick")
+    parts = []
+    for r in d["rows"]:
+        grads_c = r["constant_gradients"] + r["constant_pilot_gradients"]
+        grads_l = r["log_gradients"] + r["log_pilot_gradients"]
+        parts.append(f"{r['map']} (U spreads {r['u_spread']:.2f}×): the logarithmic Hamiltonian "
+                     f"{ratio(r['time_ratio'])}× the speed of constant steps "
+                     f"({thousands(grads_l)} force evaluations against {thousands(grads_c)}; "
+                     f"{r['agreement']:.0%} of the orbits classified alike)")
+    rows = d["rows"]
+    per = [(r["log_seconds"] / (r["log_gradients"] + r["log_pilot_gradients"]))
+           / (r["constant_seconds"] / (r["constant_gradients"] + r["constant_pilot_gradients"]))
+           for r in rows]
+    load = max(d["load"][0], d["load_end"][0])
+    return ("; ".join(parts) + f". A force evaluation of the LH map cost "
+            f"{min(per):.2g}–{max(per):.2g} times one of the constant-step map "
+            f"({rows[0]['orbits']}–{rows[-1]['orbits']} orbits to t = {rows[0]['t_end']:g}, "
+            f"one thread, machine load up to {load:.0f} on 2 cores)")
+
+
 @quote("lh_race")
 def _lh_race(R):
     """The logarithmic-Hamiltonian step on the chaos maps of

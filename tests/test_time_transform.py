@@ -220,7 +220,6 @@ def test_chaos_map_log_is_the_fli_of_the_same_orbits_in_any_chunks():
 
 @pytest.mark.parametrize("kwargs,message", [
     ({"indicator": "sali"}, "FLI maps only, got indicator 'sali'"),
-    ({"tau": None}, "needs tau, the step h in the fictitious time .* got None"),
     ({"tau": -0.1}, r"tau \(the fictitious step h\) must be a positive finite number, got -0.1"),
     ({"backend": "cuda"}, "CPU only, got backend 'cuda'"),
     ({"scheme": "SBAB2C"}, "two-part scheme without a corrector or processor, got 'SBAB2C'"),

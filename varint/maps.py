@@ -44,6 +44,7 @@ days). A full or unwritable directory costs one warning: the map goes on.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import numbers
 import os
@@ -67,11 +68,14 @@ from .protocol import STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import Run
 from .runspec import RunSpec, check_seed, described, specify
+from .schemes import get_scheme
 from .grids import SectionGrid
 from .state import initial_deviations
 from .store import Invalid, Store
 
 __all__ = ["chaos_map", "MAP_SCHEME", "MAP_PILOT_TOL", "pilot_tolerance"]
+
+_log = logging.getLogger(__name__)
 
 #: The scheme of a map whose step is chosen automatically, and the energy
 #: error its pilot must meet: for each of the SALI, MEGNO and FLI maps of the
@@ -310,7 +314,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
               progress: bool | None = None, escape_radius: float | None = None,
-              energy_tol: float | None = None, time_transform: str | None = None,
+              energy_tol: float | None = None, time_transform: str | None = "auto",
               **options: Any) -> ChaosMapResult:
     """An indicator for many initial conditions (final SALI, GALI_k, X1,
     MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
@@ -378,16 +382,25 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         terminal).
     escape_radius : float, optional
         Stop orbits whose |q| exceeds this (they count as failed).
-    time_transform : None or "log"
+    time_transform : "auto", None or "log"
         "log": FLI maps with steps that follow the orbit, the logarithmic
         Hamiltonian of :class:`varint.time_transform.LogHamiltonian`
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
-        ``checkpoint``). ``tau`` is then the step h in the fictitious
-        time s, required (there is no automatic choice yet); the options
-        ``scheme`` (a two-part scheme without corrector or processor,
-        default ABA864), ``offset`` (δ of C = E + δ) and ``every`` (the
-        physical time between normalisations of the vector, default 10).
+        ``checkpoint``). ``tau`` is then the step h in the fictitious time
+        s, by default chosen by a pilot to the map's energy tolerance
+        (:func:`varint.time_transform_step.choose_h`,
+        ``provenance.tau_choice``); the options ``scheme`` (a two-part
+        scheme without corrector or processor, default ABA864), ``offset``
+        (δ of C = E + δ) and ``every`` (the physical time between
+        normalisations of the vector, default 10). "auto" (the default): an
+        FLI map with no τ, scheme or other option, of a model the LH takes
+        and whose U spreads more than :data:`LOG_SPREAD` over the initial
+        conditions, takes the LH when its pilot's h costs fewer force
+        evaluations per unit time than the constant step's pilot (the
+        result's method is then "tm+log", and the ``varint.maps`` logger
+        says so); every other map keeps constant steps. None: constant
+        steps always.
 
     Returns
     -------
@@ -420,7 +433,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              checkpoint="hh_sali_map")
     """
     start = time.perf_counter()
-    if time_transform is not None:
+    auto = isinstance(time_transform, str) and time_transform == "auto"
+    if time_transform is not None and not auto:
         return _log_map(model, initial_conditions, indicator, t_end=t_end, tau=tau,
                         method=method, threshold=threshold, seed=seed, t_check=t_check,
                         chunk_size=chunk_size, client=client, checkpoint=checkpoint,
@@ -455,7 +469,17 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
+    lh_candidate = auto and _log_candidate(model, X, ind, tau, method, options, threshold,
+                                           t_check, client, checkpoint, escape_radius)
     spec, divisions = _with_step(spec, k, clock, per_orbit)
+    if lh_candidate:
+        h_choice = _log_default(spec, X, clock)
+        if h_choice is not None:
+            return _log_map(model, initial_conditions, ind.name, t_end=t_end, tau=h_choice["h"],
+                            method=method, threshold=threshold, seed=seed, t_check=None,
+                            chunk_size=chunk_size, client=None, checkpoint=None,
+                            progress=progress, escape_radius=None, energy_tol=energy_tol,
+                            time_transform="log", h_choice=h_choice)
     shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -492,6 +516,75 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, spec.method, what="the chaos map")
     return result
+
+
+#: The defaults consider the logarithmic Hamiltonian for a map whose
+#: U = C − V spreads more than this over its initial conditions
+#: (:func:`varint.time_transform_step.u_spread`): Hénon–Heiles at E = 1/8
+#: spreads 1.12, the cored logarithmic potentials and the three-body map of
+#: ``studies/lh_defaults.py`` 2.0–2.8. Only a candidate runs the LH pilot;
+#: it is chosen where that pilot's cost per unit time at its h undercuts
+#: the constant step's (:func:`_log_default`).
+LOG_SPREAD = 1.5
+
+
+#: What a force evaluation of the LH stepper costs, in those of the
+#: generated constant-step stepper, with all the work of its step around it
+#: (``studies/lh_defaults.py``: seconds per force evaluation of the two
+#: automatic maps, pilots included). The LH wins only where its pilot's
+#: rate of force evaluations times this undercuts the constant step's.
+LOG_GRADIENT_COST = 5.0
+
+
+def _log_candidate(model, X, ind, tau, method, options, threshold, t_check, client, checkpoint,
+                   escape_radius):
+    """Whether a map with ``time_transform="auto"`` may take the
+    logarithmic Hamiltonian: an FLI map with every default the LH map
+    keeps (no τ, scheme or other option, the TM method, no early stopping,
+    check times, cluster, checkpoint or escape radius), of a model of the
+    form it takes, whose U spreads more than :data:`LOG_SPREAD` over the
+    initial conditions. The cheap tests come first, so a Hénon–Heiles map
+    builds nothing for it."""
+    from .time_transform import refuse
+    from .time_transform_step import u_spread
+
+    if (ind.name != "fli" or tau is not None or method != "tm" or options
+            or threshold not in ("default", None) or t_check is not None
+            or client is not None or checkpoint is not None or escape_radius is not None
+            or getattr(model, "kind", "flow") == "map"):
+        return False
+    if not u_spread(model, X) > LOG_SPREAD:
+        return False
+    try:
+        refuse(model)
+    except ValueError:
+        return False
+    return True
+
+
+def _log_default(spec, X, clock):
+    """The LH's automatic step (:func:`varint.time_transform_step.choose_h`)
+    when the map's LH at that step costs less per unit time than the
+    constant step ``spec.tau`` its pilot chose, both to the same energy
+    tolerance: its force evaluations per orbit and time unit, weighted by
+    :data:`LOG_GRADIENT_COST`, against the constant scheme's kicks per step
+    over τ; else None. The choice records both rates and the weight."""
+    from .time_transform_step import choose_h
+
+    with clock.part("pilot"):
+        lh = _log_hamiltonian(spec.model, LOG_MAP_OPTIONS["scheme"], None)
+        h, choice = choose_h(lh, X, spec.t_end, pilot_tolerance(spec.indicator),
+                             quantile=MAP_QUANTILE, seed=spec.seed)
+    constant = get_scheme(spec.method_options["scheme"]).n_kicks / spec.tau
+    choice["constant_gradient_rate"] = constant
+    choice["gradient_cost"] = LOG_GRADIENT_COST
+    if choice["rule"] != "pilot" or not choice["gradient_rate"] * LOG_GRADIENT_COST < constant:
+        return None
+    _log.info("chaos_map: the logarithmic-Hamiltonian step (h = %.4g, %.3g force evaluations "
+              "per orbit and time unit) for the FLI map of %s, against %.3g of constant steps "
+              "tau = %.4g (time_transform=None keeps them)", h, choice["gradient_rate"],
+              spec.model.name, constant, spec.tau)
+    return choice
 
 
 def _threshold(threshold, spec):
@@ -665,7 +758,7 @@ LOG_MAP_OPTIONS = {"scheme": "ABA864", "offset": None, "every": 10.0, "backend":
 
 def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, threshold, seed,
              t_check, chunk_size, client, checkpoint, progress, escape_radius, energy_tol,
-             time_transform, **options):
+             time_transform, h_choice=None, **options):
     """The FLI map of :func:`chaos_map` with ``time_transform="log"``: the
     orbits in chunks (the map's fixed shuffle, :func:`_chunk_size`), each
     chunk one call of :meth:`LogHamiltonian.outputs
@@ -679,7 +772,8 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     the time its last completed step reached. The result carries the final
     states, their energy errors and the accuracy verdict of every map
     (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
-    from .time_transform import TIME_TRANSFORMS, LogHamiltonian, describe, refuse
+    from .time_transform import TIME_TRANSFORMS, describe, refuse
+    from .time_transform_step import choose_h
 
     if time_transform not in TIME_TRANSFORMS:
         raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
@@ -687,10 +781,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     name = indicator.name if isinstance(indicator, Indicator) else indicator
     if name != "fli":
         raise ValueError(f"time_transform='log' computes FLI maps only, got indicator {name!r}")
-    if tau is None:
-        raise ValueError("time_transform='log' needs tau, the step h in the fictitious time "
-                         "(there is no automatic choice yet), got None")
-    h = check.positive_float(tau, "tau (the fictitious step h)")
+    h = None if tau is None else check.positive_float(tau, "tau (the fictitious step h)")
     t_end = check.end_time(t_end)
     model = check.model(model)
     unknown = sorted(set(options) - set(LOG_MAP_OPTIONS))
@@ -728,7 +819,10 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                          f"{int(np.argmin(np.isfinite(X).all(axis=1)))}")
     m = len(X)
     chunk_size = _chunk_size(chunk_size, m, None)
-    lh = LogHamiltonian(model, opts["scheme"], offset=opts["offset"])
+    lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
+    if h is None:
+        h, h_choice = choose_h(lh, X, t_end, pilot_tolerance(INDICATORS["fli"]),
+                               quantile=MAP_QUANTILE, seed=seed)
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     done = {}
@@ -786,7 +880,8 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         versions=package_versions(),
         counts={"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
                 "gradient_evaluations": int(counts[2])},
-        wall_time=time.perf_counter() - start, tau_choice={}, code=identity.code_identity(),
+        wall_time=time.perf_counter() - start, tau_choice={} if h_choice is None else dict(h_choice),
+        code=identity.code_identity(),
         machine=identity.machine(), cpu_time=time.process_time() - cpu)
     empty = np.empty(0)
     result = ChaosMapResult(
@@ -799,6 +894,26 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         log_scale=INDICATORS["fli"].log_scale)
     accuracy.warn(verdict, "tm+log", what="the chaos map")
     return result
+
+
+#: The LH steppers this process built, by model, scheme and offset: each
+#: build loads a new module of the model's kernels, and the stepper's
+#: kernels compile for each new one.
+_LOG_HAMILTONIANS: dict = {}
+
+
+def _log_hamiltonian(model, scheme, offset):
+    """The :class:`~varint.time_transform.LogHamiltonian` of ``model``,
+    ``scheme`` and ``offset``, built once per process (the model by its
+    description, as a map's checkpoint knows it)."""
+    from .time_transform import LogHamiltonian
+
+    key = (repr(model.describe()), str(scheme), offset)
+    if key not in _LOG_HAMILTONIANS:
+        if len(_LOG_HAMILTONIANS) >= 8:   # a few models at a time
+            _LOG_HAMILTONIANS.pop(next(iter(_LOG_HAMILTONIANS)))
+        _LOG_HAMILTONIANS[key] = LogHamiltonian(model, scheme, offset=offset)
+    return _LOG_HAMILTONIANS[key]
 
 
 @dataclass
