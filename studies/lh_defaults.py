@@ -1,8 +1,7 @@
 """When a chaos map's defaults should take the logarithmic-Hamiltonian step
 (issue 27 item 4b): for FLI maps of models whose force varies more or less
 along the orbits, the spread of U = C − V over the map's initial conditions
-(:func:`varint.time_transform_step.u_spread`, the pre-screen the defaults
-use: it needs no LH kernel) against the work of the two automatic choices at
+(:func:`u_spread`) against the work of the two automatic choices at
 the same energy tolerance (the FLI map's pilot tolerance, 1e-7): constant
 steps (``chaos_map`` with ``time_transform=None``: its pilot and its run)
 and the LH at its automatic h (``time_transform="log"``, no tau: its pilot
@@ -10,6 +9,12 @@ and its run), in force evaluations, and seconds one thread each, the
 minimum of the repeats, interleaved. Each map also keeps the energy errors
 both reach (the largest over the orbits) and how often their FLI
 classifications (antimode of the constant-step map's values) agree.
+
+Quick run (load 12–15 on 2 cores, ``lh_defaults_quick.json``): the LH map
+was slower on every map, 0.13× (Hénon–Heiles) to 0.70× (R_c = 0.03, 4.5 times
+fewer force evaluations, each 6.5 times the cost), CR3BP 0.28×: so the
+defaults take the LH only where no constant step meets the tolerance
+(``varint.maps._log_candidate``).
 
 Maps (section grids, t_end = 200, ``--quick``: smaller grids, 2 repeats):
 Hénon–Heiles (E = 1/8), the cored logarithmic potential of
@@ -39,9 +44,21 @@ if __package__ in (None, ""):
 import varint
 from studies.common import interleaved, parse_args, save_json
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
-from varint.time_transform_step import u_spread
 
 T_END = 200.0
+
+
+def u_spread(model, X):
+    """max U / min U over the orbits ``X`` at their starts, U = C − V(q)
+    with each orbit's C of :class:`varint.time_transform.LogHamiltonian`
+    (δ = 1): how strongly the logarithmic Hamiltonian would vary the
+    physical step over the region the map's initial conditions cover. NaN
+    where U ≤ 0 at a start."""
+    n = X.shape[1] // 2
+    with np.errstate(all="ignore"):
+        E = np.asarray(model.conserved(X)["energy"], dtype=float)
+        U = E + np.maximum(-E, 1.0) - np.asarray(model.potential(X[:, :n]), dtype=float)
+    return float(U.max() / U.min()) if np.all(np.isfinite(U)) and np.all(U > 0) else float("nan")
 
 
 def cored(rc):

@@ -69,8 +69,9 @@ Parts (``--part``):
     generic numba kernel, not a generated stepper, and has no automatic h:
     the rows are the race of fixed h (the "tuned" contenders of the issue).
     "varint defaults" is the LH at its automatic h where the defaults
-    choose it (its ``method`` "tm+log"), and "varint constant steps" the
-    map with ``time_transform=None``.
+    choose it (its ``method`` "tm+log"), "varint constant steps" the map
+    with ``time_transform=None`` and "varint LH, automatic h" the map with
+    ``time_transform="log"`` and no τ (its pilot included).
     Quick maps, load 8–10 (``map_steps_quick_log.json``): CR3BP ABA864
     h = 1.6 0.93× at 100 % agreement (197 steps per orbit; defaults 0.19×,
     1 600), h = 6.4 2.8× at 98.7 % (68; one orbit of 76 missed); cored
@@ -393,6 +394,12 @@ def log_case(name, quick, repeats):
                                                             t_end=t_end, progress=False)
         tasks["varint constant steps"] = lambda: varint.chaos_map(
             model, grid, INDICATOR, t_end=t_end, progress=False, time_transform=None)
+        # The LH map at its automatic h (varint.time_transform_step), pilot
+        # included.
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                         time_transform="log")   # compiles
+        tasks["varint LH, automatic h"] = lambda: varint.chaos_map(
+            model, grid, INDICATOR, t_end=t_end, progress=False, time_transform="log")
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"

@@ -1109,8 +1109,20 @@ def _lh_defaults(R):
     load = max(d["load"][0], d["load_end"][0])
     return ("; ".join(parts) + f". A force evaluation of the LH map cost "
             f"{min(per):.2g}–{max(per):.2g} times one of the constant-step map "
-            f"({rows[0]['orbits']}–{rows[-1]['orbits']} orbits to t = {rows[0]['t_end']:g}, "
+            f"({min(r['orbits'] for r in rows)}–{max(r['orbits'] for r in rows)} orbits to "
+            f"t = {rows[0]['t_end']:g}, "
             f"one thread, machine load up to {load:.0f} on 2 cores)")
+
+
+@quote("lh_auto_h")
+def _lh_auto_h(R):
+    """studies/lh_defaults.py: each LH map's automatic h and the largest
+    relative energy error over all its orbits and outputs, against the
+    tolerance its pilot met on a sample."""
+    d = R.json("lh_defaults_quick")
+    parts = [f"{r['map']} h = {r['log_h']:.3g}, largest error {r['log_max_energy_error']:.2g}"
+             for r in d["rows"]]
+    return "; ".join(parts) + " (the pilot's tolerance: 1e-7 at the 90 % quantile)"
 
 
 @quote("lh_race")

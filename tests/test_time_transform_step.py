@@ -2,8 +2,9 @@
 (varint.time_transform_step) and the map defaults that choose it: the h
 chosen on some orbits keeps held-out orbits of the same model within the
 tolerance while twice that h does not; a Hénon–Heiles map never switches;
-a map of a potential with a small core does, says so, and
-``time_transform=None`` keeps constant steps."""
+a map of a softened point mass, which no constant step keeps within the
+tolerance, does, says so, and ``time_transform=None`` keeps constant
+steps."""
 
 import logging
 
@@ -13,11 +14,11 @@ import sympy as sp
 
 import varint
 from varint.accuracy import Reference
-from varint.maps import LOG_SPREAD, MAP_QUANTILE
+from varint.maps import MAP_QUANTILE
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.time_transform import LogHamiltonian
-from varint.time_transform_step import choose_h, u_spread
+from varint.time_transform_step import choose_h
 
 TOL = 1e-6
 
@@ -72,24 +73,6 @@ def test_chosen_h_meets_the_tolerance_on_held_out_orbits(which):
     assert np.quantile(_errors(lh, held_out, t_end, 2 * h), MAP_QUANTILE) > 2 * TOL
 
 
-def test_u_spread_separates_henon_heiles_from_a_small_core():
-    """The pre-screen: U = C − V over a Hénon–Heiles section barely
-    varies; over a small-core potential's section it varies beyond
-    LOG_SPREAD."""
-    hh = varint.models.HenonHeiles()
-    grid = varint.section_grid(hh, 0.125, np.linspace(-0.4, 0.65, 8), np.linspace(-0.4, 0.4, 6))
-    assert u_spread(hh, grid.states) < LOG_SPREAD
-    core = _cored()
-    grid = varint.section_grid(core, 0.0, np.linspace(-0.9, 0.9, 6), np.linspace(-0.9, 0.9, 4),
-                               plane=1)
-    assert u_spread(core, grid.states) > LOG_SPREAD
-
-
-def _cored():
-    x, y = sp.symbols("x y")
-    return from_potential(sp.log(sp.Float(0.03)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2, [x, y])
-
-
 def test_henon_heiles_defaults_never_switch():
     """A Hénon–Heiles FLI map with the defaults is the constant-step map,
     bit for bit (``time_transform=None``)."""
@@ -100,23 +83,26 @@ def test_henon_heiles_defaults_never_switch():
     assert a.provenance.method == "tm" and np.array_equal(a.values, b.values)
 
 
-def test_small_core_defaults_take_the_log_hamiltonian(caplog):
-    """The cored potential's FLI map with the defaults runs the LH at its
-    automatic h, says so (method, the pilot's rates, one log line), and is
-    the explicit LH map at that h bit for bit; time_transform=None keeps
-    constant steps."""
-    core = _cored()
-    grid = varint.section_grid(core, 0.0, np.linspace(-0.9, 0.9, 4), np.linspace(-0.9, 0.9, 3),
-                               plane=1)
+def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
+    """A softened point mass (ε = 1e-3) with eccentric orbits: no constant
+    step meets the map's tolerance (its pilot falls back, and that map's
+    energy errors are O(1) and more), the LH's automatic h does, so the
+    defaults run the LH, say so (method, the pilot's rates, one log line)
+    and give the explicit LH map at that h bit for bit, accurate;
+    time_transform=None keeps constant steps."""
+    model = _model("plummer")
+    X = _plummer_orbits(2, 8)
     with caplog.at_level(logging.INFO, logger="varint.maps"):
-        r = varint.chaos_map(core, grid, "fli", t_end=40.0, progress=False)
+        r = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False)
     assert r.provenance.method == "tm+log"
     choice = r.provenance.tau_choice
-    assert choice["rule"] == "pilot" and choice["gradient_rate"] < choice["constant_gradient_rate"]
+    assert choice["rule"] == "pilot" and choice["replaces"]["rule"] == "fallback"
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
-    explicit = varint.chaos_map(core, grid, "fli", t_end=40.0, progress=False,
+    explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                 time_transform="log", tau=choice["h"])
     assert np.array_equal(r.values, explicit.values, equal_nan=True)
-    assert r.accuracy is not None and r.accuracy.accurate.any()
-    plain = varint.chaos_map(core, grid, "fli", t_end=40.0, progress=False, time_transform=None)
-    assert plain.provenance.method == "tm"
+    assert r.accuracy.accurate.all()
+    with pytest.warns(varint.AccuracyWarning):
+        plain = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
+                                 time_transform=None)
+    assert plain.provenance.method == "tm" and not plain.accuracy.accurate.all()

@@ -68,7 +68,6 @@ from .protocol import STATUS_OK, Status, is_failure
 from .results import ChaosMapResult, Provenance, package_versions
 from .run import Run
 from .runspec import RunSpec, check_seed, described, specify
-from .schemes import get_scheme
 from .grids import SectionGrid
 from .state import initial_deviations
 from .store import Invalid, Store
@@ -394,10 +393,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         scheme without corrector or processor, default ABA864), ``offset``
         (δ of C = E + δ) and ``every`` (the physical time between
         normalisations of the vector, default 10). "auto" (the default): an
-        FLI map with no τ, scheme or other option, of a model the LH takes
-        and whose U spreads more than :data:`LOG_SPREAD` over the initial
-        conditions, takes the LH when its pilot's h costs fewer force
-        evaluations per unit time than the constant step's pilot (the
+        FLI map with no τ, scheme or other option, of a model the LH takes,
+        for which no constant step meets the pilot's tolerance (orbits
+        near a singularity), takes the LH when its automatic h does (the
         result's method is then "tm+log", and the ``varint.maps`` logger
         says so); every other map keeps constant steps. None: constant
         steps always.
@@ -469,17 +467,24 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
-    lh_candidate = auto and _log_candidate(model, X, ind, tau, method, options, threshold,
-                                           t_check, client, checkpoint, escape_radius)
-    spec, divisions = _with_step(spec, k, clock, per_orbit)
-    if lh_candidate:
+    # The constant step's pilot may warn that no step meets the tolerance:
+    # held back until the defaults know whether the LH map replaces it.
+    with warnings.catch_warnings(record=True) as held:
+        warnings.simplefilter("always")
+        spec, divisions = _with_step(spec, k, clock, per_orbit)
+    h_choice = None
+    if auto and _log_candidate(spec, ind, tau, method, options, threshold, t_check, client,
+                               checkpoint, escape_radius):
         h_choice = _log_default(spec, X, clock)
-        if h_choice is not None:
-            return _log_map(model, initial_conditions, ind.name, t_end=t_end, tau=h_choice["h"],
-                            method=method, threshold=threshold, seed=seed, t_check=None,
-                            chunk_size=chunk_size, client=None, checkpoint=None,
-                            progress=progress, escape_radius=None, energy_tol=energy_tol,
-                            time_transform="log", h_choice=h_choice)
+    if h_choice is None:
+        for w in held:
+            warnings.warn(w.message, w.category, stacklevel=accuracy.user_stacklevel())
+    else:
+        return _log_map(model, initial_conditions, ind.name, t_end=t_end, tau=h_choice["h"],
+                        method=method, threshold=threshold, seed=seed, t_check=None,
+                        chunk_size=chunk_size, client=None, checkpoint=None,
+                        progress=progress, escape_radius=None, energy_tol=energy_tol,
+                        time_transform="log", h_choice=h_choice)
     shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -518,42 +523,29 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     return result
 
 
-#: The defaults consider the logarithmic Hamiltonian for a map whose
-#: U = C − V spreads more than this over its initial conditions
-#: (:func:`varint.time_transform_step.u_spread`): Hénon–Heiles at E = 1/8
-#: spreads 1.12, the cored logarithmic potentials and the three-body map of
-#: ``studies/lh_defaults.py`` 2.0–2.8. Only a candidate runs the LH pilot;
-#: it is chosen where that pilot's cost per unit time at its h undercuts
-#: the constant step's (:func:`_log_default`).
-LOG_SPREAD = 1.5
-
-
-#: What a force evaluation of the LH stepper costs, in those of the
-#: generated constant-step stepper, with all the work of its step around it
-#: (``studies/lh_defaults.py``: seconds per force evaluation of the two
-#: automatic maps, pilots included). The LH wins only where its pilot's
-#: rate of force evaluations times this undercuts the constant step's.
-LOG_GRADIENT_COST = 5.0
-
-
-def _log_candidate(model, X, ind, tau, method, options, threshold, t_check, client, checkpoint,
+def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, checkpoint,
                    escape_radius):
-    """Whether a map with ``time_transform="auto"`` may take the
-    logarithmic Hamiltonian: an FLI map with every default the LH map
-    keeps (no τ, scheme or other option, the TM method, no early stopping,
-    check times, cluster, checkpoint or escape radius), of a model of the
-    form it takes, whose U spreads more than :data:`LOG_SPREAD` over the
-    initial conditions. The cheap tests come first, so a Hénon–Heiles map
-    builds nothing for it."""
+    """Whether a map with ``time_transform="auto"`` whose constant step
+    ``spec`` has chosen tries the logarithmic Hamiltonian: an FLI map with
+    every default the LH map keeps (no τ, scheme or other option, the TM
+    method, no early stopping, check times, cluster, checkpoint or escape
+    radius), of a model of the form it takes, for which no constant step
+    met the tolerance (its pilot fell back: orbits that pass near a
+    singularity). Where a constant step meets it, the LH at its own
+    automatic h was slower on every map measured (``studies/lh_defaults.py``:
+    Hénon–Heiles, cored logarithmic potentials with R_c = 0.3, 0.1, 0.03,
+    the Sun–Jupiter three-body section; up to 4.5 times fewer force
+    evaluations, but each 4–6.5 times the cost of the generated constant-step
+    stepper's). The cheap tests come first: a map whose constant step met
+    the tolerance builds nothing for it."""
     from .time_transform import refuse
-    from .time_transform_step import u_spread
 
+    model = spec.model
     if (ind.name != "fli" or tau is not None or method != "tm" or options
             or threshold not in ("default", None) or t_check is not None
             or client is not None or checkpoint is not None or escape_radius is not None
-            or getattr(model, "kind", "flow") == "map"):
-        return False
-    if not u_spread(model, X) > LOG_SPREAD:
+            or getattr(model, "kind", "flow") == "map"
+            or spec.tau_choice.get("rule") != "fallback"):
         return False
     try:
         refuse(model)
@@ -563,27 +555,23 @@ def _log_candidate(model, X, ind, tau, method, options, threshold, t_check, clie
 
 
 def _log_default(spec, X, clock):
-    """The LH's automatic step (:func:`varint.time_transform_step.choose_h`)
-    when the map's LH at that step costs less per unit time than the
-    constant step ``spec.tau`` its pilot chose, both to the same energy
-    tolerance: its force evaluations per orbit and time unit, weighted by
-    :data:`LOG_GRADIENT_COST`, against the constant scheme's kicks per step
-    over τ; else None. The choice records both rates and the weight."""
+    """The LH's automatic step (:func:`varint.time_transform_step.choose_h`,
+    to the tolerance the constant step's pilot missed) when its pilot meets
+    it, else None; the choice records the constant step it replaces."""
     from .time_transform_step import choose_h
 
     with clock.part("pilot"):
         lh = _log_hamiltonian(spec.model, LOG_MAP_OPTIONS["scheme"], None)
         h, choice = choose_h(lh, X, spec.t_end, pilot_tolerance(spec.indicator),
                              quantile=MAP_QUANTILE, seed=spec.seed)
-    constant = get_scheme(spec.method_options["scheme"]).n_kicks / spec.tau
-    choice["constant_gradient_rate"] = constant
-    choice["gradient_cost"] = LOG_GRADIENT_COST
-    if choice["rule"] != "pilot" or not choice["gradient_rate"] * LOG_GRADIENT_COST < constant:
+    if choice["rule"] != "pilot":
         return None
-    _log.info("chaos_map: the logarithmic-Hamiltonian step (h = %.4g, %.3g force evaluations "
-              "per orbit and time unit) for the FLI map of %s, against %.3g of constant steps "
-              "tau = %.4g (time_transform=None keeps them)", h, choice["gradient_rate"],
-              spec.model.name, constant, spec.tau)
+    choice["replaces"] = {"scheme": spec.method_options["scheme"], "tau": spec.tau,
+                          "rule": spec.tau_choice["rule"]}
+    _log.info("chaos_map: no constant step of %s meets the energy tolerance %g on the FLI map "
+              "of %s; the logarithmic-Hamiltonian step does (h = %.4g): running it "
+              "(time_transform=None keeps constant steps)", spec.method_options["scheme"],
+              choice["tolerance"], spec.model.name, h)
     return choice
 
 

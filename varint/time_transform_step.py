@@ -14,7 +14,10 @@ tolerance. The steps tried are h = h₀·2^(j/4), j = 0, −1, …, with h₀ th
 median over the sample of U(q₀) = C − V(q₀) (one time unit of physical
 time per step where the orbits start, the largest constant step of a pilot):
 a rung that misses predicts the next from the scheme's order p (error ∝
-h^p) and the search climbs back one rung at a time, so it ends on the
+h^p), descending at most a factor 4 at once (a softened point mass at
+h₀ has saturated errors ~5e3: predicted from there, the next rung was 35
+rungs down, nine below the answer), and the search then bisects the rungs
+between the largest that met it and the smallest that did not, so it ends on the
 largest rung that met the tolerance with a failing rung just above it.
 When the error does not shrink with h (an orbit escapes, or C is too low
 for it) no h helps: the map runs at the smallest rung tried and its
@@ -36,11 +39,13 @@ import numpy as np
 from .accuracy import Reference
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
-__all__ = ["choose_h", "pilot_errors", "u_spread"]
+__all__ = ["choose_h", "pilot_errors"]
 
-#: The search gives up below this fraction of h₀ (2^-20: a million times
-#: the pilot's steps at h₀).
-SMALLEST = 2.0**-20
+#: The most rungs one prediction descends (a factor 4 in h).
+MAX_DROP = 2 * RUNGS
+#: The search gives up below this fraction of h₀ (2^-12: 4096 times the
+#: pilot's steps at h₀, ~4e5 per orbit of a pilot of 100 time units).
+SMALLEST = 2.0**-12
 
 
 def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
@@ -111,11 +116,19 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
         if best is not None:
             if best == 0 or best + 1 == lowest_fail:
                 break
-            j = best + 1
+            # Halve the gap to the lowest failing rung (the error need not
+            # follow h^p between them: a pericentre resolved or not).
+            j = best + (1 if lowest_fail is None else max(1, (lowest_fail - best) // 2))
             continue
+        # At most a factor 4 at once: at long steps the error saturates
+        # (far from h^p), and a prediction from there lands far too low,
+        # from where the climb back costs a pilot per rung.
         drop = (RUNGS * math.log2(e / tolerance) / order if math.isfinite(e) else RUNGS * 4)
-        nxt = j - max(1, math.ceil(drop))
-        shrinking = all(not (k >= j + RUNGS) or e <= v / 2 for k, v in tried.items())
+        nxt = j - min(MAX_DROP, max(1, math.ceil(drop)))
+        # Halving h (or more) must halve the error, once the error is below
+        # 1: above, it has saturated and says nothing of the order.
+        shrinking = e >= 1.0 or all(not (k >= j + RUNGS) or e <= v / 2
+                                    for k, v in tried.items())
         if not shrinking or rung(nxt) < SMALLEST * h0:
             break
         j = nxt
@@ -134,22 +147,3 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
     choice.update(rule="pilot", h=h, gradient_rate=work[best] / (len(sample) * t_pilot))
     return h, choice
 
-
-def u_spread(model, X, offset=None):
-    """max U / min U over the orbits ``X`` (M, 2N) at their starts, U =
-    C − V(q) with each orbit's C of :class:`~varint.time_transform.LogHamiltonian`
-    (``offset`` its δ): how strongly the logarithmic Hamiltonian would
-    vary the physical step over the region a map's initial conditions
-    cover (a section grid samples the region its orbits cross). NumPy only,
-    no LH kernel: the pre-screen of a map's defaults. NaN where U ≤ 0 at a
-    start (C below V there: the LH does not apply) or an energy is not
-    finite."""
-    X = np.asarray(X, dtype=float)
-    n = X.shape[1] // 2
-    with np.errstate(all="ignore"):
-        E = np.asarray(model.conserved(X)["energy"], dtype=float)
-        C = E + (np.maximum(-E, 1.0) if offset is None else float(offset))
-        U = C - np.asarray(model.potential(X[:, :n]), dtype=float)
-    if not (np.all(np.isfinite(U)) and np.all(U > 0)):
-        return math.nan
-    return float(U.max() / U.min())
