@@ -107,3 +107,14 @@ def test_a_stopped_orbit_has_no_error_and_is_not_accurate():
     assert not r.accuracy.accurate[9] and r.accuracy.accurate[np.arange(12) != 9].all()
     assert np.isfinite(r.state).all() and 0.0 <= r.t_stop[9] < 20.0
     assert np.isfinite(np.delete(r.energy_error, 9)).all()
+
+
+def test_outputs_refuse_bad_steps_and_intervals(plummer):
+    """Refused in one line before any kernel runs: a non-positive output
+    interval (which would never end) and a non-positive per-orbit h."""
+    lh = LogHamiltonian(plummer, "ABA864")
+    X = _orbits(2, 2)
+    with pytest.raises(ValueError, match="every must be a finite number > 0, got 0"):
+        lh.outputs(X, None, 1.0, 0.1, every=0)
+    with pytest.raises(ValueError, match=r"h must be finite numbers > 0, got \[0.1, -0.1\]"):
+        lh.outputs(X, None, 1.0, [0.1, -0.1])

@@ -868,8 +868,8 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         versions=package_versions(),
         counts={"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
                 "gradient_evaluations": int(counts[2])},
-        wall_time=time.perf_counter() - start, tau_choice={} if h_choice is None else dict(h_choice),
-        code=identity.code_identity(),
+        wall_time=time.perf_counter() - start,
+        tau_choice={} if h_choice is None else dict(h_choice), code=identity.code_identity(),
         machine=identity.machine(), cpu_time=time.process_time() - cpu)
     empty = np.empty(0)
     result = ChaosMapResult(

@@ -338,6 +338,9 @@ class LogHamiltonian:
         hs = np.array(np.broadcast_to(np.asarray(h, dtype=float), (M,)))
         if not (np.all(np.isfinite(hs)) and np.all(hs > 0)):
             raise ValueError(f"h must be finite numbers > 0, got {h!r}")
+        if isinstance(every, bool) or not isinstance(every, numbers.Real) \
+                or not float(every) > 0.0 or not np.isfinite(every):
+            raise ValueError(f"every must be a finite number > 0, got {every!r}")
         every = float(every)
         C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M).copy()
         pt = -self.energy(X)
