@@ -1125,6 +1125,26 @@ def _lh_auto_h(R):
     return "; ".join(parts) + " (the pilot's tolerance: 1e-7 at the 90 % quantile)"
 
 
+@quote("lh_auto_race")
+def _lh_auto_race(R):
+    """studies/map_steps.py part log on branch lhauto7's code: the LH map at
+    its automatic h and the defaults against heyoka batch 8 at equal
+    agreement, per map measured."""
+    d = R.json("lh_auto_race_quick")["log"]
+    rows = {(r["map"], r["contender"]): r for r in d["rows"]}
+    parts = []
+    for name, s in d["summary"].items():
+        auto, dflt = s["varint LH, automatic h"], s["varint defaults"]
+        r = rows[name, "varint LH, automatic h"]
+        parts.append(f"{name} ({r['orbits']} orbits to t = {r['t_end']:g}): the LH at its "
+                     f"automatic h (h = {r['tau']:.3g}, "
+                     f"{thousands(round(r['steps_per_orbit']))} steps per orbit) "
+                     f"{ratio(auto['ratio'])}× heyoka at {auto['varint_agreement']:.0%} "
+                     f"agreement, the defaults {ratio(dflt['ratio'])}×")
+    load = max(d["load"][0], d["load_end"][0])
+    return "; ".join(parts) + f" (one thread, machine load up to {load:.0f} on 2 cores)"
+
+
 @quote("lh_race")
 def _lh_race(R):
     """The logarithmic-Hamiltonian step on the chaos maps of
