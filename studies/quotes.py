@@ -1090,6 +1090,64 @@ def _prepared_cost(R):
             f"minimum of {d['calls']} calls, load {load:.0f} on {d['load']['cpus']} cores)")
 
 
+@quote("lh_defaults")
+def _lh_defaults(R):
+    """studies/lh_defaults.py: per FLI map, the spread of U over its
+    initial conditions and the constant-step map's time over the LH map's,
+    both with their automatic steps (pilots included) at the same energy
+    tolerance, with the force evaluations of each."""
+    d = R.json("lh_defaults_quick")
+    parts = []
+    for r in d["rows"]:
+        grads_c = r["constant_gradients"] + r["constant_pilot_gradients"]
+        grads_l = r["log_gradients"] + r["log_pilot_gradients"]
+        parts.append(f"{r['map']} (U spreads {r['u_spread']:.2f}×): the logarithmic Hamiltonian "
+                     f"{ratio(r['time_ratio'])}× the speed of constant steps "
+                     f"({thousands(grads_l)} force evaluations against {thousands(grads_c)}; "
+                     f"{r['agreement']:.0%} of the orbits classified alike)")
+    rows = d["rows"]
+    per = [(r["log_seconds"] / (r["log_gradients"] + r["log_pilot_gradients"]))
+           / (r["constant_seconds"] / (r["constant_gradients"] + r["constant_pilot_gradients"]))
+           for r in rows]
+    load = max(d["load"][0], d["load_end"][0])
+    return ("; ".join(parts) + f". A force evaluation of the LH map cost "
+            f"{min(per):.2g}–{max(per):.2g} times one of the constant-step map "
+            f"({min(r['orbits'] for r in rows)}–{max(r['orbits'] for r in rows)} orbits to "
+            f"t = {rows[0]['t_end']:g}, "
+            f"one thread, machine load up to {load:.0f} on 2 cores)")
+
+
+@quote("lh_auto_h")
+def _lh_auto_h(R):
+    """studies/lh_defaults.py: each LH map's automatic h and the largest
+    relative energy error over all its orbits and outputs, against the
+    tolerance its pilot met on a sample."""
+    d = R.json("lh_defaults_quick")
+    parts = [f"{r['map']} h = {r['log_h']:.3g}, largest error {r['log_max_energy_error']:.2g}"
+             for r in d["rows"]]
+    return "; ".join(parts) + " (the pilot's tolerance: 1e-7 at the 90 % quantile)"
+
+
+@quote("lh_auto_race")
+def _lh_auto_race(R):
+    """studies/map_steps.py part log on branch lhauto7's code: the LH map at
+    its automatic h and the defaults against heyoka batch 8 at equal
+    agreement, per map measured."""
+    d = R.json("lh_auto_race_quick")["log"]
+    rows = {(r["map"], r["contender"]): r for r in d["rows"]}
+    parts = []
+    for name, s in d["summary"].items():
+        auto, dflt = s["varint LH, automatic h"], s["varint defaults"]
+        r = rows[name, "varint LH, automatic h"]
+        parts.append(f"{name} ({r['orbits']} orbits to t = {r['t_end']:g}): the LH at its "
+                     f"automatic h (h = {r['tau']:.3g}, "
+                     f"{thousands(round(r['steps_per_orbit']))} steps per orbit) "
+                     f"{ratio(auto['ratio'])}× heyoka at {auto['varint_agreement']:.0%} "
+                     f"agreement, the defaults {ratio(dflt['ratio'])}×")
+    load = max(d["load"][0], d["load_end"][0])
+    return "; ".join(parts) + f" (one thread, machine load up to {load:.0f} on 2 cores)"
+
+
 @quote("lh_race")
 def _lh_race(R):
     """The logarithmic-Hamiltonian step on the chaos maps of

@@ -272,12 +272,12 @@ def test_chaos_map_log_is_the_fli_of_the_same_orbits_in_any_chunks():
                           "logarithmic Hamiltonian .*U = C − V"):
             maps.append(chaos_map(model, X, "fli", t_end=20.0, tau=0.2, time_transform="log",
                                   seed=3, scheme="ABA864", offset=0.5, every=5.0,
-                                  chunk_size=size, progress=False))
+                                  chunk_size=size, progress=False, energy_tol=math.inf))
     for r in maps:
         assert np.array_equal(r.values, values, equal_nan=True)
         assert np.array_equal(r.status, np.where(status < 0, int(Status.INTEGRATOR_FAILED),
                                                  status))
-        assert np.isnan(r.values[9]) and np.isnan(r.t_stop[9])
+        assert np.isnan(r.values[9]) and 0.0 <= r.t_stop[9] < 20.0   # where it stopped
         assert (np.delete(r.t_stop, 9) == 20.0).all()
         prov = r.provenance
         assert prov.method == "tm+log" and prov.tau == 0.2 and prov.seed == 3
@@ -289,7 +289,6 @@ def test_chaos_map_log_is_the_fli_of_the_same_orbits_in_any_chunks():
 
 @pytest.mark.parametrize("kwargs,message", [
     ({"indicator": "sali"}, "FLI maps only, got indicator 'sali'"),
-    ({"tau": None}, "needs tau, the step h in the fictitious time .* got None"),
     ({"tau": -0.1}, r"tau \(the fictitious step h\) must be a positive finite number, got -0.1"),
     ({"backend": "cuda"}, "CPU only, got backend 'cuda'"),
     ({"scheme": "SBAB2C"}, "two-part scheme without a corrector or processor, got 'SBAB2C'"),

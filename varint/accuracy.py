@@ -445,6 +445,9 @@ def assess(t, errors, status, energy_tol, tau, single):
 
 def advice(tau, method="tm"):
     """What to do about an inaccurate run, for the warnings."""
+    if method == "tm+log":
+        return (f"use a smaller fictitious step h (tau = {tau / 2:g} cuts a p-th order "
+                "scheme's error 2^p times)")
     if method not in ("tm", "tdhcc", "tdhes", "tdheps"):
         return "tighten the method's tolerances"
     return (f"use a smaller tau (tau = {tau / 2:g} cuts a p-th order scheme's error 2^p "
@@ -480,7 +483,9 @@ def warn(accuracy, method="tm", what="the run"):
     worst = np.atleast_1d(accuracy.worst)
     m = int(np.nanargmax(np.where(over, worst, -np.inf)))
     t = float(np.atleast_1d(accuracy.t_worst)[m])
-    step = int(round(t / accuracy.tau)) if np.isfinite(t) and accuracy.tau > 0 else None
+    # (A logarithmic-Hamiltonian step is not a fixed interval of t.)
+    step = (int(round(t / accuracy.tau)) if np.isfinite(t) and accuracy.tau > 0
+            and method != "tm+log" else None)
     names = [k for k, v in accuracy.conserved.items()
              if np.atleast_1d(v)[m] > accuracy.energy_tol]
     quantity = "energy" if names == ["energy"] or not names else " and ".join(names)

@@ -44,6 +44,7 @@ days). A full or unwritable directory costs one warning: the map goes on.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import numbers
 import os
@@ -72,6 +73,8 @@ from .state import initial_deviations
 from .store import Invalid, Store
 
 __all__ = ["chaos_map", "MAP_SCHEME", "MAP_PILOT_TOL", "pilot_tolerance"]
+
+_log = logging.getLogger(__name__)
 
 #: The scheme of a map whose step is chosen automatically, and the energy
 #: error its pilot must meet: for each of the SALI, MEGNO and FLI maps of the
@@ -312,7 +315,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
               t_check: int | ArrayLike | None = None, chunk_size: int | None = None,
               client: Any = None, checkpoint: str | os.PathLike[str] | None = None,
               progress: bool | None = None, escape_radius: float | None = None,
-              energy_tol: float | None = None, time_transform: str | None = None,
+              energy_tol: float | None = None, time_transform: str | None = "auto",
               **options: Any) -> ChaosMapResult:
     """An indicator for many initial conditions (final SALI, GALI_k, X1,
     MEGNO, FLI, OFLI, local exponents, or any registered indicator with a
@@ -380,16 +383,24 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         terminal).
     escape_radius : float, optional
         Stop orbits whose |q| exceeds this (they count as failed).
-    time_transform : None or "log"
+    time_transform : "auto", None or "log"
         "log": FLI maps with steps that follow the orbit, the logarithmic
         Hamiltonian of :class:`varint.time_transform.LogHamiltonian`
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
-        ``checkpoint``). ``tau`` is then the step h in the fictitious
-        time s, required (there is no automatic choice yet); the options
-        ``scheme`` (a two-part scheme without corrector or processor,
-        default ABA864), ``offset`` (δ of C = E + δ) and ``every`` (the
-        physical time between normalisations of the vector, default 10).
+        ``checkpoint``). ``tau`` is then the step h in the fictitious time
+        s, by default chosen by a pilot to the map's energy tolerance
+        (:func:`varint.time_transform_step.choose_h`,
+        ``provenance.tau_choice``); the options ``scheme`` (a two-part
+        scheme without corrector or processor, default ABA864), ``offset``
+        (δ of C = E + δ) and ``every`` (the physical time between
+        normalisations of the vector, default 10). "auto" (the default): an
+        FLI map with no τ, scheme or other option, of a model the LH takes,
+        for which no constant step meets the pilot's tolerance (orbits
+        near a singularity), takes the LH when its automatic h does (the
+        result's method is then "tm+log", and the ``varint.maps`` logger
+        says so); every other map keeps constant steps. None: constant
+        steps always.
 
     Returns
     -------
@@ -422,7 +433,8 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                              checkpoint="hh_sali_map")
     """
     start = time.perf_counter()
-    if time_transform is not None:
+    auto = isinstance(time_transform, str) and time_transform == "auto"
+    if time_transform is not None and not auto:
         return _log_map(model, initial_conditions, indicator, t_end=t_end, tau=tau,
                         method=method, threshold=threshold, seed=seed, t_check=t_check,
                         chunk_size=chunk_size, client=client, checkpoint=checkpoint,
@@ -457,7 +469,24 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
-    spec, divisions = _with_step(spec, k, clock, per_orbit)
+    # The constant step's pilot may warn that no step meets the tolerance:
+    # held back until the defaults know whether the LH map replaces it.
+    with warnings.catch_warnings(record=True) as held:
+        warnings.simplefilter("always")
+        spec, divisions = _with_step(spec, k, clock, per_orbit)
+    h_choice = None
+    if auto and _log_candidate(spec, ind, tau, method, options, threshold, t_check, client,
+                               checkpoint, escape_radius):
+        h_choice = _log_default(spec, X, clock)
+    if h_choice is None:
+        for w in held:
+            warnings.warn(w.message, w.category, stacklevel=accuracy.user_stacklevel())
+    else:
+        return _log_map(model, initial_conditions, ind.name, t_end=t_end, tau=h_choice["h"],
+                        method=method, threshold=threshold, seed=seed, t_check=None,
+                        chunk_size=chunk_size, client=None, checkpoint=None,
+                        progress=progress, escape_radius=None, energy_tol=energy_tol,
+                        time_transform="log", h_choice=h_choice)
     shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -496,6 +525,58 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     result.provenance.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     accuracy.warn(result.accuracy, spec.method, what="the chaos map")
     return result
+
+
+def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, checkpoint,
+                   escape_radius):
+    """Whether a map with ``time_transform="auto"`` whose constant step
+    ``spec`` has chosen tries the logarithmic Hamiltonian: an FLI map with
+    every default the LH map keeps (no τ, scheme or other option, the TM
+    method, no early stopping, check times, cluster, checkpoint or escape
+    radius), of a model of the form it takes, for which no constant step
+    met the tolerance (its pilot fell back: orbits that pass near a
+    singularity). Where a constant step meets it, the LH at its own
+    automatic h was slower on every map measured (``studies/lh_defaults.py``:
+    Hénon–Heiles, cored logarithmic potentials with R_c = 0.3, 0.1, 0.03,
+    the Sun–Jupiter three-body section; up to 4.5 times fewer force
+    evaluations, but each 4–6.5 times the cost of the generated constant-step
+    stepper's). The cheap tests come first: a map whose constant step met
+    the tolerance builds nothing for it."""
+    from .time_transform import refuse
+
+    model = spec.model
+    if (ind.name != "fli" or tau is not None or method != "tm" or options
+            or threshold not in ("default", None) or t_check is not None
+            or client is not None or checkpoint is not None or escape_radius is not None
+            or getattr(model, "kind", "flow") == "map"
+            or spec.tau_choice.get("rule") != "fallback"):
+        return False
+    try:
+        refuse(model)
+    except ValueError:
+        return False
+    return True
+
+
+def _log_default(spec, X, clock):
+    """The LH's automatic step (:func:`varint.time_transform_step.choose_h`,
+    to the tolerance the constant step's pilot missed) when its pilot meets
+    it, else None; the choice records the constant step it replaces."""
+    from .time_transform_step import choose_h
+
+    with clock.part("pilot"):
+        lh = _log_hamiltonian(spec.model, LOG_MAP_OPTIONS["scheme"], None)
+        h, choice = choose_h(lh, X, spec.t_end, pilot_tolerance(spec.indicator),
+                             quantile=MAP_QUANTILE, seed=spec.seed)
+    if choice["rule"] != "pilot":
+        return None
+    choice["replaces"] = {"scheme": spec.method_options["scheme"], "tau": spec.tau,
+                          "rule": spec.tau_choice["rule"]}
+    _log.info("chaos_map: no constant step of %s meets the energy tolerance %g on the FLI map "
+              "of %s; the logarithmic-Hamiltonian step does (h = %.4g): running it "
+              "(time_transform=None keeps constant steps)", spec.method_options["scheme"],
+              choice["tolerance"], spec.model.name, h)
+    return choice
 
 
 def _threshold(threshold, spec):
@@ -669,20 +750,22 @@ LOG_MAP_OPTIONS = {"scheme": "ABA864", "offset": None, "every": 10.0, "backend":
 
 def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, threshold, seed,
              t_check, chunk_size, client, checkpoint, progress, escape_radius, energy_tol,
-             time_transform, **options):
+             time_transform, h_choice=None, **options):
     """The FLI map of :func:`chaos_map` with ``time_transform="log"``: the
     orbits in chunks (the map's fixed shuffle, :func:`_chunk_size`), each
-    chunk one call of :meth:`LogHamiltonian.fli
-    <varint.time_transform.LogHamiltonian.fli>` from orbit m's vector of
+    chunk one call of :meth:`LogHamiltonian.outputs
+    <varint.time_transform.LogHamiltonian.outputs>` from orbit m's vector of
     ``default_rng([seed, m])``, so a value does not depend on the chunking.
     Everything it does not support is refused in one line before any work.
     A failed orbit's value is NaN; its status is the map's
     ``INTEGRATOR_FAILED`` for the LH's own stops (U ≤ 0, the step budget),
     whose reasons ``provenance.options["lh_failures"]`` counts, or the
-    :class:`~varint.protocol.Status` the step reported. The final states
-    and energy errors are not computed (NaN), nor the time of a failure
-    (``t_stop`` NaN)."""
-    from .time_transform import TIME_TRANSFORMS, LogHamiltonian, describe, refuse
+    :class:`~varint.protocol.Status` the step reported, and its ``t_stop``
+    the time its last completed step reached. The result carries the final
+    states, their energy errors and the accuracy verdict of every map
+    (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
+    from .time_transform import TIME_TRANSFORMS, describe, refuse
+    from .time_transform_step import choose_h
 
     if time_transform not in TIME_TRANSFORMS:
         raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
@@ -690,10 +773,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     name = indicator.name if isinstance(indicator, Indicator) else indicator
     if name != "fli":
         raise ValueError(f"time_transform='log' computes FLI maps only, got indicator {name!r}")
-    if tau is None:
-        raise ValueError("time_transform='log' needs tau, the step h in the fictitious time "
-                         "(there is no automatic choice yet), got None")
-    h = check.positive_float(tau, "tau (the fictitious step h)")
+    h = None if tau is None else check.positive_float(tau, "tau (the fictitious step h)")
     t_end = check.end_time(t_end)
     model = check.model(model)
     unknown = sorted(set(options) - set(LOG_MAP_OPTIONS))
@@ -710,14 +790,14 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                                  ("threshold", threshold, "default or None"),
                                  ("t_check", t_check, None), ("client", client, None),
                                  ("checkpoint", checkpoint, None),
-                                 ("escape_radius", escape_radius, None),
-                                 ("energy_tol", energy_tol, None)):
+                                 ("escape_radius", escape_radius, None)):
         fine = (value in ("default", None) if what == "threshold"
                 else value is None if allowed is None else value == allowed)
         if not fine:
             raise ValueError(f"time_transform='log' does not take {what}={value!r} (yet): "
                              f"give {allowed!r}")
     seed = check_seed(seed, none=False)
+    energy_tol = accuracy.energy_tolerance(energy_tol)
     refuse(model, opts["scheme"], opts["offset"])
     grid = initial_conditions if isinstance(initial_conditions, SectionGrid) else None
     if grid is not None and grid.states.size == 0:
@@ -731,7 +811,10 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                          f"{int(np.argmin(np.isfinite(X).all(axis=1)))}")
     m = len(X)
     chunk_size = _chunk_size(chunk_size, m, None)
-    lh = LogHamiltonian(model, opts["scheme"], offset=opts["offset"])
+    lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
+    if h is None:
+        h, h_choice = choose_h(lh, X, t_end, pilot_tolerance(INDICATORS["fli"]),
+                               quantile=MAP_QUANTILE, seed=seed)
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     done = {}
@@ -740,25 +823,27 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     def run(c):
         idx = chunks[c]
         W0 = initial_deviations(model.dim, 1, len(idx), seed, idx)[:, :, 0]
-        return lh.fli(X[idx], W0, t_end, h, every=every)
+        return lh.outputs(X[idx], W0, t_end, h, every=every)
 
     def keep(c, outcome):
-        done[c] = outcome
+        done[c] = outcome.out
         return len(chunks[c])
 
-    class _Outcome(tuple):
-        interrupted = False
-
     with bar(progress, m, 0, "chaos_map", "orbit") as shown:
-        interrupted = fan_out(None, range(len(chunks)), lambda c: _Outcome(run(c)),
+        interrupted = fan_out(None, range(len(chunks)), lambda c: _LogChunk(run(c)),
                               lambda c: (c,), keep, shown)
     values, lh_status = np.full(m, np.nan), np.zeros(m, dtype=np.int64)
+    state, x_worst = np.full(X.shape, np.nan), np.full(X.shape, np.nan)
+    t_reached, t_worst = np.full(m, np.nan), np.full(m, np.nan)
     counts = np.zeros(3, dtype=np.int64)
     computed = np.zeros(m, dtype=bool)
-    for c, (v, n, st) in done.items():
-        values[chunks[c]], lh_status[chunks[c]] = v, st
-        counts += n.sum(axis=0)
-        computed[chunks[c]] = True
+    for c, out in done.items():
+        idx = chunks[c]
+        values[idx], lh_status[idx] = out.fli, out.status
+        state[idx], t_reached[idx] = out.x, out.t
+        x_worst[idx], t_worst[idx] = out.x_worst, out.t_worst
+        counts += out.counts.sum(axis=0)
+        computed[idx] = True
     # The map's negative codes mean "decided": the LH's own stops (U ≤ 0,
     # budget) become failures, their reasons kept by name.
     status = np.where(lh_status < 0, int(Status.INTEGRATOR_FAILED), lh_status)
@@ -773,7 +858,9 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                       RuntimeWarning, stacklevel=accuracy.user_stacklevel())
     if interrupted:
         warn_interrupted("chaos map", len(done), len(chunks), "chunks", False)
-    t_stop = np.where(computed & (status == STATUS_OK), t_end, np.nan)
+    # A stopped orbit's time is where its last completed step left it.
+    t_stop = np.where(computed & (status == STATUS_OK), t_end, t_reached)
+    verdict, energy = _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h)
     prov = Provenance(
         kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
         method_options={"time_transform": "log", "scheme": lh.scheme.name, "h": h,
@@ -785,14 +872,74 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         versions=package_versions(),
         counts={"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
                 "gradient_evaluations": int(counts[2])},
-        wall_time=time.perf_counter() - start, tau_choice={}, code=identity.code_identity(),
+        wall_time=time.perf_counter() - start,
+        tau_choice={} if h_choice is None else dict(h_choice), code=identity.code_identity(),
         machine=identity.machine(), cpu_time=time.process_time() - cpu)
     empty = np.empty(0)
-    return ChaosMapResult(
-        t=np.array([t_end]), energy_error=np.full(m, np.nan),
-        state=np.full(X.shape, np.nan), provenance=prov, status=status,
-        interrupted=interrupted, accuracy=None, indicator="fli", values=values, t_stop=t_stop,
+    result = ChaosMapResult(
+        t=np.array([t_end]), energy_error=energy,
+        state=state, provenance=prov, status=status,
+        interrupted=interrupted, accuracy=verdict, indicator="fli", values=values, t_stop=t_stop,
         threshold=None, x0=X, axes=None if grid is None else list(grid.axes),
         u=empty if grid is None else grid.u, v=empty if grid is None else grid.v,
         mask=np.zeros((0, 0), dtype=bool) if grid is None else grid.mask,
         log_scale=INDICATORS["fli"].log_scale)
+    accuracy.warn(verdict, "tm+log", what="the chaos map")
+    return result
+
+
+#: The LH steppers this process built, by model, scheme and offset: each
+#: build loads a new module of the model's kernels, and the stepper's
+#: kernels compile for each new one.
+_LOG_HAMILTONIANS: dict = {}
+
+
+def _log_hamiltonian(model, scheme, offset):
+    """The :class:`~varint.time_transform.LogHamiltonian` of ``model``,
+    ``scheme`` and ``offset``, built once per process (the model by its
+    description, as a map's checkpoint knows it)."""
+    from .time_transform import LogHamiltonian
+
+    key = (repr(model.describe()), str(scheme), offset)
+    if key not in _LOG_HAMILTONIANS:
+        if len(_LOG_HAMILTONIANS) >= 8:   # a few models at a time
+            _LOG_HAMILTONIANS.pop(next(iter(_LOG_HAMILTONIANS)))
+        _LOG_HAMILTONIANS[key] = LogHamiltonian(model, scheme, offset=offset)
+    return _LOG_HAMILTONIANS[key]
+
+
+@dataclass
+class _LogChunk:
+    """A chunk of a logarithmic-Hamiltonian map as :func:`fan_out` takes
+    it (it runs to its end: never interrupted inside)."""
+
+    out: Any
+    interrupted: bool = False
+
+
+def _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h):
+    """The accuracy verdict of a logarithmic-Hamiltonian map and its final
+    relative energy errors: the errors of the conserved quantities
+    (:class:`varint.accuracy.Reference`, as every map measures them) at the
+    final states and at each orbit's output state furthest from its initial
+    energy (:class:`~varint.time_transform.LHOutputs`), the larger of the
+    two the orbit's largest over its outputs; an orbit is accurate if it
+    did not fail and every quantity is within ``energy_tol``. An orbit
+    that was not computed (an interrupted map) has NaN errors."""
+    ref = accuracy.Reference(model, X)
+    with np.errstate(invalid="ignore"):
+        final = ref.errors(state)
+        worst = ref.errors(x_worst)
+    largest = {key: np.fmax(final[key], worst[key]) for key in final}
+    failed = is_failure(status)
+    for errors in (final, largest):   # nothing of a failed orbit passes for a value
+        for v in errors.values():
+            v[failed] = np.nan
+    conserved = {("energy" if key == "energy_error" else key.split(":", 1)[1]): v
+                 for key, v in largest.items()}
+    with np.errstate(invalid="ignore"):
+        accurate = ~failed & (np.fmax.reduce(list(largest.values())) <= energy_tol)
+    verdict = accuracy.Accuracy(energy_error=largest["energy_error"], conserved=conserved,
+                                t_worst=np.where(failed, np.nan, t_worst),
+                                energy_tol=energy_tol, accurate=accurate, tau=h)
+    return accuracy.annotate(verdict, model), final["energy_error"]

@@ -34,11 +34,14 @@ H. Preto & S. Tremaine, AJ 118, 2532 (1999).
 
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import sympy as sp  # type: ignore[import-untyped]
+from numba import njit
 
 from . import codecache
 from .codegen.lh import Flow, lh_name, lh_source
@@ -47,7 +50,7 @@ from .kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
-__all__ = ["LogHamiltonian", "LHResult", "TIME_TRANSFORMS"]
+__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS"]
 
 #: The values of ``time_transform``.
 TIME_TRANSFORMS = ("log",)
@@ -88,6 +91,96 @@ class LHResult:
     gradients: np.ndarray
     C: np.ndarray
     pt: np.ndarray
+
+
+@dataclass(frozen=True)
+class LHOutputs:
+    """Orbits run to a physical time through outputs every ``every`` time
+    units by :meth:`LogHamiltonian.outputs` (the FLI of a map, or a pilot).
+
+    Attributes
+    ----------
+    fli : ndarray (M,)
+        sup ln‖w‖ over the outputs (the vector normalised at each); NaN for
+        an orbit that stopped, and without vectors.
+    status : ndarray (M,)
+        As :attr:`LHResult.status`.
+    x : ndarray (M, 2N)
+        The final states: at ``t_end``, or where the orbit stopped (the
+        last completed step).
+    t : ndarray (M,)
+        The physical time of ``x``.
+    x_worst, t_worst : ndarray (M, 2N), (M,)
+        The output state whose energy H = A + V is furthest from the
+        initial one (the initial state if none moved it), and its time:
+        every conserved quantity of the models the LH takes is a function
+        of H, so the largest error of each over the outputs is its error
+        there.
+    counts : ndarray (M, 3)
+        LH steps, tail steps and force evaluations per orbit.
+    """
+
+    fli: np.ndarray
+    status: np.ndarray
+    x: np.ndarray
+    t: np.ndarray
+    x_worst: np.ndarray
+    t_worst: np.ndarray
+    counts: np.ndarray
+
+
+@cache
+def _outputs_kernel(advance, kinetic, potential):
+    """The loop of :meth:`LogHamiltonian.outputs` over orbits and output
+    times around the stepper's ``advance``, in machine code: per orbit its
+    own fictitious step ``h[m]``, the FLI as the stepper's own FLI loop
+    computes it (the same operations, so the same bits) and, at every
+    output, H = A + V by the model's generated kernels against H(x₀) = −p_t,
+    keeping the state where |ΔH| is largest."""
+
+    @njit(error_model="numpy")
+    def outputs(X, W0, pt, C, h, t_end, every, max_steps, kinds, coef, par, fli, status,
+                counts, x_end, t_end_at, x_worst, t_worst):
+        M, d = X.shape
+        n = d // 2
+        k = W0.shape[1]
+        gA, gV, HV = np.empty(d), np.empty(n), np.empty((n, n))
+        for m in range(M):
+            x = X[m].copy()
+            V = W0[m].copy()
+            dt = np.zeros(k)
+            clock = np.array([0.0, pt[m] + C[m]])
+            e0 = -pt[m]
+            acc = best = big = 0.0
+            x_worst[m, :] = x
+            t_worst[m] = 0.0
+            j = 0
+            st = 0
+            while clock[0] < t_end and st == 0:
+                j += 1
+                stop = min(j * every, t_end)
+                st = advance(x, V, dt, clock, kinds, coef, h[m], stop, max_steps, par, C[m],
+                             counts[m])
+                if k > 0:
+                    norm = 0.0
+                    for i in range(d):
+                        norm += V[0, i] * V[0, i]
+                    norm = math.sqrt(norm)
+                    acc += math.log(norm)
+                    best = max(best, acc)
+                    for i in range(d):
+                        V[0, i] /= norm
+                e = abs(kinetic(x, gA) + potential(x[:n], gV, HV, False) - e0)
+                if not e <= big:   # larger, or NaN: the state that shows it
+                    big = e
+                    x_worst[m, :] = x
+                    t_worst[m] = clock[0]
+            fli[m] = best if k > 0 else math.nan
+            status[m] = st
+            x_end[m, :] = x
+            t_end_at[m] = clock[0]
+
+    return outputs
 
 
 def _symbolic_parts(model):
@@ -206,6 +299,36 @@ class LogHamiltonian:
                         out, status, counts)
         out[status != 0] = np.nan   # nothing computed is passed off as a value
         return out, counts, status
+
+    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
+        """Orbits ``X`` (M, 2N) with one vector each (``W0`` (M, 2N), or
+        None: no vector) to the physical time ``t_end`` through outputs at
+        the multiples of ``every``, with the fictitious step ``h`` (a number,
+        or one per orbit (M,)): the FLI as :meth:`fli` computes it (the
+        same bits for the same h), the final states and the output state
+        furthest from the initial energy (:class:`LHOutputs`)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        M, d = X.shape
+        W = np.zeros((M, d, 0)) if W0 is None else np.asarray(W0, dtype=float)[..., None]
+        X, W, t_end, _ = _checked(X, W, t_end, 1.0)
+        W = np.ascontiguousarray(np.swapaxes(W, 1, 2))   # rows: the kernels' layout
+        hs = np.array(np.broadcast_to(np.asarray(h, dtype=float), (M,)))
+        if not (np.all(np.isfinite(hs)) and np.all(hs > 0)):
+            raise ValueError(f"h must be finite numbers > 0, got {h!r}")
+        if isinstance(every, bool) or not isinstance(every, numbers.Real) \
+                or not float(every) > 0.0 or not np.isfinite(every):
+            raise ValueError(f"every must be a finite number > 0, got {every!r}")
+        every = float(every)
+        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M).copy()
+        pt = -self.energy(X)
+        fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
+        counts = np.zeros((M, 3), dtype=np.int64)
+        x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
+        kernel = _outputs_kernel(self.advance_kernel, self._kinetic, self._potential)
+        kernel(X, W, pt, np.ascontiguousarray(C), hs, t_end, every, max_steps, self.kinds,
+               self.coef, self.par, fli, status, counts, x_end, t, x_worst, t_worst)
+        fli[status != 0] = np.nan
+        return LHOutputs(fli, status, x_end, t, x_worst, t_worst, counts)
 
 
 def refuse(model, scheme="ABA864", offset=None):

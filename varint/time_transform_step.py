@@ -1,0 +1,150 @@
+"""The fictitious step h of a logarithmic-Hamiltonian map when none is
+given: the largest h whose pilot keeps the energy within the map's
+tolerance, as :func:`varint.stepsize.choose_step` chooses a constant step.
+
+The pilot runs a seeded sample of at most :data:`~varint.stepsize.PILOT_ORBITS`
+of the map's orbits, without vectors (the orbit does not depend on them),
+with the map's LH stepper (:meth:`LogHamiltonian.outputs
+<varint.time_transform.LogHamiltonian.outputs>`) to t = min(t_end,
+:data:`~varint.stepsize.PILOT_T`), and measures each orbit's largest
+relative error of the conserved quantities (:class:`varint.accuracy.Reference`)
+at :data:`~varint.stepsize.PILOT_CHECKS` output times along it; the
+:data:`~varint.maps.MAP_QUANTILE` quantile of the orbits must meet the
+tolerance. The steps tried are h = h₀·2^(j/4), j = 0, −1, …, with h₀ the
+median over the sample of U(q₀) = C − V(q₀) (one time unit of physical
+time per step where the orbits start, the largest constant step of a pilot):
+a rung that misses predicts the next from the scheme's order p (error ∝
+h^p), descending at most a factor 4 at once (a softened point mass at
+h₀ has saturated errors ~5e3: predicted from there, the next rung was 35
+rungs down, nine below the answer), and the search then bisects the rungs
+between the largest that met it and the smallest that did not, so it ends on the
+largest rung that met the tolerance with a failing rung just above it.
+When the error does not shrink with h (an orbit escapes, or C is too low
+for it) no h helps: the map runs at the smallest rung tried and its
+accuracy verdict says what happened.
+
+A symplectic scheme's energy error stays bounded in fictitious time as in
+physical time, so the pilot's error bounds the map's as for constant steps;
+``tests/test_time_transform_step.py`` checks that the h chosen on one set of
+orbits keeps held-out orbits of the same models (a softened point mass, the
+restricted three-body problem) within the tolerance, up to one rung (a
+factor 2 in the error of an order-4 scheme), and that 2h does not.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .accuracy import Reference
+from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
+
+__all__ = ["choose_h", "pilot_errors"]
+
+#: The most rungs one prediction descends (a factor 4 in h).
+MAX_DROP = 2 * RUNGS
+#: The search gives up below this fraction of h₀ (2^-12: 4096 times the
+#: pilot's steps at h₀, ~4e5 per orbit of a pilot of 100 time units).
+SMALLEST = 2.0**-12
+
+
+def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
+    """Per orbit of ``X``, the largest relative error of the conserved
+    quantities at :data:`~varint.stepsize.PILOT_CHECKS` output times of an
+    LH run with the fictitious step ``h`` to ``t_pilot`` (inf where the
+    orbit stopped: U ≤ 0, the step budget, a non-finite state). ``counts``
+    (3,), if given, accumulates the LH steps, tail steps and gradients."""
+    out = lh.outputs(X, None, t_pilot, h, every=t_pilot / PILOT_CHECKS)
+    if counts is not None:
+        counts += out.counts.sum(axis=0)
+    with np.errstate(all="ignore"):
+        errs = reference.errors(out.x_worst)
+    e = np.max(np.stack(list(errs.values())), axis=0)
+    return np.where((out.status == 0) & np.isfinite(e), e, np.inf)
+
+
+def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
+    """The largest fictitious step h of ``lh`` (a
+    :class:`~varint.time_transform.LogHamiltonian`) whose pilot on a
+    sample of the orbits ``X`` meets ``tolerance`` at ``quantile`` (module
+    docstring).
+
+    Returns
+    -------
+    h : float
+    choice : dict
+        ``rule`` ("pilot", or "smallest" when no rung met it), ``h``,
+        ``h0``, ``tolerance``, ``quantile``, ``pilot_t``, ``orbits``, the
+        ``tried`` steps with their errors, the pilot's ``counts`` and, for
+        the rule "pilot", the ``gradient_rate`` at h (force evaluations per
+        orbit and unit of physical time along the pilot); the same call
+        chooses the same step, bit for bit.
+    """
+    pick = np.arange(len(X))
+    if len(X) > PILOT_ORBITS:
+        pick = np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))
+    sample = X[pick]
+    n = sample.shape[1] // 2
+    reference = Reference(lh.model, sample)
+    U = lh.constants(sample) - lh.model.potential(sample[:, :n])
+    h0 = float(np.median(U))
+    t_pilot = float(min(t_end, PILOT_T))
+    order = lh.scheme.order
+    tried: dict[int, float] = {}
+    counts = np.zeros(3, dtype=np.int64)
+
+    def rung(j):
+        return h0 * 2.0 ** (j / RUNGS)
+
+    work: dict[int, int] = {}
+
+    def error(j):
+        if j not in tried:
+            before = int(counts[2])
+            e = pilot_errors(lh, sample, rung(j), t_pilot, reference, counts)
+            tried[j] = float(np.quantile(e, quantile, method="higher"))
+            work[j] = int(counts[2]) - before
+        return tried[j]
+
+    j, best, lowest_fail = 0, None, None
+    while True:
+        e = error(j)
+        if e <= tolerance:
+            best = j if best is None else max(best, j)
+        else:
+            lowest_fail = j if lowest_fail is None else min(lowest_fail, j)
+        if best is not None:
+            if best == 0 or best + 1 == lowest_fail:
+                break
+            # Halve the gap to the lowest failing rung (the error need not
+            # follow h^p between them: a pericentre resolved or not).
+            j = best + (1 if lowest_fail is None else max(1, (lowest_fail - best) // 2))
+            continue
+        # At most a factor 4 at once: at long steps the error saturates
+        # (far from h^p), and a prediction from there lands far too low,
+        # from where the climb back costs a pilot per rung.
+        drop = (RUNGS * math.log2(e / tolerance) / order if math.isfinite(e) else RUNGS * 4)
+        nxt = j - min(MAX_DROP, max(1, math.ceil(drop)))
+        # Halving h (or more) must halve the error, once the error is below
+        # 1: above, it has saturated and says nothing of the order.
+        shrinking = e >= 1.0 or all(not (k >= j + RUNGS) or e <= v / 2
+                                    for k, v in tried.items())
+        if not shrinking or rung(nxt) < SMALLEST * h0:
+            break
+        j = nxt
+    choice = {"h0": h0, "tolerance": float(tolerance), "quantile": float(quantile),
+              "pilot_t": t_pilot, "orbits": len(sample), "scheme": lh.scheme.name,
+              "tried": [[rung(k), v] for k, v in sorted(tried.items())],
+              "counts": {"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
+                         "gradient_evaluations": int(counts[2])}}
+    if best is None:
+        h = rung(min(tried))
+        choice.update(rule="smallest", h=h)
+        return h, choice
+    h = rung(best)
+    # The force evaluations per orbit and unit of physical time at h: what
+    # the map will cost (the defaults compare it with constant steps').
+    choice.update(rule="pilot", h=h, gradient_rate=work[best] / (len(sample) * t_pilot))
+    return h, choice
+
