@@ -68,8 +68,9 @@ Parts (``--part``):
     each normalisation time) and microseconds per step. The LH stepper is
     generated per model and scheme (:mod:`varint.codegen.lh`, cached on
     disk); the rows of fixed h are the "tuned" contenders of the issue
-    (their agreement counts FLI verdicts only: at h = 1.6 on the
-    three-body map the energy errors reach order one). Stop 40 (the generic numba closure,
+    (their agreement counts FLI verdicts only, whatever the energy
+    error: an automatic h held to the map's energy tolerance is far
+    shorter, see "varint LH, automatic h"). Stop 40 (the generic numba closure,
     4–5 µs per three-body step, load 8–10): CR3BP ABA864 h = 1.6 0.93× at
     100 % agreement, cored ABA864 h = 0.1, δ = 0.25 0.38× at 99.0 %. The
     generated stepper (same bits on the cored map, round-off on the
