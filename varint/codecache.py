@@ -19,6 +19,15 @@ anything runs:
   or with another secret) is discarded with one :class:`CacheDirWarning`
   and rebuilt; an unpickling error of a verified file (another numba) is a
   discard and a recompilation, never an error of the run;
+* a compiled kernel is used only for what it was compiled for: numba's
+  index (what → data file) and data files are written one after the other,
+  so two processes caching two versions of one function at once (two
+  closures, two signatures: the test suite's workers on a cold cache) can
+  leave an index entry naming the other's code — which then ran, giving
+  other bits or writing past a buffer. A generated kernel's data file
+  carries its index key, and a package kernel's compiled signature is
+  compared with the one asked for (:class:`_TolerantCache`); a file that
+  does not match is a cache miss (compiled again and written over);
 * a cache that cannot be written (full disk, read-only, no private
   directory) costs the cache, not the run: the module is compiled in memory
   (numba's on-disk caching off) after one warning.
@@ -40,7 +49,7 @@ import threading
 import types
 from pathlib import Path
 
-from numba.core import caching
+from numba.core import caching, sigutils
 from numba.core.dispatcher import Dispatcher
 
 from . import cachedir
@@ -270,13 +279,29 @@ def tolerate_full_disks():
 
 
 class _TolerantCache:
-    """numba's cache of one kernel, whose failures to write cost a warning."""
+    """numba's cache of one kernel, whose failures to write cost a warning,
+    and whose loaded code is used only if it was compiled for the
+    signature asked for.
+
+    numba's index and data files are written one after the other, so two
+    processes caching two signatures of one kernel at once can leave the
+    index naming the other signature's code for this one (seen: a kernel
+    for contiguous arrays run on a strided one). The signature is in the
+    data; a mismatch is a cache miss: the kernel is compiled and written
+    over the foreign file (its index entry names it)."""
 
     def __init__(self, cache):
         self._inner = cache
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
+
+    def load_overload(self, sig, target_context):
+        cres = self._inner.load_overload(sig, target_context)
+        if cres is None:
+            return None
+        args, _ = sigutils.normalize_signature(sig)
+        return cres if tuple(cres.signature.args) == tuple(args) else None
 
     def save_overload(self, sig, data):
         try:
@@ -364,10 +389,31 @@ class SignedCache(caching.FunctionCache):
 class _SignedCacheFile(caching.IndexDataCacheFile):
     """numba's index and data files, each written as ``HEADER``, the HMAC
     of its name and content, and numba's own bytes; read back only when the
-    HMAC verifies."""
+    HMAC verifies. A data file holds its index key with the compiled code,
+    and is used only for that key.
+
+    numba writes an entry as: read the index, pick the first free data file
+    number, write the index, write the data. Two processes saving two keys
+    of one function at once (two closures of one kernel: KG's and FPUT's
+    part steppers, compiled by two test workers on a cold cache) can both
+    pick number 1, and the index left by one then names the data left by
+    the other: that kernel, with other constants and sizes, ran for it. The
+    key in the data turns this into a cache miss; the kernel compiled again
+    is written over that file (the index names it for its key)."""
 
     #: The secret that signs them (set by :class:`SignedCache`).
     key = None
+
+    def save(self, key, data):
+        super().save(key, (key, data))
+
+    def load(self, key):
+        entry = super().load(key)
+        # Another key's code (two processes saved at once), or a file of a
+        # varint that did not store the key: a miss, never that code.
+        if isinstance(entry, tuple) and len(entry) == 2 and entry[0] == key:
+            return entry[1]
+        return None
 
     def _read(self, path):
         """The verified content of ``path``; FileNotFoundError if absent or

@@ -1,0 +1,206 @@
+"""A kernel loaded from numba's disk cache is the one compiled for what was
+asked, even when two processes cached two versions of it at once.
+
+numba writes a cache entry as: read the index (what → data file), pick the
+first free data file number, write the index, write the data. Two processes
+saving two versions of one function at once — two closures of a part
+stepper (KG's and FPUT's), two signatures of a package kernel, as the test
+suite's two workers do on a cold cache — can both pick number 1; the index
+then names the data the *other* process wrote, and that code ran: other
+bits, or a buffer written past its end (varint.codecache). Here the two
+processes are paced by flag files through exactly that interleaving
+(process A reads the index, B reads it, A writes the index, B writes the
+index and its data, A writes its data), so the race is not left to chance;
+a third process then asks for each version. Before the fix the third
+process got A's code for B (x*3 for x*5, a contiguous sum on a strided
+array) as a cache hit."""
+
+import os
+import pickle
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from numba import float64, njit, types
+from varint import codecache
+from varint.codecache import _SignedCacheFile, _TolerantCache
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: The pacing, patched into the class that writes numba's files: A waits at
+#: its index write until B has read the index, B writes the index after A
+#: did, and A writes its data after B wrote its own.
+PACING = '''
+import sys, time
+from pathlib import Path
+
+role, flags = sys.argv[1], Path(sys.argv[2])
+
+
+def wait(name):
+    deadline = time.monotonic() + 30      # never hang: go on unpaced
+    while not (flags / name).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+def mark(name):
+    (flags / name).touch()
+
+
+def pace(cls):
+    save_index, save_data = cls._save_index, cls._save_data
+    if role == "A":
+        def paced_index(self, o):
+            wait("B_read"); save_index(self, o); mark("A_index")
+
+        def paced_data(self, n, d):
+            wait("B_data"); save_data(self, n, d)
+    elif role == "B":
+        def paced_index(self, o):
+            mark("B_read"); wait("A_index"); save_index(self, o)
+
+        def paced_data(self, n, d):
+            save_data(self, n, d); mark("B_data")
+    else:
+        return
+    cls._save_index, cls._save_data = paced_index, paced_data
+'''
+
+#: Two closures of one function, x*3 (A) and x*5 (B), cached signed as
+#: generated and skeleton kernels are (codecache.SignedCache).
+CLOSURES = PACING + '''
+from numba import njit
+from varint import codecache
+
+pace(codecache._SignedCacheFile)
+c = {"A": 3.0, "B": 5.0}[role[-1]]
+
+
+def make(c):
+    def scale(x):
+        return x * c
+    return njit(cache=True)(scale)
+
+
+f = make(c)
+f._cache = codecache.SignedCache(f.py_func, b"k" * 32, Path(sys.argv[3]))
+print(f(2.0))
+'''
+
+#: Two signatures of one package kernel (contiguous for A, strided for B),
+#: cached by numba under varint's _TolerantCache.
+SIGNATURES = PACING + '''
+import numpy as np
+from numba import njit
+from numba.core import caching
+from varint import codecache
+
+pace(caching.IndexDataCacheFile)
+
+
+@njit(cache=True)
+def total(a):
+    s = 0.0
+    for i in range(a.size):
+        s += a[i]
+    return s
+
+
+total._cache = codecache._TolerantCache(total._cache)
+a = np.arange(10.0)
+print(total(a) if role[-1] == "A" else total(a[::2]))
+'''
+
+
+def race(tmp_path, code, *extra, env=None):
+    """Run ``code`` as processes A and B at once, paced, then as a fresh
+    loader of each version: their printed values (A, B, load A, load B),
+    and how many data files A and B left (one: they collided)."""
+    script = tmp_path / "race.py"
+    script.write_text(textwrap.dedent(code))
+    flags = tmp_path / "flags"
+    flags.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
+
+    def start(role):
+        return subprocess.Popen([sys.executable, str(script), role, str(flags), *extra],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+
+    def value(proc):
+        out, err = proc.communicate(timeout=300)
+        assert proc.returncode == 0, err
+        return float(out.split()[-1])
+
+    a, b = start("A"), start("B")
+    first = [value(a), value(b)]
+    written = len(list(tmp_path.rglob("*.nbc")))
+    return first + [value(start("load A")), value(start("load B"))], written
+
+
+def test_two_closures_cached_at_once_each_load_their_own(tmp_path):
+    folder = tmp_path / "closures"
+    folder.mkdir()
+    values, written = race(tmp_path, CLOSURES, str(folder),
+                           env={"VARINT_CACHE_DIR": str(tmp_path / "cache")})
+    assert written == 1         # the pacing made the collision: both wrote file 1
+    assert values == [6.0, 10.0, 6.0, 10.0]
+
+
+def test_two_signatures_cached_at_once_each_load_their_own(tmp_path):
+    cache = tmp_path / "numba"
+    values, written = race(tmp_path, SIGNATURES, env={"NUMBA_CACHE_DIR": str(cache)})
+    assert written == 1
+    # 0+1+…+9, and 0+2+4+6+8 (the contiguous kernel sums 0+1+2+3+4 = 10).
+    assert values == [45.0, 20.0, 45.0, 20.0]
+
+
+def test_a_data_file_is_used_only_for_its_own_key(tmp_path):
+    """The file layer alone: an index entry naming another key's data (as
+    the race leaves it) is a miss, the key's own data is found."""
+    files = _SignedCacheFile(str(tmp_path), "kernel", ("stamp", 1))
+    files.key = b"k" * 32
+    files.save("B", "code of B")
+    files.save("A", "code of A")
+    assert (files.load("A"), files.load("B")) == ("code of A", "code of B")
+    index = files._load_index()
+    index["B"] = index["A"]                 # B's entry names A's data
+    files._save_index(index)
+    assert files.load("B") is None
+    assert files.load("A") == "code of A"
+    files.save("B", "code of B")            # compiled again: written over
+    assert (files.load("A"), files.load("B")) == (None, "code of B")
+
+
+def test_data_of_an_older_varint_is_a_miss(tmp_path):
+    """A signed data file holding numba's data without its key (written
+    before keys were stored) is not used."""
+    files = _SignedCacheFile(str(tmp_path), "kernel", ("stamp", 1))
+    files.key = b"k" * 32
+    files.save("A", "code of A")
+    name = files._load_index()["A"]
+    files._save_data(name, "code of A")     # the old layout: data alone
+    assert pickle.loads(codecache.read_signed(files._data_path(name), key=files.key)) == \
+        "code of A"
+    assert files.load("A") is None
+
+
+def test_a_package_kernel_of_another_signature_is_a_miss():
+    """_TolerantCache: code loaded for one signature but compiled for
+    another (the race's outcome) is not used."""
+
+    @njit
+    def twice(x):
+        return 2 * x
+
+    twice(1.0)
+    compiled = twice.overloads[(float64,)]
+
+    class Inner:
+        def load_overload(self, sig, target_context):
+            return compiled
+
+    cache = _TolerantCache(Inner())
+    assert cache.load_overload((float64,), None) is compiled
+    assert cache.load_overload((types.int64,), None) is None
