@@ -28,6 +28,11 @@ anything runs:
   carries its index key, and a package kernel's compiled signature is
   compared with the one asked for (:class:`_TolerantCache`); a file that
   does not match is a cache miss (compiled again and written over);
+* compiled code has symbol names no other process gives other code
+  (:func:`unique_symbol_names`): numba names a function by its qualified
+  name and a counter of the process, so the same closure with other
+  constants, compiled by two processes, had one name, and a process that
+  loaded both from the cache ran the first one's helper in the second;
 * a cache that cannot be written (full disk, read-only, no private
   directory) costs the cache, not the run: the module is compiled in memory
   (numba's on-disk caching off) after one warning.
@@ -44,12 +49,13 @@ import io
 import json
 import os
 import pickle
+import secrets
 import sys
 import threading
 import types
 from pathlib import Path
 
-from numba.core import caching, sigutils
+from numba.core import bytecode, caching, sigutils
 from numba.core.dispatcher import Dispatcher
 
 from . import cachedir
@@ -58,7 +64,7 @@ from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
            "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
-           "CacheDirWarning"]
+           "CacheDirWarning", "unique_symbol_names"]
 
 #: One generated module is loaded at a time: threads of one process (a Dask
 #: worker's) ask for the same kernels at once, and CPython 3.11's AST
@@ -308,6 +314,46 @@ class _TolerantCache:
             self._inner.save_overload(sig, data)
         except OSError as exc:
             _unwritable(self._inner.cache_path, exc)
+
+
+# -- symbol names unique across processes ------------------------------------------------
+
+class _RandomIds:
+    """An endless iterator of random 63-bit ids, drawn from the system's
+    entropy at each step (so forked children do not repeat their parent's,
+    as a copied counter or seed would)."""
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        return secrets.randbits(63)
+
+
+def unique_symbol_names():
+    """Make the symbol names of code numba compiles from now on, in this
+    process, unique across processes.
+
+    numba names a compiled function by its qualified name, its argument
+    types and an id drawn from a counter of the process
+    (``FunctionIdentity._unique_ids``), counting from 1 in every process.
+    Two closures of one function (KG's and FPUT's stencil kick, their
+    helpers) compiled by two processes in the same order get one name for
+    two bodies. A process that loads both from the disk cache links the
+    second against the first one's helpers (LLVM merges same-named weak
+    definitions): the second kernel runs with the first one's constants
+    and sizes — other bits, or writes past a buffer (numba issue 10486).
+    Random 63-bit ids make a shared name as unlikely as a hash collision.
+    Applied once, when this module is imported (before varint compiles a
+    kernel: the closure kernels' module imports it); a numba without that
+    counter is left as it is (its names are its own affair)."""
+    if isinstance(getattr(bytecode.FunctionIdentity, "_unique_ids", None), _RandomIds):
+        return
+    if hasattr(bytecode.FunctionIdentity, "_unique_ids"):
+        bytecode.FunctionIdentity._unique_ids = _RandomIds()
+
+
+unique_symbol_names()
 
 
 # -- numba's cache of generated modules -------------------------------------------------

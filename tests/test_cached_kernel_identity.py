@@ -1,19 +1,26 @@
-"""A kernel loaded from numba's disk cache is the one compiled for what was
-asked, even when two processes cached two versions of it at once.
+"""A kernel loaded from numba's disk cache runs the code compiled for what
+was asked, whichever processes compiled and cached it (varint.codecache).
 
-numba writes a cache entry as: read the index (what → data file), pick the
-first free data file number, write the index, write the data. Two processes
-saving two versions of one function at once — two closures of a part
-stepper (KG's and FPUT's), two signatures of a package kernel, as the test
-suite's two workers do on a cold cache — can both pick number 1; the index
-then names the data the *other* process wrote, and that code ran: other
-bits, or a buffer written past its end (varint.codecache). Here the two
-processes are paced by flag files through exactly that interleaving
-(process A reads the index, B reads it, A writes the index, B writes the
-index and its data, A writes its data), so the race is not left to chance;
-a third process then asks for each version. Before the fix the third
-process got A's code for B (x*3 for x*5, a contiguous sum on a strided
-array) as a cache hit."""
+Two ways it did not, each giving other bits, or a buffer written past its
+end, in a process that loads kernels other processes compiled (the test
+suite's two workers on a cold cache):
+
+* a race: numba writes a cache entry as read the index (what → data file),
+  pick the first free data file number, write the index, write the data.
+  Two processes saving two versions of one function at once — two closures
+  of a part stepper, two signatures of a package kernel — can both pick
+  number 1; the index then names the data the *other* process wrote. Here
+  the two processes are paced by flag files through exactly that
+  interleaving (A reads the index, B reads it, A writes the index, B writes
+  the index and its data, A writes its data), and a third asks for each
+  version: it got A's code for B (x*3 for x*5, a contiguous sum on a
+  strided array) as a cache hit;
+* one name for two bodies: numba names compiled code by qualified name and
+  a counter of the process, so the same closure with other constants,
+  compiled by two processes, got one symbol name for its helper; a process
+  loading both ran the first one's helper in the second.
+
+Each test here failed before the fix."""
 
 import os
 import pickle
@@ -204,3 +211,62 @@ def test_a_package_kernel_of_another_signature_is_a_miss():
     cache = _TolerantCache(Inner())
     assert cache.load_overload((float64,), None) is compiled
     assert cache.load_overload((types.int64,), None) is None
+
+
+#: A closure kernel calling a closed-over helper too long to be inlined,
+#: cached under a key naming its constant c (as the skeleton's closures are,
+#: varint.kernels.closures); prints, for each c asked, whether the kernel
+#: (from the cache when there) gives the bits of one compiled afresh.
+HELPER = """
+import math, sys
+from pathlib import Path
+from numba import njit
+from numba.core.caching import NullCache
+from varint.kernels.closures import _ClosureCache
+
+
+def make(c, cached=True):
+    @njit
+    def helper(x):
+        s = 0.0
+BODY
+        return s
+
+    def kernel(x):
+        return helper(x) + helper(x + 1.0) + helper(x + 2.0)
+
+    f = njit(kernel)
+    f._cache = (_ClosureCache(f.py_func, f"c={c}", b"k" * 32, Path(sys.argv[1])) if cached
+                else NullCache())
+    return f
+
+
+for c in map(float, sys.argv[2:]):
+    f = make(c)
+    print(c, f(0.5).hex(), make(c, cached=False)(0.5).hex(), sum(f.stats.cache_hits.values()))
+""".replace("BODY", "\n".join(f"        s = s * 1.0000001 + math.sin(s + {i}.0 * x) * c"
+                               for i in range(60)))
+
+
+def test_closures_compiled_by_two_processes_run_their_own_helpers(tmp_path):
+    """Process 1 compiles the kernel for c = 3, process 2 for c = 5 (each
+    its first compilations: the same counter values); a third loads both,
+    in both orders."""
+    script, folder = tmp_path / "helper.py", tmp_path / "closures"
+    script.write_text(HELPER)
+    folder.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT), VARINT_CACHE_DIR=str(tmp_path / "cache"))
+
+    def run(*cs):
+        done = subprocess.run([sys.executable, str(script), str(folder), *cs], env=env,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return [line.split() for line in done.stdout.splitlines()]
+
+    (_, three, _, _), = run("3")
+    (_, five, _, _), = run("5")
+    assert three != five
+    for order in (("3", "5"), ("5", "3")):
+        rows = run(*order)
+        assert [hits for *_, hits in rows] == ["1", "1"]        # both from the cache
+        assert [got == afresh for _, got, afresh, _ in rows] == [True, True], order
