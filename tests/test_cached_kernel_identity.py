@@ -1,9 +1,10 @@
 """A kernel loaded from numba's disk cache runs the code compiled for what
 was asked, whichever processes compiled and cached it (varint.codecache).
 
-Two ways it did not, each giving other bits, or a buffer written past its
-end, in a process that loads kernels other processes compiled (the test
-suite's two workers on a cold cache):
+Three ways it did not, each giving other bits (or a buffer written past
+its end) in a process that loads kernels other processes compiled (the
+test suite's two workers on a cold cache), or one that compiled a second
+closure of a function:
 
 * a race: numba writes a cache entry as read the index (what → data file),
   pick the first free data file number, write the index, write the data.
@@ -18,7 +19,10 @@ suite's two workers on a cold cache):
 * one name for two bodies: numba names compiled code by qualified name and
   a counter of the process, so the same closure with other constants,
   compiled by two processes, got one symbol name for its helper; a process
-  loading both ran the first one's helper in the second.
+  loading both ran the first one's helper in the second;
+* a key that omits what is compiled in: a generated stepper was named by
+  its accumulator update's source alone, so two closures of one update (a
+  user's ``make_update(w)``) shared one stepper.
 
 Each test here failed before the fix."""
 
@@ -270,3 +274,60 @@ def test_closures_compiled_by_two_processes_run_their_own_helpers(tmp_path):
         rows = run(*order)
         assert [hits for *_, hits in rows] == ["1", "1"]        # both from the cache
         assert [got == afresh for _, got, afresh, _ in rows] == [True, True], order
+
+
+#: A user's indicator whose accumulator update is a closure over a weight w
+#: (aux += w log r); prints w and the accumulated value (hex) per run.
+WEIGHTED = """
+import sys
+import numpy as np
+from numba import njit
+import varint
+from varint.indicators import Indicator
+from varint.protocol import Accumulator
+from varint.results import IndicatorResult
+
+
+def make_update(w):
+    @njit
+    def update(aux, r, x, W, flow, t):
+        for j in range(r.shape[0]):
+            aux[j, 0] += w * np.log(r[j])
+    return update
+
+
+def read(rows, model, t, options):
+    return {"s": rows.extra["acc_sum"][:, 0, 0].copy()}
+
+
+model, c1 = varint.paper_orbit("C1")
+for w in sys.argv[1:]:
+    varint.register_indicator(Indicator(
+        name=f"weighted_{w}", summary="weighted log stretching", renorm="normalize",
+        vectors=lambda model, options, given: 1, read=read, result=IndicatorResult,
+        accumulator=Accumulator(name="sum", columns=("s",), initial=(0.0,),
+                                update=make_update(float(w)))))
+    r = varint.run(model, c1, f"weighted_{w}", t_end=10.0, tau=0.05, t_out=np.array([10.0]))
+    print(w, float(r["s"][-1]).hex())
+"""
+
+
+def test_two_closures_as_accumulator_updates_each_run_their_own(tmp_path):
+    """Hénon–Heiles has a generated stepper, into which the update is
+    compiled. Named by its source alone, the update of w = 2 shared the
+    stepper of w = 1 (in the process, and through the cache in the next
+    one): the same value instead of twice it (multiplying by 2 is exact, so
+    the sum of 2·log r is twice the sum of log r bit for bit)."""
+    script = tmp_path / "weighted.py"
+    script.write_text(WEIGHTED)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), VARINT_CACHE_DIR=str(tmp_path / "cache"))
+
+    def run(*ws):
+        done = subprocess.run([sys.executable, str(script), *ws], env=env,
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return [float.fromhex(line.split()[1]) for line in done.stdout.splitlines()]
+
+    one, two = run("1", "2")
+    assert one != 0.0 and two == 2 * one
+    assert run("2") == [two]

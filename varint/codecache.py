@@ -172,7 +172,7 @@ def write_json(folder, name, value):
 
 # -- generated modules -----------------------------------------------------------------
 
-def load_module(name, folder, make_source, extra_globals=None):
+def load_module(name, folder, make_source, extra_globals=None, on_disk=True):
     """Import the generated module ``name`` from ``<cache>/<folder>/<name>.py``.
 
     Parameters
@@ -186,6 +186,9 @@ def load_module(name, folder, make_source, extra_globals=None):
         Returns the source (str) when the file is absent or discarded.
     extra_globals : dict, optional
         Set in the module before its code runs.
+    on_disk : bool, default True
+        False: compiled in memory, nothing read from or written to the
+        cache (a module whose name is valid in this process only).
 
     Returns
     -------
@@ -195,6 +198,8 @@ def load_module(name, folder, make_source, extra_globals=None):
     """
     with _LOAD_LOCK:
         tolerate_full_disks()
+        if not on_disk:
+            return _execute(name, make_source().encode(), None, extra_globals)
         return _load(name, folder, make_source, extra_globals)
 
 
