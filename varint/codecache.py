@@ -19,6 +19,20 @@ anything runs:
   or with another secret) is discarded with one :class:`CacheDirWarning`
   and rebuilt; an unpickling error of a verified file (another numba) is a
   discard and a recompilation, never an error of the run;
+* a compiled kernel is used only for what it was compiled for: numba's
+  index (what → data file) and data files are written one after the other,
+  so two processes caching two versions of one function at once (two
+  closures, two signatures: the test suite's workers on a cold cache) can
+  leave an index entry naming the other's code — which then ran, giving
+  other bits or writing past a buffer. A generated kernel's data file
+  carries its index key, and a package kernel's compiled signature is
+  compared with the one asked for (:class:`_TolerantCache`); a file that
+  does not match is a cache miss (compiled again and written over);
+* compiled code has symbol names no other process gives other code
+  (:func:`unique_symbol_names`): numba names a function by its qualified
+  name and a counter of the process, so the same closure with other
+  constants, compiled by two processes, had one name, and a process that
+  loaded both from the cache ran the first one's helper in the second;
 * a cache that cannot be written (full disk, read-only, no private
   directory) costs the cache, not the run: the module is compiled in memory
   (numba's on-disk caching off) after one warning.
@@ -35,12 +49,13 @@ import io
 import json
 import os
 import pickle
+import secrets
 import sys
 import threading
 import types
 from pathlib import Path
 
-from numba.core import caching
+from numba.core import bytecode, caching, sigutils
 from numba.core.dispatcher import Dispatcher
 
 from . import cachedir
@@ -49,7 +64,7 @@ from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
            "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
-           "CacheDirWarning"]
+           "CacheDirWarning", "unique_symbol_names"]
 
 #: One generated module is loaded at a time: threads of one process (a Dask
 #: worker's) ask for the same kernels at once, and CPython 3.11's AST
@@ -157,7 +172,7 @@ def write_json(folder, name, value):
 
 # -- generated modules -----------------------------------------------------------------
 
-def load_module(name, folder, make_source, extra_globals=None):
+def load_module(name, folder, make_source, extra_globals=None, on_disk=True):
     """Import the generated module ``name`` from ``<cache>/<folder>/<name>.py``.
 
     Parameters
@@ -171,6 +186,9 @@ def load_module(name, folder, make_source, extra_globals=None):
         Returns the source (str) when the file is absent or discarded.
     extra_globals : dict, optional
         Set in the module before its code runs.
+    on_disk : bool, default True
+        False: compiled in memory, nothing read from or written to the
+        cache (a module whose name is valid in this process only).
 
     Returns
     -------
@@ -180,6 +198,8 @@ def load_module(name, folder, make_source, extra_globals=None):
     """
     with _LOAD_LOCK:
         tolerate_full_disks()
+        if not on_disk:
+            return _execute(name, make_source().encode(), None, extra_globals)
         return _load(name, folder, make_source, extra_globals)
 
 
@@ -270,7 +290,16 @@ def tolerate_full_disks():
 
 
 class _TolerantCache:
-    """numba's cache of one kernel, whose failures to write cost a warning."""
+    """numba's cache of one kernel, whose failures to write cost a warning,
+    and whose loaded code is used only if it was compiled for the
+    signature asked for.
+
+    numba's index and data files are written one after the other, so two
+    processes caching two signatures of one kernel at once can leave the
+    index naming the other signature's code for this one (seen: a kernel
+    for contiguous arrays run on a strided one). The signature is in the
+    data; a mismatch is a cache miss: the kernel is compiled and written
+    over the foreign file (its index entry names it)."""
 
     def __init__(self, cache):
         self._inner = cache
@@ -278,11 +307,58 @@ class _TolerantCache:
     def __getattr__(self, name):
         return getattr(self._inner, name)
 
+    def load_overload(self, sig, target_context):
+        cres = self._inner.load_overload(sig, target_context)
+        if cres is None:
+            return None
+        args, _ = sigutils.normalize_signature(sig)
+        return cres if tuple(cres.signature.args) == tuple(args) else None
+
     def save_overload(self, sig, data):
         try:
             self._inner.save_overload(sig, data)
         except OSError as exc:
             _unwritable(self._inner.cache_path, exc)
+
+
+# -- symbol names unique across processes ------------------------------------------------
+
+class _RandomIds:
+    """An endless iterator of random 63-bit ids, drawn from the system's
+    entropy at each step (so forked children do not repeat their parent's,
+    as a copied counter or seed would)."""
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        return secrets.randbits(63)
+
+
+def unique_symbol_names():
+    """Make the symbol names of code numba compiles from now on, in this
+    process, unique across processes.
+
+    numba names a compiled function by its qualified name, its argument
+    types and an id drawn from a counter of the process
+    (``FunctionIdentity._unique_ids``), counting from 1 in every process.
+    Two closures of one function (KG's and FPUT's stencil kick, their
+    helpers) compiled by two processes in the same order get one name for
+    two bodies. A process that loads both from the disk cache links the
+    second against the first one's helpers (LLVM merges same-named weak
+    definitions): the second kernel runs with the first one's constants
+    and sizes — other bits, or writes past a buffer (numba issue 10486).
+    Random 63-bit ids make a shared name as unlikely as a hash collision.
+    Applied once, when this module is imported (before varint compiles a
+    kernel: the closure kernels' module imports it); a numba without that
+    counter is left as it is (its names are its own affair)."""
+    if isinstance(getattr(bytecode.FunctionIdentity, "_unique_ids", None), _RandomIds):
+        return
+    if hasattr(bytecode.FunctionIdentity, "_unique_ids"):
+        bytecode.FunctionIdentity._unique_ids = _RandomIds()
+
+
+unique_symbol_names()
 
 
 # -- numba's cache of generated modules -------------------------------------------------
@@ -364,10 +440,31 @@ class SignedCache(caching.FunctionCache):
 class _SignedCacheFile(caching.IndexDataCacheFile):
     """numba's index and data files, each written as ``HEADER``, the HMAC
     of its name and content, and numba's own bytes; read back only when the
-    HMAC verifies."""
+    HMAC verifies. A data file holds its index key with the compiled code,
+    and is used only for that key.
+
+    numba writes an entry as: read the index, pick the first free data file
+    number, write the index, write the data. Two processes saving two keys
+    of one function at once (two closures of one kernel: KG's and FPUT's
+    part steppers, compiled by two test workers on a cold cache) can both
+    pick number 1, and the index left by one then names the data left by
+    the other: that kernel, with other constants and sizes, ran for it. The
+    key in the data turns this into a cache miss; the kernel compiled again
+    is written over that file (the index names it for its key)."""
 
     #: The secret that signs them (set by :class:`SignedCache`).
     key = None
+
+    def save(self, key, data):
+        super().save(key, (key, data))
+
+    def load(self, key):
+        entry = super().load(key)
+        # Another key's code (two processes saved at once), or a file of a
+        # varint that did not store the key: a miss, never that code.
+        if isinstance(entry, tuple) and len(entry) == 2 and entry[0] == key:
+            return entry[1]
+        return None
 
     def _read(self, path):
         """The verified content of ``path``; FileNotFoundError if absent or

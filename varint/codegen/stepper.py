@@ -23,12 +23,15 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import os
+import uuid
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
 
 from .. import codecache
+from ..kernels.closures import Unnamed, describe_cells
 from .accumulators import rule_text
 from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
@@ -96,16 +99,50 @@ def _generator_id():
 
 @lru_cache(maxsize=256)
 def _function_id(function):
-    """A name for a compiled function that changes when its code does
-    (``module:qualname:hash of its source``), for the generated file's name;
-    read once per function and process (reading the source costs ~1 ms)."""
+    """A name for a compiled function that changes when what is compiled
+    in from it does, for the generated file's name: ``module:qualname:``
+    the hash of its source, of its file's size and modification time (the
+    globals it reads there) and of the values it closes over; worked out
+    once per function and process (reading the source costs ~1 ms).
+
+    A function whose closed-over values no key can name (an array, a
+    function of the user's: :func:`varint.kernels.closures.describe_cells`)
+    gets a name of this process only, and its module is compiled in memory
+    (:func:`_on_disk`): named by its source alone, two closures of one
+    function (``make_update(w)`` for two weights w) shared one generated
+    stepper, in this process and through the cache, and the second ran the
+    first one's update."""
     py = getattr(function, "py_func", function)
     try:
         code = inspect.getsource(py)
     except (OSError, TypeError):
         code = repr(py.__code__.co_code)
-    digest = hashlib.sha256(code.encode()).hexdigest()[:16]
+    try:
+        cells = repr(describe_cells(py))
+    except Unnamed:
+        _IN_PROCESS.setdefault(function, uuid.uuid4().hex)
+        cells = f"in process {_IN_PROCESS[function]}"
+    try:
+        stat = os.stat(py.__code__.co_filename)
+        stamp = f"{stat.st_size} {stat.st_mtime_ns}"
+    except OSError:
+        stamp = ""
+    digest = hashlib.sha256(f"{code}|{stamp}|{cells}".encode()).hexdigest()[:16]
     return f"{py.__module__}:{py.__qualname__}:{digest}"
+
+
+#: Update functions named for this process only (:func:`_function_id`),
+#: each with its token (held here: a token is never given to another).
+_IN_PROCESS: dict = {}
+
+
+def _on_disk(accumulator):
+    """Whether the stepper of ``accumulator`` may be cached on disk: not if
+    its update is named for this process only."""
+    if accumulator is None or accumulator.rule is not None:
+        return True
+    _function_id(accumulator.update)        # gives it its token if it needs one
+    return accumulator.update not in _IN_PROCESS
 
 
 def _accumulator_id(accumulator):
@@ -175,7 +212,8 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
             return _source(key, plan, accumulator)
 
         _LOADED[digest] = codecache.load_module(f"varint_stepper_{digest}", "kernels",
-                                                make_source, extra)
+                                                make_source, extra,
+                                                on_disk=_on_disk(accumulator))
     return _LOADED[digest]
 
 

@@ -47,7 +47,7 @@ from numba.core.extending import _Intrinsic
 from .. import baselines, cachedir, codecache
 from ..identity import source_digest
 
-__all__ = ["cache_on_disk", "closure_key"]
+__all__ = ["cache_on_disk", "closure_key", "describe_cells", "Unnamed"]
 
 #: The folders whose functions a key may name: varint's own sources
 #: (``varint`` and ``varint.baselines``), all of which the key hashes.
@@ -63,8 +63,15 @@ _SOURCE_DIGEST = source_digest()
 _FOLDER = "closures"
 
 
-class _Unnamed(Exception):
+class Unnamed(Exception):
     """A value that no key can name (a user's function, an object)."""
+
+
+def describe_cells(function):
+    """A plain, process-independent description of the values ``function``
+    closes over (by value; functions of varint's sources by their code);
+    :class:`Unnamed` if one has none."""
+    return tuple(_describe(c.cell_contents) for c in function.__closure__ or ())
 
 
 def cache_on_disk(dispatcher):
@@ -74,7 +81,7 @@ def cache_on_disk(dispatcher):
     and secret (then it stays compiled in memory). Returns ``dispatcher``."""
     try:
         key = closure_key(dispatcher)
-    except _Unnamed:
+    except Unnamed:
         return dispatcher
     folder = cachedir.subdir(_FOLDER)
     secret = None if folder is None else cachedir.secret()
@@ -92,7 +99,7 @@ def closure_key(dispatcher):
 
     Raises
     ------
-    _Unnamed
+    Unnamed
         If it closes over something no key can name.
     """
     text = repr(_describe(dispatcher))
@@ -101,9 +108,9 @@ def closure_key(dispatcher):
 
 def _describe(value, depth=0):
     """A plain, process-independent description of ``value`` (nested
-    tuples of strings and numbers); :class:`_Unnamed` if there is none."""
+    tuples of strings and numbers); :class:`Unnamed` if there is none."""
     if depth > 64:
-        raise _Unnamed("nested too deeply")
+        raise Unnamed("nested too deeply")
     if value is None or isinstance(value, (bool, int, float, complex, str, bytes)):
         return (type(value).__name__, repr(value))
     if isinstance(value, enum.Enum):
@@ -128,7 +135,7 @@ def _describe(value, depth=0):
     if isinstance(value, (tuple, list, frozenset)):
         items = sorted(value, key=repr) if isinstance(value, frozenset) else value
         return (_class_name(type(value)), tuple(_describe(v, depth + 1) for v in items))
-    raise _Unnamed(f"a {type(value).__name__}")
+    raise Unnamed(f"a {type(value).__name__}")
 
 
 def _class_name(cls):
@@ -152,7 +159,7 @@ def _describe_function(function, depth):
         except (OSError, ValueError):
             inside = False
         if not inside:
-            raise _Unnamed(f"the function {function.__qualname__} outside varint's sources")
+            raise Unnamed(f"the function {function.__qualname__} outside varint's sources")
         names = ()
     cells = tuple(_describe(c.cell_contents, depth + 1) for c in function.__closure__ or ())
     defaults = _describe(function.__defaults__ or (), depth + 1)
