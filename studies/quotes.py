@@ -1063,6 +1063,24 @@ def _planetary_lane_cache(R):
             f"load {lo:.0f} → {hi:.0f} on 2 cores)")
 
 
+@quote("startup_quiet")
+def _startup_quiet(R):
+    """The first run of a new process with warm caches on a quiet machine
+    (``studies/startup.py --label quiet41``: medians of fresh processes,
+    wall time from before ``import varint`` to the end of the run)."""
+    d = R.json("startup_quiet41")
+    t = {case: row["import_plus_first_run_median_s"] for case, row in d["this"].items()}
+    announced = d["this"]["potential"]["announced"]
+    lo, hi = d["load"]["before"][0], d["load"]["after"][0]
+    return (f"{t['r1']:.2f} s for `import varint` and a first R1 spectrum, against "
+            f"{t['floor']:.2f} s for NumPy, numba and one cached trivial kernel; "
+            f"{t['lattice']:.2f} s for a first lattice run, {t['map2'] - t['map1']:.3f} s more "
+            f"for a first map on 2 threads than on 1, and {t['potential']:.1f} s for a new "
+            f"`from_potential` model (its compile announced in {announced} of "
+            f"{d['processes']}); medians of {d['processes']} new processes, commit "
+            f"{d['_provenance']['code']['commit'][:7]}, load {lo:.1f} → {hi:.1f} on 2 cores")
+
+
 @quote("suite_time")
 def _suite_time(R):
     """How long the default suite took, cold, as CI runs it
