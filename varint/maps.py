@@ -542,8 +542,6 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
     evaluations, but each 4–6.5 times the cost of the generated constant-step
     stepper's). The cheap tests come first: a map whose constant step met
     the tolerance builds nothing for it."""
-    from .time_transform import refuse
-
     model = spec.model
     if (ind.name != "fli" or tau is not None or method != "tm" or options
             or threshold not in ("default", None) or t_check is not None
@@ -551,6 +549,10 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
             or getattr(model, "kind", "flow") == "map"
             or spec.tau_choice.get("rule") != "fallback"):
         return False
+    # Only now: the LH's module imports SymPy, which a map that keeps its
+    # constant step never needs.
+    from .time_transform import refuse
+
     try:
         refuse(model)
     except ValueError:
