@@ -1066,9 +1066,9 @@ def _planetary_lane_cache(R):
 @quote("startup_quiet")
 def _startup_quiet(R):
     """The first run of a new process with warm caches on a quiet machine
-    (``studies/startup.py --label quiet41``: medians of fresh processes,
+    (``studies/startup.py --label quiet41m``: medians of fresh processes,
     wall time from before ``import varint`` to the end of the run)."""
-    d = R.json("startup_quiet41")
+    d = R.json("startup_quiet41m")
     t = {case: row["import_plus_first_run_median_s"] for case, row in d["this"].items()}
     announced = d["this"]["potential"]["announced"]
     lo, hi = d["load"]["before"][0], d["load"]["after"][0]
