@@ -90,8 +90,13 @@ Parts (``--part``):
     "varint defaults" is the LH at its automatic h where the defaults
     choose it (its ``method`` "tm+log"), "varint constant steps" the map
     with ``time_transform=None`` and "varint LH, automatic h" the map with
-    ``time_transform="log"`` and no τ (its pilot included; stored apart,
-    ``lh_auto_race_quick.json``, measured before the generated stepper).
+    ``time_transform="log"`` and no τ (its pilot included; the run of
+    lhauto7's branch with the closure stepper is kept in
+    ``lh_auto_race_quick.json``). The stored run (quiet machine, load ≤ 1,
+    3 repeats, the generated stepper) reads: CR3BP ABA864 h = 1.6 2.85× at
+    100 %, automatic h 0.128×, defaults 0.183×; cored ABA864 h = 0.07
+    0.559× at 100 %, automatic h 0.079×, defaults 0.047× — the figures
+    above were taken under load 13–15.
 
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's

@@ -1148,10 +1148,10 @@ def _lh_auto_h(R):
 
 @quote("lh_auto_race")
 def _lh_auto_race(R):
-    """studies/map_steps.py part log on branch lhauto7's code: the LH map at
-    its automatic h and the defaults against heyoka batch 8 at equal
+    """studies/map_steps.py part log (quick maps): the LH map at its
+    automatic h and the defaults against heyoka batch 8 at equal
     agreement, per map measured."""
-    d = R.json("lh_auto_race_quick")["log"]
+    d = R.json("map_steps_quick_log")["log"]
     rows = {(r["map"], r["contender"]): r for r in d["rows"]}
     parts = []
     for name, s in d["summary"].items():
