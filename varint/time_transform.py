@@ -34,14 +34,11 @@ H. Preto & S. Tremaine, AJ 118, 2532 (1999).
 
 from __future__ import annotations
 
-import math
 import numbers
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 import sympy as sp  # type: ignore[import-untyped]
-from numba import njit
 
 from . import codecache
 from .codegen.lh import Flow, lh_name, lh_source
@@ -129,60 +126,6 @@ class LHOutputs:
     counts: np.ndarray
 
 
-@cache
-def _outputs_kernel(advance, kinetic, potential):
-    """The loop of :meth:`LogHamiltonian.outputs` over orbits and output
-    times around the stepper's ``advance``, in machine code: per orbit its
-    own fictitious step ``h[m]``, the FLI as the stepper's own FLI loop
-    computes it (the same operations, so the same bits) and, at every
-    output, H = A + V by the model's generated kernels against H(x₀) = −p_t,
-    keeping the state where |ΔH| is largest."""
-
-    @njit(error_model="numpy")
-    def outputs(X, W0, pt, C, h, t_end, every, max_steps, kinds, coef, par, fli, status,
-                counts, x_end, t_end_at, x_worst, t_worst):
-        M, d = X.shape
-        n = d // 2
-        k = W0.shape[1]
-        gA, gV, HV = np.empty(d), np.empty(n), np.empty((n, n))
-        for m in range(M):
-            x = X[m].copy()
-            V = W0[m].copy()
-            dt = np.zeros(k)
-            clock = np.array([0.0, pt[m] + C[m]])
-            e0 = -pt[m]
-            acc = best = big = 0.0
-            x_worst[m, :] = x
-            t_worst[m] = 0.0
-            j = 0
-            st = 0
-            while clock[0] < t_end and st == 0:
-                j += 1
-                stop = min(j * every, t_end)
-                st = advance(x, V, dt, clock, kinds, coef, h[m], stop, max_steps, par, C[m],
-                             counts[m])
-                if k > 0:
-                    norm = 0.0
-                    for i in range(d):
-                        norm += V[0, i] * V[0, i]
-                    norm = math.sqrt(norm)
-                    acc += math.log(norm)
-                    best = max(best, acc)
-                    for i in range(d):
-                        V[0, i] /= norm
-                e = abs(kinetic(x, gA) + potential(x[:n], gV, HV, False) - e0)
-                if not e <= big:   # larger, or NaN: the state that shows it
-                    big = e
-                    x_worst[m, :] = x
-                    t_worst[m] = clock[0]
-            fli[m] = best if k > 0 else math.nan
-            status[m] = st
-            x_end[m, :] = x
-            t_end_at[m] = clock[0]
-
-    return outputs
-
-
 def _symbolic_parts(model):
     """(A, V, q, p, flow, par) of ``model``: A(q, p) and V(q) as SymPy in
     the symbols q, p, A's exact flow (:class:`~varint.codegen.lh.Flow`)
@@ -239,8 +182,8 @@ class LogHamiltonian:
         mod = codecache.load_module(lh_name(key), "kernels",
                                     lambda: lh_source(A, V, q, p, flow, self.kinds))
         self._kinetic, self._potential = mod.kinetic, mod.potential
-        self.advance_kernel, self.step_kernel, self.project_kernel, self.fli_kernel = \
-            mod.advance, mod.step, mod.project, mod.fli
+        self.advance_kernel, self.step_kernel, self.project_kernel, self.outputs_kernel = \
+            mod.advance, mod.step, mod.project, mod.outputs
 
     # -- values ------------------------------------------------------------------------
     def energy(self, X):
@@ -290,15 +233,9 @@ class LogHamiltonian:
         says why an orbit stopped; its FLI is NaN)."""
         X, W0, t_end, h = _checked(X, W0[..., None], t_end, h)
         C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), len(X))
-        M = len(X)
-        out, status = np.zeros(M), np.zeros(M, dtype=np.int64)
-        counts = np.zeros((M, 3), dtype=np.int64)
-        pt = -self.energy(X)
-        self.fli_kernel(X, np.ascontiguousarray(W0[..., 0]), pt, np.ascontiguousarray(C),
-                        self.kinds, self.coef, h, t_end, float(every), max_steps, self.par,
-                        out, status, counts)
-        out[status != 0] = np.nan   # nothing computed is passed off as a value
-        return out, counts, status
+        run = self._run(X, np.ascontiguousarray(np.swapaxes(W0, 1, 2)), t_end,
+                        np.full(len(X), h), float(every), C, max_steps)
+        return run.fli, run.counts, run.status
 
     def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
         """Orbits ``X`` (M, 2N) with one vector each (``W0`` (M, 2N), or
@@ -318,16 +255,21 @@ class LogHamiltonian:
         if isinstance(every, bool) or not isinstance(every, numbers.Real) \
                 or not float(every) > 0.0 or not np.isfinite(every):
             raise ValueError(f"every must be a finite number > 0, got {every!r}")
-        every = float(every)
-        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M).copy()
-        pt = -self.energy(X)
+        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M)
+        return self._run(X, W, t_end, hs, float(every), C, max_steps)
+
+    def _run(self, X, W, t_end, hs, every, C, max_steps):
+        """The generated ``outputs`` loop over checked orbits ``X``, vectors
+        ``W`` (M, k, 2N), steps ``hs`` (M,) and constants ``C`` (M,);
+        an orbit that stopped has a NaN FLI."""
+        M = len(X)
         fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
-        kernel = _outputs_kernel(self.advance_kernel, self._kinetic, self._potential)
-        kernel(X, W, pt, np.ascontiguousarray(C), hs, t_end, every, max_steps, self.kinds,
-               self.coef, self.par, fli, status, counts, x_end, t, x_worst, t_worst)
-        fli[status != 0] = np.nan
+        self.outputs_kernel(X, W, -self.energy(X), np.ascontiguousarray(C, dtype=float), hs,
+                            t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
+                            status, counts, x_end, t, x_worst, t_worst)
+        fli[status != 0] = np.nan   # nothing computed is passed off as a value
         return LHOutputs(fli, status, x_end, t, x_worst, t_worst, counts)
 
 

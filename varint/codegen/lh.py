@@ -33,7 +33,7 @@ derivatives and, in a rotating frame, to a sine and a cosine per drift,
 not to the latency of the updates.
 
 The loop around the step — ``advance`` (LH steps, the undone step, the
-physical-time tail, the projection), ``project`` and ``fli`` — is emitted
+physical-time tail, the projection), ``project`` and ``outputs`` — is emitted
 unchanged for every model (:data:`_SKELETON`).
 
 References
@@ -124,7 +124,7 @@ def lh_source(A, V, q, p, flow, kinds):
     scheme's stage ``kinds`` (0 drift, 1 kick).
 
     The module defines ``kinetic(x, gA) -> A``, ``potential(q, gV, HV,
-    hess) -> V`` and ``advance``, ``step``, ``project``, ``fli`` with the
+    hess) -> V`` and ``advance``, ``step``, ``project``, ``outputs`` with the
     signatures of :mod:`varint.kernels.time_transform`'s docstring.
     """
     import sympy as sp  # type: ignore[import-untyped]  # emitting only
@@ -412,32 +412,50 @@ def advance(x, V, dt, clock, kinds, coef, h, t_end, max_steps, par, C, counts):
 
 
 @njit(cache=True, error_model='numpy')
-def fli(X, W0, pt, C, kinds, coef, h, t_end, every, max_steps, par, out, status, counts):
-    """The FLI sup ln|w(t)| over t = 0 and the multiples of every up to
-    t_end of every orbit X[m] from the vector W0[m]."""
+def outputs(X, W0, pt, C, h, t_end, every, max_steps, kinds, coef, par, fli, status, counts,
+            x_end, t_end_at, x_worst, t_worst):
+    """Every orbit X[m] with its vectors W0[m] (k, 2N; k = 0 or 1) to the
+    physical time t_end through outputs at the multiples of every, with its
+    own fictitious step h[m]: the FLI sup ln|w| over the outputs (the
+    vector normalised at each; NaN without a vector), the status, the
+    final state and its time, and the output state whose H = A + V lies
+    furthest from H(x0) = -p_t, with its time."""
     M, d = X.shape
+    n = d // 2
+    k = W0.shape[1]
+    gA, gV, HV = np.empty(d), np.empty(n), np.empty((n, n))
     for m in range(M):
         x = X[m].copy()
-        V = np.empty((1, d))
-        V[0, :] = W0[m]
-        dt = np.zeros(1)
+        V = W0[m].copy()
+        dt = np.zeros(k)
         clock = np.array([0.0, pt[m] + C[m]])
-        acc = best = 0.0
+        e0 = -pt[m]
+        acc = best = big = 0.0
+        x_worst[m, :] = x
+        t_worst[m] = 0.0
         j = 0
         st = {_OK}
         while clock[0] < t_end and st == {_OK}:
             j += 1
             stop = min(j * every, t_end)
-            st = advance(x, V, dt, clock, kinds, coef, h, stop, max_steps, par, C[m],
+            st = advance(x, V, dt, clock, kinds, coef, h[m], stop, max_steps, par, C[m],
                          counts[m])
-            norm = 0.0
-            for i in range(d):
-                norm += V[0, i] * V[0, i]
-            norm = math.sqrt(norm)
-            acc += math.log(norm)
-            best = max(best, acc)
-            for i in range(d):
-                V[0, i] /= norm
-        out[m] = best
+            if k > 0:
+                norm = 0.0
+                for i in range(d):
+                    norm += V[0, i] * V[0, i]
+                norm = math.sqrt(norm)
+                acc += math.log(norm)
+                best = max(best, acc)
+                for i in range(d):
+                    V[0, i] /= norm
+            e = abs(kinetic(x, gA) + potential(x[:n], gV, HV, False) - e0)
+            if not e <= big:   # larger, or NaN: the state that shows it
+                big = e
+                x_worst[m, :] = x
+                t_worst[m] = clock[0]
+        fli[m] = best if k > 0 else math.nan
         status[m] = st
+        x_end[m, :] = x
+        t_end_at[m] = clock[0]
 '''

@@ -70,13 +70,17 @@ scratch: (2N,), (N,), (N, N), (k,)).
 ``project(x, V, dt, par, gA, gV, HV)`` turns the vectors into
 physical-time deviations: δx ← δx − f_H(x) δt, δt ← 0.
 
-``fli(X, W0, pt, C, kinds, coef, h, t_end, every, max_steps, par, out,
-status, counts)``: the fast Lyapunov indicator sup ln‖w(t)‖ over t = 0 and
-the multiples of ``every`` up to ``t_end`` (where the vector is
-normalised; Froeschlé, Lega & Gonczi 1997) of every orbit ``X[m]`` (M, 2N)
-from the vector ``W0[m]`` (M, 2N); ``pt`` (M,) = −E and ``C`` (M,) per
-orbit; ``out`` (M,), ``status`` (M,), ``counts`` (M, 3) receive the
-results.
+``outputs(X, W0, pt, C, h, t_end, every, max_steps, kinds, coef, par, fli,
+status, counts, x_end, t_end_at, x_worst, t_worst)``: every orbit ``X[m]``
+(M, 2N) with its vectors ``W0[m]`` (k, 2N; k = 0 or 1) and its own
+fictitious step ``h[m]`` to ``t_end`` through outputs at the multiples of
+``every``; ``pt`` (M,) = −E and ``C`` (M,) per orbit. ``fli`` (M,)
+receives the fast Lyapunov indicator sup ln‖w(t)‖ over the outputs (where
+the vector is normalised; Froeschlé, Lega & Gonczi 1997; NaN without a
+vector), ``status`` (M,) and ``counts`` (M, 3) as ``advance``'s,
+``x_end`` (M, 2N) and ``t_end_at`` (M,) the final states and their times,
+``x_worst``, ``t_worst`` the output state whose H lies furthest from
+H(x₀) = −p_t and its time.
 
 References
 ----------
