@@ -60,7 +60,7 @@ def hook_advance(monkeypatch, method, at, action):
     first one whose state satisfies ``at(state)``; returns the list of
     calls so far, for counting. Chunks grow at most 8-fold meanwhile, so
     that a short run still takes several (quick chunks may otherwise grow
-    64-fold, see ``varint.driver._Pace``)."""
+    64-fold, see ``varint.driver.Pace``)."""
     import importlib
 
     import varint

@@ -61,8 +61,8 @@ def test_sigkill_while_writing_a_checkpoint_then_resume(c1, tmp_path):
         import varint.checkpoint as C
         import varint.driver as D
         # Chunks of 16 steps, so the run writes many checkpoints.
-        D._Pace.__init__ = lambda self: setattr(self, "chunk", 16)
-        D._Pace.took = lambda self, n, seconds: None
+        D.Pace.__init__ = lambda self: setattr(self, "chunk", 16)
+        D.Pace.took = lambda self, n, seconds: None
         real, writes = C._write_npz, []
         def stalled(stream, arrays):
             writes.append(1)
@@ -104,8 +104,8 @@ def test_disk_full_during_a_run_keeps_the_last_checkpoint_and_the_result(c1, tmp
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # get EFBIG, not death
         # Chunks of 16 steps: many checkpoint writes (the stepper would
         # otherwise take a few long chunks).
-        D._Pace.__init__ = lambda self: setattr(self, "chunk", 16)
-        D._Pace.took = lambda self, n, seconds: None
+        D.Pace.__init__ = lambda self: setattr(self, "chunk", 16)
+        D.Pace.took = lambda self, n, seconds: None
         real, writes = C.write, []
         def write(p, snapshot):
             real(p, snapshot)

@@ -18,7 +18,7 @@ from varint.schemes import get_scheme, stage_arrays
 
 
 def test_quick_chunks_grow_faster_but_a_slow_one_at_most_eightfold():
-    pace = driver._Pace()
+    pace = driver.Pace()
     n = pace.chunk
     # Mostly the fixed cost of a call: the next chunk lasts <= ~64 ms.
     pace.took(n, 1e-5)
@@ -38,7 +38,7 @@ def test_a_chunk_whose_fixed_cost_exceeds_the_target_grows_back():
     shorter call's equal time shows the fixed cost, and the chunk grows
     8-fold per call by the marginal cost of a step, instead of shrinking
     to one step (a call per step)."""
-    pace = driver._Pace()
+    pace = driver.Pace()
     pace.took(64, 1.0)
     assert pace.chunk == 12                       # 64 * 0.2 s / 1 s
     pace.took(12, 1.0 - 12e-5)                    # 1e-5 s per step beyond 1 s

@@ -28,10 +28,13 @@ from .state import Rows
 #: SIGINT as the C module ``_signal`` takes it (:func:`_sigint_to_flag`).
 _SIGINT = int(signal.SIGINT)
 
-__all__ = ["IntegrationError", "drive", "failure_message", "progress_bar"]
+__all__ = ["CHUNK_SECONDS", "SNAPSHOT_BYTES", "IntegrationError", "Pace", "drive",
+           "failure_message", "progress_bar"]
 
-_CHUNK_SECONDS = 0.2
-#: Chunks shorter than this may grow faster (:class:`_Pace`).
+#: The wall time a chunk of steps aims at (:class:`Pace`): progress and
+#: Ctrl-C are seen between chunks.
+CHUNK_SECONDS = 0.2
+#: Chunks shorter than this may grow faster (:class:`Pace`).
 _QUICK_CHUNK = 1e-3
 #: A progress bar appears only once a run has lasted this many seconds.
 _PROGRESS_DELAY = 1.0
@@ -196,7 +199,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         stop, todo = "failed", todo[:0]  # resumed from a checkpoint written at a failure
     takes = getattr(prop, "takes_snapshots", None)
     batched = decide is None and takes is not None and takes(state)
-    pace = _Pace()
+    pace = Pace()
     with _sigint_to_flag() as interrupted, \
             progress_bar(progress, state.step, out_steps[-1], desc) as bar:
         while stop is None and todo.size:
@@ -240,13 +243,13 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
     return records.stacked(), stop, time.perf_counter() - start
 
 
-class _Pace:
-    """Chunks of steps sized to take about ``_CHUNK_SECONDS``: progress and
+class Pace:
+    """Chunks of steps sized to take about ``CHUNK_SECONDS``: progress and
     Ctrl-C stay responsive, and the chunking never changes a result
     (rule 3 of the propagator protocol).
 
     A call costs a fixed part (transfers, packing: on a GPU, for many
-    orbits, it may exceed ``_CHUNK_SECONDS``) and a part per step. Sized by
+    orbits, it may exceed ``CHUNK_SECONDS``) and a part per step. Sized by
     its mean cost per step alone, a chunk whose fixed part exceeds the
     target would shrink at every call, to one step, and the run would
     pay the fixed part at every step (a GPU map of 1e5 orbits on the CUDA
@@ -269,7 +272,7 @@ class _Pace:
                 if marginal > 0.0:
                     per_step = min(per_step, marginal)
             self.last = (n, seconds)
-            grown = _CHUNK_SECONDS / per_step
+            grown = CHUNK_SECONDS / per_step
             # A chunk grows at most 8-fold, so that one unrepresentative
             # chunk cannot make the next last for minutes; a chunk of under
             # 1 ms (mostly the fixed cost of a call) may grow 64-fold, since
@@ -280,7 +283,7 @@ class _Pace:
 
 
 #: Most bytes of snapshots taken in one chunk of a batched run.
-_SNAPSHOT_BYTES = 1 << 26
+SNAPSHOT_BYTES = 1 << 26
 
 
 def _batch(state, todo, chunk):
@@ -288,7 +291,7 @@ def _batch(state, todo, chunk):
     m, d, k = state.W.shape
     per_output = 8 * m * (d * (k + 1) + 2 * k) + sum(
         a[0].nbytes * m for a in state.extra.values() if a.ndim and a.shape[0] == m)
-    most = max(1, _SNAPSHOT_BYTES // max(per_output, 1))
+    most = max(1, SNAPSHOT_BYTES // max(per_output, 1))
     end = min(state.step + chunk, int(todo[-1]))
     inside = todo[:int(np.searchsorted(todo, end, side="right"))][:most]
     if inside.size and len(inside) == most:

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 
 from . import _validate as check
 from . import accuracy, identity
-from .driver import _CHUNK_SECONDS, _SNAPSHOT_BYTES, _Pace
+from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES, Pace
 from .indicators import Indicator
 from .models.base import Model
 from .protocol import COUNTERS
@@ -179,7 +179,7 @@ class _ShortCall:
     verdict by the same :func:`~varint.accuracy.assess`; one chunk instead
     of the driver's chunks, which the propagator protocol makes bitwise
     (rule 3). So the result is the one-shot call's, bitwise. Taken only for
-    calls expected to last under the driver's chunk (``_CHUNK_SECONDS``,
+    calls expected to last under the driver's chunk (``CHUNK_SECONDS``,
     from the time per step of the calls before: Ctrl-C and a progress bar
     would wait no longer there) and whose snapshots fit its bound; a call
     in which an orbit fails, or a conserved quantity is not finite, is
@@ -225,7 +225,7 @@ class _ShortCall:
                 or (first.seed is not None and spec.seed is None) or not runs_fresh(m, k)):
             return None
         short = cls(first)
-        if short.snapshot_bytes > _SNAPSHOT_BYTES:
+        if short.snapshot_bytes > SNAPSHOT_BYTES:
             return None     # the driver's bound on one chunk's snapshots
         short.timed(result)
         return short
@@ -238,7 +238,7 @@ class _ShortCall:
     def takes(self, spec: RunSpec) -> bool:
         """Whether the call of ``spec`` is a short one."""
         return (spec.x0.shape[0] == self.m
-                and (self.outs[-1] <= 64 or self.per_step * self.outs[-1] <= _CHUNK_SECONDS))
+                and (self.outs[-1] <= 64 or self.per_step * self.outs[-1] <= CHUNK_SECONDS))
 
     def __call__(self, spec: RunSpec) -> _Result | None:
         """The result of the run over ``spec``'s states, or None where the
@@ -251,7 +251,7 @@ class _ShortCall:
         cpu, start = time.process_time(), time.perf_counter()
         x, W = np.array(x0, dtype=np.float64, order="C"), np.array(first.W0)
         snaps, status, counters, acc_m, acc_e = prop.advance_fresh(
-            x, W, self.aux0.copy(), outs, _Pace())
+            x, W, self.aux0.copy(), outs, Pace())
         if status.any():
             return None
         rows = snaps.rows(ind.renorm)

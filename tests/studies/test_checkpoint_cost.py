@@ -10,7 +10,7 @@ def test_checkpoint_cost_quick(tmp_path):
         assert 0 < row["file_bytes"] - row["array_bytes"] < 16_000, row["case"]
     writes = {r["checkpoints"]: r["writes"] for r in res["overhead"]}
     assert writes["none"] == 0 and writes["default (60 s)"] == 2  # at start and at the end
-    # Chunks last about _CHUNK_SECONDS each (outputs inside a chunk cost no
+    # Chunks last about CHUNK_SECONDS each (outputs inside a chunk cost no
     # extra call), so a quick run has a few.
     assert writes["every chunk"] > writes["default (60 s)"]
     assert (tmp_path / "checkpoint_cost.json").exists()

@@ -296,7 +296,7 @@ class TangentMapPropagator:
         the output steps ``outs``: what :meth:`advance` does for a fresh
         :class:`~varint.state.RunState` driven by
         :func:`varint.driver.drive` (chunks sized by ``pace``, a
-        :class:`varint.driver._Pace`, as the driver sizes them), with the
+        :class:`varint.driver.Pace`, as the driver sizes them), with the
         bookkeeping arrays made here and one snapshot buffer for all the
         outputs (a prepared run's short call, :mod:`varint.prepared`). Only
         where :meth:`runs_fresh`.
@@ -309,7 +309,7 @@ class TangentMapPropagator:
             The accumulator's values ((M, 0, 0) without one).
         outs : ndarray of int
             Increasing output steps, the last one the end.
-        pace : varint.driver._Pace
+        pace : varint.driver.Pace
 
         All three arrays are advanced in place. Returns ``(snapshots,
         status, counters, acc_m, acc_e)``: status (M,), the counters of
