@@ -1,20 +1,26 @@
 """When a chaos map's defaults should take the logarithmic-Hamiltonian step
-(issue 27 item 4b): for FLI maps of models whose force varies more or less
-along the orbits, the spread of U = C − V over the map's initial conditions
-(:func:`u_spread`) against the work of the two automatic choices at
-the same energy tolerance (the FLI map's pilot tolerance, 1e-7): constant
-steps (``chaos_map`` with ``time_transform=None``: its pilot and its run)
-and the LH at its automatic h (``time_transform="log"``, no tau: its pilot
-and its run), in force evaluations, and seconds one thread each, the
-minimum of the repeats, interleaved. Each map also keeps the energy errors
-both reach (the largest over the orbits) and how often their FLI
-classifications (antimode of the constant-step map's values) agree.
+(issue 27 item 4b, issue 29): for FLI maps of models whose force varies
+more or less along the orbits, the spread of U = C − V over the map's
+initial conditions (:func:`u_spread`), and, one thread each, the minimum of
+the repeats, interleaved: constant steps at the energy pilot's step
+(``chaos_map`` with ``time_transform=None``: pilot and run), the LH at its
+automatic h (``time_transform="log"``, no tau: the step at which the pilot
+orbits' FLI agrees with that at h/2, :mod:`varint.step_agreement`; pilot
+and run), the defaults (``time_transform="auto"``: the cheaper of the two
+steppers each at its agreeing step, ``varint.maps._cheaper_steps``), and
+the seconds per force evaluation of the two runs at fixed steps (no pilot:
+``cost_ratio``, the LH's over the constant step's, which sets
+``varint.maps.LH_GRADIENT_COST``). Each contender keeps its step, rule,
+force evaluations (run and pilots), the largest energy error over its
+orbits and how often its FLI classifications (antimode of the
+constant-step map's values) agree with the constant-step map's.
 
-Quick run (load 12–15 on 2 cores, ``lh_defaults_quick.json``): the LH map
-was slower on every map, 0.13× (Hénon–Heiles) to 0.70× (R_c = 0.03, 4.5 times
-fewer force evaluations, each 6.5 times the cost), CR3BP 0.28×: so the
-defaults take the LH only where no constant step meets the tolerance
-(``varint.maps._log_candidate``).
+Before the generated LH stepper and the indicator pilot (load 12–15,
+2 cores): the LH map at its energy-tolerance h was 0.13× (Hénon–Heiles) to
+0.70× (R_c = 0.03) the speed of constant steps, so the defaults took it
+only where no constant step met the tolerance. The stored run
+(``lh_defaults_quick.json``) is quoted in the guide page "Steps that follow
+the orbit".
 
 Maps (section grids, t_end = 200, ``--quick``: smaller grids, 2 repeats):
 Hénon–Heiles (E = 1/8), the cored logarithmic potential of
@@ -94,38 +100,56 @@ def antimode(values):
     return 10 ** (0.5 * (edges[k] + edges[k + 1]))
 
 
+def _gradients(result):
+    """Force evaluations of a map's run and of its pilot(s)."""
+    c, choice = result.provenance.counts, result.provenance.tau_choice
+    run = c["gradient"] if "gradient" in c else c["gradient_evaluations"]
+    pilot = 0
+    for part in (choice, choice.get("energy_choice", {})):
+        counts = part.get("counts", {})
+        pilot += counts.get("gradient", counts.get("gradient_evaluations", 0))
+    return run, pilot
+
+
 def measure(name, model, grid, repeats):
+    """One map's row: constant steps (energy pilot), the LH at its
+    automatic h (indicator pilot), the defaults, and the seconds per force
+    evaluation of the two steppers' runs at fixed steps (no pilot)."""
     X = grid.states
     numba.set_num_threads(1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        tasks = {"constant": lambda: varint.chaos_map(model, grid, "fli", t_end=T_END,
-                                                      progress=False, time_transform=None),
-                 "log": lambda: varint.chaos_map(model, grid, "fli", t_end=T_END,
-                                                 progress=False, time_transform="log")}
-        for go in tasks.values():
-            go()   # compiles, untimed
+        def go(**kw):
+            return varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False, **kw)
+        first = {"constant": go(time_transform=None), "log": go(time_transform="log")}
+        tau, h = first["constant"].provenance.tau, first["log"].provenance.tau
+        tasks = {"constant": lambda: go(time_transform=None),
+                 "log": lambda: go(time_transform="log"),
+                 "defaults": lambda: go(),
+                 "constant run": lambda: go(time_transform=None, tau=tau),
+                 "log run": lambda: go(time_transform="log", tau=h)}
+        for run in tasks.values():
+            run()   # compiles, untimed
         best, outs = interleaved(tasks, repeats)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    c, lg = outs["constant"], outs["log"]
-    cc = c.provenance.tau_choice.get("counts", {})
-    grad_c = c.provenance.counts.get("gradient", 0)
-    pilot_c = cc.get("gradient", 0)
-    lc = lg.provenance.tau_choice.get("counts", {})
-    grad_l = lg.provenance.counts["gradient_evaluations"]
-    pilot_l = lc.get("gradient_evaluations", 0)
+    c, lg, d = outs["constant"], outs["log"], outs["defaults"]
     thr = antimode(c.values)
+    per_gradient = {key: best[key] / _gradients(outs[key])[0] for key in ("constant run", "log run")}
     row = {"map": name, "orbits": len(X), "t_end": T_END, "u_spread": u_spread(model, X),
-           "constant_tau": c.provenance.tau, "constant_seconds": best["constant"],
-           "constant_gradients": grad_c, "constant_pilot_gradients": pilot_c,
-           "constant_max_energy_error": float(np.nanmax(c.accuracy.energy_error)),
-           "log_h": lg.provenance.tau, "log_seconds": best["log"],
-           "log_gradients": grad_l, "log_pilot_gradients": pilot_l,
-           "log_max_energy_error": float(np.nanmax(lg.accuracy.energy_error)),
-           "log_failed": int(np.sum(lg.status != 0)),
-           "agreement": float(np.mean(classify(c.values, thr) == classify(lg.values, thr))),
-           "time_ratio": best["constant"] / best["log"],
-           "gradient_ratio": (grad_c + pilot_c) / max(1, grad_l + pilot_l)}
+           "cost_ratio": per_gradient["log run"] / per_gradient["constant run"],
+           "us_per_gradient": {k: 1e6 * v for k, v in per_gradient.items()}}
+    for key, out in (("constant", c), ("log", lg), ("defaults", d)):
+        run, pilot = _gradients(out)
+        row[key] = {"method": out.provenance.method, "step": out.provenance.tau,
+                    "rule": out.provenance.tau_choice.get("rule"),
+                    "seconds": best[key], "gradients": run, "pilot_gradients": pilot,
+                    "max_energy_error": float(np.nanmax(out.accuracy.energy_error)),
+                    "failed": int(np.sum(out.status != 0)),
+                    "agreement_with_constant": float(np.mean(
+                        classify(c.values, thr) == classify(out.values, thr)))}
+    row["defaults"]["prices"] = d.provenance.tau_choice.get("prices")
+    row["log_over_constant_seconds"] = best["log"] / best["constant"]
+    row["defaults_over_constant_seconds"] = best["defaults"] / best["constant"]
     return row
 
 
@@ -136,12 +160,11 @@ def main(argv=None):
     for name, model, grid in maps(args.quick):
         row = measure(name, model, grid, 2 if args.quick else 3)
         rows.append(row)
-        print(f"{name}: u_spread {row['u_spread']:.3g}, constant {row['constant_seconds']:.3g} s"
-              f" ({row['constant_gradients'] + row['constant_pilot_gradients']} gradients), "
-              f"log h {row['log_h']:.3g} {row['log_seconds']:.3g} s "
-              f"({row['log_gradients'] + row['log_pilot_gradients']}); time ratio "
-              f"{row['time_ratio']:.3g}, agreement {row['agreement']:.3f}, errors "
-              f"{row['constant_max_energy_error']:.2g} / {row['log_max_energy_error']:.2g}",
+        print(f"{name}: u_spread {row['u_spread']:.3g}, cost ratio {row['cost_ratio']:.3g}; "
+              + "; ".join(f"{key} {row[key]['method']} step {row[key]['step']:.3g} "
+                          f"({row[key]['rule']}) {row[key]['seconds']:.3g} s, agreement "
+                          f"{row[key]['agreement_with_constant']:.3f}"
+                          for key in ("constant", "log", "defaults")),
               flush=True)
     save_json(args.out, "lh_defaults_quick" if args.quick else "lh_defaults",
               {"quick": args.quick, "rows": rows, "load": start,

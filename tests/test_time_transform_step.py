@@ -3,8 +3,8 @@
 chosen on some orbits keeps held-out orbits of the same model within the
 tolerance while twice that h does not; a Hénon–Heiles map never switches;
 a map of a softened point mass, which no constant step keeps within the
-tolerance, does, says so, and ``time_transform=None`` keeps constant
-steps."""
+tolerance, does (priced by tests/test_step_agreement.py's rule), says so,
+and ``time_transform=None`` keeps constant steps."""
 
 import logging
 
@@ -86,17 +86,18 @@ def test_henon_heiles_defaults_never_switch():
 def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     """A softened point mass (ε = 1e-3) with eccentric orbits: no constant
     step meets the map's tolerance (its pilot falls back, and that map's
-    energy errors are O(1) and more), the LH's automatic h does, so the
-    defaults run the LH, say so (method, the pilot's rates, one log line)
-    and give the explicit LH map at that h bit for bit, accurate;
-    time_transform=None keeps constant steps."""
+    energy errors are O(1) and more); the LH's step chosen by indicator
+    agreement is priced cheaper than constant steps, so the defaults run
+    the LH, say so (method, the prices, one log line) and give the explicit
+    LH map at that h bit for bit, accurate; time_transform=None keeps
+    constant steps."""
     model = _model("plummer")
     X = _plummer_orbits(2, 8)
     with caplog.at_level(logging.INFO, logger="varint.maps"):
         r = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False)
     assert r.provenance.method == "tm+log"
     choice = r.provenance.tau_choice
-    assert choice["rule"] == "pilot" and choice["replaces"]["rule"] == "fallback"
+    assert choice["rule"] == "indicator" and choice["prices"]["log"] < choice["prices"]["constant"]
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                 time_transform="log", tau=choice["h"])

@@ -342,7 +342,10 @@ class Accuracy:
         else:
             line = (f"inaccurate: {int(over.sum())} of {over.size} orbits above energy_tol = "
                     f"{self.energy_tol:g} (largest error {np.nanmax(self.worst):.2g})")
-        return line + (f"; {self.notes['tangent']}" if "tangent" in self.notes else "")
+        # What the verdict cannot check, and how the step was chosen (a
+        # map's step judged by its indicator, varint.step_agreement).
+        return "; ".join([line] + [self.notes[key] for key in ("tangent", "step")
+                                   if key in self.notes])
 
     def to_dict(self):
         return {"energy_error": np.asarray(self.energy_error).tolist(),

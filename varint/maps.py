@@ -57,7 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity, stepsize, stepsize_orbits
+from . import accuracy, compiling, identity, step_agreement, stepsize, stepsize_orbits
 from .checkpoint import digest
 from .fanout import (bar, client_label, cluster_threads, fan_out, total_cpu, warn_failures,
                      warn_interrupted, worker_threads)
@@ -389,18 +389,22 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
         ``checkpoint``). ``tau`` is then the step h in the fictitious time
-        s, by default chosen by a pilot to the map's energy tolerance
-        (:func:`varint.time_transform_step.choose_h`,
-        ``provenance.tau_choice``); the options ``scheme`` (a two-part
+        s, by default the largest h at which the pilot orbits' FLI agrees
+        with that at h/2 (:func:`varint.time_transform_step.agreeing_h`,
+        ``provenance.tau_choice``; the energy pilot's h, with a warning,
+        where none does); the options ``scheme`` (a two-part
         scheme without corrector or processor, default ABA864), ``offset``
         (δ of C = E + δ) and ``every`` (the physical time between
         normalisations of the vector, default 10). "auto" (the default): an
         FLI map with no τ, scheme or other option, of a model the LH takes,
-        for which no constant step meets the pilot's tolerance (orbits
-        near a singularity), takes the LH when its automatic h does (the
-        result's method is then "tm+log", and the ``varint.maps`` logger
-        says so); every other map keeps constant steps. None: constant
-        steps always.
+        whose U = C − V varies by :data:`U_SPREAD_MIN` or more over the
+        pilot orbits' starts, prices the LH at its agreeing h against
+        constant steps at theirs (the largest multiple of the energy
+        pilot's step at which the FLI agrees with that at half of it) and
+        runs the cheaper (:func:`_cheaper_steps`; the LH's method is
+        "tm+log", and the ``varint.maps`` logger says so); every other map
+        keeps the energy pilot's constant step. None: constant steps
+        always, by the energy pilot.
 
     Returns
     -------
@@ -469,24 +473,20 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     chunk_size = _chunk_size(chunk_size, m, client)
     progress = check.flag(progress, "progress")
     clock = compiling.Clock(f"the {ind.name} map of {model.name} by {spec.method}", progress)
-    # The constant step's pilot may warn that no step meets the tolerance:
-    # held back until the defaults know whether the LH map replaces it.
-    with warnings.catch_warnings(record=True) as held:
-        warnings.simplefilter("always")
-        spec, divisions = _with_step(spec, k, clock, per_orbit)
-    h_choice = None
+    stepped = divisions = None
     if auto and _log_candidate(spec, ind, tau, method, options, threshold, t_check, client,
                                checkpoint, escape_radius):
-        h_choice = _log_default(spec, X, clock)
-    if h_choice is None:
-        for w in held:
-            warnings.warn(w.message, w.category, stacklevel=accuracy.user_stacklevel())
+        h_choice, stepped = _cheaper_steps(spec, k, clock)
+        if h_choice is not None:
+            return _log_map(model, initial_conditions, ind.name, t_end=t_end,
+                            tau=h_choice["h"], method=method, threshold=threshold, seed=seed,
+                            t_check=None, chunk_size=chunk_size, client=None, checkpoint=None,
+                            progress=progress, escape_radius=None, energy_tol=energy_tol,
+                            time_transform="log", h_choice=h_choice)
+    if stepped is None:
+        spec, divisions = _with_step(spec, k, clock, per_orbit)
     else:
-        return _log_map(model, initial_conditions, ind.name, t_end=t_end, tau=h_choice["h"],
-                        method=method, threshold=threshold, seed=seed, t_check=None,
-                        chunk_size=chunk_size, client=None, checkpoint=None,
-                        progress=progress, escape_radius=None, energy_tol=energy_tol,
-                        time_transform="log", h_choice=h_choice)
+        spec = stepped
     shared = _Spec(run=spec.without_orbits(), k=k, threshold=limit, divisions=divisions)
     # A fixed shuffle spreads islands and chaotic seas evenly over chunks
     # and over the threads within a chunk, whose orbits stop at different
@@ -527,27 +527,37 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
     return result
 
 
+#: The logarithmic Hamiltonian is considered only where U = C − V at the
+#: map's initial conditions spans at least this ratio (:func:`_u_spread`):
+#: the physical step it takes varies as 1/U. ``studies/lh_defaults.py``:
+#: Hénon–Heiles 1.12, the cored potentials 2.0 (R_c = 0.3) to 2.7
+#: (R_c = 0.03), the Sun–Jupiter section 2.8.
+U_SPREAD_MIN = 1.5
+#: Seconds per force evaluation of the LH map's run over those of the
+#: constant-step map's (SRKN14a), at fixed steps, the largest over the
+#: maps of ``studies/lh_defaults.py`` whose U spreads (``cost_ratio`` of
+#: ``lh_defaults_quick.json``: 0.94 on the three-body map, 1.27–1.63 on
+#: the cored ones, load 2.7 on 2 cores): the LH kick also evaluates U
+#: and its gradient, and lands on each normalisation time.
+LH_GRADIENT_COST = 1.7
+
+
 def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, checkpoint,
                    escape_radius):
-    """Whether a map with ``time_transform="auto"`` whose constant step
-    ``spec`` has chosen tries the logarithmic Hamiltonian: an FLI map with
-    every default the LH map keeps (no τ, scheme or other option, the TM
-    method, no early stopping, check times, cluster, checkpoint or escape
-    radius), of a model of the form it takes, for which no constant step
-    met the tolerance (its pilot fell back: orbits that pass near a
-    singularity). Where a constant step meets it, the LH at its own
-    automatic h was slower on every map measured (``studies/lh_defaults.py``:
-    Hénon–Heiles, cored logarithmic potentials with R_c = 0.3, 0.1, 0.03,
-    the Sun–Jupiter three-body section; up to 4.5 times fewer force
-    evaluations, but each 4–6.5 times the cost of the generated constant-step
-    stepper's). The cheap tests come first: a map whose constant step met
-    the tolerance builds nothing for it."""
+    """Whether a map ``spec`` with ``time_transform="auto"`` prices the
+    logarithmic Hamiltonian against constant steps before either step is
+    chosen (:func:`_cheaper_steps`): an FLI map with every default the LH map
+    keeps (no τ, scheme or other option, the TM method, no early stopping,
+    check times, cluster, checkpoint or escape radius), of a model of the
+    form it takes, whose U varies by :data:`U_SPREAD_MIN` or more over the
+    pilot's initial conditions. The cheap tests come first: every other map
+    builds nothing for it, and keeps the energy pilot's constant step as
+    before."""
     model = spec.model
     if (ind.name != "fli" or tau is not None or method != "tm" or options
             or threshold not in ("default", None) or t_check is not None
             or client is not None or checkpoint is not None or escape_radius is not None
-            or getattr(model, "kind", "flow") == "map"
-            or spec.tau_choice.get("rule") != "fallback"):
+            or getattr(model, "kind", "flow") == "map"):
         return False
     # Only now: the LH's module imports SymPy, which a map that keeps its
     # constant step never needs.
@@ -557,28 +567,76 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
         refuse(model)
     except ValueError:
         return False
-    return True
+    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)]) \
+        >= U_SPREAD_MIN
 
 
-def _log_default(spec, X, clock):
-    """The LH's automatic step (:func:`varint.time_transform_step.choose_h`,
-    to the tolerance the constant step's pilot missed) when its pilot meets
-    it, else None; the choice records the constant step it replaces."""
-    from .time_transform_step import choose_h
+def _u_spread(model, X):
+    """max U / min U over the states ``X``, U = C − V(q) with C of
+    :class:`~varint.time_transform.LogHamiltonian` (δ = max(−E, 1)): how
+    much its physical step would vary between them (inf where U ≤ 0)."""
+    n = X.shape[1] // 2
+    with np.errstate(all="ignore"):
+        E = np.asarray(model.conserved(X)["energy"], dtype=float)
+        U = E + np.maximum(-E, 1.0) - np.asarray(model.potential(X[:, :n]), dtype=float)
+    if not (np.all(np.isfinite(U)) and np.all(U > 0)):
+        return math.inf
+    return float(U.max() / U.min())
 
+
+def _cheaper_steps(spec, k, clock):
+    """The cheaper of the LH map and the constant-step map under the same
+    guarantee, for a map ``spec`` whose step is not chosen yet: each one's
+    largest step at which the pilot orbits' FLI agrees with that at half
+    the step (:mod:`varint.step_agreement`: the LH's
+    :func:`~varint.time_transform_step.agreeing_h`, the constant step's
+    :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`),
+    priced as force evaluations per orbit and unit of time times their
+    cost (:data:`LH_GRADIENT_COST` for the LH). Returns ``(h_choice,
+    stepped)``: the LH's choice (with the ``prices``) and None, or None and
+    ``spec`` at the constant step chosen by agreement (with the map's check
+    steps, :func:`_with_step`), or None and None where the LH's FLI agrees
+    at no step tried, or the constant step's at none whose price is below
+    the LH's and the LH's is not cheaper (the map then takes the energy
+    pilot's constant step, as every other map)."""
+    from .time_transform_step import agreeing_h
+
+    model, X = spec.model, spec.x0
     with clock.part("pilot"):
-        lh = _log_hamiltonian(spec.model, LOG_MAP_OPTIONS["scheme"], None)
-        h, choice = choose_h(lh, X, spec.t_end, pilot_tolerance(spec.indicator),
-                             quantile=MAP_QUANTILE, seed=spec.seed)
-    if choice["rule"] != "pilot":
-        return None
-    choice["replaces"] = {"scheme": spec.method_options["scheme"], "tau": spec.tau,
-                          "rule": spec.tau_choice["rule"]}
-    _log.info("chaos_map: no constant step of %s meets the energy tolerance %g on the FLI map "
-              "of %s; the logarithmic-Hamiltonian step does (h = %.4g): running it "
-              "(time_transform=None keeps constant steps)", spec.method_options["scheme"],
-              choice["tolerance"], spec.model.name, h)
-    return choice
+        lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
+        h, choice = agreeing_h(lh, X, spec.t_end, quantile=MAP_QUANTILE,
+                               ceiling=spec.energy_tol, seed=spec.seed,
+                               every=LOG_MAP_OPTIONS["every"])
+        if h is None:
+            return None, None
+        log_price = choice["gradient_rate"] * LH_GRADIENT_COST
+        judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
+                                                pilot_tolerance(spec.indicator), spec.energy_tol)
+        # Constant steps whose force evaluations alone cost more than the
+        # LH's are not tried: the search stops there.
+        tau, constant = step_agreement.agreeing_tau(
+            model, X, spec.t_end, scheme=MAP_SCHEME, seed=spec.seed, k=k,
+            renorm=spec.indicator.renorm,
+            accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
+            quantile=MAP_QUANTILE, ceiling=spec.energy_tol, stop_above=log_price)
+    prices = {"log": log_price, "constant": constant["gradient_rate"],
+              "lh_gradient_cost": LH_GRADIENT_COST}
+    if tau is None or log_price < prices["constant"]:
+        choice.update(prices=prices, constant=constant)
+        _log.info("chaos_map: the logarithmic-Hamiltonian step (h = %.4g) is predicted "
+                  "cheaper than constant steps of %s (%s) on the FLI map of %s: running it "
+                  "(time_transform=None keeps constant steps)", h, MAP_SCHEME,
+                  "none agrees at a lower price" if tau is None else
+                  f"tau = {tau:.4g}, {prices['constant'] / log_price:.3g} times the price",
+                  model.name)
+        return choice, None
+    constant.update(prices=prices, log=choice)
+    stepped = dataclasses.replace(
+        spec, method_options={**spec.method_options, "scheme": MAP_SCHEME}).with_step(
+            tau, constant, indicator_times=False)
+    steps = stepped.steps
+    return None, dataclasses.replace(
+        stepped, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
 
 
 def _threshold(threshold, spec):
@@ -732,6 +790,8 @@ def _assemble(spec, X, grid, chunks, done, threshold, parameters, resumed, inter
                           t_worst=np.full(m, np.nan), energy_tol=spec.energy_tol,
                           accurate=accurate, tau=spec.tau),
         model, propagator_class(spec.method, model))
+    if spec.tau_choice.get("rule") == "indicator":
+        verdict.notes["step"] = spec.tau_choice["summary"]
     empty = np.empty(0)
     return ChaosMapResult(
         t=spec.steps * spec.tau, energy_error=energy, state=state, provenance=prov,
@@ -767,7 +827,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     states, their energy errors and the accuracy verdict of every map
     (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
     from .time_transform import TIME_TRANSFORMS, describe, refuse
-    from .time_transform_step import choose_h
+    from .time_transform_step import agreeing_h, choose_h
 
     if time_transform not in TIME_TRANSFORMS:
         raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
@@ -815,8 +875,21 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     chunk_size = _chunk_size(chunk_size, m, None)
     lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
     if h is None:
-        h, h_choice = choose_h(lh, X, t_end, pilot_tolerance(INDICATORS["fli"]),
-                               quantile=MAP_QUANTILE, seed=seed)
+        h, h_choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=energy_tol,
+                                 seed=seed, every=every)
+        if h is None:
+            # Not silence: the map runs, at the step of the energy pilot,
+            # and says that its FLI was not checked.
+            failed = h_choice
+            tolerance = pilot_tolerance(INDICATORS["fli"])
+            h, h_choice = choose_h(lh, X, t_end, tolerance, quantile=MAP_QUANTILE, seed=seed)
+            h_choice.update(indicator=failed, summary=(
+                f"{failed['summary']} (h = {failed['tried'][0][0]:.3g} down to "
+                f"{failed['tried'][-1][0]:.3g}): step chosen by the energy error to "
+                f"{tolerance:g}"))
+            warnings.warn(f"the FLI map of {model.name}: {h_choice['summary']} "
+                          f"(h = {h:.3g}); its FLI values were not checked at h/2",
+                          accuracy.AccuracyWarning, stacklevel=accuracy.user_stacklevel())
     order = np.random.default_rng(20100927).permutation(m)
     chunks = [order[i:i + chunk_size] for i in range(0, m, chunk_size)]
     done = {}
@@ -863,6 +936,8 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     # A stopped orbit's time is where its last completed step left it.
     t_stop = np.where(computed & (status == STATUS_OK), t_end, t_reached)
     verdict, energy = _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h)
+    if h_choice is not None and "summary" in h_choice:
+        verdict.notes["step"] = h_choice["summary"]
     prov = Provenance(
         kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
         method_options={"time_transform": "log", "scheme": lh.scheme.name, "h": h,

@@ -1,8 +1,26 @@
 """The fictitious step h of a logarithmic-Hamiltonian map when none is
-given: the largest h whose pilot keeps the energy within the map's
-tolerance, as :func:`varint.stepsize.choose_step` chooses a constant step.
+given.
 
-The pilot runs a seeded sample of at most :data:`~varint.stepsize.PILOT_ORBITS`
+:func:`agreeing_h` (the maps' rule) judges h by what the map reports: the
+largest h = h₀·2^−j (j = :data:`TOP`, …) at which the FLI of the pilot
+orbits, each with the map's own vector, agrees with the FLI at h/2
+(:mod:`varint.step_agreement`), with the energy errors at h under a sanity
+ceiling (the map's ``energy_tol``). Chaos maps ask for verdicts: an energy
+tolerance tight enough for every orbit's value (the map pilot's 1e-7) costs
+steps no verdict needs (the three-body map of ``studies/map_steps.py``
+classifies every orbit as a tight reference does at h = 1.6, with energy
+errors far above 1e-7). When no h of the ladder passes, the map falls back
+to :func:`choose_h` and warns. ``tests/test_step_agreement.py`` checks that
+the h chosen on 16 orbits keeps 16 held-out orbits (a softened point mass;
+the three-body problem at another Jacobi constant), run twice as long as
+the pilot, in agreement with the same orbits at h/16, and that the
+ladder's rejected first step does not.
+
+:func:`choose_h` is the energy rule: the largest h whose pilot keeps the
+energy within a tolerance, as :func:`varint.stepsize.choose_step` chooses
+a constant step.
+
+The energy rule's pilot runs a seeded sample of at most :data:`~varint.stepsize.PILOT_ORBITS`
 of the map's orbits, without vectors (the orbit does not depend on them),
 with the map's LH stepper (:meth:`LogHamiltonian.outputs
 <varint.time_transform.LogHamiltonian.outputs>`) to t = min(t_end,
@@ -38,10 +56,17 @@ import math
 import numpy as np
 
 from .accuracy import Reference
+from .state import initial_deviations
+from .step_agreement import agreeing, passes, pilot_sample, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
-__all__ = ["choose_h", "pilot_errors"]
+__all__ = ["choose_h", "agreeing_h", "pilot_errors"]
 
+#: The indicator pilot's steps h = h₀·2^−j, j = TOP … TOP + LEVELS − 1:
+#: from 2h₀ (two time units per step where the orbits start) to h₀/256
+#: (the energy pilot's h was h₀/23 on the three-body map of
+#: ``studies/map_steps.py`` and h₀/80 on its cored map).
+TOP, LEVELS = -1, 10
 #: The most rungs one prediction descends (a factor 4 in h).
 MAX_DROP = 2 * RUNGS
 #: The search gives up below this fraction of h₀ (2^-12: 4096 times the
@@ -148,3 +173,73 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
     choice.update(rule="pilot", h=h, gradient_rate=work[best] / (len(sample) * t_pilot))
     return h, choice
 
+
+
+def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0):
+    """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
+    in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
+    each with the map's own vector (``default_rng([seed, m])``) and
+    normalised every ``every`` time units as the map does, agrees with that
+    at h/2 on a ``quantile`` share of them, with the ``quantile`` of their
+    energy errors at h within ``ceiling``
+    (:mod:`varint.step_agreement`); the pilot runs to min(t_end,
+    :data:`~varint.stepsize.PILOT_T`).
+
+    Returns
+    -------
+    h : float or None
+        None when no step of the ladder passed.
+    choice : dict
+        ``rule`` ("indicator", or "none"), ``h``, ``h0``, ``pilot_t``,
+        ``orbits``, ``tried`` ([h, agreeing share, energy error quantile]
+        per step compared with its half), ``energy_error`` (the largest
+        pilot orbit's at h), ``gradient_rate`` (force evaluations per
+        orbit and unit of physical time at h), ``counts`` and
+        ``summary``, the sentence the map reports.
+    """
+    pick = pilot_sample(X, seed)
+    sample = X[pick]
+    n = sample.shape[1] // 2
+    W0 = initial_deviations(lh.model.dim, 1, len(pick), seed, pick)[:, :, 0]
+    reference = Reference(lh.model, sample)
+    h0 = float(np.median(lh.constants(sample) - lh.model.potential(sample[:, :n])))
+    t_pilot = float(min(t_end, PILOT_T))
+    counts = np.zeros(3, dtype=np.int64)
+    runs: dict = {}
+
+    def run(j):
+        if j not in runs:
+            out = lh.outputs(sample, W0, t_pilot, h0 * 2.0**-j, every=every)
+            counts[:] += out.counts.sum(axis=0)
+            with np.errstate(all="ignore"):
+                errs = reference.errors(out.x_worst)
+            e = np.max(np.stack(list(errs.values())), axis=0)
+            e = np.where((out.status == 0) & np.isfinite(e), e, np.inf)
+            runs[j] = (out.fli, e, out.counts[:, 2].sum() / (len(sample) * t_pilot))
+        return runs[j]
+
+    tried, chosen = [], None
+    for j in range(TOP, TOP + LEVELS):
+        coarse, errors, _ = run(j)
+        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
+        ok, worst = passes(agree, errors, quantile, ceiling)
+        tried.append([h0 * 2.0**-j, float(np.mean(agree)), worst])
+        if ok:
+            chosen = (j, int(agree.sum()))
+            break
+    choice = {"h0": h0, "pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
+              "ceiling": float(ceiling), "scheme": lh.scheme.name, "tried": tried,
+              "counts": {"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
+                         "gradient_evaluations": int(counts[2])}}
+    if chosen is None:
+        choice.update(rule="none", h=None,
+                      summary="the FLI of the pilot orbits did not agree between h and h/2 "
+                              "at any step tried")
+        return None, choice
+    j, n_agree = chosen
+    errors = runs[j][1]
+    largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
+    choice.update(rule="indicator", h=h0 * 2.0**-j, energy_error=largest,
+                  gradient_rate=float(runs[j][2]),
+                  summary=summary(n_agree, len(sample), largest, "h"))
+    return h0 * 2.0**-j, choice

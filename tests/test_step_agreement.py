@@ -1,0 +1,152 @@
+"""Steps judged by what an FLI map reports (varint.step_agreement and
+varint.time_transform_step.agreeing_h): the h the LH pilot chooses on some
+orbits keeps held-out orbits' FLI verdicts in agreement with a tight
+reference (the same orbits at h/16) to the map's t_end, twice the pilot's;
+a clearly too coarse h (numerical chaos, energy errors O(1)) is rejected;
+the cost-based switch of the map defaults takes the LH where it is priced
+cheaper, the constant step chosen by the same agreement where it is not,
+and says so."""
+
+import warnings
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import varint
+from varint import maps
+from varint.maps import MAP_QUANTILE
+from varint.models import from_potential
+from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
+from varint.state import initial_deviations
+from varint.step_agreement import agreeing, chaotic_level, passes
+from varint.time_transform import LogHamiltonian
+from varint.time_transform_step import agreeing_h
+
+#: The held-out orbits run to twice the pilot's time (PILOT_T = 100).
+T_END = 200.0
+
+
+def _cr3bp_orbits(seed, m, jacobi):
+    """Sun–Jupiter orbits on the section y = 0 at Jacobi constant ``jacobi``."""
+    rng = np.random.default_rng(seed)
+    grid = CR3BP(SUN_JUPITER_MU).section_grid(jacobi, np.sort(rng.uniform(0.3, 0.85, m)),
+                                              np.sort(rng.uniform(-0.3, 0.3, m)))
+    return grid.states
+
+
+def _plummer():
+    x, y = sp.symbols("x y")
+    return from_potential(-1 / sp.sqrt(x**2 + y**2 + sp.Float(1e-3)**2), [x, y])
+
+
+def _plummer_orbits(seed, m):
+    """Eccentric bound orbits of a softened point mass, pericentres ~0.01."""
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(0.5, 1.0, m), np.zeros(m), np.zeros(m),
+                            rng.uniform(0.05, 0.5, m)])
+
+
+def _fli(lh, X, h, seed=0):
+    W0 = initial_deviations(lh.model.dim, 1, len(X), seed)[:, :, 0]
+    return lh.outputs(X, W0, T_END, h).fli
+
+
+def test_agreement_rule():
+    """Values within 0.05 dex agree, further apart they do not, unless
+    both lie above the chaotic level; NaN agrees with nothing; a step
+    passes only with the quantile of agreement and of the energy errors."""
+    t = 100.0
+    level = chaotic_level(t)
+    assert level == pytest.approx(np.log(1e5))
+    coarse = np.array([5.0, 5.0, level + 1, level + 1, np.nan, 0.5])
+    fine = np.array([5.5, 6.0, level + 30, level - 2, 5.0, 0.9])
+    assert agreeing(coarse, fine, t).tolist() == [True, False, True, False, False, True]
+    assert passes(np.ones(10, bool), np.full(10, 1e-4), 0.9, 1e-3)[0]
+    assert not passes(np.ones(10, bool), np.full(10, 1e-2), 0.9, 1e-3)[0]
+    assert not passes(np.arange(10) < 8, np.full(10, 1e-4), 0.9, 1e-3)[0]
+
+
+@pytest.mark.parametrize("which", ["cr3bp", "plummer"])
+def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
+    """h from the pilot (to t = 100) on 16 orbits; 16 held-out orbits (the
+    three-body problem at another Jacobi constant, C = 3.1 against the
+    pilot's 3.05; other eccentric orbits of the softened point mass) run to
+    t = 200: at h at least 90 % of them agree with the tight reference
+    (h/16); the ladder's first step 2h₀, tried and rejected, misses that
+    on the same orbits."""
+    if which == "cr3bp":
+        model, pilot, held_out = (CR3BP(SUN_JUPITER_MU), _cr3bp_orbits(0, 16, 3.05),
+                                  _cr3bp_orbits(1, 16, 3.1))
+    else:
+        model, pilot, held_out = _plummer(), _plummer_orbits(0, 16), _plummer_orbits(1, 16)
+    lh = LogHamiltonian(model, "ABA864")
+    h, choice = agreeing_h(lh, pilot, T_END, quantile=MAP_QUANTILE, ceiling=1e-3)
+    assert choice["rule"] == "indicator" and choice["h"] == h
+    # The ladder's first step, 2h₀, was tried and rejected (the search
+    # stops at the first that passes).
+    coarse_h = choice["tried"][0][0]
+    assert coarse_h >= 2 * h
+    assert choice["summary"].startswith("step chosen by indicator agreement between h and h/2")
+    reference = _fli(lh, held_out, h / 16)
+    assert np.isfinite(reference).all()
+    at_h = agreeing(_fli(lh, held_out, h), reference, T_END)
+    assert at_h.mean() >= MAP_QUANTILE, (h, _fli(lh, held_out, h), reference)
+    coarse = _fli(lh, held_out, coarse_h)
+    assert agreeing(coarse, reference, T_END).mean() < MAP_QUANTILE, (coarse, reference)
+
+
+def test_no_agreeing_step_is_said_and_warned():
+    """A ladder too short to reach agreement (monkeypatched to its first
+    two steps): the explicit LH map falls back to the energy pilot's h,
+    warns that its FLI was not checked, and its verdict says so."""
+    model = CR3BP(SUN_JUPITER_MU)
+    X = _cr3bp_orbits(2, 6, 3.05)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("varint.time_transform_step.LEVELS", 2)
+        with pytest.warns(varint.AccuracyWarning, match="did not agree between h and h/2"):
+            r = varint.chaos_map(model, X, "fli", t_end=20.0, progress=False,
+                                 time_transform="log")
+    choice = r.provenance.tau_choice
+    assert choice["rule"] == "pilot" and choice["indicator"]["rule"] == "none"
+    assert "step chosen by the energy error" in r.accuracy.verdict
+
+
+def test_henon_heiles_defaults_build_no_log_hamiltonian():
+    """Hénon–Heiles (U spread 1.1 < U_SPREAD_MIN): the defaults never
+    price the LH, and keep the constant-step map bit for bit."""
+    hh = varint.models.HenonHeiles()
+    grid = varint.section_grid(hh, 0.125, np.linspace(-0.4, 0.65, 4), np.linspace(-0.4, 0.4, 3))
+    assert maps._u_spread(hh, grid.states) < maps.U_SPREAD_MIN
+    a = varint.chaos_map(hh, grid, "fli", t_end=50.0, progress=False)
+    b = varint.chaos_map(hh, grid, "fli", t_end=50.0, progress=False, time_transform=None)
+    assert "prices" not in a.provenance.tau_choice
+    assert a.provenance.method == "tm" and np.array_equal(a.values, b.values)
+
+
+@pytest.mark.parametrize("cost, method", [(1e3, "tm"), (1e-3, "tm+log")])
+def test_switch_follows_the_prices(cost, method):
+    """The three-body map's defaults with the LH's cost per force
+    evaluation set very high (1e3) run constant steps at the step chosen by
+    agreement, and say so in their verdict;
+    set very low (1e-3) they run the LH at its agreeing h, the explicit LH
+    map at that h bit for bit."""
+    model = CR3BP(SUN_JUPITER_MU)
+    X = _cr3bp_orbits(3, 8, 3.05)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(maps, "LH_GRADIENT_COST", cost)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False)
+    assert r.provenance.method == method
+    choice = r.provenance.tau_choice
+    prices = choice["prices"]
+    assert (prices["log"] < prices["constant"]) == (method == "tm+log")
+    if method == "tm":
+        assert choice["rule"] == "indicator" and r.provenance.tau == choice["tau"]
+        assert "step chosen by indicator agreement between tau and tau/2" in r.accuracy.verdict
+    else:
+        assert choice["rule"] == "indicator" and choice["constant"]["rule"] in ("indicator", "none")
+        explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
+                                    time_transform="log", tau=choice["h"])
+        assert np.array_equal(r.values, explicit.values, equal_nan=True)

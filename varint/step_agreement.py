@@ -1,0 +1,182 @@
+"""Steps judged by what an FLI map reports: a step is good enough when the
+pilot orbits' FLI at the step and at half of it agree (a Richardson-style
+check on the indicator itself), not only when the energy error meets a
+tolerance far below what the map's verdicts need.
+
+The check (:func:`agreeing`) compares each pilot orbit's FLI at the
+pilot's end, run with the map's own deviation vector, at the step and at
+half of it: they agree where their log₁₀ max(1, FLI) differ by at most
+:data:`AGREEMENT_DEX` (12 %: what a map drawn on a log scale shows; times
+t_pilot / t_end for a map that runs longer than the pilot), or
+where both lie above the level :func:`chaotic_level` no regular orbit
+reaches (a chaotic orbit's FLI at two steps need not converge: its two
+trajectories separate like e^(λt), but both say "chaotic"). A step passes
+(:func:`passes`) when a :data:`~varint.maps.MAP_QUANTILE` share of the
+pilot orbits agree and the same quantile of its energy errors is within a
+sanity ceiling (the map's ``energy_tol``): halving a step too coarse for
+an orbit usually changes its FLI, but two steps both too coarse can both
+show numerical chaos, with energy errors far above the ceiling (the cored
+map of ``studies/map_steps.py`` at h ≥ 0.43: FLI 10–90 at both, relative
+energy errors 1–5).
+
+Failure modes this does not see: an orbit whose indicator changes with
+the step only after the pilot's end (the pilot runs to
+min(t_end, :data:`~varint.stepsize.PILOT_T`)), and orbits outside the
+pilot's sample (:data:`~varint.stepsize.PILOT_ORBITS`). The map keeps each
+orbit's energy error and its accuracy verdict, which still warns where an
+orbit's error exceeds ``energy_tol``.
+
+:func:`agreeing_tau` searches the constant step of the map's stepper by the
+same check (down from :data:`~varint.stepsize.TAU_MAX`), which the defaults of
+:func:`varint.chaos_map` price against the logarithmic Hamiltonian's
+(:func:`varint.time_transform_step.agreeing_h`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .accuracy import Reference
+from .state import initial_deviations
+from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, _default_scheme, _divide, pilot_errors
+
+__all__ = ["agreeing", "chaotic_level", "passes", "pilot_sample", "agreeing_tau", "summary",
+           "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
+
+#: Largest difference of log₁₀ max(1, FLI) at a step and at half of it for
+#: an orbit's two values to agree (a factor 1.12).
+AGREEMENT_DEX = 0.05
+#: An FLI above ln(CHAOTIC_GROWTH · t) at time t is chaotic: a regular
+#: orbit's deviation vector grows linearly, ‖w‖ ≈ 1 + g·t with a shear g of
+#: order one (Froeschlé, Lega & Gonczi 1997); a thousand times that is
+#: exponential growth.
+CHAOTIC_GROWTH = 1e3
+#: Steps of the constant-step ladder, TAU_MAX down to TAU_MAX/2^11 (the
+#: energy pilot's step on the cored map of ``studies/map_steps.py``, R_c =
+#: 0.03, is 1/150).
+LEVELS = 12
+
+
+def chaotic_level(t):
+    """The FLI (ln‖w‖) above which an orbit counts as chaotic at time
+    ``t``: ln(:data:`CHAOTIC_GROWTH` · t)."""
+    return math.log(CHAOTIC_GROWTH * max(float(t), 1.0))
+
+
+def agreeing(coarse, fine, t, t_end=None):
+    """Per orbit, whether its FLI at a step (``coarse``) and at half of it
+    (``fine``), both at time ``t``, agree (module docstring); NaN (a
+    stopped orbit) agrees with nothing. For a map that runs to ``t_end`` >
+    t the values must agree t / t_end times more closely: a regular
+    orbit's phase error, and with it the error of its FLI, grows linearly
+    in time."""
+    coarse, fine = np.asarray(coarse, dtype=float), np.asarray(fine, dtype=float)
+    level = chaotic_level(t)
+    dex = AGREEMENT_DEX * (1.0 if t_end is None else min(1.0, float(t) / float(t_end)))
+    with np.errstate(all="ignore"):
+        close = np.abs(np.log10(np.maximum(coarse, 1.0))
+                       - np.log10(np.maximum(fine, 1.0))) <= dex
+        both_chaotic = (coarse > level) & (fine > level)
+    return np.isfinite(coarse) & np.isfinite(fine) & (close | both_chaotic)
+
+
+def passes(agree, errors, quantile, ceiling):
+    """Whether a step passes: at least a ``quantile`` share of ``agree``
+    and the ``quantile`` of the energy ``errors`` within ``ceiling``."""
+    worst = float(np.quantile(errors, quantile, method="higher"))
+    return bool(np.mean(agree) >= quantile and worst <= ceiling), worst
+
+
+def pilot_sample(X, seed):
+    """The indices of the pilot's orbits among the map's ``X``: all, or a
+    seeded sample of :data:`~varint.stepsize.PILOT_ORBITS` (as the energy
+    pilots draw it)."""
+    if len(X) <= PILOT_ORBITS:
+        return np.arange(len(X))
+    return np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))
+
+
+def summary(n_agree, n, errors_max, step_name):
+    """The sentence a result's step choice carries (``provenance.tau_choice``
+    and its accuracy verdict)."""
+    return (f"step chosen by indicator agreement between {step_name} and {step_name}/2 on "
+            f"{n_agree}/{n} pilot orbits; energy errors up to {errors_max:.2g}")
+
+
+def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value,
+                 quantile, ceiling, stop_above=math.inf):
+    """The largest constant step τ_j = τ₀·2^−j (τ₀ the largest step up to
+    :data:`~varint.stepsize.TAU_MAX` that divides ``t_end``, j <
+    :data:`LEVELS`) at which the map's FLI of the pilot orbits agrees with
+    that at τ_j/2 and the energy errors are within ``ceiling``
+    (:func:`passes`), searched downwards.
+
+    ``value`` reads the map's value from a pilot's rows
+    (:func:`varint.stepsize_orbits.indicator_judge`); ``k``, ``renorm``,
+    ``accumulator`` and ``seed`` are the map's, so the pilot carries its
+    vectors and stepper. The search gives up (``rule`` "none") once the
+    force evaluations per orbit and unit of time at τ_j exceed
+    ``stop_above`` (a competitor is cheaper than any step left), or at the
+    bottom of the ladder.
+
+    Returns
+    -------
+    tau : float or None
+    choice : dict
+        ``rule`` ("indicator", or "none"), ``tau``, ``pilot_t``,
+        ``orbits``, ``tried`` ([τ, agreeing share, energy error quantile]
+        per step compared with its half), ``energy_error`` (the largest
+        pilot orbit's at τ), ``gradient_rate`` (force evaluations per orbit
+        and unit of time at τ, or at the last step tried), ``counts`` and
+        ``summary``.
+    """
+    pick = pilot_sample(X, seed)
+    sample = X[pick]
+    W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
+    reference = Reference(model, sample)
+    t_pilot = float(min(t_end, PILOT_T))
+    sch = _default_scheme(model, scheme)
+    top = _divide(t_end, min(TAU_MAX, t_end))
+    counts: dict = {}
+    runs: dict = {}
+
+    def run(j):
+        if j not in runs:
+            before = counts.get("gradient", 0)
+            errors, values = pilot_errors(model, sample, top * 2.0**-j, t_pilot, sch,
+                                          reference, counts, (W0, renorm, accumulator, False),
+                                          value=value)
+            runs[j] = (values, errors, (counts.get("gradient", 0) - before)
+                       / (len(sample) * t_pilot))
+        return runs[j]
+
+    tried, chosen = [], None
+    for j in range(LEVELS):
+        coarse, errors, rate = run(j)
+        if rate > stop_above:
+            break
+        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
+        ok, worst = passes(agree, errors, quantile, ceiling)
+        tried.append([top * 2.0**-j, float(np.mean(agree)), worst])
+        if ok:
+            chosen = (j, int(agree.sum()))
+            break
+    choice = {"pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
+              "ceiling": float(ceiling), "agreement_dex": AGREEMENT_DEX, "scheme": sch.name,
+              "tried": tried, "counts": {key: int(v) for key, v in counts.items()}}
+    if chosen is None:
+        last = max(runs)
+        choice.update(rule="none", tau=None, gradient_rate=float(runs[last][2]),
+                      summary="the FLI of the pilot orbits did not agree between tau and "
+                              "tau/2 at any step tried")
+        return None, choice
+    j, n_agree = chosen
+    errors = runs[j][1]
+    largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
+    tau = top * 2.0**-j
+    choice.update(rule="indicator", tau=tau, energy_error=largest,
+                  gradient_rate=float(runs[j][2]),
+                  summary=summary(n_agree, len(sample), largest, "tau"))
+    return tau, choice
