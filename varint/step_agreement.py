@@ -40,7 +40,7 @@ import numpy as np
 
 from .accuracy import Reference
 from .state import initial_deviations
-from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, _default_scheme, _divide, pilot_errors
+from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
 __all__ = ["agreeing", "chaotic_level", "passes", "pilot_sample", "agreeing_tau", "summary",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
@@ -137,8 +137,8 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
     W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
     reference = Reference(model, sample)
     t_pilot = float(min(t_end, PILOT_T))
-    sch = _default_scheme(model, scheme)
-    top = _divide(t_end, min(TAU_MAX, t_end))
+    sch = default_scheme(model, scheme)
+    top = dividing_step(t_end, min(TAU_MAX, t_end))
     counts: dict = {}
     runs: dict = {}
 

@@ -65,7 +65,8 @@ from .protocol import STATUS_OK, TIME_MOMENTUM, Renorm, Status
 from .schemes import default_for, get_scheme
 from .state import Rows, RunState, initial_deviations
 
-__all__ = ["choose_step", "pilot_errors", "pilots", "check_options", "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
+__all__ = ["choose_step", "default_scheme", "dividing_step", "pilot_errors", "pilots", "check_options",
+           "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
 
 #: The pilot's tolerance is the run's energy_tol divided by this (see the
 #: module docstring for the measurements).
@@ -108,7 +109,7 @@ def pilots(method):
     return "scheme" in getattr(propagator_class(method), "OPTIONS", ())
 
 
-def _default_scheme(model, scheme, method="tm"):
+def default_scheme(model, scheme, method="tm"):
     """The scheme ``method`` runs ``model`` with: the given one, or its
     default (:func:`varint.schemes.default_for`: a lattice's own for "tm")."""
     parts = getattr(model, "parts", None)
@@ -176,11 +177,11 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
     """
     cap = min(TAU_MAX, t_end, cap if cap is not None else math.inf)
     if not pilots(method):
-        tau = _divide(t_end, min(FALLBACK_TAU, cap))
+        tau = dividing_step(t_end, min(FALLBACK_TAU, cap))
         return tau, StepChoice(rule="fixed", tau=tau, note=(
             f"{method}'s tau is its renormalisation interval, not its step; its accuracy is "
             "set by its tolerances"))
-    sch = _default_scheme(model, scheme, method)
+    sch = default_scheme(model, scheme, method)
     pick = np.arange(len(X))
     if len(X) > PILOT_ORBITS:
         pick = np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))
@@ -229,7 +230,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
                       tried=[[rung(k), float(v)] for k, v in sorted(tried.items())],
                       counts=counts)
     if best is None:
-        tau = _divide(t_end, min(FALLBACK_TAU, cap))
+        tau = dividing_step(t_end, min(FALLBACK_TAU, cap))
         smallest = min(tried)
         warnings.warn(
             f"no step of {sch.name} keeps the relative energy error of a pilot run (to t = "
@@ -240,7 +241,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
             stacklevel=user_stacklevel())
         info.update(rule="fallback", tau=tau)
         return tau, info
-    tau = _divide(t_end, rung(best))
+    tau = dividing_step(t_end, rung(best))
     info.update(rule="pilot", tau=tau)
     return tau, info
 
@@ -252,7 +253,7 @@ def _not_shrinking(tried, j):
     return any(k >= j + RUNGS and not (e <= v / 2) for k, v in tried.items())
 
 
-def _divide(t_end, tau):
+def dividing_step(t_end, tau):
     """The largest step ≤ tau that divides t_end into whole steps."""
     return t_end / math.ceil(t_end / tau * (1 - 1e-12))
 

@@ -89,7 +89,7 @@ from .accuracy import AccuracyWarning, Reference, user_stacklevel
 from .protocol import is_failure
 from .state import initial_deviations
 from .stepsize import (FALLBACK_TAU, PILOT_MARGIN, PILOT_STEPS, PILOT_T, TAU_MAX, StepChoice,
-                       _default_scheme, _divide, pilot_errors)
+                       default_scheme, dividing_step, pilot_errors)
 
 __all__ = ["choose_steps", "run_grouped", "indicator_judge", "Judge", "PILOT_SHARE", "AGREEMENT",
            "BOUND_FACTOR"]
@@ -205,8 +205,8 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
         whose step the indicator chose) and ``compared`` (for each of them
         the divisor of the smaller step whose value it agreed with).
     """
-    sch = _default_scheme(model, scheme)
-    unit = _divide(t_end, min(TAU_MAX, t_end, cap if cap is not None else math.inf))
+    sch = default_scheme(model, scheme)
+    unit = dividing_step(t_end, min(TAU_MAX, t_end, cap if cap is not None else math.inf))
     t_pilot = min(t_end, PILOT_T, max(unit, PILOT_SHARE * t_end))
     m = len(X)
     n = np.ones(m, dtype=np.int64)

@@ -357,11 +357,11 @@ def test_a_lattice_runs_its_own_scheme_by_default():
         assert default_for(model).upper() == own
         prop = make_propagator("tm", model, 0.1, "qr")
         assert type(prop) is stepper and prop.scheme.name.upper() == own, model.name
-        assert stepsize._default_scheme(model, None, "tm") is prop.scheme
+        assert stepsize.default_scheme(model, None, "tm") is prop.scheme
         assert default_for(model, "tdhcc") == DEFAULT_SCHEME
     chain = FPUBeta(8, 1.5)
     assert make_propagator("tdhcc", chain, 0.1, "qr").scheme.name == DEFAULT_SCHEME
-    assert stepsize._default_scheme(chain, None, "tdhcc").name == DEFAULT_SCHEME
+    assert stepsize.default_scheme(chain, None, "tdhcc").name == DEFAULT_SCHEME
     # A given scheme is run as given.
     assert make_propagator("tm", chain, 0.1, "qr", scheme="SABA2C").scheme.name == "SABA2C"
 
