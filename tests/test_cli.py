@@ -580,10 +580,11 @@ def test_two_particle_method_with_its_separation(capsys, tmp_path):
 
 def test_select(capsys, monkeypatch, tmp_path):
     """The command prints select_scheme's table with what its columns mean,
-    its choice, and writes the table. (Two default schemes, both within
-    the target at every default step: the command's plumbing, not the
-    selection, is tested here, and every default candidate is a kernel of
-    its own; tests/test_selection.py tests the choice.)"""
+    its choice, and writes the table: every candidate, and those piloted
+    again with compensated summation. (Two default schemes: the command's
+    plumbing, not the selection, is tested here, and every default
+    candidate is a kernel of its own; tests/test_selection.py tests the
+    choice.)"""
     monkeypatch.setattr(varint.selection, "DEFAULT_SCHEMES", ("SBAB2C", "ABA864"))
     monkeypatch.setattr(varint.selection, "HIGH_ORDER_CANDIDATES", ())
     code, out, err = _run(capsys, ["select", "--orbit", "R1", "--target", "1e-6", "--t-end",
@@ -592,7 +593,8 @@ def test_select(capsys, monkeypatch, tmp_path):
     assert "growth a" in out and "the error grows as t^a" in out
     assert "chosen: method=tm" in out
     rows = _rows(tmp_path / "s.csv")
-    assert len(rows) == 1 + 2 * len(varint.selection.DEFAULT_TAUS)
+    plain = [r for r in rows[1:] if r[rows[0].index("compensated")] == "False"]
+    assert len(plain) == 2 * len(varint.selection.DEFAULT_TAUS)
     assert {r[rows[0].index("scheme")] for r in rows[1:]} == {"SBAB2C", "ABA864"}
 
 
