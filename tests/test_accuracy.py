@@ -47,7 +47,7 @@ def test_an_accurate_run_says_so_and_carries_its_largest_error():
 
 def test_the_verdict_survives_save_and_load(tmp_path):
     model, x0 = varint.paper_orbit("C1")
-    r = varint.sali(model, np.stack([x0, x0]), 100.0, tau=0.05)
+    r = varint.lyapunov_spectrum(model, np.stack([x0, x0]), 100.0, tau=0.05)
     r.save(tmp_path / "r.npz")
     back = varint.load_result(tmp_path / "r.npz").accuracy
     assert np.array_equal(back.energy_error, r.accuracy.energy_error)
@@ -100,13 +100,16 @@ def test_a_bounded_but_wrong_run_warns_with_the_figure_and_the_remedy():
 
 
 def test_energy_tol_sets_the_threshold():
+    # The verdict is the orbit's, whatever the indicator: the R1 runs of
+    # this file are all Lyapunov spectra, one kernel per scheme.
     model, x0 = varint.paper_orbit("R1")
     with pytest.warns(AccuracyWarning, match="above energy_tol = 1e-08"):
-        r = varint.sali(model, x0, 200.0, tau=0.05, energy_tol=1e-8)
+        r = varint.lyapunov_spectrum(model, x0, 200.0, tau=0.05, energy_tol=1e-8)
     assert r.accuracy.energy_tol == 1e-8 and not r.accuracy.accurate
     with warnings.catch_warnings():
         warnings.simplefilter("error", AccuracyWarning)
-        r = varint.sali(model, x0, 200.0, tau=1.5, scheme="s11odr6", energy_tol=np.inf)
+        r = varint.lyapunov_spectrum(model, x0, 200.0, tau=1.5, scheme="s11odr6",
+                                     energy_tol=np.inf)
     assert r.accuracy.energy_error > 0.01 and bool(r.accuracy.accurate)
 
 
@@ -121,7 +124,8 @@ def test_a_batch_warns_with_how_many_orbits_and_the_worst():
     model, x0 = varint.paper_orbit("R1")
     _, c1 = varint.paper_orbit("C1")
     with pytest.warns(AccuracyWarning, match=r"2 of 2 orbits \(100.0%\); worst: orbit 1"):
-        r = varint.sali(model, np.stack([x0, c1]), 1000.0, tau=1.5, scheme="s11odr6")
+        r = varint.lyapunov_spectrum(model, np.stack([x0, c1]), 1000.0, tau=1.5,
+                                     scheme="s11odr6")
     assert r.accuracy.energy_error.shape == (2,) and r.accuracy.fraction_over == 1.0
 
 

@@ -43,7 +43,7 @@ def private(tmp_path, monkeypatch):
 
 @pytest.fixture(scope="module")
 def _filled_cache(tmp_path_factory):
-    """A private cache directory after one run of :func:`x1`: its generated
+    """A private cache directory after one run of :func:`orbit`: its generated
     stepper, facts and numba cache, compiled once for this file."""
     path = tmp_path_factory.mktemp("filled") / "cache"
     with pytest.MonkeyPatch.context() as mp:
@@ -51,20 +51,35 @@ def _filled_cache(tmp_path_factory):
         mp.setattr(cachedir, "_WARNED", set())
         mp.setattr(cachedir, "_FALLBACK", {"dir": path.parent / "fallback"})
         new_process(mp)
-        x1()
+        orbit()
     return path
 
 
 @pytest.fixture
 def filled(private, _filled_cache):
     """``private`` holding a copy (modes and times kept) of the cache one
-    run of :func:`x1` filled, as a new process finds what an earlier one
+    run of :func:`orbit` filled, as a new process finds what an earlier one
     left: a test whose subject is what happens to the files afterwards
-    loads the stepper instead of compiling it again (7-11 s of CPU each
-    in a cold suite). Returns (cache dir, marker path)."""
+    loads the stepper instead of compiling it again. Returns (cache dir, marker path)."""
     cache_dir, marker = private
     shutil.copytree(_filled_cache, cache_dir)
     return cache_dir, marker
+
+
+@pytest.fixture(scope="module")
+def _refused_fallback(tmp_path_factory):
+    return tmp_path_factory.mktemp("refused") / "fallback"
+
+
+@pytest.fixture
+def refused(private, _refused_fallback, monkeypatch):
+    """``private``, with the private fallback that replaces a refused cache
+    directory shared by this file's tests (as by the processes of one
+    user): the first compiles its stepper there, the others load it, and
+    each finds nothing written to the directory it refused. Returns the
+    fallback."""
+    monkeypatch.setattr(cachedir, "_FALLBACK", {"dir": _refused_fallback})
+    return _refused_fallback
 
 
 def new_process(monkeypatch):
@@ -75,10 +90,14 @@ def new_process(monkeypatch):
     monkeypatch.setattr(cachedir, "_WARNED", set())
 
 
-def x1(t_end=20.0):
-    """X1 of R1 on a new model object (a model remembers its steppers)."""
-    r = varint.run(HenonHeiles(), R1, "x1", t_end, tau=0.05, t_out=[t_end])
-    return r.exponents.tobytes()
+def orbit(t_end=20.0):
+    """The orbit of R1 on a new model object (a model remembers its
+    steppers), by the generated stepper that is quickest to compile: SABA1
+    with no deviation vectors (2-3 s of CPU, an indicator's twice that).
+    What the cache must protect, a signed module of generated code and
+    numba's files of it, is the same for every stepper."""
+    r = varint.integrate(HenonHeiles(), R1, t_end, tau=0.05, scheme="SABA1", t_out=[t_end])
+    return r.state.tobytes()
 
 
 def payload(marker):
@@ -90,9 +109,10 @@ def stepper_file(cache_dir):
     return path
 
 
-def test_the_cache_directory_and_its_secret_are_private(private):
-    cache_dir, _ = private
-    x1()
+def test_the_cache_directory_and_its_secret_are_private(_filled_cache):
+    """What one run leaves in a cache directory it made (this file's
+    filled one, whose run had none)."""
+    cache_dir = _filled_cache
     assert stat.S_IMODE(cache_dir.stat().st_mode) == 0o700
     assert stat.S_IMODE((cache_dir / "kernels").stat().st_mode) == 0o700
     secret = cache_dir / cachedir.SECRET_FILE
@@ -107,11 +127,11 @@ def test_the_cache_directory_and_its_secret_are_private(private):
                                   "emptied", "signature line removed", "another user's"])
 def test_an_edited_generated_stepper_never_runs_and_is_rebuilt(filled, monkeypatch, edit):
     """A payload added to a cached stepper would run at import, a changed
-    Hessian coefficient would make R1 look chaotic: the file fails its
+    force coefficient would move the orbit: the file fails its
     signature, is discarded with a warning, rebuilt, and the result is
     bitwise that of a clean cache."""
     cache_dir, marker = filled
-    clean = x1()
+    clean = orbit()
     path = stepper_file(cache_dir)
     text = path.read_text()
     header, body = text.split("\n", 1)
@@ -129,18 +149,18 @@ def test_an_edited_generated_stepper_never_runs_and_is_rebuilt(filled, monkeypat
     path.write_text(edited)
     new_process(monkeypatch)
     with pytest.warns(CacheDirWarning, match="generated kernel file .* is not used"):
-        again = x1()
+        again = orbit()
     assert again == clean and not marker.exists()
     assert path.read_text() == text          # rebuilt, signed again
     new_process(monkeypatch)
-    assert x1() == clean                     # and used without a warning
+    assert orbit() == clean                  # and used without a warning
 
 
 def test_code_planted_beside_the_steppers_is_never_imported(filled, monkeypatch):
     """A .pyc or a module planted in the kernels folder is not what varint
     executes: it runs the verified bytes of its own file only."""
     cache_dir, marker = filled
-    clean = x1()
+    clean = orbit()
     path = stepper_file(cache_dir)
     pycache = path.parent / "__pycache__"
     code = compile(payload(marker), str(path), "exec")
@@ -149,7 +169,7 @@ def test_code_planted_beside_the_steppers_is_never_imported(filled, monkeypatch)
     pyc.write_bytes(importlib.util.MAGIC_NUMBER + b"\0" * 12 + __import__("marshal").dumps(code))
     (path.parent / "numba.py").write_text(payload(marker))
     new_process(monkeypatch)
-    assert x1() == clean and not marker.exists()
+    assert orbit() == clean and not marker.exists()
 
 
 @pytest.mark.parametrize("damage", ["garbage", "truncated", "pickle payload", "empty"])
@@ -159,7 +179,7 @@ def test_damaged_numba_cache_files_are_discarded_and_rebuilt(filled, monkeypatch
     create the marker stays inert), it is deleted with a warning and
     compiled again; later runs use the new, signed file."""
     cache_dir, marker = filled
-    clean = x1()
+    clean = orbit()
     files = sorted((cache_dir / "kernels" / "__pycache__").glob("*"))
     assert files and all(f.suffix in (".nbi", ".nbc") for f in files)
 
@@ -173,10 +193,10 @@ def test_damaged_numba_cache_files_are_discarded_and_rebuilt(filled, monkeypatch
                        "pickle payload": pickle.dumps(Payload()), "empty": b""}[damage])
     new_process(monkeypatch)
     with pytest.warns(CacheDirWarning, match="numba cache file"):
-        again = x1()
+        again = orbit()
     assert again == clean and not marker.exists()
     new_process(monkeypatch)
-    assert x1() == clean and not marker.exists()
+    assert orbit() == clean and not marker.exists()
     assert all(f.read_bytes().startswith(codecache.HEADER)
                for f in (cache_dir / "kernels" / "__pycache__").glob("*"))
 
@@ -186,7 +206,7 @@ def test_symbolic_facts_are_data_never_code(filled, monkeypatch):
     text in them is never evaluated (SymPy's sympify would eval it), not
     even when someone who holds the secret signs it."""
     cache_dir, marker = filled
-    clean = x1()
+    clean = orbit()
     (facts,) = (cache_dir / "kernels").glob("varint_model_*.json")
     evil = f"__import__('os').system('touch {marker}')"
     for content in ([True, evil], [True, [evil, [], 2]], {"fits": True}, [True, "0" * 31],
@@ -194,10 +214,10 @@ def test_symbolic_facts_are_data_never_code(filled, monkeypatch):
         facts.write_text(json.dumps(content))         # unsigned
         new_process(monkeypatch)
         with pytest.warns(CacheDirWarning, match="symbolic facts"):
-            assert x1() == clean
+            assert orbit() == clean
         codecache.write_signed(facts, json.dumps(content))   # signed by the user's secret
         new_process(monkeypatch)
-        assert x1() == clean and not marker.exists()
+        assert orbit() == clean and not marker.exists()
         assert json.loads(facts.read_bytes().split(b"\n", 1)[1])[1] != evil
 
 
@@ -218,7 +238,7 @@ def test_a_from_potential_kernel_file_is_verified_too(private, monkeypatch):
 
 
 @pytest.mark.parametrize("mode", [0o777, 0o775, 0o757])
-def test_a_cache_directory_writable_by_others_is_refused(tmp_path, monkeypatch, private, mode):
+def test_a_cache_directory_writable_by_others_is_refused(tmp_path, monkeypatch, refused, mode):
     """A directory another user could write (a 0777 shared scratch path) is
     not used: one warning names it and why, and a private fallback takes
     its place; nothing is written to the refused one."""
@@ -227,14 +247,13 @@ def test_a_cache_directory_writable_by_others_is_refused(tmp_path, monkeypatch, 
     shared.chmod(mode)
     monkeypatch.setenv("VARINT_CACHE_DIR", str(shared))
     with pytest.warns(CacheDirWarning, match=f"writable by .*{mode:04o}.*using") as warned:
-        x1()
+        orbit()
     assert len([w for w in warned if "is not used" in str(w.message)]) == 1
     assert list(shared.iterdir()) == []
-    fallback = tmp_path / "fallback"
-    assert stepper_file(fallback).exists()
+    assert stepper_file(refused).exists()
 
 
-def test_a_cache_directory_of_another_user_is_refused(tmp_path, monkeypatch, private):
+def test_a_cache_directory_of_another_user_is_refused(tmp_path, monkeypatch, refused):
     if os.getuid() != 0:
         pytest.skip("only root can give a directory to another user")
     other = tmp_path / "theirs"
@@ -242,7 +261,7 @@ def test_a_cache_directory_of_another_user_is_refused(tmp_path, monkeypatch, pri
     os.chown(other, 65534, 65534)
     monkeypatch.setenv("VARINT_CACHE_DIR", str(other))
     with pytest.warns(CacheDirWarning, match="belongs to user id 65534"):
-        x1()
+        orbit()
     assert list(other.iterdir()) == []
 
 
@@ -255,7 +274,7 @@ def test_a_planted_kernels_link_is_refused(tmp_path, monkeypatch, private):
     elsewhere.mkdir()
     (cache_dir / "kernels").symlink_to(elsewhere)
     with pytest.warns(CacheDirWarning, match="symbolic link"):
-        x1()
+        orbit()
     assert list(elsewhere.iterdir()) == []
 
 
@@ -264,7 +283,7 @@ def test_a_secret_others_can_read_is_replaced(filled, monkeypatch):
     new one (one warning), and what it signed is rebuilt (one warning per
     file signed with the old secret, which is not used)."""
     cache_dir, _ = filled
-    clean = x1()
+    clean = orbit()
     secret = cache_dir / cachedir.SECRET_FILE
     old = secret.read_bytes()
     secret.chmod(0o644)
@@ -273,7 +292,7 @@ def test_a_secret_others_can_read_is_replaced(filled, monkeypatch):
     # No ``match=``: pytest re-emits the warnings a match leaves out, and the
     # rebuilt files' warnings are expected here too (checked below).
     with pytest.warns(CacheDirWarning) as warned:
-        assert x1() == clean
+        assert orbit() == clean
     messages = [str(w.message) for w in warned]
     assert len([m for m in messages if "not private" in m]) == 1
     rebuilt = [m for m in messages if "not private" not in m]
@@ -286,7 +305,7 @@ def test_a_full_cache_compiles_in_memory_with_one_warning(filled, monkeypatch):
     memory (numba's disk caching off), the run's result is unchanged, one
     warning says so."""
     cache_dir, _ = filled
-    clean = x1()
+    clean = orbit()
     new_process(monkeypatch)
     for path in (cache_dir / "kernels").glob("varint_stepper_*.py"):
         path.unlink()
@@ -296,7 +315,7 @@ def test_a_full_cache_compiles_in_memory_with_one_warning(filled, monkeypatch):
 
     monkeypatch.setattr(codecache, "atomic_write", full)
     with pytest.warns(CacheDirWarning, match="No space left.*compiled in memory") as warned:
-        assert x1() == clean
+        assert orbit() == clean
     assert len([w for w in warned if "compiled in memory" in str(w.message)]) == 1
     assert not list((cache_dir / "kernels").glob("varint_stepper_*.py"))
 
@@ -305,7 +324,7 @@ def test_a_full_disk_when_numba_writes_its_cache_costs_a_warning(filled, monkeyp
     """numba's own cache write hitting a full disk raised a raw OSError
     [Errno 28] that lost the run: now it is one warning."""
     cache_dir, _ = filled
-    clean = x1()
+    clean = orbit()
     new_process(monkeypatch)
     for f in (cache_dir / "kernels" / "__pycache__").glob("*"):
         f.unlink()
@@ -315,7 +334,7 @@ def test_a_full_disk_when_numba_writes_its_cache_costs_a_warning(filled, monkeyp
 
     monkeypatch.setattr(codecache._SignedCacheFile, "_write", full)
     with pytest.warns(CacheDirWarning, match="No space left"):
-        assert x1() == clean
+        assert orbit() == clean
 
 
 def test_an_unusable_cache_leaves_no_debris_in_tmp(tmp_path):
@@ -340,19 +359,23 @@ def test_an_unusable_cache_leaves_no_debris_in_tmp(tmp_path):
     assert sorted(os.listdir(tmp)) == [f"varint-{os.getuid()}"]   # removed at exit
 
 
-def test_reference_cache_entries_carry_their_key(private, monkeypatch):
+def test_reference_cache_entries_carry_their_key(filled, monkeypatch):
     """Two entries swapped (or one copied to another's name) are not used
-    for each other's call: each is reported and recomputed."""
-    cache_dir, _ = private
-    r1 = cache.cached({"orbit": "R1"}, lambda: varint.integrate(HenonHeiles(), R1, 1.0))
-    c1 = cache.cached({"orbit": "C1"}, lambda: varint.integrate(*varint.paper_orbit("C1"), 1.0))
+    for each other's call: each is reported and recomputed. (The runs are
+    the filled cache's stepper.)"""
+    cache_dir, _ = filled
+
+    def run(x0):
+        return lambda: varint.integrate(HenonHeiles(), x0, 1.0, tau=0.05, scheme="SABA1")
+
+    r1 = cache.cached({"orbit": "R1"}, run(R1))
+    c1 = cache.cached({"orbit": "C1"}, run(varint.paper_orbit("C1")[1]))
     a, b = (cache_dir / "results" / f"{cache.cache_key({'orbit': o})}.bin" for o in ("R1", "C1"))
     blob_a, blob_b = a.read_bytes(), b.read_bytes()
     a.write_bytes(blob_b)
     b.write_bytes(blob_a)
     with pytest.warns(cache.CacheWarning, match="unreadable"):
-        again = cache.cached({"orbit": "R1"},
-                             lambda: varint.integrate(HenonHeiles(), R1, 1.0))
+        again = cache.cached({"orbit": "R1"}, run(R1))
     assert np.array_equal(again.state, r1.state) and not np.array_equal(again.state, c1.state)
 
 

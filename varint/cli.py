@@ -688,11 +688,13 @@ def _cmd_run(args):
     # automatic step they are checked again once the pilot has chosen it.
     steps = _steps(args, tau)
     x0 = _state(args, model, x0)
-    _check_kernels(model, x0)
     kind_options, k = _indicator_options(args, model)
     n_out = args.t_out or 10 * math.ceil(math.log10(steps) + 1)
     _check_run_size(model, k, n_out, f"a run of {k} vectors of {model.name} with {n_out} "
                     "outputs")
+    # After the checks that need no kernel: a run refused for its size
+    # compiles nothing.
+    _check_kernels(model, x0)
     opts = dict(_method_options(args), t_out=args.t_out, progress=None,
                 checkpoint=args.checkpoint)
     if args.indicator != "integrate":

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 from types import SimpleNamespace
 from typing import Any
 
@@ -109,6 +110,11 @@ class Potential:
     linear: bool = False
     regime: Any = None
 
+    def __post_init__(self):
+        # A tuple, so that the potential is hashable (stencil_kernels keeps
+        # one set of kernels per potential).
+        object.__setattr__(self, "terms", tuple(self.terms))
+
 
 @dataclass(frozen=True)
 class Stencil:
@@ -153,10 +159,18 @@ def stencil_kernels(stencil):
     in, absent potentials compiled out): ``grad``, ``hess``, ``third``
     (band kernels of fixed-end chains), ``kick``, ``apply`` and ``field``
     (:class:`~varint.models.lattice.Parts`), as a namespace. All read the
-    parameter array of :meth:`StencilLattice._parameters`."""
+    parameter array of :meth:`StencilLattice._parameters`.
+
+    One namespace per (site, bond) pair, made once: the kernels read the
+    geometry and coefficients from the parameters, so every lattice of a
+    stencil (any shape, boundary or coefficients) runs the same compiled
+    part stepper. Made anew per lattice, a stencil whose functions are not
+    varint's (which no disk cache can name) was compiled again for each
+    (4–5 s of CPU per kernel)."""
     return _kernels(stencil.site, stencil.bond)
 
 
+@cache
 def _kernels(site, bond):
     has_site = site is not None
     linear = bond is not None and bond.linear
