@@ -26,6 +26,7 @@ Usage: ``python studies/suite_profile.py [--merge] [--cache DIR] [--rows DIR]
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -35,6 +36,8 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
+from varint.kernels.closures import Unnamed, closure_key
 
 try:
     from common import parse_args, save_json
@@ -47,26 +50,75 @@ ROOT = Path(__file__).resolve().parent.parent
 def compiled_key(data):
     """What a ``numba:compile`` event compiles, the same in every process:
     the function's module, qualified name and source file's name (a
-    generated module's name carries its hash, not its folder), what a
-    closure closes over (functions by name, numbers and strings by value,
-    other values by type: closures differing only in those may share a key)
-    and the argument types. Two events with one key compiled the same function for
-    the same types twice: in two processes, or in one through two
-    dispatchers (a closure or generated module made again)."""
-    func = getattr(data.get("dispatcher"), "py_func", None)
+    generated module's name carries its hash, not its folder), for a
+    closure what it closes over (:func:`closes_over`) and the argument
+    types. Two events with one key compiled the same function for the same
+    types twice: in two processes, or in one through two dispatchers (a
+    closure or generated module made again)."""
+    dispatcher = data.get("dispatcher")
+    func = getattr(dispatcher, "py_func", None)
     code = getattr(func, "__code__", None)
     if code is None:    # a lifted loop or another dispatcher without a function
-        return type(data.get("dispatcher")).__name__
-    # A closure (the skeleton's kernels) is told apart by what it closes
-    # over: functions by name, numbers and strings by value, the rest by type.
-    cells = [getattr(c.cell_contents, "py_func", c.cell_contents)
-             for c in (func.__closure__ or ())]
-    over = ",".join(f"{getattr(v, '__module__', '')}.{v.__qualname__}"
-                    if hasattr(v, "__qualname__")
-                    else repr(v) if isinstance(v, (bool, int, float, str))
-                    else type(v).__name__ for v in cells)
+        return type(dispatcher).__name__
     return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
-            f"[{over}]({', '.join(str(a) for a in data.get('args', ()))})")
+            f"{closes_over(dispatcher)}({', '.join(str(a) for a in data.get('args', ()))})")
+
+
+def closes_over(dispatcher):
+    """What tells the closure kernel ``dispatcher`` apart from another of
+    the same function ('' for a function without cells): the names of the
+    values it closes over, readable, then ``#`` and a digest of all that is
+    compiled into it. The digest is varint's key of the kernel's disk cache
+    (:func:`varint.kernels.closures.closure_key`: every function it closes
+    over by its code, recursively, plain values by value, numba's options
+    such as ``parallel``), so two compiles share a key exactly when numba's
+    cache could have served the second. A closure over something that key
+    cannot name (a function of a test or study) gets a digest of the same
+    description by names (:func:`_named`), recursively; then, and only
+    then, closures that differ in an object's contents other than its type
+    may share a key, and the digest starts with ``~``."""
+    func = dispatcher.py_func
+    if not func.__closure__:
+        return ""
+    names = ",".join(_name(c.cell_contents) for c in func.__closure__)
+    try:
+        digest = closure_key(dispatcher)[:12]
+    except Unnamed:
+        text = repr(_named(dispatcher, 0))
+        digest = "~" + hashlib.sha256(text.encode()).hexdigest()[:11]
+    return f"[{names}#{digest}]"
+
+
+def _name(value):
+    """A value a closure closes over, briefly: a function by its module and
+    qualified name, a number or string by value, anything else by type."""
+    value = getattr(value, "py_func", value)
+    if hasattr(value, "__qualname__"):
+        return f"{getattr(value, '__module__', '')}.{value.__qualname__}"
+    if isinstance(value, (bool, int, float, str)):
+        return repr(value)
+    return type(value).__name__
+
+
+def _named(value, depth):
+    """A process-independent description of ``value`` by names: a
+    dispatcher by its function and numba's options, a function by its
+    module, qualified name and, recursively, the values it closes over;
+    plain values by value, containers item by item, anything else by
+    type."""
+    if depth > 32:
+        return "..."
+    options = getattr(value, "targetoptions", None)
+    value = getattr(value, "py_func", value)
+    if callable(value) and hasattr(value, "__qualname__"):
+        cells = tuple(_named(c.cell_contents, depth + 1)
+                      for c in getattr(value, "__closure__", None) or ())
+        return (_name(value), cells, sorted((k, repr(v)) for k, v in (options or {}).items()))
+    if value is None or isinstance(value, (bool, int, float, complex, str, bytes)):
+        return repr(value)
+    if isinstance(value, (tuple, list)):
+        return tuple(_named(v, depth + 1) for v in value)
+    return type(value).__name__
 
 
 class CompileTimer:

@@ -97,13 +97,11 @@ def test_each_orbit_runs_at_its_own_step_and_meets_the_tolerance(orbits, request
         assert abs(at[0] - at[1]) <= judge["agreement"] * max(1.0, abs(at[1]))
 
 
-def test_the_indicator_takes_larger_steps_than_the_energy_error():
+def test_the_indicator_takes_larger_steps_than_the_energy_error(henon_heiles):
     """On Hénon–Heiles orbits the energy tolerance asks for steps the FLI
     does not need: with the judge every orbit's step is at least as large
     as without it, and some are larger (the orbits it judged)."""
-    model = varint.models.HenonHeiles()
-    X = varint.section_grid(model, 0.125, np.linspace(-0.4, 0.6, 6),
-                            np.linspace(-0.3, 0.3, 5)).states
+    model, X = henon_heiles
     ind, fixed = resolve("fli")
     options = ind.configure(model, dict(fixed))
     common = {"scheme": maps.MAP_SCHEME, "k": 1, "renorm": ind.renorm,

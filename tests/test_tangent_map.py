@@ -52,10 +52,10 @@ def test_log_accumulator_is_exact_over_huge_growth():
     assert np.isclose(np.log(acc_m[0]) + acc_e[0] * np.log(2), total, rtol=1e-14)
 
 
-# One scheme of each layout (kick or drift first, with or without corrector,
-# an order-8 ABA composition); SABA2C and SBAB3 are the ones whose tangent-map
-# kernels test_force_evaluations_per_step_are_counted compiles anyway.
-@pytest.mark.parametrize("scheme", ["SBAB2C", "SABA2C", "ABA864", "SBAB3"])
+# One scheme of each layout (kick or drift first, with or without corrector):
+# the ones whose tangent-map kernels test_force_evaluations_per_step_are_counted
+# compiles anyway (the stages' number does not change the layout).
+@pytest.mark.parametrize("scheme", ["SBAB2C", "SABA2C", "SABA2", "SBAB3"])
 def test_orbit_without_vectors_is_bitwise_the_orbit_with_vectors(c1, scheme):
     model, x0 = c1
     plain = varint.integrate(model, x0, 50.0, tau=0.05, scheme=scheme)

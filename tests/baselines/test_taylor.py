@@ -63,14 +63,19 @@ def test_functions_heyoka_lacks_are_refused_by_name():
         varint.integrate(model, [0.1, 0.0], 1.0, method="taylor")
 
 
-@pytest.mark.parametrize("orbit", ["R2", "R3"])
-def test_taylor_reference_on_the_other_paper_systems(orbit):
+@pytest.mark.parametrize("orbit, k", [("R2", 2), ("R3", 16)])
+def test_taylor_reference_on_the_other_paper_systems(orbit, k):
     """The 3-dof system (masses √2, √3, from the symbolic model) and the FPU
     chain: the reference agrees with the TM method (hand-written kernels,
-    masses in double) at small τ; measured 6e-12 and 2e-12 on the orbit."""
+    masses in double) at small τ; measured 6e-12 and 2e-12 on the orbit.
+    Two tangent vectors are compared; the TM run of the chain carries all
+    16 (the first two are the same vectors: without renormalisation each
+    evolves alone), on the generic stepper of the chain's full spectrum
+    that other tests compile, instead of a stepper generated for two."""
     model, x0 = varint.paper_orbit(orbit)
     W0 = np.eye(model.dim)[:, :2]
     ref = varint.integrate(model, x0, 10.0, method="taylor", precision="extended", deviations=W0)
-    tm = varint.integrate(model, x0, 10.0, tau=0.01, scheme="ABA864", deviations=W0)
+    tm = varint.integrate(model, x0, 10.0, tau=0.01, scheme="ABA864",
+                          deviations=np.eye(model.dim)[:, :k])
     assert np.abs(tm.state - ref.state).max() < 1e-10
-    assert np.abs(tm.deviations - ref.deviations).max() < 1e-9
+    assert np.abs(tm.deviations[:, :2] - ref.deviations).max() < 1e-9

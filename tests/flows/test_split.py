@@ -123,14 +123,16 @@ def test_two_part_schemes_measured_order(case, scheme, order, steps):
 @pytest.mark.parametrize("case", sorted(_CASES))
 def test_part_stepper_tangent_is_symplectic_and_the_derivative(case):
     """100 ABA864 steps: MᵀJM = J to round-off, and M equals central
-    differences of the same map."""
+    differences of the same map (whose displaced orbits carry the vectors
+    too, though they do not depend on them: one kernel per model)."""
     build, x0 = _CASES[case]
     model = build()
     d = model.dim
     _, M = parts_steps(model, x0, np.eye(d), 0.02, 100, "ABA864")
     J = symplectic_form(d // 2)
     assert np.abs(M.T @ J @ M - J).max() < 1e-12 * max(1.0, np.abs(M).max() ** 2)
-    D = finite_difference(lambda z: parts_steps(model, z, None, 0.02, 100, "ABA864")[0], x0)
+    D = finite_difference(lambda z: parts_steps(model, z, np.eye(d), 0.02, 100, "ABA864")[0],
+                          x0)
     assert np.abs(D - M).max() < 1e-8 * max(1.0, np.abs(M).max())
 
 
@@ -139,13 +141,15 @@ def test_rkn_scheme_keeps_its_order_only_for_quadratic_momenta(case, order):
     """SRKN14a is a Runge–Kutta–Nyström scheme: order 6 where A is quadratic
     in p and V depends on q ({V,{V,{V,A}}} = 0: the rotating frame of the
     CR3BP), order 4 for T = √(1 + |p|²) — why the separable models default to
-    s11odr6 and the rotating ones to SRKN14a."""
+    s11odr6 and the rotating ones to SRKN14a. The orbit carries the identity
+    (the kernel of the other tests of the model; its orbit does not depend
+    on the vectors)."""
     build, x0 = _CASES[case]
     model = build()
     ref = taylor_reference(model, x0, 2.0)
     steps = (80, 160, 320) if case == "cr3bp" else (10, 20, 40)
-    errs = [np.abs(parts_steps(model, x0, None, 2.0 / n, n, "SRKN14a")[0] - ref).max()
-            for n in steps]
+    errs = [np.abs(parts_steps(model, x0, np.eye(model.dim), 2.0 / n, n, "SRKN14a")[0]
+                   - ref).max() for n in steps]
     assert fitted_slope([2.0 / n for n in steps], errs) == pytest.approx(order, abs=0.5)
 
 
@@ -172,7 +176,8 @@ def test_termwise_flows_are_exact_explicit_and_symplectic():
     _, M = parts_steps(model, x0, np.eye(6), 0.05, 40, scheme)
     J = symplectic_form(3)
     assert np.abs(M.T @ J @ M - J).max() < 1e-13
-    D = finite_difference(lambda z: parts_steps(model, z, None, 0.05, 40, scheme)[0], x0)
+    # The displaced orbits carry the vectors too: the kernel above, not one for k = 0.
+    D = finite_difference(lambda z: parts_steps(model, z, np.eye(6), 0.05, 40, scheme)[0], x0)
     assert np.abs(D - M).max() < 1e-8
 
 

@@ -1,0 +1,94 @@
+"""The suite profile's table of duplicate compiles counts a kernel twice
+only when the same kernel was compiled twice: the skeleton's closures,
+one function for every step body, are told apart by what they close over
+(the body, numba's options), not by their name alone."""
+
+from numba import njit
+
+from studies.suite_profile import compiled_key, duplicates
+from varint.kernels.interval import batch_loop
+from varint.kernels.map_stepper import map_body
+from varint.models.maps import (
+    _coupled_iterate,
+    _coupled_jacobian,
+    _standard_iterate,
+    _standard_jacobian,
+)
+
+ARGS = ("float64", "array(float64, 1d, C)")
+
+
+def key(dispatcher):
+    """The key of a compile of ``dispatcher`` for ``ARGS`` (nothing is compiled)."""
+    return compiled_key({"dispatcher": dispatcher, "args": ARGS})
+
+
+def standard_batch(parallel=False):
+    """The batch loop of the standard map, made anew (past the factories'
+    caches: a new body, a new orbit loop, a new dispatcher)."""
+    body = map_body.__wrapped__(2, 1, _standard_iterate, _standard_jacobian)
+    return batch_loop.__wrapped__(body, parallel)
+
+
+def test_one_closure_made_twice_has_one_key():
+    """Two dispatchers of one kernel (made again, as in another process):
+    numba's cache could serve the second, so it is a duplicate."""
+    first, second = standard_batch(), standard_batch()
+    assert first is not second and first.py_func.__closure__[0].cell_contents \
+        is not second.py_func.__closure__[0].cell_contents
+    assert key(first) == key(second)
+    assert "batch_loop.<locals>.batch@interval.py" in key(first)
+
+
+def test_closures_of_different_bodies_or_options_have_different_keys():
+    """The batch loop of another map, of other sizes, or run in parallel is
+    another kernel, although the function and the name of what it closes
+    over (``orbit_loop.<locals>.orbit``) are the same."""
+    base = key(standard_batch())
+    coupled = key(batch_loop(map_body(4, 1, _coupled_iterate, _coupled_jacobian), False))
+    sizes = key(batch_loop(map_body(2, 2, _standard_iterate, _standard_jacobian), False))
+    parallel = key(standard_batch(parallel=True))
+    assert len({base, coupled, sizes, parallel}) == 4
+    other_args = compiled_key({"dispatcher": standard_batch(), "args": ("int64",)})
+    assert other_args != base
+
+
+def _user_closure(scale, inner):
+    @njit
+    def f(x):
+        return scale * inner(x)
+
+    return f
+
+
+@njit
+def _double(x):
+    return 2.0 * x
+
+
+@njit
+def _half(x):
+    return 0.5 * x
+
+
+def test_a_closure_outside_varint_is_told_apart_by_names_and_values():
+    """A closure whose cells varint's cache key cannot name (functions of
+    this test) is described by names, recursively, and plain values by
+    value; the key says it is so (``~``)."""
+    one = key(_user_closure(3.0, _double))
+    assert "#~" in one
+    assert one == key(_user_closure(3.0, _double))
+    assert one != key(_user_closure(3.0, _half))
+    assert one != key(_user_closure(4.0, _double))
+    assert key(_double) != key(_half)
+
+
+def test_duplicates_counts_only_what_was_compiled_again():
+    a, b = key(standard_batch()), key(standard_batch(parallel=True))
+    rows = {"gw0": {"tests/x.py::t1": {"compiled": [[a, 2.0], [b, 5.0]]}},
+            "gw1": {"tests/y.py::t2": {"compiled": [[a, 3.0]]}}}
+    table = duplicates(rows)
+    assert table["keys"] == 1
+    assert table["functions"][a] == {"times": 2, "extra_s": 2.0, "processes": ["gw0", "gw1"],
+                                     "files": ["tests/x.py", "tests/y.py"]}
+    assert table["extra_s"] == 2.0
