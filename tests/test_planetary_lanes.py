@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import varint
+from varint.kernels.planetary_batch import LANES
 from varint.kernels.planetary_lanes import _planet_drift, kick_lanes, lane_steps
 from varint.methods.parts import _tables, parts_steps
 from varint.models import Planetary
@@ -22,12 +23,17 @@ WH10 = varint.get_scheme("SABA1").repeated(10)
 def _grid(model):
     """A grid of Saturn's (a, e) over the chaotic zone and beyond, and two
     near-parabolic Saturns whose pericentre passages a step of 1 does not
-    resolve (their drifts leave the common path)."""
+    resolve (their drifts leave the common path): 32 orbits, the width of
+    a map's block of lanes (``LANES``), so that the lane kernels these
+    tests compile for their width are the ones the maps run (a width of
+    its own would compile the lanes' step a second time)."""
     g = varint.element_grid(model, [JUPITER, dict(a=9.0, e=0.0, M=0.871, omega=1.616)], 2,
-                            np.linspace(6.5, 10.0, 5), np.linspace(0.0, 0.6, 4))
+                            np.linspace(6.5, 10.0, 6), np.linspace(0.0, 0.6, 5))
     eccentric = [model.from_elements([JUPITER, dict(a=9.0, e=e, M=0.05, omega=1.616)])
                  for e in (0.97, 0.995)]
-    return np.vstack([g.states, eccentric])
+    X = np.vstack([g.states, eccentric])
+    assert len(X) == LANES
+    return X
 
 
 def _lanes(model, X, W, tau, n_steps, scheme):

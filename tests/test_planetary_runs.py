@@ -68,28 +68,35 @@ def test_megno_of_a_chaotic_orbit_grows(jupiter_saturn):
 def test_corrector_at_outputs_cuts_the_run_energy_error():
     """ε = 1e-4, τ = T/32: the third-order corrector cuts the largest
     energy error over 200 orbits 40-fold (measured 4.4e-8 → 1.0e-9), the
-    fifth-order one further (3.5e-11); the run records the corrector."""
+    fifth-order one further (3.5e-11). Run as MEGNO (the orbit, hence the
+    energy error, is that of a run without vectors): the one-orbit MEGNO
+    kernel the other tests compile, not one of its own (~20 CPU s cold)."""
     model = Planetary([1.0, 1e-4, 3e-5])
     x0 = model.from_elements([dict(a=1.0, e=0.05), dict(a=1.6, e=0.02, M=2.0, inc=0.1)])
     tau = 2 * math.pi / 32
     t_end = 200 * 32 * tau
-    errs = {c: np.max(varint.integrate(model, x0, t_end, tau=tau, t_out=20,
-                                       corrector=c).energy_error) for c in (None, 3, 5)}
+    errs = {c: np.max(varint.megno(model, x0, t_end, tau=tau, t_out=20,
+                                   corrector=c).energy_error) for c in (None, 3, 5)}
     assert errs[3] < errs[None] / 20 and errs[5] < errs[3] / 5, errs
 
 
 def test_processed_tangent_is_the_derivative_of_the_processed_map():
     """With renorm "none" the vectors are the tangent map of x₀ ↦ C(Wⁿ(C⁻¹(x₀))):
-    fourth-order differences of the run's final state agree to 1e-7."""
+    fourth-order differences of the run's final state agree to 1e-7. The
+    map is run one column at a time (one vector: the kernel
+    test_planetary_lanes compiles, not one for twelve, ~20 CPU s cold)."""
     model = Planetary([1.0, 1e-3, 3e-4])
     x0 = model.from_elements([dict(a=1.0, e=0.05), dict(a=1.6, e=0.1, M=2.0, inc=0.1)])
 
-    def final(x, W=None):
+    def final(x, w=0):
+        # Always one vector, column w of the identity (the state does not
+        # depend on it): one stepper for the map and its differences.
         r = varint.integrate(model, x, 20.0, tau=0.25, t_out=1, corrector=3,
-                             deviations=W, scheme=varint.get_scheme("SABA1").repeated(2))
-        return r.state, (None if W is None else r.deviations)
+                             deviations=np.eye(12)[:, w:w + 1],
+                             scheme=varint.get_scheme("SABA1").repeated(2))
+        return r.state, r.deviations
 
-    _, M = final(x0, np.eye(12))
+    M = np.hstack([final(x0, i)[1] for i in range(12)])
     fd = np.empty((12, 12))
     # Steps of 1e-5 of each coordinate's size: 1 for q, m′ for p = m′v.
     size = np.concatenate([np.ones(6), np.repeat(model.kepler_mass, 3)])
@@ -163,33 +170,36 @@ def test_bad_corrector_options_are_refused(jupiter_saturn):
 def test_unresolved_pericentres_are_warned_and_singular_starts_refused():
     """A step longer than a planet's pericentre passage time √(q³/μ(1+e))
     gets an AccuracyWarning naming the planet and both times;
-    a planet on the star is refused before any work."""
+    a planet on the star is refused before any work. (MEGNO runs: the
+    kernel the other tests compile; the checks come before any kernel.)"""
     model = Planetary([1.0, 1e-3, 3e-4])
     x0 = model.from_elements([dict(a=1.0, e=0.9), dict(a=2.0, e=0.1, M=2.0)])
     with pytest.warns(varint.AccuracyWarning, match=r"planet 1 .*pericentre passage time "
                                                     r"0\.0229, .*step 0\.1:"):
-        varint.integrate(model, x0, 1.0, tau=0.1)
+        varint.megno(model, x0, 1.0, tau=0.1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", varint.AccuracyWarning)
-        varint.integrate(model, x0, 1.0, tau=0.1, scheme=varint.get_scheme("SABA1").repeated(10))
+        varint.megno(model, x0, 1.0, tau=0.1, scheme=varint.get_scheme("SABA1").repeated(10))
     x0[0:3] = 0.0
     with pytest.raises(ValueError, match="not finite at the initial state"):
-        varint.integrate(model, x0, 1.0, tau=0.1)
+        varint.megno(model, x0, 1.0, tau=0.1)
 
 
 def test_megno_stability_map_over_elements(jupiter_saturn):
     """A 4 × 3 map of Saturn's (a, e): the regular corner near 2, the
     chaotic one stopped early above the threshold; bitwise the same for any
-    chunk size."""
+    chunk size. One orbit at a time (``lanes=False``: the MEGNO kernel the
+    other tests compile; that the SIMD lanes, the default, give the same
+    bits is test_planetary_lanes's, which compiles them)."""
     model, _ = jupiter_saturn
     grid = varint.element_grid(model, [JUPITER, dict(a=9.0, e=0.05, M=0.871, omega=1.616)], 2,
                                [7.43, 7.86, 8.7, 9.0], [0.05, 0.143, 0.214])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         r = varint.chaos_map(model, grid, "megno", t_end=2e4, tau=10.0, scheme=WH10,
-                             threshold=8.0)
+                             threshold=8.0, lanes=False)
         again = varint.chaos_map(model, grid, "megno", t_end=2e4, tau=10.0, scheme=WH10,
-                                 threshold=8.0, chunk_size=5)
+                                 threshold=8.0, chunk_size=5, lanes=False)
     image = r.image()
     assert image.shape == (3, 4)
     assert abs(image[0, 3] - 2.0) < 0.2                  # a = 9.0, e = 0.05
@@ -199,13 +209,14 @@ def test_megno_stability_map_over_elements(jupiter_saturn):
 
 def test_megno_map_on_a_dask_cluster_is_bitwise_the_local_map(jupiter_saturn):
     """A large planetary grid goes to a Dask cluster like any map: the
-    model pickles to the workers, chunks run there (in lanes), and the
-    values, stop times and statuses are the local map's bit for bit."""
+    model pickles to the workers, chunks run there, and the values, stop
+    times and statuses are the local map's bit for bit. (One orbit at a
+    time, as the map above: the lanes are test_planetary_lanes's.)"""
     distributed = pytest.importorskip("distributed")
     model, _ = jupiter_saturn
     grid = varint.element_grid(model, [JUPITER, dict(a=9.0, e=0.05, M=0.871, omega=1.616)], 2,
                                [7.43, 7.86, 8.7, 9.0], [0.05, 0.214])
-    args = dict(t_end=5e3, tau=10.0, scheme=WH10, threshold=8.0, progress=False)
+    args = dict(t_end=5e3, tau=10.0, scheme=WH10, threshold=8.0, progress=False, lanes=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         local = varint.chaos_map(model, grid, "megno", **args)
@@ -225,7 +236,8 @@ def test_close_encounters_stop_orbits():
     """Two planets 0.15 apart (2 mutual Hill radii of 0.076): with
     close_encounter = 3 the orbit stops with status CLOSE_ENCOUNTER at once
     (the other orbit of the batch, far apart, goes on); without it, it runs
-    through."""
+    through. (MEGNO, one thread: the one-orbit kernel the other tests
+    compile; the orbit and its status are those of a run without vectors.)"""
     els = [[dict(a=1.0, e=0.0), dict(a=1.02, e=0.0, M=0.15)],
            [dict(a=1.0, e=0.0), dict(a=3.0, e=0.0, M=2.0)]]
     for close, want in ((3.0, int(varint.Status.CLOSE_ENCOUNTER)), (None, 0)):
@@ -233,7 +245,7 @@ def test_close_encounters_stop_orbits():
         x0 = np.stack([model.from_elements(e) for e in els])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            r = varint.integrate(model, x0, 20.0, tau=0.05, t_out=4, errors="flag")
+            r = varint.megno(model, x0, 20.0, tau=0.05, t_out=4, errors="flag", parallel=False)
         assert r.status[0] == want and r.status[1] == 0
         if close:
             assert r.provenance.counts["steps"] < 500

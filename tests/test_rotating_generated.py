@@ -104,12 +104,15 @@ def test_generated_measured_order(case, scheme, order, steps):
 @pytest.mark.parametrize("case", ["cr3bp", "larmor"])
 def test_generated_tangent_is_the_derivative_and_symplectic(case):
     """100 SRKN14a steps: the tangent map equals central differences of the
-    same generated map, and MᵀJM = J to round-off."""
+    same generated map, and MᵀJM = J to round-off. The differences are of
+    the orbit of the same compiled stepper (with its 2N vectors, which the
+    orbit does not read: the stepper test_generated_is_the_part_flows_map_to_round_off
+    compiles, not one without vectors of its own)."""
     build, x0 = _CASES[case]
     model = build()
     d = model.dim
     _, M = tangent_map_steps(model, x0, np.eye(d), 0.02, 100, "SRKN14a")
-    D = finite_difference(lambda z: tangent_map_steps(model, z, None, 0.02, 100,
+    D = finite_difference(lambda z: tangent_map_steps(model, z, np.eye(d), 0.02, 100,
                                                       "SRKN14a")[0], x0)
     assert np.abs(D - M).max() < 1e-8 * max(1.0, np.abs(M).max())
     J = symplectic_form(d // 2)
@@ -139,14 +142,16 @@ def test_lanes_are_bitwise_the_one_orbit_stepper():
 def test_jacobi_constant_conserved_at_the_scheme_order():
     """The Jacobi constant of a regular Sun–Jupiter orbit over 20 000 steps
     of SRKN14a: its error stays bounded (the late half no larger than 3×
-    the early half: no drift) and falls as τ⁶ when τ halves."""
+    the early half: no drift) and falls as τ⁶ when τ halves. (With one
+    vector, which the orbit does not read: the one-orbit stepper of the
+    test above, not one without vectors of its own.)"""
     model, x0 = cr3bp_orbit("sun-jupiter-regular")
     C0 = model.jacobi(x0)
     worst = []
     for tau, chunks in ((0.1, 40), (0.05, 80)):
         x, errors = x0.copy(), []
         for _ in range(chunks):
-            x = _run(model, x[None], tau, 250, "SRKN14a", k=0)[0][0]
+            x = _run(model, x[None], tau, 250, "SRKN14a")[0][0]
             errors.append(abs(model.jacobi(x) - C0))
         errors = np.array(errors)
         half = len(errors) // 2
@@ -199,11 +204,13 @@ def test_cuda_kernel_on_the_simulator_is_bitwise_the_cpu():
 def test_compensated_drift_is_the_same_map():
     """compensated=True adds the rotating frame's drift (written as
     increments) by Kahan's summation: 2000 SRKN14a steps agree with the
-    plain stepper to round-off, and differ from it (the compensation acts)."""
+    plain stepper to round-off, and differ from it (the compensation acts).
+    (With one vector: the plain stepper is then the one-orbit stepper the
+    tests above compile.)"""
     model, x0 = cr3bp_orbit("sun-jupiter-regular")
     runs = []
     for compensated in (False, True):
-        state = RunState.start(x0[None], np.zeros((1, 4, 0)))
+        state = RunState.start(x0[None], np.eye(4)[None, :, :1].copy())
         TangentMapPropagator(model, 0.1, Renorm.NONE, scheme="SRKN14a",
                              compensated=compensated).advance(state, 2000)
         assert state.status[0] == 0

@@ -21,11 +21,14 @@ gives an infinity, not a ``ZeroDivisionError`` raised from inside a
 compiled loop, and the steppers' checks turn the non-finite value into a
 failure with its time and step (:class:`varint.protocol.Status`). A user's
 kernel compiled with numba's default (Python) error model is recompiled
-from its Python source with NumPy's when the model is built.
+from its Python source with NumPy's when the model is built — once per
+kernel: models built from the same kernels share the recompiled one, and
+so every stepper compiled for them.
 """
 
 from __future__ import annotations
 
+import functools
 import numbers
 from collections.abc import Callable
 
@@ -41,9 +44,13 @@ from .._validate import array_bytes, check_memory, real_array
 __all__ = ["Model"]
 
 
+@functools.cache
 def _numpy_errors(kernel):
     """``kernel`` compiled with NumPy's error model (see the module
-    docstring); itself if it already is."""
+    docstring); itself if it already is. One dispatcher per kernel: the
+    steppers are compiled per kernel dispatcher (``functools.cache`` on
+    it), so a new one per model would compile them all again for every
+    model built from the same functions (two parameter sets, say)."""
     options = dict(kernel.targetoptions)
     if options.get("error_model") == "numpy":
         return kernel
