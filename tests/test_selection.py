@@ -109,18 +109,23 @@ def test_the_high_order_candidates_keep_the_default_pilot_and_win_at_tight_targe
 def test_compensation_is_considered_near_the_plain_floor(r1):
     """A tangent error of 1e-13 at t = 400 on R1 lies below what SRKN14a
     at τ = 1/32 reaches with plain summation (round-off: ~5e-13 predicted)
-    but within COMPENSATION_RANGE of it: the candidate is piloted again
-    compensated, that variant meets the target and is chosen, and its
-    options say so; a target it meets plain adds no compensated row."""
+    but within COMPENSATION_RANGE of it: the candidate is piloted again at
+    both levels of compensation, full compensation meets the target, the
+    cheapest level that meets it is chosen, and its options say so; a
+    target it meets plain adds no compensated row."""
     model, x0 = r1
     cands = [("tm", "SRKN14a", 0.03125)]
     choice = varint.select_scheme(model, x0, 1e-13, metric="tangent", t_end=400, pilot_t=40,
                                   candidates=cands)
     rows = {r["compensated"]: r for r in choice.table}
+    assert set(rows) == {False, True, "orbit"}     # both levels piloted
     assert not rows[False]["meets"] and rows[False]["error"] <= 100 * 1e-13
     assert rows[True]["meets"] and rows[True]["error"] < rows[False]["error"] / 5
-    assert choice.compensated and choice.options()["compensated"] is True
-    assert "SRKN14a+c" in str(choice)
+    # The choice is the cheapest level that meets the target, and says so.
+    meeting = [r for r in choice.table if r["meets"]]
+    assert choice.compensated == min(meeting, key=lambda r: r["seconds"])["compensated"]
+    assert choice.compensated and choice.options()["compensated"] == choice.compensated
+    assert ("SRKN14a+c " if choice.compensated is True else "SRKN14a+co") in str(choice)
     loose = varint.select_scheme(model, x0, 1e-11, metric="tangent", t_end=400, pilot_t=40,
                                  candidates=cands)
     assert [r["compensated"] for r in loose.table] == [False]

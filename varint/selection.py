@@ -42,8 +42,11 @@ compensated summation (``compensated=True`` of the TM method) lowers that
 floor (on R1 to t = 1e3 from about 1e-12 to a few 1e-14,
 ``studies/compensated_floor.py``) at some cost per step. A TM candidate
 whose predicted error misses the target by at most :data:`COMPENSATION_RANGE`
-is therefore piloted again compensated, and that variant enters the table
-as a candidate of its own (``compensated`` True); candidates far from the
+is therefore piloted again compensated, at both levels, and each variant
+enters the table as a candidate of its own (``compensated`` True, every
+drift and kick, or ``"orbit"``, the orbit's only, the vectors plain:
+cheaper per step, and as accurate where the vectors' error follows the
+orbit's, ``studies/compensation_levels.py``); candidates far from the
 target are not (truncation, not round-off, sets their error).
 """
 
@@ -103,8 +106,10 @@ class SchemeChoice:
     ----------
     method, scheme, tau :
         The choice (``scheme`` None for methods without one).
-    compensated : bool
-        Whether the choice runs with compensated summation (TM only).
+    compensated : bool or "orbit"
+        Whether the choice runs with compensated summation (TM only), and
+        at which level (True: every drift and kick; "orbit": the orbit's,
+        not the vectors').
     error : float
         Its error predicted at t_end (``metric``).
     seconds : float
@@ -125,7 +130,7 @@ class SchemeChoice:
     pilot_t: float
     t_end: float
     table: list = field(default_factory=list)
-    compensated: bool = False
+    compensated: bool | str = False
 
     def options(self):
         """Keyword arguments for the run functions: ``method``, ``tau``,
@@ -135,7 +140,7 @@ class SchemeChoice:
         if self.scheme is not None:
             out["scheme"] = self.scheme
         if self.compensated:
-            out["compensated"] = True
+            out["compensated"] = self.compensated
         return out
 
     def to_dataframe(self):
@@ -153,7 +158,8 @@ class SchemeChoice:
             mark = "*" if (r["method"], r["scheme"], r["tau"], r["compensated"]) == (
                 self.method, self.scheme, self.tau, self.compensated) else " "
             verdict = ("yes" if r["meets"] else "no") + (" (unreliable)" if r["unreliable"] else "")
-            scheme = (r["scheme"] or "-") + ("+c" if r["compensated"] else "")
+            scheme = (r["scheme"] or "-") + {True: "+c", "orbit": "+co"}.get(
+                r["compensated"], "")
             lines.append(f"{r['method']:7} {scheme:9} {r['tau']:7.3g} "
                          f"{r['error_quarter']:9.2e} {r['error_pilot']:9.2e} {r['growth']:8.2f} "
                          f"{r['error']:10.2e} {r['seconds']:10.3g} {mark}{verdict}")
@@ -161,7 +167,7 @@ class SchemeChoice:
                      "growth a: the error grows as t^a between them (a > "
                      f"{_UNRELIABLE:g}: exponential, the extrapolation is unreliable); "
                      f"err(t_end) = err(T) (t_end/T)^a; sec(t_end): predicted wall time; "
-                     "+c: compensated summation; *: the choice")
+                     "+c: compensated summation (+co: of the orbit only); *: the choice")
         return "\n".join(lines)
 
 
@@ -215,7 +221,7 @@ def _time_unit_cost(model, x0, method, scheme, tau, k, compensated=False):
     also compiles), doubling the steps until it lasts long enough."""
     options = {} if scheme is None else {"scheme": scheme}
     if compensated:
-        options["compensated"] = True
+        options["compensated"] = compensated
     prop = make_propagator(method, model, tau, "qr" if k else "none", **options)
     W0 = initial_deviations(model.dim, k, 1, 0)
     state = RunState.start(np.asarray(x0, dtype=float)[None], W0)
@@ -330,7 +336,7 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
         if scheme is not None:
             opts["scheme"] = scheme
         if compensated:
-            opts["compensated"] = True
+            opts["compensated"] = compensated
         if metric == "energy":
             n = int(round(pilot / tau))
             r = integrate(model, x0, pilot, t_out=min(n, 400), **opts)
@@ -366,9 +372,10 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
     from .codegen.expressions import symbolic_fits
 
     if symbolic_fits(model, max(k, {"energy": 0, "X1": 1, "tangent": dim}[metric])):
-        table += [row(method, scheme, tau, True)
+        table += [row(method, scheme, tau, level)
                   for (method, scheme, tau), r in zip(cands, list(table), strict=True)
-                  if method == "tm" and target < r["error"] <= COMPENSATION_RANGE * target]
+                  if method == "tm" and target < r["error"] <= COMPENSATION_RANGE * target
+                  for level in ("orbit", True)]
     table.sort(key=lambda r: (not r["meets"], r["seconds"], r["error"]))
     best = table[0]
     if not best["meets"]:

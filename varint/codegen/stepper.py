@@ -57,16 +57,17 @@ class Plan:
         (:func:`~varint.codegen.accumulators.rule_text`), written out in the
         loop, or ``"module:name:hash"`` of its compiled update, called; ""
         for none.
-    compensated : bool
-        Drifts and kicks add by compensated summation
-        (:class:`~varint.codegen.tm.TMBody`); such a module has no lanes.
+    compensated : bool or "orbit"
+        Drifts and kicks (``"orbit"``: the orbit's, not the vectors') add by
+        compensated summation (:class:`~varint.codegen.tm.TMBody`); such a
+        module has no lanes.
     """
 
     kinds: tuple
     corrected: tuple
     k: int
     accumulator: str
-    compensated: bool = False
+    compensated: bool | str = False
 
 
 def generated_source(E, plan, accumulator=None):
@@ -181,9 +182,9 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
     k : int
         Deviation vectors.
     accumulator : Accumulator, optional
-    compensated : bool, default False
-        Compensated summation in every drift and kick
-        (:class:`~varint.codegen.tm.TMBody`).
+    compensated : bool or "orbit", default False
+        Compensated summation in every drift and kick, or (``"orbit"``) in
+        the orbit's drifts and kicks (:class:`~varint.codegen.tm.TMBody`).
 
     Returns
     -------
@@ -195,7 +196,7 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
     """
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
                 k=int(k), accumulator=_accumulator_id(accumulator),
-                compensated=bool(compensated))
+                compensated=compensated if compensated == "orbit" else bool(compensated))
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:

@@ -11,7 +11,14 @@ and of the vectors adds its increment by Kahan's compensated summation
 (Kahan 1965; Møller 1965): the low-order bits an addition loses are kept
 in a compensation local per component and fed into its next increment, so
 the round-off of a long run grows like a random walk instead of linearly
-(Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008)). The orbit and the
+(Hairer, McLachlan & Razakarivony, BIT 48, 231 (2008)). With
+``compensated="orbit"`` only the orbit's drifts and kicks are, the vectors
+add plainly: the orbit is bitwise full compensation's, and where the
+vectors' error follows the orbit's (on the Hénon–Heiles orbits,
+``studies/compensation_levels.py``) so does their accuracy, for half the
+compensated updates (a step is bound by its floating-point operations,
+four per compensated update instead of one).
+The orbit and the
 deviation vectors are local variables (registers) for the whole loop. For
 H = A + V(q) with A the solvable quadratic of a rotating frame or a uniform
 magnetic field (:attr:`~varint.codegen.expressions.Expressions.planar`),
@@ -48,7 +55,8 @@ class TMBody:
 
     The orbit is ``q{i}``, ``p{i}``; component i of vector j is ``a{i}_{j}``
     (δq) or ``b{i}_{j}`` (δp); compensated, each of them has its
-    compensation ``c`` + its name (:meth:`compensation`). The stage lengths
+    compensation ``c`` + its name (:meth:`compensation`), which only the
+    components :meth:`compensates` change (the others' stay zero). The stage lengths
     are the locals ``h{s}`` and ``hc{s}`` (:meth:`prologue`). After the
     first step, the first kick of a BAB-type step reuses the values of the
     last kick (same q): one orbit evaluates them once in its first step,
@@ -58,7 +66,8 @@ class TMBody:
 
     def __init__(self, E, kinds, corrected, k, compensated=False):
         self.E, self.kinds, self.corrected, self.k = E, tuple(kinds), tuple(corrected), k
-        self.compensated = bool(compensated)
+        #: False, True (every drift and kick) or "orbit" (the orbit's only).
+        self.compensated = compensated if compensated == "orbit" else bool(compensated)
         n = self.n = E.n
         self.q = [f"q{i}" for i in range(n)]
         self.p = [f"p{i}" for i in range(n)]
@@ -86,6 +95,14 @@ class TMBody:
         what the last addition to it added too much (Kahan's ``c``; the
         sum is ``name − c{name}``)."""
         return f"c{name}"
+
+    def compensates(self, name):
+        """Whether updates of state local ``name`` add by compensated
+        summation: all of them with ``compensated=True``, the orbit's
+        (q and p) with ``"orbit"``."""
+        if self.compensated == "orbit":
+            return name in self.q or name in self.p
+        return self.compensated
 
     def needs(self, corrected):
         """What a kick stage evaluates: ∇V; D²V with vectors; ∇C (and D²C
@@ -287,7 +304,7 @@ class TMBody:
         as the component is). The operations must stay in this order (numba does not reassociate
         floating point without fastmath).
         """
-        if not self.compensated:
+        if not self.compensates(name):
             src(f"{name} = {increment(name)}")
             return
         c = self.compensation(name)

@@ -89,7 +89,7 @@ class TangentMapPropagator:
         emitted before its port onto :mod:`varint.codegen`) the
         Hénon–Heiles FLI map differed by up to 1e-11 relative at t = 100
         (not yet explained; ``studies/results/bench_gpu_h100.md``).
-    compensated : bool, default False
+    compensated : {False, True, "orbit"}, default False
         Add every drift and kick of the orbit and of the vectors by Kahan's
         compensated summation (:mod:`varint.codegen.tm`; Hairer, McLachlan
         & Razakarivony 2008): the round-off of a long run then grows like a
@@ -98,7 +98,12 @@ class TangentMapPropagator:
         compensations are part of the run state (``extra["tm_compensation"]``,
         (M, 2N, 1 + k): the state's and each vector's), so chunked and
         resumed runs stay bitwise. Generated steppers only, one orbit at a
-        time on the CPU (no SIMD lanes, no GPU).
+        time on the CPU (no SIMD lanes, no GPU). ``"orbit"``: only the
+        orbit's drifts and kicks are compensated, the vectors' updates are
+        plain; the orbit is bitwise True's, and where the vectors' error
+        follows the orbit's (Hénon–Heiles: ``studies/compensation_levels.py``)
+        the vectors nearly match True's too, for fewer operations per step.
+        Its state is True's (the vectors' compensations stay zero).
 
     Notes
     -----
@@ -136,12 +141,15 @@ class TangentMapPropagator:
         self.accumulator = accumulator
         self.every = self._every(opts.get("renormalize_every"))
         self.compensated = opts.get("compensated", False)
-        if not isinstance(self.compensated, (bool, np.bool_)):
-            raise ValueError(f"compensated must be True or False, got {self.compensated!r}")
-        self.compensated = bool(self.compensated)
+        if not (isinstance(self.compensated, (bool, np.bool_))
+                or (isinstance(self.compensated, str) and self.compensated == "orbit")):
+            raise ValueError(f"compensated must be True, False or 'orbit', got "
+                             f"{self.compensated!r}")
+        if not isinstance(self.compensated, str):
+            self.compensated = bool(self.compensated)
         if self.compensated and opts.get("backend") == "cuda":
-            raise ValueError("compensated=True runs on the CPU only: use backend='cpu' or "
-                             "'auto'")
+            raise ValueError(f"compensated={self.compensated!r} runs on the CPU only: use "
+                             "backend='cpu' or 'auto'")
         self.backend = device.check_backend(opts.get("backend", "cpu"))
         if processed and (model.time_dependent or self.backend == "cuda"):
             raise ValueError(f"scheme {self.scheme.name!r} is processed: it runs a "
@@ -191,7 +199,7 @@ class TangentMapPropagator:
         if self.backend != "cpu":
             d["backend"] = self.backend
         if self.compensated:
-            d["compensated"] = True
+            d["compensated"] = self.compensated
         return d
 
     def versions(self):
@@ -247,7 +255,8 @@ class TangentMapPropagator:
                              f"{state.k} vectors has none (a model without a symbolic potential,"
                              " time-dependent, or too large): use backend='cpu'")
         if module is None and self.compensated:
-            raise ValueError(f"compensated=True runs generated steppers; {self.model.name} with "
+            raise ValueError(f"compensated={self.compensated!r} runs generated steppers; "
+                             f"{self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
                              " time-dependent, or too large): leave compensated=False")
         if module is None and getattr(self.model, "structure", None) == "integrable":
@@ -655,7 +664,7 @@ def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False):
     corrected = (hc != 0.0) & (kinds != DRIFT)
     # Beside the model, not in it: a model must stay picklable (Dask).
     memo = _STEPPERS.setdefault(model, {})
-    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, bool(compensated),
+    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, compensated,
            np.asarray(model.params, dtype=float).tobytes(),
            np.asarray(model.inverse_mass, dtype=float).tobytes())
     if key not in memo:
