@@ -18,7 +18,10 @@ Contenders
   "new" the orders 8 and 10 (s15odr8, s17odr8, s35odr10), "compensated"
   SRKN14a, s17odr8, s35odr10, P13odr8 and P23odr10 with ``compensated=True`` (Kahan's
   summation in every drift and kick; ``studies/compensated_floor.py``) at
-  the steps of their ladders where round-off matters; "processed"
+  the steps of their ladders where round-off matters, and SRKN14a and
+  s35odr10 with ``compensated="orbit"`` (the orbit's updates compensated,
+  the vectors' plain; ``studies/compensation_levels.py``), marked "+co";
+  "processed"
   the processed schemes of Blanes, Casas & Murua (2006) (P11odr6, P13odr8,
   P23odr10: kernels of 11, 13 and 23 leapfrog stages of effective order 6,
   8 and 10, the processor applied once at the start and once at the end).
@@ -117,6 +120,11 @@ COMPENSATED = {
     "P13odr8": (0.125, 0.1, 0.0625, 0.05),
     "P23odr10": (0.25, 0.2, 0.16, 0.125),
 }
+#: The orbit-only compensated level (``compensated="orbit"``: Kahan's
+#: summation in the orbit's drifts and kicks, the vectors' updates plain;
+#: ``studies/compensation_levels.py``) on the schemes whose full
+#: compensation reaches the targets, at the same steps.
+COMPENSATED_ORBIT = {s: COMPENSATED[s] for s in ("SRKN14a", "s35odr10")}
 TOLS = (1e-8, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15, 1e-16)
 #: The issue's baseline (heyoka time / best varint time, t = 1e3, before the
 #: order-8 and -10 schemes) and its targets.
@@ -205,12 +213,16 @@ def prepared_runner(model, scheme, tau, w0, compensated=False):
 
 def key(row):
     """The cost–error front a row belongs to: its scheme, "+c" when
-    compensated, " prepared" through a prepared run, or "heyoka"."""
-    return ((row.get("scheme") or "heyoka") + ("+c" if row.get("compensated") else "")
+    compensated (``"+co"`` at the orbit-only level), " prepared" through a
+    prepared run, or "heyoka"."""
+    level = row.get("compensated")
+    return ((row.get("scheme") or "heyoka")
+            + ("+co" if level == "orbit" else "+c" if level else "")
             + (" prepared" if row["contender"] == "varint prepared" else ""))
 
 
-def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED):
+def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED,
+               orbit_level=COMPENSATED_ORBIT):
     """Rows (contender, config, error, seconds) of one orbit."""
     model, x0 = varint.paper_orbit(name)
     w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
@@ -226,14 +238,16 @@ def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED):
                                      "new" if s in NEW else "old"), "compensated": False,
                            "steps": round(t_end / tau),
                            "evaluations": varint.get_scheme(s, processed=True).force_evaluations}
-    for s, taus in compensated.items():
-        for tau in taus:
-            label = f"varint {s}+c tau={tau:g}"
-            tasks[label] = varint_runner(model, s, tau, True)
-            meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
-                           "group": "compensated", "compensated": True,
-                           "steps": round(t_end / tau),
-                           "evaluations": varint.get_scheme(s, processed=True).force_evaluations}
+    for level, suffix, table in ((True, "+c", compensated), ("orbit", "+co", orbit_level)):
+        for s, taus in table.items():
+            for tau in taus:
+                label = f"varint {s}{suffix} tau={tau:g}"
+                tasks[label] = varint_runner(model, s, tau, level)
+                meta[label] = {"contender": "varint", "scheme": s, "tau": tau,
+                               "group": "compensated", "compensated": level,
+                               "steps": round(t_end / tau),
+                               "evaluations": varint.get_scheme(
+                                   s, processed=True).force_evaluations}
     # The same calls through prepared runs, as an expert repeats them.
     for label in [lb for lb in tasks if lb.startswith("varint ")]:
         m = meta[label]
@@ -376,7 +390,8 @@ def plot(out, rows, targets):
     fig, axes = plt.subplots(1, len(names), figsize=(6 * len(names), 4.5), squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         mine = [r for r in rows if r["orbit"] == name]
-        for front in [*OLD, *NEW, *PROCESSED, *(f"{s}+c" for s in COMPENSATED), "heyoka"]:
+        for front in [*OLD, *NEW, *PROCESSED, *(f"{s}+c" for s in COMPENSATED),
+                      *(f"{s}+co" for s in COMPENSATED_ORBIT), "heyoka"]:
             # In ladder order (τ or tolerance decreasing).
             pts = sorted(((r.get("tau") or r["tol"], r["error"], r["cpu_seconds"]) for r in mine
                           if key(r) == front and r["contender"] ==
@@ -385,7 +400,7 @@ def plot(out, rows, targets):
                 continue
             _, e, s = zip(*pts, strict=True)
             style = "k-o" if front == "heyoka" else (
-                ":D" if front.endswith("+c") else ("-s" if front in NEW else
+                ":D" if front.endswith(("+c", "+co")) else ("-s" if front in NEW else
                                                    "-.v" if front in PROCESSED else "--^"))
             ax.loglog(e, np.array(s) * 1e3, style, label=front, ms=4)
         for t in targets:
@@ -410,11 +425,12 @@ def main(argv=None):
     schemes = (("SRKN14a", "s17odr8", "s35odr10", "P13odr8", "P23odr10") if args.quick
                else OLD + NEW + PROCESSED)
     compensated = {"s35odr10": (0.25, 0.125)} if args.quick else COMPENSATED
+    orbit_level = compensated if args.quick else COMPENSATED_ORBIT
     tols = (1e-10, 1e-14) if args.quick else TOLS
     load_before = os.getloadavg()
     rows = []
     for name in ORBITS:
-        rows += orbit_case(name, t_end, schemes, tols, repeats, compensated)
+        rows += orbit_case(name, t_end, schemes, tols, repeats, compensated, orbit_level)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     table, floors = compare(rows, TARGETS)
     costs = cost_table(rows, TARGETS)
