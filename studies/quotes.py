@@ -254,6 +254,64 @@ def _turn_spread(slow, fast):
     return [min(r), max(r)]
 
 
+def _against_heyoka(value):
+    """A ratio heyoka time / varint time from one run, saying who is faster."""
+    return (f"{ratio(value)}× faster (one run)" if value >= 1
+            else f"{ratio(value)}× (heyoka faster; one run)")
+
+
+def _frontier_rows(R):
+    """The high-accuracy race (``studies/frontier.py``): orbit and one
+    tangent vector to t = 1e3 at each target error, varint through a
+    prepared run (its cheapest scheme there) against heyoka's scalar
+    Taylor integrator at the tolerance that reaches it."""
+    fr = R.json("frontier")
+    where = measured_in(fr, "frontier")
+    rows = []
+    floors = {(f["orbit"], f["contender"]): f["floor"] for f in fr["floors"]}
+    for r in fr["ratios"]:
+        what = (f"{r['orbit']}, orbit + one vector to t = {power(fr['t_end'])}, global error "
+                f"{sci(r['target'])}, 1 thread (CPU time)")
+        if r["cpu_prepared_seconds"] is None:
+            continue
+        scheme = r["cpu_prepared_scheme"].removesuffix(" prepared")
+        scheme = scheme.replace("+co", ', compensated="orbit"').replace("+c", ", compensated")
+        mine = f"{1e3 * r['cpu_prepared_seconds']:.2f} ms ({scheme}, prepared)"
+        if r["cpu_heyoka_seconds"] is None:
+            rows.append((what, mine, f"heyoka cannot reach it (its floor "
+                         f"{sci(floors[(r['orbit'], 'heyoka')])})", "—", where))
+            continue
+        rows.append((what, mine, f"heyoka's Taylor method at the tolerance that reaches it, "
+                     f"{1e3 * r['cpu_heyoka_seconds']:.2f} ms",
+                     _against_heyoka(r["cpu_ratio_prepared"]), where))
+    return rows
+
+
+def _singular_map_rows(R):
+    """FLI maps of potentials with a near-singular centre with every
+    default (``studies/map_steps.py --part log``), against heyoka batch 8
+    at its cheapest tolerance that reaches the same agreement."""
+    ms = R.json("map_steps_quick_log")
+    where = measured_in(ms, "map_steps --quick --part log")
+    names = {"cr3bp": "restricted three-body problem (Sun–Jupiter)",
+             "core": "cored logarithmic potential, R_c = 0.03"}
+    rows = []
+    for name, label in names.items():
+        mine = [r for r in ms["log"]["rows"] if r["map"] == name]
+        v = next((r for r in mine if r["contender"] == "varint defaults"), None)
+        if v is None:
+            continue
+        hy = min((r for r in mine if r["contender"].startswith("heyoka")
+                  and r["agreement"] >= v["agreement"]), key=lambda r: r["seconds"])
+        rows.append((f"FLI map of the {label}, {v['orbits']} orbits, t = {v['t_end']:g}, "
+                     f"1 thread, defaults ({v['method']}, {v['steps_per_orbit']:.0f} steps "
+                     "per orbit)", f"{v['seconds']:.3f} s, {100 * v['agreement']:.0f} % "
+                     "agreement", f"heyoka batch 8 at its cheapest tolerance as good, "
+                     f"{hy['seconds']:.3f} s", _against_heyoka(hy["seconds"] / v["seconds"]),
+                     where))
+    return rows
+
+
 def _ratio_cell(value, lo_hi, faster=False):
     text = ratio(value) + ("× faster" if faster else "")
     return text + (f" ({spread(lo_hi)})" if lo_hi else " (one run)")
@@ -844,6 +902,7 @@ def how_fast(R):
                      "—", "1 thread",
                      " / ".join(ratio(by[i]["default_over_1"]) for i in inds) + " (one run)",
                      measured_in(th, "threads")))
+    rows += _frontier_rows(R) + _singular_map_rows(R)
     # The smallest size of issue 28's target (n = 64 … 4096) and the largest.
     for fpu in (r for r in peers["fpu"]["rows"] if r["n"] in (64, 4096)):
         rows.append((f"FPU-β n = {fpu['n']}, one vector, ABA864",
