@@ -42,7 +42,8 @@ from .accuracy import Reference
 from .state import initial_deviations
 from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
-__all__ = ["agreeing", "chaotic_level", "passes", "pilot_sample", "agreeing_tau", "summary",
+__all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
+           "summary",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
 
 #: Largest difference of log₁₀ max(1, FLI) at a step and at half of it for
@@ -105,6 +106,39 @@ def summary(n_agree, n, errors_max, step_name):
             f"{n_agree}/{n} pilot orbits; energy errors up to {errors_max:.2g}")
 
 
+def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=math.inf):
+    """Down a ladder of steps, the first that passes (:func:`passes`): the
+    pilot's values at step(j) compared with those at step(j + 1) = step(j)/2
+    (:func:`agreeing`), for j in ``levels``.
+
+    ``run(j)`` returns the pilot orbits' (indicator values, energy errors,
+    force evaluations per orbit and unit of time) at step(j), memoised by
+    the caller (each run serves as the fine run of one rung and the coarse
+    one of the next). The descent stops early where the force evaluations
+    exceed ``stop_above`` (a competitor is cheaper than any step left).
+
+    Returns
+    -------
+    tried : list
+        [step, agreeing share, energy error quantile] per step compared.
+    chosen : tuple or None
+        (j, orbits agreeing, the largest finite energy error at step(j)),
+        None when no step passed.
+    """
+    tried = []
+    for j in levels:
+        coarse, errors, rate = run(j)
+        if rate > stop_above:
+            break
+        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
+        ok, worst = passes(agree, errors, quantile, ceiling)
+        tried.append([step(j), float(np.mean(agree)), worst])
+        if ok:
+            largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
+            return tried, (j, int(agree.sum()), largest)
+    return tried, None
+
+
 def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value,
                  quantile, ceiling, stop_above=math.inf):
     """The largest constant step τ_j = τ₀·2^−j (τ₀ the largest step up to
@@ -152,17 +186,8 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
                        / (len(sample) * t_pilot))
         return runs[j]
 
-    tried, chosen = [], None
-    for j in range(LEVELS):
-        coarse, errors, rate = run(j)
-        if rate > stop_above:
-            break
-        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
-        ok, worst = passes(agree, errors, quantile, ceiling)
-        tried.append([top * 2.0**-j, float(np.mean(agree)), worst])
-        if ok:
-            chosen = (j, int(agree.sum()))
-            break
+    tried, chosen = descend(run, range(LEVELS), lambda j: top * 2.0**-j, t_pilot, t_end,
+                            quantile, ceiling, stop_above)
     choice = {"pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
               "ceiling": float(ceiling), "agreement_dex": AGREEMENT_DEX, "scheme": sch.name,
               "tried": tried, "counts": {key: int(v) for key, v in counts.items()}}
@@ -172,9 +197,7 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
                       summary="the FLI of the pilot orbits did not agree between tau and "
                               "tau/2 at any step tried")
         return None, choice
-    j, n_agree = chosen
-    errors = runs[j][1]
-    largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
+    j, n_agree, largest = chosen
     tau = top * 2.0**-j
     choice.update(rule="indicator", tau=tau, energy_error=largest,
                   gradient_rate=float(runs[j][2]),

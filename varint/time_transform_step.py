@@ -57,7 +57,7 @@ import numpy as np
 
 from .accuracy import Reference
 from .state import initial_deviations
-from .step_agreement import agreeing, passes, pilot_sample, summary
+from .step_agreement import descend, pilot_sample, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
 __all__ = ["choose_h", "agreeing_h", "pilot_errors"]
@@ -218,15 +218,8 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0):
             runs[j] = (out.fli, e, out.counts[:, 2].sum() / (len(sample) * t_pilot))
         return runs[j]
 
-    tried, chosen = [], None
-    for j in range(TOP, TOP + LEVELS):
-        coarse, errors, _ = run(j)
-        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
-        ok, worst = passes(agree, errors, quantile, ceiling)
-        tried.append([h0 * 2.0**-j, float(np.mean(agree)), worst])
-        if ok:
-            chosen = (j, int(agree.sum()))
-            break
+    tried, chosen = descend(run, range(TOP, TOP + LEVELS), lambda j: h0 * 2.0**-j, t_pilot,
+                            t_end, quantile, ceiling)
     choice = {"h0": h0, "pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
               "ceiling": float(ceiling), "scheme": lh.scheme.name, "tried": tried,
               "counts": {"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
@@ -236,9 +229,7 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0):
                       summary="the FLI of the pilot orbits did not agree between h and h/2 "
                               "at any step tried")
         return None, choice
-    j, n_agree = chosen
-    errors = runs[j][1]
-    largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
+    j, n_agree, largest = chosen
     choice.update(rule="indicator", h=h0 * 2.0**-j, energy_error=largest,
                   gradient_rate=float(runs[j][2]),
                   summary=summary(n_agree, len(sample), largest, "h"))
