@@ -575,10 +575,12 @@ def _u_spread(model, X):
     """max U / min U over the states ``X``, U = C − V(q) with C of
     :class:`~varint.time_transform.LogHamiltonian` (δ = max(−E, 1)): how
     much its physical step would vary between them (inf where U ≤ 0)."""
+    from .time_transform import offset_constant
+
     n = X.shape[1] // 2
     with np.errstate(all="ignore"):
         E = np.asarray(model.conserved(X)["energy"], dtype=float)
-        U = E + np.maximum(-E, 1.0) - np.asarray(model.potential(X[:, :n]), dtype=float)
+        U = offset_constant(E, None) - np.asarray(model.potential(X[:, :n]), dtype=float)
     if not (np.all(np.isfinite(U)) and np.all(U > 0)):
         return math.inf
     return float(U.max() / U.min())
@@ -634,9 +636,7 @@ def _cheaper_steps(spec, k, clock):
     stepped = dataclasses.replace(
         spec, method_options={**spec.method_options, "scheme": MAP_SCHEME}).with_step(
             tau, constant, indicator_times=False)
-    steps = stepped.steps
-    return None, dataclasses.replace(
-        stepped, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
+    return None, _check_steps(stepped)
 
 
 def _threshold(threshold, spec):
@@ -688,10 +688,16 @@ def _with_step(spec, k, clock, per_orbit=False):
     else:
         spec = spec.with_step(spec.tau, indicator_times=False)
     if spec.t_out is None:
-        steps = spec.steps
-        spec = dataclasses.replace(
-            spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
+        spec = _check_steps(spec)
     return spec, divisions
+
+
+def _check_steps(spec):
+    """``spec`` with its log-spaced check steps from :data:`FIRST_CHECK_STEP`
+    on (and the last): earlier checks cost more than they could stop."""
+    steps = spec.steps
+    return dataclasses.replace(
+        spec, steps=steps[(steps >= FIRST_CHECK_STEP) | (steps == steps[-1])])
 
 
 def _with_pilot_step(spec, k, per_orbit=False):

@@ -47,7 +47,7 @@ from .kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
-__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS"]
+__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS", "offset_constant"]
 
 #: The values of ``time_transform``.
 TIME_TRANSFORMS = ("log",)
@@ -150,6 +150,18 @@ def _symbolic_parts(model):
                      f"got {model!r}")
 
 
+def offset_constant(E, offset):
+    """C = E + δ of orbits of energies ``E`` (module docstring): δ =
+    ``offset``, or max(−E, 1) where None, so that U = C − V > 0 along the
+    orbit.
+
+    >>> offset_constant(np.array([-0.5, 2.0]), None)
+    array([0.5, 3. ])
+    """
+    E = np.asarray(E, dtype=float)
+    return E + (np.maximum(-E, 1.0) if offset is None else offset)
+
+
 class LogHamiltonian:
     """The LH-transformed TM method for ``model`` with a two-part
     ``scheme`` (module docstring).
@@ -196,8 +208,7 @@ class LogHamiltonian:
 
     def constants(self, X):
         """C of every orbit of ``X`` (module docstring)."""
-        E = self.energy(X)
-        return E + (np.maximum(-E, 1.0) if self.offset is None else self.offset)
+        return offset_constant(self.energy(X), self.offset)
 
     # -- runs --------------------------------------------------------------------------
     def advance(self, X, W, t_end, h, t0=0.0, C=None, pt=None, max_steps=MAX_STEPS):
