@@ -10,7 +10,11 @@ Two calls of the frontier study's kind (orbit + one tangent vector, R1,
   quantities, the propagator, the driver, the accuracy verdict, the result
   and its provenance);
 * ``frontier``: t_end = 1e3 at τ = 0.4 with s35odr10, the frontier study's
-  best varint run near error 1e-8.
+  best varint run near error 1e-8;
+* ``prepared``: the ``fixed`` call as a prepared run's call
+  (``varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
+  deviations=w)`` once, then ``run(x0)``): issue 28's "fixed cost of a
+  one-step run" (:mod:`studies.call_profile` gives its stages).
 
 Each code runs in its own worker process (``python -c`` with the code's
 directory first on ``sys.path``), the workers alternate (interleaved
@@ -45,7 +49,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The worker: run in a fresh interpreter with one code's directory first
 #: on sys.path; prints one JSON line.
 WORKER = r"""
-import hashlib, json, sys, time
+import functools, hashlib, json, sys, time
 sys.path.insert(0, sys.argv[1])
 import numpy as np
 import varint
@@ -53,17 +57,22 @@ calls = int(sys.argv[2])
 model, x0 = varint.paper_orbit("R1")
 w0 = np.random.default_rng(1).standard_normal(len(x0))
 w0 /= np.linalg.norm(w0)
-cases = {"fixed": (0.05, 0.05, "s15odr8"), "frontier": (1e3, 0.4, "s35odr10")}
+cases = {"fixed": (0.05, 0.05, "s15odr8"), "frontier": (1e3, 0.4, "s35odr10"),
+         "prepared": (0.05, 0.05, "s15odr8")}
 out = {"varint": varint.__file__}
 for name, (t_end, tau, scheme) in cases.items():
     def call():
         return varint.integrate(model, x0, t_end, tau=tau, scheme=scheme,
                                 deviations=w0[:, None])
+    if name == "prepared":
+        call = functools.partial(varint.prepare(model, "integrate", t_end, tau=tau,
+                                                scheme=scheme, deviations=w0[:, None]), x0)
+        call()          # builds the run; later calls take the short path
     r = call()
     h = hashlib.sha256()
     for a in (r.state, r.deviations, r.energy_error, r.t):
         h.update(np.ascontiguousarray(a).tobytes())
-    n = calls if name == "fixed" else max(3, calls // 50)
+    n = max(3, calls // 50) if name == "frontier" else calls
     cpu = wall = float("inf")
     for _ in range(n):
         c0, t0 = time.process_time(), time.perf_counter()
@@ -73,6 +82,10 @@ for name, (t_end, tau, scheme) in cases.items():
     out[name] = {"cpu_us": cpu * 1e6, "wall_us": wall * 1e6, "sha256": h.hexdigest()}
 print(json.dumps(out))
 """
+
+
+#: The cases each worker times (:data:`WORKER`).
+CASES = ("fixed", "frontier", "prepared")
 
 
 def worker(code_dir, calls):
@@ -98,14 +111,14 @@ def main(argv=None):
     for _ in range(rounds):
         for label, code in contenders.items():
             got = worker(code, calls)
-            for case in ("fixed", "frontier"):
+            for case in CASES:
                 b = best.setdefault(label, {}).setdefault(case, dict(got[case]))
                 for key in ("cpu_us", "wall_us"):
                     b[key] = min(b[key], got[case][key])
                 if b["sha256"] != got[case]["sha256"]:
                     raise RuntimeError(f"{label} {case}: results differ between workers")
     summary = {}
-    for case in ("fixed", "frontier"):
+    for case in CASES:
         this, base = best["this"][case], best["baseline"][case]
         summary[case] = {"this_cpu_us": this["cpu_us"], "baseline_cpu_us": base["cpu_us"],
                          "this_wall_us": this["wall_us"],
@@ -120,7 +133,7 @@ def main(argv=None):
     data = {"rounds": rounds, "calls": calls, "baseline": str(args.baseline),
             "best": best, "summary": summary}
     save_json(args.out, "call_overhead", data)
-    for case in ("fixed", "frontier"):
+    for case in CASES:
         s = summary[case]
         print(f"{case}: CPU {s['baseline_cpu_us']:.0f} -> {s['this_cpu_us']:.0f} µs "
               f"({s['ratio_cpu']:.2f}x), bitwise equal: {s['bitwise_equal']}")

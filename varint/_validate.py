@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import is_device_path
+from .kernels.resolved import Resolved
 
 
 def positive_float(value, name):
@@ -429,14 +430,21 @@ class KernelCheck:
         # must not test one thread's values for another's state), made at
         # a thread's first check (a map has none).
         self._local = threading.local()
+        # The kernels called through their compiled versions, looked up
+        # once (:class:`~varint.kernels.resolved.Resolved`), made at the
+        # first check (a map has none): q and the buffers are made here,
+        # the same way at every call, and the parameters are the model's
+        # array of that first check.
+        self._params = self._resolved = None
 
     def _made(self):
-        """(all values, ∇V, D²V, third derivatives, v): ∇V, D²V and the
+        """(q, all values, ∇V, D²V, third derivatives, v): ∇V, D²V and the
         third derivatives side by side, so that one test covers all three."""
         model = self.model
         n, rows = model.n_dof, model.bandwidth + 1
         values = np.zeros(n * (1 + 2 * rows))
-        self._local.buffers = (values, values[:n], values[n:n * (1 + rows)].reshape(rows, n),
+        self._local.buffers = (np.empty(n), values, values[:n],
+                               values[n:n * (1 + rows)].reshape(rows, n),
                                values[n * (1 + rows):].reshape(rows, n), np.ones(n))
         return self._local.buffers
 
@@ -446,13 +454,17 @@ class KernelCheck:
         if len(X) != 1:
             kernels(model, X, what)
             return
-        q = np.ascontiguousarray(X[0, :model.n_dof], dtype=float)
-        values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
+        q, values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
+        q[:] = X[0, :model.n_dof]
         values.fill(0.0)     # a banded kernel need not write every entry
+        par, kernels3 = model.params, (model.grad_kernel, model.hess_kernel, model.third_kernel)
+        if self._resolved is None:
+            self._params, self._resolved = par, tuple(Resolved.of(f) for f in kernels3)
+        grad, hess, third = self._resolved if par is self._params else kernels3
         try:
-            model.grad_kernel(q, model.params, G)
-            model.hess_kernel(q, model.params, H)
-            model.third_kernel(q, model.params, v, T)
+            grad(q, par, G)
+            hess(q, par, H)
+            third(q, par, v, T)
         except Exception:
             kernels(model, X, what)    # raises, naming what is wrong
             raise

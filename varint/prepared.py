@@ -207,6 +207,11 @@ class _ShortCall:
         self.has_deviations = "deviations" in getattr(first.indicator.result,
                                                       "__dataclass_fields__", {})
         self.sparse = bool(prop.sparse) and k > 0
+        # The stepper's compiled versions, looked up once (advance_fresh's
+        # ``resolved``): every call passes x, W and aux made the same way
+        # (copies of float64 C-contiguous states, of the first run's
+        # vectors and of aux0).
+        self.kernels: dict = {}
         # The provenance's parts that no state changes, pickled: each
         # result unpickles its own copy of every dict and list in one call
         # (Run.provenance copies them level by level).
@@ -251,7 +256,7 @@ class _ShortCall:
         cpu, start = time.process_time(), time.perf_counter()
         x, W = np.array(x0, dtype=np.float64, order="C"), np.array(first.W0)
         snaps, status, counters, acc_m, acc_e = prop.advance_fresh(
-            x, W, self.aux0.copy(), outs, Pace())
+            x, W, self.aux0.copy(), outs, Pace(), self.kernels)
         if status.any():
             return None
         rows = snaps.rows(ind.renorm)
@@ -284,7 +289,7 @@ class _ShortCall:
                 W, _, _ = renormalized_copy(W, acc_m, acc_e, ind.renorm)
             fields["deviations"] = W[0] if single else W
         counts = {"steps": m * int(outs[-1]),     # no orbit failed
-                  **dict(zip(COUNTERS, counters.sum(axis=0).tolist(), strict=True))}
+                  **dict(zip(COUNTERS, np.add.reduce(counters, axis=0).tolist(), strict=True))}
         provenance = Provenance(
             kind=ind.name, x0=(x0[0] if single else x0).tolist(), method=first.method,
             tau=tau, t_end=first.t_end, **pickle.loads(self.fixed),

@@ -17,6 +17,7 @@ import math
 import os
 import platform
 import sys
+import time
 from dataclasses import dataclass, field
 from typing import IO, ClassVar
 
@@ -67,6 +68,26 @@ def _installed_version(distribution):
         return metadata.version(distribution)
     except metadata.PackageNotFoundError:
         return None
+
+
+#: (second, its ISO 8601 text) of the last :func:`_utc_now`.
+_LAST_NOW = (None, "")
+
+
+def _utc_now():
+    """The time now in UTC, ISO 8601 to the second: the text is made once a
+    second (datetime's ~4 µs would be a tenth of a prepared run's short
+    call), from ``time.time()`` truncated to the second, as
+    ``datetime.now(timezone.utc).isoformat(timespec="seconds")`` truncates
+    it."""
+    global _LAST_NOW
+    second = int(time.time())
+    last = _LAST_NOW
+    if last[0] != second:
+        text = datetime.datetime.fromtimestamp(second, datetime.timezone.utc).isoformat(
+            timespec="seconds")
+        _LAST_NOW = last = (second, text)    # one assignment: safe across threads
+    return last[1]
 
 
 @dataclass
@@ -139,8 +160,7 @@ class Provenance:
     versions: dict
     counts: dict
     wall_time: float
-    created: str = field(default_factory=lambda: datetime.datetime.now(
-        datetime.timezone.utc).isoformat(timespec="seconds"))
+    created: str = field(default_factory=_utc_now)
     tau_choice: dict = field(default_factory=dict)
     # Not filled in by default: a result loaded from an older file must not
     # be stamped with the code that loads it.

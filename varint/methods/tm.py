@@ -34,6 +34,7 @@ from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..kernels.processor import processor_map
+from ..kernels.resolved import Resolved
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
                        stage_arrays, stage_times)
@@ -300,7 +301,7 @@ class TangentMapPropagator:
         return (self._processor is None and self.backend == "cpu"
                 and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
 
-    def advance_fresh(self, x, W, aux, outs, pace):
+    def advance_fresh(self, x, W, aux, outs, pace, resolved=None):
         """Orbits started at step 0 advanced to step ``outs[-1]``, copied at
         the output steps ``outs``: what :meth:`advance` does for a fresh
         :class:`~varint.state.RunState` driven by
@@ -319,6 +320,14 @@ class TangentMapPropagator:
         outs : ndarray of int
             Increasing output steps, the last one the end.
         pace : varint.driver.Pace
+        resolved : dict, optional
+            Kept by a caller that passes ``x``, ``W``, ``aux`` and ``outs``
+            of the same dtypes, dimensions and layouts at every call (a
+            prepared run's short call): the stepper is called through its
+            compiled version, looked up once
+            (:class:`varint.kernels.resolved.Resolved`, kept here per
+            kernel), not through numba's dispatch; every other argument is
+            made here, the same way at every call.
 
         All three arrays are advanced in place. Returns ``(snapshots,
         status, counters, acc_m, acc_e)``: status (M,), the counters of
@@ -329,21 +338,35 @@ class TangentMapPropagator:
         """
         m, d, k = W.shape
         s = len(outs)
-        # Fresh snapshot arrays, NaN as :meth:`_snapshots` makes them: one
-        # block filled once (they are read and copied by the caller).
-        block = np.empty(s * m * (d * (k + 1) + aux[0].size))
-        block.fill(np.nan)
+        # Fresh snapshot arrays, NaN as :meth:`_snapshots` makes them, and
+        # the stretching's mantissas, 1: one block, filled in two passes
+        # (they are read and copied by the caller); the integers, 0 but the
+        # schedule's, in another (NumPy's ones() costs 2 µs an array).
+        n_snap = s * m * (d * (k + 1) + aux[0].size)
+        block = np.empty(n_snap + (s + 1) * m * k)
+        block[:n_snap].fill(np.nan)
+        block[n_snap:].fill(1.0)
         sx = block[:s * m * d].reshape(s, m, d)
         sW = block[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
-        s_aux = block[s * m * d * (k + 1):].reshape((s,) + aux.shape)
-        s_acc_m = np.ones((s, m, k))
-        s_acc_e = np.zeros((s, m, k), dtype=np.int64)
-        acc_m, acc_e = np.ones((m, k)), np.zeros((m, k), dtype=np.int64)
-        counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
-        done, status = np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
-        sched = np.ones((m, 2), dtype=np.int64)     # as _schedule starts it at step 0
+        s_aux = block[s * m * d * (k + 1):n_snap].reshape((s,) + aux.shape)
+        s_acc_m = block[n_snap:n_snap + s * m * k].reshape(s, m, k)
+        acc_m = block[n_snap + s * m * k:].reshape(m, k)
+        # (Each a contiguous run of the block: C-contiguous, as the general
+        # path's own arrays, so the same compiled stepper takes them.)
+        c = len(COUNTERS)
+        ints = np.zeros((s + 1) * m * k + m * (c + 4), dtype=np.int64)
+        s_acc_e = ints[:s * m * k].reshape(s, m, k)
+        rest = ints[s * m * k:]
+        acc_e = rest[:m * k].reshape(m, k)
+        rest = rest[m * k:]
+        counters = rest[:m * c].reshape(m, c)
+        done, status = rest[m * c:m * (c + 1)], rest[m * (c + 1):m * (c + 2)]
+        sched = rest[m * (c + 2):].reshape(m, 2)
+        sched.fill(1)                           # as _schedule starts it at step 0
         module = self._stepper(k)
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
+        if resolved is not None:
+            kernel = resolved.get(kernel) or resolved.setdefault(kernel, Resolved(kernel))
         orbit = (x, W, acc_m, acc_e, aux, counters, sched)
         # Compensated: the Kahan terms start at zero (as _compensation).
         orbit = (CompensatedOrbit(*orbit, np.zeros((m, d, 1 + k))) if self.compensated
