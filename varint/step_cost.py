@@ -154,8 +154,15 @@ def lanes_cost(source, gradients):
 
 def log_gradient_cost(lh):
     """:func:`lh_cost` of the LH stepper ``lh`` (a
-    :class:`~varint.time_transform.LogHamiltonian`): ``(cost, counts)``."""
-    return lh_cost(lh.source(), lh.model.dim // 2, lh.kinds)
+    :class:`~varint.time_transform.LogHamiltonian`): ``(cost, counts)``,
+    read once per process and source (parsing a three-body module takes a
+    good part of a quick map's time)."""
+    return _log_cost(lh.source(), lh.model.dim // 2, tuple(int(v) for v in lh.kinds))
+
+
+@lru_cache(maxsize=32)
+def _log_cost(source, n, kinds):
+    return lh_cost(source, n, kinds)
 
 
 def constant_gradient_cost(model, scheme, k, accumulator):
