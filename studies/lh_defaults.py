@@ -9,8 +9,11 @@ orbits' FLI agrees with that at h/2, :mod:`varint.step_agreement`; pilot
 and run), the defaults (``time_transform="auto"``: the cheaper of the two
 steppers each at its agreeing step, ``varint.maps._cheaper_steps``), and
 the seconds per force evaluation of the two runs at fixed steps (no pilot:
-``cost_ratio``, the LH's over the constant step's, which sets
-``varint.maps.LH_GRADIENT_COST``). Each contender keeps its step, rule,
+``cost_ratio``, the LH's over the constant step's, which set the single
+cost constant the defaults used before ``varint.step_cost``; the
+constant run at a given τ takes the default scheme of a given step, not
+the defaults' SRKN14a: ``studies/step_cost.py`` measures that ratio with
+SRKN14a). Each contender keeps its step, rule,
 force evaluations (run and pilots), the largest energy error over its
 orbits and how often its FLI classifications (antimode of the
 constant-step map's values) agree with the constant-step map's.

@@ -57,7 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity, step_agreement, stepsize, stepsize_orbits
+from . import accuracy, compiling, identity, step_agreement, step_cost, stepsize, stepsize_orbits
 from .checkpoint import digest
 from .fanout import (bar, client_label, cluster_threads, fan_out, total_cpu, warn_failures,
                      warn_interrupted, worker_threads)
@@ -533,13 +533,6 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
 #: Hénon–Heiles 1.12, the cored potentials 2.0 (R_c = 0.3) to 2.7
 #: (R_c = 0.03), the Sun–Jupiter section 2.8.
 U_SPREAD_MIN = 1.5
-#: Seconds per force evaluation of the LH map's run over those of the
-#: constant-step map's (SRKN14a), at fixed steps, the largest over the
-#: maps of ``studies/lh_defaults.py`` whose U spreads (``cost_ratio`` of
-#: ``lh_defaults_quick.json``: 0.94 on the three-body map, 1.27–1.63 on
-#: the cored ones, load 2.7 on 2 cores): the LH kick also evaluates U
-#: and its gradient, and lands on each normalisation time.
-LH_GRADIENT_COST = 1.7
 
 
 def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, checkpoint,
@@ -594,7 +587,11 @@ def _cheaper_steps(spec, k, clock):
     :func:`~varint.time_transform_step.agreeing_h`, the constant step's
     :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`),
     priced as force evaluations per orbit and unit of time times their
-    cost (:data:`LH_GRADIENT_COST` for the LH). Returns ``(h_choice,
+    cost, each stepper's from its emitted source
+    (:func:`varint.step_cost.log_gradient_cost`,
+    :func:`~varint.step_cost.constant_gradient_cost`: its operations,
+    weighted by one fixed table, so the choice does not depend on the
+    timing of the run that makes it). Returns ``(h_choice,
     stepped)``: the LH's choice (with the ``prices``) and None, or None and
     ``spec`` at the constant step chosen by agreement (with the map's check
     steps, :func:`_with_step`), or None and None where the LH's FLI agrees
@@ -611,18 +608,22 @@ def _cheaper_steps(spec, k, clock):
                                every=LOG_MAP_OPTIONS["every"])
         if h is None:
             return None, None
-        log_price = choice["gradient_rate"] * LH_GRADIENT_COST
+        log_cost, _ = step_cost.log_gradient_cost(lh)
+        constant_cost, _ = step_cost.constant_gradient_cost(
+            model, MAP_SCHEME, k, spec.indicator.accumulator_for(spec.options))
+        log_price = choice["gradient_rate"] * log_cost
         judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
                                                 pilot_tolerance(spec.indicator), spec.energy_tol)
-        # Constant steps whose force evaluations alone cost more than the
-        # LH's are not tried: the search stops there.
+        # Constant steps that cost more than the LH's are not tried: the
+        # search stops there.
         tau, constant = step_agreement.agreeing_tau(
             model, X, spec.t_end, scheme=MAP_SCHEME, seed=spec.seed, k=k,
             renorm=spec.indicator.renorm,
             accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
-            quantile=MAP_QUANTILE, ceiling=spec.energy_tol, stop_above=log_price)
-    prices = {"log": log_price, "constant": constant["gradient_rate"],
-              "lh_gradient_cost": LH_GRADIENT_COST}
+            quantile=MAP_QUANTILE, ceiling=spec.energy_tol,
+            stop_above=log_price / constant_cost)
+    prices = {"log": log_price, "constant": constant["gradient_rate"] * constant_cost,
+              "log_gradient_cost": log_cost, "constant_gradient_cost": constant_cost}
     if tau is None or log_price < prices["constant"]:
         choice.update(prices=prices, constant=constant)
         _log.info("chaos_map: the logarithmic-Hamiltonian step (h = %.4g) is predicted "

@@ -191,11 +191,19 @@ class LogHamiltonian:
         # source is made from, so a later process loads it without emitting.
         key = "|".join([sp.srepr(A), sp.srepr(V), sp.srepr(q), sp.srepr(p), repr(flow),
                         repr(tuple(self.kinds.tolist()))])
-        mod = codecache.load_module(lh_name(key), "kernels",
-                                    lambda: lh_source(A, V, q, p, flow, self.kinds))
+        self._emit = lambda: lh_source(A, V, q, p, flow, self.kinds)
+        self._source = None
+        mod = codecache.load_module(lh_name(key), "kernels", self.source)
         self._kinetic, self._potential = mod.kinetic, mod.potential
         self.advance_kernel, self.step_kernel, self.project_kernel, self.outputs_kernel = \
             mod.advance, mod.step, mod.project, mod.outputs
+
+    def source(self):
+        """The source of this stepper's module (:func:`~varint.codegen.lh.lh_source`),
+        emitted once per instance: what :mod:`varint.step_cost` reads."""
+        if self._source is None:
+            self._source = self._emit()
+        return self._source
 
     # -- values ------------------------------------------------------------------------
     def energy(self, X):
