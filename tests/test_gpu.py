@@ -23,9 +23,10 @@ from varint.gpu import device, emit
 
 pytest.importorskip("numba.cuda")
 
-# Run in a subprocess on the simulator; prints one JSON line of checks.
+# Run in a subprocess on the simulator, with one of the runs below as its
+# argument (JSON); prints one JSON line of checks.
 _SIM_SCRIPT = r'''
-import json, numpy as np, sympy as sp, varint
+import json, sys, numpy as np, sympy as sp, varint
 import varint.gpu.advance as advance
 from varint.gpu.resident import STAGES
 from varint.methods import make_propagator
@@ -58,43 +59,48 @@ def rel(a, b):
     ok = np.isfinite(a.values)
     return float(np.max(np.abs(a.values[ok] - b.values[ok]) / np.abs(a.values[ok])))
 
+run = json.loads(sys.argv[1])
 hh = HenonHeiles()
 rng = np.random.default_rng(7)
 X = np.zeros((10, 4))
 X[:, 1] = rng.uniform(-0.25, 0.35, 10)
 X[:, 2] = rng.uniform(0.05, 0.35, 10)
 X[:, 3] = rng.uniform(0.05, 0.3, 10)
+X = X[:run["orbits"]]
 out = {}
-for ind, scheme in (("fli", "SBAB2C"), ("sali", "SBAB2C"), ("megno", "SBAB2C"),
-                    ("fli", "ABA864"), ("megno", "SABA2C"), ("gali", "SBAB2C")):
-    kw = dict(t_end=10, tau=0.05, threshold=None, progress=False, scheme=scheme)
+for case in run["cases"]:
+    ind, scheme = case.split("/")
+    kw = dict(t_end=run["t_end"], tau=0.05, threshold=None, progress=False, scheme=scheme)
     n0 = len(launched)
     cpu = varint.chaos_map(hh, X, ind, **kw)
     gpu = varint.chaos_map(hh, X, ind, backend="cuda", **kw)
     out[f"{ind}/{scheme}"] = [same(cpu, gpu), len(launched) > n0]
     out[f"energy {ind}/{scheme}"] = energy_gap(cpu, gpu)
-# The verdict with a tolerance that splits the orbits (their errors lie
-# between 6e-9 and 1.1e-7 at t = 10): the same orbits are trusted.
-kw = dict(t_end=10, tau=0.05, threshold=None, progress=False, energy_tol=9e-8)
+# The verdict with a tolerance that splits the orbits (the run's
+# energy_tol lies between their errors): the same orbits are trusted.
+kw = dict(t_end=run["t_end"], tau=0.05, threshold=None, progress=False,
+          energy_tol=run["energy_tol"])
 cpu = varint.chaos_map(hh, X, "fli", **kw)
 gpu = varint.chaos_map(hh, X, "fli", backend="cuda", **kw)
 out["verdict"] = energy_gap(cpu, gpu) + [int(cpu.accuracy.accurate.sum())]
-# Early stopping (SALI below 1e-2 decides) at H = 0.16, where chaotic
-# orbits decide within t = 60: the same stopping times, values and states.
+# Early stopping (SALI below the threshold decides) at H = 0.16, where
+# chaotic orbits decide within the run's horizon and others do not: the
+# same stopping times, values and states.
 y, py = rng.uniform(-0.3, 0.5, 10), rng.uniform(-0.2, 0.2, 10)
 px = np.sqrt(np.maximum(2 * (0.16 - (y * y / 2 - y ** 3 / 3)) - py * py, 0.0))
-C = np.column_stack([np.zeros(10), y, px, py])
-kw = dict(t_end=60, tau=0.05, threshold=1e-2, progress=False)
+C = np.column_stack([np.zeros(10), y, px, py])[:run["early_orbits"]]
+kw = dict(t_end=run["early_t_end"], tau=0.05, threshold=run["early_threshold"],
+          progress=False)
 cpu = varint.chaos_map(hh, C, "sali", **kw)
 before = dict(STAGES)
-gpu = varint.chaos_map(hh, C, "sali", backend="cuda", chunk_size=4, **kw)
+gpu = varint.chaos_map(hh, C, "sali", backend="cuda", chunk_size=run["chunk_size"], **kw)
 out["early"] = [same(cpu, gpu), int((cpu.status == -1).sum())]
 out["early_stages"] = {key: STAGES[key] - before[key]
                        for key in ("uploads", "compactions", "launches")}
 # The state stays on the device between calls of a run: uploaded once; a
 # call on the CPU in between (the host's rows change) makes the next GPU
 # call upload it again; bitwise the CPU's run throughout.
-W0 = initial_deviations(4, 2, 10, 3)
+W0 = initial_deviations(4, 2, len(X), 3)
 p_cpu = make_propagator("tm", hh, 0.05, "qr")
 p_gpu = make_propagator("tm", hh, 0.05, "qr", backend="cuda")
 a = RunState.start(X, W0)
@@ -120,7 +126,7 @@ out["counts"] = [c1.counts == c2.counts, c1.step == c2.step, c1.counts["steps"]]
 # Page-locked buffers are allocated once: a second map of the same size
 # takes them from the pool its first map's states returned them to.
 import gc
-kw = dict(t_end=2, tau=0.05, threshold=None, progress=False, backend="cuda")
+kw = dict(t_end=run["pool_t_end"], tau=0.05, threshold=None, progress=False, backend="cuda")
 varint.chaos_map(hh, X, "fli", **kw)
 gc.collect()
 alloc = STAGES["alloc"]
@@ -128,7 +134,8 @@ varint.chaos_map(hh, X, "fli", **kw)
 out["pool"] = STAGES["alloc"] - alloc
 # Escapes (E > 1/6): failed on the GPU, recomputed by the CPU's stepper.
 E = np.array([[0.0, 0.1, 0.6, 0.1], [0.0, 0.0, 0.3, 0.2], [0.05, 0.0, 0.7, 0.0]])
-kw = dict(t_end=30, tau=0.05, threshold=None, progress=False, escape_radius=3.0)
+kw = dict(t_end=run["escape_t_end"], tau=0.05, threshold=None, progress=False,
+          escape_radius=3.0)
 cpu = varint.chaos_map(hh, E, "fli", **kw)
 gpu = varint.chaos_map(hh, E, "fli", backend="cuda", **kw)
 out["escape"] = [same(cpu, gpu), int((cpu.status > 0).sum())]
@@ -139,7 +146,7 @@ toda = varint.models.from_potential(sp.exp(q1 + 2 * sp.sqrt(3) * q0) / 24
                              + sp.exp(q1 - 2 * sp.sqrt(3) * q0) / 24
                              + sp.exp(-2 * q1) / 24 - sp.Rational(1, 8), [q0, q1], name="toda")
 T = np.array([[0.0, 0.0, 0.35, 0.25], [0.1, -0.1, 0.3, 0.3], [0.0, 0.2, 0.4, 0.1]])
-kw = dict(t_end=100, tau=0.05, threshold=None, progress=False)
+kw = dict(t_end=run["toda_t_end"], tau=0.05, threshold=None, progress=False)
 cpu = varint.chaos_map(toda, T, "fli", **kw)
 gpu = varint.chaos_map(toda, T, "fli", backend="cuda", **kw)
 out["toda"] = [rel(cpu, gpu), same(cpu, gpu)]
@@ -177,44 +184,79 @@ for name, model in (("hh", hh), ("toda", toda), ("masses", masses)):
                                       / scale)))
 real_parts = genergy.kinetic_and_potential
 genergy.kinetic_and_potential = lambda m, x: (calls.append(len(x)), real_parts(m, x))[1]
-varint.chaos_map(hh, X, "fli", t_end=2, tau=0.05, threshold=None, progress=False,
-                 backend="cuda", chunk_size=4)
+varint.chaos_map(hh, X, "fli", t_end=run["pool_t_end"], tau=0.05, threshold=None,
+                 progress=False, backend="cuda", chunk_size=4)
 genergy.kinetic_and_potential = real_parts
 out["reference"] = [ref_gaps, calls, len(X)]
 print(json.dumps(out))
 '''
 
 
-@pytest.fixture(scope="module")
-def simulated():
+#: The simulated runs. The simulator steps every GPU thread in Python, and
+#: each (model, indicator, scheme) compiles a CPU stepper for the reference:
+#: a check costs its orbits × steps and its kernels. ``QUICK`` (the default
+#: suite, ~1 min) checks each property at the smallest size that shows it:
+#:
+#: * 6 orbits: fewer than the CPU's 8 SIMD lanes, so the reference is the
+#:   one-orbit stepper (one compilation instead of two; the lanes equal it
+#:   bit for bit, tests/test_generated_stepper.py);
+#: * 80 steps: past the first check step (64), two output steps per map;
+#:   the verdict's energy_tol (8.5e-8) lies between the orbits' errors at
+#:   t = 4 (5.0e-8 to 1.14e-7; 4 of 6 trusted);
+#: * no megno/SBAB2C: MEGNO's accumulator is emitted for megno/SABA2C, the
+#:   scheme for fli, sali and gali;
+#: * early stopping: SALI at H = 0.16 below 0.1 (a chaotic orbit decides at
+#:   t ≈ 10, the others not by t = 12; below 1e-2 the first decides at
+#:   t ≈ 30): one chunk of three drops a decided orbit on the device;
+#: * the escape at t ≈ 13.6 within t = 15; Toda's exp over 200 steps;
+#:   the pools and the reference over 10 steps.
+#:
+#: ``FULL`` (slow, ~4 min CPU) is the run these checks had before: 10 orbits
+#: (the CPU's lanes), t = 10, all six (indicator, scheme), SALI below 1e-2
+#: up to t = 60, the escapes to t = 30, Toda to t = 100.
+QUICK = {"orbits": 6, "t_end": 4,
+         "cases": ["fli/SBAB2C", "sali/SBAB2C", "fli/ABA864", "megno/SABA2C", "gali/SBAB2C"],
+         "energy_tol": 8.5e-8, "early_orbits": 6, "early_t_end": 12, "early_threshold": 0.1,
+         "chunk_size": 2, "pool_t_end": 0.5, "escape_t_end": 15, "toda_t_end": 10}
+FULL = {"orbits": 10, "t_end": 10,
+        "cases": ["fli/SBAB2C", "sali/SBAB2C", "megno/SBAB2C", "fli/ABA864", "megno/SABA2C",
+                  "gali/SBAB2C"],
+        "energy_tol": 9e-8, "early_orbits": 10, "early_t_end": 60, "early_threshold": 1e-2,
+        "chunk_size": 4, "pool_t_end": 2, "escape_t_end": 30, "toda_t_end": 100}
+
+
+@pytest.fixture(scope="module", params=[QUICK, pytest.param(FULL, marks=pytest.mark.slow)],
+                ids=["quick", "full"])
+def simulated(request):
+    """The script's checks, and the run they were made with (``"run"``)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    run = subprocess.run([sys.executable, "-c", _SIM_SCRIPT], env=env, capture_output=True,
-                         text=True, timeout=900)
+    run = subprocess.run([sys.executable, "-c", _SIM_SCRIPT, json.dumps(request.param)],
+                         env=env, capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr[-3000:]
-    return json.loads(run.stdout.strip().splitlines()[-1])
+    return dict(json.loads(run.stdout.strip().splitlines()[-1]), run=request.param)
 
 
-@pytest.mark.parametrize("case", ["fli/SBAB2C", "sali/SBAB2C", "megno/SBAB2C", "fli/ABA864",
-                                  "megno/SABA2C", "gali/SBAB2C"])
-def test_simulated_kernel_is_bitwise_the_cpu(simulated, case):
-    bitwise, launched = simulated[case]
-    assert launched, "the map did not run on the (simulated) GPU"
-    assert bitwise
+def test_simulated_kernel_is_bitwise_the_cpu(simulated):
+    """Every (indicator, scheme) of the run: the map ran on the (simulated)
+    GPU, and its values, stopping times, status and states are the CPU's."""
+    cases = simulated["run"]["cases"]
+    assert not [case for case in cases if not simulated[case][1]], "not run on the GPU"
+    assert not [case for case in cases if not simulated[case][0]], "not bitwise the CPU"
 
 
-@pytest.mark.parametrize("case", ["fli/SBAB2C", "sali/SBAB2C", "megno/SBAB2C", "fli/ABA864",
-                                  "megno/SABA2C", "gali/SBAB2C", "escape", "toda"])
-def test_simulated_energy_errors_within_1e_12_of_the_hosts(simulated, case):
+def test_simulated_energy_errors_within_1e_12_of_the_hosts(simulated):
     """The energies computed on the device (varint.gpu.energy) give energy
     errors within 1e-12 of the energy scale of the host's, for the same
-    orbits, and the same accuracy verdicts."""
-    gap, same_orbits, same_verdict = simulated[f"energy {case}"]
-    assert gap <= 1e-12 and same_orbits and same_verdict, simulated[f"energy {case}"]
+    orbits, and the same accuracy verdicts: every (indicator, scheme), the
+    escapes and Toda's exp."""
+    for case in simulated["run"]["cases"] + ["escape", "toda"]:
+        gap, same_orbits, same_verdict = simulated[f"energy {case}"]
+        assert gap <= 1e-12 and same_orbits and same_verdict, (case, simulated[f"energy {case}"])
 
 
 def test_simulated_verdict_is_the_cpus_where_the_tolerance_splits_the_orbits(simulated):
     gap, same_orbits, same_verdict, trusted = simulated["verdict"]
-    assert 0 < trusted < 10, trusted   # the tolerance does split them
+    assert 0 < trusted < simulated["run"]["orbits"], trusted   # the tolerance does split them
     assert same_verdict and same_orbits and gap <= 1e-12
 
 
@@ -232,6 +274,7 @@ def test_simulated_initial_energies_on_the_device(simulated):
     once for all its orbits (not per chunk), within 1e-15 of the scale of
     the host's."""
     gaps, calls, m = simulated["reference"]
+    assert m > 4   # more orbits than a chunk (chunk_size=4)
     assert all(g <= 1e-15 for g in gaps.values()), gaps
     assert calls == [m], calls
 
@@ -255,7 +298,8 @@ def test_simulated_compaction_happens_on_the_device(simulated):
     """A map with early stopping uploads its state once per chunk and drops
     the decided orbits on the device (compactions), not by a new upload."""
     stages = simulated["early_stages"]
-    chunks = 3   # 10 orbits, chunk_size=4
+    run = simulated["run"]
+    chunks = -(-run["early_orbits"] // run["chunk_size"])
     assert stages["uploads"] == chunks
     assert stages["compactions"] > 0
     assert stages["launches"] > stages["uploads"]
@@ -270,7 +314,7 @@ def test_simulated_state_stays_on_the_device_until_the_host_writes_it(simulated)
 
 def test_simulated_work_counts_are_the_cpus(simulated):
     same_counts, same_step, steps = simulated["counts"]
-    assert same_counts and same_step and steps == 200
+    assert same_counts and same_step and steps == 20 * simulated["run"]["orbits"]
 
 
 def test_simulated_pinned_buffers_are_reused(simulated):

@@ -15,21 +15,22 @@ from varint import codecache
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: A small MEGNO map of Saturn's (a, e), stepped as SIMD lanes (8 orbits):
-#: prints the seconds compiled, the map's values and the warnings' text.
+#: A small MEGNO map of one planet's (a, e) about the Sun, stepped as SIMD
+#: lanes (8 orbits): prints the seconds compiled, the map's values and the
+#: warnings' text. One planet: the smallest lanes kernel, which compiles in
+#: half the time of two planets' (27 s against 62 s of CPU on a cold cache).
 MAP = """
 import json, warnings
 import varint
 from varint import compiling
 from varint.models import Planetary
-model = Planetary([1.0, 0.000954, 0.000285])
-jupiter = dict(a=5.204, M=0.600, omega=0.257, e=0.048)
-grid = varint.element_grid(model, [jupiter, dict(a=9.0, e=0.05, M=0.871, omega=1.616)], 2,
-                           [7.0, 8.0, 9.0, 10.0], [0.05, 0.25])
+model = Planetary([1.0, 0.000954])
+grid = varint.element_grid(model, [dict(a=5.2, e=0.05, M=0.6, omega=0.3)], 1,
+                           [4.0, 5.0, 6.0, 7.0], [0.05, 0.25])
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     r = varint.chaos_map(model, grid, "megno", t_end=20.0, tau=1.0,
-                         scheme=varint.get_scheme("SABA1").repeated(10), progress=False)
+                         scheme=varint.get_scheme("SABA1"), progress=False)
 print(json.dumps([compiling.compile_seconds(), r.values.tobytes().hex(),
                   [str(w.message) for w in caught]]))
 """
