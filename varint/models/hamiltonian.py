@@ -643,7 +643,12 @@ class HamiltonianModel(Model):
         d = super().describe()
         s = self._symbolic
         d.pop("inverse_mass", None)
-        d.update(hamiltonian=sp.srepr(s.H), q=[str(v) for v in s.q], p=[str(v) for v in s.p],
+        # H never changes, and its srepr costs ~5 ms for the three-body
+        # problem, asked ~10 times by one chaos map: made once.
+        memo = self.__dict__.setdefault("_memo", {})
+        if "srepr" not in memo:
+            memo["srepr"] = sp.srepr(s.H)
+        d.update(hamiltonian=memo["srepr"], q=[str(v) for v in s.q], p=[str(v) for v in s.p],
                  structure=self.structure, escape_radius=self.escape_radius)
         if s.time is not None:
             d["time"] = str(s.time)
