@@ -283,7 +283,7 @@ def test_chaos_map_log_is_the_fli_of_the_same_orbits_in_any_chunks():
         assert (np.delete(r.t_stop, 9) == 20.0).all()
         prov = r.provenance
         assert prov.method == "tm+log" and prov.tau == 0.2 and prov.seed == 3
-        assert prov.method_options["scheme"] == "ABA864" and prov.method_options["h"] == 0.2
+        assert prov.method_options["scheme"]["name"] == "ABA864" and prov.method_options["h"] == 0.2
         assert prov.method_options["offset"] == 0.5 and prov.method_options["every"] == 5.0
         assert prov.options["lh_failures"] == {describe(-1): 1}
     assert maps[0].provenance.options["chunks"] == 3 and maps[1].provenance.options["chunks"] == 1

@@ -947,7 +947,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         verdict.notes["step"] = h_choice["summary"]
     prov = Provenance(
         kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
-        method_options={"time_transform": "log", "scheme": lh.scheme.name, "h": h,
+        method_options={"time_transform": "log", "scheme": lh.scheme.describe(), "h": h,
                         "offset": lh.offset, "every": every, "backend": "cpu"},
         tau=h, t_end=t_end, seed=seed,
         options={"indicator": "fli", "threshold": None, "x0": digest(X),

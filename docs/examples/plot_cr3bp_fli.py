@@ -32,8 +32,12 @@ if os.environ.get("VARINT_DOCS_QUICK"):
 model = CR3BP(0.000954)
 grid = model.section_grid(3.05, np.linspace(0.3, 0.85, nx), np.linspace(-0.3, 0.3, ny))
 r = varint.chaos_map(model, grid, "fli", t_end=t_end, progress=False)
-print(f"{len(grid)} orbits, scheme {r.provenance.method_options['scheme']['name']} at "
-      f"τ = {r.provenance.tau:.3g}, largest Jacobi-constant error "
+# The defaults decide the step: here the logarithmic time transformation
+# (steps that shorten near the primaries) when it is the cheaper stepper.
+opts = r.provenance.method_options
+step = (f"fictitious step h = {opts['h']:.3g} ({opts['time_transform']} time transformation)"
+        if opts.get("time_transform") else f"τ = {r.provenance.tau:.3g}")
+print(f"{len(grid)} orbits, scheme {opts['scheme']['name']}, {step}, largest Jacobi-constant error "
       f"{r.accuracy.energy_error.max():.1e}")
 
 # %%
