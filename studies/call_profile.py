@@ -43,7 +43,10 @@ call's short path, :class:`varint.prepared._ShortCall`): ``round5``, the
 three paths of :data:`PATHS` interleaved (``prepared_general`` is the
 previous path of the same code), and ``round5_before`` (main 7b2b6c8, where
 ``prepared`` is the general path), run one after the other in one load
-window.
+window; its sixth (the short call's buffers kept per thread, its energy
+errors and verdict compiled, its provenance's fixed part left pickled
+until read): ``round6_before`` (main 5d760dc) and ``round6_after``, the
+prepared path alone, likewise (quick, ``results/quick``).
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general]``
@@ -127,7 +130,9 @@ PREPARED_STAGES = (
 )
 
 #: The stages of a prepared run's short call (:class:`varint.prepared._ShortCall`),
-#: as :data:`STAGES`.
+#: as :data:`STAGES`; each code has some of them (the first five rows the
+#: code of rounds 5 and before, the next four that of round 6: the kept
+#: buffers, the compiled energy errors and the pickled provenance).
 SHORT_STAGES = (
     (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
     (1, "check x0", "varint.runspec:RunSpec", "with_states"),
@@ -138,7 +143,11 @@ SHORT_STAGES = (
     (2, "snapshot rows", "varint.state:Snapshots", "rows"),
     (2, "reference and energy errors", "varint.accuracy", "reference_and_errors"),
     (2, "accuracy verdict", "varint.accuracy", "assess"),
-    (2, "provenance", "varint.prepared", "Provenance"),
+    (2, "provenance", "varint.results:Provenance", "__init__"),
+    (2, "stepper, kept buffers", "varint.methods.fresh_run:FreshRun", "__call__"),
+    (2, "snapshot rows, kept views", "varint.methods.fresh_run:FreshRun", "rows"),
+    (2, "energy errors and verdict", "varint.prepared:_ShortCall", "_energy_verdict"),
+    (2, "provenance, fixed part pickled", "varint.results:Provenance", "with_pickled"),
     (2, "machine identity", "varint.identity", "machine"),
     (2, "accuracy warning", "varint.accuracy", "warn"),
 )
@@ -161,8 +170,8 @@ def wrap_stages(spent, stages=STAGES):
         try:
             owner = _owner(path)
             original = getattr(owner, name)
-        except AttributeError:
-            continue    # a stage the profiled code has not (older code): 0 µs
+        except (AttributeError, ModuleNotFoundError):
+            continue    # a stage the profiled code has not (other code): 0 µs
 
         def timed(*args, _f=original, _label=label, **kwargs):
             t0 = time.perf_counter()

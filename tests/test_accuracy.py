@@ -278,11 +278,11 @@ def test_the_reference_of_a_plain_model_is_its_energy_and_scale_bit_for_bit():
     # energy is the base model's; they must equal Model.energy and
     # Model.energy_scale to the last bit (a model with its own conserved
     # quantities takes the general path, checked by the test above).
-    from varint.accuracy import Reference, _plain_energy
+    from varint.accuracy import Reference, plain_energy
 
     model, x0 = varint.paper_orbit("R1")
     X = np.random.default_rng(3).normal(scale=0.3, size=(7, 4))
-    assert _plain_energy(model)
+    assert plain_energy(model)
     ref = Reference(model, X)
     assert ref.values["energy"].tobytes() == model.energy(X).tobytes()
     assert ref.scales["energy"].tobytes() == model.energy_scale(X).tobytes()

@@ -3,6 +3,12 @@ stepper driven from fresh arrays, the result assembled directly) give the
 one-shot call's result bit for bit, and leave failures and long calls to
 the general path (:meth:`varint.run.Run.with_orbits`)."""
 
+import copy
+import dataclasses
+import pickle
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 
@@ -97,6 +103,20 @@ def test_a_long_call_takes_the_general_path(general):
     assert run._short.per_step < 1e-3
 
 
+@pytest.mark.parametrize("indicator, t_out", [("megno", 9), ("lyapunov", None)])
+def test_a_call_of_many_driver_chunks_is_one_stepper_call_with_the_same_bits(
+        indicator, t_out, general):
+    # 800 steps: the driver runs them in chunks of 64 steps and more (its
+    # Pace), a short call in one call of the stepper (rule 3 of the
+    # propagator protocol: chunking changes no bit).
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, indicator, 40.0, tau=0.05, t_out=t_out)
+    run(x0)
+    for x in _states(x0, 2):
+        _same(run(x), varint.run(model, x, indicator, 40.0, 0.05, t_out=t_out))
+    assert len(general) == 0
+
+
 @pytest.mark.parametrize("make", [
     lambda: varint.paper_orbit("R1")[0], lambda: varint.models.ThreeDof(),
     lambda: varint.models.FPUT(8, beta=1.0)])
@@ -121,3 +141,121 @@ def test_reference_and_errors_is_the_reference_and_its_errors(make):
     x0[0, 0] = np.nan      # the Reference's own refusal
     with pytest.raises(ValueError, match="not finite at the initial state"):
         accuracy.reference_and_errors(model, x0, np.zeros((1, model.dim)))
+
+
+def _same_verdict(a, b):
+    """Two verdicts equal in every field, types included."""
+    for name in ("energy_error", "t_worst", "accurate"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert type(x) is type(y), name
+        np.testing.assert_array_equal(x, y, strict=True)
+    assert a.conserved.keys() == b.conserved.keys()
+    for key in a.conserved:
+        assert type(a.conserved[key]) is type(b.conserved[key])
+        np.testing.assert_array_equal(a.conserved[key], b.conserved[key], strict=True)
+    assert (a.energy_tol, a.tau, a.notes) == (b.energy_tol, b.tau, b.notes)
+
+
+class _Doubled(varint.models.HenonHeiles):
+    """Hénon–Heiles with a second conserved quantity, 2H (relative to |2H|,
+    not to |T| + |V|): its conserved quantities are not the base model's."""
+
+    def conserved(self, x, t=0.0, p_t=0.0):
+        energy = self.energy(x)
+        return {"energy": energy, "doubled": 2.0 * energy}
+
+
+@pytest.mark.parametrize("model", [varint.models.HenonHeiles(), _Doubled()],
+                         ids=["T+V", "other conserved"])
+@pytest.mark.parametrize("m", [1, 2])
+def test_the_short_calls_verdict_and_warning_are_the_one_shot_calls(model, m, general):
+    # Every field of the verdict, one orbit and two; within the tolerance
+    # and above it (the warning's text too), T + V by the compiled errors
+    # and other conserved quantities by the general path's functions.
+    x0 = varint.paper_orbit("R1")[1]
+    states = _states(x0, 3 * m).reshape(3, m, 4)
+    states = [s[0] for s in states] if m == 1 else list(states)
+    for tol in (None, 1e-9):
+        run = varint.prepare(model, "megno", 0.5, tau=0.1, t_out=3, energy_tol=tol)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            run(states[0])
+            got = [run(x) for x in states[1:]]
+            alone = [varint.megno(model, x, 0.5, tau=0.1, t_out=3, energy_tol=tol)
+                     for x in states[1:]]
+        messages = [str(w.message) for w in seen if w.category is accuracy.AccuracyWarning]
+        assert len(messages) == (0 if tol is None else 2 * len(states) - 1)
+        if tol is not None:     # each short call's warning is its one-shot call's
+            assert messages[1:len(states)] == messages[len(states):]
+        for a, b in zip(got, alone, strict=True):
+            _same(a, b)
+            _same_verdict(a.accuracy, b.accuracy)
+            assert a.accuracy.accurate.all() == (tol is None)
+    assert len(general) == 0 and run._short.plain == (type(model) is not _Doubled)
+
+
+def test_a_result_outlives_the_next_calls():
+    # The short calls keep their buffers between calls: a result's arrays
+    # are its own, the next calls change none of them.
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "lyapunov", 0.5, tau=0.05, t_out=4)
+    run(x0)
+    first = run(x0 + 1e-3)
+    kept = {name: np.copy(getattr(first, name)) for name in ("t", "state", "exponents",
+                                                             "energy_error", "deviations")
+            if getattr(first, name, None) is not None}
+    for dp in (2e-3, 3e-3):
+        last = run(x0 + dp)
+    for name, value in kept.items():
+        np.testing.assert_array_equal(getattr(first, name), value, strict=True)
+    _same(first, varint.lyapunov_spectrum(model, x0 + 1e-3, 0.5, tau=0.05, t_out=4))
+    # And every buffer starts each call afresh: the last call's counts too.
+    alone = varint.lyapunov_spectrum(model, x0 + 3e-3, 0.5, tau=0.05, t_out=4)
+    _same(last, alone)
+    assert last.provenance.counts == alone.provenance.counts
+
+
+def test_threads_calling_one_prepared_run_get_the_one_shot_results():
+    # Each thread's short calls have their own buffers.
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "megno", 1.0, tau=0.05)
+    run(x0)
+    states = _states(x0, 4)
+    expected = [varint.megno(model, x, 1.0, tau=0.05) for x in states]
+
+    def calls(x):
+        return [run(x) for _ in range(30)]
+
+    with ThreadPoolExecutor(4) as pool:
+        done = list(pool.map(calls, states))
+    for results, one_shot in zip(done, expected, strict=True):
+        for r in results:
+            np.testing.assert_array_equal(r.mean_megno, one_shot.mean_megno, strict=True)
+            np.testing.assert_array_equal(r.state, one_shot.state, strict=True)
+            np.testing.assert_array_equal(r.energy_error, one_shot.energy_error, strict=True)
+
+
+def test_a_short_calls_provenance_is_read_saved_and_pickled_whole(tmp_path):
+    # Its fixed parts stay pickled until read; each result reads its own
+    # copies, and pickling, saving and the summary see every field.
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "lyapunov", 0.5, tau=0.05)
+    run(x0)
+    a, b = run(x0), run(x0)
+    assert "_pickled" in vars(a.provenance)
+    alone = varint.lyapunov_spectrum(model, x0, 0.5, tau=0.05)
+    copied = pickle.loads(pickle.dumps(a))
+    assert "_pickled" not in vars(copied.provenance)
+    for p, q in ((copied.provenance, a.provenance), (copy.copy(b.provenance), b.provenance)):
+        for f in dataclasses.fields(p):
+            assert getattr(p, f.name) == getattr(q, f.name), f.name
+    a.provenance.model["inverse_mass"].append(0.0)
+    assert b.provenance.model == alone.provenance.model != a.provenance.model
+    assert a.summary() == alone.summary().replace(
+        f"{alone.provenance.wall_time:.3g} s", f"{a.provenance.wall_time:.3g} s")
+    b.save(tmp_path / "b.npz")
+    loaded = varint.load_result(tmp_path / "b.npz")
+    assert loaded.provenance == b.provenance
+    assert loaded.provenance.to_dict() == b.provenance.to_dict()
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        b.provenance.nothing  # noqa: B018

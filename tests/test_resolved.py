@@ -53,16 +53,18 @@ def test_a_plain_function_is_called_as_it_is():
 
 
 def test_a_prepared_runs_short_calls_skip_the_dispatch():
-    # The stepper and the kernel check of a prepared one-step call run
-    # their compiled versions after the first short call (the results are
-    # the one-shot call's, bitwise: tests/test_prepared_short.py).
+    # The stepper, the kernel check and the energy errors of a prepared
+    # one-step call run their compiled versions after the first short call
+    # (the results are the one-shot call's, bitwise:
+    # tests/test_prepared_short.py).
     model, x0 = varint.paper_orbit("R1")
     run = varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
                          deviations=np.eye(4)[:, :1])
     run(x0)
     run(x0)
     a = run(x0 + [0.0, 0.0, 1e-3, 0.0])
-    assert [r._entry is not None for r in run._short.kernels.values()] == [True]
+    assert run._short._run()._kernel._entry is not None
+    assert run._short.errors_kernel._entry is not None
     assert all(r._entry is not None for r in run._kernel_check._resolved)
     b = varint.integrate(model, x0 + [0.0, 0.0, 1e-3, 0.0], 0.05, tau=0.05, scheme="s15odr8",
                          deviations=np.eye(4)[:, :1])

@@ -129,9 +129,10 @@ def states(model, x0, name="x0"):
     caller passed a single state (so results are squeezed)."""
     dim = model.dim
     if (type(x0) is np.ndarray and x0.dtype == np.float64 and x0.shape == (dim,)
-            and np.isfinite(x0).all()):
+            and np.count_nonzero(np.isfinite(x0)) == dim):
         # The common case (a prepared run's call), the same new array as
-        # below in two NumPy calls.
+        # below in two NumPy calls. (count_nonzero, not all(): a reduction
+        # costs ~1.5 µs more on a few numbers.)
         return x0[None].copy(), True
     x = real_array(x0, name)
     single = x.ndim == 1
@@ -468,7 +469,7 @@ class KernelCheck:
         except Exception:
             kernels(model, X, what)    # raises, naming what is wrong
             raise
-        if not np.isfinite(values).all():
+        if np.count_nonzero(np.isfinite(values)) < values.size:    # (see states)
             kernels(model, X, what)
 
 

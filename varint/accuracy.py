@@ -57,7 +57,8 @@ import numpy as np
 from .protocol import STATUS_OK, Status
 
 __all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
-           "Reference", "assess", "annotate", "warn", "flag_nonfinite", "NO_MAP_VERDICT"]
+           "Reference", "assess", "annotate", "warn", "flag_nonfinite", "NO_MAP_VERDICT",
+           "plain_energy"]
 
 #: Largest relative error of a conserved quantity at which indicators are
 #: still trusted (see the module docstring for the measurements).
@@ -108,7 +109,7 @@ class Reference:
     def __init__(self, model, x0, parts=None):
         self.model = model
         with np.errstate(all="ignore"):
-            if _plain_energy(model):
+            if plain_energy(model):
                 # T and V evaluated once for both (the same operations as
                 # Model.energy and Model.energy_scale, so the same bits).
                 x0 = np.asarray(x0, dtype=float)
@@ -169,7 +170,7 @@ class Reference:
         with np.errstate(all="ignore"):
             if energy is not None:      # computed on the GPU from the same H
                 now = {"energy": np.asarray(energy, dtype=float)}
-            elif _plain_energy(self.model):
+            elif plain_energy(self.model):
                 # Model.energy's operations, without its layers of calls.
                 x = np.asarray(x, dtype=float)
                 n = self.model.n_dof
@@ -195,7 +196,7 @@ def reference_and_errors(model, x0, x, t=0.0):
     Raises the :class:`Reference`'s ``ValueError`` where a quantity is not
     finite at ``x0``.
     """
-    if not _plain_energy(model):
+    if not plain_energy(model):
         reference = Reference(model, x0)
         return reference, reference.errors(x, t)
     m, n = len(x0), model.n_dof
@@ -221,11 +222,11 @@ def reference_and_errors(model, x0, x, t=0.0):
 
 
 #: Per model class: whether its energy, energy scale and conserved
-#: quantities are the base model's (:func:`_plain_energy`).
+#: quantities are the base model's (:func:`plain_energy`).
 _PLAIN: dict = {}
 
 
-def _plain_energy(model):
+def plain_energy(model):
     """Whether ``model``'s energy, energy scale and conserved quantities
     are :class:`varint.models.base.Model`'s own (H = T + V, scale
     |T| + |V|, the energy alone) for a time-independent V: then

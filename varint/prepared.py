@@ -11,17 +11,19 @@ states (shape, finite, the model's kernels finite there, what the
 indicator requires), measures their reference energy, starts the state and
 drives it (:meth:`varint.run.Run.with_orbits`). A short call (one expected
 to last less than one of the driver's chunks, 0.2 s, by a generated TM
-stepper on the CPU) takes a shorter path, :class:`_ShortCall`: the stepper
-called from fresh arrays, the outputs read once, the result assembled
-directly, everything that does not depend on the states made once. The
-result is the one-shot call's, bitwise, with the same type and provenance
-(heyoka's counterpart is a built integrator's ``propagate_until`` from a
-new state).
+stepper on the CPU) takes a shorter path, :class:`_ShortCall`: the whole
+run in one stepper call on buffers kept per thread, the outputs read once,
+the energy errors and the verdict in one compiled pass, the result
+assembled directly, everything that does not depend on the states made
+once (issue 28: the fixed cost of a call). The result is the one-shot
+call's, bitwise, with the same type and provenance (heyoka's counterpart
+is a built integrator's ``propagate_until`` from a new state).
 """
 
 from __future__ import annotations
 
 import pickle
+import threading
 import time
 from typing import Any, cast
 
@@ -30,8 +32,11 @@ from numpy.typing import ArrayLike
 
 from . import _validate as check
 from . import accuracy, identity
-from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES, Pace
+from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES
 from .indicators import Indicator
+from .kernels.energy_errors import energy_errors
+from .kernels.resolved import Resolved
+from .methods.fresh_run import FreshRun
 from .models.base import Model
 from .protocol import COUNTERS
 from .results import Provenance, _Result
@@ -167,35 +172,48 @@ class PreparedRun:
 class _ShortCall:
     """A prepared run's call whose whole run is one compiled call: its
     orbits stepped from their start to the last output by the propagator's
-    :meth:`~varint.methods.tm.TangentMapPropagator.advance_fresh`, every
-    output copied inside it, then recorded, assessed and returned with the
-    minimum of Python; everything that does not depend on the states (the
-    vectors, the accumulator's start, the schedule's, the provenance's
-    fixed part) made once, from the first call's run.
+    :meth:`~varint.methods.tm.TangentMapPropagator.fresh_run` (one thread's
+    buffers kept between calls), every output copied inside it, then
+    recorded, assessed and returned with the minimum of Python; everything
+    that does not depend on the states (the vectors, the accumulator's
+    start, the schedule's, the provenance's fixed part) made once, from the
+    first call's run.
 
     The arithmetic is the general path's (:meth:`Run.with_orbits` then
     :meth:`Run.execute`): the same compiled stepper from the same state,
-    the outputs read by the same indicator and :class:`Reference`, the
-    verdict by the same :func:`~varint.accuracy.assess`; one chunk instead
-    of the driver's chunks, which the propagator protocol makes bitwise
-    (rule 3). So the result is the one-shot call's, bitwise. Taken only for
-    calls expected to last under the driver's chunk (``CHUNK_SECONDS``,
-    from the time per step of the calls before: Ctrl-C and a progress bar
-    would wait no longer there) and whose snapshots fit its bound; a call
-    in which an orbit fails, or a conserved quantity is not finite, is
-    left to the general path, which reports it as a one-shot call does.
-    Ctrl-C during a short call raises ``KeyboardInterrupt`` (as between
-    two calls) instead of returning what it has: the general path's guard
-    costs more than the fraction of a chunk it would save.
+    the outputs read by the same indicator, the energy errors from the
+    model's own T and V by the same operations
+    (:func:`varint.kernels.energy_errors.energy_errors`, the verdict's
+    largest errors with them), the rest of the verdict by
+    :func:`~varint.accuracy.assess`'s rules; one chunk instead of the
+    driver's chunks, which the propagator protocol makes bitwise (rule 3).
+    So the result is the one-shot call's, bitwise; its provenance's parts
+    that no state changes stay pickled until read
+    (:meth:`varint.results.Provenance.with_pickled`). Taken only for calls
+    expected to last under the driver's chunk (``CHUNK_SECONDS``, from the
+    time per step of the calls before: Ctrl-C and a progress bar would wait
+    no longer there) and whose snapshots fit its bound; a call in which an
+    orbit fails, or a conserved quantity is not finite, is left to the
+    general path, which reports it as a one-shot call does. Ctrl-C during
+    a short call raises ``KeyboardInterrupt`` (as between two calls)
+    instead of returning what it has: the general path's guard costs more
+    than the fraction of a chunk it would save.
     """
 
     def __init__(self, first: Run) -> None:
         self.first = first
         self.prop = prop = first.propagator
         m, _, k = first.W0.shape
-        self.m = m
+        self.m, self.k = m, k
         self.tau = cast(float, first.tau)      # fixed by then
         self.outs = np.asarray(first.steps, dtype=np.int64)
+        #: The steps of every call: the last output's.
+        self.steps = int(self.outs[-1])
+        #: The output times (each result gets its own copy) and those of
+        #: the snapshots' rows (output-major), which the indicators read.
+        self.t = self.outs * self.tau
+        self.t_rows = np.repeat(self.outs, m) * self.tau
+        self.t_rows.flags.writeable = False
         acc = first.accumulator
         self.aux0 = (np.empty((m, 0, 0)) if acc is None else
                      np.tile(np.array(acc.initial, dtype=np.float64), (m, k, 1)))
@@ -207,14 +225,17 @@ class _ShortCall:
         self.has_deviations = "deviations" in getattr(first.indicator.result,
                                                       "__dataclass_fields__", {})
         self.sparse = bool(prop.sparse) and k > 0
-        # The stepper's compiled versions, looked up once (advance_fresh's
-        # ``resolved``): every call passes x, W and aux made the same way
-        # (copies of float64 C-contiguous states, of the first run's
-        # vectors and of aux0).
-        self.kernels: dict = {}
+        #: The energy errors and the verdict's largest ones in one compiled
+        #: call (:func:`_energy_verdict`) where the model's energy is
+        #: T + V; otherwise by :func:`varint.accuracy.reference_and_errors`.
+        self.plain = accuracy.plain_energy(first.model)
+        self.errors_kernel = Resolved(energy_errors)
+        # Each thread's runs (FreshRun: buffers and the stepper's compiled
+        # version made at its first call).
+        self._local = threading.local()
         # The provenance's parts that no state changes, pickled: each
-        # result unpickles its own copy of every dict and list in one call
-        # (Run.provenance copies them level by level).
+        # result unpickles its own copy of every dict and list in one call,
+        # at its first read (Provenance.with_pickled).
         self.fixed = pickle.dumps({**first._fixed_provenance(), "seed": first.seed,
                                    "tau_choice": first.tau_choice, "code": first.code},
                                   protocol=pickle.HIGHEST_PROTOCOL)
@@ -238,67 +259,120 @@ class _ShortCall:
     def timed(self, result: _Result) -> None:
         """Take the time per step of a call's ``result`` as the next calls'
         estimate."""
-        self.per_step = result.provenance.timing.get("run", np.inf) / max(int(self.outs[-1]), 1)
+        self.per_step = result.provenance.timing.get("run", np.inf) / max(self.steps, 1)
 
     def takes(self, spec: RunSpec) -> bool:
         """Whether the call of ``spec`` is a short one."""
         return (spec.x0.shape[0] == self.m
-                and (self.outs[-1] <= 64 or self.per_step * self.outs[-1] <= CHUNK_SECONDS))
+                and (self.steps <= 64 or self.per_step * self.steps <= CHUNK_SECONDS))
+
+    def _run(self) -> FreshRun:
+        """This thread's :class:`~varint.methods.fresh_run.FreshRun`."""
+        run = getattr(self._local, "run", None)
+        if run is None:
+            run = self._local.run = self.prop.fresh_run(self.m, self.k, self.outs, self.aux0)
+        return run
 
     def __call__(self, spec: RunSpec) -> _Result | None:
         """The result of the run over ``spec``'s states, or None where the
         general path must make it (a failure)."""
-        first, prop = self.first, self.prop
-        ind, model, tau = first.indicator, first.model, self.tau
-        options = dict(first.options)
-        outs = self.outs
-        x0, single = spec.x0, spec.single
+        first, ind, tau = self.first, self.first.indicator, self.tau
+        x0, single, m = spec.x0, spec.single, self.m
+        machine = identity.machine()        # the machine when the run starts
         cpu, start = time.process_time(), time.perf_counter()
-        x, W = np.array(x0, dtype=np.float64, order="C"), np.array(first.W0)
-        snaps, status, counters, acc_m, acc_e = prop.advance_fresh(
-            x, W, self.aux0.copy(), outs, Pace(), self.kernels)
-        if status.any():
+        run = self._run()
+        run(x0, first.W0)
+        if np.count_nonzero(run.status):    # (ndarray.any's reduction costs 4x more)
             return None
-        rows = snaps.rows(ind.renorm)
-        t_rows = rows.step * tau
-        rec = ind.read(rows, model, t_rows, options)
-        _, errors = accuracy.reference_and_errors(model, x0, rows.x, t_rows)
-        if not all(np.isfinite(v).all() for v in errors.values()):
+        rows = run.rows(ind.renorm)
+        options = dict(first.options)
+        rec = ind.read(rows, first.model, self.t_rows, options)
+        energies = self._energy_verdict(x0, rows.x, single)
+        if energies is None:
             return None
+        energy_error, verdict, over = energies
         wall = time.perf_counter() - start
         cpu = time.process_time() - cpu
-        self.per_step = wall / int(outs[-1])
-        rec.update(errors)
-        s, m = len(outs), self.m
+        outs = self.outs
+        self.per_step = wall / self.steps
+        s = len(outs)
         # As the driver's records (its copy per key, (n_out, M, ...)) and
         # Run._result (results (M, n_out, ...), the orbit axis dropped for
         # one state).
-        fields, errors = {}, {}
+        fields = {}
         for key, arr in rec.items():
-            block = np.array(arr).reshape((s, m) + np.shape(arr)[1:]).swapaxes(0, 1)
-            if key == "energy_error" or key.startswith("conserved_error:"):
-                errors[key] = block
-            else:
-                fields[key] = block[0] if single else block
-        t = outs * tau
-        verdict = accuracy.annotate(accuracy.assess(t, errors, status, first.energy_tol, tau,
-                                                    single), model, prop)
+            block = np.array(arr)
+            # (One state: the one orbit's block, (n_out, ...) as it is.)
+            fields[key] = (block if single else
+                           block.reshape((s, m) + block.shape[1:]).swapaxes(0, 1))
+        accuracy.annotate(verdict, first.model, self.prop)
         fields = ind.finish(fields, options)
+        x, status = run.x.copy(), run.status[0] if single else run.status.copy()
         if self.has_deviations:
-            if self.sparse:
-                W, _, _ = renormalized_copy(W, acc_m, acc_e, ind.renorm)
+            W = (renormalized_copy(run.W, run.acc_m, run.acc_e, ind.renorm)[0] if self.sparse
+                 else run.W.copy())
             fields["deviations"] = W[0] if single else W
-        counts = {"steps": m * int(outs[-1]),     # no orbit failed
-                  **dict(zip(COUNTERS, np.add.reduce(counters, axis=0).tolist(), strict=True))}
-        provenance = Provenance(
-            kind=ind.name, x0=(x0[0] if single else x0).tolist(), method=first.method,
-            tau=tau, t_end=first.t_end, **pickle.loads(self.fixed),
-            counts=counts, wall_time=wall, machine=identity.machine(),
-            timing={"compile": 0.0, "run": round(wall, 6)}, cpu_time=cpu)
-        energy_error = errors["energy_error"]
-        result = ind.result(t=t, energy_error=energy_error[0] if single else energy_error,
-                            state=x[0] if single else x, provenance=provenance,
-                            status=status[0] if single else status, interrupted=False,
-                            accuracy=verdict, **fields)
-        accuracy.warn(result.accuracy, first.method)
+        # (No orbit failed: each made every step.)
+        counters = run.counters[0] if m == 1 else np.add.reduce(run.counters, axis=0)
+        counts = {"steps": m * self.steps,
+                  **dict(zip(COUNTERS, counters.tolist(), strict=True))}
+        provenance = Provenance.with_pickled(
+            self.fixed, kind=ind.name, x0=(x0[0] if single else x0).tolist(),
+            method=first.method, tau=tau, t_end=first.t_end, counts=counts, wall_time=wall,
+            machine=machine, timing={"compile": 0.0, "run": round(wall, 6)},
+            cpu_time=cpu)
+        result = ind.result(t=self.t.copy(), energy_error=energy_error,
+                            state=x[0] if single else x, provenance=provenance, status=status,
+                            interrupted=False, accuracy=verdict, **fields)
+        if over:
+            accuracy.warn(verdict, first.method)
         return result
+
+    def _energy_verdict(self, x0: np.ndarray, x: np.ndarray, single: bool
+                        ) -> tuple[np.ndarray, accuracy.Accuracy, bool] | None:
+        """(energy errors ([M,] n_out), the accuracy verdict, whether to
+        warn) of a call from states ``x0`` (M, 2N) with outputs ``x``
+        (n_out·M, 2N, output-major), the orbit axis dropped where
+        ``single``, bitwise those of the general path
+        (:meth:`varint.accuracy.Reference.errors`, :func:`varint.accuracy.assess`);
+        None where an error is not finite (the general path reports it;
+        H not finite at ``x0``: it refuses the state)."""
+        first, m = self.first, self.m
+        model, tol = first.model, first.energy_tol
+        if self.plain:
+            n, rows = model.n_dof, len(x0) + len(x)
+            both = np.concatenate((x0, x))
+            with np.errstate(all="ignore"):
+                # The model's own T and V (Reference's operations), once
+                # over the states and the outputs.
+                kinetic, potential = model.kinetic(both[:, n:]), model.potential(both[:, :n])
+            if _float_vector(kinetic, rows) and _float_vector(potential, rows):
+                errors, largest, t_worst, accurate, finite = self.errors_kernel(
+                    kinetic, potential, m, self.t, tol)
+                if not finite:
+                    return None
+                verdict = accuracy.Accuracy(
+                    energy_error=largest[0] if single else largest,
+                    conserved={"energy": largest[0] if single else largest},
+                    t_worst=t_worst[0] if single else t_worst, energy_tol=tol,
+                    accurate=accurate[0] if single else accurate, tau=self.tau)
+                return errors[0] if single else errors, verdict, np.count_nonzero(accurate) < m
+        # Other conserved quantities (or T and V of another kind): the
+        # general path's functions.
+        _, found = accuracy.reference_and_errors(model, x0, x)
+        if not all(np.isfinite(v).all() for v in found.values()):
+            return None
+        s = len(self.outs)
+        blocks = {key: np.array(v).reshape(s, m).swapaxes(0, 1) for key, v in found.items()}
+        verdict = accuracy.assess(self.t, blocks, np.zeros(m, dtype=np.int64), tol, self.tau,
+                                  single)
+        energy_error = blocks["energy_error"]
+        return energy_error[0] if single else energy_error, verdict, True
+
+
+def _float_vector(a: Any, size: int) -> bool:
+    """Whether ``a`` is a C-contiguous float64 array of shape (size,): what
+    :func:`varint.kernels.energy_errors.energy_errors` takes, and what a
+    model's T and V of (R, N) rows are."""
+    return (type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (size,)
+            and a.flags.c_contiguous)

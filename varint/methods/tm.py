@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import math
 import numbers
-import time
 import weakref
 
 import numpy as np
@@ -34,11 +33,11 @@ from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..kernels.lanes import gather, scatter
 from ..kernels.processor import processor_map
-from ..kernels.resolved import Resolved
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
                        stage_arrays, stage_times)
 from ..state import Snapshots
+from .fresh_run import FreshRun
 from .options import method_options
 
 __all__ = ["TangentMapPropagator", "tangent_map_steps"]
@@ -295,102 +294,37 @@ class TangentMapPropagator:
         return snaps
 
     def runs_fresh(self, m, k):
-        """Whether :meth:`advance_fresh` can run ``m`` orbits with ``k``
+        """Whether :meth:`fresh_run` can run ``m`` orbits with ``k``
         vectors: a generated stepper, one orbit at a time on the CPU (fewer
         orbits than :attr:`MIN_LANES`, or compensated), no processor."""
         return (self._processor is None and self.backend == "cpu"
                 and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
 
-    def advance_fresh(self, x, W, aux, outs, pace, resolved=None):
-        """Orbits started at step 0 advanced to step ``outs[-1]``, copied at
-        the output steps ``outs``: what :meth:`advance` does for a fresh
-        :class:`~varint.state.RunState` driven by
-        :func:`varint.driver.drive` (chunks sized by ``pace``, a
-        :class:`varint.driver.Pace`, as the driver sizes them), with the
-        bookkeeping arrays made here and one snapshot buffer for all the
-        outputs (a prepared run's short call, :mod:`varint.prepared`). Only
-        where :meth:`runs_fresh`.
+    def fresh_run(self, m, k, outs, aux0):
+        """A :class:`~varint.methods.fresh_run.FreshRun`: orbits started at
+        step 0 advanced to step ``outs[-1]`` in one call of the stepper,
+        copied at the output steps ``outs``, with one thread's buffers kept
+        between runs (a prepared run's short call, :mod:`varint.prepared`):
+        what :meth:`advance` does for a fresh
+        :class:`~varint.state.RunState` driven by :func:`varint.driver.drive`,
+        in one chunk (bitwise the driver's chunks, rule 3 of the propagator
+        protocol). Only where :meth:`runs_fresh`.
 
         Parameters
         ----------
-        x : ndarray, shape (M, 2N)
-        W : ndarray, shape (M, 2N, k)
-        aux : ndarray, shape (M, k, c)
-            The accumulator's values ((M, 0, 0) without one).
-        outs : ndarray of int
+        m, k : int
+            Orbits and vectors.
+        outs : ndarray of int64
             Increasing output steps, the last one the end.
-        pace : varint.driver.Pace
-        resolved : dict, optional
-            Kept by a caller that passes ``x``, ``W``, ``aux`` and ``outs``
-            of the same dtypes, dimensions and layouts at every call (a
-            prepared run's short call): the stepper is called through its
-            compiled version, looked up once
-            (:class:`varint.kernels.resolved.Resolved`, kept here per
-            kernel), not through numba's dispatch; every other argument is
-            made here, the same way at every call.
-
-        All three arrays are advanced in place. Returns ``(snapshots,
-        status, counters, acc_m, acc_e)``: status (M,), the counters of
-        :data:`~varint.protocol.COUNTERS` (M, 4) per orbit, and the
-        vectors' stretching (M, k) as mantissa and exponent. The run stops
-        at the first chunk after which an orbit has failed (its status
-        non-zero); without one, every orbit has made ``outs[-1]`` steps.
+        aux0 : ndarray, shape (M, k, c)
+            The accumulator's start ((M, 0, 0) without one).
         """
-        m, d, k = W.shape
-        s = len(outs)
-        # Fresh snapshot arrays, NaN as :meth:`_snapshots` makes them, and
-        # the stretching's mantissas, 1: one block, filled in two passes
-        # (they are read and copied by the caller); the integers, 0 but the
-        # schedule's, in another (NumPy's ones() costs 2 µs an array).
-        n_snap = s * m * (d * (k + 1) + aux[0].size)
-        block = np.empty(n_snap + (s + 1) * m * k)
-        block[:n_snap].fill(np.nan)
-        block[n_snap:].fill(1.0)
-        sx = block[:s * m * d].reshape(s, m, d)
-        sW = block[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
-        s_aux = block[s * m * d * (k + 1):n_snap].reshape((s,) + aux.shape)
-        s_acc_m = block[n_snap:n_snap + s * m * k].reshape(s, m, k)
-        acc_m = block[n_snap + s * m * k:].reshape(m, k)
-        # (Each a contiguous run of the block: C-contiguous, as the general
-        # path's own arrays, so the same compiled stepper takes them.)
-        c = len(COUNTERS)
-        ints = np.zeros((s + 1) * m * k + m * (c + 4), dtype=np.int64)
-        s_acc_e = ints[:s * m * k].reshape(s, m, k)
-        rest = ints[s * m * k:]
-        acc_e = rest[:m * k].reshape(m, k)
-        rest = rest[m * k:]
-        counters = rest[:m * c].reshape(m, c)
-        done, status = rest[m * c:m * (c + 1)], rest[m * (c + 1):m * (c + 2)]
-        sched = rest[m * (c + 2):].reshape(m, 2)
-        sched.fill(1)                           # as _schedule starts it at step 0
         module = self._stepper(k)
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
-        if resolved is not None:
-            kernel = resolved.get(kernel) or resolved.setdefault(kernel, Resolved(kernel))
-        orbit = (x, W, acc_m, acc_e, aux, counters, sched)
-        # Compensated: the Kahan terms start at zero (as _compensation).
-        orbit = (CompensatedOrbit(*orbit, np.zeros((m, d, 1 + k))) if self.compensated
-                 else StepperOrbit(*orbit))
-        setup = self._setup()
-        step = j = 0
-        last = int(outs[-1])
-        while step < last:
-            # The driver's chunk (driver._batch; every snapshot fits).
-            end = min(step + pace.chunk, last)
-            j1 = s if end == last else j + int(np.searchsorted(outs[j:], end, side="right"))
-            t0 = time.perf_counter()
-            kernel(orbit, setup, Call(end - step, step, self.tau, int(self.renorm),
-                                      self._escape_r2),
-                   Outputs(outs[j:j1], sx[j:j1], sW[j:j1], s_acc_m[j:j1], s_acc_e[j:j1],
-                           s_aux[j:j1]), status, done)
-            pace.took(end - step, time.perf_counter() - t0)
-            step, j = end, j1
-            if status.any():
-                break
-        extra = {} if self.accumulator is None else {self.accumulator.key: s_aux}
-        snaps = Snapshots(steps=outs, x=sx, W=sW, acc_m=s_acc_m, acc_e=s_acc_e, extra=extra,
-                          renormalized=self.sparse == 0)
-        return snaps, status, counters, acc_m, acc_e
+        call = Call(int(outs[-1]), 0, self.tau, int(self.renorm), self._escape_r2)
+        return FreshRun(kernel, self._setup(), call, outs, (m, self.model.dim, k), aux0,
+                        None if self.accumulator is None else self.accumulator.key,
+                        self.sparse == 0, self.compensated)
 
     def _accumulator(self, state):
         acc = self.accumulator

@@ -1,0 +1,143 @@
+"""Runs of a few orbits from step 0 to their last output in one call of a
+generated stepper, with one thread's buffers made once and kept between
+runs (a prepared run's short call, :mod:`varint.prepared`).
+
+A one-step run's arithmetic takes ~5 µs; making its eleven bookkeeping
+arrays, their views, the stepper's named tuples and the snapshots' record
+took ~40 µs more, at every call, on 1–4-element arrays (issue 28: the fixed
+cost of a call). Here they are made once per thread and reset at each
+run: one copy of a template for the floats (NaN snapshots, unit
+stretching mantissas) and one for the integers (zero counters and
+exponents, the renormalisation schedule at its start), the state and
+vectors copied into kept arrays. The stepper gets the same values as from
+fresh arrays, so the same bits; the whole run is one chunk, which the
+propagator protocol makes bitwise the driver's chunks (rule 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..codegen.interval import CompensatedOrbit, Outputs, StepperOrbit
+from ..kernels.resolved import Resolved
+from ..protocol import COUNTERS
+from ..state import Rows, Snapshots
+
+__all__ = ["FreshRun"]
+
+
+class FreshRun:
+    """One thread's runs of ``m`` orbits with ``k`` vectors from step 0 to
+    ``outs[-1]``, copied at the output steps ``outs``, by one stepper call.
+
+    Parameters
+    ----------
+    kernel : numba dispatcher
+        The generated stepper's ``batch_serial`` or ``batch_parallel``;
+        called through its compiled version after the first run
+        (:class:`~varint.kernels.resolved.Resolved`: every run passes the
+        same arrays, made here).
+    setup, call
+        The stepper's :class:`~varint.codegen.interval.StepperSetup` and the
+        run's :class:`~varint.kernels.interval.Call` (all ``outs[-1]`` steps
+        from step 0).
+    outs : ndarray of int64
+        Increasing output steps, the last one the end.
+    shape : (int, int, int)
+        (M, 2N, k).
+    aux0 : ndarray, shape (M, k, c)
+        The accumulator's start ((M, 0, 0) without one).
+    accumulator : str or None
+        The accumulator's key in the snapshots' ``extra``.
+    renormalized : bool
+        Whether the snapshots' vectors are renormalised (not for sparse
+        renormalisation: :meth:`varint.state.Snapshots.rows`).
+    compensated : bool
+        Kahan terms carried (zero at the start).
+
+    Attributes
+    ----------
+    x, W : ndarray
+        The state (M, 2N) and vectors (M, 2N, k) after the last run, kept:
+        copy what outlives the next run.
+    status, counters, acc_m, acc_e : ndarray
+        The last run's status (M,), counters (M, 4) and the vectors'
+        stretching (M, k), likewise kept.
+    """
+
+    def __init__(self, kernel, setup, call, outs, shape, aux0, accumulator, renormalized,
+                 compensated):
+        m, d, k = shape
+        s = len(outs)
+        c = aux0[0].size
+        # Floats: snapshots (NaN until written), then the stretching's
+        # mantissas (1): one block, reset from its template.
+        n_snap = s * m * (d * (k + 1) + c)
+        self._floats = np.empty(n_snap + (s + 1) * m * k)
+        self._floats_start = np.empty_like(self._floats)
+        self._floats_start[:n_snap] = np.nan
+        self._floats_start[n_snap:] = 1.0
+        f = self._floats
+        sx = f[:s * m * d].reshape(s, m, d)
+        sW = f[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
+        s_aux = f[s * m * d * (k + 1):n_snap].reshape((s,) + aux0.shape)
+        s_acc_m = f[n_snap:n_snap + s * m * k].reshape(s, m, k)
+        self.acc_m = f[n_snap + s * m * k:].reshape(m, k)
+        # Integers: the snapshots' exponents, the stretching's exponents,
+        # counters, steps done, status (all 0) and the schedule (1, 1: as
+        # the general path starts it at step 0).
+        n_c = len(COUNTERS)
+        self._ints = np.zeros((s + 1) * m * k + m * (n_c + 4), dtype=np.int64)
+        i = self._ints
+        s_acc_e = i[:s * m * k].reshape(s, m, k)
+        rest = i[s * m * k:]
+        self.acc_e = rest[:m * k].reshape(m, k)
+        rest = rest[m * k:]
+        self.counters = rest[:m * n_c].reshape(m, n_c)
+        done, self.status = rest[m * n_c:m * (n_c + 1)], rest[m * (n_c + 1):m * (n_c + 2)]
+        rest[m * (n_c + 2):] = 1
+        self._ints_start = i.copy()
+        self.x, self.W = np.empty((m, d)), np.empty((m, d, k))
+        self._aux, self._aux0 = np.empty_like(aux0), aux0
+        self._kahan = np.zeros((m, d, 1 + k)) if compensated else None
+        orbit = (self.x, self.W, self.acc_m, self.acc_e, self._aux, self.counters,
+                 rest[m * (n_c + 2):].reshape(m, 2))
+        orbit = CompensatedOrbit(*orbit, self._kahan) if compensated else StepperOrbit(*orbit)
+        self._args = (orbit, setup, call, Outputs(outs, sx, sW, s_acc_m, s_acc_e, s_aux),
+                      self.status, done)
+        self._kernel = Resolved(kernel)
+        extra = {} if accumulator is None else {accumulator: s_aux}
+        self.snapshots = Snapshots(steps=outs, x=sx, W=sW, acc_m=s_acc_m, acc_e=s_acc_e,
+                                   extra=extra, renormalized=renormalized)
+        # The snapshots' rows (Snapshots.rows) where no renormalised copy is
+        # needed, as read-only views of the kept buffers: made once, a
+        # fresh Rows of them at each run (:meth:`rows`).
+        self._rows = None
+        if renormalized or not k:
+            r = self.snapshots.rows(None)
+            for v in (r.x, r.W, r.acc_m, r.acc_e, r.step, *r.extra.values()):
+                v.flags.writeable = False
+            self._rows = r
+
+    def __call__(self, x0, W0):
+        """Run the orbits from states ``x0`` (M, 2N) with vectors ``W0``
+        (M, 2N, k), both float64; the results are in the kept arrays
+        (:attr:`x`, :attr:`W`, :attr:`status`, ... and :attr:`snapshots`)."""
+        np.copyto(self._floats, self._floats_start)
+        np.copyto(self._ints, self._ints_start)
+        np.copyto(self.x, x0)
+        np.copyto(self.W, W0)
+        if self._aux.size:
+            np.copyto(self._aux, self._aux0)
+        if self._kahan is not None:
+            self._kahan.fill(0.0)
+        self._kernel(*self._args)
+
+    def rows(self, renorm):
+        """The last run's snapshots as :class:`~varint.state.Rows`, as
+        :meth:`varint.state.Snapshots.rows` gives them (read-only views of
+        the kept buffers where no renormalised copy is made)."""
+        r = self._rows
+        if r is None:
+            return self.snapshots.rows(renorm)
+        return Rows(x=r.x, W=r.W, acc_m=r.acc_m, acc_e=r.acc_e, step=r.step, extra=dict(r.extra))
