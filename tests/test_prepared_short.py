@@ -14,6 +14,7 @@ import pytest
 
 import varint
 from varint import accuracy
+from varint.prepared import _ShortCall
 from varint.protocol import Status
 from varint.run import Run
 
@@ -213,6 +214,18 @@ def test_a_result_outlives_the_next_calls():
     alone = varint.lyapunov_spectrum(model, x0 + 3e-3, 0.5, tau=0.05, t_out=4)
     _same(last, alone)
     assert last.provenance.counts == alone.provenance.counts
+
+
+def test_large_snapshots_are_not_kept_between_calls(monkeypatch, general):
+    # Over KEEP_BYTES, each call makes its buffers: the same bits, and the
+    # prepared run holds none of them after the call.
+    monkeypatch.setattr(_ShortCall, "KEEP_BYTES", 0)
+    model, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "lyapunov", 0.5, tau=0.05, t_out=4)
+    run(x0)
+    for x in _states(x0, 2):
+        _same(run(x), varint.lyapunov_spectrum(model, x, 0.5, tau=0.05, t_out=4))
+    assert getattr(run._short._local, "run", None) is None and len(general) == 0
 
 
 def test_threads_calling_one_prepared_run_get_the_one_shot_results():

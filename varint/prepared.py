@@ -266,11 +266,19 @@ class _ShortCall:
         return (spec.x0.shape[0] == self.m
                 and (self.steps <= 64 or self.per_step * self.steps <= CHUNK_SECONDS))
 
+    #: Most bytes of snapshots whose buffers a thread keeps between calls:
+    #: larger ones are made at each call (their making costs little beside
+    #: such a run, and a prepared run then holds no large buffers).
+    KEEP_BYTES = 1 << 20
+
     def _run(self) -> FreshRun:
-        """This thread's :class:`~varint.methods.fresh_run.FreshRun`."""
+        """This thread's :class:`~varint.methods.fresh_run.FreshRun` (a new
+        one for snapshots over :attr:`KEEP_BYTES`)."""
         run = getattr(self._local, "run", None)
         if run is None:
-            run = self._local.run = self.prop.fresh_run(self.m, self.k, self.outs, self.aux0)
+            run = self.prop.fresh_run(self.m, self.k, self.outs, self.aux0)
+            if self.snapshot_bytes <= self.KEEP_BYTES:
+                self._local.run = run
         return run
 
     def __call__(self, spec: RunSpec) -> _Result | None:
