@@ -200,8 +200,9 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
         None when no step of the ladder passed.
     choice : dict
         ``rule`` ("indicator", or "none"), ``h``, ``h0``, ``pilot_t``,
-        ``orbits``, ``tried`` ([h, agreeing share, energy error quantile]
-        per step compared with its half), ``energy_error`` (the largest
+        ``orbits``, ``agreement`` (the name of ``agree``), ``tried`` ([h,
+        agreeing share, energy error quantile] per step compared with its
+        half), ``energy_error`` (the largest
         pilot orbit's at h), ``gradient_rate`` (force evaluations per
         orbit and unit of physical time at h), ``counts`` and
         ``summary``, the sentence the map reports.
@@ -230,7 +231,8 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     tried, chosen = descend(run, range(TOP, TOP + LEVELS), lambda j: h0 * 2.0**-j, t_pilot,
                             t_end, quantile, ceiling, agree=agree)
     choice = {"h0": h0, "pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
-              "ceiling": float(ceiling), "scheme": lh.scheme.name, "tried": tried,
+              "ceiling": float(ceiling), "agreement": agree.__name__,
+              "scheme": lh.scheme.name, "tried": tried,
               "counts": {"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
                          "gradient_evaluations": int(counts[2])}}
     if chosen is None:
