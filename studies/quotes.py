@@ -1206,6 +1206,30 @@ def _lh_auto_h(R):
     return "; ".join(parts) + " (the ceiling at the pilot's 90 % quantile: energy_tol = 1e-3)"
 
 
+@quote("lh_yardstick_rules")
+def _lh_yardstick_rules(R):
+    """studies/lh_yardstick.py (first part): per map and step rule, the h
+    chosen on the pilot and the held-out orbits' agreement with h/16."""
+    d = R.json("lh_yardstick")
+    parts = [f"{r['map']} {r['rule']}: h = {r['h']:.2g}, {r['agreement']:.0%} of "
+             f"{r['held_out']}" for r in d["rows"]]
+    load = max(d["load"][0], d["load_end"][0])
+    return "; ".join(parts) + f" (machine load up to {load:.0f})"
+
+
+@quote("lh_yardstick_ceilings")
+def _lh_yardstick_ceilings(R):
+    """studies/lh_yardstick.py --part ceilings: per map and energy ceiling
+    of the verdict rule, the h chosen and the held-out orbits' agreement
+    with h/16 (the reference's antimode) and their largest energy error."""
+    d = R.json("lh_yardstick_ceilings")
+    parts = [f"{r['map']}, ceiling {r['ceiling']:g}: h = {r['h']:.2g}, "
+             f"{r['agreement']:.1%} of {r['held_out']}, energy error up to "
+             f"{r['held_out_energy_error']:.2g}" for r in d["rows"]]
+    load = max(d["load"][0], d["load_end"][0])
+    return "; ".join(parts) + f" (machine load up to {load:.0f})"
+
+
 @quote("lh_auto_race")
 def _lh_auto_race(R):
     """studies/map_steps.py part log (quick maps): the LH map at its

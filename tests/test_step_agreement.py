@@ -1,7 +1,8 @@
 """Steps judged by what an FLI map reports (varint.step_agreement and
 varint.time_transform_step.agreeing_h): the h the LH pilot chooses on some
 orbits keeps held-out orbits' FLI verdicts in agreement with a tight
-reference (the same orbits at h/16) to the map's t_end, twice the pilot's;
+reference (the same orbits at h/16) to the map's t_end, twice the pilot's,
+at the chaotic level;
 a clearly too coarse h (numerical chaos, energy errors O(1)) is rejected;
 the cost-based switch of the map defaults takes the LH where it is priced
 cheaper, the constant step chosen by the same agreement where it is not,
@@ -20,7 +21,7 @@ from varint.maps import MAP_QUANTILE
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.state import initial_deviations
-from varint.step_agreement import agreeing, chaotic_level, passes
+from varint.step_agreement import agreeing, chaotic_level, passes, same_verdict
 from varint.time_transform import LogHamiltonian
 from varint.time_transform_step import agreeing_h
 
@@ -55,7 +56,8 @@ def _fli(lh, X, h, seed=0):
 
 def test_agreement_rule():
     """Values within 0.05 dex agree, further apart they do not, unless
-    both lie above the chaotic level; NaN agrees with nothing; a step
+    both lie above the chaotic level; verdicts agree on the same side of
+    the level, whatever the values; NaN agrees with nothing; a step
     passes only with the quantile of agreement and of the energy errors."""
     t = 100.0
     level = chaotic_level(t)
@@ -63,6 +65,8 @@ def test_agreement_rule():
     coarse = np.array([5.0, 5.0, level + 1, level + 1, np.nan, 0.5])
     fine = np.array([5.5, 6.0, level + 30, level - 2, 5.0, 0.9])
     assert agreeing(coarse, fine, t).tolist() == [True, False, True, False, False, True]
+    assert same_verdict(coarse, fine, t).tolist() == [True, True, True, False, False, True]
+    assert same_verdict(coarse, fine, t, t_end=1e4).tolist() == same_verdict(coarse, fine, t).tolist()
     assert passes(np.ones(10, bool), np.full(10, 1e-4), 0.9, 1e-3)[0]
     assert not passes(np.ones(10, bool), np.full(10, 1e-2), 0.9, 1e-3)[0]
     assert not passes(np.arange(10) < 8, np.full(10, 1e-4), 0.9, 1e-3)[0]
@@ -70,12 +74,13 @@ def test_agreement_rule():
 
 @pytest.mark.parametrize("which", ["cr3bp", "plummer"])
 def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
-    """h from the pilot (to t = 100) on 16 orbits; 16 held-out orbits (the
-    three-body problem at another Jacobi constant, C = 3.1 against the
+    """h from the pilot (to t = 100) on 16 orbits by the maps' rule (the
+    same verdict at h and h/2, energy errors within 1e-3); held-out orbits
+    (the three-body problem at another Jacobi constant, C = 3.1 against the
     pilot's 3.05; other eccentric orbits of the softened point mass) run to
-    t = 200: at h at least 90 % of them agree with the tight reference
-    (h/16); the ladder's first step 2h₀, tried and rejected, misses that
-    on the same orbits."""
+    t = 200: at h at least 90 % of them give the verdict of the tight
+    reference (h/16) at the chaotic level; the ladder's first step 2h₀,
+    tried and rejected, misses that on the same orbits."""
     if which == "cr3bp":
         model, pilot, held_out = (CR3BP(SUN_JUPITER_MU), _cr3bp_orbits(0, 16, 3.05),
                                   _cr3bp_orbits(1, 16, 3.1))
@@ -84,6 +89,7 @@ def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
     lh = LogHamiltonian(model, "ABA864")
     h, choice = agreeing_h(lh, pilot, T_END, quantile=MAP_QUANTILE, ceiling=1e-3)
     assert choice["rule"] == "indicator" and choice["h"] == h
+    assert choice["agreement"] == "same_verdict"
     # The ladder's first step, 2h₀, was tried and rejected (the search
     # stops at the first that passes).
     coarse_h = choice["tried"][0][0]
@@ -91,10 +97,10 @@ def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
     assert choice["summary"].startswith("step chosen by indicator agreement between h and h/2")
     reference = _fli(lh, held_out, h / 16)
     assert np.isfinite(reference).all()
-    at_h = agreeing(_fli(lh, held_out, h), reference, T_END)
+    at_h = same_verdict(_fli(lh, held_out, h), reference, T_END)
     assert at_h.mean() >= MAP_QUANTILE, (h, _fli(lh, held_out, h), reference)
     coarse = _fli(lh, held_out, coarse_h)
-    assert agreeing(coarse, reference, T_END).mean() < MAP_QUANTILE, (coarse, reference)
+    assert same_verdict(coarse, reference, T_END).mean() < MAP_QUANTILE, (coarse, reference)
 
 
 def test_no_agreeing_step_is_said_and_warned():

@@ -389,8 +389,10 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
         ``checkpoint``). ``tau`` is then the step h in the fictitious time
-        s, by default the largest h at which the pilot orbits' FLI agrees
-        with that at h/2 (:func:`varint.time_transform_step.agreeing_h`,
+        s, by default the largest h at which the pilot orbits' FLI gives
+        the same verdict (chaotic or not at ln(1000 t)) as at h/2, with
+        their energy errors within ``energy_tol``
+        (:func:`varint.time_transform_step.agreeing_h`,
         ``provenance.tau_choice``; the energy pilot's h, with a warning,
         where none does); the options ``scheme`` (a two-part
         scheme without corrector or processor, default ABA864), ``offset``
@@ -584,8 +586,11 @@ def _cheaper_steps(spec, k, clock):
     guarantee, for a map ``spec`` whose step is not chosen yet: each one's
     largest step at which the pilot orbits' FLI agrees with that at half
     the step (:mod:`varint.step_agreement`: the LH's
-    :func:`~varint.time_transform_step.agreeing_h`, the constant step's
-    :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`),
+    :func:`~varint.time_transform_step.agreeing_h`, its verdicts at the
+    chaotic level; the constant step's
+    :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`,
+    its values within 0.05 dex, a stricter guarantee whose price is an
+    upper bound; both with energy errors within ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,

@@ -26,6 +26,13 @@ pilot's sample (:data:`~varint.stepsize.PILOT_ORBITS`). The map keeps each
 orbit's energy error and its accuracy verdict, which still warns where an
 orbit's error exceeds ``energy_tol``.
 
+The logarithmic-Hamiltonian map asks less (:func:`same_verdict`): its
+FLI at h and h/2 on the same side of the chaotic level, the verdict a map
+read at that level gives, not the value within 0.05 dex
+(``studies/lh_yardstick.py``: on held-out orbits both kept every verdict
+of a tight reference, the verdict rule at half the steps on the
+three-body map).
+
 :func:`agreeing_tau` searches the constant step of the map's stepper by the
 same check (down from :data:`~varint.stepsize.TAU_MAX`), which the defaults of
 :func:`varint.chaos_map` price against the logarithmic Hamiltonian's
@@ -43,7 +50,7 @@ from .state import initial_deviations
 from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
 __all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
-           "summary",
+           "same_verdict", "summary",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
 
 #: Largest difference of log₁₀ max(1, FLI) at a step and at half of it for
@@ -83,6 +90,20 @@ def agreeing(coarse, fine, t, t_end=None):
     return np.isfinite(coarse) & np.isfinite(fine) & (close | both_chaotic)
 
 
+def same_verdict(coarse, fine, t, t_end=None):
+    """Per orbit, whether its FLI at a step (``coarse``) and at half of it
+    (``fine``), both at time ``t``, lie on the same side of
+    :func:`chaotic_level` (t): the verdict a map read at that level gives
+    agrees, whatever the values (the rule of the logarithmic-Hamiltonian
+    map, :func:`varint.time_transform_step.agreeing_h`; ``t_end`` is not
+    used: a verdict, unlike a value, is not tightened for a longer map).
+    NaN (a stopped orbit) agrees with nothing."""
+    coarse, fine = np.asarray(coarse, dtype=float), np.asarray(fine, dtype=float)
+    level = chaotic_level(t)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(coarse) & np.isfinite(fine) & ((coarse > level) == (fine > level))
+
+
 def passes(agree, errors, quantile, ceiling):
     """Whether a step passes: at least a ``quantile`` share of ``agree``
     and the ``quantile`` of the energy ``errors`` within ``ceiling``."""
@@ -106,10 +127,12 @@ def summary(n_agree, n, errors_max, step_name):
             f"{n_agree}/{n} pilot orbits; energy errors up to {errors_max:.2g}")
 
 
-def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=math.inf):
+def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=math.inf,
+            agree=None):
     """Down a ladder of steps, the first that passes (:func:`passes`): the
     pilot's values at step(j) compared with those at step(j + 1) = step(j)/2
-    (:func:`agreeing`), for j in ``levels``.
+    by ``agree`` (:func:`agreeing` unless given, or :func:`same_verdict`),
+    for j in ``levels``.
 
     ``run(j)`` returns the pilot orbits' (indicator values, energy errors,
     force evaluations per orbit and unit of time) at step(j), memoised by
@@ -125,17 +148,18 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
         (j, orbits agreeing, the largest finite energy error at step(j)),
         None when no step passed.
     """
+    rule = agreeing if agree is None else agree
     tried = []
     for j in levels:
         coarse, errors, rate = run(j)
         if rate > stop_above:
             break
-        agree = agreeing(coarse, run(j + 1)[0], t_pilot, t_end)
-        ok, worst = passes(agree, errors, quantile, ceiling)
-        tried.append([step(j), float(np.mean(agree)), worst])
+        agreed = rule(coarse, run(j + 1)[0], t_pilot, t_end)
+        ok, worst = passes(agreed, errors, quantile, ceiling)
+        tried.append([step(j), float(np.mean(agreed)), worst])
         if ok:
             largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
-            return tried, (j, int(agree.sum()), largest)
+            return tried, (j, int(agreed.sum()), largest)
     return tried, None
 
 

@@ -274,18 +274,24 @@ class LogHamiltonian:
         if isinstance(every, bool) or not isinstance(every, numbers.Real) \
                 or not float(every) > 0.0 or not np.isfinite(every):
             raise ValueError(f"every must be a finite number > 0, got {every!r}")
-        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M)
-        return self._run(X, W, t_end, hs, float(every), C, max_steps)
+        # The energies once for C and p_t (a Python loop over the orbits:
+        # a pilot calls this for every step it tries).
+        E = self.energy(X)
+        C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
+            np.asarray(C, float), M)
+        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E)
 
-    def _run(self, X, W, t_end, hs, every, C, max_steps):
+    def _run(self, X, W, t_end, hs, every, C, max_steps, pt=None):
         """The generated ``outputs`` loop over checked orbits ``X``, vectors
-        ``W`` (M, k, 2N), steps ``hs`` (M,) and constants ``C`` (M,);
-        an orbit that stopped has a NaN FLI."""
+        ``W`` (M, k, 2N), steps ``hs`` (M,), constants ``C`` (M,) and
+        p_t = −H (M,; from ``X`` if None); an orbit that stopped has a NaN
+        FLI."""
         M = len(X)
         fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
-        self.outputs_kernel(X, W, -self.energy(X), np.ascontiguousarray(C, dtype=float), hs,
+        pt = -self.energy(X) if pt is None else pt
+        self.outputs_kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                             t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                             status, counts, x_end, t, x_worst, t_worst)
         fli[status != 0] = np.nan   # nothing computed is passed off as a value
