@@ -333,8 +333,9 @@ def _expression(node, counts, times):
         if isinstance(node.op, ast.Pow):
             e = _constant(node.right)
             # An integer power is multiplications (LLVM's powi: x**(-2) is
-            # 1/(x·x)), another one a call of pow (x**(3/2) in the TM
-            # steppers' derivatives).
+            # 1/(x·x)), another one a call of pow (a user's x**y; the
+            # steppers print half-integer powers as products and a square
+            # root, varint.codegen.printer).
             if e is not None and float(e).is_integer():
                 counts["mul"] += times * max(int(abs(e)) - 1, 0)
                 if e < 0:
