@@ -18,6 +18,7 @@ from varint.codegen.lh import Flow, lh_source
 from varint.codegen.printer import StepperPrinter
 from varint.codegen.stepper import Plan, generated_source
 from varint.kernels.checks import HUGE_Q2
+from varint import paper_orbit
 from varint.models import CR3BP, HenonHeiles, ThreeDof
 from varint.models.symbolic import KernelPrinter
 from varint.schemes import DRIFT, get_scheme, stage_arrays
@@ -67,11 +68,13 @@ def test_the_printed_steppers_have_no_half_integer_power():
     assert HALF_POWER.search(KernelPrinter().doprint(V.diff(x).diff(y)))
 
 
-@pytest.mark.parametrize("model", [HenonHeiles(), ThreeDof()], ids=["HH", "ThreeDof"])
+@pytest.mark.parametrize("model", [HenonHeiles(), ThreeDof(), paper_orbit("R3")[0]],
+                         ids=["HH", "ThreeDof", "FPU"])
 def test_a_model_without_half_integer_powers_prints_as_before(model):
     """Polynomial potentials (and ThreeDof's √2, √3 constants) are printed
     character for character as by the model kernels' printer: their
-    generated steppers are unchanged, bit for bit."""
+    generated steppers are unchanged, bit for bit (the stored fingerprints'
+    generated-stepper models)."""
     E = _expressions(model)
     old, new = KernelPrinter(), StepperPrinter()
     exprs = [*E.g, *E.H.values(), *E.gc, *E.HC.values()]
