@@ -67,7 +67,10 @@ CALLS = {"sqrt": "sqrt", "fma": "fma", "log": "log", "vlog": "log", "vlog_called
 #: priced the emitted lanes' step 3–6 times too cheap on Hénon–Heiles and
 #: the cored potentials, and 1.3 times too dear on the three-body problem
 #: (part "track": predicted LH/constant ratio 20, 11, 0.54 against 7.6,
-#: 3.1–3.4, 0.80 measured), where this table gives 3.1, 2.4, 0.73.
+#: 3.1–3.4, 0.80 measured), where this table gives 3.1, 2.4, 0.73. (The
+#: three-body figures are of a constant step that still called ``pow`` 84
+#: times; with its half-integer powers as products and square roots
+#: (:mod:`varint.codegen.printer`) this table predicts 2.15.)
 WEIGHTS: Mapping[str, float] = {
     "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
     "sin": 18.0, "cos": 23.0, "pow": 61.0, "compare": 0.0, "memory": 0.0}
@@ -333,8 +336,9 @@ def _expression(node, counts, times):
         if isinstance(node.op, ast.Pow):
             e = _constant(node.right)
             # An integer power is multiplications (LLVM's powi: x**(-2) is
-            # 1/(x·x)), another one a call of pow (x**(3/2) in the TM
-            # steppers' derivatives).
+            # 1/(x·x)), another one a call of pow (a user's x**y; the
+            # steppers print half-integer powers as products and a square
+            # root, varint.codegen.printer).
             if e is not None and float(e).is_integer():
                 counts["mul"] += times * max(int(abs(e)) - 1, 0)
                 if e < 0:

@@ -32,8 +32,11 @@ if os.environ.get("VARINT_DOCS_QUICK"):
 model = CR3BP(0.000954)
 grid = model.section_grid(3.05, np.linspace(0.3, 0.85, nx), np.linspace(-0.3, 0.3, ny))
 r = varint.chaos_map(model, grid, "fli", t_end=t_end, progress=False)
-# The defaults decide the step: here the logarithmic time transformation
-# (steps that shorten near the primaries) when it is the cheaper stepper.
+# The defaults decide the step and the stepper, whichever is priced cheaper
+# from its compiled code: the logarithmic time transformation (steps that
+# shorten near the primaries) or constant steps of SRKN14a (on the quick
+# map of studies/map_steps.py, constant steps since their r⁻³ and r⁻⁵ are
+# written with square roots instead of pow).
 opts = r.provenance.method_options
 step = (f"fictitious step h = {opts['h']:.3g} ({opts['time_transform']} time transformation)"
         if opts.get("time_transform") else f"τ = {r.provenance.tau:.3g}")

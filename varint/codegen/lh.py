@@ -21,9 +21,10 @@ members change), the flows as :func:`~varint.flows.split.planar_flow` and
 :func:`~varint.flows.split.oscillator` compute them, the tangent sums with
 the same initial values — with one exception: a half-integer power
 b^(p/2), |p| ≥ 3 (the r⁻³ and r⁻⁵ of point masses), is written as
-products of b and √b (:class:`_Printer`), a square root and a few
-multiplications instead of a call of ``pow`` (which costs several times
-more and took most of a three-body step); its value differs from
+products of b and √b, a square root and a few multiplications instead of
+a call of ``pow`` (which costs several times more and took most of a
+three-body step), as in every generated stepper
+(:class:`~varint.codegen.printer.StepperPrinter`); its value differs from
 ``pow``'s by a few units in the last place. So the emitted stepper gives
 the generic loop's bits on a model without such powers (the cored
 logarithmic potential: checked on its FLI map), and agrees with it to
@@ -61,28 +62,6 @@ _NONFINITE = int(Status.ORBIT_NONFINITE)
 _GRAD = int(Status.GRADIENT_NONFINITE)
 
 
-def _printer():
-    """The printer of the emitted expressions (:class:`_Printer`), made
-    when a module is emitted: SymPy is imported only then."""
-    from ..models.symbolic import KernelPrinter
-
-    class _Printer(KernelPrinter):
-        """:class:`~varint.models.symbolic.KernelPrinter`, with b^(p/2),
-        |p| ≥ 3 odd, as ``b * … * math.sqrt(b)`` (and its reciprocal for
-        p < 0) instead of ``b**(p/2)``, a call of ``pow`` (module
-        docstring)."""
-
-        def _print_Pow(self, expr, rational=False):
-            e = expr.exp
-            if not (e.is_Rational and e.q == 2 and abs(e.p) >= 3):
-                return super()._print_Pow(expr, rational=rational)
-            base = f"({self._print(expr.base)})"
-            product = " * ".join([base] * ((abs(e.p) - 1) // 2) + [f"math.sqrt{base}"])
-            return f"({product})" if e.p > 0 else f"(1.0 / ({product}))"
-
-    return _Printer()
-
-
 class Flow:
     """A's exact flow as the emitter needs it: ``kind`` "free" with the
     inverse masses ``minv`` (A = ½pᵀM⁻¹p), or "planar" with the parameters
@@ -101,12 +80,13 @@ class Flow:
 def _generator_id():
     """A hash of what a module's source is made by besides the model: this
     emitter, the specification module whose constants it writes in, the
-    printer (``varint.models.symbolic``) and SymPy, whose CSE and printing
-    write the expressions; a change of any names new modules."""
+    printers (:mod:`varint.codegen.printer` and ``varint.models.symbolic``)
+    and SymPy, whose CSE and printing write the expressions; a change of
+    any names new modules."""
     package = Path(__file__).resolve().parent.parent
     digest = hashlib.sha256(importlib.metadata.version("sympy").encode())
-    for path in (Path(__file__), package / "kernels" / "time_transform.py",
-                 package / "models" / "symbolic.py"):
+    for path in (Path(__file__), Path(__file__).with_name("printer.py"),
+                 package / "kernels" / "time_transform.py", package / "models" / "symbolic.py"):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
@@ -129,6 +109,8 @@ def lh_source(A, V, q, p, flow, kinds):
     """
     import sympy as sp  # type: ignore[import-untyped]  # emitting only
 
+    from .printer import StepperPrinter
+
     n = len(q)
     xs = (*q, *p)
     names = {s: sp.Symbol(f"x_{i}") for i, s in enumerate(xs)}
@@ -137,7 +119,7 @@ def lh_source(A, V, q, p, flow, kinds):
     HV = [sp.diff(gV[i], q[j]).xreplace(names) for i in range(n) for j in range(n)]
     gV = [e.xreplace(names) for e in gV]
     A, V = A.xreplace(names), V.xreplace(names)
-    em = _Emitter(_printer(), n, flow)
+    em = _Emitter(StepperPrinter(), n, flow)
     # The groups of common subexpressions (module docstring: the same bits).
     em.kinetic_group = ([f"gA_{i}" for i in range(2 * n)] + ["a"], [*gA, A])
     em.potential_group = ([f"gV_{i}" for i in range(n)] + ["v"], [*gV, V])

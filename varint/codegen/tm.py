@@ -3,7 +3,8 @@ out as straight-line code for one model (Skokos & Gerlach 2010, Sect. V.C).
 
 Each kick evaluates ∇V, D²V and, for a corrector, ∇C and D²C as
 straight-line expressions of q with common subexpressions eliminated
-(:mod:`varint.codegen.expressions`), and applies the orbit kick and the
+(:mod:`varint.codegen.expressions`; half-integer powers as products and a
+square root, :mod:`varint.codegen.printer`), and applies the orbit kick and the
 tangent kick (eqs. 47, 53) in one go; drifts and kicks are chains of fused
 multiply–adds (:mod:`varint.kernels.fma`), which halves the latency of a
 step. Compensated (``compensated=True``), every drift and kick of the orbit
@@ -76,9 +77,9 @@ class TMBody:
         self.b = [[f"b{i}_{j}" for j in range(k)] for i in range(n)]
         # SymPy's printers are imported only when a stepper's source is
         # emitted: a process that loads cached steppers never needs them.
-        from ..models.symbolic import KernelPrinter
+        from .printer import StepperPrinter
 
-        self.printer = KernelPrinter()
+        self.printer = StepperPrinter()
         self.reuse_first = self.kinds[0] != DRIFT and self.kinds[-1] != DRIFT
 
     # -- names --------------------------------------------------------------------------

@@ -17,7 +17,8 @@ in the CPU's order:
   thread ``m`` reads and writes column ``m``, ``X[i, m]``, so a warp's 32
   loads of one quantity are one coalesced transaction;
 * drifts and kicks keep their explicit fused multiply–adds, integer powers
-  are written as the products numba's CPU target computes, and the
+  are written as the products numba's CPU target computes (half-integer
+  ones as the CPU steppers print them, :mod:`varint.codegen.printer`), and the
   schedule's :func:`~varint.kernels.interval.next_interval` is written out
   (a kernel cannot call the CPU's compiled function);
 * an orbit that fails (escape, non-finite state, a singular derivative,
@@ -53,13 +54,13 @@ import sympy as sp  # type: ignore[import-untyped]
 
 from ..codegen.expressions import ensure_form, expressions, model_key
 from ..codegen.interval import Interval, OneOrbit
+from ..codegen.printer import StepperPrinter
 from ..codegen.stepper import Plan, _accumulator_id, _generator_id
 from ..codegen.tm import TMBody
 from ..kernels.checks import CHECK_EVERY, HUGE_Q2
 from ..kernels.interval import (EARLY, SPARSE_COND_LOG, SPARSE_MAX_STEPS, SPARSE_NORM_LOG,
                                 SPARSE_QR_MAX_STEPS)
 from ..kernels.logarithm import SOURCE as LOG_SOURCE
-from ..models.symbolic import KernelPrinter
 from ..protocol import TANGENT_LIMIT, Renorm
 from . import device
 
@@ -92,8 +93,9 @@ def _power(base, n):
     return f"({result})"
 
 
-class _Printer(KernelPrinter):
-    """The CPU kernels' printer, with integer powers written as products."""
+class _Printer(StepperPrinter):
+    """The CPU steppers' printer (half-integer powers as products and a
+    square root), with integer powers written as products too."""
 
     def _print_Pow(self, expr, rational=False):
         if expr.exp.is_Integer and 2 <= int(expr.exp) <= 64:
