@@ -338,3 +338,30 @@ def test_a_users_own_model_class_is_asked_for_its_symbolic_form_every_process(mo
     asked = []
     monkeypatch.setattr(X, "_facts_now", lambda model: asked.append(model) or (False, None))
     assert not X.symbolic_fits(Stiffer(), 1) and len(asked) == 1
+
+
+@pytest.mark.parametrize("name", ["megno", "fli"])
+def test_a_rules_logarithm_is_called_by_one_orbit_and_inlined_in_the_lanes(name):
+    """One orbit calls the logarithm of MEGNO's and FLI's rules
+    (``vlog_called``: numba inlining its IR cost compile time off the hot
+    path), the lanes inline it (``vlog``: their loop vectorises);
+    ``test_inline_accumulators_lanes_orbit_chunks_and_generic`` checks that
+    both give the same bits."""
+    import re
+
+    from varint.indicators.megno import FLI_ACCUMULATOR, MEGNO_ACCUMULATOR
+    from varint.schemes import DRIFT, get_scheme, stage_arrays
+
+    acc = {"megno": MEGNO_ACCUMULATOR, "fli": FLI_ACCUMULATOR}[name]
+    model = HenonHeiles()
+    kinds, _, hc = stage_arrays(get_scheme("SBAB2C"), 0.05)
+    corrected = (hc != 0.0) & (kinds != DRIFT)
+    plan = G.Plan(tuple(int(v) for v in kinds), tuple(bool(c) for c in corrected), 1,
+                  G._accumulator_id(acc))
+    key = X.model_key(model)
+    X.ensure_form(model, key)
+    source = G.generated_source(X.expressions(key), plan, acc)
+    orbit = source[source.index("def orbit("):source.index("def batch_serial(")]
+    lanes = source[source.index("def lanes("):source.index("def blocks_serial(")]
+    assert re.search(r"\bvlog_called\(", orbit) and not re.search(r"\bvlog\(", orbit)
+    assert re.search(r"\bvlog\(", lanes)

@@ -59,12 +59,14 @@ class _Rename(ast.NodeTransformer):
     """Names of a rule replaced by expressions (``names``), ``dot(a, b)``
     by ``dot(a, b)`` of the emitting side; an unknown name is refused."""
 
-    def __init__(self, names, dot, known):
-        self.names, self.dot, self.known = names, dot, known
+    def __init__(self, names, dot, known, log="vlog"):
+        self.names, self.dot, self.known, self.log = names, dot, known, log
 
     def visit_Name(self, node):
         if node.id in self.names:
             return ast.copy_location(ast.parse(self.names[node.id], mode="eval").body, node)
+        if node.id == "vlog":
+            return ast.copy_location(ast.Name(id=self.log, ctx=node.ctx), node)
         if node.id not in self.known:
             raise ValueError(f"accumulator rule: unknown name {node.id!r} (a rule reads its "
                              f"columns, its temporaries, {', '.join(_INPUTS)}, dot(), and "
@@ -75,7 +77,7 @@ class _Rename(ast.NodeTransformer):
         # A rule's math.log is varint's logarithm, the same on every target
         # (varint.kernels.logarithm).
         if isinstance(node.value, ast.Name) and node.value.id == "math" and node.attr == "log":
-            return ast.copy_location(ast.Name(id="vlog", ctx=ast.Load()), node)
+            return ast.copy_location(ast.Name(id=self.log, ctx=ast.Load()), node)
         self.generic_visit(node)
         return node
 
@@ -91,13 +93,14 @@ class _Rename(ast.NodeTransformer):
         return node
 
 
-def _rewrite(stmt, names, dot, known):
-    """``target, expression`` source of one statement, names rewritten."""
-    value = _Rename(names, dot, known).visit(ast.fix_missing_locations(stmt.value))
+def _rewrite(stmt, names, dot, known, log="vlog"):
+    """``target, expression`` source of one statement, names rewritten
+    (the logarithm as ``log``: :func:`emit_rule`)."""
+    value = _Rename(names, dot, known, log).visit(ast.fix_missing_locations(stmt.value))
     return ast.unparse(value)
 
 
-def emit_rule(src, rule, columns, names, dot, prefix, guard=None):
+def emit_rule(src, rule, columns, names, dot, prefix, guard=None, log="vlog"):
     """Write ``rule.step`` for one vector into ``src``.
 
     Parameters
@@ -116,6 +119,14 @@ def emit_rule(src, rule, columns, names, dot, prefix, guard=None):
     guard : str, optional
         A condition: the live columns take the new values only where it
         holds (SIMD lanes: the lanes whose interval ended well).
+    log : str, default "vlog"
+        The name the rule's logarithm (``math.log``, ``vlog``) is written
+        as: :func:`~varint.kernels.logarithm.vlog` (numba inlines its IR at
+        the call: the SIMD lanes vectorise it) or ``vlog_called`` (the same
+        algorithm called, the same bits: one orbit, where the rule runs
+        only at a renormalisation and numba's inlining of the logarithm's
+        IR at each use is compile time off the hot path, as for the
+        sparse schedule's logarithm; ``studies/stepper_compile_parts.py``).
     """
     live = tuple(rule.live)
     stmts = _statements(rule.step, "step")
@@ -137,7 +148,7 @@ def emit_rule(src, rule, columns, names, dot, prefix, guard=None):
         if target in columns and target not in live:
             raise ValueError(f"accumulator rule: a step statement assigns column {target!r}, "
                              "which is not live (readout gives it)")
-        value = _rewrite(stmt, env, dot, known)
+        value = _rewrite(stmt, env, dot, known, log)
         if target not in current:
             env[target] = f"{prefix}{target}"
         src(f"{env[target]} = {value}")
@@ -146,15 +157,16 @@ def emit_rule(src, rule, columns, names, dot, prefix, guard=None):
             src(f"{names[col]} = {prefix}new_{col} if {guard} else {names[col]}")
 
 
-def emit_readout(src, rule, columns, names, prefix):
-    """Write ``rule.readout`` for one vector; returns the source of every
-    column's value (the live ones as ``names`` gives them)."""
+def emit_readout(src, rule, columns, names, prefix, log="vlog"):
+    """Write ``rule.readout`` for one vector, the logarithm written as
+    ``log`` (:func:`emit_rule`); returns the source of every column's value
+    (the live ones as ``names`` gives them)."""
     env = {**{k: names[k] for k in ("am", "ae") if k in names},
            **{col: names[col] for col in rule.live}}
     out = {col: names[col] for col in rule.live}
     for stmt in _statements(rule.readout, "readout"):
         target = stmt.targets[0].id
-        value = _rewrite(stmt, env, None, set(_GLOBALS))
+        value = _rewrite(stmt, env, None, set(_GLOBALS), log)
         env[target] = f"{prefix}{target}"
         src(f"{env[target]} = {value}")
         if target in columns:

@@ -92,6 +92,12 @@ class OneOrbit:
 
     carries = False
     counts = True
+    #: The logarithm of an accumulator's rule: called, not inlined — the
+    #: rule runs only where the vectors are renormalised, where numba's
+    #: inlining of the logarithm's IR at each use is compile time for
+    #: nothing (the end of the step is over half of a generated MEGNO
+    #: kernel's compile, studies/stepper_compile_parts.py); the same bits.
+    log = "vlog_called"
 
     def fail(self, src, condition, value):
         with src.block(f"if {condition}:"):
@@ -172,6 +178,9 @@ class Lanes:
 
     carries = True
     counts = False
+    #: The logarithm of an accumulator's rule: inlined, so that the loop
+    #: over the lanes vectorises.
+    log = "vlog"
 
     def __init__(self, iv):
         self.rows = iv.lane_rows()
@@ -443,7 +452,8 @@ class Interval:
         for j in range(self.k):
             names = {"r": f"r{j}", "t": "t", "am": f"am{j}", "ae": f"ae{j}",
                      **{c: self.live_local(j, c) for c in self.live}}
-            emit_rule(src, self.rule, self.columns, names, self.dot(j, flow), f"ac{j}_", guard)
+            emit_rule(src, self.rule, self.columns, names, self.dot(j, flow), f"ac{j}_", guard,
+                      t.log)
 
     def accumulate_call(self):
         """An accumulator without a rule: its compiled update called (with
@@ -526,7 +536,7 @@ class Interval:
         v = self.t.value
         names = {"am": v(f"am{j}"), "ae": v(f"ae{j}"),
                  **{c: v(self.live_local(j, c)) for c in self.live}}
-        values = emit_readout(self.src, self.rule, self.columns, names, f"ro{j}_")
+        values = emit_readout(self.src, self.rule, self.columns, names, f"ro{j}_", self.t.log)
         for c, col in enumerate(self.columns):
             self.src(f"{target(j, c)} = {values[col]}")
 
