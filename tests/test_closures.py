@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from numba import njit
 from numba.core import caching
 
@@ -64,6 +65,44 @@ def test_a_second_process_runs_a_lattice_without_compiling():
             "m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
             "r = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
             "print(json.dumps([compiling.compile_seconds(), r.exponents.tobytes().hex()]))")
+    _, first = json.loads(fresh(code))
+    compiled, second = json.loads(fresh(code))
+    assert compiled == 0.0
+    assert second == first
+
+
+def test_a_generated_modules_function_is_named_by_its_module(tmp_path, monkeypatch):
+    """A function of a generated module read from its verified file is
+    named by the module (a hash of its source's inputs) and its code; one
+    compiled in memory, named for this process only, is not."""
+    from varint import codecache
+    from varint.kernels.closures import Unnamed, _describe
+
+    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path))
+
+    def source():
+        return "from numba import njit\n@njit\ndef f(x):\n    return 2 * x\n"
+
+    on_disk = codecache.load_module("varint_test_named_0123", "kernels", source)
+    in_memory = codecache.load_module("varint_test_named_4567", "kernels", source,
+                                      on_disk=False)
+    if not codecache.named_by_file(on_disk.f.py_func):
+        pytest.skip("no usable cache directory here")
+    description = _describe(on_disk.f)
+    assert "varint_test_named_0123" in repr(description)
+    assert not codecache.named_by_file(in_memory.f.py_func)
+    with pytest.raises(Unnamed):
+        _describe(lambda x: x)                                  # a function of the user's
+
+
+def test_a_second_process_runs_tdh_without_compiling():
+    """The TDH kernels close over the generated stepper of their orbit (a
+    module in the cache directory): compiled by one process, they are
+    loaded by the next, which compiles nothing and gets the same bits."""
+    code = ("import json, varint; from varint import compiling; "
+            "m, x = varint.paper_orbit('R1'); "
+            "r = varint.megno(m, x, t_end=1.0, tau=0.05, method='tdhes', progress=False); "
+            "print(json.dumps([compiling.compile_seconds(), r.megno.tobytes().hex()]))")
     _, first = json.loads(fresh(code))
     compiled, second = json.loads(fresh(code))
     assert compiled == 0.0

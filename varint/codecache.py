@@ -64,12 +64,18 @@ from .files import atomic_write
 
 __all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
            "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
-           "CacheDirWarning", "unique_symbol_names"]
+           "CacheDirWarning", "unique_symbol_names", "named_by_file"]
 
 #: One generated module is loaded at a time: threads of one process (a Dask
 #: worker's) ask for the same kernels at once, and CPython 3.11's AST
 #: conversion is not thread-safe (two such threads raised SystemError).
 _LOAD_LOCK = threading.RLock()
+
+#: The file of each generated module this process executed from a verified
+#: cache file, by module name: a module whose name names everything its
+#: source is made from (:func:`load_module`), so a kernel compiled from its
+#: functions may be keyed by that name (:func:`named_by_file`).
+_FROM_FILE: dict[str, str] = {}
 
 #: First bytes of every signed file; the hex HMAC and a newline follow.
 HEADER = b"# varint-signed "
@@ -251,7 +257,17 @@ def _execute(name, data, path, extra_globals, key=None):
         raise
     if path is not None:
         _sign_numba_caches(module, key)
+        _FROM_FILE[name] = str(path)
     return module
+
+
+def named_by_file(function):
+    """Whether ``function`` is code of a generated module this process
+    executed from its verified file: its module's name then names its
+    source (a hash of what the source is made from, :func:`load_module`).
+    Modules compiled in memory (named for this process only) are not."""
+    path = _FROM_FILE.get(getattr(function, "__module__", None))
+    return path is not None and function.__code__.co_filename == path
 
 
 def _without_disk_cache(tree):

@@ -14,6 +14,10 @@ that names what the kernel is compiled from, the same in every process:
 * every function it closes over, recursively (the step body's hooks, the
   model's kernels they close over, numba's options of each), by its
   module, qualified name, bytecode, constants and names;
+* a function of a generated module read from its verified cache file (a
+  generated stepper, a :func:`~varint.models.symbolic.from_potential`
+  model's kernels) by the module's name — a hash of everything its source
+  is made from — and its code;
 * the plain values it closes over (flags, sizes, strings) by value;
 * all of varint's source (:func:`varint.identity.source_digest`): the
   helpers a function calls through its globals are compiled in too, and
@@ -143,11 +147,20 @@ def _class_name(cls):
 
 
 def _describe_function(function, depth):
-    """A function of varint's sources (its globals are in the source digest)
-    or of generated code without a file (an accumulator's compiled rule:
+    """A function of varint's sources (its globals are in the source digest),
+    of a generated module read from its file (named by its module), or of
+    generated code without a file (an accumulator's compiled rule:
     then every global it names, described too): its code and, recursively,
     its cells."""
     code = function.__code__
+    if codecache.named_by_file(function):
+        # A generated module read from its verified file: its name is a hash
+        # of everything its source is made from, so it names the helpers
+        # the function calls through the module's globals too.
+        return ("generated", function.__module__, function.__qualname__,
+                _describe_code(code, depth + 1),
+                tuple(_describe(c.cell_contents, depth + 1) for c in function.__closure__ or ()),
+                _describe(function.__defaults__ or (), depth + 1))
     if code.co_filename.startswith("<"):
         scope = function.__globals__
         names = tuple((name, _global(scope[name], depth + 1)) for name in code.co_names
