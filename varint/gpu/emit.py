@@ -118,6 +118,10 @@ class Thread(OneOrbit):
     """
 
     counts = False
+    #: The logarithm of an accumulator's rule: the kernel's own ``vlog``
+    #: (the CPU's algorithm written into the kernel, above); a device
+    #: kernel has no ``vlog_called``.
+    log = "vlog"
 
     def snap(self, array, *index):
         return f"{array}[jo, {', '.join(map(str, index))}, m]"
