@@ -128,10 +128,10 @@ def summary(n_agree, n, errors_max, step_name):
 
 
 def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=math.inf,
-            agree=None):
+            agree=agreeing):
     """Down a ladder of steps, the first that passes (:func:`passes`): the
     pilot's values at step(j) compared with those at step(j + 1) = step(j)/2
-    by ``agree`` (:func:`agreeing` unless given, or :func:`same_verdict`),
+    by ``agree`` (:func:`agreeing`, or :func:`same_verdict`),
     for j in ``levels``.
 
     ``run(j)`` returns the pilot orbits' (indicator values, energy errors,
@@ -148,13 +148,12 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
         (j, orbits agreeing, the largest finite energy error at step(j)),
         None when no step passed.
     """
-    rule = agreeing if agree is None else agree
     tried = []
     for j in levels:
         coarse, errors, rate = run(j)
         if rate > stop_above:
             break
-        agreed = rule(coarse, run(j + 1)[0], t_pilot, t_end)
+        agreed = agree(coarse, run(j + 1)[0], t_pilot, t_end)
         ok, worst = passes(agreed, errors, quantile, ceiling)
         tried.append([step(j), float(np.mean(agreed)), worst])
         if ok:

@@ -251,9 +251,11 @@ class LogHamiltonian:
         [LH steps, tail steps, gradients] and status (:func:`describe`
         says why an orbit stopped; its FLI is NaN)."""
         X, W0, t_end, h = _checked(X, W0[..., None], t_end, h)
-        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), len(X))
+        E = self.energy(X)
+        C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
+            np.asarray(C, float), len(X))
         run = self._run(X, np.ascontiguousarray(np.swapaxes(W0, 1, 2)), t_end,
-                        np.full(len(X), h), float(every), C, max_steps)
+                        np.full(len(X), h), float(every), C, max_steps, -E)
         return run.fli, run.counts, run.status
 
     def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
@@ -281,16 +283,14 @@ class LogHamiltonian:
             np.asarray(C, float), M)
         return self._run(X, W, t_end, hs, float(every), C, max_steps, -E)
 
-    def _run(self, X, W, t_end, hs, every, C, max_steps, pt=None):
+    def _run(self, X, W, t_end, hs, every, C, max_steps, pt):
         """The generated ``outputs`` loop over checked orbits ``X``, vectors
         ``W`` (M, k, 2N), steps ``hs`` (M,), constants ``C`` (M,) and
-        p_t = −H (M,; from ``X`` if None); an orbit that stopped has a NaN
-        FLI."""
+        p_t = −H (M,); an orbit that stopped has a NaN FLI."""
         M = len(X)
         fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
-        pt = -self.energy(X) if pt is None else pt
         self.outputs_kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                             t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                             status, counts, x_end, t, x_worst, t_worst)
