@@ -152,6 +152,14 @@ SHORT_STAGES = (
     (2, "accuracy warning", "varint.accuracy", "warn"),
 )
 
+#: The labels of :data:`SHORT_STAGES` that only the code of rounds 5 and
+#: before passes (round 6's short call runs from kept buffers, computes the
+#: energy errors and verdict in one compiled pass and warns from there).
+SHORT_STAGES_BEFORE_ROUND6 = frozenset({
+    "stepper from fresh arrays", "reference and energy errors", "accuracy verdict",
+    "provenance", "accuracy warning",
+})
+
 
 def _owner(path):
     """The object a dotted ``module[:attr]`` path names."""

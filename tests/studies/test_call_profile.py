@@ -11,9 +11,11 @@ from studies import call_profile
 
 
 def _original(path, name):
+    """The function a stage names, or None where this code has none (an
+    older tree's stage)."""
     module, _, attr = path.partition(":")
     owner = importlib.import_module(module)
-    return getattr(getattr(owner, attr) if attr else owner, name)
+    return getattr(getattr(owner, attr) if attr else owner, name, None)
 
 
 def test_every_stage_is_reached_nests_in_its_parent_and_is_restored():
@@ -53,10 +55,13 @@ def test_every_stage_of_a_prepared_short_call_is_reached_and_restored():
         run(x0)
     finally:
         restore()
-    assert sorted(spent) == sorted(label for _, label, _, _ in stages)
+    # This code passes every stage but the older code's (which the study
+    # keeps to profile a baseline tree): a renamed stage would be missing.
+    assert sorted(spent) == sorted(label for _, label, _, _ in stages
+                                   if label not in call_profile.SHORT_STAGES_BEFORE_ROUND6)
     for i, (depth, label, _, _) in enumerate(stages):
         for d, child, _, _ in stages[i + 1:]:
             if d <= depth:
                 break
-            assert spent[child] <= spent[label], (child, label)
+            assert spent.get(child, 0.0) <= spent.get(label, 0.0), (child, label)
     assert [_original(path, name) for _, _, path, name in stages] == before
