@@ -55,7 +55,7 @@ from ..kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from ..protocol import Status
 from .source import Source
 
-__all__ = ["lh_source", "lh_name", "Flow"]
+__all__ = ["lh_source", "lh_name", "Flow", "generator_sources"]
 
 _OK = int(Status.OK)
 _NONFINITE = int(Status.ORBIT_NONFINITE)
@@ -76,17 +76,24 @@ class Flow:
         return f"Flow({self.kind!r}, {self.values!r})"
 
 
+def generator_sources():
+    """The files an LH module's source is made of besides the model: this
+    emitter, the specification module whose constants it writes in, the
+    protocol's status codes, the source builder and the printers
+    (:mod:`varint.codegen.printer` and ``varint.models.symbolic``)."""
+    package = Path(__file__).resolve().parent.parent
+    return [Path(__file__), Path(__file__).with_name("printer.py"),
+            Path(__file__).with_name("source.py"), package / "protocol.py",
+            package / "kernels" / "time_transform.py", package / "models" / "symbolic.py"]
+
+
 @lru_cache(maxsize=1)
 def _generator_id():
-    """A hash of what a module's source is made by besides the model: this
-    emitter, the specification module whose constants it writes in, the
-    printers (:mod:`varint.codegen.printer` and ``varint.models.symbolic``)
-    and SymPy, whose CSE and printing write the expressions; a change of
-    any names new modules."""
-    package = Path(__file__).resolve().parent.parent
+    """A hash of :func:`generator_sources` and SymPy's version, whose CSE
+    and printing write the expressions; a change of any names new
+    modules."""
     digest = hashlib.sha256(importlib.metadata.version("sympy").encode())
-    for path in (Path(__file__), Path(__file__).with_name("printer.py"),
-                 package / "kernels" / "time_transform.py", package / "models" / "symbolic.py"):
+    for path in generator_sources():
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 

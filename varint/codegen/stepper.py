@@ -22,6 +22,7 @@ source again.
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import inspect
 import os
 import uuid
@@ -37,7 +38,7 @@ from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
 from .tm import TMBody
 
-__all__ = ["Plan", "generated_source", "symbolic_stepper"]
+__all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper"]
 
 
 @dataclass(frozen=True)
@@ -81,19 +82,30 @@ def generated_source(E, plan, accumulator=None):
     return f"# varint generator {_generator_id()}\n" + source
 
 
+def generator_sources():
+    """The files whose code and constants a generated stepper's source is
+    made of: this layer, the kernels it calls (the fused multiply–add, the
+    logarithm, the sparse schedule, the checks' constants), the protocol's
+    codes, the scheme table's stage codes and the expression printer
+    (``varint.models.symbolic``'s ``KernelPrinter``, which the layer's
+    printer extends)."""
+    from .. import protocol, schemes
+    from ..kernels import checks, fma, interval, logarithm
+    from ..models import symbolic
+
+    layer = sorted(Path(__file__).parent.glob("*.py"))
+    return layer + [Path(m.__file__) for m in (checks, fma, interval, logarithm, protocol,
+                                               schemes, symbolic)]
+
+
 @lru_cache(maxsize=1)
 def _generator_id():
-    """A hash of the modules whose code and constants a generated stepper
-    compiles in: this layer, the kernels it calls (the fused multiply–add,
-    the logarithm, the sparse schedule, the checks' constants) and the
-    protocol's codes."""
-    from .. import protocol
-    from ..kernels import checks, fma, interval, logarithm
-
-    digest = hashlib.sha256()
-    layer = sorted(Path(__file__).parent.glob("*.py"))
-    for path in layer + [Path(m.__file__) for m in (checks, fma, interval, logarithm,
-                                                     protocol)]:
+    """A hash of :func:`generator_sources` and SymPy's version (its
+    differentiation, CSE and printing write the expressions): numba's cache
+    does not follow a changed dependency, so any change names new modules
+    instead of loading a stale one."""
+    digest = hashlib.sha256(importlib.metadata.version("sympy").encode())
+    for path in generator_sources():
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
