@@ -46,7 +46,10 @@ previous path of the same code), and ``round5_before`` (main 7b2b6c8, where
 window; its sixth (the short call's buffers kept per thread, its energy
 errors and verdict compiled, its provenance's fixed part left pickled
 until read): ``round6_before`` (main 5d760dc) and ``round6_after``, the
-prepared path alone, likewise (quick, ``results/quick``).
+prepared path alone, likewise (quick, ``results/quick``); its seventh
+(T compiled with the energy errors where it rounds as NumPy's, the
+errors returned as one array, the load average read once a second):
+``round7_before`` (main a56fbcd) and ``round7_after``, likewise.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general]``

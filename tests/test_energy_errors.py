@@ -1,15 +1,20 @@
 """The compiled energy errors of a prepared run's short call
-(:func:`varint.kernels.energy_errors.energy_errors`) are, bit for bit, the
-general path's: :meth:`varint.accuracy.Reference.errors` of NumPy's T and V
-and the largest errors, their times and the verdict of
-:func:`varint.accuracy.assess`."""
+(:func:`varint.kernels.energy_errors.energy_errors`, and
+:func:`~varint.kernels.energy_errors.state_energy_errors` with T computed
+from the states) are, bit for bit, the general path's:
+:meth:`varint.accuracy.Reference.errors` of NumPy's T and V and the largest
+errors, their times and the verdict of :func:`varint.accuracy.assess`."""
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import varint
 from varint import accuracy
-from varint.kernels.energy_errors import energy_errors
-from varint.models import FPUT, HenonHeiles
+from varint.kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy_errors
+from varint.models import FPUT, HenonHeiles, Model, ThreeDof
+from varint.run import Run
 
 
 def _general(model, x0, x, t, tol):
@@ -22,24 +27,35 @@ def _general(model, x0, x, t, tol):
     return errors, verdict
 
 
-def _compiled(model, x0, x, t, tol):
+def _unpacked(found, finite, m, s, tol):
+    """(errors (m, s), largest, t_worst, accurate, finite) of a kernel's
+    compact result, as the short call reads it."""
+    largest = found[:m]
+    return found[2 * m:].reshape(m, s), largest, found[m:2 * m], largest <= tol, finite
+
+
+def _compiled(model, x0, x, t, tol, from_states=False):
     n = model.n_dof
     both = np.concatenate((x0, x))
     with np.errstate(all="ignore"):
         kinetic, potential = model.kinetic(both[:, n:]), model.potential(both[:, :n])
-    return energy_errors(kinetic, potential, len(x0), t, tol)
+    found = (state_energy_errors(both, potential, model.inverse_mass, len(x0), t)
+             if from_states else energy_errors(kinetic, potential, len(x0), t))
+    return _unpacked(*found, len(x0), len(t), tol)
 
 
-@pytest.mark.parametrize("model", [HenonHeiles(), FPUT(8, beta=1.0)], ids=["HH", "FPUT"])
+@pytest.mark.parametrize("model, from_states", [
+    (HenonHeiles(), False), (HenonHeiles(), True), (ThreeDof(), True),
+    (FPUT(8, beta=1.0), False)], ids=["HH", "HH-T-compiled", "ThreeDof-T-compiled", "FPUT"])
 @pytest.mark.parametrize("m, s", [(1, 1), (1, 5), (3, 4)])
-def test_the_errors_and_the_verdict_are_the_general_paths(model, m, s):
+def test_the_errors_and_the_verdict_are_the_general_paths(model, from_states, m, s):
     rng = np.random.default_rng(5)
     x0 = 0.2 * rng.standard_normal((m, model.dim))
     x = np.tile(x0, (s, 1)) + 1e-4 * rng.standard_normal((s * m, model.dim))
     t = 0.1 * np.arange(1, s + 1)
     tol = float(np.median(_general(model, x0, x, t, 1.0)[0]))   # some orbits above, some not
     errors, verdict = _general(model, x0, x, t, tol)
-    got, largest, t_worst, accurate, finite = _compiled(model, x0, x, t, tol)
+    got, largest, t_worst, accurate, finite = _compiled(model, x0, x, t, tol, from_states)
     assert finite
     np.testing.assert_array_equal(got, errors, strict=True)
     np.testing.assert_array_equal(largest, verdict.energy_error, strict=True)
@@ -67,6 +83,80 @@ def test_an_error_that_is_not_finite_is_reported(bad):
     model = HenonHeiles()
     x0 = np.array([[0.1, 0.0, 0.0, 0.2]])
     x = np.array([[0.1, 0.0, 0.0, 0.2], [bad, 0.0, 0.0, 0.2]])
-    assert not _compiled(model, x0, x, np.array([1.0, 2.0]), 1e-3)[-1]
-    # At the start: its H is not finite.
-    assert not _compiled(model, x[1:], x0, np.array([1.0]), 1e-3)[-1]
+    for from_states in (False, True):
+        assert not _compiled(model, x0, x, np.array([1.0, 2.0]), 1e-3, from_states)[-1]
+        # At the start: its H is not finite.
+        assert not _compiled(model, x[1:], x0, np.array([1.0]), 1e-3, from_states)[-1]
+    # T alone overflowing (p ~ 1e200): not finite either, as NumPy's T.
+    x[1] = [0.1, 0.0, 1e200, 0.2]
+    assert not _compiled(model, x0, x, np.array([1.0, 2.0]), 1e-3, True)[-1]
+
+
+def _numpy_kinetic(inverse_mass, p):
+    """The base model's own T (:meth:`varint.models.base.Model.kinetic`)."""
+    return Model.kinetic(SimpleNamespace(inverse_mass=inverse_mass), p)
+
+
+@pytest.mark.parametrize("n", range(1, SEQUENTIAL_TERMS))
+def test_t_from_the_states_is_numpys_below_eight_terms(n):
+    # Momenta over 1e-150..1e150 (products that underflow to 0 or overflow
+    # to inf among them), zeros of both signs, masses far from 1: the
+    # errors from the compiled T are those from NumPy's T, bit for bit.
+    rng = np.random.default_rng(n)
+    rows, m = 400, 4
+    x = rng.standard_normal((rows, 2 * n)) * 10.0 ** rng.integers(-150, 151, (rows, 2 * n))
+    x[rng.random((rows, 2 * n)) < 0.1] = 0.0
+    x[rng.random((rows, 2 * n)) < 0.1] = -0.0
+    inverse_mass = rng.uniform(1e-3, 1e3, n)
+    potential = rng.standard_normal(rows)
+    t = np.arange(1.0, rows // m)
+    kinetic = _numpy_kinetic(inverse_mass, x[:, n:])
+    with np.errstate(all="ignore"):
+        want, want_finite = energy_errors(kinetic, potential, m, t)
+    got, finite = state_energy_errors(x, potential, inverse_mass, m, t)
+    assert finite == want_finite
+    np.testing.assert_array_equal(got, want, strict=True)
+    # Finite everywhere on moderate momenta, and still the same bits.
+    x[:, n:] = rng.standard_normal((rows, n))
+    want, want_finite = energy_errors(_numpy_kinetic(inverse_mass, x[:, n:]), potential, m, t)
+    got, finite = state_energy_errors(x, potential, inverse_mass, m, t)
+    assert finite and want_finite
+    np.testing.assert_array_equal(got, want, strict=True)
+
+
+def test_from_eight_terms_numpy_sums_in_another_order():
+    # Why the short call keeps NumPy's T from 8 degrees of freedom on: its
+    # pairwise sum rounds differently from the sequential one.
+    rng = np.random.default_rng(8)
+    n = SEQUENTIAL_TERMS
+    p = rng.standard_normal((2000, n)) * 10.0 ** rng.integers(-3, 4, (2000, n))
+    terms = np.ones(n) * p * p
+    sequential = np.zeros(len(p))
+    for j in range(n):
+        sequential += terms[:, j]
+    assert np.count_nonzero(0.5 * sequential != _numpy_kinetic(np.ones(n), p)) > 0
+
+
+@pytest.mark.parametrize("model, compiled_t", [
+    (ThreeDof(), True), (FPUT(8, beta=1.0), False)], ids=["ThreeDof", "FPUT-8"])
+def test_a_prepared_short_call_compiles_t_only_below_eight_terms(model, compiled_t,
+                                                                 monkeypatch):
+    # The short call takes T from the states below 8 degrees of freedom and
+    # the model's NumPy T from 8 on; either way its energy errors and verdict
+    # are the one-shot call's, bit for bit.
+    general = []
+    with_orbits = Run.with_orbits
+    monkeypatch.setattr(Run, "with_orbits",
+                        lambda self, *a: general.append(a) or with_orbits(self, *a))
+    rng = np.random.default_rng(11)
+    states = 0.05 * rng.standard_normal((3, model.dim))
+    run = varint.prepare(model, "integrate", 0.3, tau=0.1, t_out=3)
+    run(states[0])
+    assert run._short is not None and (run._short.state_kernel is not None) == compiled_t
+    for x0 in states[1:]:
+        got, alone = run(x0), varint.integrate(model, x0, 0.3, tau=0.1, t_out=3)
+        np.testing.assert_array_equal(got.energy_error, alone.energy_error, strict=True)
+        assert got.accuracy.energy_error == alone.accuracy.energy_error
+        assert got.accuracy.t_worst == alone.accuracy.t_worst
+        assert got.accuracy.accurate == alone.accuracy.accurate
+    assert not general      # every call after the first was a short one

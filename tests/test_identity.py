@@ -90,6 +90,30 @@ def test_the_machine_is_recorded_with_its_load_at_the_start(result):
     assert m["system"]
 
 
+def test_the_load_is_read_again_once_a_second_has_passed(monkeypatch):
+    # Linux recomputes the load average every 5 s: a reading under a second
+    # old serves the next runs (a prepared run's short calls), an older one
+    # does not, and each machine() is a new dict.
+    reads = []
+
+    def load():
+        reads.append(None)
+        return (0.125 * len(reads), 0.0, 0.0)
+
+    monkeypatch.setattr(identity.os, "getloadavg", load)
+    monkeypatch.setattr(identity, "_LAST_LOAD", (float("-inf"), None))
+    first, second = identity.machine(), identity.machine()
+    assert len(reads) == 1 and first == second and first is not second
+    assert first["load"] == round(0.125, 2)
+    # A reading almost a second old still serves; one a second old does not.
+    read_at = identity.time.monotonic() - 0.9 * identity.LOAD_FRESH_SECONDS
+    monkeypatch.setattr(identity, "_LAST_LOAD", (read_at, 0.5))
+    assert identity.machine()["load"] == 0.5 and len(reads) == 1
+    read_at = identity.time.monotonic() - identity.LOAD_FRESH_SECONDS
+    monkeypatch.setattr(identity, "_LAST_LOAD", (read_at, 0.5))
+    assert identity.machine()["load"] == round(0.25, 2) and len(reads) == 2
+
+
 def test_a_checkpoint_from_other_code_is_refused(tmp_path):
     """Bitwise resumption holds only for the same code: the checkpoint
     records the digest and a run of other sources does not resume it."""

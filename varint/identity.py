@@ -25,6 +25,7 @@ import hashlib
 import os
 import platform
 import subprocess
+import time
 from pathlib import Path
 
 __all__ = ["source_digest", "code_identity", "machine", "cpu_model"]
@@ -118,14 +119,37 @@ def machine():
     may use, "load": 1-minute load average (None where the system has
     none), "system": OS and architecture}``.
 
-    The load is that of the moment of the call: call it when a run starts.
+    The load is that of the moment of the call (read at most
+    :data:`LOAD_FRESH_SECONDS` before it): call it when a run starts.
     """
+    cpu, cores, system = _fixed_machine()
+    return {"cpu": cpu, "cores": cores, "load": _load(), "system": system}
+
+
+#: How long a reading of the load average serves later calls, in seconds:
+#: Linux recomputes the average every 5 s, so a reading this recent is the
+#: one a new reading would give, or the sample before it (a prepared run's
+#: short calls, ~100 µs each, would otherwise read it at every call).
+LOAD_FRESH_SECONDS = 1.0
+
+#: (time.monotonic() of the last reading, its load).
+_LAST_LOAD: tuple[float, float | None] = (float("-inf"), None)
+
+
+def _load():
+    """The 1-minute load average, rounded to 0.01 (None where the system
+    has none), read again once :data:`LOAD_FRESH_SECONDS` have passed."""
+    global _LAST_LOAD
+    now = time.monotonic()
+    read_at, load = _LAST_LOAD
+    if now - read_at < LOAD_FRESH_SECONDS:
+        return load
     try:
         load = round(os.getloadavg()[0], 2)
     except (AttributeError, OSError):  # not on Windows
         load = None
-    cpu, cores, system = _fixed_machine()
-    return {"cpu": cpu, "cores": cores, "load": load, "system": system}
+    _LAST_LOAD = (now, load)
+    return load
 
 
 @functools.cache

@@ -34,7 +34,7 @@ from . import _validate as check
 from . import accuracy, identity
 from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES
 from .indicators import Indicator
-from .kernels.energy_errors import energy_errors
+from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy_errors
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
@@ -182,8 +182,10 @@ class _ShortCall:
     The arithmetic is the general path's (:meth:`Run.with_orbits` then
     :meth:`Run.execute`): the same compiled stepper from the same state,
     the outputs read by the same indicator, the energy errors from the
-    model's own T and V by the same operations
-    (:func:`varint.kernels.energy_errors.energy_errors`, the verdict's
+    model's own V and T by the same operations, T's compiled with them
+    where they round the same as NumPy's
+    (:func:`varint.kernels.energy_errors.state_energy_errors`, else
+    :func:`~varint.kernels.energy_errors.energy_errors`; the verdict's
     largest errors with them), the rest of the verdict by
     :func:`~varint.accuracy.assess`'s rules; one chunk instead of the
     driver's chunks, which the propagator protocol makes bitwise (rule 3).
@@ -230,6 +232,15 @@ class _ShortCall:
         #: T + V; otherwise by :func:`varint.accuracy.reference_and_errors`.
         self.plain = accuracy.plain_energy(first.model)
         self.errors_kernel = Resolved(energy_errors)
+        #: T computed in that call too, from the states (bitwise NumPy's
+        #: where T is the base model's over fewer than SEQUENTIAL_TERMS
+        #: degrees of freedom, :mod:`varint.kernels.energy_errors`);
+        #: otherwise the model's own NumPy T.
+        model = first.model
+        self.state_kernel = (Resolved(state_energy_errors) if self.plain
+                             and type(model).kinetic is Model.kinetic
+                             and model.n_dof < SEQUENTIAL_TERMS
+                             and _float_vector(model.inverse_mass, model.n_dof) else None)
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()
@@ -350,21 +361,38 @@ class _ShortCall:
         if self.plain:
             n, rows = model.n_dof, len(x0) + len(x)
             both = np.concatenate((x0, x))
+            state_kernel = self.state_kernel
             with np.errstate(all="ignore"):
-                # The model's own T and V (Reference's operations), once
-                # over the states and the outputs.
-                kinetic, potential = model.kinetic(both[:, n:]), model.potential(both[:, :n])
-            if _float_vector(kinetic, rows) and _float_vector(potential, rows):
-                errors, largest, t_worst, accurate, finite = self.errors_kernel(
-                    kinetic, potential, m, self.t, tol)
+                # The model's own V (Reference's operations), once over the
+                # states and the outputs, and its T (or T's operations,
+                # compiled with the errors).
+                potential = model.potential(both[:, :n])
+                kinetic = None if state_kernel is not None else model.kinetic(both[:, n:])
+            if not _float_vector(potential, rows):
+                computed = None
+            elif state_kernel is not None:
+                computed = state_kernel(both, potential, model.inverse_mass, m, self.t)
+            elif _float_vector(kinetic, rows):
+                computed = self.errors_kernel(kinetic, potential, m, self.t)
+            else:
+                computed = None
+            if computed is not None:
+                packed, finite = computed
                 if not finite:
                     return None
+                if single:
+                    # (m = 1; NumPy scalars, as the general path's verdict
+                    # holds.)
+                    largest, t_worst, errors = packed[0], packed[1], packed[2:]
+                else:
+                    largest, t_worst = packed[:m], packed[m:2 * m]
+                    errors = packed[2 * m:].reshape(m, len(self.t))
+                accurate = largest <= tol       # (assess's comparison)
                 verdict = accuracy.Accuracy(
-                    energy_error=largest[0] if single else largest,
-                    conserved={"energy": largest[0] if single else largest},
-                    t_worst=t_worst[0] if single else t_worst, energy_tol=tol,
-                    accurate=accurate[0] if single else accurate, tau=self.tau)
-                return errors[0] if single else errors, verdict, np.count_nonzero(accurate) < m
+                    energy_error=largest, conserved={"energy": largest}, t_worst=t_worst,
+                    energy_tol=tol, accurate=accurate, tau=self.tau)
+                return errors, verdict, not accurate if single else bool(
+                    np.count_nonzero(accurate) < m)
         # Other conserved quantities (or T and V of another kind): the
         # general path's functions.
         _, found = accuracy.reference_and_errors(model, x0, x)
@@ -382,5 +410,10 @@ def _float_vector(a: Any, size: int) -> bool:
     """Whether ``a`` is a C-contiguous float64 array of shape (size,): what
     :func:`varint.kernels.energy_errors.energy_errors` takes, and what a
     model's T and V of (R, N) rows are."""
-    return (type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (size,)
-            and a.flags.c_contiguous)
+    return (type(a) is np.ndarray and (a.dtype is _FLOAT64 or a.dtype == _FLOAT64)
+            and a.shape == (size,) and a.flags.c_contiguous)
+
+
+#: NumPy's float64 (the one object its arrays of native float64 share,
+#: which ``is`` tests ~10x faster than ``==``).
+_FLOAT64 = np.dtype(np.float64)
