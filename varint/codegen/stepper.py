@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.metadata
+import importlib.util
 import inspect
 import os
 import uuid
@@ -91,11 +92,14 @@ def generator_sources():
     printer extends)."""
     from .. import protocol, schemes
     from ..kernels import checks, fma, interval, logarithm
-    from ..models import symbolic
 
     layer = sorted(Path(__file__).parent.glob("*.py"))
+    # The printer's file, found without running it: importing it imports
+    # SymPy (~0.4 s of a first run whose kernels are all cached).
+    spec = importlib.util.find_spec("varint.models.symbolic")
+    assert spec is not None and spec.origin is not None
     return layer + [Path(m.__file__) for m in (checks, fma, interval, logarithm, protocol,
-                                               schemes, symbolic)]
+                                               schemes)] + [Path(spec.origin)]
 
 
 @lru_cache(maxsize=1)
