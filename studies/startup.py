@@ -17,8 +17,11 @@ this tree's (a, b, a, b, …), so that the load of the shared machine falls
 on both alike; each tree keeps its own kernel cache directory.
 
 Usage: ``python studies/startup.py [--quick] [--out DIR] [--against DIR]
-[--cases floor r1 map1 map2 lattice potential] [--processes N] [--label L]``;
-stored as ``startup.json`` (``startup_<label>.json``).
+[--cases floor r1 map1 map2 lattice potential] [--processes N] [--label L]
+[--part totals|breakdown]``; stored as ``startup.json``
+(``startup_<label>.json``). ``--part breakdown`` times the same processes
+part by part (:data:`PARTS`: where a first run's distance to the floor
+goes), stored as ``startup_breakdown.json`` (``startup_breakdown_<label>.json``).
 
 The ``potential`` case is the first use of a model no process has built
 before (:data:`CASES`: a coupling drawn at random per process, so its
@@ -97,8 +100,88 @@ print(json.dumps({{"import": t1 - t0, "run": t2 - t1, "cpu": c2 - c0, "heavy": h
                   "heavy_run": after}}))
 """
 
+#: ``--part breakdown``: the same processes, with the CPU time of each
+#: part of the start-up measured inside them (exclusive: a part called
+#: within another is counted once, in itself). The parts are the costs
+#: suspected for the first run's distance to the floor: imports (each
+#: module's code, including numba's and SciPy's), the cyclic garbage
+#: collector's passes (young: generations 0 and 1; full: every object of
+#: the process, :mod:`varint.collector`), numba's registries (loaded at the first call of
+#: any compiled function), numba's cache files (index and data read and
+#: unpickled; the LLVM object code loaded), varint's verification of every
+#: cached file (HMAC-SHA256, :mod:`varint.cachedir`), the execution of
+#: verified generated modules, and the rest (Python of the run, arithmetic).
+#: numba's cache classes are patched where they are defined, so varint's
+#: subclasses (:mod:`varint.codecache`) count in the same rows.
+PARTS = ("imports", "gc: young collections", "gc: full collections", "numba: registries at the first call",
+         "numba cache: index read + unpickle", "numba cache: data read + unpickle",
+         "numba cache: LLVM object loading", "varint: HMAC verification",
+         "varint: generated module exec", "rest")
+BREAKDOWN_CHILD = """
+import gc, sys, time, json
+import _frozen_importlib
+clock = time.process_time
+parts = dict.fromkeys(PARTS_, 0.0)
+stack = [["rest", clock(), 0.0]]
 
-def child(root, cache, case, pycache):
+
+def enter(name):
+    stack.append([name, clock(), 0.0])
+
+
+def leave():
+    name, start, inner = stack.pop()
+    spent = clock() - start
+    parts[name] += spent - inner
+    stack[-1][2] += spent
+
+
+def timed(owner, attr, name):
+    inner = getattr(owner, attr)
+
+    def wrapper(*args, **kwargs):
+        enter(name)
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            leave()
+    setattr(owner, attr, wrapper)
+
+
+def on_gc(phase, info):
+    if phase == "start":
+        enter("gc: full collections" if info["generation"] == 2 else "gc: young collections")
+    else:
+        leave()
+
+
+gc.callbacks.append(on_gc)
+timed(_frozen_importlib, "_load_unlocked", "imports")
+t0 = time.perf_counter()
+import varint
+import numpy as np
+from numba.core import base, caching
+from numba.core.typing import context
+from varint import cachedir, codecache
+for owner in (base.BaseContext, context.BaseContext):
+    timed(owner, "refresh", "numba: registries at the first call")
+for owner in (caching.IndexDataCacheFile, codecache._SignedCacheFile):
+    timed(owner, "_load_index", "numba cache: index read + unpickle")
+    timed(owner, "_load_data", "numba cache: data read + unpickle")
+timed(caching.CompileResultCacheImpl, "rebuild", "numba cache: LLVM object loading")
+timed(cachedir, "verify", "varint: HMAC verification")
+timed(cachedir, "secret", "varint: HMAC verification")
+timed(codecache, "_execute", "varint: generated module exec")
+exec(sys.argv[1])
+while len(stack) > 1:
+    leave()
+total = clock() - stack[0][1]
+parts["rest"] += total - stack[0][2]
+print(json.dumps({"cpu": total, "wall": time.perf_counter() - t0, "parts": parts}))
+""".replace("PARTS_", repr(PARTS))
+
+
+def child(root, cache, case, pycache, script=CHILD):
     """One fresh process on source tree ``root`` running ``case``
     (:data:`CASES`): its import and run seconds and the heavy modules the
     import loaded. Python's bytecode is cached in ``pycache`` as an
@@ -107,7 +190,7 @@ def child(root, cache, case, pycache):
     env = dict(os.environ, PYTHONPATH=str(root), VARINT_CACHE_DIR=str(cache),
                PYTHONPYCACHEPREFIX=str(pycache))
     env.pop("PYTHONDONTWRITEBYTECODE", None)
-    done = subprocess.run([sys.executable, "-c", CHILD, CASES[case]], cwd=root, env=env,
+    done = subprocess.run([sys.executable, "-c", script, CASES[case]], cwd=root, env=env,
                           check=True, capture_output=True, text=True)
     out = json.loads(done.stdout.strip().splitlines()[-1])
     out["announced"] = "compiling" in done.stderr
@@ -124,6 +207,9 @@ def main(argv=None):
                             help="timed fresh processes per tree (default 7)")
         parser.add_argument("--label", default=None,
                             help="stored as startup_<label>.json (e.g. a subset of cases)")
+        parser.add_argument("--part", choices=("totals", "breakdown"), default="totals",
+                            help="breakdown: the CPU time of each part of the start-up "
+                                 "(PARTS), stored as startup_breakdown[_<label>].json")
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     n = 3 if args.quick else max(5, args.processes)
     trees = {"this": Path(__file__).resolve().parent.parent}
@@ -137,12 +223,15 @@ def main(argv=None):
         caches[label].mkdir(mode=0o700)
         for case in args.cases:
             child(root, caches[label], case, pycache)   # compiles and caches the kernels
+    script = BREAKDOWN_CHILD if args.part == "breakdown" else CHILD
     samples = {(label, case): [] for label in trees for case in args.cases}
     load_before = os.getloadavg()
     for _ in range(n):
         for case in args.cases:
             for label, root in trees.items():
-                samples[label, case].append(child(root, caches[label], case, pycache))
+                samples[label, case].append(child(root, caches[label], case, pycache, script))
+    if args.part == "breakdown":
+        return breakdown(args, trees, samples, n, load_before)
     data = {"processes": n, "trees": {k: v.name for k, v in trees.items()}}
     for (label, case), rows in samples.items():
         imports = [r["import"] for r in rows]
@@ -172,6 +261,35 @@ def main(argv=None):
     print(f"load {load['before']} -> {load['after']} on {load['cpus']} CPUs")
     print(save_json(args.out, "startup" if args.label is None else f"startup_{args.label}", data,
                     times="measured: wall time inside fresh child processes, medians"))
+    return data
+
+
+def breakdown(args, trees, samples, n, load_before):
+    """Print and store the medians of each part's CPU seconds (:data:`PARTS`)
+    per tree and case, and each case's distance to the floor part by part
+    (the median of each part, not of the differences: the parts' medians
+    need not add up to the total's)."""
+    data = {"processes": n, "trees": {k: v.name for k, v in trees.items()}, "parts": PARTS}
+    for (label, case), rows in samples.items():
+        data.setdefault(label, {})[case] = {
+            "cpu_median_s": statistics.median(r["cpu"] for r in rows),
+            "wall_median_s": statistics.median(r["wall"] for r in rows),
+            "parts_median_s": {p: statistics.median(r["parts"][p] for r in rows) for p in PARTS},
+        }
+    columns = [(label, case) for label in trees for case in args.cases]
+    print(f"{'CPU seconds, medians of ' + str(n):38s}" + "".join(
+        f"{label[:7] + ' ' + case:>16s}" for label, case in columns))
+    for part in PARTS + ("total",):
+        cells = [data[label][case]["cpu_median_s"] if part == "total"
+                 else data[label][case]["parts_median_s"][part] for label, case in columns]
+        print(f"{part:38s}" + "".join(f"{c:16.3f}" for c in cells))
+    load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
+    data["load"] = load
+    print(f"load {load['before']} -> {load['after']} on {load['cpus']} CPUs")
+    name = "startup_breakdown" if args.label is None else f"startup_breakdown_{args.label}"
+    print(save_json(args.out, name, data,
+                    times="measured: CPU time of each part inside fresh child processes, "
+                          "medians"))
     return data
 
 

@@ -185,7 +185,10 @@ _sys.modules[__name__].__class__ = _Package
 def _load(module):
     """Import submodule ``module`` and the public names it defines
     (:data:`_EXPORTS`) into the package."""
-    value = _importlib.import_module(f".{module}", __name__)
+    # Importing is loading code: the collector's full passes over the
+    # objects of numpy and numba it would make meanwhile free nothing.
+    with _importlib.import_module(".collector", __name__).held():
+        value = _importlib.import_module(f".{module}", __name__)
     names = globals()
     for name, where in _EXPORTS.items():
         if where == module:

@@ -58,7 +58,7 @@ from pathlib import Path
 from numba.core import bytecode, caching, sigutils
 from numba.core.dispatcher import Dispatcher
 
-from . import cachedir
+from . import cachedir, collector
 from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
@@ -324,7 +324,8 @@ class _TolerantCache:
         return getattr(self._inner, name)
 
     def load_overload(self, sig, target_context):
-        cres = self._inner.load_overload(sig, target_context)
+        with collector.held():       # loading, not compiling (a miss returns None)
+            cres = self._inner.load_overload(sig, target_context)
         if cres is None:
             return None
         args, _ = sigutils.normalize_signature(sig)
@@ -440,7 +441,8 @@ class SignedCache(caching.FunctionCache):
 
     def load_overload(self, sig, target_context):
         try:
-            return super().load_overload(sig, target_context)
+            with collector.held():   # loading, not compiling (a miss returns None)
+                return super().load_overload(sig, target_context)
         except Exception as exc:   # verified, but not loadable by this numba
             self._cache_file.discard(self._cache_file._index_path,
                                      f"numba could not load it ({type(exc).__name__}: {exc})")
