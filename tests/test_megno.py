@@ -41,9 +41,11 @@ def test_mean_megno_grows_like_half_the_lyapunov_exponent_times_t(c1):
 
 def test_megno_tends_to_zero_for_an_isochronous_linear_chain():
     """β = 0: the FPU chain is a set of harmonic oscillators, every
-    deviation stays bounded and Ȳ → 0 (stable periodic motion)."""
-    x0 = np.concatenate([np.full(8, 0.1), np.zeros(8)])
-    r = varint.megno(FPUBeta(8, 0.0), x0, 1e3, t_out=[1e2, 1e3])
+    deviation stays bounded and Ȳ → 0 (stable periodic motion; measured
+    Ȳ = 5.6e-4 at t = 1e3). Four particles: the law holds for any length,
+    and the generated stepper's straight-line derivatives grow with it."""
+    x0 = np.concatenate([np.full(4, 0.1), np.zeros(4)])
+    r = varint.megno(FPUBeta(4, 0.0), x0, 1e3, t_out=[1e2, 1e3])
     assert abs(r.mean_megno[-1]) < 0.02 and abs(r.mean_megno[-1]) < abs(r.mean_megno[0])
 
 

@@ -38,8 +38,13 @@ def test_tangent_error_grows_linearly_on_a_regular_orbit(r1):
 
 
 def test_x1_metric_against_the_reference(r1):
+    """SRKN14a's X1 error (measured 1.2e-14) is a thousandth of SABA2's
+    (1.0e-5). The target 1e-8 is missed by SABA2 by more than
+    COMPENSATION_RANGE, so no compensated pilots (two kernels more, ~14 CPU
+    s cold; test_compensation_is_considered_near_the_plain_floor tests
+    them)."""
     model, x0 = r1
-    choice = varint.select_scheme(model, x0, 1e-6, metric="X1", t_end=1e3,
+    choice = varint.select_scheme(model, x0, 1e-8, metric="X1", t_end=1e3,
                                   candidates=[("tm", "SABA2", 0.1), ("tm", "SRKN14a", 0.1)])
     rows = {r["scheme"]: r for r in choice.table}
     assert rows["SRKN14a"]["error_pilot"] < 1e-3 * rows["SABA2"]["error_pilot"]
@@ -85,10 +90,14 @@ def test_the_default_pilot_fits_any_candidate_steps():
 def test_the_high_order_candidates_keep_the_default_pilot_and_win_at_tight_targets(r1):
     """The orders 8 and 10 join the default candidates at steps of
     DEFAULT_TAUS, so the default pilot horizon is the one of the old
-    candidates for every t_end; at a tangent error of 1e-11 at t = 1e3 on R1
-    the order-10 s35odr10 at τ = 0.2 meets the target (8e-13 predicted,
-    studies/frontier.py measures 1.5e-12) where the order-6 SRKN14a at the same
-    step misses it by more than a hundredfold (its error is O(τ⁶))."""
+    candidates for every t_end; at an X1 error of 1e-13 at t = 1e3 on R1
+    the order-10 s35odr10 at τ = 0.2 meets the target (measured 2.9e-15
+    predicted) where the order-6 SRKN14a at the same step misses it by more
+    than a hundredfold (6.3e-13: its error is O(τ⁶), and compensated
+    summation, piloted within COMPENSATION_RANGE, does not help a
+    truncation error). The X1 metric carries one vector: the tangent
+    metric's four (a tangent error of 1e-11, the same verdict; frontier.py
+    measures s35odr10's at 1.5e-12) made kernels of 60 CPU s cold."""
     from varint.selection import (DEFAULT_SCHEMES, DEFAULT_TAUS, HIGH_ORDER_CANDIDATES,
                                   _candidates, default_pilot)
 
@@ -99,11 +108,13 @@ def test_the_high_order_candidates_keep_the_default_pilot_and_win_at_tight_targe
                 == default_pilot(t_end, DEFAULT_TAUS)), t_end
     assert len(_candidates(None)) == len(DEFAULT_SCHEMES) * len(DEFAULT_TAUS) + 4
     model, x0 = r1
-    choice = varint.select_scheme(model, x0, 1e-11, metric="tangent", t_end=1e3,
+    choice = varint.select_scheme(model, x0, 1e-13, metric="X1", t_end=1e3,
                                   candidates=[("tm", "s35odr10", 0.2), ("tm", "SRKN14a", 0.2)])
-    rows = {r["scheme"]: r for r in choice.table}
-    assert choice.scheme == "s35odr10" and rows["s35odr10"]["meets"]
-    assert rows["SRKN14a"]["error"] > 100 * rows["s35odr10"]["error"]
+    rows = {(r["scheme"], r["compensated"]): r for r in choice.table}
+    assert choice.scheme == "s35odr10" and rows["s35odr10", False]["meets"]
+    srkn = [r for (scheme, _), r in rows.items() if scheme == "SRKN14a"]
+    assert len(srkn) == 3 and not any(r["meets"] for r in srkn)
+    assert min(r["error"] for r in srkn) > 100 * rows["s35odr10", False]["error"]
 
 
 def test_compensation_is_considered_near_the_plain_floor(r1):
