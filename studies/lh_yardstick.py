@@ -66,9 +66,28 @@ h = 0.82, 100 %, held-out energy errors up to 9.6e-3; cored h = 0.11,
 three-body set at 1e-1 h = 1.43, 89.7 %. The product takes the verdict
 rule with the ceiling ``energy_tol`` (1e-3 by default), as before.
 
-Usage: ``python studies/lh_yardstick.py [--quick] [--part rules|ceilings]``
-(the maps are the quick ones either way); results ``lh_yardstick.json``
-and ``lh_yardstick_ceilings.json`` (``quick/``). State the machine load
+Third part, ``--part retry`` (ladder11, fixed here before its run; issue
+27 item 4a): each orbit checks its own energy. The pilot chooses a coarse
+h by the verdict rule under a looser ceiling (each of
+``RETRY_CEILINGS``, in units of ``energy_tol`` = 1e-3: 10, 100); every
+held-out orbit runs at that h and, while its own largest energy error
+exceeds 1e-3, again from its start at h/2, h/4, … down to h/16
+(:func:`varint.time_transform_step.retried`). Reference: the held-out
+orbits at h₃/16, h₃ the h of the ceiling 1e-3 (today's map step, so the
+reference is the second part's). Criterion, fixed before the run: a
+looser ceiling is supported when the held-out agreement with the
+reference (its antimode, as the race classifies) is ≥ 99 % on each of the
+four sets (both race maps, the tests' three-body C = 3.1 set and softened
+point mass); the product takes, of the supported ceilings, the one whose
+held-out orbits cost the fewest force evaluations on the two race maps
+together (every run counted, retries included), and keeps today's single
+h if none is supported or none is cheaper. Also recorded: the held-out
+orbits' energy errors (each must be within 1e-3 unless it reached h/16),
+the share retried and the levels.
+
+Usage: ``python studies/lh_yardstick.py [--quick] [--part rules|ceilings|retry]``
+(the maps are the quick ones either way); results ``lh_yardstick.json``,
+``lh_yardstick_ceilings.json`` and ``lh_yardstick_retry.json`` (``quick/``). State the machine load
 with every figure.
 """
 
@@ -92,7 +111,7 @@ from varint.accuracy import DEFAULT_ENERGY_TOL, Reference
 from varint.maps import MAP_QUANTILE
 from varint.state import initial_deviations
 from varint.time_transform import LogHamiltonian
-from varint.time_transform_step import agreeing_h
+from varint.time_transform_step import agreeing_h, orbit_errors, retried
 
 VALUE = step_agreement.agreeing
 
@@ -235,11 +254,92 @@ def _supported(rows):
     return out
 
 
+#: The pilot's ceilings of the third part, in units of ``energy_tol``
+#: (module docstring), fixed before its run.
+RETRY_CEILINGS = (10.0, 100.0)
+
+
+def measure_retry(name, model, pilot, held, W0, t_end, seed=0):
+    """Per ceiling of :data:`RETRY_CEILINGS`: the pilot's coarse h and the
+    held-out orbits retried to ``energy_tol`` against the reference at
+    h₃/16 (module docstring), with today's single h₃ as the first row."""
+    lh = LogHamiltonian(model, "ABA864")
+    tol = DEFAULT_ENERGY_TOL
+    h3, _ = agreeing_h(lh, pilot, t_end, quantile=MAP_QUANTILE, ceiling=tol, seed=seed)
+    ref = lh.outputs(held, W0, t_end, h3 / REFERENCE_DIVISOR)
+    threshold, how = antimode(ref.fli)
+    truth = chaotic("fli", ref.fli, threshold)
+    level_line = step_agreement.chaotic_level(t_end)
+    reference = Reference(model, held)
+    rows = []
+    for factor in (None, *RETRY_CEILINGS):
+        if factor is None:
+            h, choice = h3, None
+            out = lh.outputs(held, W0, t_end, h)
+            level = np.zeros(len(held), dtype=np.int64)
+        else:
+            h, choice = agreeing_h(lh, pilot, t_end, quantile=MAP_QUANTILE,
+                                   ceiling=factor * tol, seed=seed)
+            if h is None:
+                rows.append({"map": name, "ceiling": factor * tol, "h": None})
+                continue
+            out, level = retried(lh, held, W0, t_end, h, tol, reference)
+        errors = orbit_errors(reference, out)
+        with np.errstate(invalid="ignore"):
+            same_side = np.isfinite(out.fli) & ((out.fli > level_line) == (ref.fli > level_line))
+        row = {"map": name, "ceiling": tol if factor is None else factor * tol,
+               "retry": factor is not None, "h": h, "h_reference": h3 / REFERENCE_DIVISOR,
+               "tried": None if choice is None else choice["tried"], "held_out": len(held),
+               "agreement": agreement("fli", out.fli, truth, threshold),
+               "threshold": threshold, "threshold_rule": how,
+               "level_agreement": float(np.mean(same_side)),
+               "held_out_energy_error": float(np.max(errors)),
+               "above_tol_not_at_finest": int(np.sum((errors > tol) & (level < 4))),
+               "retried": float(np.mean(level > 0)),
+               "levels": np.bincount(level, minlength=5).tolist(),
+               "steps_per_orbit": float(out.counts[:, :2].sum() / len(held)),
+               "gradients_per_orbit": float(out.counts[:, 2].sum() / len(held))}
+        rows.append(row)
+        print(f"{name}: ceiling {row['ceiling']:g}{' + retry' if factor else ''}: h {h:.4g}, "
+              f"agreement {row['agreement']:.4f} (level {row['level_agreement']:.4f}), "
+              f"retried {row['retried']:.3f} levels {row['levels']}, largest energy "
+              f"{row['held_out_energy_error']:.3g}, gradients/orbit "
+              f"{row['gradients_per_orbit']:.0f}", flush=True)
+    return rows
+
+
+def _retry_supported(rows):
+    """Per retry ceiling: supported (module docstring) and its race-map
+    force evaluations against today's single h."""
+    out = {}
+    for factor in RETRY_CEILINGS:
+        c = factor * DEFAULT_ENERGY_TOL
+        mine = [r for r in rows if r.get("retry") and r["ceiling"] == c]
+        ok = len(mine) == 4 and all(r["agreement"] >= 0.99 for r in mine)
+        cost = sum(r["gradients_per_orbit"] * r["held_out"] for r in mine
+                   if r["map"] in ("cr3bp", "core"))
+        base = sum(r["gradients_per_orbit"] * r["held_out"] for r in rows
+                   if not r.get("retry") and r["map"] in ("cr3bp", "core"))
+        out[f"{c:g}"] = {"supported": bool(ok), "race_gradients_vs_single_h": cost / base}
+    return out
+
+
 def main(argv=None):
     args = parse_args(__doc__.split("\n\n")[0], argv, extra=lambda p: p.add_argument(
-        "--part", choices=("rules", "ceilings"), default="rules",
+        "--part", choices=("rules", "ceilings", "retry"), default="rules",
         help="the three rules at energy_tol (first run) or the verdict rule's ceilings"))
     start = list(os.getloadavg())
+    if args.part == "retry":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rows = [row for name, s in _held_out_sets().items()
+                    for row in measure_retry(name, *s)]
+        supported = _retry_supported(rows)
+        print(f"supported (held-out agreement >= 99 % on all four sets): {supported}")
+        save_json(args.out, "lh_yardstick_retry",
+                  {"rows": rows, "supported": supported, "load": start,
+                   "load_end": list(os.getloadavg())})
+        return
     if args.part == "ceilings":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -416,6 +416,9 @@ def log_case(name, quick, repeats):
                          time_transform="log")   # compiles
         tasks["varint LH, automatic h"] = lambda: varint.chaos_map(
             model, grid, INDICATOR, t_end=t_end, progress=False, time_transform="log")
+        # Before ladder11 (the baseline in the same run): one h for every
+        # orbit, the pilot's energy ceiling energy_tol, no retry.
+        tasks["varint LH, one h (before retry)"] = lambda: _one_h_map(model, grid, t_end)
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -452,6 +455,20 @@ def log_case(name, quick, repeats):
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
     return rows, summary
+
+
+def _one_h_map(model, grid, t_end):
+    """The LH map as it was before each orbit was retried: the pilot's h
+    under the ceiling ``energy_tol`` for every orbit (pilot included)."""
+    from varint.accuracy import DEFAULT_ENERGY_TOL
+    from varint.maps import LOG_MAP_OPTIONS, MAP_QUANTILE, _log_hamiltonian
+    from varint.time_transform_step import agreeing_h
+
+    lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
+    h, _ = agreeing_h(lh, grid.states, t_end, quantile=MAP_QUANTILE,
+                      ceiling=DEFAULT_ENERGY_TOL, seed=0, every=LOG_MAP_OPTIONS["every"])
+    return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                            time_transform="log", tau=h)
 
 
 def _equal_agreement(rows, label):

@@ -18,7 +18,7 @@ from varint.maps import MAP_QUANTILE
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.time_transform import LogHamiltonian
-from varint.time_transform_step import choose_h
+from varint.time_transform_step import RETRY_LEVELS, choose_h, retried
 
 TOL = 1e-6
 
@@ -101,9 +101,78 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                 time_transform="log", tau=choice["h"])
-    assert np.array_equal(r.values, explicit.values, equal_nan=True)
+    # Orbits not retried (each meets energy_tol at h) are the explicit map's.
+    kept = np.array(choice["levels"]) == 0
+    assert kept.any()
+    assert np.array_equal(r.values[kept], explicit.values[kept], equal_nan=True)
     assert r.accuracy.accurate.all()
     with pytest.warns(varint.AccuracyWarning):
         plain = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                  time_transform=None)
     assert plain.provenance.method == "tm" and not plain.accuracy.accurate.all()
+
+
+def test_an_orbit_above_the_ceiling_is_retried_until_it_meets_it():
+    """retried: at a coarse h some softened-point-mass orbits exceed the
+    ceiling (measured here by Reference on a plain run); exactly those run
+    again, each ends at the coarsest h/2^level whose own error meets the
+    ceiling (the run at h/2^(level−1) did not), and each orbit's result is,
+    bit for bit, that orbit run alone at its recorded step."""
+    model = _model("plummer")
+    lh = LogHamiltonian(model, "ABA864")
+    X = _plummer_orbits(5, 10)
+    W0 = np.random.default_rng(0).standard_normal(X.shape)
+    t_end, h = 30.0, 0.2
+    ref = Reference(model, X)
+
+    def largest(out):   # over the outputs and the end, as the map's verdict
+        a, b = ref.errors(out.x)["energy_error"], ref.errors(out.x_worst)["energy_error"]
+        return np.fmax(a, b)
+
+    plain = largest(lh.outputs(X, W0, t_end, h))
+    ceiling = float(np.median(plain))
+    out, level = retried(lh, X, W0, t_end, h, ceiling, ref)
+    assert ((level > 0) == (plain > ceiling)).all() and 0 < (level > 0).sum() < len(X)
+    assert (largest(out)[level < RETRY_LEVELS] <= ceiling).all()
+    for m in np.flatnonzero(level):
+        alone = lh.outputs(X[[m]], W0[[m]], t_end, h * 2.0**-level[m])
+        coarser = lh.outputs(X[[m]], W0[[m]], t_end, h * 2.0 ** (1 - level[m]))
+        assert Reference(model, X[[m]]).errors(coarser.x_worst)["energy_error"][0] > ceiling \
+            or Reference(model, X[[m]]).errors(coarser.x)["energy_error"][0] > ceiling
+        assert alone.fli[0] == out.fli[m] and np.array_equal(alone.x[0], out.x[m])
+    # The work of every run is counted: a retried orbit did more than its last run.
+    assert (out.counts[level > 0, 2] > lh.outputs(X[level > 0], W0[level > 0], t_end, h)
+            .counts[:, 2] * 2).all()
+
+
+def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_step():
+    """An LH map with an automatic h whose orbits are retried (energy_tol
+    1e-4): the same bits in chunks of 3 and of all, on 1 and 2 threads;
+    ``tau_choice["h_orbit"]`` is each orbit's step (h/2^level), and the
+    explicit map at each recorded step gives that orbit's value."""
+    import numba
+
+    model = _model("plummer")
+    X = _plummer_orbits(2, 8)
+    runs = []
+    before = numba.get_num_threads()
+    try:
+        for size, threads in ((None, 1), (3, min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            runs.append(varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
+                                         time_transform="log", energy_tol=1e-4,
+                                         chunk_size=size))
+    finally:
+        numba.set_num_threads(before)
+    a, b = runs
+    assert np.array_equal(a.values, b.values) and np.array_equal(a.state, b.state)
+    choice = a.provenance.tau_choice
+    assert choice == b.provenance.tau_choice
+    level, h_orbit = np.array(choice["levels"]), np.array(choice["h_orbit"])
+    assert level.any() and np.array_equal(h_orbit, choice["h"] * 2.0**-level)
+    assert a.accuracy.accurate.all() and "retried" in a.accuracy.notes
+    for h in np.unique(h_orbit):
+        rows = h_orbit == h
+        alone = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
+                                 time_transform="log", tau=h)
+        assert np.array_equal(alone.values[rows], a.values[rows])

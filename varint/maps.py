@@ -391,9 +391,13 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         ``checkpoint``). ``tau`` is then the step h in the fictitious time
         s, by default the largest h at which the pilot orbits' FLI gives
         the same verdict (chaotic or not at ln(1000 t)) as at h/2, with
-        their energy errors within ``energy_tol``
+        their energy errors within ten times ``energy_tol``
         (:func:`varint.time_transform_step.agreeing_h`,
-        ``provenance.tau_choice``; the energy pilot's h, with a warning,
+        ``provenance.tau_choice``), each orbit whose own energy error
+        exceeds ``energy_tol`` then run again at h/2, h/4, … h/16
+        (:func:`varint.time_transform_step.retried`; each orbit's step in
+        ``provenance.tau_choice["h_orbit"]``, its halvings in ``"levels"``)
+        (the energy pilot's h for every orbit, with a warning,
         where none does); the options ``scheme`` (a two-part
         scheme without corrector or processor, default ABA864), ``offset``
         (δ of C = E + δ) and ``every`` (the physical time between
@@ -603,14 +607,16 @@ def _cheaper_steps(spec, k, clock):
     at no step tried, or the constant step's at none whose price is below
     the LH's and the LH's is not cheaper (the map then takes the energy
     pilot's constant step, as every other map)."""
-    from .time_transform_step import agreeing_h
+    from .time_transform_step import RETRY_CEILING, agreeing_h
 
     model, X = spec.model, spec.x0
     with clock.part("pilot"):
         lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
+        # The LH map retries each orbit to energy_tol itself (_log_map):
+        # its pilot's ceiling is looser, its price counts the retries.
         h, choice = agreeing_h(lh, X, spec.t_end, quantile=MAP_QUANTILE,
-                               ceiling=spec.energy_tol, seed=spec.seed,
-                               every=LOG_MAP_OPTIONS["every"])
+                               ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
+                               every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol)
         if h is None:
             return None, None
         log_cost, _ = step_cost.log_gradient_cost(lh)
@@ -839,7 +845,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     states, their energy errors and the accuracy verdict of every map
     (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
     from .time_transform import TIME_TRANSFORMS, describe, refuse
-    from .time_transform_step import agreeing_h, choose_h
+    from .time_transform_step import RETRY_CEILING, agreeing_h, choose_h, retried
 
     if time_transform not in TIME_TRANSFORMS:
         raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
@@ -887,8 +893,9 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     chunk_size = _chunk_size(chunk_size, m, None)
     lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
     if h is None:
-        h, h_choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=energy_tol,
-                                 seed=seed, every=every)
+        h, h_choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE,
+                                 ceiling=RETRY_CEILING * energy_tol, seed=seed, every=every,
+                                 retry=energy_tol)
         if h is None:
             # Not silence: the map runs, at the step of the energy pilot,
             # and says that its FLI was not checked.
@@ -907,13 +914,23 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     done = {}
     cpu, start = time.process_time(), time.perf_counter()
 
+    # An automatic h (the FLI rule's) is the coarse step of a retry: each
+    # orbit above energy_tol runs again at h/2, h/4, … (retried); a given
+    # h, or the energy rule's, is every orbit's step.
+    retry = h_choice is not None and h_choice.get("rule") == "indicator"
+    reference = accuracy.Reference(model, X) if retry else None
+    level = np.zeros(m, dtype=np.int64)
+
     def run(c):
         idx = chunks[c]
         W0 = initial_deviations(model.dim, 1, len(idx), seed, idx)[:, :, 0]
-        return lh.outputs(X[idx], W0, t_end, h, every=every)
+        if retry:
+            return retried(lh, X[idx], W0, t_end, h, energy_tol, reference.rows(idx),
+                           every=every)
+        return lh.outputs(X[idx], W0, t_end, h, every=every), np.zeros(len(idx), np.int64)
 
     def keep(c, outcome):
-        done[c] = outcome.out
+        done[c], level[chunks[c]] = outcome.out
         return len(chunks[c])
 
     with bar(progress, m, 0, "chaos_map", "orbit") as shown:
@@ -950,6 +967,14 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     verdict, energy = _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h)
     if h_choice is not None and "summary" in h_choice:
         verdict.notes["step"] = h_choice["summary"]
+    if retry:
+        h_choice = {**h_choice, "levels": level.tolist(),
+                    "h_orbit": (h * 2.0**-level).tolist()}
+        if level.any():
+            verdict.notes["retried"] = (
+                f"{int(np.sum(level > 0))} of {m} orbits above energy_tol = {energy_tol:g} "
+                f"at h = {h:.4g} ran again at smaller steps, down to h/{2**int(level.max())} "
+                "(provenance.tau_choice['h_orbit'])")
     prov = Provenance(
         kind="chaos_map", model=model.describe(), x0=[], method="tm+log",
         method_options={"time_transform": "log", "scheme": lh.scheme.describe(), "h": h,

@@ -62,11 +62,12 @@ import math
 import numpy as np
 
 from .accuracy import Reference
+from .kernels.time_transform import BUDGET
 from .state import initial_deviations
 from .step_agreement import descend, pilot_sample, same_verdict, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
-__all__ = ["choose_h", "agreeing_h", "pilot_errors"]
+__all__ = ["choose_h", "agreeing_h", "pilot_errors", "retried", "orbit_errors"]
 
 #: The indicator pilot's steps h = h₀·2^−j, j = TOP … TOP + LEVELS − 1:
 #: from 2h₀ (two time units per step where the orbits start) to h₀/256
@@ -78,6 +79,16 @@ MAX_DROP = 2 * RUNGS
 #: The search gives up below this fraction of h₀ (2^-12: 4096 times the
 #: pilot's steps at h₀, ~4e5 per orbit of a pilot of 100 time units).
 SMALLEST = 2.0**-12
+#: The halvings of h an orbit of a map is retried at (:func:`retried`):
+#: down to h/16, the step of the held-out reference of
+#: ``studies/lh_yardstick.py``; an orbit still above the ceiling there
+#: keeps that run and the map's accuracy verdict names it.
+RETRY_LEVELS = 4
+#: The pilot's energy ceiling of a map whose orbits are retried, in units
+#: of the map's ``energy_tol``: the pilot's h only needs the verdicts to
+#: agree and most orbits to pass at once; each orbit then meets
+#: ``energy_tol`` itself (``studies/lh_yardstick.py --part retry``).
+RETRY_CEILING = 10.0
 
 
 def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
@@ -181,7 +192,8 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 
-def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict):
+def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict,
+               retry=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
     each with the map's own vector (``default_rng([seed, m])``) and
@@ -192,7 +204,10 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     :data:`~varint.stepsize.PILOT_T`). "Agrees" is ``agree``: the same
     verdict at the chaotic level
     (:func:`~varint.step_agreement.same_verdict`, the maps' rule), or the
-    value rule :func:`~varint.step_agreement.agreeing`.
+    value rule :func:`~varint.step_agreement.agreeing`. ``retry``, the
+    energy tolerance a map retries its orbits to (:func:`retried`), makes
+    ``gradient_rate`` the price of the map with its retries, predicted from
+    the pilot orbits' own errors at h, h/2, … (the runs the descent made).
 
     Returns
     -------
@@ -225,8 +240,9 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
                 errs = reference.errors(out.x_worst)
             e = np.max(np.stack(list(errs.values())), axis=0)
             e = np.where((out.status == 0) & np.isfinite(e), e, np.inf)
-            runs[j] = (out.fli, e, out.counts[:, 2].sum() / (len(sample) * t_pilot))
-        return runs[j]
+            runs[j] = (out.fli, e, out.counts[:, 2].sum() / (len(sample) * t_pilot),
+                       out.counts[:, 2])
+        return runs[j][:3]
 
     tried, chosen = descend(run, range(TOP, TOP + LEVELS), lambda j: h0 * 2.0**-j, t_pilot,
                             t_end, quantile, ceiling, agree=agree)
@@ -241,7 +257,82 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
                               "at any step tried")
         return None, choice
     j, n_agree, largest = chosen
-    choice.update(rule="indicator", h=h0 * 2.0**-j, energy_error=largest,
-                  gradient_rate=float(runs[j][2]),
+    rate = float(runs[j][2])
+    if retry is not None:
+        rate, share = _retry_rate(runs, j, retry, len(sample) * t_pilot)
+        choice.update(retry_tolerance=float(retry), retried_share=share)
+    choice.update(rule="indicator", h=h0 * 2.0**-j, energy_error=largest, gradient_rate=rate,
                   summary=summary(n_agree, len(sample), largest, "h"))
     return h0 * 2.0**-j, choice
+
+
+def _retry_rate(runs, j, tolerance, orbit_time):
+    """The force evaluations per orbit and unit of time of a map at the
+    pilot's rung ``j`` whose orbits are retried to ``tolerance``
+    (:func:`retried`), predicted from the pilot's ``runs``: each pilot orbit
+    pays its runs at j, j + 1, … up to the first whose energy error meets
+    ``tolerance`` (or the last rung the descent ran). Returns it and the
+    share of pilot orbits retried."""
+    work = runs[j][3].astype(float)
+    failing = runs[j][1] > tolerance
+    share = float(np.mean(failing))
+    for k in range(j + 1, j + 1 + RETRY_LEVELS):
+        if k not in runs or not failing.any():
+            break
+        work = work + np.where(failing, runs[k][3], 0)
+        failing &= runs[k][1] > tolerance
+    return float(work.sum() / orbit_time), share
+
+
+def orbit_errors(reference, out):
+    """Per orbit of ``out`` (:class:`~varint.time_transform.LHOutputs`),
+    the largest relative error of its conserved quantities over its
+    outputs (at the output state furthest from the initial energy and at
+    the end; ``reference`` holds the initial values), inf where the orbit
+    stopped or the error is not finite: what the map's verdict judges."""
+    with np.errstate(all="ignore"):
+        final, worst = reference.errors(out.x), reference.errors(out.x_worst)
+    e = np.max(np.stack([np.fmax(final[k], worst[k]) for k in final]), axis=0)
+    return np.where((out.status == 0) & np.isfinite(e), e, np.inf)
+
+
+def retried(lh, X, W0, t_end, h, ceiling, reference, every=10.0, levels=RETRY_LEVELS):
+    """Orbits ``X`` (M, 2N) with vectors ``W0`` (M, 2N) run by
+    :meth:`LogHamiltonian.outputs
+    <varint.time_transform.LogHamiltonian.outputs>` at the fictitious step
+    ``h``, each orbit whose own largest energy error (:func:`orbit_errors`
+    against ``reference``, the rows of ``X``) exceeds ``ceiling`` run again
+    from its start at h/2, then h/4, … down to h/2^``levels``: every orbit
+    ends at the coarsest of these steps at which it meets ``ceiling``
+    (each orbit meets the map's tolerance itself, not a quantile of a
+    pilot's), or at the finest. An orbit's steps depend on that orbit, h
+    and ``ceiling`` alone, so the result is the same in any chunking and
+    the same as the orbit run alone at its recorded step. An orbit the
+    step budget stopped is not retried (a smaller h takes more steps).
+
+    Returns
+    -------
+    out : LHOutputs
+        Each orbit's final run; ``counts`` the work of every run.
+    level : ndarray of int64 (M,)
+        The halvings of each orbit's final run (its step h·2^−level).
+    """
+    out = lh.outputs(X, W0, t_end, h, every=every)
+    fields = {name: np.array(getattr(out, name)) for name in
+              ("fli", "status", "x", "t", "x_worst", "t_worst", "counts")}
+    level = np.zeros(len(X), dtype=np.int64)
+    todo = np.flatnonzero((orbit_errors(reference, out) > ceiling) & (out.status != BUDGET))
+    for j in range(1, levels + 1):
+        if len(todo) == 0:
+            break
+        again = lh.outputs(X[todo], None if W0 is None else W0[todo], t_end, h * 2.0**-j,
+                           every=every)
+        for name, v in fields.items():
+            if name == "counts":
+                v[todo] += again.counts
+            else:
+                v[todo] = getattr(again, name)
+        level[todo] = j
+        fail = (orbit_errors(reference.rows(todo), again) > ceiling) & (again.status != BUDGET)
+        todo = todo[fail]
+    return type(out)(**fields), level
