@@ -1230,6 +1230,28 @@ def _lh_yardstick_ceilings(R):
     return "; ".join(parts) + f" (machine load up to {load:.0f})"
 
 
+@quote("lh_yardstick_retry")
+def _lh_yardstick_retry(R):
+    """studies/lh_yardstick.py --part retry: per map, the pilot's h at the
+    ceiling 10 × energy_tol with every orbit retried to energy_tol, the
+    held-out agreement with h/16, the share retried, and the force
+    evaluations against one h at the ceiling energy_tol."""
+    d = R.json("lh_yardstick_retry")
+    rows = {(r["map"], r["ceiling"], r["retry"]): r for r in d["rows"]}
+    parts = []
+    for (name, ceiling, retry), r in rows.items():
+        if not retry or ceiling != 0.01:
+            continue
+        one = rows[name, 0.001, False]
+        parts.append(f"{name}: h = {r['h']:.2g}, {r['agreement']:.1%} of {r['held_out']}, "
+                     f"{r['retried']:.0%} retried, energy error up to "
+                     f"{r['held_out_energy_error']:.2g}, "
+                     f"{r['gradients_per_orbit'] / one['gradients_per_orbit']:.2f}× the force "
+                     f"evaluations of one h")
+    load = max(d["load"][0], d["load_end"][0])
+    return "; ".join(parts) + f" (machine load up to {load:.1f})"
+
+
 @quote("lh_auto_race")
 def _lh_auto_race(R):
     """studies/map_steps.py part log (quick maps): the LH map at its
