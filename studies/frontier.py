@@ -68,7 +68,11 @@ its force evaluations per step (heyoka: its Taylor order and steps), its
 CPU time and the CPU time per step and per force evaluation after the fixed
 cost of one call (the "one step" row) is taken off.
 
-Usage: ``python studies/frontier.py [--quick] [--out DIR]``
+Usage: ``python studies/frontier.py [--quick] [--out DIR] [--orbits R1 C2]
+[--schemes S ...] [--repeats N]``; ``--orbits`` and ``--schemes`` narrow the
+race to those orbits and schemes (plain, compensated and processed rows of
+the schemes named; heyoka's ladder and the one-step rows always run), for a
+look at one target (store a narrowed run under its own ``--out``).
 """
 
 from __future__ import annotations
@@ -318,6 +322,8 @@ def compare(rows, targets):
                   "all": [r for r in mine if r["contender"] == "varint"],
                   "prepared": [r for r in mine if r["contender"] == "varint prepared"]}
         for g, rs in groups.items():
+            if not rs:
+                continue        # (a narrowed run: no scheme of that group)
             floors.append({"orbit": name, "contender": g,
                            "floor": min(r["error"] for r in rs)})
         for target in targets:
@@ -415,21 +421,34 @@ def plot(out, rows, targets):
     return path.name
 
 
+def options(parser):
+    """The narrowing options (module docstring)."""
+    parser.add_argument("--orbits", nargs="+", choices=ORBITS, default=list(ORBITS))
+    parser.add_argument("--schemes", nargs="+", choices=list(TAUS), default=None,
+                        help="only these schemes' rows (default: all of the run's)")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="repeats of the interleaved race (default 15; --quick 1)")
+
+
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], argv)
+    args = parse_args(__doc__.splitlines()[0], argv, options)
     import heyoka as hy
 
     numba.set_num_threads(1)
     t_end = 100.0 if args.quick else 1e3
-    repeats = 1 if args.quick else 15
+    repeats = args.repeats or (1 if args.quick else 15)
     schemes = (("SRKN14a", "s17odr8", "s35odr10", "P13odr8", "P23odr10") if args.quick
                else OLD + NEW + PROCESSED)
     compensated = {"s35odr10": (0.25, 0.125)} if args.quick else COMPENSATED
     orbit_level = compensated if args.quick else COMPENSATED_ORBIT
     tols = (1e-10, 1e-14) if args.quick else TOLS
+    if args.schemes is not None:
+        schemes = tuple(s for s in schemes if s in args.schemes)
+        compensated = {s: t for s, t in compensated.items() if s in args.schemes}
+        orbit_level = {s: t for s, t in orbit_level.items() if s in args.schemes}
     load_before = os.getloadavg()
     rows = []
-    for name in ORBITS:
+    for name in args.orbits:
         rows += orbit_case(name, t_end, schemes, tols, repeats, compensated, orbit_level)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     table, floors = compare(rows, TARGETS)

@@ -177,10 +177,10 @@ def test_compensated_through_an_indicator():
 
 
 @pytest.mark.parametrize("options, match", [
-    ({"compensated": "yes"}, "compensated must be True, False or 'orbit', got 'yes'"),
+    ({"compensated": "yes"}, "compensated must be True, False, 'orbit' or 'step', got 'yes'"),
     ({"compensated": True, "backend": "cuda"}, "compensated=True runs on the CPU only"),
     ({"compensated": "orbit", "backend": "cuda"}, "compensated='orbit' runs on the CPU only"),
-    ({"compensated": "vectors"}, "compensated must be True, False or 'orbit', got 'vectors'"),
+    ({"compensated": "vectors"}, "compensated must be True, False, 'orbit' or 'step', got 'vectors'"),
 ])
 def test_compensated_bad_options(options, match):
     with pytest.raises(ValueError, match=match):
@@ -203,7 +203,7 @@ def test_a_bad_compensated_is_refused_before_the_pilot():
     is refused in one line when the first pilot's propagator is built,
     not taken for True by the pilot and refused only after it."""
     model, x0 = varint.paper_orbit("R1")
-    with pytest.raises(ValueError, match="compensated must be True, False or 'orbit', got 'yes'"):
+    with pytest.raises(ValueError, match="compensated must be True, False, 'orbit' or 'step', got 'yes'"):
         varint.integrate(model, x0, 100.0, compensated="yes")
 
 
