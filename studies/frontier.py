@@ -20,7 +20,9 @@ Contenders
   summation in every drift and kick; ``studies/compensated_floor.py``) at
   the steps of their ladders where round-off matters, and SRKN14a and
   s35odr10 with ``compensated="orbit"`` (the orbit's updates compensated,
-  the vectors' plain; ``studies/compensation_levels.py``), marked "+co";
+  the vectors' plain; ``studies/compensation_levels.py``), marked "+co",
+  and with ``compensated="step"`` (the orbit's displacement over each step
+  added compensated, its stages and the vectors plain), marked "+cs";
   "processed"
   the processed schemes of Blanes, Casas & Murua (2006) (P11odr6, P13odr8,
   P23odr10: kernels of 11, 13 and 23 leapfrog stages of effective order 6,
@@ -68,7 +70,11 @@ its force evaluations per step (heyoka: its Taylor order and steps), its
 CPU time and the CPU time per step and per force evaluation after the fixed
 cost of one call (the "one step" row) is taken off.
 
-Usage: ``python studies/frontier.py [--quick] [--out DIR]``
+Usage: ``python studies/frontier.py [--quick] [--out DIR] [--orbits R1 C2]
+[--schemes S ...] [--repeats N]``; ``--orbits`` and ``--schemes`` narrow the
+race to those orbits and schemes (plain, compensated and processed rows of
+the schemes named; heyoka's ladder and the one-step rows always run), for a
+look at one target (store a narrowed run under its own ``--out``).
 """
 
 from __future__ import annotations
@@ -125,6 +131,10 @@ COMPENSATED = {
 #: ``studies/compensation_levels.py``) on the schemes whose full
 #: compensation reaches the targets, at the same steps.
 COMPENSATED_ORBIT = {s: COMPENSATED[s] for s in ("SRKN14a", "s35odr10")}
+#: The step level (``compensated="step"``: the orbit's displacement over each
+#: step added by compensated summation, the stages and the vectors plain) on
+#: the same schemes and steps.
+COMPENSATED_STEP = dict(COMPENSATED_ORBIT)
 TOLS = (1e-8, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15, 1e-16)
 #: The issue's baseline (heyoka time / best varint time, t = 1e3, before the
 #: order-8 and -10 schemes) and its targets.
@@ -213,16 +223,17 @@ def prepared_runner(model, scheme, tau, w0, compensated=False):
 
 def key(row):
     """The cost–error front a row belongs to: its scheme, "+c" when
-    compensated (``"+co"`` at the orbit-only level), " prepared" through a
+    compensated (``"+co"`` at the orbit-only level, ``"+cs"`` at the step
+    level), " prepared" through a
     prepared run, or "heyoka"."""
     level = row.get("compensated")
     return ((row.get("scheme") or "heyoka")
-            + ("+co" if level == "orbit" else "+c" if level else "")
+            + {"orbit": "+co", "step": "+cs"}.get(level, "+c" if level else "")
             + (" prepared" if row["contender"] == "varint prepared" else ""))
 
 
 def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED,
-               orbit_level=COMPENSATED_ORBIT):
+               orbit_level=COMPENSATED_ORBIT, step_level=COMPENSATED_STEP):
     """Rows (contender, config, error, seconds) of one orbit."""
     model, x0 = varint.paper_orbit(name)
     w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
@@ -238,7 +249,8 @@ def orbit_case(name, t_end, schemes, tols, repeats, compensated=COMPENSATED,
                                      "new" if s in NEW else "old"), "compensated": False,
                            "steps": round(t_end / tau),
                            "evaluations": varint.get_scheme(s, processed=True).force_evaluations}
-    for level, suffix, table in ((True, "+c", compensated), ("orbit", "+co", orbit_level)):
+    for level, suffix, table in ((True, "+c", compensated), ("orbit", "+co", orbit_level),
+                                 ("step", "+cs", step_level)):
         for s, taus in table.items():
             for tau in taus:
                 label = f"varint {s}{suffix} tau={tau:g}"
@@ -318,6 +330,8 @@ def compare(rows, targets):
                   "all": [r for r in mine if r["contender"] == "varint"],
                   "prepared": [r for r in mine if r["contender"] == "varint prepared"]}
         for g, rs in groups.items():
+            if not rs:
+                continue        # (a narrowed run: no scheme of that group)
             floors.append({"orbit": name, "contender": g,
                            "floor": min(r["error"] for r in rs)})
         for target in targets:
@@ -391,7 +405,8 @@ def plot(out, rows, targets):
     for ax, name in zip(axes[0], names, strict=True):
         mine = [r for r in rows if r["orbit"] == name]
         for front in [*OLD, *NEW, *PROCESSED, *(f"{s}+c" for s in COMPENSATED),
-                      *(f"{s}+co" for s in COMPENSATED_ORBIT), "heyoka"]:
+                      *(f"{s}+co" for s in COMPENSATED_ORBIT),
+                      *(f"{s}+cs" for s in COMPENSATED_STEP), "heyoka"]:
             # In ladder order (τ or tolerance decreasing).
             pts = sorted(((r.get("tau") or r["tol"], r["error"], r["cpu_seconds"]) for r in mine
                           if key(r) == front and r["contender"] ==
@@ -400,7 +415,7 @@ def plot(out, rows, targets):
                 continue
             _, e, s = zip(*pts, strict=True)
             style = "k-o" if front == "heyoka" else (
-                ":D" if front.endswith(("+c", "+co")) else ("-s" if front in NEW else
+                ":D" if front.endswith(("+c", "+co", "+cs")) else ("-s" if front in NEW else
                                                    "-.v" if front in PROCESSED else "--^"))
             ax.loglog(e, np.array(s) * 1e3, style, label=front, ms=4)
         for t in targets:
@@ -415,22 +430,38 @@ def plot(out, rows, targets):
     return path.name
 
 
+def options(parser):
+    """The narrowing options (module docstring)."""
+    parser.add_argument("--orbits", nargs="+", choices=ORBITS, default=list(ORBITS))
+    parser.add_argument("--schemes", nargs="+", choices=list(TAUS), default=None,
+                        help="only these schemes' rows (default: all of the run's)")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="repeats of the interleaved race (default 15; --quick 1)")
+
+
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], argv)
+    args = parse_args(__doc__.splitlines()[0], argv, options)
     import heyoka as hy
 
     numba.set_num_threads(1)
     t_end = 100.0 if args.quick else 1e3
-    repeats = 1 if args.quick else 15
+    repeats = args.repeats or (1 if args.quick else 15)
     schemes = (("SRKN14a", "s17odr8", "s35odr10", "P13odr8", "P23odr10") if args.quick
                else OLD + NEW + PROCESSED)
     compensated = {"s35odr10": (0.25, 0.125)} if args.quick else COMPENSATED
     orbit_level = compensated if args.quick else COMPENSATED_ORBIT
+    step_level = compensated if args.quick else COMPENSATED_STEP
     tols = (1e-10, 1e-14) if args.quick else TOLS
+    if args.schemes is not None:
+        schemes = tuple(s for s in schemes if s in args.schemes)
+        compensated = {s: t for s, t in compensated.items() if s in args.schemes}
+        orbit_level = {s: t for s, t in orbit_level.items() if s in args.schemes}
+        step_level = {s: t for s, t in step_level.items() if s in args.schemes}
     load_before = os.getloadavg()
     rows = []
-    for name in ORBITS:
-        rows += orbit_case(name, t_end, schemes, tols, repeats, compensated, orbit_level)
+    for name in args.orbits:
+        rows += orbit_case(name, t_end, schemes, tols, repeats, compensated, orbit_level,
+                           step_level)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
     table, floors = compare(rows, TARGETS)
     costs = cost_table(rows, TARGETS)

@@ -42,12 +42,13 @@ compensated summation (``compensated=True`` of the TM method) lowers that
 floor (on R1 to t = 1e3 from about 1e-12 to a few 1e-14,
 ``studies/compensated_floor.py``) at some cost per step. A TM candidate
 whose predicted error misses the target by at most :data:`COMPENSATION_RANGE`
-is therefore piloted again compensated, at both levels, and each variant
+is therefore piloted again compensated, at each level, and each variant
 enters the table as a candidate of its own (``compensated`` True, every
-drift and kick, or ``"orbit"``, the orbit's only, the vectors plain:
-cheaper per step, and as accurate where the vectors' error follows the
-orbit's, ``studies/compensation_levels.py``); candidates far from the
-target are not (truncation, not round-off, sets their error).
+drift and kick; ``"orbit"``, the orbit's only, the vectors plain: cheaper
+per step, and as accurate where the vectors' error follows the orbit's,
+``studies/compensation_levels.py``; ``"step"``, the orbit's displacement
+over each step, cheaper again); candidates far from the target are not
+(truncation, not round-off, sets their error).
 """
 
 from __future__ import annotations
@@ -106,10 +107,10 @@ class SchemeChoice:
     ----------
     method, scheme, tau :
         The choice (``scheme`` None for methods without one).
-    compensated : bool or "orbit"
+    compensated : bool, "orbit" or "step"
         Whether the choice runs with compensated summation (TM only), and
         at which level (True: every drift and kick; "orbit": the orbit's,
-        not the vectors').
+        not the vectors'; "step": the orbit's displacement over each step).
     error : float
         Its error predicted at t_end (``metric``).
     seconds : float
@@ -158,7 +159,7 @@ class SchemeChoice:
             mark = "*" if (r["method"], r["scheme"], r["tau"], r["compensated"]) == (
                 self.method, self.scheme, self.tau, self.compensated) else " "
             verdict = ("yes" if r["meets"] else "no") + (" (unreliable)" if r["unreliable"] else "")
-            scheme = (r["scheme"] or "-") + {True: "+c", "orbit": "+co"}.get(
+            scheme = (r["scheme"] or "-") + {True: "+c", "orbit": "+co", "step": "+cs"}.get(
                 r["compensated"], "")
             lines.append(f"{r['method']:7} {scheme:9} {r['tau']:7.3g} "
                          f"{r['error_quarter']:9.2e} {r['error_pilot']:9.2e} {r['growth']:8.2f} "
@@ -167,7 +168,8 @@ class SchemeChoice:
                      "growth a: the error grows as t^a between them (a > "
                      f"{_UNRELIABLE:g}: exponential, the extrapolation is unreliable); "
                      f"err(t_end) = err(T) (t_end/T)^a; sec(t_end): predicted wall time; "
-                     "+c: compensated summation (+co: of the orbit only); *: the choice")
+                     "+c: compensated summation (+co: of the orbit only; +cs: of the orbit's "
+                     "displacement per step); *: the choice")
         return "\n".join(lines)
 
 
@@ -375,7 +377,7 @@ def select_scheme(model: Model, x0: ArrayLike, target_error: float, metric: str 
         table += [row(method, scheme, tau, level)
                   for (method, scheme, tau), r in zip(cands, list(table), strict=True)
                   if method == "tm" and target < r["error"] <= COMPENSATION_RANGE * target
-                  for level in ("orbit", True)]
+                  for level in ("step", "orbit", True)]
     table.sort(key=lambda r: (not r["meets"], r["seconds"], r["error"]))
     best = table[0]
     if not best["meets"]:

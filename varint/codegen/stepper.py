@@ -37,7 +37,7 @@ from ..kernels.closures import Unnamed, describe_cells
 from .accumulators import rule_text
 from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
-from .tm import TMBody
+from .tm import TMBody, level
 
 __all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper"]
 
@@ -59,8 +59,9 @@ class Plan:
         (:func:`~varint.codegen.accumulators.rule_text`), written out in the
         loop, or ``"module:name:hash"`` of its compiled update, called; ""
         for none.
-    compensated : bool or "orbit"
-        Drifts and kicks (``"orbit"``: the orbit's, not the vectors') add by
+    compensated : bool, "orbit" or "step"
+        Drifts and kicks (``"orbit"``: the orbit's, not the vectors';
+        ``"step"``: the orbit's displacement over each step) add by
         compensated summation (:class:`~varint.codegen.tm.TMBody`); such a
         module has no lanes.
     """
@@ -198,9 +199,10 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
     k : int
         Deviation vectors.
     accumulator : Accumulator, optional
-    compensated : bool or "orbit", default False
-        Compensated summation in every drift and kick, or (``"orbit"``) in
-        the orbit's drifts and kicks (:class:`~varint.codegen.tm.TMBody`).
+    compensated : bool, "orbit" or "step", default False
+        Compensated summation in every drift and kick, in the orbit's
+        drifts and kicks (``"orbit"``), or of the orbit's displacement over
+        each step (``"step"``; :class:`~varint.codegen.tm.TMBody`).
 
     Returns
     -------
@@ -212,7 +214,7 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
     """
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
                 k=int(k), accumulator=_accumulator_id(accumulator),
-                compensated=compensated if compensated == "orbit" else bool(compensated))
+                compensated=level(compensated))
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:

@@ -18,7 +18,15 @@ add plainly: the orbit is bitwise full compensation's, and where the
 vectors' error follows the orbit's (on the Hénon–Heiles orbits,
 ``studies/compensation_levels.py``) so does their accuracy, for half the
 compensated updates (a step is bound by its floating-point operations,
-four per compensated update instead of one).
+four per compensated update instead of one). With ``compensated="step"``
+the orbit's drifts and kicks add plainly, but to its displacement since
+the step began (small: its round-off is that of the increments, not of
+the state), and the displacement is added to the state once per step by
+Kahan's summation; the vectors add plainly. A step's latency then grows
+by one addition per drift (q = start + displacement, for the next kick's
+forces) instead of two per drift and kick (Kahan's), and its round-off is
+that of compensated summation at the step's granularity (the error growth
+law: ``tests/test_compensated.py``).
 The orbit and the
 deviation vectors are local variables (registers) for the whole loop. For
 H = A + V(q) with A the solvable quadratic of a rotating frame or a uniform
@@ -42,11 +50,23 @@ import numpy as np
 from ..protocol import Status
 from ..schemes import DRIFT
 
-__all__ = ["TMBody", "step_counts"]
+__all__ = ["TMBody", "step_counts", "LEVELS", "level"]
 
 _NONFINITE = int(Status.ORBIT_NONFINITE)
 _GRAD, _HESS, _THIRD = (int(Status.GRADIENT_NONFINITE), int(Status.HESSIAN_NONFINITE),
                         int(Status.THIRD_NONFINITE))
+
+
+#: The levels of compensated summation (module docstring): none, every drift
+#: and kick, the orbit's drifts and kicks, the orbit's displacement per step.
+LEVELS = (False, True, "orbit", "step")
+
+
+def level(compensated):
+    """``compensated`` as one of :data:`LEVELS` (a named level as it is,
+    anything else as a bool)."""
+    return compensated if isinstance(compensated, str) and compensated in LEVELS \
+        else bool(compensated)
 
 
 class TMBody:
@@ -57,7 +77,8 @@ class TMBody:
     The orbit is ``q{i}``, ``p{i}``; component i of vector j is ``a{i}_{j}``
     (δq) or ``b{i}_{j}`` (δp); compensated, each of them has its
     compensation ``c`` + its name (:meth:`compensation`), which only the
-    components :meth:`compensates` change (the others' stay zero). The stage lengths
+    components :meth:`compensates` change (the others' stay zero; with
+    ``"step"``, the orbit's, once per step: :meth:`step`). The stage lengths
     are the locals ``h{s}`` and ``hc{s}`` (:meth:`prologue`). After the
     first step, the first kick of a BAB-type step reuses the values of the
     last kick (same q): one orbit evaluates them once in its first step,
@@ -67,8 +88,9 @@ class TMBody:
 
     def __init__(self, E, kinds, corrected, k, compensated=False):
         self.E, self.kinds, self.corrected, self.k = E, tuple(kinds), tuple(corrected), k
-        #: False, True (every drift and kick) or "orbit" (the orbit's only).
-        self.compensated = compensated if compensated == "orbit" else bool(compensated)
+        #: False, True (every drift and kick), "orbit" (the orbit's only) or
+        #: "step" (the orbit's displacement over each step).
+        self.compensated = level(compensated)
         n = self.n = E.n
         self.q = [f"q{i}" for i in range(n)]
         self.p = [f"p{i}" for i in range(n)]
@@ -100,10 +122,27 @@ class TMBody:
     def compensates(self, name):
         """Whether updates of state local ``name`` add by compensated
         summation: all of them with ``compensated=True``, the orbit's
-        (q and p) with ``"orbit"``."""
+        (q and p) with ``"orbit"``, none with ``"step"`` (the orbit's
+        displacement over a step is added compensated: :meth:`step`)."""
         if self.compensated == "orbit":
             return name in self.q or name in self.p
-        return self.compensated
+        return self.compensated is True
+
+    def displaces(self, name):
+        """Whether updates of state local ``name`` add to its displacement
+        since the step began (``compensated="step"``: the orbit's)."""
+        return self.compensated == "step" and (name in self.q or name in self.p)
+
+    def start_of_step(self, name):
+        """The local that holds state local ``name`` as the step began
+        (``compensated="step"``)."""
+        return f"{name}_at"
+
+    def displacement(self, name):
+        """The local that holds the displacement of state local ``name``
+        since the step began, less its compensation (``compensated="step"``:
+        the state is ``start_of_step + displacement``)."""
+        return f"d{name}"
 
     def needs(self, corrected):
         """What a kick stage evaluates: ∇V; D²V with vectors; ∇C (and D²C
@@ -191,7 +230,26 @@ class TMBody:
 
     # -- the step ------------------------------------------------------------------------
     def step(self, src, target):
-        """One step: the scheme's stages, drifts and kicks."""
+        """One step: the scheme's stages, drifts and kicks.
+
+        With ``compensated="step"`` the orbit's stages add to its
+        displacement since the step began, which starts at minus the
+        compensation (Kahan's y = x − c, formed once per step), and the
+        step ends by adding it to the state: ``s = start + displacement``,
+        the new compensation ``(s − start) − displacement`` (exact where
+        |start| ≥ |displacement|: Dekker's Fast2Sum; :meth:`update`).
+        """
+        orbit = self.q + self.p if self.compensated == "step" else []
+        for x in orbit:
+            src(f"{self.start_of_step(x)} = {x}",
+                f"{self.displacement(x)} = -{self.compensation(x)}")
+        self.stages(src, target)
+        for x in orbit:
+            x0, d = self.start_of_step(x), self.displacement(x)
+            src(f"ks = {x0} + {d}", f"{self.compensation(x)} = (ks - {x0}) - {d}", f"{x} = ks")
+
+    def stages(self, src, target):
+        """The scheme's stages, drifts and kicks, in order."""
         for st, kind in enumerate(self.kinds):
             if kind == DRIFT:
                 self.drift(src, st)
@@ -256,7 +314,15 @@ class TMBody:
         for i in range(self.n):
             m = self.E.minv[i]
             h = f"h{st}" if m == 1.0 else f"(h{st} * {m!r})"
-            self.update(src, self.q[i], lambda acc, i=i, h=h: f"fma({h}, {self.p[i]}, {acc})")
+            p = self.p[i]
+            if self.displaces(p):
+                # h p = h p_start + h δp: the first product is off the chain
+                # of dependent operations from the last kick to this drift.
+                self.update(src, self.q[i], lambda acc, h=h, p=p: (
+                    f"fma({h}, {self.displacement(p)}, fma({h}, {self.start_of_step(p)}, "
+                    f"{acc}))"))
+            else:
+                self.update(src, self.q[i], lambda acc, h=h, p=p: f"fma({h}, {p}, {acc})")
             for j in range(self.k):
                 self.update(src, self.a[i][j],
                             lambda acc, i=i, j=j, h=h: f"fma({h}, {self.b[i][j]}, {acc})")
@@ -305,6 +371,12 @@ class TMBody:
         as the component is). The operations must stay in this order (numba does not reassociate
         floating point without fastmath).
         """
+        if self.displaces(name):
+            # To the displacement, plainly, and the state read from it (an
+            # unread one is compiled away: a kick's p before the next kick).
+            d = self.displacement(name)
+            src(f"{d} = {increment(d)}", f"{name} = {self.start_of_step(name)} + {d}")
+            return
         if not self.compensates(name):
             src(f"{name} = {increment(name)}")
             return

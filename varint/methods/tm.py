@@ -27,7 +27,7 @@ from ..codegen.expressions import symbolic_fits
 from ..codegen.interval import (LANE_WIDTH, CompensatedOrbit, LaneBlock, Outputs, StepperOrbit,
                                 StepperSetup)
 from ..codegen.stepper import symbolic_stepper
-from ..codegen.tm import step_counts
+from ..codegen.tm import LEVELS, step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
@@ -89,7 +89,7 @@ class TangentMapPropagator:
         emitted before its port onto :mod:`varint.codegen`) the
         Hénon–Heiles FLI map differed by up to 1e-11 relative at t = 100
         (not yet explained; ``studies/results/bench_gpu_h100.md``).
-    compensated : {False, True, "orbit"}, default False
+    compensated : {False, True, "orbit", "step"}, default False
         Add every drift and kick of the orbit and of the vectors by Kahan's
         compensated summation (:mod:`varint.codegen.tm`; Hairer, McLachlan
         & Razakarivony 2008): the round-off of a long run then grows like a
@@ -104,6 +104,15 @@ class TangentMapPropagator:
         follows the orbit's (Hénon–Heiles: ``studies/compensation_levels.py``)
         the vectors nearly match True's too, for fewer operations per step.
         Its state is True's (the vectors' compensations stay zero).
+        ``"step"``: the orbit's drifts and kicks add plainly to its
+        displacement since the step began, added to the state once per
+        step by compensated summation; the vectors' updates are plain.
+        Fewer operations on a step's critical path than ``"orbit"`` (one
+        addition per drift instead of two per drift and kick) for a floor
+        near its (``tests/test_compensated.py``,
+        ``studies/compensation_levels.py``); other bits than ``"orbit"``.
+        Its state is True's (the orbit's compensations those of the
+        step's additions, the vectors' zero).
 
     Notes
     -----
@@ -142,8 +151,8 @@ class TangentMapPropagator:
         self.every = self._every(opts.get("renormalize_every"))
         self.compensated = opts.get("compensated", False)
         if not (isinstance(self.compensated, (bool, np.bool_))
-                or (isinstance(self.compensated, str) and self.compensated == "orbit")):
-            raise ValueError(f"compensated must be True, False or 'orbit', got "
+                or (isinstance(self.compensated, str) and self.compensated in LEVELS)):
+            raise ValueError(f"compensated must be True, False, 'orbit' or 'step', got "
                              f"{self.compensated!r}")
         if not isinstance(self.compensated, str):
             self.compensated = bool(self.compensated)
