@@ -328,6 +328,8 @@ BAD_ARGUMENTS = [
     # The TM method's compensated summation.
     (["run", "x1", *R1, "--method", "dop853", "--compensated"], 2,
      "--compensated applies to --method tm only, not dop853"),
+    (["run", "x1", *R1, "--tau", "0.05", "--compensated", "kahan"], 2,
+     "--compensated: expected 'orbit' or 'step'"),
 ]
 
 
@@ -449,6 +451,17 @@ def test_run_compensated(capsys, tmp_path):
                                                    scheme="SABA2", compensated=c).exponents)[:, 0]
             for c in (False, True)}
     assert np.array_equal(written, runs[True]) and not np.array_equal(written, runs[False])
+
+
+@pytest.mark.parametrize("flag, level", [([], None), (["--compensated"], True),
+                                         (["--compensated", "orbit"], "orbit"),
+                                         (["--compensated", "step"], "step")])
+def test_compensated_levels_reach_the_method_options(flag, level):
+    """--compensated alone asks for every drift and kick compensated, with
+    a value for the partial levels the TM method takes (its test:
+    tests/test_compensated.py); no flag leaves the method's default."""
+    args = cli.build_parser().parse_args(["run", "x1", *R1, "--tau", "0.05", *flag])
+    assert cli._method_options(args).get("compensated") == level
 
 
 @pytest.mark.parametrize("indicator, column", [("gali", "gali_4"), ("megno", "megno"),

@@ -94,6 +94,15 @@ def _positive(text):
     return value
 
 
+def _compensation(text):
+    """argparse type: a partial level of the TM method's compensated
+    summation (``--compensated`` alone is every drift and kick)."""
+    if text in ("orbit", "step"):
+        return text
+    raise argparse.ArgumentTypeError(f"expected 'orbit' or 'step' (or no value: every drift "
+                                     f"and kick compensated), got {_shown(text)}")
+
+
 def _shown(text, limit=60):
     """``repr(text)``, shortened: values are quoted in one-line messages."""
     return repr(text if len(text) <= limit else text[:limit - 3] + "...")
@@ -1239,9 +1248,11 @@ def _add_run_options(p, t_end=1e4, chaos_map=False):
                f"{DEFAULT_SCHEME}, or a lattice's own: ABA864 for KG and FPUT, s11ABC6 for DDNLS")
     p.add_argument("--scheme", help=f"splitting scheme (default {default}); see "
                    "'varint schemes'")
-    p.add_argument("--compensated", action="store_true", default=None, help="tm: add every "
-                   "drift and kick by compensated (Kahan) summation, a lower round-off floor at "
-                   "a higher cost per step")
+    p.add_argument("--compensated", nargs="?", const=True, default=None, type=_compensation,
+                   metavar="LEVEL", help="tm: add every drift and kick by compensated (Kahan) "
+                   "summation, a lower round-off floor at a higher cost per step; 'orbit': "
+                   "the orbit's drifts and kicks only; 'step': the orbit's displacement once "
+                   "per step (the cheapest)")
     p.add_argument("--d0", type=_positive, default=None, help="two-particle: separation of "
                    "each neighbour after it is put back (default 1e-8)")
     p.add_argument("--d-max", type=_positive, default=None, help="two-particle: put a "
