@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -88,16 +89,25 @@ def varint_ns_per_step(prop, x0, k, n_steps):
 
 def first_run_seconds(repeats=2):
     """CPU seconds of an R1 spectrum to t = 100 in a fresh process (import
-    excluded), after an earlier process compiled and cached the kernels."""
+    excluded), after an earlier process compiled and cached the kernels.
+
+    Python's bytecode of varint is cached too, in a folder of this run
+    (``PYTHONPYCACHEPREFIX``), whatever ``PYTHONDONTWRITEBYTECODE`` says: an
+    installed package has its ``.pyc`` files, and compiling varint's
+    modules from source in every process (~0.1 s of this row) measured the
+    environment, not varint (as :mod:`studies.startup` does)."""
     code = ("import time, varint; m, x = varint.paper_orbit('R1'); t = time.process_time(); "
             "varint.lyapunov_spectrum(m, x, t_end=100.0, tau=0.05); "
             "print(time.process_time() - t)")
     env = dict(os.environ)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    times = [float(subprocess.run([sys.executable, "-c", code], check=True, env=env,
-                                  capture_output=True, text=True).stdout.split()[-1])
-             for _ in range(repeats + 1)]
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    with tempfile.TemporaryDirectory(prefix="varint-bytecode-") as pycache:
+        env["PYTHONPYCACHEPREFIX"] = pycache
+        times = [float(subprocess.run([sys.executable, "-c", code], check=True, env=env,
+                                      capture_output=True, text=True).stdout.split()[-1])
+                 for _ in range(repeats + 1)]
     return times[0], min(times[1:])
 
 

@@ -172,6 +172,86 @@ def test_code_planted_beside_the_steppers_is_never_imported(filled, monkeypatch)
     assert orbit() == clean and not marker.exists()
 
 
+def code_file(cache_dir):
+    """The signed code object kept beside the generated stepper."""
+    path = stepper_file(cache_dir)
+    return path.with_name(f"{path.stem}.{sys.implementation.cache_tag}.code")
+
+
+def counting_compiles(monkeypatch, path):
+    """Count, in a list, the compilations of the source of ``path``."""
+    seen = []
+
+    def compile_(source, filename, *args, **kwargs):
+        if filename == str(path):
+            seen.append(filename)
+        return compile(source, filename, *args, **kwargs)
+
+    monkeypatch.setattr(codecache, "compile", compile_, raising=False)
+    return seen
+
+
+def test_a_generated_steppers_code_is_read_back_not_compiled(filled, monkeypatch):
+    """A new process executes the stepper's code object from its signed code
+    file instead of compiling the source again, with the same bits; without
+    that file it compiles the source and writes the file again."""
+    cache_dir, _ = filled
+    clean = orbit()
+    assert code_file(cache_dir).read_bytes().startswith(codecache.HEADER)
+    new_process(monkeypatch)
+    seen = counting_compiles(monkeypatch, stepper_file(cache_dir))
+    assert orbit() == clean and seen == []
+    written = code_file(cache_dir).read_bytes()
+    code_file(cache_dir).unlink()
+    new_process(monkeypatch)
+    assert orbit() == clean and seen == [str(stepper_file(cache_dir))]
+    assert code_file(cache_dir).read_bytes() == written
+
+
+@pytest.mark.parametrize("damage", ["payload, unsigned", "payload, another key", "truncated",
+                                    "garbage", "empty"])
+def test_a_tampered_code_file_never_runs_and_is_rebuilt(filled, monkeypatch, damage):
+    """The code file is marshalled code that would run at import: one that
+    fails its signature is never unmarshalled; it is discarded with a
+    warning, the verified source compiled and the file written again."""
+    cache_dir, marker = filled
+    clean = orbit()
+    path = code_file(cache_dir)
+    blob = path.read_bytes()
+    tag = blob.split(b"\n")[1]
+    evil = tag + b"\n" + __import__("marshal").dumps(compile(payload(marker), "x", "exec"))
+    path.write_bytes({
+        "payload, unsigned": evil,
+        "payload, another key": codecache.HEADER + b"0" * 64 + b"\n" + evil,
+        "truncated": blob[: len(blob) // 2],
+        "garbage": b"not code" * 20,
+        "empty": b"",
+    }[damage])
+    new_process(monkeypatch)
+    with pytest.warns(CacheDirWarning, match="compiled kernel file .* is not used"):
+        assert orbit() == clean
+    assert not marker.exists() and path.read_bytes() == blob
+
+
+@pytest.mark.parametrize("other", ["source", "file name"])
+def test_a_signed_code_file_serves_only_its_own_source(filled, monkeypatch, other):
+    """A code file signed by the user's own secret but compiled from another
+    source (the module rebuilt) or for another file name (the cache
+    directory moved: numba keeps a kernel's cache beside the file its code
+    names) is not executed: the source is compiled again, no warning."""
+    cache_dir, marker = filled
+    clean = orbit()
+    path = code_file(cache_dir)
+    source = stepper_file(cache_dir).read_bytes().split(b"\n", 1)[1]
+    tag = {"source": codecache._code_tag(source + payload(marker).encode(), stepper_file(cache_dir)),
+           "file name": codecache._code_tag(source, cache_dir / "elsewhere.py")}[other]
+    evil = compile(payload(marker), str(stepper_file(cache_dir)), "exec")
+    codecache.write_signed(path, tag + b"\n" + __import__("marshal").dumps(evil))
+    new_process(monkeypatch)
+    seen = counting_compiles(monkeypatch, stepper_file(cache_dir))
+    assert orbit() == clean and not marker.exists() and len(seen) == 1
+
+
 @pytest.mark.parametrize("damage", ["garbage", "truncated", "pickle payload", "empty"])
 def test_damaged_numba_cache_files_are_discarded_and_rebuilt(filled, monkeypatch, damage):
     """numba's cache files are pickles that numba loads: one that does not

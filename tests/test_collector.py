@@ -38,6 +38,37 @@ def test_a_disabled_collector_stays_disabled():
     assert not gc.isenabled()
 
 
+def test_a_block_that_made_many_objects_leaves_them_in_the_old_generation():
+    """Code loaded while the collector was held (many new objects) is moved
+    to the oldest generation by one young pass at the block's end, so that
+    later young passes do not traverse it twice; a small block (a kernel
+    read back) leaves the generations as they were, and so does a block
+    whose user had disabled the collector."""
+    def made(n):
+        return [[] for _ in range(n)]       # lists: objects the collector tracks
+
+    gc.collect()
+    small_threshold = collector._PROMOTE * gc.get_threshold()[0]
+    with collector.held():
+        many = made(2 * small_threshold)
+    old = {id(o) for o in gc.get_objects(generation=2)}
+    assert all(id(o) in old for o in many)
+    assert gc.get_count()[0] < gc.get_threshold()[0]
+
+    gc.collect()
+    with collector.held():
+        few = made(gc.get_threshold()[0] // 2)
+    young = {id(o) for o in gc.get_objects(generation=0)}
+    assert all(id(o) in young for o in few)
+
+    gc.collect()
+    gc.disable()
+    with collector.held():
+        kept = made(2 * small_threshold)
+    young = {id(o) for o in gc.get_objects(generation=0)}
+    assert all(id(o) in young for o in kept)
+
+
 def test_threads_share_it_until_the_last_block_ends():
     inside, release, done = threading.Event(), threading.Event(), threading.Event()
 

@@ -1,10 +1,12 @@
 """Code identity and machine in every result (varint.identity)."""
 
 import hashlib
+import json
 import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 
 import varint
 from varint import checkpoint as ckpt
+from varint import codecache
 from varint import identity
 
 ROOT = Path(varint.__file__).resolve().parent.parent
@@ -151,3 +154,91 @@ def test_a_result_saved_before_code_was_recorded_loads_with_none(result, tmp_pat
     np.savez(path, **arrays)
     back = varint.load_result(path)
     assert back.provenance.code == {} and back.provenance.machine == {}
+
+
+@pytest.fixture
+def sources(tmp_path, monkeypatch):
+    """A copy of varint's sources settled for 0.1 s (the time a status must
+    lie back to vouch for a file here, instead of 2 s), a private cache
+    directory of its own, and the digest of the copy computed without
+    varint's code. Returns (folders as :func:`identity._digest` takes them,
+    record folder, digest)."""
+    from varint import baselines, cachedir
+
+    monkeypatch.setenv("VARINT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cachedir, "_WARNED", set())
+    monkeypatch.setattr(identity, "_SETTLED_NS", 50_000_000)
+    copies = []
+    for name, folder in (("varint", Path(varint.__file__).resolve().parent),
+                         ("varint.baselines", Path(baselines.__file__).resolve().parent)):
+        copies.append((name, tmp_path / name))
+        shutil.copytree(folder, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
+    time.sleep(0.1)
+    return tuple(copies), tmp_path / "cache" / identity._RECORDS, _digest_of(copies[0][1],
+                                                                            copies[1][1])
+
+
+def test_the_digest_is_recorded_signed_and_read_back_while_the_files_are_unchanged(
+        sources, monkeypatch):
+    """A recorded digest is what a later process gets, without reading the
+    sources; the record is signed."""
+    folders, records, digest = sources
+    assert identity._digest(folders) == digest
+    (record,) = records.glob("sources_*.json")
+    assert record.read_bytes().startswith(codecache.HEADER)
+    stored = json.loads(record.read_bytes().split(b"\n", 1)[1])
+    stored["digest"] = "f" * 64   # as if the record were read: nothing else says this
+    codecache.write_signed(record, json.dumps(stored))
+    monkeypatch.setattr("builtins.open", None)     # and no source is read
+    assert identity._digest(folders) == "f" * 64
+
+
+@pytest.mark.parametrize("edit", ["one byte, same size and times", "a file added",
+                                  "a file removed", "renamed over"])
+def test_any_change_to_a_source_changes_the_digest_despite_the_record(sources, edit):
+    """Edits the status of a file cannot hide: one byte changed with its
+    size and modification time put back (its change time moves), a file
+    added or removed, a file replaced by a rename (its inode changes)."""
+    folders, records, digest = sources
+    assert identity._digest(folders) == digest and list(records.glob("sources_*.json"))
+    package = folders[0][1]
+    target = package / "identity.py"
+    before = target.stat()
+    if edit == "one byte, same size and times":
+        data = bytearray(target.read_bytes())
+        data[-2] = ord("#") if data[-2] != ord("#") else ord(" ")
+        target.write_bytes(bytes(data))
+        os.utime(target, ns=(before.st_atime_ns, before.st_mtime_ns))
+        assert target.stat().st_size == before.st_size
+    elif edit == "a file added":
+        (package / "added.py").write_text("")
+    elif edit == "a file removed":
+        (package / "demo.py").unlink()
+    else:
+        (package / "new.tmp").write_bytes(target.read_bytes() + b"#")
+        os.replace(package / "new.tmp", target)
+    assert identity._digest(folders) == _digest_of(package, folders[1][1]) != digest
+
+
+def test_a_file_changed_just_before_is_hashed_again_by_the_next_process(sources, monkeypatch):
+    """A status younger than the settling time does not vouch for its file
+    (a write in the same tick of the file system's clock would keep it):
+    no record is kept until every file has settled."""
+    folders, records, digest = sources
+    monkeypatch.setattr(identity, "_SETTLED_NS", 10**12)
+    assert identity._digest(folders) == digest and not list(records.glob("sources_*.json"))
+
+
+def test_a_forged_or_damaged_record_is_discarded(sources):
+    """A record not signed with the user's secret is discarded with a
+    warning and the digest computed from the sources."""
+    from varint.cachedir import CacheDirWarning
+
+    folders, records, digest = sources
+    identity._digest(folders)
+    (record,) = records.glob("sources_*.json")
+    stored = json.loads(record.read_bytes().split(b"\n", 1)[1])
+    stored["digest"] = "f" * 64
+    record.write_bytes(codecache.HEADER + b"0" * 64 + b"\n" + json.dumps(stored).encode())
+    with pytest.warns(CacheDirWarning, match="source digest record"):
+        assert identity._digest(folders) == digest

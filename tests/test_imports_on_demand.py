@@ -132,3 +132,21 @@ def test_a_run_of_one_model_imports_no_other_models_kernels():
     for name, module in varint.models._LAZY.items():
         assert getattr(varint.models, name).__module__ == f"varint.models.{module}", name
     assert set(varint.models.__all__) <= set(dir(varint.models))
+
+
+def test_a_run_imports_the_indicator_it_computes_and_no_other():
+    """A first Lyapunov run in a new process imports the Lyapunov
+    indicator's module only; asking for another name, or listing the
+    registry, imports the others (issue 28, a first run's start-up)."""
+    modules = ("lyapunov", "alignment", "megno", "local_exponents", "orbit", "lattice")
+    loaded = fresh("import sys, json, varint; "
+                   "m, x = varint.paper_orbit('R1'); "
+                   "varint.lyapunov_spectrum(m, x, t_end=0.5, tau=0.05, progress=False); "
+                   f"seen = lambda: [m for m in {modules!r} if 'varint.indicators.' + m "
+                   "in sys.modules]; "
+                   "first = seen(); varint.get_indicator('GALI_3'); second = seen(); "
+                   "names = sorted(varint.INDICATORS); "
+                   "print(json.dumps([first, second, seen(), names]))")
+    assert loaded[:3] == [["lyapunov"], ["lyapunov", "alignment"], list(modules)]
+    assert loaded[3] == sorted(["lyapunov", "gali", "sali", "megno", "fli", "ofli",
+                                "local_exponents", "integrate", "spreading", "dvd"])

@@ -12,6 +12,10 @@ anything runs:
   (:func:`varint.cachedir.sign`);
 * a generated module is executed from the very bytes that were verified
   (never re-read from disk, never from a ``.pyc``), and only after the check;
+  its compiled code is kept beside it as a signed file of its own
+  (:func:`_compiled`: compiling a stepper's source costs more than the rest
+  of loading it), used only once its signature verifies and only for the
+  verified source, file name and Python it was compiled from;
 * numba's cache files of a generated module (``*.nbi``, ``*.nbc``: pickles
   that numba loads) are written signed by :class:`SignedCache` and
   unpickled only after their MAC verifies;
@@ -45,8 +49,11 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import hashlib
+import importlib.util
 import io
 import json
+import marshal
 import os
 import pickle
 import secrets
@@ -247,8 +254,7 @@ def _execute(name, data, path, extra_globals, key=None):
         code = compile(tree, f"<varint {name}>", "exec", dont_inherit=True)
     else:
         module.__file__ = str(path)
-        # One blank line for the signature line above the code in the file.
-        code = compile(b"\n" + data, str(path), "exec", dont_inherit=True)
+        code = _compiled(data, path, key)
     sys.modules[name] = module
     try:
         exec(code, module.__dict__)  # verified above, or generated in this process
@@ -259,6 +265,51 @@ def _execute(name, data, path, extra_globals, key=None):
         _sign_numba_caches(module, key)
         _FROM_FILE[name] = str(path)
     return module
+
+
+def _compiled(data, path, key):
+    """The code object of the verified source ``data`` of the file ``path``,
+    read back from its signed code file if one was written for exactly
+    that, else compiled now and written for the next process.
+
+    The code file (``<module>.<cache tag>.code`` beside the source) holds
+    :func:`_code_tag` and the marshalled code. It is unmarshalled only
+    after its MAC verifies (key ``key``, as every file here), and used only
+    if its tag is the one of ``data``: a code file of another source (the
+    module was rebuilt), another location of the cache directory (the
+    code names its file, where numba keeps its kernels' caches) or another
+    Python is compiled again and written over. What marshal reads is
+    therefore bytes this user's varint wrote for these verified bytes; a
+    code file that fails its check is discarded with a warning, as any.
+    """
+    tag = _code_tag(data, path)
+    code_path = path.with_name(f"{path.stem}.{sys.implementation.cache_tag}.code")
+    blob = read_signed(code_path, "compiled kernel file", key)
+    if blob is not None and blob.startswith(tag + b"\n"):
+        try:
+            return marshal.loads(blob[len(tag) + 1:])
+        except (EOFError, ValueError, TypeError) as exc:  # verified: another Python's
+            _discard(code_path, "compiled kernel file", f"it cannot be read ({exc})")
+    # One blank line for the signature line above the code in the file.
+    code = compile(b"\n" + data, str(path), "exec", dont_inherit=True)
+    try:
+        write_signed(code_path, tag + b"\n" + marshal.dumps(code), key)
+    except OSError as exc:
+        _unwritable(code_path.parent, exc)
+    return code
+
+
+def _code_tag(data, path):
+    """What a code object compiled by :func:`_compiled` depends on (hex
+    SHA-256, bytes): the source ``data``, the file name compiled into it,
+    the bytecode's version (:data:`importlib.util.MAGIC_NUMBER`) and the
+    optimisation level (``-O`` drops ``assert``)."""
+    h = hashlib.sha256()
+    for part in (importlib.util.MAGIC_NUMBER, str(sys.flags.optimize).encode(),
+                 str(path).encode(), data):
+        h.update(len(part).to_bytes(8, "little"))
+        h.update(part)
+    return h.hexdigest().encode()
 
 
 def named_by_file(function):
