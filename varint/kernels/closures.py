@@ -125,7 +125,7 @@ def _describe(value, depth=0):
         return ("enum", _class_name(type(value)), value.name)
     if isinstance(value, (np.generic, np.dtype)):
         return ("numpy", repr(value))
-    if isinstance(value, np.ndarray) and isinstance(value.base, bytes):
+    if isinstance(value, np.ndarray) and isinstance(_memory(value), bytes):
         data = hashlib.sha256(np.ascontiguousarray(value).tobytes()).hexdigest()
         return ("ndarray", value.dtype.str, value.shape, value.strides, data)
     if isinstance(value, Dispatcher):
@@ -147,6 +147,13 @@ def _describe(value, depth=0):
         items = sorted(value, key=repr) if isinstance(value, frozenset) else value
         return (_class_name(type(value)), tuple(_describe(v, depth + 1) for v in items))
     raise Unnamed(f"a {type(value).__name__}")
+
+
+def _memory(array):
+    """The object that owns the memory of ``array`` (of its views too)."""
+    while isinstance(array, np.ndarray) and array.base is not None:
+        array = array.base
+    return array
 
 
 def _class_name(cls):
