@@ -15,8 +15,15 @@ now warm, cache directory runs the same three: what every later process
 pays (a user's next script, the other test worker). The values must be the
 same bits in every tree and process.
 
-Run: ``python studies/dop853_compile.py --tree after=<tree> --tree
-before=<tree>`` (``--quick``: one repeat, stored under ``results/quick``).
+``speed``: for each tree, alternating processes on a warm cache, the time
+per interval of the compiled engine on R1 (full spectrum, τ = 0.05,
+t = 200), the minimum over ``--repeats`` processes of the best of three
+calls: compiling the right-hand side in must not slow the engine down.
+
+Run: ``python studies/dop853_compile.py compile --tree after=<tree> --tree
+before=<tree>`` and ``python studies/dop853_compile.py speed --tree
+after=<tree> --tree before=<tree>`` (``--quick``: one repeat, stored under
+``results/quick``).
 """
 
 from __future__ import annotations
@@ -63,6 +70,21 @@ for name, run in runs.items():
 print(json.dumps(out))
 """
 
+#: The child of ``speed``: seconds per interval, best of three calls.
+SPEED_CHILD = """
+import json, time
+import varint
+m, x = varint.paper_orbit("R1")
+steps = 4000
+best = float("inf")
+for _ in range(4):
+    t0 = time.process_time()
+    r = varint.lyapunov_spectrum(m, x, t_end=steps * 0.05, tau=0.05, method="dop853",
+                                 progress=False)
+    best = min(best, time.process_time() - t0)
+print(json.dumps({"us/interval": best / steps * 1e6, "values": r.exponents.tobytes().hex()}))
+"""
+
 CASES = ("R1", "from_potential", "time-dependent")
 PROCESSES = ("first process", "second process")
 
@@ -95,8 +117,32 @@ def compile_times(args, trees, scratch):
                                            "runs": runs, "trees": sorted(trees)})
 
 
+def speed(args, trees, scratch):
+    for label, tree in trees.items():        # warm each tree's cache first
+        (scratch / label).mkdir()
+        child(tree, SPEED_CHILD.replace("steps = 4000", "steps = 4"), scratch / label)
+    runs = {label: [] for label in trees}
+    for rep in range(args.repeats):
+        for label, tree in trees.items():
+            before = load()
+            runs[label].append(dict(child(tree, SPEED_CHILD, scratch / label),
+                                    load=[before, load()]))
+            print(f"{label:8s} {rep} {runs[label][-1]['us/interval']:8.2f} us/interval",
+                  flush=True)
+    best = {label: min(r["us/interval"] for r in rs) for label, rs in runs.items()}
+    same = len({r["values"] for rs in runs.values() for r in rs}) == 1
+    labels = list(trees)
+    ratio = best[labels[0]] / best[labels[-1]]
+    print(json.dumps({"min us/interval": best, f"{labels[0]}/{labels[-1]}": ratio}, indent=1),
+          "\nsame bits in every tree:", same)
+    save_json(args.out, "dop853_speed", {"min us/interval": best,
+                                         f"ratio {labels[0]}/{labels[-1]}": ratio,
+                                         "same bits": same, "runs": runs, "trees": labels})
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("what", choices=("compile", "speed"))
     parser.add_argument("--tree", action="append", required=True,
                         help="LABEL=PATH of a varint source tree (repeatable)")
     parser.add_argument("--repeats", type=int, default=3)
@@ -110,7 +156,7 @@ def main(argv=None):
     Path(args.out).mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix="varint-dop853-compile-"))
     try:
-        compile_times(args, trees, scratch)
+        (compile_times if args.what == "compile" else speed)(args, trees, scratch)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
