@@ -17,7 +17,7 @@ same bits in every tree and process.
 
 ``speed``: for each tree, alternating processes on a warm cache, the time
 per interval of the compiled engine on R1 (full spectrum, τ = 0.05,
-t = 200), the minimum over ``--repeats`` processes of the best of three
+t = 2000), the minimum over ``--repeats`` processes of the best of three
 calls: compiling the right-hand side in must not slow the engine down.
 
 Run: ``python studies/dop853_compile.py compile --tree after=<tree> --tree
@@ -75,7 +75,7 @@ SPEED_CHILD = """
 import json, time
 import varint
 m, x = varint.paper_orbit("R1")
-steps = 4000
+steps = 40000
 best = float("inf")
 for _ in range(4):
     t0 = time.process_time()
@@ -120,7 +120,7 @@ def compile_times(args, trees, scratch):
 def speed(args, trees, scratch):
     for label, tree in trees.items():        # warm each tree's cache first
         (scratch / label).mkdir()
-        child(tree, SPEED_CHILD.replace("steps = 4000", "steps = 4"), scratch / label)
+        child(tree, SPEED_CHILD.replace("steps = 40000", "steps = 4"), scratch / label)
     runs = {label: [] for label in trees}
     for rep in range(args.repeats):
         for label, tree in trees.items():
