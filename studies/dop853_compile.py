@@ -17,8 +17,8 @@ same bits in every tree and process.
 
 ``speed``: for each tree, alternating processes on a warm cache, the time
 per interval of the compiled engine on R1 (full spectrum, τ = 0.05,
-t = 2000), the minimum over ``--repeats`` processes of the best of three
-calls: compiling the right-hand side in must not slow the engine down.
+t = 2000), the minimum over ``--repeats`` processes of the best of four
+calls (the first may compile): compiling the right-hand side in must not slow the engine down.
 
 Run: ``python studies/dop853_compile.py compile --tree after=<tree> --tree
 before=<tree>`` and ``python studies/dop853_compile.py speed --tree
@@ -70,7 +70,7 @@ for name, run in runs.items():
 print(json.dumps(out))
 """
 
-#: The child of ``speed``: seconds per interval, best of three calls.
+#: The child of ``speed``: seconds per interval, best of four calls.
 SPEED_CHILD = """
 import json, time
 import varint
