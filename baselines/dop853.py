@@ -45,7 +45,7 @@ from varint._validate import choice, positive_float
 
 from .blocks import BlockPropagator, output_body
 from .dop853_kernel import COUNTS, POWERS, RTOL_MIN, advance_orbit
-from .dop853_lanes import LANES, advance_lanes
+from .dop853_lanes import LANES, lanes_kernel
 from .rhs import tangent_rhs
 
 __all__ = ["DOP853Propagator", "ENGINES"]
@@ -140,6 +140,7 @@ class DOP853Propagator(BlockPropagator):
         take = orbit_loop(output_body(self.model.grad_kernel),
                           acc.update if acc is not None else no_accumulator,
                           acc is not None and acc.needs_flow)
+        advance_lanes = lanes_kernel(self._rhs, take)
         model, steps, total = self.model, 0, np.zeros(len(COUNTS), dtype=np.int64)
         h_all = state.extra["dop853_h"]
         for first in range(0, len(active), LANES):
@@ -153,10 +154,10 @@ class DOP853Propagator(BlockPropagator):
             status = np.empty(L, dtype=np.int64)
             done = np.empty(L, dtype=np.int64)
             counts = np.zeros((L, len(COUNTS)), dtype=np.int64)
-            advance_lanes(self._rhs, X, W, acc_m, acc_e, h, status, done, int(n), self.tau,
+            advance_lanes(X, W, acc_m, acc_e, h, status, done, int(n), self.tau,
                           self.options["rtol"], self.options["atol"], POWERS, self._mode,
-                          self._escape_r2, counts, take, aux, model.params,
-                          model.inverse_mass, state.step, clock)
+                          self._escape_r2, counts, aux, model.params, model.inverse_mass,
+                          state.step, clock)
             state.x[idx], state.W[idx] = X, W
             state.acc_m[idx], state.acc_e[idx], h_all[idx] = acc_m, acc_e, h
             if acc is not None:

@@ -75,8 +75,8 @@ from varint.protocol import Status
 
 from .blocks import output_flow, take_output
 
-__all__ = ["advance_orbit", "dop853_body", "integrate_interval", "initial_step", "try_step",
-           "COUNTS", "POWERS", "RTOL_MIN"]
+__all__ = ["advance_orbit", "dop853_body", "dop853_engine", "Engine", "COUNTS", "POWERS",
+           "RTOL_MIN"]
 
 _OK = int(Status.OK)
 _NONFINITE = int(Status.ORBIT_NONFINITE)
@@ -137,72 +137,6 @@ def _rms_norm(x, root_n):
 
 
 @njit
-def initial_step(rhs, y0, f0, tau, rtol, atol, root_n, powers, scale, y1, f1):
-    """SciPy's ``select_initial_step`` on [0, τ] (Hairer et al. Sect. II.4,
-    "Starting Step Size"): h₀ = 0.01 ‖y₀‖/‖f₀‖ in the RMS norm weighted by
-    atol + rtol·|y₀|, one Euler step to f₁ = f(y₀ + h₀ f₀), then
-    h₁ = (0.01 / max(‖f₀‖, ‖f₁ − f₀‖/h₀))^{1/8}; the step is min(100 h₀, h₁, τ).
-
-    Parameters
-    ----------
-    rhs : numba function ``rhs(t, y, yp)``
-    y0, f0 : ndarray
-        State and its derivative at t = 0.
-    tau, rtol, atol, root_n : float
-        Interval end, tolerances and √(len(y0)).
-    powers : tuple of float
-        :data:`POWERS`.
-    scale, y1, f1 : ndarray
-        Work arrays of the size of ``y0``.
-
-    Returns
-    -------
-    float
-        The first step; one evaluation of ``rhs``.
-    """
-    for i in range(y0.size):
-        scale[i] = atol + abs(y0[i]) * rtol
-        y1[i] = y0[i] / scale[i]
-    d0 = _rms_norm(y1, root_n)
-    for i in range(y0.size):
-        y1[i] = f0[i] / scale[i]
-    d1 = _rms_norm(y1, root_n)
-    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = _pymin(h0, tau)
-    for i in range(y0.size):
-        y1[i] = y0[i] + h0 * f0[i]
-    rhs(h0, y1, f1)
-    for i in range(y0.size):
-        y1[i] = (f1[i] - f0[i]) / scale[i]
-    d2 = _rms_norm(y1, root_n) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = _pymax(1e-6, h0 * 1e-3)
-    else:
-        h1 = math.pow(0.01 / _pymax(d1, d2), powers[2])
-    # SciPy also takes the minimum with max_step, which is infinite here.
-    return _pymin(_pymin(100 * h0, h1), tau)
-
-
-@njit
-def _rk_stages(rhs, t, y, h, Ks, y_new, ys, dy):
-    """SciPy's ``rk_step``: stages k₁ … k₁₂ into ``Ks[1:12]`` (k₀ = f(y) is
-    in ``Ks[0]``), y₁ = y + h Σ b_j k_j into ``y_new`` and f(y₁) into
-    ``Ks[12]``; 12 evaluations of ``rhs``."""
-    n = y.size
-    for s in range(1, N_STAGES):
-        # Σ_{j<s} a_sj k_j as SciPy forms it: np.dot(K[:s].T, a[:s]), BLAS
-        # gemv on the column-major transpose (see the module notes).
-        np.dot(Ks[:s].T, A[s, :s], dy)
-        for i in range(n):
-            ys[i] = y[i] + dy[i] * h
-        rhs(t + C[s] * h, ys, Ks[s])
-    np.dot(Ks[:N_STAGES].T, B, dy)
-    for i in range(n):
-        y_new[i] = y[i] + h * dy[i]
-    rhs(t + h, y_new, Ks[N_STAGES])
-
-
-@njit
 def _error_norm(Ks, h, y, y_new, rtol, atol, powers, scale, e5, e3):
     """DOP853's error measure (Hairer et al. Sect. II.10; SciPy's
     ``_estimate_error_norm``): the 5th-order estimate damped by the 3rd,
@@ -224,125 +158,214 @@ def _error_norm(Ks, h, y, y_new, rtol, atol, powers, scale, e5, e3):
     return abs(h) * n5 / np.sqrt((n5 + 0.01 * n3) * y.size)
 
 
-@njit
-def try_step(rhs, t, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, counts):
-    """One step of SciPy's ``RungeKutta._step_impl`` from (t, y), f(y) in
-    ``Ks[0]``: trial steps of h_abs (truncated to end at τ), shrunk after
-    each rejection, until one is accepted (Hairer et al. Sect. II.4).
+#: SciPy's solver compiled for one right-hand side (:func:`dop853_engine`).
+Engine = namedtuple("Engine", ("initial_step", "try_step", "integrate_interval"))
 
-    Parameters
-    ----------
-    rhs : numba function ``rhs(t, y, yp)``
-    t : float
-        Current time, < τ.
-    y : ndarray
-        Current state.
-    h_abs : float
-        Proposed step.
-    tau, rtol, atol : float
-        Interval end and tolerances.
-    powers : tuple of float
-        :data:`POWERS`.
-    Ks : ndarray, shape (13, len(y))
-        Stages; ``Ks[0]`` = f(t, y) on entry, ``Ks[12]`` = f(t_new, y_new)
-        on an accepted step.
-    y_new : ndarray
-        Receives the new state.
-    work : ndarray, shape (5, len(y))
-        Scratch.
-    counts : ndarray of int64
-        :data:`COUNTS`, incremented.
+
+@cache
+def dop853_engine(rhs):
+    """SciPy's DOP853 solver compiled for the right-hand side ``rhs(t, y,
+    yp)`` (:func:`baselines.rhs.tangent_rhs`): its initial-step selection,
+    its step with rejections, and one interval [0, τ].
+
+    ``rhs`` is compiled in (closed over, called directly), not passed as an
+    argument: the address of a function passed as a value is a constant of
+    this process in the compiled code, which numba never caches, so every
+    process compiled the engine again (≈ 25 s). Compiled in, it is cached
+    across processes with the stepping skeleton's kernel that calls it
+    (:mod:`varint.kernels.closures`).
 
     Returns
     -------
-    accepted : bool
-        False if the step size fell below SciPy's minimum (10 ulp of t) or
-        became NaN.
-    t_new : float
-    h_abs : float
-        The step proposed next.
+    Engine
+        ``initial_step``, ``try_step`` and ``integrate_interval``, numba
+        functions documented below.
     """
-    min_step = 10 * abs(np.nextafter(t, np.inf) - t)
-    if h_abs < min_step:
-        h_abs = min_step
-    rejected = False
-    ys, dy, scale, e5, e3 = work[0], work[1], work[2], work[3], work[4]
-    while True:
-        # SciPy tests ``h_abs < min_step``, which a NaN never fails.
-        if not h_abs >= min_step:
-            return False, t, h_abs
-        t_new = t + h_abs
-        if t_new - tau > 0:
-            t_new = tau
-        h = t_new - t
-        h_abs = abs(h)
-        _rk_stages(rhs, t, y, h, Ks, y_new, ys, dy)
-        counts[_NFEV] += N_STAGES
-        err = _error_norm(Ks, h, y, y_new, rtol, atol, powers, scale, e5, e3)
-        if err < 1:
-            if err == 0:
-                factor = MAX_FACTOR
-            else:
-                factor = _pymin(MAX_FACTOR, SAFETY * math.pow(err, powers[1]))
-            if rejected:
-                factor = _pymin(1.0, factor)
-            return True, t_new, h_abs * factor
-        h_abs *= _pymax(MIN_FACTOR, SAFETY * math.pow(err, powers[1]))
-        rejected = True
-        counts[_REJECTED] += 1
 
+    @njit
+    def initial_step(y0, f0, tau, rtol, atol, root_n, powers, scale, y1, f1):
+        """SciPy's ``select_initial_step`` on [0, τ] (Hairer et al. Sect.
+        II.4, "Starting Step Size"): h₀ = 0.01 ‖y₀‖/‖f₀‖ in the RMS norm
+        weighted by atol + rtol·|y₀|, one Euler step to f₁ = f(y₀ + h₀ f₀),
+        then h₁ = (0.01 / max(‖f₀‖, ‖f₁ − f₀‖/h₀))^{1/8}; the step is
+        min(100 h₀, h₁, τ).
 
-@njit
-def integrate_interval(rhs, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, counts):
-    """Integrate ``y`` in place from t = 0 to τ as SciPy's ``DOP853`` solver
-    stepped to its ``t_bound``.
+        Parameters
+        ----------
+        y0, f0 : ndarray
+            State and its derivative at t = 0.
+        tau, rtol, atol, root_n : float
+            Interval end, tolerances and √(len(y0)).
+        powers : tuple of float
+            :data:`POWERS`.
+        scale, y1, f1 : ndarray
+            Work arrays of the size of ``y0``.
 
-    Parameters
-    ----------
-    rhs : numba function ``rhs(t, y, yp)``
-    y : ndarray
-        State at t = 0; on return the state at τ, or the last accepted state
-        if the integration failed.
-    h_abs : float
-        First step (capped at τ), or NaN for SciPy's initial-step selection.
-    tau, rtol, atol : float
-    powers : tuple of float
-        :data:`POWERS`.
-    Ks, y_new, work : ndarray
-        Work arrays as in :func:`try_step`.
-    counts : ndarray of int64
-        :data:`COUNTS`, incremented.
+        Returns
+        -------
+        float
+            The first step; one evaluation of ``rhs``.
+        """
+        for i in range(y0.size):
+            scale[i] = atol + abs(y0[i]) * rtol
+            y1[i] = y0[i] / scale[i]
+        d0 = _rms_norm(y1, root_n)
+        for i in range(y0.size):
+            y1[i] = f0[i] / scale[i]
+        d1 = _rms_norm(y1, root_n)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = _pymin(h0, tau)
+        for i in range(y0.size):
+            y1[i] = y0[i] + h0 * f0[i]
+        rhs(h0, y1, f1)
+        for i in range(y0.size):
+            y1[i] = (f1[i] - f0[i]) / scale[i]
+        d2 = _rms_norm(y1, root_n) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = _pymax(1e-6, h0 * 1e-3)
+        else:
+            h1 = math.pow(0.01 / _pymax(d1, d2), powers[2])
+        # SciPy also takes the minimum with max_step, which is infinite here.
+        return _pymin(_pymin(100 * h0, h1), tau)
 
-    Returns
-    -------
-    status : int
-        ``OK``, ``ORBIT_NONFINITE`` (the state is not finite) or
-        ``INTEGRATOR_FAILED`` (the step size fell below its minimum).
-    h_abs : float
-        The step DOP853 proposes after the last one (SciPy's ``h_abs``).
-    """
-    rhs(0.0, y, Ks[0])
-    counts[_NFEV] += 1
-    if h_abs != h_abs:
-        h_abs = initial_step(rhs, y, Ks[0], tau, rtol, atol, math.pow(y.size, powers[3]), powers,
-                             work[0], work[1], work[2])
+    @njit
+    def rk_stages(t, y, h, Ks, y_new, ys, dy):
+        """SciPy's ``rk_step``: stages k₁ … k₁₂ into ``Ks[1:12]`` (k₀ = f(y)
+        is in ``Ks[0]``), y₁ = y + h Σ b_j k_j into ``y_new`` and f(y₁) into
+        ``Ks[12]``; 12 evaluations of ``rhs``."""
+        n = y.size
+        for s in range(1, N_STAGES):
+            # Σ_{j<s} a_sj k_j as SciPy forms it: np.dot(K[:s].T, a[:s]),
+            # BLAS gemv on the column-major transpose (see the module notes).
+            np.dot(Ks[:s].T, A[s, :s], dy)
+            for i in range(n):
+                ys[i] = y[i] + dy[i] * h
+            rhs(t + C[s] * h, ys, Ks[s])
+        np.dot(Ks[:N_STAGES].T, B, dy)
+        for i in range(n):
+            y_new[i] = y[i] + h * dy[i]
+        rhs(t + h, y_new, Ks[N_STAGES])
+
+    @njit
+    def try_step(t, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, counts):
+        """One step of SciPy's ``RungeKutta._step_impl`` from (t, y), f(y)
+        in ``Ks[0]``: trial steps of h_abs (truncated to end at τ), shrunk
+        after each rejection, until one is accepted (Hairer et al. Sect.
+        II.4).
+
+        Parameters
+        ----------
+        t : float
+            Current time, < τ.
+        y : ndarray
+            Current state.
+        h_abs : float
+            Proposed step.
+        tau, rtol, atol : float
+            Interval end and tolerances.
+        powers : tuple of float
+            :data:`POWERS`.
+        Ks : ndarray, shape (13, len(y))
+            Stages; ``Ks[0]`` = f(t, y) on entry, ``Ks[12]`` = f(t_new,
+            y_new) on an accepted step.
+        y_new : ndarray
+            Receives the new state.
+        work : ndarray, shape (5, len(y))
+            Scratch.
+        counts : ndarray of int64
+            :data:`COUNTS`, incremented.
+
+        Returns
+        -------
+        accepted : bool
+            False if the step size fell below SciPy's minimum (10 ulp of t)
+            or became NaN.
+        t_new : float
+        h_abs : float
+            The step proposed next.
+        """
+        min_step = 10 * abs(np.nextafter(t, np.inf) - t)
+        if h_abs < min_step:
+            h_abs = min_step
+        rejected = False
+        ys, dy, scale, e5, e3 = work[0], work[1], work[2], work[3], work[4]
+        while True:
+            # SciPy tests ``h_abs < min_step``, which a NaN never fails.
+            if not h_abs >= min_step:
+                return False, t, h_abs
+            t_new = t + h_abs
+            if t_new - tau > 0:
+                t_new = tau
+            h = t_new - t
+            h_abs = abs(h)
+            rk_stages(t, y, h, Ks, y_new, ys, dy)
+            counts[_NFEV] += N_STAGES
+            err = _error_norm(Ks, h, y, y_new, rtol, atol, powers, scale, e5, e3)
+            if err < 1:
+                if err == 0:
+                    factor = MAX_FACTOR
+                else:
+                    factor = _pymin(MAX_FACTOR, SAFETY * math.pow(err, powers[1]))
+                if rejected:
+                    factor = _pymin(1.0, factor)
+                return True, t_new, h_abs * factor
+            h_abs *= _pymax(MIN_FACTOR, SAFETY * math.pow(err, powers[1]))
+            rejected = True
+            counts[_REJECTED] += 1
+
+    @njit
+    def integrate_interval(y, h_abs, tau, rtol, atol, powers, Ks, y_new, work, counts):
+        """Integrate ``y`` in place from t = 0 to τ as SciPy's ``DOP853``
+        solver stepped to its ``t_bound``.
+
+        Parameters
+        ----------
+        y : ndarray
+            State at t = 0; on return the state at τ, or the last accepted
+            state if the integration failed.
+        h_abs : float
+            First step (capped at τ), or NaN for SciPy's initial-step
+            selection.
+        tau, rtol, atol : float
+        powers : tuple of float
+            :data:`POWERS`.
+        Ks, y_new, work : ndarray
+            Work arrays as in ``try_step``.
+        counts : ndarray of int64
+            :data:`COUNTS`, incremented.
+
+        Returns
+        -------
+        status : int
+            ``OK``, ``ORBIT_NONFINITE`` (the state is not finite) or
+            ``INTEGRATOR_FAILED`` (the step size fell below its minimum).
+        h_abs : float
+            The step DOP853 proposes after the last one (SciPy's ``h_abs``).
+        """
+        rhs(0.0, y, Ks[0])
         counts[_NFEV] += 1
-    else:
-        h_abs = _pymin(h_abs, tau)
-    t = 0.0
-    ok = True
-    while ok and t - tau < 0:
-        counts[_STEPS] += 1
-        ok, t, h_abs = try_step(rhs, t, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work,
-                                counts)
-        if ok:
-            for i in range(y.size):
-                y[i] = y_new[i]
-                Ks[0, i] = Ks[N_STAGES, i]
-    for i in range(y.size):
-        if not np.isfinite(y[i]):
-            return _NONFINITE, h_abs
-    return (_OK if ok else _FAILED), h_abs
+        if h_abs != h_abs:
+            h_abs = initial_step(y, Ks[0], tau, rtol, atol, math.pow(y.size, powers[3]), powers,
+                                 work[0], work[1], work[2])
+            counts[_NFEV] += 1
+        else:
+            h_abs = _pymin(h_abs, tau)
+        t = 0.0
+        ok = True
+        while ok and t - tau < 0:
+            counts[_STEPS] += 1
+            ok, t, h_abs = try_step(t, y, h_abs, tau, rtol, atol, powers, Ks, y_new, work,
+                                    counts)
+            if ok:
+                for i in range(y.size):
+                    y[i] = y_new[i]
+                    Ks[0, i] = Ks[N_STAGES, i]
+        for i in range(y.size):
+            if not np.isfinite(y[i]):
+                return _NONFINITE, h_abs
+        return (_OK if ok else _FAILED), h_abs
+
+    return Engine(initial_step, try_step, integrate_interval)
 
 
 #: One orbit's record (:mod:`varint.kernels.interval`): ``counters`` are
@@ -365,12 +388,15 @@ def dop853_body(rhs, grad):
     integrated from the renormalised state, restarting DOP853 every τ (the
     paper's scheme; :mod:`varint.baselines.dop853`). ``rhs(t, y, yp)`` is
     :func:`baselines.rhs.tangent_rhs`, ``grad`` the model's gradient kernel
-    (for the accumulator's flow).
+    (for the accumulator's flow); both are compiled in, so the kernel is
+    cached across processes where they can be named
+    (:mod:`varint.kernels.closures`).
 
     A failed integration leaves x, W as they were at the interval's start;
     the end of the interval is the stepping skeleton's, as for the TM
     method, with the integrated vectors taken as a block of one output
     (:func:`varint.baselines.blocks.take_output`, C = I)."""
+    integrate_interval = dop853_engine(rhs).integrate_interval
 
     @njit(inline="always")
     def begin(state, setup, call):
@@ -399,9 +425,8 @@ def dop853_body(rhs, grad):
             y[size - 2] = (call.step0 + s) * call.tau
             y[size - 1] = clock[1]
         counts[_BLOCKS] += 1
-        status, h_next = integrate_interval(rhs, y, state.h[0], call.tau, setup.rtol,
-                                            setup.atol, setup.powers, ws.Ks, ws.y_new, ws.work,
-                                            counts)
+        status, h_next = integrate_interval(y, state.h[0], call.tau, setup.rtol, setup.atol,
+                                            setup.powers, ws.Ks, ws.y_new, ws.work, counts)
         if status != _OK:
             return status, carry
         state.h[0] = h_next

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from numba import njit
 from numba.core import caching
@@ -107,3 +108,44 @@ def test_a_second_process_runs_tdh_without_compiling():
     compiled, second = json.loads(fresh(code))
     assert compiled == 0.0
     assert second == first
+
+
+def test_arrays_over_immutable_bytes_are_named_by_content():
+    """An array whose memory is a bytes object (a compiled right-hand
+    side's parameters) is named by its content; any other array could
+    change after it is named, and is not."""
+    from varint.kernels.closures import Unnamed, _describe
+
+    def frozen(values):
+        return np.frombuffer(np.asarray(values, dtype=np.float64).tobytes())
+
+    assert _describe(frozen([1.0, 2.0])) == _describe(frozen([1.0, 2.0]))
+    assert _describe(frozen([1.0, 2.0])) != _describe(frozen([1.0, 3.0]))
+    assert _describe(frozen([1.0, 2.0])) != _describe(frozen([1.0, 2.0]).reshape(2, 1))
+    writable = np.array([1.0, 2.0])
+    with pytest.raises(Unnamed):
+        _describe(writable)
+    writable.flags.writeable = False        # read-only now, writable again at will
+    with pytest.raises(Unnamed):
+        _describe(writable)
+
+
+def test_a_second_process_runs_dop853_without_compiling():
+    """The DOP853 engine is compiled into its orbit kernel with the model's
+    right-hand side: the generated one (Hénon–Heiles) and the one from a
+    model's kernels and parameters (a time-dependent potential). Compiled
+    by one process, both are loaded by the next, which compiles nothing and
+    gets the same bits."""
+    code = ("import json, sympy as sp, varint; from varint import compiling; "
+            "from varint.models import from_potential; "
+            "m, x = varint.paper_orbit('R1'); q, t = sp.symbols('q t'); "
+            "forced = from_potential(-sp.cos(q) * (1 + sp.cos(t) / 5), [q], time=t); "
+            "kw = dict(t_end=1.0, tau=0.05, method='dop853', progress=False); "
+            "a = varint.lyapunov_spectrum(m, x, **kw).exponents; "
+            "b = varint.lyapunov_spectrum(forced, [0.0, 2.0], **kw).exponents; "
+            "print(json.dumps([compiling.compile_seconds(), a.tobytes().hex(), "
+            "b.tobytes().hex()]))")
+    first = json.loads(fresh(code))
+    second = json.loads(fresh(code))
+    assert second[0] == 0.0
+    assert second[1:] == first[1:]

@@ -157,7 +157,7 @@ def interval_tolerance(solver, rtol, atol):
 
 def replay_steps(rhs, intervals, tau, rtol, atol, n_steps=None):
     """Every recorded step (the first ``n_steps``) redone by
-    :func:`try_step` from SciPy's state: the same decisions after as many
+    the engine's ``try_step`` from SciPy's state: the same decisions after as many
     trials, and the largest relative differences of the step sizes, the new
     states and the proposed steps (also as a fraction of their tolerance)."""
     worst = {"size": 0.0, "state": 0.0, "h_next": 0.0, "h_next_of_tolerance": 0.0, "steps": 0}
@@ -167,8 +167,8 @@ def replay_steps(rhs, intervals, tau, rtol, atol, n_steps=None):
         for s in solver.steps:
             counts = np.zeros(len(DK.COUNTS), dtype=np.int64)
             Ks[0] = s.f
-            ok, t_new, h_new = DK.try_step(rhs, s.t, s.y, s.h_abs, tau, rtol, atol, DK.POWERS,
-                                           Ks, y_new, work, counts)
+            ok, t_new, h_new = DK.dop853_engine(rhs).try_step(
+                s.t, s.y, s.h_abs, tau, rtol, atol, DK.POWERS, Ks, y_new, work, counts)
             assert ok == s.accepted
             assert counts[NFEV] == s.nfev
             assert counts[REJECTED] == len(s.trials) - s.accepted
@@ -197,7 +197,7 @@ def replay_steps(rhs, intervals, tau, rtol, atol, n_steps=None):
 
 
 def replay_intervals(rhs, intervals, tau, rtol, atol):
-    """Every recorded interval redone whole by :func:`integrate_interval`
+    """Every recorded interval redone whole by the engine's ``integrate_interval``
     from SciPy's start state and first step (NaN: SciPy chose it): the same
     status and counts, and the largest relative difference of the end state
     (the last accepted one if it failed), also as a fraction of
@@ -209,8 +209,8 @@ def replay_intervals(rhs, intervals, tau, rtol, atol):
         size = solver.y0.size
         counts = np.zeros(len(DK.COUNTS), dtype=np.int64)
         y = solver.y0.copy()
-        status, _ = DK.integrate_interval(
-            rhs, y, solver.first_step, tau, rtol, atol, DK.POWERS,
+        status, _ = DK.dop853_engine(rhs).integrate_interval(
+            y, solver.first_step, tau, rtol, atol, DK.POWERS,
             np.empty((DK.N_STAGES + 1, size)), np.empty(size), np.empty((5, size)), counts)
         assert status == {"finished": Status.OK, "failed": Status.INTEGRATOR_FAILED}[solver.status]
         assert counts[NFEV] == solver.nfev

@@ -18,7 +18,11 @@ that names what the kernel is compiled from, the same in every process:
   generated stepper, a :func:`~varint.models.symbolic.from_potential`
   model's kernels) by the module's name — a hash of everything its source
   is made from — and its code;
-* the plain values it closes over (flags, sizes, strings) by value;
+* the plain values it closes over (flags, sizes, strings) by value, and
+  so the arrays it closes over whose memory is an immutable ``bytes``
+  object (``np.frombuffer``: a compiled right-hand side's parameters and
+  masses, which numba compiles in as constants) — by dtype, shape, strides
+  and content; any other array could change after it is named;
 * all of varint's source (:func:`varint.identity.source_digest`): the
   helpers a function calls through its globals are compiled in too, and
   numba's cache does not follow them.
@@ -121,6 +125,9 @@ def _describe(value, depth=0):
         return ("enum", _class_name(type(value)), value.name)
     if isinstance(value, (np.generic, np.dtype)):
         return ("numpy", repr(value))
+    if isinstance(value, np.ndarray) and isinstance(_memory(value), bytes):
+        data = hashlib.sha256(np.ascontiguousarray(value).tobytes()).hexdigest()
+        return ("ndarray", value.dtype.str, value.shape, value.strides, data)
     if isinstance(value, Dispatcher):
         options = sorted((k, _describe(v, depth + 1)) for k, v in value.targetoptions.items())
         return ("dispatcher", _describe(value.py_func, depth + 1), tuple(options))
@@ -140,6 +147,13 @@ def _describe(value, depth=0):
         items = sorted(value, key=repr) if isinstance(value, frozenset) else value
         return (_class_name(type(value)), tuple(_describe(v, depth + 1) for v in items))
     raise Unnamed(f"a {type(value).__name__}")
+
+
+def _memory(array):
+    """The object that owns the memory of ``array`` (of its views too)."""
+    while isinstance(array, np.ndarray) and array.base is not None:
+        array = array.base
+    return array
 
 
 def _class_name(cls):
