@@ -89,7 +89,7 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     energy errors are O(1) and more); the LH's step chosen by indicator
     agreement is priced cheaper than constant steps, so the defaults run
     the LH, say so (method, the prices, one log line) and give the explicit
-    LH map at that h bit for bit, accurate; time_transform=None keeps
+    LH map at that h and offset δ bit for bit, accurate; time_transform=None keeps
     constant steps."""
     model = _model("plummer")
     X = _plummer_orbits(2, 8)
@@ -100,7 +100,7 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     assert choice["rule"] == "indicator" and choice["prices"]["log"] < choice["prices"]["constant"]
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
-                                time_transform="log", tau=choice["h"])
+                                time_transform="log", tau=choice["h"], offset=choice["offset"])
     # Orbits not retried (each meets energy_tol at h) are the explicit map's.
     kept = np.array(choice["levels"]) == 0
     assert kept.any()
@@ -149,7 +149,8 @@ def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_st
     """An LH map with an automatic h whose orbits are retried (energy_tol
     1e-4): the same bits in chunks of 3 and of all, on 1 and 2 threads;
     ``tau_choice["h_orbit"]`` is each orbit's step (h/2^level), and the
-    explicit map at each recorded step gives that orbit's value."""
+    explicit map at each recorded step (and the chosen offset δ) gives
+    that orbit's value."""
     import numba
 
     model = _model("plummer")
@@ -174,5 +175,5 @@ def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_st
     for h in np.unique(h_orbit):
         rows = h_orbit == h
         alone = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
-                                 time_transform="log", tau=h)
+                                 time_transform="log", tau=h, offset=choice["offset"])
         assert np.array_equal(alone.values[rows], a.values[rows])

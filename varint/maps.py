@@ -400,7 +400,10 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (the energy pilot's h for every orbit, with a warning,
         where none does); the options ``scheme`` (a two-part
         scheme without corrector or processor, default ABA864), ``offset``
-        (δ of C = E + δ) and ``every`` (the physical time between
+        (δ of C = E + δ; by default the cheapest of a short ladder priced
+        by the pilot, :func:`varint.time_transform_step.agreeing_offset`,
+        ``provenance.tau_choice["offset"]``; a given δ is kept) and
+        ``every`` (the physical time between
         normalisations of the vector, default 10). "auto" (the default): an
         FLI map with no τ, scheme or other option, of a model the LH takes,
         whose U = C − V varies by :data:`U_SPREAD_MIN` or more over the
