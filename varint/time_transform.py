@@ -14,7 +14,8 @@ shrink in proportion to 1/U.
 
 The constant C is chosen once per orbit from its energy E: C = E + δ with
 δ = max(−E, 1) in the model's energy units (δ = ``offset`` when it is
-given): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
+given; a map's pilot prices a few δ and takes the cheapest,
+:func:`varint.time_transform_step.agreeing_offset`): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
 potential that vanishes far away, for orbits bound below E = −1, and U ≥ 1
 otherwise. The ratio of the physical
 steps at two points of an orbit is the inverse ratio of U there, so a small δ
