@@ -273,7 +273,9 @@ def main(argv=None):
     chosen = [c for c in args.case.split(",") if c]
     rows = [row for name, s in sets().items() if name in chosen
             for row in ladder(name, *s, args.repeats)]
-    save_json(args.out, f"lh_offset_{args.part}",
+    # A run of some cases only is stored beside the full one.
+    suffix = "" if chosen == ["core", "cr3bp", "henon_heiles"] else "_" + "_".join(chosen)
+    save_json(args.out, f"lh_offset_{args.part}{suffix}",
               {"rows": rows, "offsets": list(OFFSETS), "load": start,
                "load_end": list(os.getloadavg())})
 
