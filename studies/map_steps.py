@@ -90,7 +90,10 @@ Parts (``--part``):
     "varint defaults" is the LH at its automatic h where the defaults
     choose it (its ``method`` "tm+log"), "varint constant steps" the map
     with ``time_transform=None`` and "varint LH, automatic h" the map with
-    ``time_transform="log"`` and no τ (its pilot included; the run of
+    ``time_transform="log"`` and no τ (its pilot included, and since delta12
+    its offset δ, :func:`varint.time_transform_step.agreeing_offset`; the
+    rows "rule offset (before delta12)" are the same maps with δ the rule's,
+    unpriced, in the same run; the run of
     lhauto7's branch with the closure stepper is kept in
     ``lh_auto_race_quick.json``). The stored run (quiet machine, load ≤ 1,
     3 repeats, the generated stepper) reads: CR3BP ABA864 h = 1.6 2.85× at
@@ -419,6 +422,13 @@ def log_case(name, quick, repeats):
         # Before ladder11 (the baseline in the same run): one h for every
         # orbit, the pilot's energy ceiling energy_tol, no retry.
         tasks["varint LH, one h (before retry)"] = lambda: _one_h_map(model, grid, t_end)
+        # Before delta12 (the baselines in the same run): δ the rule's,
+        # not priced by the pilot.
+        tasks["varint defaults, rule offset (before delta12)"] = lambda: _rule_offset(
+            lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False))
+        tasks["varint LH, automatic h, rule offset (before delta12)"] = lambda: _rule_offset(
+            lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                                     time_transform="log"))
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -469,6 +479,21 @@ def _one_h_map(model, grid, t_end):
                       ceiling=DEFAULT_ENERGY_TOL, seed=0, every=LOG_MAP_OPTIONS["every"])
     return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
                             time_transform="log", tau=h)
+
+
+def _rule_offset(call):
+    """``call()`` with the LH pilot's offset δ the rule's, not priced (the
+    maps as they were before :func:`varint.time_transform_step.agreeing_offset`:
+    :func:`~varint.time_transform_step.agreeing_h` at the map's own δ)."""
+    from unittest import mock
+
+    from varint import time_transform_step
+
+    def unpriced(lh, X, t_end, **kwargs):
+        return (lh, *time_transform_step.agreeing_h(lh, X, t_end, **kwargs))
+
+    with mock.patch.object(time_transform_step, "agreeing_offset", unpriced):
+        return call()
 
 
 def _equal_agreement(rows, label):

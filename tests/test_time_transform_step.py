@@ -89,7 +89,7 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     energy errors are O(1) and more); the LH's step chosen by indicator
     agreement is priced cheaper than constant steps, so the defaults run
     the LH, say so (method, the prices, one log line) and give the explicit
-    LH map at that h bit for bit, accurate; time_transform=None keeps
+    LH map at that h and offset δ bit for bit, accurate; time_transform=None keeps
     constant steps."""
     model = _model("plummer")
     X = _plummer_orbits(2, 8)
@@ -100,7 +100,7 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     assert choice["rule"] == "indicator" and choice["prices"]["log"] < choice["prices"]["constant"]
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
-                                time_transform="log", tau=choice["h"])
+                                time_transform="log", tau=choice["h"], offset=choice["offset"])
     # Orbits not retried (each meets energy_tol at h) are the explicit map's.
     kept = np.array(choice["levels"]) == 0
     assert kept.any()
@@ -147,9 +147,11 @@ def test_an_orbit_above_the_ceiling_is_retried_until_it_meets_it():
 
 def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_step():
     """An LH map with an automatic h whose orbits are retried (energy_tol
-    1e-4): the same bits in chunks of 3 and of all, on 1 and 2 threads;
+    1e-6; at the offset δ its pilot chooses, 1e-4 retries none): the same
+    bits in chunks of 3 and of all, on 1 and 2 threads;
     ``tau_choice["h_orbit"]`` is each orbit's step (h/2^level), and the
-    explicit map at each recorded step gives that orbit's value."""
+    explicit map at each recorded step (and the chosen offset δ) gives
+    that orbit's value."""
     import numba
 
     model = _model("plummer")
@@ -160,7 +162,7 @@ def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_st
         for size, threads in ((None, 1), (3, min(2, numba.config.NUMBA_NUM_THREADS))):
             numba.set_num_threads(threads)
             runs.append(varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
-                                         time_transform="log", energy_tol=1e-4,
+                                         time_transform="log", energy_tol=1e-6,
                                          chunk_size=size))
     finally:
         numba.set_num_threads(before)
@@ -174,5 +176,5 @@ def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_st
     for h in np.unique(h_orbit):
         rows = h_orbit == h
         alone = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
-                                 time_transform="log", tau=h)
+                                 time_transform="log", tau=h, offset=choice["offset"])
         assert np.array_equal(alone.values[rows], a.values[rows])

@@ -400,7 +400,10 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (the energy pilot's h for every orbit, with a warning,
         where none does); the options ``scheme`` (a two-part
         scheme without corrector or processor, default ABA864), ``offset``
-        (δ of C = E + δ) and ``every`` (the physical time between
+        (δ of C = E + δ; by default the cheapest of a short ladder priced
+        by the pilot, :func:`varint.time_transform_step.agreeing_offset`,
+        ``provenance.tau_choice["offset"]``; a given δ is kept) and
+        ``every`` (the physical time between
         normalisations of the vector, default 10). "auto" (the default): an
         FLI map with no τ, scheme or other option, of a model the LH takes,
         whose U = C − V varies by :data:`U_SPREAD_MIN` or more over the
@@ -607,16 +610,17 @@ def _cheaper_steps(spec, k, clock):
     at no step tried, or the constant step's at none whose price is below
     the LH's and the LH's is not cheaper (the map then takes the energy
     pilot's constant step, as every other map)."""
-    from .time_transform_step import RETRY_CEILING, agreeing_h
+    from .time_transform_step import RETRY_CEILING, agreeing_offset
 
     model, X = spec.model, spec.x0
     with clock.part("pilot"):
         lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
         # The LH map retries each orbit to energy_tol itself (_log_map):
-        # its pilot's ceiling is looser, its price counts the retries.
-        h, choice = agreeing_h(lh, X, spec.t_end, quantile=MAP_QUANTILE,
-                               ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
-                               every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol)
+        # its pilot's ceiling is looser, its price counts the retries; its
+        # offset δ is the cheapest the pilot priced.
+        _, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
+                                       ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
+                                       every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol)
         if h is None:
             return None, None
         log_cost, _ = step_cost.log_gradient_cost(lh)
@@ -845,7 +849,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     states, their energy errors and the accuracy verdict of every map
     (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
     from .time_transform import TIME_TRANSFORMS, describe, refuse
-    from .time_transform_step import RETRY_CEILING, agreeing_h, choose_h, retried
+    from .time_transform_step import RETRY_CEILING, agreeing_offset, choose_h, retried
 
     if time_transform not in TIME_TRANSFORMS:
         raise ValueError(f"time_transform must be None or one of {list(TIME_TRANSFORMS)}, "
@@ -892,10 +896,14 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     m = len(X)
     chunk_size = _chunk_size(chunk_size, m, None)
     lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
+    if h_choice is not None and "offset" in h_choice:
+        # The defaults' pilot (_cheaper_steps) chose δ with h.
+        lh = lh.with_offset(h_choice["offset"])
     if h is None:
-        h, h_choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE,
-                                 ceiling=RETRY_CEILING * energy_tol, seed=seed, every=every,
-                                 retry=energy_tol)
+        # δ (unless given) and h from the pilot: counts, never timings.
+        lh, h, h_choice = agreeing_offset(lh, X, t_end, quantile=MAP_QUANTILE,
+                                          ceiling=RETRY_CEILING * energy_tol, seed=seed,
+                                          every=every, retry=energy_tol)
         if h is None:
             # Not silence: the map runs, at the step of the energy pilot,
             # and says that its FLI was not checked.
@@ -967,6 +975,8 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     verdict, energy = _log_verdict(model, X, state, x_worst, t_worst, status, energy_tol, h)
     if h_choice is not None and "summary" in h_choice:
         verdict.notes["step"] = h_choice["summary"]
+    if h_choice is not None and "offset_summary" in h_choice:
+        verdict.notes["offset"] = h_choice["offset_summary"]
     if retry:
         h_choice = {**h_choice, "levels": level.tolist(),
                     "h_orbit": (h * 2.0**-level).tolist()}

@@ -14,7 +14,8 @@ shrink in proportion to 1/U.
 
 The constant C is chosen once per orbit from its energy E: C = E + δ with
 δ = max(−E, 1) in the model's energy units (δ = ``offset`` when it is
-given): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
+given; a map's pilot prices a few δ and takes the cheapest,
+:func:`varint.time_transform_step.agreeing_offset`): C = 0 and U = −V, the classical LH of Mikkola & Tanikawa for a
 potential that vanishes far away, for orbits bound below E = −1, and U ≥ 1
 otherwise. The ratio of the physical
 steps at two points of an orbit is the inverse ratio of U there, so a small δ
@@ -34,6 +35,7 @@ H. Preto & S. Tremaine, AJ 118, 2532 (1999).
 
 from __future__ import annotations
 
+import copy
 import numbers
 from dataclasses import dataclass
 
@@ -183,6 +185,7 @@ class LogHamiltonian:
         (A, V, q, p, flow, par), sch = refuse(model, scheme, offset)
         kinds, h, _ = stage_arrays(sch, 1.0)
         self.model, self.scheme, self.offset = model, sch, None if offset is None else float(offset)
+        self._kinetic_flow = flow.kind == "free"
         self.kinds = np.where(kinds == DRIFT, 0, 1).astype(np.int64)
         self.coef = h.astype(float)
         self.par = np.asarray(par, dtype=float)
@@ -197,6 +200,22 @@ class LogHamiltonian:
         self._kinetic, self._potential = mod.kinetic, mod.potential
         self.advance_kernel, self.step_kernel, self.project_kernel, self.outputs_kernel = \
             mod.advance, mod.step, mod.project, mod.outputs
+
+    def with_offset(self, offset):
+        """This stepper with δ = ``offset`` (> 0, or None: the rule of the
+        module docstring): the same compiled kernels, another C = E + δ
+        (what :func:`varint.time_transform_step.agreeing_offset` prices)."""
+        checked_offset(offset)
+        other = copy.copy(self)
+        other.offset = None if offset is None else float(offset)
+        return other
+
+    @property
+    def kinetic(self):
+        """Whether A is a kinetic energy ½pᵀM⁻¹p ≥ 0, so that U = A + δ ≥ δ
+        on every orbit for any δ > 0 (False for a rotating frame, whose A
+        takes both signs: there U > 0 only where C is above V)."""
+        return self._kinetic_flow
 
     def source(self):
         """The source of this stepper's module (:func:`~varint.codegen.lh.lh_source`),
@@ -308,11 +327,18 @@ def refuse(model, scheme="ABA864", offset=None):
     if getattr(sch, "corrector", None) is not None or not hasattr(sch, "stages"):
         raise ValueError(f"time_transform='log' needs a two-part scheme without a "
                          f"corrector or processor, got {sch.name!r}")
+    checked_offset(offset)
+    return parts, sch
+
+
+def checked_offset(offset):
+    """``offset`` (δ), after refusing one that is neither None nor a finite
+    number > 0."""
     if offset is not None and (isinstance(offset, bool)
                                or not isinstance(offset, numbers.Real)
                                or not float(offset) > 0.0 or not np.isfinite(offset)):
         raise ValueError(f"offset must be a finite number > 0, got {offset!r}")
-    return parts, sch
+    return offset
 
 
 def describe(status):

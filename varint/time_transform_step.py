@@ -67,7 +67,7 @@ from .state import initial_deviations
 from .step_agreement import descend, pilot_sample, same_verdict, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
-__all__ = ["choose_h", "agreeing_h", "pilot_errors", "retried", "orbit_errors"]
+__all__ = ["choose_h", "agreeing_h", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
 
 #: The indicator pilot's steps h = h₀·2^−j, j = TOP … TOP + LEVELS − 1:
 #: from 2h₀ (two time units per step where the orbits start) to h₀/256
@@ -193,7 +193,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict,
-               retry=None):
+               retry=None, t_pilot=None, stop_above=math.inf):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
     each with the map's own vector (``default_rng([seed, m])``) and
@@ -228,7 +228,7 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     W0 = initial_deviations(lh.model.dim, 1, len(pick), seed, pick)[:, :, 0]
     reference = Reference(lh.model, sample)
     h0 = float(np.median(lh.constants(sample) - lh.model.potential(sample[:, :n])))
-    t_pilot = float(min(t_end, PILOT_T))
+    t_pilot = float(min(t_end, PILOT_T if t_pilot is None else t_pilot))
     counts = np.zeros(3, dtype=np.int64)
     runs: dict = {}
 
@@ -245,7 +245,7 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
         return runs[j][:3]
 
     tried, chosen = descend(run, range(TOP, TOP + LEVELS), lambda j: h0 * 2.0**-j, t_pilot,
-                            t_end, quantile, ceiling, agree=agree)
+                            t_end, quantile, ceiling, agree=agree, stop_above=stop_above)
     choice = {"h0": h0, "pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
               "ceiling": float(ceiling), "agreement": agree.__name__,
               "scheme": lh.scheme.name, "tried": tried,
@@ -264,6 +264,98 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     choice.update(rule="indicator", h=h0 * 2.0**-j, energy_error=largest, gradient_rate=rate,
                   summary=summary(n_agree, len(sample), largest, "h"))
     return h0 * 2.0**-j, choice
+
+
+#: The offsets δ of C = E + δ (:mod:`varint.time_transform`) the maps'
+#: pilot prices, in this order (None: the rule δ = max(−E, 1) of
+#: :class:`~varint.time_transform.LogHamiltonian`); :func:`agreeing_offset`.
+OFFSETS = (None, 0.5, 0.25, 0.125)
+#: The physical time of the pilots that price the offsets (a quarter of
+#: :data:`~varint.stepsize.PILOT_T`: on the cored, softened point mass and
+#: Hénon–Heiles pilots of ``studies/lh_offset.py`` they rank the offsets
+#: as the pilots to t = 100 do, at a quarter of their force evaluations).
+PRICE_T = PILOT_T / 4
+
+
+def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
+                    offsets=OFFSETS):
+    """The offset δ and the fictitious step h of an LH map of the orbits
+    ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
+    of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
+
+    On an orbit of energy E, U = C − V = A + δ, so for a kinetic A the
+    physical step h/U is h/(T + δ) (Preto & Tremaine 1999, eq. 14; Mikkola &
+    Tanikawa 1999): the ratio of an orbit's longest step (T → 0) to its
+    shortest (a core of depth |V_min| − E) is (T_max + δ)/δ, so a small δ
+    concentrates the steps where the orbit is fast and δ → ∞ gives constant
+    steps. Which δ needs the fewest force evaluations depends on the
+    potential (``studies/lh_offset.py``: the cored map δ = 0.25, 1.6 times
+    fewer than the rule's δ = 1; Hénon–Heiles the rule): the price decides.
+
+    Each δ of ``offsets``, in order, is priced by :func:`agreeing_h` with the
+    same rule, ceiling and ``retry`` on pilots to :data:`PRICE_T` (its
+    ``gradient_rate``, force evaluations per orbit and unit of time, the
+    retries counted; a descent stops once its steps cost more than the
+    cheapest δ so far); the walk ends at the first δ not cheaper than the
+    best before it (or whose pilot agrees at no h). The map's h is then
+    :func:`agreeing_h` at the chosen δ (pilot to
+    :data:`~varint.stepsize.PILOT_T`); where that finds no h, the rule's δ.
+    Every figure is a count of the pilots' own runs, never a timing: the
+    same call chooses the same δ and h, bit for bit.
+
+    For an A that takes both signs (a rotating frame,
+    :attr:`~varint.time_transform.LogHamiltonian.kinetic` False) only the
+    rule's C (= 0 for orbits bound below E = −1) keeps U > 0 along an orbit
+    the pilot did not see: δ is the rule's, unpriced.
+
+    Returns
+    -------
+    lh : LogHamiltonian
+        ``lh`` at the chosen δ (:meth:`~varint.time_transform.LogHamiltonian.with_offset`).
+    h : float or None
+    choice : dict
+        :func:`agreeing_h`'s at the chosen δ, with ``offset`` (None: the
+        rule), ``offsets`` ([δ, h, price] per δ priced), ``offset_pricing``
+        (the pricing pilots' force evaluations) and ``offset_summary``, the
+        sentence the map's verdict carries.
+    """
+    kwargs = {"quantile": quantile, "ceiling": ceiling, "seed": seed, "every": every,
+              "retry": retry}
+    priced, pricing = [], 0
+    if lh.kinetic and lh.offset is None:
+        best = None
+        for offset in offsets:
+            # Prices are force evaluations per orbit and unit of time: a
+            # descent whose own steps already cost more cannot win.
+            limit = math.inf if best is None else best[2]
+            h, c = agreeing_h(lh.with_offset(offset), X, t_end, t_pilot=PRICE_T,
+                              stop_above=limit, **kwargs)
+            pricing += c["counts"]["gradient_evaluations"]
+            price = math.inf if h is None else c["gradient_rate"]
+            priced.append([offset, h, price])
+            if best is not None and not price < best[2]:
+                break
+            if best is None or price < best[2]:
+                best = priced[-1]
+        offset = None if best is None or not math.isfinite(best[2]) else best[0]
+        prices = "; ".join(f"δ = {'max(−E, 1)' if d is None else f'{d:g}'}: "
+                           + (f"{p:.4g}" if math.isfinite(p) else "no agreement below the best")
+                           for d, _, p in priced)
+        why = (f"offset δ = {'max(−E, 1)' if offset is None else f'{offset:g}'}, the cheapest "
+               f"of {len(priced)} priced on the pilot to t = {min(t_end, PRICE_T):g} (force "
+               f"evaluations per orbit and unit of time, retries counted: {prices})")
+    else:
+        offset = lh.offset
+        why = ("offset δ = max(−E, 1) (not priced: A takes both signs, only that C keeps "
+               "U > 0)" if lh.offset is None else f"offset δ = {lh.offset:g} as given")
+    chosen = lh.with_offset(offset)
+    h, choice = agreeing_h(chosen, X, t_end, **kwargs)
+    if h is None and offset is not None and lh.offset is None:
+        why += f"; at δ = {offset:g} no h agreed to t = {min(t_end, PILOT_T):g}: the rule's δ"
+        offset, chosen = None, lh.with_offset(None)
+        h, choice = agreeing_h(chosen, X, t_end, **kwargs)
+    choice.update(offset=offset, offsets=priced, offset_pricing=pricing, offset_summary=why)
+    return chosen, h, choice
 
 
 def _retry_rate(runs, j, tolerance, orbit_time):
