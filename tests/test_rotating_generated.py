@@ -65,9 +65,10 @@ def test_tm_runs_the_generated_stepper(case):
 @pytest.mark.parametrize("scheme, case", [
     ("SBAB2", "cr3bp"), ("SBAB2", "spatial"), ("SRKN14a", "cr3bp"), ("SBAB2", "larmor"),
     # Every case and every scheme is above; each pair compiles a stepper
-    # of its own (15-55 CPU s cold). Larmor runs SBAB2 by default: its
-    # 6-dimensional SRKN14a stepper (14 stages) was the file's costliest
-    # kernel (54 CPU s cold); SBAB2's serves the larmor tests below too.
+    # of its own (6-19 CPU s cold with one vector). Larmor runs SBAB2 by
+    # default: its 6-dimensional SRKN14a stepper (14 stages) was the file's
+    # costliest kernel (54 CPU s cold with six vectors); SBAB2's serves the
+    # larmor tests below too.
     pytest.param("SRKN14a", "larmor", marks=pytest.mark.slow),
     pytest.param("SRKN14a", "spatial", marks=pytest.mark.slow)])
 def test_generated_is_the_part_flows_map_to_round_off(case, scheme):
@@ -153,8 +154,8 @@ def _run(model, X, tau, n, scheme, k=1):
 
 #: The scheme of the run-level tests below: what they check (lanes, the
 #: invariant's law, the compensated drift) holds for any scheme, and
-#: SBAB2's three stages compile in a quarter of SRKN14a's fourteen (7 CPU s
-#: cold against 20-26 for each of these steppers); SRKN14a's generated
+#: SBAB2's three stages compile in a third of SRKN14a's fourteen (7-11 CPU
+#: s cold against 20-26 for each of these steppers); SRKN14a's generated
 #: stages are held to the part flows, its order and the finite
 #: differences above.
 _RUN_SCHEME = "SBAB2"
