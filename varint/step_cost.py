@@ -10,12 +10,15 @@ walks one step of that source and counts the floating-point operations it
 executes, by kind (:data:`KINDS`): additions, multiplications, fused
 multiply–adds, divisions, square roots, logarithms, exponentials, sines and
 cosines, powers, comparisons and array accesses. The weighted sum
-(:func:`weighted`, with :data:`WEIGHTS`, one fixed table) is the step's
-cost in units of one scalar addition; divided by the force evaluations of
-the step it is the cost of one force evaluation (:func:`lh_cost`,
-:func:`lanes_cost`). The choice therefore depends on what is compiled, not
-on the timing of the run that makes it: the same model, scheme and
-versions price the same, bit for bit, on every machine.
+(:func:`weighted`) with the table of the stepper's context
+(:data:`LH_WEIGHTS` for the LH, one orbit in scalar code;
+:data:`LANE_WEIGHTS` for a lane of the constant step: nanoseconds per
+operation of four classes, :data:`CLASSES`, fitted to the two maps'
+measured runs), divided by the force evaluations of the step, is the cost
+of one force evaluation (:func:`lh_cost`, :func:`lanes_cost`). The choice
+therefore depends on what is compiled, not on the timing of the run that
+makes it: the same model, scheme and versions price the same, bit for
+bit, on every machine.
 
 How a step is read (:func:`operations`): names whose values are known at
 emission (``log``, ``k``, the loop bounds) select their branch; a branch
@@ -27,14 +30,20 @@ conditional expression count (the lanes compute both and select). A call
 of an emitted kernel or library function not in :data:`CALLS` counts
 nothing of its own.
 
-What it does not see: the latency of a dependency chain (a step of these
-models is bound by its operations, not by its chain: ``studies/
-frontier.py``'s finding for the compensated step), branch mispredictions,
-the cache (a step's state fits in L1). ``studies/step_cost.py`` measures
-the weights (a chain of each operation, lengths 1 and 9, the difference
-per operation) and checks the model's LH/constant ratio against the
-measured ratio of the two maps' runs on Hénon–Heiles, cored logarithmic
-potentials and the restricted three-body problem.
+What it does not see: the latency of a dependency chain as such. The
+steppers as the maps run them are bound by their chains (the LH's
+dτ = h/U needs V before each drift; a lane's step is too long for two
+lanes to overlap), not by their operation counts: one fixed table per
+operation (:data:`WEIGHTS`, ``studies/step_cost.py``: a chain of each
+operation, lengths 1 and 9, the difference per operation) priced the LH
+against the lanes 2–3 times too cheap (Hénon–Heiles 3.1 against 7.3
+measured, the three-body problem 2.2 against 4.8), so that the defaults
+ran the LH where constant steps were faster. The fitted tables take the
+chains in on average (arithmetic costs nothing of its own, divisions,
+square roots and calls do); ``studies/switch_check.py`` fits them on six
+models and checks them on held-out ones (the restricted three-body
+problem, a softened point mass, a rotating cored potential). Not seen
+either: branch mispredictions, the cache (a step's state fits in L1).
 """
 
 from __future__ import annotations
@@ -44,8 +53,8 @@ from collections import Counter
 from collections.abc import Mapping
 from functools import lru_cache
 
-__all__ = ["KINDS", "CALLS", "WEIGHTS", "operations", "weighted", "lh_cost", "lanes_cost",
-           "log_gradient_cost", "constant_gradient_cost"]
+__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "LH_WEIGHTS", "LANE_WEIGHTS", "operations",
+           "weighted", "lh_cost", "lanes_cost", "log_gradient_cost", "constant_gradient_cost"]
 
 #: The kinds of operation counted.
 KINDS = ("add", "mul", "fma", "div", "sqrt", "log", "exp", "sin", "cos", "pow", "compare",
@@ -75,6 +84,36 @@ WEIGHTS: Mapping[str, float] = {
     "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
     "sin": 18.0, "cos": 23.0, "pow": 61.0, "compare": 0.0, "memory": 0.0}
 
+#: The classes of operation the two steppers' costs are fitted by
+#: (``studies/switch_check.py``, part "fit"), each the kinds it sums:
+#: arithmetic, division and square root, library calls, checks and
+#: array accesses.
+CLASSES = {"arithmetic": ("add", "mul", "fma"), "division": ("div", "sqrt"),
+           "call": ("log", "exp", "sin", "cos", "pow"), "check": ("compare", "memory")}
+
+
+def _by_kind(per_class):
+    return {kind: per_class[cls] for cls, kinds in CLASSES.items() for kind in kinds}
+
+
+#: Nanoseconds per operation of each class (:data:`CLASSES`) as the maps
+#: run each stepper, fitted by non-negative least squares to the measured
+#: nanoseconds per force evaluation of the two maps of six training models
+#: (``studies/switch_check.py`` part "fit", ``studies/results/
+#: switch_check.json``: Hénon–Heiles, the cored logarithmic potential,
+#: a quartic oscillator, the isochrone, the Toda lattice, a pendulum pair;
+#: Intel Xeon at 2.5 GHz, load 6–7 on 2 cores), two significant figures.
+#: Both steppers are bound by their dependency chains, not by their
+#: operation counts: the fit gives arithmetic no cost of its own (it
+#: overlaps the chain), and the LH's division or call on its chain
+#: (U = C − V, dτ = h/U) costs it more than a lane's. ``LH_WEIGHTS``: the
+#: LH stepper, one orbit in scalar code; ``LANE_WEIGHTS``: a lane of the
+#: constant step's SIMD loop (the division chain does not vectorise: ≈
+#: 3 ns per division or square root, library calls 5.5 ns, one per lane).
+LH_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 0.84, "call": 2.7, "check": 1.8})
+LANE_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 3.2, "call": 5.5, "check": 1.4})
 
 _BINARY = {ast.Add: "add", ast.Sub: "add", ast.Mult: "mul", ast.Div: "div",
            ast.FloorDiv: "div", ast.Mod: "div"}
@@ -123,10 +162,12 @@ def operations(source, function, known, loop=None):
     return counts
 
 
-def weighted(counts):
-    """The cost of ``counts`` (:func:`operations`) in scalar additions
-    (:data:`WEIGHTS`)."""
-    return float(sum(WEIGHTS[kind] * n for kind, n in sorted(counts.items())))
+def weighted(counts, table=None):
+    """The cost of ``counts`` (:func:`operations`) by ``table``: in scalar
+    additions by :data:`WEIGHTS` (the default), in nanoseconds by
+    :data:`LH_WEIGHTS` or :data:`LANE_WEIGHTS`."""
+    table = WEIGHTS if table is None else table
+    return float(sum(table[kind] * n for kind, n in sorted(counts.items())))
 
 
 def lh_cost(source, n, kinds):
@@ -134,13 +175,14 @@ def lh_cost(source, n, kinds):
     source is ``source`` (:func:`varint.codegen.lh.lh_source`; ``n``
     degrees of freedom, the scheme's stage ``kinds``, 0 drift, 1 kick), with
     one deviation vector, as an FLI map runs it: one LH step (``step``
-    with ``log``) and the copies of ``advance`` around it, in scalar
-    additions, over its kicks. Returns ``(cost, counts)``."""
+    with ``log``) and the copies of ``advance`` around it, priced by
+    :data:`LH_WEIGHTS` (nanoseconds), over its kicks. Returns ``(cost,
+    counts)``."""
     known = {"log": True, "k": 1, "d": 2 * n, "n": n}
     counts = operations(source, "step", known) + operations(source, "advance", known,
                                                             loop=_last_loop(source))
     kicks = int(sum(1 for kind in kinds if kind == 1))
-    return weighted(counts) / kicks, counts
+    return weighted(counts, LH_WEIGHTS) / kicks, counts
 
 
 def lanes_cost(source, gradients):
@@ -148,11 +190,11 @@ def lanes_cost(source, gradients):
     module source is ``source`` (:func:`varint.codegen.stepper.generated_source`)
     run as SIMD lanes, per lane: one lane's step and its end (checks,
     renormalisation, the accumulator's rule), the first loop over the lanes
-    inside the loop over steps of ``lanes``, over the ``gradients`` one step
-    evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
+    inside the loop over steps of ``lanes``, priced by :data:`LANE_WEIGHTS`
+    (nanoseconds), over the ``gradients`` one step evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
     counts)``."""
     counts = operations(source, "lanes", {"nb": 1, "renorm": True}, loop=_lane_step(source))
-    return weighted(counts) / gradients, counts
+    return weighted(counts, LANE_WEIGHTS) / gradients, counts
 
 
 def log_gradient_cost(lh):
