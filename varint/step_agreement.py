@@ -33,10 +33,12 @@ read at that level gives, not the value within 0.05 dex
 of a tight reference, the verdict rule at half the steps on the
 three-body map).
 
-:func:`agreeing_tau` searches the constant step of the map's stepper by the
-same check (down from :data:`~varint.stepsize.TAU_MAX`), which the defaults of
-:func:`varint.chaos_map` price against the logarithmic Hamiltonian's
-(:func:`varint.time_transform_step.agreeing_h`).
+:func:`agreeing_tau` searches the constant step of the map's stepper by
+either rule (down from :data:`~varint.stepsize.TAU_MAX`); the defaults of
+:func:`varint.chaos_map` search it by the verdict rule and price it against
+the logarithmic Hamiltonian's (:func:`varint.time_transform_step.agreeing_h`),
+so that both steppers are judged alike (the value rule chose a constant
+step 2 times finer than the verdicts need on the three-body map).
 """
 
 from __future__ import annotations

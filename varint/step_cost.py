@@ -12,9 +12,10 @@ multiply–adds, divisions, square roots, logarithms, exponentials, sines and
 cosines, powers, comparisons and array accesses. The weighted sum
 (:func:`weighted`) with the table of the stepper's context
 (:data:`LH_WEIGHTS` for the LH, one orbit in scalar code;
-:data:`LANE_WEIGHTS` for a lane of the constant step: nanoseconds per
-operation of four classes, :data:`CLASSES`, fitted to the two maps'
-measured runs), divided by the force evaluations of the step, is the cost
+:data:`VECTOR_LANE_WEIGHTS` or :data:`SCALAR_LANE_WEIGHTS` for a lane of
+the constant step, as its loop over the lanes vectorises or not,
+:func:`vectorises`: nanoseconds per operation of four classes,
+:data:`CLASSES`, fitted to the two maps' measured runs), divided by the force evaluations of the step, is the cost
 of one force evaluation (:func:`lh_cost`, :func:`lanes_cost`). The choice
 therefore depends on what is compiled, not on the timing of the run that
 makes it: the same model, scheme and versions price the same, bit for
@@ -53,11 +54,12 @@ from collections import Counter
 from collections.abc import Mapping
 from functools import lru_cache
 
-__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "LH_WEIGHTS", "LANE_WEIGHTS", "operations",
-           "weighted", "lh_cost", "lanes_cost", "log_gradient_cost", "constant_gradient_cost"]
+__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "SCALAR_KINDS", "LH_WEIGHTS",
+           "VECTOR_LANE_WEIGHTS", "SCALAR_LANE_WEIGHTS", "vectorises", "operations", "weighted",
+           "lh_cost", "lanes_cost", "log_gradient_cost", "constant_gradient_cost"]
 
 #: The kinds of operation counted.
-KINDS = ("add", "mul", "fma", "div", "sqrt", "log", "exp", "sin", "cos", "pow", "compare",
+KINDS = ("add", "mul", "fma", "div", "invert", "sqrt", "log", "exp", "sin", "cos", "pow", "compare",
          "memory")
 
 #: Calls by name (the last part of a dotted name) and the kind they count as.
@@ -81,15 +83,20 @@ CALLS = {"sqrt": "sqrt", "fma": "fma", "log": "log", "vlog": "log", "vlog_called
 #: times; with its half-integer powers as products and square roots
 #: (:mod:`varint.codegen.printer`) this table predicts 2.15.)
 WEIGHTS: Mapping[str, float] = {
-    "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
+    "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "invert": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
     "sin": 18.0, "cos": 23.0, "pow": 61.0, "compare": 0.0, "memory": 0.0}
 
 #: The classes of operation the two steppers' costs are fitted by
 #: (``studies/switch_check.py``, part "fit"), each the kinds it sums:
 #: arithmetic, division and square root, library calls, checks and
 #: array accesses.
-CLASSES = {"arithmetic": ("add", "mul", "fma"), "division": ("div", "sqrt"),
+CLASSES = {"arithmetic": ("add", "mul", "fma"), "division": ("div", "invert", "sqrt"),
            "call": ("log", "exp", "sin", "cos", "pow"), "check": ("compare", "memory")}
+#: The kinds that keep LLVM from vectorising the loop over the lanes: a
+#: call of a library function (a square root is an instruction) and the
+#: inverse of a negative integer power (numba's ``x**(-2)`` tests for a
+#: zero divisor; ``1/(x*x)`` vectorises).
+SCALAR_KINDS = ("log", "exp", "sin", "cos", "pow", "invert")
 
 
 def _by_kind(per_class):
@@ -98,22 +105,29 @@ def _by_kind(per_class):
 
 #: Nanoseconds per operation of each class (:data:`CLASSES`) as the maps
 #: run each stepper, fitted by non-negative least squares to the measured
-#: nanoseconds per force evaluation of the two maps of six training models
+#: nanoseconds per force evaluation of the two maps of training models
 #: (``studies/switch_check.py`` part "fit", ``studies/results/
-#: switch_check.json``: Hénon–Heiles, the cored logarithmic potential,
-#: a quartic oscillator, the isochrone, the Toda lattice, a pendulum pair;
-#: Intel Xeon at 2.5 GHz, load 6–7 on 2 cores), two significant figures.
-#: Both steppers are bound by their dependency chains, not by their
-#: operation counts: the fit gives arithmetic no cost of its own (it
-#: overlaps the chain), and the LH's division or call on its chain
-#: (U = C − V, dτ = h/U) costs it more than a lane's. ``LH_WEIGHTS``: the
-#: LH stepper, one orbit in scalar code; ``LANE_WEIGHTS``: a lane of the
-#: constant step's SIMD loop (the division chain does not vectorise: ≈
-#: 3 ns per division or square root, library calls 5.5 ns, one per lane).
+#: switch_check_quick.json``; Intel Xeon at 2.5 GHz, load 6–7 on 2 cores),
+#: two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
+#: scalar code, whose chain (dτ = h/U needs V before each drift) makes it
+#: pay for divisions and calls, not for arithmetic. The constant step's
+#: lanes: ``VECTOR_LANE_WEIGHTS`` where the loop over the lanes
+#: vectorises (:func:`vectorises`), ``SCALAR_LANE_WEIGHTS`` where it does
+#: not (a library call or a negative integer power in the step: every
+#: lane then runs the whole step in scalar code).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.84, "call": 2.7, "check": 1.8})
-LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 3.2, "call": 5.5, "check": 1.4})
+    {"arithmetic": 0.0, "division": 1.4, "call": 3.1, "check": 1.6})
+VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 0.85, "call": 0.0, "check": 1.1})
+SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 1.0, "call": 3.1, "check": 2.8})
+
+
+def vectorises(counts):
+    """Whether the loop over the lanes whose step executes ``counts``
+    (:func:`operations`) vectorises: none of :data:`SCALAR_KINDS`."""
+    return not any(counts.get(kind, 0) for kind in SCALAR_KINDS)
+
 
 _BINARY = {ast.Add: "add", ast.Sub: "add", ast.Mult: "mul", ast.Div: "div",
            ast.FloorDiv: "div", ast.Mod: "div"}
@@ -165,7 +179,8 @@ def operations(source, function, known, loop=None):
 def weighted(counts, table=None):
     """The cost of ``counts`` (:func:`operations`) by ``table``: in scalar
     additions by :data:`WEIGHTS` (the default), in nanoseconds by
-    :data:`LH_WEIGHTS` or :data:`LANE_WEIGHTS`."""
+    :data:`LH_WEIGHTS`, :data:`VECTOR_LANE_WEIGHTS` or
+    :data:`SCALAR_LANE_WEIGHTS`."""
     table = WEIGHTS if table is None else table
     return float(sum(table[kind] * n for kind, n in sorted(counts.items())))
 
@@ -190,11 +205,13 @@ def lanes_cost(source, gradients):
     module source is ``source`` (:func:`varint.codegen.stepper.generated_source`)
     run as SIMD lanes, per lane: one lane's step and its end (checks,
     renormalisation, the accumulator's rule), the first loop over the lanes
-    inside the loop over steps of ``lanes``, priced by :data:`LANE_WEIGHTS`
-    (nanoseconds), over the ``gradients`` one step evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
+    inside the loop over steps of ``lanes``, priced by
+    :data:`VECTOR_LANE_WEIGHTS` or :data:`SCALAR_LANE_WEIGHTS`
+    (:func:`vectorises`; nanoseconds), over the ``gradients`` one step evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
     counts)``."""
     counts = operations(source, "lanes", {"nb": 1, "renorm": True}, loop=_lane_step(source))
-    return weighted(counts, LANE_WEIGHTS) / gradients, counts
+    table = VECTOR_LANE_WEIGHTS if vectorises(counts) else SCALAR_LANE_WEIGHTS
+    return weighted(counts, table) / gradients, counts
 
 
 def log_gradient_cost(lh):
@@ -384,7 +401,10 @@ def _expression(node, counts, times):
             if e is not None and float(e).is_integer():
                 counts["mul"] += times * max(int(abs(e)) - 1, 0)
                 if e < 0:
-                    counts["div"] += times
+                    # A division, but numba inverts with its own error
+                    # model (a zero test): the loop around it does not
+                    # vectorise (SCALAR_KINDS).
+                    counts["invert"] += times
             else:
                 counts["pow"] += times
         else:
