@@ -31,20 +31,22 @@ conditional expression count (the lanes compute both and select). A call
 of an emitted kernel or library function not in :data:`CALLS` counts
 nothing of its own.
 
-What it does not see: the latency of a dependency chain as such. The
-steppers as the maps run them are bound by their chains (the LH's
-dτ = h/U needs V before each drift; a lane's step is too long for two
-lanes to overlap), not by their operation counts: one fixed table per
+Why fitted tables: the steppers as the maps run them are bound by their
+dependency chains (the LH's dτ = h/U needs V before each drift; a lane's
+step is too long for two lanes to overlap) and by whether LLVM vectorises
+the loop over the lanes, not by their operation counts. One table per
 operation (:data:`WEIGHTS`, ``studies/step_cost.py``: a chain of each
 operation, lengths 1 and 9, the difference per operation) priced the LH
 against the lanes 2–3 times too cheap (Hénon–Heiles 3.1 against 7.3
-measured, the three-body problem 2.2 against 4.8), so that the defaults
-ran the LH where constant steps were faster. The fitted tables take the
-chains in on average (arithmetic costs nothing of its own, divisions,
-square roots and calls do); ``studies/switch_check.py`` fits them on six
-models and checks them on held-out ones (the restricted three-body
-problem, a softened point mass, a rotating cored potential). Not seen
-either: branch mispredictions, the cache (a step's state fits in L1).
+measured, the three-body problem 2.2 against 6.4), so that the defaults
+ran the LH where constant steps were faster. One fitted table for all
+lanes failed its held-out check (``studies/switch_check.py``): the
+three-body lanes vectorise and cost 18 ns per force evaluation, the cored
+potential's, with ``(R² + r²)**(-2)`` in their Hessian, do not and cost
+32. The fitted tables give arithmetic no cost of its own (it overlaps the
+chains and the checks). Not seen: branch mispredictions, the cache (a
+step's state fits in L1), another machine's ratio of scalar to vector
+speed (the tables were fitted on one Intel Xeon).
 """
 
 from __future__ import annotations
