@@ -15,9 +15,10 @@ thread: (t₉ − t₁) / 8 per operation leaves out the loop and the loads.
 The logarithm's chain is log(v + w) and the load's v + m[j]: one addition
 is taken off each. The table
 is stored (``step_cost.json``); the "scalar" one is copied into
-:data:`varint.step_cost.WEIGHTS`, rounded to two significant figures, and
-prices both steppers (part ``track`` shows why: the "lanes" table, an
-ideal vector loop, prices the emitted lanes far from what they cost).
+:data:`varint.step_cost.WEIGHTS`, rounded to two significant figures (it
+priced both steppers until the tables fitted to the maps' runs by
+``studies/switch_check.py``: neither per-operation table prices the
+emitted steppers as they run, part ``track``).
 
 Part ``track``: for the FLI maps of ``studies/lh_defaults.py`` (Hénon–Heiles,
 cored logarithmic R_c = 0.3, 0.1, 0.03, the Sun–Jupiter three-body

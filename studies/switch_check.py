@@ -41,7 +41,10 @@ measured alike, against :data:`PREDICTED`, the ratios the tables predict,
 written into this file before the held-out run. The check: every
 measured ratio within a factor :data:`TOLERANCE` of its prediction and on
 the same side of 1 (the stepper predicted cheaper per force evaluation
-is the measured cheaper one).
+is the measured cheaper one). Passed (``switch_check_quick.json``, load
+6–9): two centres 3.83 measured against 4.63 predicted, the rotating
+point mass 8.94 against 7.17, the halo with a central mass 2.48 against
+2.55.
 
 The first check (one table for the lanes, fitted on the first six
 training models; ``switch_check_first_quick.json``) failed: predicted
@@ -97,9 +100,6 @@ PREDICTED: dict[str, float] = {
     "rotating point mass": 7.17,    # LH 117 ns, lanes 16.3 ns (vectorised)
     "halo and mass": 2.55,          # LH 95.1 ns, lanes 37.3 ns (scalar)
 }
-#: The first check's predictions (one lanes table; ``switch_check_first_quick.json``):
-#: failed, its models are training models since (:func:`seen`).
-PREDICTED_FIRST = {"cr3bp": 2.4, "softened point mass": 2.66, "rotating cored": 4.93}
 #: How far a held-out measured ratio may lie from its prediction.
 TOLERANCE = 1.5
 
@@ -357,9 +357,7 @@ def main(argv=None):
             measured = row["measured"]["ratio"]
             row["stated_prediction"] = PREDICTED.get(name)
             row["within"] = bool(max(predicted / measured, measured / predicted) <= TOLERANCE)
-            row["same_order"] = bool((predicted > 1) == (measured > 1)
-                                     or max(predicted, 1 / predicted) <= TOLERANCE
-                                     and max(measured, 1 / measured) <= TOLERANCE)
+            row["same_order"] = bool((predicted > 1) == (measured > 1))
             rows.append(row)
         result["heldout"] = {"rows": rows, "tolerance": TOLERANCE,
                              "passed": all(r["within"] and r["same_order"] for r in rows)}
