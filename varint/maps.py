@@ -600,8 +600,9 @@ def _cheaper_steps(spec, k, clock):
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,
     :func:`~varint.step_cost.constant_gradient_cost`: its operations,
-    weighted by one fixed table, so the choice does not depend on the
-    timing of the run that makes it). Returns ``(h_choice,
+    priced by fixed tables of the LH's scalar code and of the lanes,
+    vectorised or not, so the choice does not depend on the timing of the
+    run that makes it). Returns ``(h_choice,
     stepped)``: the LH's choice (with the ``prices``) and None, or None and
     ``spec`` at the constant step chosen by agreement (with the map's check
     steps, :func:`_with_step`), or None and None where the LH's FLI agrees
