@@ -63,7 +63,9 @@ Parts (``--part``):
     fictitious time, dt/ds = 1/U(q), U = C − V, so short near the core and
     the primaries. Contenders ``LOG_CONTENDERS`` (scheme, fictitious step h,
     offset δ of C = E + δ) against heyoka batch 8 at every tolerance of
-    ``race`` and varint's defaults, interleaved as there; each LH row keeps
+    ``race`` and varint's defaults (and constant SRKN14a steps at the τ of
+    the defaults' verdict rule, pilot included: what the defaults run where
+    they choose constant steps), interleaved as there; each LH row keeps
     its steps per orbit (LH steps + the physical-time tail that lands on
     each normalisation time) and microseconds per step. The LH stepper is
     generated per model and scheme (:mod:`varint.codegen.lh`, cached on
@@ -419,6 +421,12 @@ def log_case(name, quick, repeats):
                          time_transform="log")   # compiles
         tasks["varint LH, automatic h"] = lambda: varint.chaos_map(
             model, grid, INDICATOR, t_end=t_end, progress=False, time_transform="log")
+        # Constant steps at the verdict rule's tau (the step the defaults
+        # price the LH against), pilot included: what the defaults run
+        # where the switch takes constant steps.
+        _verdict_tau_map(model, grid, t_end)   # compiles
+        tasks["varint constant steps, verdict tau"] = lambda: _verdict_tau_map(model, grid,
+                                                                               t_end)
         # Before ladder11 (the baseline in the same run): one h for every
         # orbit, the pilot's energy ceiling energy_tol, no retry.
         tasks["varint LH, one h (before retry)"] = lambda: _one_h_map(model, grid, t_end)
@@ -494,6 +502,25 @@ def _rule_offset(call):
 
     with mock.patch.object(time_transform_step, "agreeing_offset", unpriced):
         return call()
+
+
+def _verdict_tau_map(model, grid, t_end):
+    """The constant-step map at the largest τ whose pilot FLI verdicts agree
+    with those at τ/2 (:func:`varint.step_agreement.agreeing_tau` with the
+    verdict rule, as the defaults' switch searches it; pilot included)."""
+    from varint.accuracy import DEFAULT_ENERGY_TOL
+    from varint.maps import MAP_QUANTILE, MAP_SCHEME, pilot_tolerance
+    from varint.step_agreement import agreeing_tau, same_verdict
+    from varint.stepsize_orbits import indicator_judge
+
+    ind = varint.INDICATORS[INDICATOR]
+    judge = indicator_judge(ind, model, {}, pilot_tolerance(ind), DEFAULT_ENERGY_TOL)
+    tau, _ = agreeing_tau(model, grid.states, t_end, scheme=MAP_SCHEME, seed=0, k=1,
+                          renorm=ind.renorm, accumulator=ind.accumulator_for({}),
+                          value=judge.value, quantile=MAP_QUANTILE, ceiling=DEFAULT_ENERGY_TOL,
+                          agree=same_verdict)
+    return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                            time_transform=None, tau=tau, scheme=MAP_SCHEME)
 
 
 def _equal_agreement(rows, label):

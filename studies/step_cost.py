@@ -15,9 +15,10 @@ thread: (t₉ − t₁) / 8 per operation leaves out the loop and the loads.
 The logarithm's chain is log(v + w) and the load's v + m[j]: one addition
 is taken off each. The table
 is stored (``step_cost.json``); the "scalar" one is copied into
-:data:`varint.step_cost.WEIGHTS`, rounded to two significant figures, and
-prices both steppers (part ``track`` shows why: the "lanes" table, an
-ideal vector loop, prices the emitted lanes far from what they cost).
+:data:`varint.step_cost.WEIGHTS`, rounded to two significant figures (it
+priced both steppers until the tables fitted to the maps' runs by
+``studies/switch_check.py``: neither per-operation table prices the
+emitted steppers as they run, part ``track``).
 
 Part ``track``: for the FLI maps of ``studies/lh_defaults.py`` (Hénon–Heiles,
 cored logarithmic R_c = 0.3, 0.1, 0.03, the Sun–Jupiter three-body
@@ -182,6 +183,7 @@ def track(repeats):
                "predicted": {"log": log_cost, "constant": constant_cost,
                              "ratio": log_cost / constant_cost,
                              "gradients_per_step": int(per_step[0]),
+                             "kicks": int(sum(1 for v in lh.kinds if int(v) == 1)),
                              "log_operations": dict(log_counts),
                              "constant_operations": dict(constant_counts)},
                "measured": {"us_per_gradient": {k: 1e6 * v for k, v in per.items()},
@@ -218,21 +220,23 @@ def main(argv=None):
     if "track" in parts:
         result["track"] = track(2 if args.quick else 3)
         if "weights" in result:
+            # The module prices in nanoseconds (its fitted tables); the
+            # per-operation tables of part "weights" price in additions.
             add_ns = result["weights"]["ns_per_operation"]["scalar"]["add"]
-            lanes = result["weights"]["weights"]["lanes"]
+            tables = result["weights"]["weights"]
             for row in result["track"]:
                 p, m = row["predicted"], row["measured"]
-                p["ns_per_gradient"] = {k: add_ns * p[k] for k in ("log", "constant")}
                 p["measured_over_predicted"] = {
-                    k: 1e3 * m["us_per_gradient"][k] / (add_ns * p[k]) for k in ("log", "constant")}
-                p["constant_by_lanes_table"] = sum(
-                    lanes[k] * n for k, n in p["constant_operations"].items()
-                ) / p["gradients_per_step"]
+                    k: 1e3 * m["us_per_gradient"][k] / p[k] for k in ("log", "constant")}
+                by = {c: add_ns * sum(tables[c].get(k, 0.0) * n for k, n in ops.items()) / per
+                      for c, ops, per in (("scalar", p["log_operations"], p["kicks"]),
+                                          ("lanes", p["constant_operations"],
+                                           p["gradients_per_step"]))}
+                p["ns_by_operation_tables"] = by
                 print(f"{row['map']}: measured / predicted ns per force evaluation "
                       f"LH {p['measured_over_predicted']['log']:.2g}, constant "
-                      f"{p['measured_over_predicted']['constant']:.2g}; constant by the "
-                      f"lanes table {p['constant_by_lanes_table']:.3g} adds "
-                      f"(LH/constant {p['log'] / p['constant_by_lanes_table']:.3g})", flush=True)
+                      f"{p['measured_over_predicted']['constant']:.2g}; by the operation "
+                      f"tables LH/constant {by['scalar'] / by['lanes']:.3g}", flush=True)
     result["load_end"] = list(os.getloadavg())
     save_json(args.out, "step_cost", result)
     return result

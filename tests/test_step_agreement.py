@@ -152,6 +152,8 @@ def test_switch_follows_the_prices(cost, method):
     assert (prices["log"] < prices["constant"]) == (method == "tm+log")
     if method == "tm":
         assert choice["rule"] == "indicator" and r.provenance.tau == choice["tau"]
+        # Judged as the LH is: by the verdict at the chaotic level.
+        assert choice["agreement"] == "same_verdict"
         assert "step chosen by indicator agreement between tau and tau/2" in r.accuracy.verdict
     else:
         assert choice["rule"] == "indicator" and choice["constant"]["rule"] in ("indicator", "none")

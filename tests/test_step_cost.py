@@ -4,8 +4,12 @@ the emitted steppers (the LH's rotating-frame drift takes one sine and one
 cosine, its kick on a logarithmic potential one logarithm; the lanes of
 the constant step evaluate no potential). Nothing here compiles."""
 
+import json
+import platform
 from collections import Counter
+from pathlib import Path
 
+import numpy as np
 import pytest
 import sympy as sp
 
@@ -100,3 +104,84 @@ def test_costs_are_positive_and_reproducible():
     c = step_cost.log_gradient_cost(LogHamiltonian(model, "ABA864"))[0]
     d = step_cost.log_gradient_cost(LogHamiltonian(CR3BP(SUN_JUPITER_MU), "ABA864"))[0]
     assert a == b > 0 and c == d > 0
+
+
+def test_a_negative_power_is_an_inverse_that_keeps_lanes_scalar():
+    """x**(-2) is one multiplication and one inverse (numba's, which keeps
+    the loop around it from vectorising); 1/(x*x) a multiplication and a
+    division, which vectorises; library calls keep it scalar, a square
+    root does not."""
+    src = ("def f(x):\n    a = x[0] ** (-2)\n    b = 1.0 / (x[1] * x[1])\n"
+           "    c = math.sqrt(x[2])\n    d = math.exp(x[3])\n")
+    counts = step_cost.operations(src, "f", {})
+    assert counts["invert"] == 1 and counts["div"] == 1 and counts["mul"] == 2
+    assert not step_cost.vectorises(counts)
+    assert step_cost.vectorises(Counter({"div": 3, "sqrt": 2, "mul": 5}))
+    assert not step_cost.vectorises(Counter({"exp": 1}))
+    assert set(step_cost.SCALAR_KINDS) <= set(step_cost.KINDS)
+    for table in (step_cost.LH_WEIGHTS, step_cost.VECTOR_LANE_WEIGHTS,
+                  step_cost.SCALAR_LANE_WEIGHTS):
+        assert set(table) == set(step_cost.KINDS)
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
+def test_numba_vectorises_a_division_but_not_a_negative_power():
+    """The premise of step_cost.vectorises, on the compiler itself: the
+    same loop over lanes compiles to packed divisions with 1/(v*v) and to
+    none with v**(-2)."""
+    from numba import njit
+
+    def power(x, out):
+        for b in range(x.shape[0]):
+            out[b] = x[b] ** (-2) + out[b]
+
+    def division(x, out):
+        for b in range(x.shape[0]):
+            out[b] = 1.0 / (x[b] * x[b]) + out[b]
+
+    x, out = np.linspace(1.0, 2.0, 64), np.zeros(64)
+    asm = {}
+    for f in (power, division):
+        g = njit(error_model="numpy")(f)
+        g(x, out)
+        asm[f.__name__] = g.inspect_asm(g.signatures[0])
+    assert "divpd" in asm["division"]
+    assert "divpd" not in asm["power"]
+
+
+def test_emitted_lanes_vectorise_where_the_measurements_say():
+    """The cored potential's Hessian takes (R² + x² + y²/q²)**(-2): its
+    lanes run scalar (studies/switch_check.py: 32 ns per force evaluation
+    against 10 for Hénon–Heiles); the three-body problem's half-integer
+    powers are printed as products and square roots: vectorised."""
+    acc = varint.INDICATORS["fli"].accumulator_for({})
+    x, y = sp.symbols("x y")
+    cored = from_potential(sp.log(sp.Float(0.03)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2,
+                           [x, y])
+    flags = {name: step_cost.vectorises(
+        step_cost.constant_gradient_cost(m, "SRKN14a", 1, acc)[1])
+        for name, m in (("cored", cored), ("cr3bp", CR3BP(SUN_JUPITER_MU)),
+                        ("hh", varint.models.HenonHeiles()))}
+    assert flags == {"cored": False, "cr3bp": True, "hh": True}
+
+
+def test_held_out_ratios_are_predicted():
+    """The LH/constant cost per force evaluation the tables predict now,
+    from the emitted source, against the ratio measured on each held-out
+    model of studies/switch_check.py (stored; models it was not fitted
+    on): within its tolerance, and on the same side of 1."""
+    from studies import switch_check
+
+    stored = json.loads((Path(switch_check.__file__).parent / "results"
+                         / "switch_check_quick.json").read_text())
+    rows = stored["heldout"]["rows"]
+    assert rows
+    acc = varint.INDICATORS["fli"].accumulator_for({})
+    models = {name: model for name, model, _ in switch_check.heldout(1)}
+    for row in rows:
+        model = models[row["model"]]
+        lh = step_cost.log_gradient_cost(LogHamiltonian(model, "ABA864"))[0]
+        lanes = step_cost.constant_gradient_cost(model, "SRKN14a", 1, acc)[0]
+        predicted, measured = lh / lanes, row["measured"]["ratio"]
+        assert max(predicted / measured, measured / predicted) <= switch_check.TOLERANCE, row
+        assert (predicted > 1) == (measured > 1), row

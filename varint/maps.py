@@ -596,14 +596,16 @@ def _cheaper_steps(spec, k, clock):
     :func:`~varint.time_transform_step.agreeing_h`, its verdicts at the
     chaotic level; the constant step's
     :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`,
-    its values within 0.05 dex, a stricter guarantee whose price is an
-    upper bound; both with energy errors within ``energy_tol``),
+    by the same verdict rule, so that both are judged alike; both with
+    energy errors within ``energy_tol``, the LH's pilot 10 times that: its
+    map retries each orbit to ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,
     :func:`~varint.step_cost.constant_gradient_cost`: its operations,
-    weighted by one fixed table, so the choice does not depend on the
-    timing of the run that makes it). Returns ``(h_choice,
+    priced by fixed tables of the LH's scalar code and of the lanes,
+    vectorised or not, so the choice does not depend on the timing of the
+    run that makes it). Returns ``(h_choice,
     stepped)``: the LH's choice (with the ``prices``) and None, or None and
     ``spec`` at the constant step chosen by agreement (with the map's check
     steps, :func:`_with_step`), or None and None where the LH's FLI agrees
@@ -636,7 +638,7 @@ def _cheaper_steps(spec, k, clock):
             renorm=spec.indicator.renorm,
             accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
             quantile=MAP_QUANTILE, ceiling=spec.energy_tol,
-            stop_above=log_price / constant_cost)
+            stop_above=log_price / constant_cost, agree=step_agreement.same_verdict)
     prices = {"log": log_price, "constant": constant["gradient_rate"] * constant_cost,
               "log_gradient_cost": log_cost, "constant_gradient_cost": constant_cost}
     if tau is None or log_price < prices["constant"]:

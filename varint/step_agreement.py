@@ -33,10 +33,12 @@ read at that level gives, not the value within 0.05 dex
 of a tight reference, the verdict rule at half the steps on the
 three-body map).
 
-:func:`agreeing_tau` searches the constant step of the map's stepper by the
-same check (down from :data:`~varint.stepsize.TAU_MAX`), which the defaults of
-:func:`varint.chaos_map` price against the logarithmic Hamiltonian's
-(:func:`varint.time_transform_step.agreeing_h`).
+:func:`agreeing_tau` searches the constant step of the map's stepper by
+either rule (down from :data:`~varint.stepsize.TAU_MAX`); the defaults of
+:func:`varint.chaos_map` search it by the verdict rule and price it against
+the logarithmic Hamiltonian's (:func:`varint.time_transform_step.agreeing_h`),
+so that both steppers are judged alike (the value rule chose a constant
+step 2 times finer than the verdicts need on the three-body map).
 """
 
 from __future__ import annotations
@@ -163,12 +165,15 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
 
 
 def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value,
-                 quantile, ceiling, stop_above=math.inf):
+                 quantile, ceiling, stop_above=math.inf, agree=agreeing):
     """The largest constant step τ_j = τ₀·2^−j (τ₀ the largest step up to
     :data:`~varint.stepsize.TAU_MAX` that divides ``t_end``, j <
     :data:`LEVELS`) at which the map's FLI of the pilot orbits agrees with
     that at τ_j/2 and the energy errors are within ``ceiling``
-    (:func:`passes`), searched downwards.
+    (:func:`passes`), searched downwards. "Agrees" is ``agree``: the value
+    rule :func:`agreeing`, or the verdict rule :func:`same_verdict` (the
+    LH's, by which the defaults of :func:`varint.chaos_map` judge both
+    steppers they price against each other).
 
     ``value`` reads the map's value from a pilot's rows
     (:func:`varint.stepsize_orbits.indicator_judge`); ``k``, ``renorm``,
@@ -183,7 +188,8 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
     tau : float or None
     choice : dict
         ``rule`` ("indicator", or "none"), ``tau``, ``pilot_t``,
-        ``orbits``, ``tried`` ([τ, agreeing share, energy error quantile]
+        ``orbits``, ``agreement`` (the name of ``agree``), ``tried`` ([τ,
+        agreeing share, energy error quantile]
         per step compared with its half), ``energy_error`` (the largest
         pilot orbit's at τ), ``gradient_rate`` (force evaluations per orbit
         and unit of time at τ, or at the last step tried), ``counts`` and
@@ -210,9 +216,10 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
         return runs[j]
 
     tried, chosen = descend(run, range(LEVELS), lambda j: top * 2.0**-j, t_pilot, t_end,
-                            quantile, ceiling, stop_above)
+                            quantile, ceiling, stop_above, agree=agree)
     choice = {"pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
-              "ceiling": float(ceiling), "agreement_dex": AGREEMENT_DEX, "scheme": sch.name,
+              "ceiling": float(ceiling), "agreement": agree.__name__,
+              "agreement_dex": AGREEMENT_DEX, "scheme": sch.name,
               "tried": tried, "counts": {key: int(v) for key, v in counts.items()}}
     if chosen is None:
         last = max(runs)

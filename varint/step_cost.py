@@ -10,12 +10,16 @@ walks one step of that source and counts the floating-point operations it
 executes, by kind (:data:`KINDS`): additions, multiplications, fused
 multiply–adds, divisions, square roots, logarithms, exponentials, sines and
 cosines, powers, comparisons and array accesses. The weighted sum
-(:func:`weighted`, with :data:`WEIGHTS`, one fixed table) is the step's
-cost in units of one scalar addition; divided by the force evaluations of
-the step it is the cost of one force evaluation (:func:`lh_cost`,
-:func:`lanes_cost`). The choice therefore depends on what is compiled, not
-on the timing of the run that makes it: the same model, scheme and
-versions price the same, bit for bit, on every machine.
+(:func:`weighted`) with the table of the stepper's context
+(:data:`LH_WEIGHTS` for the LH, one orbit in scalar code;
+:data:`VECTOR_LANE_WEIGHTS` or :data:`SCALAR_LANE_WEIGHTS` for a lane of
+the constant step, as its loop over the lanes vectorises or not,
+:func:`vectorises`: nanoseconds per operation of four classes,
+:data:`CLASSES`, fitted to the two maps' measured runs), divided by the force evaluations of the step, is the cost
+of one force evaluation (:func:`lh_cost`, :func:`lanes_cost`). The choice
+therefore depends on what is compiled, not on the timing of the run that
+makes it: the same model, scheme and versions price the same, bit for
+bit, on every machine.
 
 How a step is read (:func:`operations`): names whose values are known at
 emission (``log``, ``k``, the loop bounds) select their branch; a branch
@@ -27,14 +31,22 @@ conditional expression count (the lanes compute both and select). A call
 of an emitted kernel or library function not in :data:`CALLS` counts
 nothing of its own.
 
-What it does not see: the latency of a dependency chain (a step of these
-models is bound by its operations, not by its chain: ``studies/
-frontier.py``'s finding for the compensated step), branch mispredictions,
-the cache (a step's state fits in L1). ``studies/step_cost.py`` measures
-the weights (a chain of each operation, lengths 1 and 9, the difference
-per operation) and checks the model's LH/constant ratio against the
-measured ratio of the two maps' runs on Hénon–Heiles, cored logarithmic
-potentials and the restricted three-body problem.
+Why fitted tables: the steppers as the maps run them are bound by their
+dependency chains (the LH's dτ = h/U needs V before each drift; a lane's
+step is too long for two lanes to overlap) and by whether LLVM vectorises
+the loop over the lanes, not by their operation counts. One table per
+operation (:data:`WEIGHTS`, ``studies/step_cost.py``: a chain of each
+operation, lengths 1 and 9, the difference per operation) priced the LH
+against the lanes 2–3 times too cheap (Hénon–Heiles 3.1 against 7.3
+measured, the three-body problem 2.2 against 6.4), so that the defaults
+ran the LH where constant steps were faster. One fitted table for all
+lanes failed its held-out check (``studies/switch_check.py``): the
+three-body lanes vectorise and cost 18 ns per force evaluation, the cored
+potential's, with ``(R² + r²)**(-2)`` in their Hessian, do not and cost
+32. The fitted tables give arithmetic no cost of its own (it overlaps the
+chains and the checks). Not seen: branch mispredictions, the cache (a
+step's state fits in L1), another machine's ratio of scalar to vector
+speed (the tables were fitted on one Intel Xeon).
 """
 
 from __future__ import annotations
@@ -44,11 +56,12 @@ from collections import Counter
 from collections.abc import Mapping
 from functools import lru_cache
 
-__all__ = ["KINDS", "CALLS", "WEIGHTS", "operations", "weighted", "lh_cost", "lanes_cost",
-           "log_gradient_cost", "constant_gradient_cost"]
+__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "SCALAR_KINDS", "LH_WEIGHTS",
+           "VECTOR_LANE_WEIGHTS", "SCALAR_LANE_WEIGHTS", "vectorises", "operations", "weighted",
+           "lh_cost", "lanes_cost", "log_gradient_cost", "constant_gradient_cost"]
 
 #: The kinds of operation counted.
-KINDS = ("add", "mul", "fma", "div", "sqrt", "log", "exp", "sin", "cos", "pow", "compare",
+KINDS = ("add", "mul", "fma", "div", "invert", "sqrt", "log", "exp", "sin", "cos", "pow", "compare",
          "memory")
 
 #: Calls by name (the last part of a dotted name) and the kind they count as.
@@ -72,8 +85,50 @@ CALLS = {"sqrt": "sqrt", "fma": "fma", "log": "log", "vlog": "log", "vlog_called
 #: times; with its half-integer powers as products and square roots
 #: (:mod:`varint.codegen.printer`) this table predicts 2.15.)
 WEIGHTS: Mapping[str, float] = {
-    "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
+    "add": 1.0, "mul": 1.0, "fma": 0.99, "div": 4.0, "invert": 4.0, "sqrt": 5.9, "log": 18.0, "exp": 18.0,
     "sin": 18.0, "cos": 23.0, "pow": 61.0, "compare": 0.0, "memory": 0.0}
+
+#: The classes of operation the two steppers' costs are fitted by
+#: (``studies/switch_check.py``, part "fit"), each the kinds it sums:
+#: arithmetic, division and square root, library calls, checks and
+#: array accesses.
+CLASSES = {"arithmetic": ("add", "mul", "fma"), "division": ("div", "invert", "sqrt"),
+           "call": ("log", "exp", "sin", "cos", "pow"), "check": ("compare", "memory")}
+#: The kinds that keep LLVM from vectorising the loop over the lanes: a
+#: call of a library function (a square root is an instruction) and the
+#: inverse of a negative integer power (numba's ``x**(-2)`` tests for a
+#: zero divisor; ``1/(x*x)`` vectorises).
+SCALAR_KINDS = ("log", "exp", "sin", "cos", "pow", "invert")
+
+
+def _by_kind(per_class):
+    return {kind: per_class[cls] for cls, kinds in CLASSES.items() for kind in kinds}
+
+
+#: Nanoseconds per operation of each class (:data:`CLASSES`) as the maps
+#: run each stepper, fitted by non-negative least squares to the measured
+#: nanoseconds per force evaluation of the two maps of training models
+#: (``studies/switch_check.py`` part "fit", ``studies/results/
+#: switch_check_quick.json``; Intel Xeon at 2.5 GHz, load 6–7 on 2 cores),
+#: two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
+#: scalar code, whose chain (dτ = h/U needs V before each drift) makes it
+#: pay for divisions and calls, not for arithmetic. The constant step's
+#: lanes: ``VECTOR_LANE_WEIGHTS`` where the loop over the lanes
+#: vectorises (:func:`vectorises`), ``SCALAR_LANE_WEIGHTS`` where it does
+#: not (a library call or a negative integer power in the step: every
+#: lane then runs the whole step in scalar code).
+LH_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 1.4, "call": 3.1, "check": 1.6})
+VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 0.85, "call": 0.0, "check": 1.1})
+SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 1.0, "call": 3.1, "check": 2.8})
+
+
+def vectorises(counts):
+    """Whether the loop over the lanes whose step executes ``counts``
+    (:func:`operations`) vectorises: none of :data:`SCALAR_KINDS`."""
+    return not any(counts.get(kind, 0) for kind in SCALAR_KINDS)
 
 
 _BINARY = {ast.Add: "add", ast.Sub: "add", ast.Mult: "mul", ast.Div: "div",
@@ -123,10 +178,13 @@ def operations(source, function, known, loop=None):
     return counts
 
 
-def weighted(counts):
-    """The cost of ``counts`` (:func:`operations`) in scalar additions
-    (:data:`WEIGHTS`)."""
-    return float(sum(WEIGHTS[kind] * n for kind, n in sorted(counts.items())))
+def weighted(counts, table=None):
+    """The cost of ``counts`` (:func:`operations`) by ``table``: in scalar
+    additions by :data:`WEIGHTS` (the default), in nanoseconds by
+    :data:`LH_WEIGHTS`, :data:`VECTOR_LANE_WEIGHTS` or
+    :data:`SCALAR_LANE_WEIGHTS`."""
+    table = WEIGHTS if table is None else table
+    return float(sum(table[kind] * n for kind, n in sorted(counts.items())))
 
 
 def lh_cost(source, n, kinds):
@@ -134,13 +192,14 @@ def lh_cost(source, n, kinds):
     source is ``source`` (:func:`varint.codegen.lh.lh_source`; ``n``
     degrees of freedom, the scheme's stage ``kinds``, 0 drift, 1 kick), with
     one deviation vector, as an FLI map runs it: one LH step (``step``
-    with ``log``) and the copies of ``advance`` around it, in scalar
-    additions, over its kicks. Returns ``(cost, counts)``."""
+    with ``log``) and the copies of ``advance`` around it, priced by
+    :data:`LH_WEIGHTS` (nanoseconds), over its kicks. Returns ``(cost,
+    counts)``."""
     known = {"log": True, "k": 1, "d": 2 * n, "n": n}
     counts = operations(source, "step", known) + operations(source, "advance", known,
                                                             loop=_last_loop(source))
     kicks = int(sum(1 for kind in kinds if kind == 1))
-    return weighted(counts) / kicks, counts
+    return weighted(counts, LH_WEIGHTS) / kicks, counts
 
 
 def lanes_cost(source, gradients):
@@ -148,11 +207,13 @@ def lanes_cost(source, gradients):
     module source is ``source`` (:func:`varint.codegen.stepper.generated_source`)
     run as SIMD lanes, per lane: one lane's step and its end (checks,
     renormalisation, the accumulator's rule), the first loop over the lanes
-    inside the loop over steps of ``lanes``, over the ``gradients`` one step
-    evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
+    inside the loop over steps of ``lanes``, priced by
+    :data:`VECTOR_LANE_WEIGHTS` or :data:`SCALAR_LANE_WEIGHTS`
+    (:func:`vectorises`; nanoseconds), over the ``gradients`` one step evaluates (:func:`varint.codegen.tm.step_counts`). Returns ``(cost,
     counts)``."""
     counts = operations(source, "lanes", {"nb": 1, "renorm": True}, loop=_lane_step(source))
-    return weighted(counts) / gradients, counts
+    table = VECTOR_LANE_WEIGHTS if vectorises(counts) else SCALAR_LANE_WEIGHTS
+    return weighted(counts, table) / gradients, counts
 
 
 def log_gradient_cost(lh):
@@ -342,7 +403,10 @@ def _expression(node, counts, times):
             if e is not None and float(e).is_integer():
                 counts["mul"] += times * max(int(abs(e)) - 1, 0)
                 if e < 0:
-                    counts["div"] += times
+                    # A division, but numba inverts with its own error
+                    # model (a zero test): the loop around it does not
+                    # vectorise (SCALAR_KINDS).
+                    counts["invert"] += times
             else:
                 counts["pow"] += times
         else:
