@@ -269,19 +269,22 @@ def test_orbit_compensation_is_within_3_of_full_s35odr10():
     assert err["orbit"] < 3 * err[True] and err["orbit"] < err[False] / 10, err
 
 
-def test_orbit_compensation_resumes_bitwise_and_its_compensations_are_state():
+@pytest.mark.parametrize("level", ["orbit", "step"])
+def test_partial_compensation_resumes_bitwise_and_its_compensations_are_state(level):
     """1000 steps in one call and as 400 + 600 (sparse QR renormalisation
     of one vector) give the same bits; only the orbit's compensations are
-    non-zero (the vector's stay zero), and they are state: restarting the
-    second chunk from zero compensations gives other bits. SRKN14a with
-    one vector: the stepper of test_orbit_compensation_is_full_compensation_s_orbit
-    (resuming does not depend on the scheme or on the number of vectors)."""
+    non-zero (the vector's stay zero; with "step", those of each step's
+    addition), and they are state: restarting the second chunk from zero
+    compensations gives other bits. SRKN14a with one vector: the steppers
+    of test_orbit_compensation_is_full_compensation_s_orbit and
+    test_step_compensation_against_the_reference (resuming does not depend
+    on the scheme or on the number of vectors)."""
     x0 = np.array([[0.0, -0.25, 0.42, 0.0], [0.0, 0.1, 0.45, 0.02]])
     W0 = np.random.default_rng(4).standard_normal((2, 4, 1))
 
     def run(chunks, drop=False):
         p = TangentMapPropagator(HH, 0.05, Renorm.QR, scheme="SRKN14a", parallel=False,
-                                 compensated="orbit")
+                                 compensated=level)
         state = _start(x0, W0)
         for i, n in enumerate(chunks):
             if drop and i:
@@ -330,34 +333,3 @@ def test_step_compensation_against_the_reference():
         assert err["step"] < bound and err["step"] < err[False] / 10, (name, err)
         assert not np.array_equal(runs["step"].state, runs[False].state)
         assert runs["step"].provenance.method_options["compensated"] == "step"
-
-
-def test_step_compensation_resumes_bitwise_and_its_compensations_are_state():
-    """1000 steps in one call and as 400 + 600 (sparse QR renormalisation
-    of one vector) give the same bits; only the orbit's compensations
-    (those of each step's addition) are non-zero, and they are state:
-    restarting the second chunk from zero compensations gives other bits.
-    SRKN14a with one vector: the stepper of
-    test_step_compensation_against_the_reference."""
-    x0 = np.array([[0.0, -0.25, 0.42, 0.0], [0.0, 0.1, 0.45, 0.02]])
-    W0 = np.random.default_rng(4).standard_normal((2, 4, 1))
-
-    def run(chunks, drop=False):
-        p = TangentMapPropagator(HH, 0.05, Renorm.QR, scheme="SRKN14a", parallel=False,
-                                 compensated="step")
-        state = _start(x0, W0)
-        for i, n in enumerate(chunks):
-            if drop and i:
-                state.extra["tm_compensation"][:] = 0.0
-            p.advance(state, n)
-        assert (state.status == Status.OK).all()
-        return state
-
-    one, two, dropped = run([1000]), run([400, 600]), run([400, 600], drop=True)
-    c = one.extra["tm_compensation"]
-    assert np.abs(c[:, :, 0]).max() > 0.0 and not c[:, :, 1:].any()
-    for name in ("x", "W", "acc_m", "acc_e"):
-        assert np.array_equal(getattr(one, name), getattr(two, name)), name
-    for key in one.extra:
-        assert np.array_equal(one.extra[key], two.extra[key]), key
-    assert not np.array_equal(one.x, dropped.x)
