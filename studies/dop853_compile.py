@@ -28,18 +28,14 @@ after=<tree> --tree before=<tree>`` (``--quick``: one repeat, stored under
 
 from __future__ import annotations
 
-import argparse
 import json
-import shutil
-import tempfile
-from pathlib import Path
 
 try:
     from common import save_json
-    from step_body_compile import child, load
+    from step_body_compile import child, load, tree_study
 except ImportError:  # imported as studies.dop853_compile
     from .common import save_json
-    from .step_body_compile import child, load
+    from .step_body_compile import child, load, tree_study
 
 #: The child: the three models in one process, one short run each.
 CHILD = """
@@ -141,24 +137,7 @@ def speed(args, trees, scratch):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("what", choices=("compile", "speed"))
-    parser.add_argument("--tree", action="append", required=True,
-                        help="LABEL=PATH of a varint source tree (repeatable)")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--quick", action="store_true", help="one repeat")
-    parser.add_argument("--out", default=str(Path(__file__).parent / "results"))
-    args = parser.parse_args(argv)
-    if args.quick:
-        args.repeats = 1
-        args.out = str(Path(args.out) / "quick")
-    trees = dict(t.split("=", 1) for t in args.tree)
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix="varint-dop853-compile-"))
-    try:
-        (compile_times if args.what == "compile" else speed)(args, trees, scratch)
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+    tree_study(__doc__, compile_times, speed, "varint-dop853-compile-", argv)
 
 
 if __name__ == "__main__":

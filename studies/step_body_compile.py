@@ -158,8 +158,13 @@ def speed(args, trees, scratch):
                                             "trees": labels})
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def tree_study(doc, compile_times, speed, prefix, argv=None):
+    """The command line of a study that races source trees in fresh
+    processes (this one, ``dop853_compile.py``): ``compile`` or ``speed``,
+    each ``--tree LABEL=PATH``, ``--repeats``, ``--quick``, ``--out``; the
+    part runs as ``part(args, trees, scratch)`` with a scratch folder
+    (``prefix``) removed afterwards."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     parser.add_argument("what", choices=("compile", "speed"))
     parser.add_argument("--tree", action="append", required=True,
                         help="LABEL=PATH of a varint source tree (repeatable)")
@@ -172,11 +177,15 @@ def main(argv=None):
         args.out = str(Path(args.out) / "quick")
     trees = dict(t.split("=", 1) for t in args.tree)
     Path(args.out).mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(prefix="varint-step-body-"))
+    scratch = Path(tempfile.mkdtemp(prefix=prefix))
     try:
         (compile_times if args.what == "compile" else speed)(args, trees, scratch)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def main(argv=None):
+    tree_study(__doc__, compile_times, speed, "varint-step-body-", argv)
 
 
 if __name__ == "__main__":
