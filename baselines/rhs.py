@@ -45,13 +45,18 @@ evaluation.
 
 from __future__ import annotations
 
-from functools import cache
+import hashlib
+import importlib.metadata
+import importlib.util
+from functools import cache, lru_cache
+from pathlib import Path
 
 import numpy as np
-import sympy as sp
 from numba import njit
 
-from varint.models.symbolic import KernelPrinter
+from varint import codecache
+from varint.codegen.expressions import ensure_form, model_key
+from varint.kernels.closures import cache_on_disk
 
 __all__ = ["tangent_rhs", "tangent_jacobian", "generated_rhs", "kernel_rhs", "pack", "unpack", "clock_size",
            "CLOCK", "GENERATED_MAX_N"]
@@ -92,7 +97,13 @@ def unpack(y, d, clock=0):
 
 def _with_fun(rhs):
     """``(rhs, fun)``: the in-place right-hand side ``rhs(t, y, yp)`` (the
-    form SUNDIALS calls) and ``fun(t, y) -> yp`` around it (SciPy's form)."""
+    form SUNDIALS calls) and ``fun(t, y) -> yp`` around it (SciPy's form).
+
+    These closures, and those of the right-hand sides and Jacobians below,
+    are cached on disk (:func:`varint.kernels.closures.cache_on_disk`, named
+    by what they close over): CVODE and SciPy call them from Python, so
+    they are not compiled into a cached engine as DOP853's is, and the
+    Jacobian CVODE uses took ~1.3 s to compile in every process."""
 
     @njit
     def fun(t, y):
@@ -100,7 +111,7 @@ def _with_fun(rhs):
         rhs(t, y, yp)
         return yp
 
-    return rhs, fun
+    return rhs, cache_on_disk(fun)
 
 
 @cache
@@ -150,7 +161,7 @@ def _compiled(grad, hess, n, bw, minv_bytes, par_bytes, dtime=None):
                     yp[d + (n + i) * k + j] -= a * y[d + (i + b) * k + j]
                     yp[d + (n + i + b) * k + j] -= a * y[d + i * k + j]
 
-    return _with_fun(rhs)
+    return _with_fun(cache_on_disk(rhs))
 
 
 @cache
@@ -190,12 +201,24 @@ def _compiled_hamiltonian(grad_hess, d, par_bytes, dtime=None):
                     acc += D[src, m] * y[d + m * k + j]
                 yp[d + i * k + j] = sign * acc
 
-    return _with_fun(rhs)
+    return _with_fun(cache_on_disk(rhs))
 
 
-def _generated_source(V, n, minv):
-    """Source of ``rhs(t, y, yp)`` for the SymPy potential ``V`` in
-    q0 … q{n−1} and the inverse masses ``minv``."""
+def _generated_source(V, n, minv, cached=False):
+    """Source of a module defining ``rhs(t, y, yp)`` for the SymPy
+    potential ``V`` in q0 … q{n−1} and the inverse masses ``minv``;
+    ``cached``: compiled by numba on first call and kept in numba's disk
+    cache beside the module's file (for :func:`varint.codecache.load_module`),
+    else a plain function to compile in memory.
+
+    SymPy and its printer are imported here, where a potential is worked
+    on, not with this module: a process whose right-hand side is cached
+    (:func:`generated_rhs`) never needs them (importing SymPy costs
+    ~0.35 s, deriving and printing a potential's derivatives more)."""
+    import sympy as sp  # type: ignore[import-untyped]
+
+    from varint.models.symbolic import KernelPrinter
+
     q = sp.symbols(f"q0:{n}")
     g = [sp.diff(V, qi) for qi in q]
     H = {(i, j): sp.diff(g[i], q[j]) for i in range(n) for j in range(i, n)}
@@ -203,7 +226,8 @@ def _generated_source(V, n, minv):
     bw = max((j - i for i, j in H), default=0)
     printer = KernelPrinter()
     d = 2 * n
-    lines = ["def rhs(t, y, yp):"]
+    head = ["from numba import njit", "", "", "@njit(cache=True)"] if cached else ["", ""]
+    lines = ["import math", *head, "def rhs(t, y, yp):"]
     lines += [f"    q{i} = y[{i}]" for i in range(n)]
     for names, exprs, label in (([f"g{i}" for i in range(n)], g, "o"),
                                 ([f"H{i}_{j}" for i, j in H], list(H.values()), "w")):
@@ -237,22 +261,78 @@ def _generated_source(V, n, minv):
     return "\n".join(lines) + "\n"
 
 
+@lru_cache(maxsize=1)
+def _generator_id():
+    """A hash of what a generated right-hand side's source is made by: this
+    module, the expression printer (``varint.models.symbolic``, found
+    without importing it and so SymPy) and SymPy's version (its
+    differentiation, CSE and printing)."""
+    spec = importlib.util.find_spec("varint.models.symbolic")
+    assert spec is not None and spec.origin is not None
+    digest = hashlib.sha256(importlib.metadata.version("sympy").encode())
+    for path in (Path(__file__), Path(spec.origin)):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _potential(model):
+    """The model's SymPy potential in q0 … q{N−1}, and N."""
+    import sympy as sp  # type: ignore[import-untyped]
+
+    s = model.symbolic()
+    n = len(s.q)
+    return s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True))), n
+
+
+#: The generated right-hand sides of this process, by module name.
+_GENERATED: dict[str, tuple] = {}
+
+
+def _generated_module(model, key, minv):
+    """:func:`generated_rhs` of a model whose symbolic form has the key
+    ``key`` (:func:`varint.codegen.expressions.model_key`): a module in the
+    kernels' cache directory (:func:`varint.codecache.load_module`, signed
+    and verified before it runs) named by the generator, the form and the
+    masses, so a later process loads it, and numba's compiled copy,
+    without SymPy."""
+    name = "varint_rhs_" + hashlib.sha256(
+        f"{_generator_id()}|{key}|{minv!r}".encode()).hexdigest()[:24]
+    if name not in _GENERATED:
+        def make_source():
+            # Only ever emitted from the model's own form: the stored facts
+            # named the key, the model must give the same one.
+            ensure_form(model, key)
+            return _generated_source(*_potential(model), minv, cached=True)
+
+        # Its kernel is cached on disk too (signed, verified before numba
+        # loads it): CVODE calls it from Python, so it is not compiled into
+        # a cached engine as DOP853's is, and was compiled in every process.
+        _GENERATED[name] = _with_fun(codecache.load_module(name, "kernels", make_source).rhs)
+    return _GENERATED[name]
+
+
 @cache
 def _compiled_generated(V, n, minv):
     # Keyed by the expression itself (SymPy expressions hash by structure):
     # no text is parsed back into an expression.
-    namespace = {"math": __import__("math")}
+    namespace: dict = {}
     exec(compile(_generated_source(V, n, minv), "<varint generated rhs>", "exec"),
          namespace)
     rhs = njit(namespace["rhs"])
 
-    return _with_fun(rhs)
+    return _with_fun(cache_on_disk(rhs))
 
 
 def generated_rhs(model):
     """The right-hand side of :func:`tangent_rhs` as straight-line code
     generated from the model's SymPy potential, or None where it does not
     apply (no ``symbolic()``, a time-dependent V, N > :data:`GENERATED_MAX_N`).
+
+    A model whose symbolic facts are known
+    (:func:`varint.codegen.expressions.model_key`: kept signed in the cache
+    directory for a built-in model) gets it from a generated module cached
+    on disk, so a second process neither imports SymPy nor derives the
+    potential again; any other is generated in memory, once per process.
 
     Returns
     -------
@@ -262,10 +342,11 @@ def generated_rhs(model):
     symbolic = getattr(model, "symbolic", None)
     if not callable(symbolic) or model.time_dependent or model.n_dof > GENERATED_MAX_N:
         return None
-    s = symbolic()
-    n = len(s.q)
-    V = s.V.xreplace(dict(zip(s.q, sp.symbols(f"q0:{n}"), strict=True)))
     minv = tuple(float(m) for m in model.inverse_mass)
+    key = model_key(model)
+    if key is not None:
+        return _generated_module(model, key, minv)
+    V, n = _potential(model)
     return _compiled_generated(V, n, minv)
 
 
@@ -382,7 +463,7 @@ def _compiled_jacobian(hess, third, n, bw, minv_bytes, par_bytes):
                         if b:
                             Jv[d + (n + i + b) * k + c] -= a * y[d + i * k + c]
 
-    return jac, jac_times
+    return cache_on_disk(jac), cache_on_disk(jac_times)
 
 
 def tangent_jacobian(model):

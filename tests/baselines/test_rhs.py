@@ -103,3 +103,45 @@ def test_large_and_time_dependent_models_keep_the_kernel_rhs():
     q, t = sp.symbols("q t")
     assert generated_rhs(from_potential(-sp.cos(q) * (1 + sp.cos(t) / 10), [q], time=t)) is None
     assert generated_rhs(FPUBeta(GENERATED_MAX_N + 1, 1.5)) is None
+
+
+def test_a_later_process_loads_the_rhs_and_jacobian_without_compiling_or_sympy():
+    """A built-in model's generated right-hand side is a signed module of
+    the cache directory and its Jacobian a closure cached on disk: a new
+    process (same cache) loads both, to the bit, without importing SymPy,
+    deriving V again or compiling (numba's cache hits, no misses)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from varint.baselines.rhs import generated_rhs
+
+    model = HenonHeiles()
+    rhs, fun = generated_rhs(model)
+    jac = tangent_jacobian(model)[0]
+    y = pack(np.array([0.1, -0.2, 0.3, 0.05]), np.eye(4)[:, :2])
+    J, yp = np.empty((y.size, y.size)), np.empty_like(y)
+    rhs(0.0, y, yp)
+    jac(0.0, y, yp, J)
+    here = [yp.view(np.int64).tolist(), fun(0.0, y).view(np.int64).tolist(),
+            J.view(np.int64).ravel().tolist()]
+    code = ("import json, sys, numpy as np; from varint.baselines.rhs import generated_rhs, "
+            "tangent_jacobian; from varint.models import HenonHeiles; m = HenonHeiles(); "
+            "rhs, fun = generated_rhs(m); jac = tangent_jacobian(m)[0]; "
+            f"y = np.array({y.tolist()!r}); J = np.empty((y.size, y.size)); out = fun(0.0, y); "
+            "yp = np.empty_like(y); rhs(0.0, y, yp); jac(0.0, y, out, J); "
+            "print(json.dumps(['sympy' in sys.modules, rhs.py_func.__module__, "
+            "[yp.view(np.int64).tolist(), out.view(np.int64).tolist(), "
+            "J.view(np.int64).ravel().tolist()], "
+            "[len(f.stats.cache_misses) for f in (rhs, fun, jac)], "
+            "[len(f.stats.cache_hits) for f in (rhs, fun, jac)]]))")
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=str(root)),
+                          check=True, capture_output=True, text=True)
+    sympy_loaded, module, bits, misses, hits = json.loads(done.stdout.strip().splitlines()[-1])
+    assert not sympy_loaded
+    assert module == rhs.py_func.__module__ and module.startswith("varint_rhs_")
+    assert bits == here
+    assert misses == [0, 0, 0] and all(hits)
