@@ -187,6 +187,22 @@ def deviations(W, dim, m_orbits, name="deviations"):
 _TINY, _ONE_COLUMN_MAX = np.finfo(float).tiny, 1e300
 
 
+def steps_arguments(model, x, W, tau):
+    """The arguments of n steps of a map from one state
+    (:func:`varint.methods.tm.tangent_map_steps`,
+    :func:`varint.methods.parts.parts_steps`): ``x`` as a new float64 array
+    of shape (1, 2N) and ``W`` as one of shape (2N, k) (None: k = 0), once
+    ``x`` is finite and of the model's length and ``tau`` finite and
+    non-zero."""
+    x = np.array(x, dtype=np.float64).reshape(1, -1)
+    if x.shape[1] != model.dim or not np.isfinite(x).all():
+        raise ValueError(f"x must be a finite state of length {model.dim}")
+    if not (np.isfinite(tau) and tau != 0):
+        raise ValueError(f"tau must be finite and non-zero, got {tau!r}")
+    W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
+    return x, W.reshape(model.dim, -1)
+
+
 def full_rank(W, name="deviations"):
     """Raise if the k columns of any (2N, k) block are linearly dependent."""
     if W.shape[2] == 0:
@@ -511,7 +527,7 @@ def _evaluate(model, q_all, todo, what, total):
                 model.hess_kernel(Q[i], model.params, H[i])
                 model.third_kernel(Q[i], model.params, v, T[i])
         except (NumbaError, TypeError) as exc:
-            reason = _first_line(exc)
+            reason = first_line(exc)
             if reason.startswith("Int value is too large"):
                 reason += ("; an integer beyond 64 bits, e.g. from (2*x)**100: write its "
                            "numbers with a decimal point, (2.0*x)**100")
@@ -548,7 +564,7 @@ def _short(q, limit=8):
     return f"[{', '.join(f'{v:g}' for v in q[:3])}, ... ({len(q)} values)]"
 
 
-def _first_line(exc):
+def first_line(exc):
     """The first line of ``exc``'s message that says something: numba's
     begin with "Failed in nopython mode pipeline" and may be coloured."""
     import re

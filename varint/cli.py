@@ -477,7 +477,7 @@ def _check_kernels(model, x, what="the initial state"):
             values = (model.gradient(q), model.hessian_band(q),
                       model.third_band(q, np.ones_like(q)))
     except NumbaError as exc:
-        reason = _first_line(exc)
+        reason = check.first_line(exc)
         if reason.startswith("Int value is too large"):
             reason += ("; an integer beyond 64 bits, e.g. from (2*x)**100: write its numbers "
                        "with a decimal point, (2.0*x)**100")
@@ -918,7 +918,7 @@ def _client(address):
     try:
         return Client(address, timeout=30)
     except (OSError, ValueError, TypeError) as exc:
-        raise ValueError(f"cannot connect to --scheduler {address}: {_first_line(exc)}") from None
+        raise ValueError(f"cannot connect to --scheduler {address}: {check.first_line(exc)}") from None
 
 
 def _cmd_select(args):
@@ -1439,7 +1439,7 @@ def _failure(exc):
                    f"indicator ({text}); the orbit may have reached a singular point of the "
                    "potential")
     if isinstance(exc, NumbaError) or isinstance(exc.__cause__, NumbaError):
-        return 1, (f"run failed: numba could not compile the integrator: {_first_line(exc)}; "
+        return 1, (f"run failed: numba could not compile the integrator: {check.first_line(exc)}; "
                    "rerun with 'varint --traceback ...' for the details")
     if isinstance(exc, OSError):
         return 1, f"error: {text}"
@@ -1465,15 +1465,6 @@ def _silence_stdout():
 
 def _one_line(exc):
     return " ".join(str(exc).split())
-
-
-def _first_line(exc):
-    """The first line of ``exc``'s message that says something: numba's
-    begin with "Failed in nopython mode pipeline" and may be coloured."""
-    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
-    lines = [line.strip() for line in text.splitlines()
-             if line.strip() and not line.strip().startswith("Failed in ")]
-    return lines[0] if lines else type(exc).__name__
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .._validate import steps_arguments
 from ..codegen.expressions import symbolic_fits
 from ..kernels import parts as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
@@ -195,13 +196,8 @@ def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
     FloatingPointError
         If the map fails (the message gives the step and the reason).
     """
-    x = np.array(x, dtype=np.float64).reshape(1, -1)
-    if x.shape[1] != model.dim or not np.isfinite(x).all():
-        raise ValueError(f"x must be a finite state of length {model.dim}")
-    if not (np.isfinite(tau) and tau != 0):
-        raise ValueError(f"tau must be finite and non-zero, got {tau!r}")
-    W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
-    W = np.ascontiguousarray(W.reshape(model.dim, -1)[None])
+    x, W = steps_arguments(model, x, W, tau)
+    W = np.ascontiguousarray(W[None])
     k = W.shape[2]
     kinds, h, par, n_work = _tables(model, _scheme(model, scheme), float(tau))
     status = np.zeros(1, dtype=np.int64)

@@ -37,6 +37,7 @@ from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
                        stage_arrays, stage_times)
 from ..state import Snapshots
+from .._validate import steps_arguments
 from .fresh_run import FreshRun
 from .options import method_options
 
@@ -602,13 +603,8 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
     from ..protocol import REASONS
     from ..state import RunState
 
-    x = np.array(x, dtype=np.float64).reshape(1, -1)
-    if x.shape[1] != model.dim or not np.isfinite(x).all():
-        raise ValueError(f"x must be a finite state of length {model.dim}")
-    if not (np.isfinite(tau) and tau != 0):
-        raise ValueError(f"tau must be finite and non-zero, got {tau!r}")
-    W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
-    state = RunState.start(x, W.reshape(model.dim, -1)[None])
+    x, W = steps_arguments(model, x, W, tau)
+    state = RunState.start(x, W[None])
     TangentMapPropagator(model, float(tau), Renorm.NONE, scheme=scheme, parallel=False).advance(
         state, int(n_steps))
     if state.status[0] != Status.OK:
