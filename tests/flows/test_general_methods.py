@@ -23,7 +23,7 @@ X0 = np.array([0.1, 0.05, 0.2, 0.25])
 # Two vectors in every run of this model without an accumulator: SALI needs
 # exactly two, and the part stepper is compiled per number of vectors (not
 # per renormalisation), so the Lyapunov runs, GALI_2 and SALI share one
-# kernel (one per k would be two more, ~16 CPU s each cold).
+# kernel (SALI's own, beside one for k = 2N, was ~20 CPU s cold).
 K = 2
 
 
