@@ -133,12 +133,12 @@ PREPARED_STAGES = (
 )
 
 #: The stages of a prepared run's short call (:class:`varint.prepared._ShortCall`),
-#: as :data:`STAGES`; each code has some of them (the first five rows the
-#: code of rounds 5 and before, the next four that of round 6: the kept
-#: buffers, the compiled energy errors and the pickled provenance).
+#: as :data:`STAGES`; each code has some of them (those only older code
+#: passes: :data:`SHORT_STAGES_BEFORE_ROUND6`, :data:`SHORT_STAGES_BEFORE_ROUND8`).
 SHORT_STAGES = (
     (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
-    (1, "check x0", "varint.runspec:RunSpec", "with_states"),
+    (1, "check x0, a new specification", "varint.runspec:RunSpec", "with_states"),
+    (1, "check x0", "varint.runspec:RunSpec", "checked_states"),
     (2, "states check", "varint.runspec:check", "states"),
     (2, "kernels finite at x0, kept buffers", "varint._validate:KernelCheck", "__call__"),
     (1, "short call", "varint.prepared:_ShortCall", "__call__"),
@@ -162,6 +162,11 @@ SHORT_STAGES_BEFORE_ROUND6 = frozenset({
     "stepper from fresh arrays", "reference and energy errors", "accuracy verdict",
     "provenance", "accuracy warning",
 })
+
+#: The labels of :data:`SHORT_STAGES` that only the code of rounds 7 and
+#: before passes (round 8's short call checks the states without making a
+#: specification over them, ``RunSpec.checked_states``).
+SHORT_STAGES_BEFORE_ROUND8 = frozenset({"check x0, a new specification"})
 
 
 def _owner(path):
