@@ -141,6 +141,7 @@ SHORT_STAGES = (
     (1, "check x0", "varint.runspec:RunSpec", "checked_states"),
     (2, "states check", "varint.runspec:check", "states"),
     (2, "kernels finite at x0, kept buffers", "varint._validate:KernelCheck", "__call__"),
+    (2, "x0 and its kernels finite, one pass", "varint._validate:KernelCheck", "states"),
     (1, "short call", "varint.prepared:_ShortCall", "__call__"),
     (2, "stepper from fresh arrays", "varint.methods.tm:TangentMapPropagator", "advance_fresh"),
     (2, "snapshot rows", "varint.state:Snapshots", "rows"),
@@ -165,8 +166,11 @@ SHORT_STAGES_BEFORE_ROUND6 = frozenset({
 
 #: The labels of :data:`SHORT_STAGES` that only the code of rounds 7 and
 #: before passes (round 8's short call checks the states without making a
-#: specification over them, ``RunSpec.checked_states``).
-SHORT_STAGES_BEFORE_ROUND8 = frozenset({"check x0, a new specification"})
+#: specification over them, ``RunSpec.checked_states``, and tests the state
+#: and its kernels finite in one pass, ``KernelCheck.states``).
+SHORT_STAGES_BEFORE_ROUND8 = frozenset({
+    "check x0, a new specification", "states check", "kernels finite at x0, kept buffers",
+})
 
 
 def _owner(path):

@@ -191,6 +191,21 @@ class RunSpec:
         :meth:`with_states` checks them, with the same errors, without a
         reference and without a new specification (a prepared run's short
         call, :mod:`varint.prepared`, which needs only the states)."""
+        model = self.model
+        if (kernel_check is not None and model.kind != "map"
+                and getattr(model, "band_kernels", True)):
+            # One state and its kernels tested finite in one pass
+            # (KernelCheck.states); where it cannot say, or the indicator
+            # refuses the state, the checks below, in _checked_states'
+            # order, raise what is wrong.
+            checked = kernel_check.states(x0)
+            if checked is not None:
+                try:
+                    self.indicator.check_states(model, checked[0], self.options)
+                except ValueError:
+                    pass
+                else:
+                    return checked
         x, single, _ = _checked_states(self.model, self.indicator, self.options, x0, "x0",
                                        "the initial state", kernel_check, measure=False)
         return x, single
