@@ -49,7 +49,11 @@ until read): ``round6_before`` (main 5d760dc) and ``round6_after``, the
 prepared path alone, likewise (quick, ``results/quick``); its seventh
 (T compiled with the energy errors where it rounds as NumPy's, the
 errors returned as one array, the load average read once a second):
-``round7_before`` (main a56fbcd) and ``round7_after``, likewise.
+``round7_before`` (main a56fbcd) and ``round7_after``, likewise; its
+eighth (the states checked without a new specification, the state and its
+kernels tested finite in one pass, the start states kept before the
+outputs, NumPy's error handling set without rebuilding it):
+``round8_before`` (main 2aef9d2) and ``round8_after``, likewise.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general]``
