@@ -49,7 +49,11 @@ until read): ``round6_before`` (main 5d760dc) and ``round6_after``, the
 prepared path alone, likewise (quick, ``results/quick``); its seventh
 (T compiled with the energy errors where it rounds as NumPy's, the
 errors returned as one array, the load average read once a second):
-``round7_before`` (main a56fbcd) and ``round7_after``, likewise.
+``round7_before`` (main a56fbcd) and ``round7_after``, likewise; its
+eighth (the states checked without a new specification, the state and its
+kernels tested finite in one pass, the start states kept before the
+outputs, NumPy's error handling set without rebuilding it):
+``round8_before`` (main 2aef9d2) and ``round8_after``, likewise.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general]``
@@ -133,14 +137,15 @@ PREPARED_STAGES = (
 )
 
 #: The stages of a prepared run's short call (:class:`varint.prepared._ShortCall`),
-#: as :data:`STAGES`; each code has some of them (the first five rows the
-#: code of rounds 5 and before, the next four that of round 6: the kept
-#: buffers, the compiled energy errors and the pickled provenance).
+#: as :data:`STAGES`; each code has some of them (those only older code
+#: passes: :data:`SHORT_STAGES_BEFORE_ROUND6`, :data:`SHORT_STAGES_BEFORE_ROUND8`).
 SHORT_STAGES = (
     (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
-    (1, "check x0", "varint.runspec:RunSpec", "with_states"),
+    (1, "check x0, a new specification", "varint.runspec:RunSpec", "with_states"),
+    (1, "check x0", "varint.runspec:RunSpec", "checked_states"),
     (2, "states check", "varint.runspec:check", "states"),
     (2, "kernels finite at x0, kept buffers", "varint._validate:KernelCheck", "__call__"),
+    (2, "x0 and its kernels finite, one pass", "varint._validate:KernelCheck", "states"),
     (1, "short call", "varint.prepared:_ShortCall", "__call__"),
     (2, "stepper from fresh arrays", "varint.methods.tm:TangentMapPropagator", "advance_fresh"),
     (2, "snapshot rows", "varint.state:Snapshots", "rows"),
@@ -161,6 +166,14 @@ SHORT_STAGES = (
 SHORT_STAGES_BEFORE_ROUND6 = frozenset({
     "stepper from fresh arrays", "reference and energy errors", "accuracy verdict",
     "provenance", "accuracy warning",
+})
+
+#: The labels of :data:`SHORT_STAGES` that only the code of rounds 7 and
+#: before passes (round 8's short call checks the states without making a
+#: specification over them, ``RunSpec.checked_states``, and tests the state
+#: and its kernels finite in one pass, ``KernelCheck.states``).
+SHORT_STAGES_BEFORE_ROUND8 = frozenset({
+    "check x0, a new specification", "states check", "kernels finite at x0, kept buffers",
 })
 
 

@@ -195,3 +195,36 @@ def test_results_of_one_prepared_run_share_no_provenance():
     again, alone = run(x0).provenance, varint.lyapunov_spectrum(model, x0, 1.0, tau=0.05).provenance
     for field in ("model", "method_options", "options", "versions"):
         assert getattr(again, field) == getattr(alone, field), field
+
+
+def test_the_one_pass_check_of_a_short_call_refuses_and_accepts_as_the_one_shot_call():
+    # A short call tests one float64 state and its kernels finite in one
+    # pass (KernelCheck.states); any other state, and any state that pass
+    # refuses, goes through the one-shot call's checks in their order, so
+    # the result or the message is the one-shot call's.
+    import sympy as sp
+
+    x, y = sp.symbols("x y")
+    model = varint.models.from_potential(1 / x + y**2 / 2, [x, y], name="1/x")
+    good = np.array([1.0, 0.1, 0.1, 0.0])
+    run = varint.prepare(model, "lyapunov", 0.2, tau=0.05)
+    run(good)
+    assert run._short is not None
+    accepted = [good[::-1][::-1], good.astype(np.float32), good.tolist(), good.astype(">f8"),
+                np.array([good, good])[:, ::1][0], np.array([[1.0, 0.1, 0.1, 0.0]])]
+    for state in accepted:
+        _same(run(state), varint.lyapunov_spectrum(model, state, 0.2, tau=0.05))
+    refused = [np.array([0.0, 0.1, 0.1, 0.0]),        # ∇V not finite
+               np.array([np.nan, 0.1, 0.1, 0.0]),     # q not finite (the kernels see it)
+               np.array([0.0, 0.1, np.inf, 0.0]),     # p not finite, ∇V not finite
+               np.array([1.0, 0.1, 0.1, np.nan]),     # p not finite, the kernels finite
+               np.array([1.0, 0.1, 0.1]),
+               np.array([[1.0, 0.1, 0.1, 0.0], [1.0, 0.1, 0.1, np.nan]])]
+    for state in refused:
+        with pytest.raises(ValueError) as one_shot:
+            varint.lyapunov_spectrum(model, state, 0.2, tau=0.05)
+        with pytest.raises(ValueError) as prepared:
+            run(state)
+        assert str(prepared.value) == str(one_shot.value)
+    # The buffers hold nothing over from a refused state.
+    _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05))

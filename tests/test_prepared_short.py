@@ -95,7 +95,7 @@ def test_a_long_call_takes_the_general_path(general):
     model, x0 = varint.paper_orbit("R1")
     run = varint.prepare(model, "megno", 20.0, tau=0.05)
     run(x0)
-    assert run._short.takes(run.spec.with_states(x0))
+    assert run._short.takes(run.spec.with_states(x0).x0)
     run._short.per_step = 1e-3          # 400 steps: 0.4 s
     x = x0 + [0.0, 0.0, 1e-3, 0.0]
     _same(run(x), varint.megno(model, x, 20.0, tau=0.05))

@@ -455,15 +455,35 @@ class KernelCheck:
         self._params = self._resolved = None
 
     def _made(self):
-        """(q, all values, ∇V, D²V, third derivatives, v): ∇V, D²V and the
-        third derivatives side by side, so that one test covers all three."""
+        """(the state, all values, ∇V, D²V, third derivatives, v): the
+        state (its q first, where the kernels read it), ∇V, D²V and the
+        third derivatives side by side, so that one test covers all four."""
         model = self.model
-        n, rows = model.n_dof, model.bandwidth + 1
-        values = np.zeros(n * (1 + 2 * rows))
-        self._local.buffers = (np.empty(n), values, values[:n],
-                               values[n:n * (1 + rows)].reshape(rows, n),
-                               values[n * (1 + rows):].reshape(rows, n), np.ones(n))
+        n, d, rows = model.n_dof, model.dim, model.bandwidth + 1
+        values = np.zeros(d + n * (1 + 2 * rows))
+        found = values[d:]
+        self._local.buffers = (values[:d], values, found[:n],
+                               found[n:n * (1 + rows)].reshape(rows, n),
+                               found[n * (1 + rows):].reshape(rows, n), np.ones(n))
         return self._local.buffers
+
+    def _finite_at(self, x):
+        """Whether the state ``x`` (2N,) and the kernels there are all
+        finite (what a kernel raises, it raises); the values are left in
+        the buffers."""
+        model = self.model
+        state, values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
+        values.fill(0.0)     # a banded kernel need not write every entry
+        state[:] = x
+        q = state[:model.n_dof]
+        par, kernels3 = model.params, (model.grad_kernel, model.hess_kernel, model.third_kernel)
+        if self._resolved is None:
+            self._params, self._resolved = par, tuple(Resolved.of(f) for f in kernels3)
+        grad, hess, third = self._resolved if par is self._params else kernels3
+        grad(q, par, G)
+        hess(q, par, H)
+        third(q, par, v, T)
+        return np.count_nonzero(np.isfinite(values)) == values.size    # (see states)
 
     def __call__(self, X, what="the initial state"):
         """Check the states ``X`` (M, 2N) as :func:`kernels` does."""
@@ -471,22 +491,38 @@ class KernelCheck:
         if len(X) != 1:
             kernels(model, X, what)
             return
-        q, values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
-        q[:] = X[0, :model.n_dof]
-        values.fill(0.0)     # a banded kernel need not write every entry
-        par, kernels3 = model.params, (model.grad_kernel, model.hess_kernel, model.third_kernel)
-        if self._resolved is None:
-            self._params, self._resolved = par, tuple(Resolved.of(f) for f in kernels3)
-        grad, hess, third = self._resolved if par is self._params else kernels3
         try:
-            grad(q, par, G)
-            hess(q, par, H)
-            third(q, par, v, T)
+            finite = self._finite_at(X[0])
         except Exception:
             kernels(model, X, what)    # raises, naming what is wrong
             raise
-        if np.count_nonzero(np.isfinite(values)) < values.size:    # (see states)
+        if not finite:
             kernels(model, X, what)
+
+    def states(self, x0):
+        """(x (1, 2N), True) as :func:`states` gives them for one state
+        ``x0``, where it is a float64 array of shape (2N,) finite with the
+        kernels finite there, both tested in one pass (a prepared run's
+        short call); None otherwise: then :func:`states` and this check,
+        in that order, say what is wrong.
+
+        The kernels are evaluated here before the state is known finite,
+        so only where all three are compiled (:class:`Resolved`, as the
+        first check resolved them): those warn about nothing and never
+        stop on a NaN."""
+        model = self.model
+        if not (type(x0) is np.ndarray and x0.dtype == np.float64
+                and x0.shape == (model.dim,) and self._resolved is not None
+                and model.params is self._params
+                and all(type(f) is Resolved for f in self._resolved)):
+            return None
+        try:
+            if not self._finite_at(x0):
+                return None
+        except Exception:
+            return None
+        # The same new array as states'.
+        return x0[None].copy(), True
 
 
 def _scan(model, Q):

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, identity
+from . import accuracy, floating_errors, identity
 from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES
 from .indicators import Indicator
 from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy_errors
@@ -140,10 +140,11 @@ class PreparedRun:
         carries) or the prepared run's vectors."""
         first, short = self._first, self._short
         if short is not None and deviations is None:
-            # Its reference is measured with its outputs, after its run.
-            spec = self.spec.with_states(x0, kernel_check=self._kernel_check, reference=False)
-            if short.takes(spec):
-                result = short(spec)
+            # Its reference is measured with its outputs, after its run; it
+            # needs the checked states, not a specification over them.
+            x, single = self.spec.checked_states(x0, self._kernel_check)
+            if short.takes(x):
+                result = short(x, single)
                 if result is not None:
                     return result
         spec = self.spec.with_states(x0, kernel_check=self._kernel_check)
@@ -272,9 +273,10 @@ class _ShortCall:
         estimate."""
         self.per_step = result.provenance.timing.get("run", np.inf) / max(self.steps, 1)
 
-    def takes(self, spec: RunSpec) -> bool:
-        """Whether the call of ``spec`` is a short one."""
-        return (spec.x0.shape[0] == self.m
+    def takes(self, x: np.ndarray) -> bool:
+        """Whether the call from the checked states ``x`` (M, 2N) is a
+        short one."""
+        return (x.shape[0] == self.m
                 and (self.steps <= 64 or self.per_step * self.steps <= CHUNK_SECONDS))
 
     #: Most bytes of snapshots whose buffers a thread keeps between calls:
@@ -292,11 +294,12 @@ class _ShortCall:
                 self._local.run = run
         return run
 
-    def __call__(self, spec: RunSpec) -> _Result | None:
-        """The result of the run over ``spec``'s states, or None where the
-        general path must make it (a failure)."""
+    def __call__(self, x0: np.ndarray, single: bool) -> _Result | None:
+        """The result of the run from the checked states ``x0`` (M, 2N)
+        (``single``: the caller's one state, its axis dropped in the
+        result), or None where the general path must make it (a failure)."""
         first, ind, tau = self.first, self.first.indicator, self.tau
-        x0, single, m = spec.x0, spec.single, self.m
+        m = self.m
         machine = identity.machine()        # the machine when the run starts
         cpu, start = time.process_time(), time.perf_counter()
         run = self._run()
@@ -306,7 +309,7 @@ class _ShortCall:
         rows = run.rows(ind.renorm)
         options = dict(first.options)
         rec = ind.read(rows, first.model, self.t_rows, options)
-        energies = self._energy_verdict(x0, rows.x, single)
+        energies = self._energy_verdict(run.states, single)
         if energies is None:
             return None
         energy_error, verdict, over = energies
@@ -347,31 +350,36 @@ class _ShortCall:
             accuracy.warn(verdict, first.method)
         return result
 
-    def _energy_verdict(self, x0: np.ndarray, x: np.ndarray, single: bool
+    def _energy_verdict(self, states: np.ndarray, single: bool
                         ) -> tuple[np.ndarray, accuracy.Accuracy, bool] | None:
         """(energy errors ([M,] n_out), the accuracy verdict, whether to
-        warn) of a call from states ``x0`` (M, 2N) with outputs ``x``
-        (n_out·M, 2N, output-major), the orbit axis dropped where
-        ``single``, bitwise those of the general path
+        warn) of a call's ``states``: its M start states, then its outputs'
+        (n_out·M, output-major; :attr:`FreshRun.states
+        <varint.methods.fresh_run.FreshRun.states>`), the orbit axis dropped
+        where ``single``, bitwise those of the general path
         (:meth:`varint.accuracy.Reference.errors`, :func:`varint.accuracy.assess`);
         None where an error is not finite (the general path reports it;
         H not finite at ``x0``: it refuses the state)."""
         first, m = self.first, self.m
         model, tol = first.model, first.energy_tol
         if self.plain:
-            n, rows = model.n_dof, len(x0) + len(x)
-            both = np.concatenate((x0, x))
+            n, rows = model.n_dof, len(states)
             state_kernel = self.state_kernel
-            with np.errstate(all="ignore"):
+            # (np.errstate(all="ignore")'s handling, for less:
+            # varint.floating_errors.)
+            quiet = floating_errors.ignoring()
+            try:
                 # The model's own V (Reference's operations), once over the
                 # states and the outputs, and its T (or T's operations,
                 # compiled with the errors).
-                potential = model.potential(both[:, :n])
-                kinetic = None if state_kernel is not None else model.kinetic(both[:, n:])
+                potential = model.potential(states[:, :n])
+                kinetic = None if state_kernel is not None else model.kinetic(states[:, n:])
+            finally:
+                floating_errors.restore(quiet)
             if not _float_vector(potential, rows):
                 computed = None
             elif state_kernel is not None:
-                computed = state_kernel(both, potential, model.inverse_mass, m, self.t)
+                computed = state_kernel(states, potential, model.inverse_mass, m, self.t)
             elif _float_vector(kinetic, rows):
                 computed = self.errors_kernel(kinetic, potential, m, self.t)
             else:
@@ -395,7 +403,7 @@ class _ShortCall:
                     np.count_nonzero(accurate) < m)
         # Other conserved quantities (or T and V of another kind): the
         # general path's functions.
-        _, found = accuracy.reference_and_errors(model, x0, x)
+        _, found = accuracy.reference_and_errors(model, states[:m], states[m:])
         if not all(np.isfinite(v).all() for v in found.values()):
             return None
         s = len(self.outs)

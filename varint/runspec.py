@@ -186,6 +186,30 @@ class RunSpec:
         new.__dict__.update(self.__dict__, x0=x, single=single, reference=reference)
         return new
 
+    def checked_states(self, x0, kernel_check=None):
+        """(x (M, 2N), single) of the states ``x0``, checked as
+        :meth:`with_states` checks them, with the same errors, without a
+        reference and without a new specification (a prepared run's short
+        call, :mod:`varint.prepared`, which needs only the states)."""
+        model = self.model
+        if (kernel_check is not None and model.kind != "map"
+                and getattr(model, "band_kernels", True)):
+            # One state and its kernels tested finite in one pass
+            # (KernelCheck.states); where it cannot say, or the indicator
+            # refuses the state, the checks below, in _checked_states'
+            # order, raise what is wrong.
+            checked = kernel_check.states(x0)
+            if checked is not None:
+                try:
+                    self.indicator.check_states(model, checked[0], self.options)
+                except ValueError:
+                    pass
+                else:
+                    return checked
+        x, single, _ = _checked_states(self.model, self.indicator, self.options, x0, "x0",
+                                       "the initial state", kernel_check, measure=False)
+        return x, single
+
     def one_state(self, what="x0"):
         """The state of a specification of one orbit (2N,); a batch is
         refused (for workflows of one orbit: departure, scheme selection)."""

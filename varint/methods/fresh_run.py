@@ -60,6 +60,10 @@ class FreshRun:
     x, W : ndarray
         The state (M, 2N) and vectors (M, 2N, k) after the last run, kept:
         copy what outlives the next run.
+    states : ndarray, shape (M + n_out·M, 2N)
+        The last run's start states, then its outputs' (output-major, the
+        snapshots' rows): the rows whose energies a short call measures,
+        one view of the kept buffer (no concatenation per run).
     status, counters, acc_m, acc_e : ndarray
         The last run's status (M,), counters (M, 4) and the vectors'
         stretching (M, k), likewise kept.
@@ -70,14 +74,20 @@ class FreshRun:
         m, d, k = shape
         s = len(outs)
         c = aux0[0].size
-        # Floats: snapshots (NaN until written), then the stretching's
-        # mantissas (1): one block, reset from its template.
-        n_snap = s * m * (d * (k + 1) + c)
+        # Floats: the start states (copied in at each run), the snapshots
+        # (NaN until written), then the stretching's mantissas (1): one
+        # block, reset from its template. The start states just before the
+        # snapshots' states make both one (M + s·M, 2N) view (:attr:`states`).
+        n_snap = m * d + s * m * (d * (k + 1) + c)
         self._floats = np.empty(n_snap + (s + 1) * m * k)
         self._floats_start = np.empty_like(self._floats)
         self._floats_start[:n_snap] = np.nan
         self._floats_start[n_snap:] = 1.0
         f = self._floats
+        self._x0 = f[:m * d].reshape(m, d)
+        self.states = f[:(s + 1) * m * d].reshape((s + 1) * m, d)
+        f = f[m * d:]
+        n_snap -= m * d
         sx = f[:s * m * d].reshape(s, m, d)
         sW = f[s * m * d:s * m * d * (k + 1)].reshape(s, m, d, k)
         s_aux = f[s * m * d * (k + 1):n_snap].reshape((s,) + aux0.shape)
@@ -125,6 +135,7 @@ class FreshRun:
         (:attr:`x`, :attr:`W`, :attr:`status`, ... and :attr:`snapshots`)."""
         np.copyto(self._floats, self._floats_start)
         np.copyto(self._ints, self._ints_start)
+        np.copyto(self._x0, x0)
         np.copyto(self.x, x0)
         np.copyto(self.W, W0)
         if self._aux.size:
