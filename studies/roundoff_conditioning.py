@@ -63,7 +63,7 @@ quadruple-precision reference and against the long-double Taylor
 reference the other studies use (:func:`varint.cache.reference`), whose
 own error is measured on the way. A floor is one draw of a random sum of
 roundings, so the minimum over the ladder is reported with the ladder's
-median near it.
+errors at the other steps beside it.
 
 Usage: ``python studies/roundoff_conditioning.py [--quick] [--out DIR]
 [--part conditioning|floors]`` (conditioning: two orbits to t = 1e4,
@@ -85,6 +85,7 @@ import varint  # noqa: E402
 from studies.bench_peers import seeded_vectors  # noqa: E402
 from studies.common import parse_args, save_json  # noqa: E402
 from studies.frontier import relative  # noqa: E402
+from varint import cachedir  # noqa: E402
 from varint.cache import reference  # noqa: E402
 
 ORBITS = ("R1", "C2")
@@ -150,16 +151,19 @@ def one_ulp(x, rng):
     return np.where(x != 0.0, np.nextafter(x, towards), x)
 
 
-def measured(out, name, t_end, quad_runs, fresh=False):
-    """:func:`measure`, kept in ``out/runs`` (long double; not committed,
-    it is re-made in minutes) so that the floors can be summed again."""
-    path = Path(out) / "runs" / f"conditioning-{name}-t{t_end:g}-grid{GRID:g}-q{quad_runs}.npz"
-    if path.exists() and not fresh:
+def measured(name, t_end, quad_runs, fresh=False):
+    """:func:`measure`, kept in varint's private cache directory
+    (:func:`varint.cachedir.subdir`; 15 MB a run, re-made in minutes, so
+    never stored with the results) so that the floors can be summed again."""
+    folder = cachedir.subdir("studies")
+    path = None if folder is None else (
+        folder / f"conditioning-{name}-t{t_end:g}-grid{GRID:g}-q{quad_runs}.npz")
+    if path is not None and path.exists() and not fresh:
         with np.load(path) as data:
             return dict(data)
     m = measure(name, t_end, quad_runs)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(path, **m)
+    if path is not None:
+        np.savez(path, **m)
     return m
 
 
@@ -305,20 +309,22 @@ def summarise(name, m, quick):
 
 #: Part floors: compensation levels, schemes and steps, and the cases.
 LEVELS = (True, "step")
-LADDERS = ({"SRKN14a": (1 / 16, 1 / 24, 1 / 32, 1 / 40, 1 / 48, 1 / 64),
-            "s35odr10": (0.2, 0.16, 0.125, 0.1, 0.08)},
+LADDERS = ({"SRKN14a": (1 / 16, 1 / 24, 1 / 32, 1 / 48, 1 / 64, 1 / 96, 1 / 128, 1 / 192,
+                         1 / 256),
+            "s35odr10": (0.2, 0.16, 0.125, 0.1, 0.08, 0.0625)},
            {"SRKN14a": (1 / 16, 1 / 32), "s35odr10": (0.2,)})
 FLOOR_CASES = ((("R1", 1e3), ("R1", 1e4), ("C2", 1e3), ("C2", 1e4)), (("C2", 100.0),))
 TARGETS = {1e3: 1e-13, 1e4: 1e-12}
 
 
-def floor_case(name, t_end, ladders):
+def floor_case(m, name, t_end, ladders):
     """The rows of one (orbit, horizon): every level, scheme and step, its
-    errors against both references, and the long-double reference's own."""
+    errors against both references (the quadruple one from the
+    conditioning part's run ``m``), and the long-double reference's own."""
     model, x0 = varint.paper_orbit(name)
     w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
-    xq, Wq, fp = quad_run(model, x0, w0[:, None], np.array([0.0, t_end]))
-    x_ref, w_ref = to_longdouble(xq[-1], fp), to_longdouble(Wq[-1, :, 0], fp)
+    i = int(np.argmin(np.abs(m["t"] - t_end)))
+    x_ref, w_ref = m["x"][i], m["w"][i]
     ext = reference(model, x0, t_end, tau=0.1, deviations=w0[:, None])
     ext_error = max(relative(ext.state, x_ref), relative(ext.deviations[:, 0], w_ref))
     rows = []
@@ -341,22 +347,29 @@ def floor_case(name, t_end, ladders):
 def floors_part(args):
     rows, cases = [], []
     for name, t_end in FLOOR_CASES[args.quick]:
-        mine, ext_error = floor_case(name, t_end, LADDERS[args.quick])
+        m = measured(name, T_END[args.quick], QUAD_RUNS[args.quick])
+        mine, ext_error = floor_case(m, name, t_end, LADDERS[args.quick])
         rows += mine
         best = min(mine, key=lambda r: r["error"])
-        near = sorted(r["error"] for r in mine
-                      if (r["scheme"], r["level"]) == (best["scheme"], best["level"]))
+        ladder = [(r["tau"], r["error"]) for r in mine
+                  if (r["scheme"], r["level"]) == (best["scheme"], best["level"])]
         target = TARGETS.get(t_end)
+        # The models at the best run's step.
+        model = model_floor(m, t_end, best["tau"])
         cases.append({"orbit": name, "t_end": t_end, "floor": best["error"],
+                      "model_increment": model["increment"]["floor"],
+                      "model_plain": model["plain"]["floor"],
                       "at": f"{best['scheme']}{best['level']} tau={best['tau']:g}",
-                      "ladder_median": float(np.median(near)),
+                      "ladder": ladder,
                       "floor_vs_extended": min(r["error_vs_extended"] for r in mine),
                       "extended_reference_error": ext_error, "target": target,
                       "met": None if target is None or args.quick else best["error"] <= target})
         print(f"{name} t = {t_end:g}: floor {best['error']:.2e} ({cases[-1]['at']}; its "
-              f"ladder's median {cases[-1]['ladder_median']:.2e}); against the long-double "
+              f"ladder " + ", ".join(f"{e:.1e}" for _, e in ladder) + "); against the long-double "
               f"reference {cases[-1]['floor_vs_extended']:.2e}, whose own error is "
-              f"{ext_error:.2e}", flush=True)
+              f"{ext_error:.2e}; model at its step: compensated "
+              f"{cases[-1]['model_increment']:.2e}, plain {cases[-1]['model_plain']:.2e}",
+              flush=True)
     for r in rows:
         print(f"  {r['orbit']} t={r['t_end']:g} {r['scheme']}{r['level']} tau={r['tau']:.5g}: "
               f"{r['error']:.2e} (state {r['error_state']:.2e}, vector "
@@ -381,7 +394,7 @@ def main(argv=None):
     result = {"orbits": {}, "taus": TAUS, "ensemble": ENSEMBLE, "quad_runs": quad_runs,
               "seed": SEED}
     for name in ORBITS:
-        m = measured(args.out, name, t_end, quad_runs, args.fresh)
+        m = measured(name, t_end, quad_runs, args.fresh)
         s = summarise(name, m, args.quick)
         result["orbits"][name] = s
         print(f"{name}: one ulp = {s['relative_perturbation']['state']:.2e} (state), "
