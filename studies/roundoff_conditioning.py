@@ -63,7 +63,9 @@ quadruple-precision reference and against the long-double Taylor
 reference the other studies use (:func:`varint.cache.reference`), whose
 own error is measured on the way. A floor is one draw of a random sum of
 roundings, so the minimum over the ladder is reported with the ladder's
-errors at the other steps beside it.
+errors at the other steps beside it, and C2's at t = 1e3 is drawn
+:data:`DRAWS` times (n = N + 7k steps: the same truncation error, other
+roundings) to give its median.
 
 Usage: ``python studies/roundoff_conditioning.py [--quick] [--out DIR]
 [--part conditioning|floors]`` (conditioning: two orbits to t = 1e4,
@@ -315,6 +317,33 @@ LADDERS = ({"SRKN14a": (1 / 16, 1 / 24, 1 / 32, 1 / 48, 1 / 64, 1 / 96, 1 / 128,
            {"SRKN14a": (1 / 16, 1 / 32), "s35odr10": (0.2,)})
 FLOOR_CASES = ((("R1", 1e3), ("R1", 1e4), ("C2", 1e3), ("C2", 1e4)), (("C2", 100.0),))
 TARGETS = {1e3: 1e-13, 1e4: 1e-12}
+#: Draws of one floor: C2 to t = 1e3 with SRKN14a+c at n = N + 7k steps
+#: (k = 0 … DRAWS − 1): the same truncation error within 0.1 %, other
+#: roundings; (full, quick).
+DRAW_CASE = (("C2", 1e3, "SRKN14a", (32_000, 128_000)), ("C2", 100.0, "SRKN14a", (3_200,)))
+DRAWS = 12
+
+
+def floor_draws(m, name, t_end, scheme, base_steps):
+    """The error of ``draws`` runs at n = N + 7k steps for each N in
+    ``base_steps`` (full compensation), against the quadruple reference:
+    the spread of one floor over roundings alone."""
+    model, x0 = varint.paper_orbit(name)
+    w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
+    i = int(np.argmin(np.abs(m["t"] - t_end)))
+    out = []
+    for n0 in base_steps:
+        errors = []
+        for k in range(DRAWS):
+            r = varint.integrate(model, x0, t_end, tau=t_end / (n0 + 7 * k), scheme=scheme,
+                                 deviations=w0[:, None], compensated=True)
+            errors.append(max(relative(r.state, m["x"][i]),
+                              relative(r.deviations[:, 0], m["w"][i])))
+        out.append({"orbit": name, "t_end": t_end, "scheme": f"{scheme}+c", "steps": n0,
+                    "tau": t_end / n0, "errors": errors, "median": float(np.median(errors)),
+                    "min": min(errors), "max": max(errors),
+                    "model_increment": model_floor(m, t_end, t_end / n0)["increment"]["floor"]})
+    return out
 
 
 def floor_case(m, name, t_end, ladders):
@@ -374,8 +403,15 @@ def floors_part(args):
         print(f"  {r['orbit']} t={r['t_end']:g} {r['scheme']}{r['level']} tau={r['tau']:.5g}: "
               f"{r['error']:.2e} (state {r['error_state']:.2e}, vector "
               f"{r['error_vector']:.2e}; vs long double {r['error_vs_extended']:.2e})")
+    name, t_end, scheme, base = DRAW_CASE[args.quick]
+    draws = floor_draws(measured(name, T_END[args.quick], QUAD_RUNS[args.quick]), name, t_end,
+                        scheme, base)
+    for d in draws:
+        print(f"{name} t = {t_end:g} {d['scheme']} n ≈ {d['steps']} (τ ≈ {d['tau']:.3g}), "
+              f"{DRAWS} draws: median {d['median']:.2e} ({d['min']:.1e} – {d['max']:.1e}); "
+              f"model {d['model_increment']:.2e}")
     save_json(args.out, "roundoff_conditioning_floors",
-              {"rows": rows, "cases": cases, "quick": args.quick},
+              {"rows": rows, "cases": cases, "draws": draws, "quick": args.quick},
               times="no time measured: errors against the quadruple-precision reference")
     return {"rows": rows, "cases": cases}
 

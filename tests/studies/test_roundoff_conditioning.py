@@ -36,7 +36,9 @@ def test_the_symplectic_inverse_inverts():
     A = np.block([[np.eye(2), S], [np.zeros((2, 2)), np.eye(2)]])
     B = np.block([[np.eye(2), np.zeros((2, 2))], [T, np.eye(2)]])
     Phi = (A @ B).astype(np.longdouble)
-    assert np.abs(np.asarray(rc.symplectic_inverse(Phi) @ Phi - np.eye(4), dtype=float)).max() < 1e-9
+    error = np.abs(np.asarray(rc.symplectic_inverse(Phi) @ Phi - np.eye(4), dtype=float)).max()
+    # Rounding of the products only: ε(long double) · ‖Φ‖², no division.
+    assert error < 100 * float(np.finfo(np.longdouble).eps) * float(np.linalg.norm(Phi)) ** 2
 
 
 def test_a_perturbed_quadruple_run_follows_the_tangent_map(quick):
@@ -101,9 +103,13 @@ def test_stored_compensated_floors_follow_the_increment_model():
     reference (R1 and C2, t = 1e3 and 1e4) lie within a factor of ten of
     the model that rounds only each step's increment, at their step, and
     at least ten times below the model that rounds the state (what any
-    integrator keeping its state in double pays)."""
+    integrator keeping its state in double pays). The model is an
+    expectation, so a minimum over a ladder may fall below it, a median
+    of draws does not fall far (C2, t = 1e3: 12 draws per step)."""
     floors = json.loads((RESULTS / "roundoff_conditioning_floors.json").read_text())
     assert len(floors["cases"]) == 4
     for c in floors["cases"]:
         assert 0.1 < c["floor"] / c["model_increment"] < 10, c
         assert c["model_plain"] > 10 * c["floor"], c
+    for d in floors["draws"]:
+        assert len(d["errors"]) == rc.DRAWS and d["median"] > d["model_increment"] / 3, d
