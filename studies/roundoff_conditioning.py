@@ -52,7 +52,12 @@ integrator of the frontier makes) and at the steps of the schemes that
 reach the stored floors. Compensated summation (``compensated=True``)
 keeps the state's low bits and so is not bound by this model: its
 remaining roundings are those of the increments (the forces from the
-rounded position, the stage products), smaller by about the step's size.
+rounded position, the stage products), ulp(τ ẋ_i) instead of ulp(x_i),
+a floor that falls as τ^{1/2} (``increment`` in :func:`model_floor`).
+On R1 the compensated runs meet it within a factor of two; on C2 the
+median of draws lies about ten times above it, which says the
+stationary sum underestimates how a rounding late in the run moves C2's
+vector (an assumption this study does not test on ``xw``).
 
 Part ``floors`` (issue 27's push at C2, t = 1e3): the compensated TM
 runs (``compensated=True`` and ``"step"``) of SRKN14a and s35odr10 over a
