@@ -119,13 +119,14 @@ def test_a_run_of_one_model_imports_no_other_models_kernels():
     """The paper's R1 spectrum imports neither the lattices, stencils,
     planetary systems nor symplectic maps (a hundred kernels), nor the
     parts of the API it does not call (chaos maps, ensembles, sections,
-    grids: issue 28, ≈ 14 ms of CPU of a first run), and every
+    grids: issue 28, ≈ 14 ms of CPU of a first run; the checkpoint file
+    format of a run given no checkpoint file), and every
     lazy name of varint.models comes from the submodule that defines it."""
     code = ("import sys, json, varint; m, x = varint.paper_orbit('R1'); "
             "varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False); "
             "mods = ('lattice', 'stencil', 'kg', 'fput', 'fpu', 'ddnls', 'planetary', 'maps', "
             "'symbolic'); api = ('maps', 'ensemble', 'sections', 'grids', 'departure', "
-            "'selection', 'prepared', 'element_grid'); "
+            "'selection', 'prepared', 'element_grid', 'checkpoint'); "
             "print(json.dumps([[m for m in mods if 'varint.models.' + m in sys.modules], "
             "[m for m in api if 'varint.' + m in sys.modules]]))")
     assert fresh(code) == [[], []]
