@@ -119,13 +119,14 @@ def test_a_run_of_one_model_imports_no_other_models_kernels():
     """The paper's R1 spectrum imports neither the lattices, stencils,
     planetary systems nor symplectic maps (a hundred kernels), nor the
     parts of the API it does not call (chaos maps, ensembles, sections,
-    grids: issue 28, ≈ 14 ms of CPU of a first run), and every
+    grids: issue 28, ≈ 14 ms of CPU of a first run; the checkpoint file
+    format of a run given no checkpoint file), and every
     lazy name of varint.models comes from the submodule that defines it."""
     code = ("import sys, json, varint; m, x = varint.paper_orbit('R1'); "
             "varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False); "
             "mods = ('lattice', 'stencil', 'kg', 'fput', 'fpu', 'ddnls', 'planetary', 'maps', "
             "'symbolic'); api = ('maps', 'ensemble', 'sections', 'grids', 'departure', "
-            "'selection', 'prepared', 'element_grid'); "
+            "'selection', 'prepared', 'element_grid', 'checkpoint'); "
             "print(json.dumps([[m for m in mods if 'varint.models.' + m in sys.modules], "
             "[m for m in api if 'varint.' + m in sys.modules]]))")
     assert fresh(code) == [[], []]
@@ -150,3 +151,27 @@ def test_a_run_imports_the_indicator_it_computes_and_no_other():
     assert loaded[:3] == [["lyapunov"], ["lyapunov", "alignment"], list(modules)]
     assert loaded[3] == sorted(["lyapunov", "gali", "sali", "megno", "fli", "ofli",
                                 "local_exponents", "integrate", "spreading", "dvd"])
+
+
+def test_a_first_run_loads_no_derivative_kernel_for_its_input_check():
+    """The bad-input check of a first R1 run (∇V, D²V and the third
+    derivatives finite at the initial state) runs the built-in kernels'
+    Python source, so a new process loads none of the three compiled
+    kernels from numba's cache (issue 28: ~10 ms of CPU) — its generated
+    stepper computes them itself; the check still refuses a state where
+    they overflow, with the compiled check's words."""
+    code = ("import json, varint; m, x = varint.paper_orbit('R1'); "
+            "varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False); "
+            "kernels = (m.grad_kernel, m.hess_kernel, m.third_kernel); "
+            "loaded = [len(k.overloads) for k in kernels]; "
+            "x[0] = 1e200\n"
+            "try:\n"
+            "    varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False)\n"
+            "except ValueError as exc:\n"
+            "    error = str(exc)\n"
+            "print(json.dumps([loaded, error, [len(k.overloads) > 0 for k in kernels]]))")
+    loaded, error, after = fresh(code)
+    assert loaded == [0, 0, 0]
+    assert "the derivatives of V (HenonHeiles) are not finite at the initial state, " \
+           "q = [1e+200, " in error and "the gradient ∇V is [" in error
+    assert after == [True, True, True]      # named by the compiled kernels

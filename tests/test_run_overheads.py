@@ -150,3 +150,29 @@ def test_few_states_are_checked_from_python_and_name_the_same_state(n, monkeypat
     with pytest.raises(ValueError, match=rf"{where}, q = .0.0, 0.0.: the gradient"):
         check.kernels(model, X)
     assert scans == ([] if n <= check._PYTHON_STATES else [n, n])
+
+
+def test_the_source_check_decides_finite_only_and_leaves_the_rest_compiled(monkeypatch):
+    """``_finite_from_source`` answers "finite" from the built-in kernels'
+    Python source, and nothing else: a state where they overflow, a kernel
+    that raises in Python, a model of its own kernels or of more numbers
+    than the bound go to the compiled check, whose message is the same as
+    when the source check is skipped."""
+    model, x0 = varint.paper_orbit("R1")
+    Q = np.atleast_2d(np.asarray(x0, dtype=float))[:, :2]
+    # As in a new process, where none of the kernels is loaded yet.
+    monkeypatch.setattr(check, "_unloaded_built_in", lambda kernel: True)
+    assert check._finite_from_source(model, Q)
+    assert not check._finite_from_source(model, Q * 1e200)        # x² overflows
+    assert not check._finite_from_source(model, np.repeat(Q, check._SOURCE_NUMBERS, axis=0))
+    big = np.array([[1e200, 0.0]])
+    with pytest.raises(ValueError) as via_kernels:
+        check.kernels(model, big)
+    monkeypatch.setattr(check, "_finite_from_source", lambda m, q: False)
+    with pytest.raises(ValueError) as compiled:
+        check.kernels(model, big)
+    assert str(via_kernels.value) == str(compiled.value)
+    monkeypatch.undo()
+    x, y = sp.symbols("x y")
+    own = from_potential(0.5 * (x ** 2 + y ** 2), [x, y])      # generated, not built in
+    assert not check._unloaded_built_in(own.grad_kernel)

@@ -421,6 +421,8 @@ def kernels(model, X, what="the initial state"):
         # A few states: the compiled pass's fixed cost (numba converts each
         # kernel to a first-class function at every call, ~80 µs) is more
         # than evaluating them from Python.
+        if _finite_from_source(model, q_all):
+            return
         _evaluate(model, q_all, np.arange(len(q_all)), what, len(X))
         return
     first = _scan(model, q_all)
@@ -540,6 +542,66 @@ def _scan(model, Q):
         return int(first_nonfinite(*kernels, Q, par, model.bandwidth + 1))
     except Exception:   # kernels of other types, or one raising: named from Python
         return None
+
+
+#: :func:`_finite_from_source` runs the kernels' Python source for at most
+#: this many coordinates (states × degrees of freedom): a built-in kernel
+#: costs ~10–30 µs a state of a few degrees of freedom that way, against
+#: ~3 ms to load each compiled kernel from numba's cache in a new process;
+#: a long chain's site loops in Python would cost more than the loads.
+_SOURCE_NUMBERS = 64
+#: Kernels defined in these modules compile (the test suite compiles every
+#: built-in model's), so only finiteness is left to check.
+_BUILT_IN = "varint.models."
+
+
+def _finite_from_source(model, Q):
+    """True where the kernels of ``model`` are varint's own, not yet loaded
+    in this process, and their Python source gives finite values at every
+    row of ``Q`` without raising; False otherwise (then :func:`_evaluate`
+    decides, on the compiled kernels, and names what is wrong).
+
+    A new process's first run would otherwise load ∇V, D²V and the third
+    derivatives from numba's cache only for this check (~10 ms, issue 28)
+    while its stepper computes them itself. The source is what numba
+    compiled; on NumPy float64 scalars its arithmetic is IEEE's, as the
+    compiled code's (``error_model="numpy"``; a kernel with fast-math flags
+    or with Python's error model divides by zero differently, and is
+    checked compiled). Only the answer "finite" is taken from Python: any
+    value that is not, any exception or warning turned error, goes to the
+    compiled check, so every error message is the compiled check's.
+    """
+    kernels = (model.grad_kernel, model.hess_kernel, model.third_kernel)
+    par = model.params
+    if Q.size > _SOURCE_NUMBERS or not all(_unloaded_built_in(k) for k in kernels):
+        return False
+    n, rows = model.n_dof, model.bandwidth + 1
+    G, H, T, v = np.empty(n), np.zeros((rows, n)), np.zeros((rows, n)), np.ones(n)
+    grad, hess, third = (k.py_func for k in kernels)
+    try:
+        with np.errstate(all="ignore"):
+            for q in Q:
+                H.fill(0.0)
+                T.fill(0.0)
+                grad(q, par, G)
+                hess(q, par, H)
+                third(q, par, v, T)
+                if not (np.isfinite(G).all() and np.isfinite(H).all()
+                        and np.isfinite(T).all()):
+                    return False
+    except Exception:   # the compiled check decides, and names the error
+        return False
+    return True
+
+
+def _unloaded_built_in(kernel):
+    """``kernel`` is a numba function of :data:`_BUILT_IN` compiled with
+    IEEE division (``error_model="numpy"``), no fast-math, and no
+    compiled version of it is loaded yet in this process."""
+    options = getattr(kernel, "targetoptions", None)
+    return (options is not None and not kernel.overloads
+            and getattr(kernel.py_func, "__module__", "").startswith(_BUILT_IN)
+            and options.get("error_model") == "numpy" and not options.get("fastmath"))
 
 
 def _evaluate(model, q_all, todo, what, total):

@@ -57,11 +57,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .files import atomic_file, canonical as _canonical, temporary_owner
+# digest: a run's provenance names arrays by it (:mod:`varint.files`); kept
+# importable from here, where it was defined first.
+from .files import atomic_file, canonical as _canonical, digest, temporary_owner
 from .records import Records
 from .state import RunState
 
-__all__ = ["CheckpointError", "Checkpoint", "Snapshot", "read", "write"]
+__all__ = ["CheckpointError", "Checkpoint", "Snapshot", "read", "write", "digest"]
 
 MAGIC = b"varint checkpoint, format 1\n"
 _TRAILER = re.compile(rb"size=(\d{20}) sha256=([0-9a-f]{64})\n\Z")
@@ -142,13 +144,6 @@ def differences(stored, current):
                    else f"{name} (checkpoint: {ra}, this call: {rb})")
     # The kind of run first: if it differs, the rest follows from it.
     return sorted(out, key=lambda line: not line.startswith("kind"))
-
-
-def digest(array):
-    """A short, exact fingerprint of a float array (its bytes and shape)."""
-    a = np.ascontiguousarray(array)
-    h = hashlib.sha256(str((a.dtype.str, a.shape)).encode() + a.tobytes()).hexdigest()
-    return f"sha256:{h[:32]}"
 
 
 # -- the file format ----------------------------------------------------------

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import json
 import os
 import re
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["atomic_file", "atomic_write", "canonical", "canonical_json", "jsonable",
-           "output_file", "is_device_path", "temporary_owner", "DEVICE_DIRS"]
+           "output_file", "is_device_path", "temporary_owner", "DEVICE_DIRS", "digest"]
 
 
 def jsonable(obj):
@@ -248,3 +249,10 @@ def output_file(path, mode="w", newline=None):
         raise OSError(errno.EISDIR, f"{os.fspath(path)} is a directory")
     with atomic_file(path, mode, permissions=0o666 & ~_umask(), newline=newline) as f:
         yield f
+
+
+def digest(array):
+    """A short, exact fingerprint of a float array (its bytes and shape)."""
+    a = np.ascontiguousarray(array)
+    h = hashlib.sha256(str((a.dtype.str, a.shape)).encode() + a.tobytes()).hexdigest()
+    return f"sha256:{h[:32]}"

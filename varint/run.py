@@ -28,9 +28,8 @@ from numpy.typing import ArrayLike
 
 from . import _validate as check
 from . import accuracy, compiling, identity
-from .checkpoint import Checkpoint, digest
 from .driver import IntegrationError, drive, failure_message
-from .files import canonical
+from .files import canonical, digest
 from .indicators import Indicator
 from .methods import make_propagator
 from .models.base import Model
@@ -240,7 +239,13 @@ class Run:
         # A chunk's specification leaves its orbits' reference to its run.
         self.reference = (spec.reference if spec.reference is not None
                           else accuracy.Reference(spec.model, spec.x0))
-        ckpt = None if checkpoint is None else Checkpoint(checkpoint, checkpoint_interval)
+        ckpt = None
+        if checkpoint is not None:
+            # Imported here: a run without a checkpoint file (most) loads no
+            # file format (issue 28, a first run's start-up).
+            from .checkpoint import Checkpoint
+
+            ckpt = Checkpoint(checkpoint, checkpoint_interval)
         self.checkpoint = ckpt
         saved = None if ckpt is None else ckpt.read()
         self.W0, self.seed = self._initial_vectors(deviations, spec.seed, saved)

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import _validate as check
 from . import accuracy, identity, stepsize
-from .checkpoint import digest
+from .files import digest
 from .indicators import Indicator, resolve
 from .methods import METHODS
 from .results import package_versions
