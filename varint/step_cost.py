@@ -118,11 +118,11 @@ def _by_kind(per_class):
 #: not (a library call or a negative integer power in the step: every
 #: lane then runs the whole step in scalar code).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 1.4, "call": 3.1, "check": 1.6})
+    {"arithmetic": 0.0, "division": 2.0, "call": 4.1, "check": 1.4})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.85, "call": 0.0, "check": 1.1})
+    {"arithmetic": 0.0, "division": 0.82, "call": 0.0, "check": 1.1})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 1.0, "call": 3.1, "check": 2.8})
+    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 4.7})
 
 
 def vectorises(counts):
