@@ -2,9 +2,13 @@
 none is printed as ``**``; the products and square root are within a few
 units in the last place of the exact power (mpmath at 60 digits, an
 independent reference), non-finite exactly where numba's ``pow`` is, and a
-model without such powers is printed as before (same source, same bits)."""
+model without such powers is printed as before (same source, same bits).
+Negative integer powers: printed as one over the positive power, the bits
+of numba's own ``b**(-k)``, and a loop over lanes around them vectorises
+(LLVM's IR) where numba's did not."""
 
 import math
+import platform
 import re
 
 import mpmath
@@ -179,3 +183,56 @@ def test_the_derivatives_are_non_finite_where_they_were():
             np.testing.assert_allclose(c[fin], a[fin], rtol=1e-13, atol=1e-300)
         seen.add(bool(fin.all()))
     assert seen == {True, False}        # both kinds of point were met
+
+
+NEGATIVE = (2, 3, 4, 5)
+
+
+@pytest.mark.parametrize("k", NEGATIVE)
+def test_a_negative_integer_power_is_numbas_bits(k):
+    """``(1.0 / b**k)`` against numba's ``b**(-k)`` over bases of both signs
+    from subnormal to the largest double: the same bits wherever numba's
+    returns (the same product and the same correctly rounded division),
+    and ±inf as C's ``pow`` where b^k underflows to zero and numba's raises
+    ZeroDivisionError instead."""
+    expr = b ** -k
+    printed = StepperPrinter().doprint(expr)
+    assert "**(-" not in printed and printed == f"(1.0 / b**{k})"
+    new = _compiled(StepperPrinter(), expr)
+    old = _compiled(KernelPrinter(), expr)
+    grid = _grid()
+    raised = 0
+    for value in np.concatenate([grid, -grid[::7]]):
+        got = new(value)
+        try:
+            want = old(value)
+        except ZeroDivisionError:
+            raised += 1
+            with np.errstate(divide="ignore", over="ignore"):
+                assert got == float(np.power(value, -k)) and math.isinf(got), (value, got)
+            continue
+        assert np.float64(got).view(np.int64) == np.float64(want).view(np.int64), (value, got, want)
+    assert raised      # the grid reached the underflow, where the two differ
+
+
+def _lanes_ir(printer):
+    """LLVM IR of a loop over lanes that adds (1 + x²)^(−2), printed by
+    ``printer``, compiled as the lanes are (numpy error model)."""
+    x = sp.Symbol("x")
+    body = printer.doprint((1 + x**2) ** -2).replace("x", "x[i]")
+    scope = {"math": math}
+    exec(f"def f(x, out):\n    for i in range(x.shape[0]):\n        out[i] += {body}\n", scope)
+    f = njit(error_model="numpy")(scope["f"])
+    f(np.linspace(0.0, 1.0, 64), np.zeros(64))
+    return f.inspect_llvm(f.signatures[0])
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64", "aarch64", "arm64"),
+                    reason="a target with vector doubles")
+def test_a_loop_over_lanes_vectorises_the_printed_negative_power():
+    """The reason for the rule: with ``b**(-2)`` (the model kernels'
+    printer, SymPy's) numba's zero-divisor test keeps the loop scalar, no
+    vector division in its IR; with ``(1.0 / b**2)`` LLVM vectorises it."""
+    vector_div = re.compile(r"fdiv (?:\w+ )*<\d+ x double>")
+    assert vector_div.search(_lanes_ir(StepperPrinter()))
+    assert not vector_div.search(_lanes_ir(KernelPrinter()))

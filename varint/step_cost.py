@@ -42,8 +42,9 @@ measured, the three-body problem 2.2 against 6.4), so that the defaults
 ran the LH where constant steps were faster. One fitted table for all
 lanes failed its held-out check (``studies/switch_check.py``): the
 three-body lanes vectorise and cost 18 ns per force evaluation, the cored
-potential's, with ``(R² + r²)**(-2)`` in their Hessian, do not and cost
-32. The fitted tables give arithmetic no cost of its own (it overlaps the
+potential's, with ``(R² + r²)**(-2)`` in their Hessian, did not and cost
+32 (14 since the steppers print that power as a division,
+:mod:`varint.codegen.printer`, and their loop vectorises). The fitted tables give arithmetic no cost of its own (it overlaps the
 chains and the checks). Not seen: branch mispredictions, the cache (a
 step's state fits in L1), another machine's ratio of scalar to vector
 speed (the tables were fitted on one Intel Xeon).
@@ -97,7 +98,8 @@ CLASSES = {"arithmetic": ("add", "mul", "fma"), "division": ("div", "invert", "s
 #: The kinds that keep LLVM from vectorising the loop over the lanes: a
 #: call of a library function (a square root is an instruction) and the
 #: inverse of a negative integer power (numba's ``x**(-2)`` tests for a
-#: zero divisor; ``1/(x*x)`` vectorises).
+#: zero divisor; ``1/(x*x)`` vectorises, and the steppers print it so,
+#: :mod:`varint.codegen.printer`: none of theirs holds an inverse).
 SCALAR_KINDS = ("log", "exp", "sin", "cos", "pow", "invert")
 
 
@@ -109,20 +111,23 @@ def _by_kind(per_class):
 #: run each stepper, fitted by non-negative least squares to the measured
 #: nanoseconds per force evaluation of the two maps of training models
 #: (``studies/switch_check.py`` part "fit", ``studies/results/
-#: switch_check_quick.json``; Intel Xeon at 2.5 GHz, load 6–7 on 2 cores),
-#: two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
+#: switch_check_quick.json``; Intel Xeon at 2.5 GHz, load 5–9 on 2 cores;
+#: the rows whose source the printing of negative powers changed measured
+#: again, the others' kept), two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
 #: scalar code, whose chain (dτ = h/U needs V before each drift) makes it
 #: pay for divisions and calls, not for arithmetic. The constant step's
 #: lanes: ``VECTOR_LANE_WEIGHTS`` where the loop over the lanes
 #: vectorises (:func:`vectorises`), ``SCALAR_LANE_WEIGHTS`` where it does
-#: not (a library call or a negative integer power in the step: every
-#: lane then runs the whole step in scalar code).
+#: not (a library call in the step: every lane then runs the whole step
+#: in scalar code; fitted on two models only, Toda's exponentials and the
+#: pendulums' sines and cosines, it prices their checks alone: leave one
+#: out 0.38 and 2.3).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 1.4, "call": 3.1, "check": 1.6})
+    {"arithmetic": 0.0, "division": 2.0, "call": 4.1, "check": 1.4})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.85, "call": 0.0, "check": 1.1})
+    {"arithmetic": 0.0, "division": 0.82, "call": 0.0, "check": 1.1})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 1.0, "call": 3.1, "check": 2.8})
+    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 4.7})
 
 
 def vectorises(counts):

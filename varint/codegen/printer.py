@@ -1,6 +1,7 @@
 """How the generated steppers print their SymPy expressions: the model
-kernels' printer (:class:`~varint.models.symbolic.KernelPrinter`) with one
-rule more, half-integer powers as products and a square root.
+kernels' printer (:class:`~varint.models.symbolic.KernelPrinter`) with two
+rules more, half-integer powers as products and a square root, and
+negative integer powers as one over the positive power.
 
 The derivatives of a point mass or a softened one (the three-body problem,
 Plummer spheres, Keplerian potentials, a bar's disc and bulge) hold
@@ -12,9 +13,25 @@ were most of its time. :class:`StepperPrinter` writes b^(p/2), |p| ≥ 3, as
 ``b * … * math.sqrt(b)`` with (|p| − 1)/2 factors b, and b^(−p/2) as one
 over it; LLVM computes a square root common to several powers once.
 Exponents ±1/2 are SymPy's own ``math.sqrt(b)`` and ``1/math.sqrt(b)``;
-integer powers stay ``b**k``, which numba already writes as
-multiplications (and a division for k < 0), so a model without
-half-integer powers gets the same source, hence the same bits.
+positive integer powers stay ``b**k``, which numba writes as
+multiplications (``numba.cpython.numbers.static_power_impl``: binary
+powering), so a model without half-integer or negative powers gets the
+same source, hence the same bits.
+
+A negative integer power b^(−k), k ≥ 2, which SymPy prints alone as
+``b**(-k)`` (inside a product it is already a denominator), is printed
+``(1.0 / b**k)``. numba computes ``b**(-k)`` as the same product and one
+division, but compiles that division under Python's error model whatever
+the kernel's (a test for a zero divisor that raises): the branch keeps
+LLVM from vectorising a loop over SIMD lanes around it. The cored
+logarithmic potential's Hessian holds (R_c² + x² + y²/q²)^(−2) in every
+kick, so its lanes ran one at a time in scalar code
+(``studies/switch_check.py``). Written as a division, the loop vectorises
+and every value is the same bits (the same product, the same correctly
+rounded division; ``tests/test_printer.py``); only b^k = 0 (b = 0, or
+b^k underflowing: |b| < 1.6e-162 for k = 2) differs: ±inf, as ``pow``
+gives, where numba raised ``ZeroDivisionError`` out of the kernel. The
+derivatives' finiteness checks see the infinity as any non-finite value.
 
 What changes, and what does not (``tests/test_printer.py``):
 
@@ -45,6 +62,8 @@ What changes, and what does not (``tests/test_printer.py``):
 
 from __future__ import annotations
 
+from sympy.printing.precedence import precedence
+
 from ..models.symbolic import KernelPrinter
 
 __all__ = ["StepperPrinter"]
@@ -53,16 +72,25 @@ __all__ = ["StepperPrinter"]
 class StepperPrinter(KernelPrinter):
     """:class:`~varint.models.symbolic.KernelPrinter` with b^(p/2), p odd,
     |p| ≥ 3, written as ``((b) * … * math.sqrt(b))`` and its reciprocal for
-    p < 0 instead of ``b**(p/2)`` (module docstring).
+    p < 0 instead of ``b**(p/2)``, and b^(−k), k ≥ 2, as ``(1.0 / b**k)``
+    instead of ``b**(-k)`` (module docstring).
 
     >>> import sympy as sp
     >>> x = sp.Symbol("x")
     >>> StepperPrinter().doprint(3 * x**sp.Rational(-5, 2))
     '3/((x) * (x) * math.sqrt(x))'
+    >>> StepperPrinter().doprint((1 + x**2)**-2)
+    '(1.0 / (x**2 + 1)**2)'
     """
 
     def _print_Pow(self, expr, rational=False):
         e = expr.exp
+        if e.is_Integer and int(e) <= -2:
+            # numba's own b**(-k) is the same product and a division that
+            # tests for a zero divisor (its error model, not the kernel's):
+            # that test keeps a loop over lanes from vectorising.
+            base = self.parenthesize(expr.base, precedence(expr))
+            return f"(1.0 / {base}**{-int(e)})"
         if not (e.is_Rational and e.q == 2 and abs(e.p) >= 3):
             return super()._print_Pow(expr, rational=rational)
         base = f"({self._print(expr.base)})"
