@@ -437,6 +437,10 @@ def log_case(name, quick, repeats):
         tasks["varint LH, automatic h, rule offset (before delta12)"] = lambda: _rule_offset(
             lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
                                      time_transform="log"))
+        # Before pilot13 (the baseline in the same run): the LH's pilot
+        # descends to its agreeing h before the constant steps' runs.
+        tasks["varint defaults, sequential pilots (before pilot13)"] = lambda: _sequential(
+            lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False))
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -501,6 +505,19 @@ def _rule_offset(call):
         return (lh, *time_transform_step.agreeing_h(lh, X, t_end, **kwargs))
 
     with mock.patch.object(time_transform_step, "agreeing_offset", unpriced):
+        return call()
+
+
+def _sequential(call):
+    """``call()`` with the defaults' pilots run one after the other, as
+    before :class:`varint.step_agreement.ConstantLadder` ordered them by
+    price: the LH's descent never stopped by a cheaper constant step, the
+    constant steps then judged up to the LH's price."""
+    from unittest import mock
+
+    from varint.step_agreement import ConstantLadder
+
+    with mock.patch.object(ConstantLadder, "cheaper_than", lambda self, rate, scale=1.0: False):
         return call()
 
 

@@ -149,7 +149,9 @@ def test_switch_follows_the_prices(cost, method):
     assert r.provenance.method == method
     choice = r.provenance.tau_choice
     prices = choice["prices"]
-    assert (prices["log"] < prices["constant"]) == (method == "tm+log")
+    # A constant step that wins may stop the LH's descent before it prices h.
+    assert (prices["log"] is not None and prices["log"] < prices["constant"]) \
+        == (method == "tm+log")
     if method == "tm":
         assert choice["rule"] == "indicator" and r.provenance.tau == choice["tau"]
         # Judged as the LH is: by the verdict at the chaotic level.
@@ -163,3 +165,80 @@ def test_switch_follows_the_prices(cost, method):
         at_h = np.asarray(choice["levels"]) == 0
         assert at_h.any()
         assert np.array_equal(r.values[at_h], explicit.values[at_h], equal_nan=True)
+
+
+def _pilot_runs(mp):
+    """Record every pilot run of the defaults' switch, in order, as
+    (stepper, step, force evaluations per orbit and unit of time): the
+    constant steps' (varint.step_agreement's pilot_errors) and the LH's
+    (LogHamiltonian.outputs), by hook, not by time."""
+    from varint import step_agreement
+
+    runs = []
+    constant_run, lh_run = step_agreement.pilot_errors, LogHamiltonian.outputs
+
+    def constant(model, X, tau, t_pilot, *args, **kwargs):
+        counts = args[2]
+        before = counts.get("gradient", 0)
+        out = constant_run(model, X, tau, t_pilot, *args, **kwargs)
+        runs.append(("constant", tau, (counts["gradient"] - before) / (len(X) * t_pilot)))
+        return out
+
+    def log(self, X, W0, t_end, h, *args, **kwargs):
+        out = lh_run(self, X, W0, t_end, h, *args, **kwargs)
+        runs.append(("log", h, out.counts[:, 2].sum() / (len(X) * t_end)))
+        return out
+
+    mp.setattr(step_agreement, "pilot_errors", constant)
+    mp.setattr(LogHamiltonian, "outputs", log)
+    return runs
+
+
+def test_constant_pilot_that_wins_stops_the_lh_descent():
+    """The three-body map of studies/map_steps.py --quick, where constant
+    steps win: the pilots run in order of price, so the LH's descent stops
+    once a constant step agreed below its rung's price. Of the runs priced
+    above the winner's (counted by hook), each stepper makes at most one,
+    the fine run of the last rung it judged (the sequential pilots, the
+    LH's to its agreeing h, made two LH runs there: h and h/2 of its last
+    rung). The choice and the map are those of the sequential pilots: the
+    constant step their composition (agreeing_offset, then agreeing_tau
+    stopped at the LH's price) chooses, the map at that step bit for bit."""
+    from varint.step_agreement import agreeing_tau
+    from varint.stepsize_orbits import indicator_judge
+    from varint.time_transform_step import RETRY_CEILING, agreeing_offset
+
+    model = CR3BP(SUN_JUPITER_MU)
+    grid = model.section_grid(3.05, np.linspace(0.3, 0.85, 10), np.linspace(-0.3, 0.3, 8))
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        runs = _pilot_runs(mp)
+        r = varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False)
+    choice = r.provenance.tau_choice
+    assert r.provenance.method == "tm" and choice["log"]["rule"] == "none"
+    prices = choice["prices"]
+    unit = {"constant": prices["constant_gradient_cost"], "log": prices["log_gradient_cost"]}
+    winner = prices["constant"]
+    dearer = Counter(kind for kind, _, rate in runs if rate * unit[kind] > winner)
+    assert dearer["constant"] == 1 and dearer["log"] <= 1, runs
+    # The sequential pilots, composed from the public functions.
+    X, ind = grid.states, varint.INDICATORS["fli"]
+    lh = maps._log_hamiltonian(model, maps.LOG_MAP_OPTIONS["scheme"], None)
+    tol = varint.accuracy.DEFAULT_ENERGY_TOL
+    _, h, log_choice = agreeing_offset(lh, X, T_END, quantile=MAP_QUANTILE,
+                                       ceiling=RETRY_CEILING * tol, seed=0,
+                                       every=maps.LOG_MAP_OPTIONS["every"], retry=tol)
+    log_price = log_choice["gradient_rate"] * unit["log"]
+    log_runs = [rate for kind, _, rate in runs if kind == "log"]
+    assert h is not None and len(log_runs) < len(log_choice["tried"]) + 1
+    judge = indicator_judge(ind, model, {}, maps.pilot_tolerance(ind), tol)
+    tau, _ = agreeing_tau(model, X, T_END, scheme=maps.MAP_SCHEME, seed=0, k=1,
+                          renorm=ind.renorm, accumulator=ind.accumulator_for({}),
+                          value=judge.value, quantile=MAP_QUANTILE, ceiling=tol,
+                          stop_above=log_price / unit["constant"], agree=same_verdict)
+    assert tau is not None and tau == r.provenance.tau == choice["tau"] and winner < log_price
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fixed = varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False,
+                                 time_transform=None, tau=tau, scheme=maps.MAP_SCHEME)
+    assert np.array_equal(r.values, fixed.values, equal_nan=True)

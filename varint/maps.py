@@ -605,41 +605,60 @@ def _cheaper_steps(spec, k, clock):
     :func:`~varint.step_cost.constant_gradient_cost`: its operations,
     priced by fixed tables of the LH's scalar code and of the lanes,
     vectorised or not, so the choice does not depend on the timing of the
-    run that makes it). Returns ``(h_choice,
+    run that makes it). The two pilots run in order of price
+    (:class:`~varint.step_agreement.ConstantLadder`): before each rung of
+    the LH's descent is judged, every constant step that costs less is, and
+    a constant step that passed below the LH rung's price stops the LH's
+    descent (its finer rungs cost more); once the LH passes, the constant
+    steps priced below the LH's (retries counted) are judged. The choice is
+    that of the LH's pilot followed by the constant one stopped at its
+    price, with fewer runs. Returns ``(h_choice,
     stepped)``: the LH's choice (with the ``prices``) and None, or None and
     ``spec`` at the constant step chosen by agreement (with the map's check
     steps, :func:`_with_step`), or None and None where the LH's FLI agrees
-    at no step tried, or the constant step's at none whose price is below
-    the LH's and the LH's is not cheaper (the map then takes the energy
-    pilot's constant step, as every other map)."""
+    at no step tried and no constant step agreed below its prices, or the
+    constant step's at none whose price is below the LH's and the LH's is
+    not cheaper (the map then takes the energy pilot's constant step, as
+    every other map)."""
     from .time_transform_step import RETRY_CEILING, agreeing_offset
 
     model, X = spec.model, spec.x0
     with clock.part("pilot"):
         lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
+        log_cost, _ = step_cost.log_gradient_cost(lh)
+        constant_cost, _ = step_cost.constant_gradient_cost(
+            model, MAP_SCHEME, k, spec.indicator.accumulator_for(spec.options))
+        judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
+                                                pilot_tolerance(spec.indicator), spec.energy_tol)
+        ladder = step_agreement.ConstantLadder(
+            model, X, spec.t_end, scheme=MAP_SCHEME, seed=spec.seed, k=k,
+            renorm=spec.indicator.renorm,
+            accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
+            quantile=MAP_QUANTILE, ceiling=spec.energy_tol, agree=step_agreement.same_verdict)
+
+        def beaten(rate):
+            # Pilots ordered by price: before each LH rung is judged, the
+            # constant steps that cost less are; one that passed stops the
+            # LH's descent before its finer, dearer rungs.
+            return ladder.cheaper_than(rate, log_cost / constant_cost)
+
         # The LH map retries each orbit to energy_tol itself (_log_map):
         # its pilot's ceiling is looser, its price counts the retries; its
         # offset δ is the cheapest the pilot priced.
         _, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
                                        ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
-                                       every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol)
-        if h is None:
+                                       every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol,
+                                       stop_above=beaten)
+        stopped = h is None and ladder.rate is not None
+        if h is None and not stopped:
             return None, None
-        log_cost, _ = step_cost.log_gradient_cost(lh)
-        constant_cost, _ = step_cost.constant_gradient_cost(
-            model, MAP_SCHEME, k, spec.indicator.accumulator_for(spec.options))
-        log_price = choice["gradient_rate"] * log_cost
-        judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
-                                                pilot_tolerance(spec.indicator), spec.energy_tol)
+        log_price = math.inf if stopped else choice["gradient_rate"] * log_cost
         # Constant steps that cost more than the LH's are not tried: the
         # search stops there.
-        tau, constant = step_agreement.agreeing_tau(
-            model, X, spec.t_end, scheme=MAP_SCHEME, seed=spec.seed, k=k,
-            renorm=spec.indicator.renorm,
-            accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
-            quantile=MAP_QUANTILE, ceiling=spec.energy_tol,
-            stop_above=log_price / constant_cost, agree=step_agreement.same_verdict)
-    prices = {"log": log_price, "constant": constant["gradient_rate"] * constant_cost,
+        ladder.advance(log_price / constant_cost)
+        tau, constant = ladder.result()
+    prices = {"log": None if stopped else log_price,
+              "constant": constant["gradient_rate"] * constant_cost,
               "log_gradient_cost": log_cost, "constant_gradient_cost": constant_cost}
     if tau is None or log_price < prices["constant"]:
         choice.update(prices=prices, constant=constant)
@@ -650,6 +669,9 @@ def _cheaper_steps(spec, k, clock):
                   f"tau = {tau:.4g}, {prices['constant'] / log_price:.3g} times the price",
                   model.name)
         return choice, None
+    if stopped:
+        choice.update(summary="the LH's descent stopped or found no h: constant steps "
+                              "agreed at a lower price than its steps")
     constant.update(prices=prices, log=choice)
     stepped = dataclasses.replace(
         spec, method_options={**spec.method_options, "scheme": MAP_SCHEME}).with_step(

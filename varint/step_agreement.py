@@ -52,7 +52,7 @@ from .state import initial_deviations
 from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
 __all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
-           "same_verdict", "summary",
+           "same_verdict", "summary", "ConstantLadder",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
 
 #: Largest difference of log₁₀ max(1, FLI) at a step and at half of it for
@@ -140,7 +140,10 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
     force evaluations per orbit and unit of time) at step(j), memoised by
     the caller (each run serves as the fine run of one rung and the coarse
     one of the next). The descent stops early where the force evaluations
-    exceed ``stop_above`` (a competitor is cheaper than any step left).
+    exceed ``stop_above`` (a competitor is cheaper than any step left), or,
+    where ``stop_above`` is a callable, where ``stop_above(rate)`` is true
+    (a competitor's pilot that runs its own cheaper steps first,
+    :class:`ConstantLadder`).
 
     Returns
     -------
@@ -153,7 +156,7 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
     tried = []
     for j in levels:
         coarse, errors, rate = run(j)
-        if rate > stop_above:
+        if stop_above(rate) if callable(stop_above) else rate > stop_above:
             break
         agreed = agree(coarse, run(j + 1)[0], t_pilot, t_end)
         ok, worst = passes(agreed, errors, quantile, ceiling)
@@ -181,7 +184,8 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
     vectors and stepper. The search gives up (``rule`` "none") once the
     force evaluations per orbit and unit of time at τ_j exceed
     ``stop_above`` (a competitor is cheaper than any step left), or at the
-    bottom of the ladder.
+    bottom of the ladder. :class:`ConstantLadder` runs the same search in
+    parts (:meth:`~ConstantLadder.advance`), interleaved with a competitor's.
 
     Returns
     -------
@@ -195,41 +199,105 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
         and unit of time at τ, or at the last step tried), ``counts`` and
         ``summary``.
     """
-    pick = pilot_sample(X, seed)
-    sample = X[pick]
-    W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
-    reference = Reference(model, sample)
-    t_pilot = float(min(t_end, PILOT_T))
-    sch = default_scheme(model, scheme)
-    top = dividing_step(t_end, min(TAU_MAX, t_end))
-    counts: dict = {}
-    runs: dict = {}
+    ladder = ConstantLadder(model, X, t_end, scheme=scheme, seed=seed, k=k, renorm=renorm,
+                            accumulator=accumulator, value=value, quantile=quantile,
+                            ceiling=ceiling, agree=agree)
+    ladder.advance(stop_above)
+    return ladder.result()
 
-    def run(j):
-        if j not in runs:
-            before = counts.get("gradient", 0)
-            errors, values = pilot_errors(model, sample, top * 2.0**-j, t_pilot, sch,
-                                          reference, counts, (W0, renorm, accumulator, False),
-                                          value=value)
-            runs[j] = (values, errors, (counts.get("gradient", 0) - before)
-                       / (len(sample) * t_pilot))
-        return runs[j]
 
-    tried, chosen = descend(run, range(LEVELS), lambda j: top * 2.0**-j, t_pilot, t_end,
-                            quantile, ceiling, stop_above, agree=agree)
-    choice = {"pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
-              "ceiling": float(ceiling), "agreement": agree.__name__,
-              "agreement_dex": AGREEMENT_DEX, "scheme": sch.name,
-              "tried": tried, "counts": {key: int(v) for key, v in counts.items()}}
-    if chosen is None:
-        last = max(runs)
-        choice.update(rule="none", tau=None, gradient_rate=float(runs[last][2]),
-                      summary="the FLI of the pilot orbits did not agree between tau and "
-                              "tau/2 at any step tried")
-        return None, choice
-    j, n_agree, largest = chosen
-    tau = top * 2.0**-j
-    choice.update(rule="indicator", tau=tau, energy_error=largest,
-                  gradient_rate=float(runs[j][2]),
-                  summary=summary(n_agree, len(sample), largest, "tau"))
-    return tau, choice
+class ConstantLadder:
+    """The search of :func:`agreeing_tau` (same arguments but
+    ``stop_above``), run in parts so that a competitor's pilot can be
+    interleaved with it by price: :meth:`advance` descends its rungs while
+    their force evaluations per orbit and unit of time stay within a
+    limit, and a later call with a higher limit resumes where it stopped
+    (every pilot run is memoised). Descending once to ``stop_above`` and
+    descending to lower limits first ends on the same rung, with the same
+    runs, as long as the rates grow down the ladder (they double with each
+    halving of τ; an orbit that stops early only lowers them). The defaults
+    of :func:`varint.chaos_map` run it under the logarithmic Hamiltonian's
+    descent (:func:`varint.time_transform_step.agreeing_h`, whose
+    ``stop_above`` is :meth:`cheaper_than`): each LH rung is run only once
+    every constant step that costs less has been judged, so a constant step
+    that wins stops the LH's pilot before its finer, dearer rungs."""
+
+    def __init__(self, model, X, t_end, *, scheme, seed, k, renorm, accumulator, value,
+                 quantile, ceiling, agree=agreeing):
+        pick = pilot_sample(X, seed)
+        self._sample = X[pick]
+        self._W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
+        self._reference = Reference(model, self._sample)
+        self._t_pilot = float(min(t_end, PILOT_T))
+        self._model, self._t_end = model, t_end
+        self._scheme = default_scheme(model, scheme)
+        self._top = dividing_step(t_end, min(TAU_MAX, t_end))
+        self._vectors = (self._W0, renorm, accumulator, False)
+        self._value, self._quantile, self._ceiling, self._agree = value, quantile, ceiling, agree
+        self.counts: dict = {}
+        self._runs: dict = {}
+        self._tried: list = []
+        self._next = 0
+        self._chosen = None
+
+    def _step(self, j):
+        return self._top * 2.0**-j
+
+    def _run(self, j):
+        if j not in self._runs:
+            before = self.counts.get("gradient", 0)
+            errors, values = pilot_errors(self._model, self._sample, self._step(j),
+                                          self._t_pilot, self._scheme, self._reference,
+                                          self.counts, self._vectors, value=self._value)
+            self._runs[j] = (values, errors, (self.counts.get("gradient", 0) - before)
+                             / (len(self._sample) * self._t_pilot))
+        return self._runs[j]
+
+    def advance(self, stop_above):
+        """Descend from the first rung not judged yet until one passes, the
+        ladder ends, or a rung's force evaluations per orbit and unit of
+        time exceed ``stop_above`` (:func:`descend`)."""
+        if self._chosen is not None or self._next >= LEVELS:
+            return
+        tried, self._chosen = descend(self._run, range(self._next, LEVELS), self._step,
+                                      self._t_pilot, self._t_end, self._quantile,
+                                      self._ceiling, stop_above, agree=self._agree)
+        self._tried += tried
+        self._next += len(tried)
+
+    @property
+    def rate(self):
+        """The force evaluations per orbit and unit of time at the step
+        chosen so far (None while none passed)."""
+        return None if self._chosen is None else float(self._runs[self._chosen[0]][2])
+
+    def cheaper_than(self, rate, scale=1.0):
+        """Whether a step passed whose price is below a competitor's
+        ``rate`` (force evaluations per orbit and unit of time) times
+        ``scale`` (the price of the competitor's force evaluation in units of
+        this stepper's), once every rung priced below it has been judged:
+        the ``stop_above`` of the competitor's descent."""
+        limit = rate * scale
+        self.advance(limit)
+        return self.rate is not None and self.rate < limit
+
+    def result(self):
+        """``(tau, choice)`` as :func:`agreeing_tau` returns them, of the
+        rungs judged so far."""
+        choice = {"pilot_t": self._t_pilot, "orbits": len(self._sample),
+                  "quantile": float(self._quantile), "ceiling": float(self._ceiling),
+                  "agreement": self._agree.__name__, "agreement_dex": AGREEMENT_DEX,
+                  "scheme": self._scheme.name, "tried": list(self._tried),
+                  "counts": {key: int(v) for key, v in self.counts.items()}}
+        if self._chosen is None:
+            last = max(self._runs)
+            choice.update(rule="none", tau=None, gradient_rate=float(self._runs[last][2]),
+                          summary="the FLI of the pilot orbits did not agree between tau and "
+                                  "tau/2 at any step tried")
+            return None, choice
+        j, n_agree, largest = self._chosen
+        tau = self._step(j)
+        choice.update(rule="indicator", tau=tau, energy_error=largest,
+                      gradient_rate=float(self._runs[j][2]),
+                      summary=summary(n_agree, len(self._sample), largest, "tau"))
+        return tau, choice

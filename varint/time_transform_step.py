@@ -278,7 +278,7 @@ PRICE_T = PILOT_T / 4
 
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
-                    offsets=OFFSETS):
+                    offsets=OFFSETS, stop_above=math.inf):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
@@ -301,7 +301,9 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     :func:`agreeing_h` at the chosen δ (pilot to
     :data:`~varint.stepsize.PILOT_T`); where that finds no h, the rule's δ.
     Every figure is a count of the pilots' own runs, never a timing: the
-    same call chooses the same δ and h, bit for bit.
+    same call chooses the same δ and h, bit for bit. ``stop_above`` is the
+    map's h descent's (:func:`agreeing_h`; not the pricing pilots'): a
+    competitor cheaper than any step left stops it (h None).
 
     For an A that takes both signs (a rotating frame,
     :attr:`~varint.time_transform.LogHamiltonian.kinetic` False) only the
@@ -349,11 +351,11 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
         why = ("offset δ = max(−E, 1) (not priced: A takes both signs, only that C keeps "
                "U > 0)" if lh.offset is None else f"offset δ = {lh.offset:g} as given")
     chosen = lh.with_offset(offset)
-    h, choice = agreeing_h(chosen, X, t_end, **kwargs)
+    h, choice = agreeing_h(chosen, X, t_end, stop_above=stop_above, **kwargs)
     if h is None and offset is not None and lh.offset is None:
         why += f"; at δ = {offset:g} no h agreed to t = {min(t_end, PILOT_T):g}: the rule's δ"
         offset, chosen = None, lh.with_offset(None)
-        h, choice = agreeing_h(chosen, X, t_end, **kwargs)
+        h, choice = agreeing_h(chosen, X, t_end, stop_above=stop_above, **kwargs)
     choice.update(offset=offset, offsets=priced, offset_pricing=pricing, offset_summary=why)
     return chosen, h, choice
 
