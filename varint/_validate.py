@@ -597,11 +597,25 @@ def _finite_from_source(model, Q):
 def _unloaded_built_in(kernel):
     """``kernel`` is a numba function of :data:`_BUILT_IN` compiled with
     IEEE division (``error_model="numpy"``), no fast-math, and no
-    compiled version of it is loaded yet in this process."""
+    compiled version of it is loaded yet in this process, whose source
+    calls no other numba function (called from Python, each would be
+    compiled in every process: a stencil's site and bond helpers are
+    closures numba does not cache)."""
     options = getattr(kernel, "targetoptions", None)
     return (options is not None and not kernel.overloads
             and getattr(kernel.py_func, "__module__", "").startswith(_BUILT_IN)
-            and options.get("error_model") == "numpy" and not options.get("fastmath"))
+            and options.get("error_model") == "numpy" and not options.get("fastmath")
+            and not _calls_kernels(kernel.py_func))
+
+
+def _calls_kernels(function):
+    """Whether ``function`` reaches a numba function (one with a
+    ``py_func``) through its closure or the globals its code names."""
+    code = function.__code__
+    scope = function.__globals__
+    values = [c.cell_contents for c in function.__closure__ or ()]
+    values += [scope[name] for name in code.co_names if name in scope]
+    return any(hasattr(v, "py_func") for v in values)
 
 
 def _evaluate(model, q_all, todo, what, total):
