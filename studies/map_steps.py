@@ -159,7 +159,7 @@ heyoka needs the map in ~0.5 s, ~16× less than now.
 
 Usage: ``python studies/map_steps.py [--quick] [--part profile,race,fixed,log]
 [--case cr3bp,core] [--repeats N]``; results ``map_steps_{profile,race,fixed,log}.json``
-(``map_steps_quick_*`` with ``--quick``; ``…_cr3bp`` or ``…_core`` for a run of one map).
+(``map_steps_quick_*`` with ``--quick``; ``map_steps[_quick]_cr3bp_*`` for a run of one map).
 State the machine load (recorded in the JSON) with every figure.
 """
 
