@@ -34,14 +34,7 @@ of a tight reference, the verdict rule at half the steps on the
 three-body map).
 
 :func:`agreeing_tau` searches the constant step of the map's stepper by
-either rule (down from :data:`~varint.stepsize.TAU_MAX`). Where the rung
-above the chosen one failed on the energy ceiling alone (its FLI agreed
-with the chosen rung's), the ladder's factor 2 can waste up to half the
-steps: one step between the two rungs is then tried
-(:meth:`ConstantLadder.refine`), the largest its measured energy errors
-predict within the ceiling, and taken where its pilot meets the ceiling
-and its FLI agrees with the finer rung below the chosen one (a step finer
-than its half, so no looser a check than τ against τ/2). The defaults of
+either rule (down from :data:`~varint.stepsize.TAU_MAX`); the defaults of
 :func:`varint.chaos_map` search it by the verdict rule and price it against
 the logarithmic Hamiltonian's (:func:`varint.time_transform_step.agreeing_h`),
 so that both steppers are judged alike (the value rule chose a constant
@@ -74,10 +67,6 @@ CHAOTIC_GROWTH = 1e3
 #: energy pilot's step on the cored map of ``studies/map_steps.py``, R_c =
 #: 0.03, is 1/150).
 LEVELS = 12
-#: The refined step's share of the step its rungs' energy errors predict
-#: at the ceiling (:meth:`ConstantLadder.refine`): the errors are one
-#: quantile of 16 orbits, the power law a two-point fit.
-REFINE_MARGIN = 0.9
 
 
 def chaotic_level(t):
@@ -250,7 +239,6 @@ class ConstantLadder:
         self._tried: list = []
         self._next = 0
         self._chosen = None
-        self._refined = None
 
     def _step(self, j):
         return self._top * 2.0**-j
@@ -276,47 +264,11 @@ class ConstantLadder:
                                       self._ceiling, stop_above, agree=self._agree)
         self._tried += tried
         self._next += len(tried)
-        if self._chosen is not None:
-            self.refine()
-
-    def refine(self):
-        """Between the chosen rung τ_j and the one above, τ_{j−1}, whose FLI
-        agreed with τ_j's but whose energy errors exceeded the ceiling: the
-        step τ* = :data:`REFINE_MARGIN` · τ_{j−1} (ceiling / e_{j−1})^(1/p)
-        (dividing t_end), p = log₂(e_{j−1} / e_j) the order the two rungs'
-        error quantiles show (an error ∝ τ^p). τ* replaces τ_j where its
-        pilot passes (:func:`passes`) with its FLI compared, by the
-        ladder's rule, with that at τ_{j+1} (already run: a step below
-        τ*/2). Called once, when a rung is chosen."""
-        j = self._chosen[0]
-        if j == 0 or self._tried[j - 1][1] < self._quantile:
-            return
-        above, below = self._tried[j - 1][2], self._tried[j][2]
-        if not (np.isfinite(above) and above > self._ceiling > below > 0.0):
-            return
-        order = min(max(math.log2(above / below), 1.0), 12.0)
-        tau = dividing_step(self._t_end, REFINE_MARGIN * self._step(j - 1)
-                            * (self._ceiling / above) ** (1.0 / order))
-        if tau <= self._step(j) * (1.0 + 1e-9):
-            return
-        before = self.counts.get("gradient", 0)
-        errors, values = pilot_errors(self._model, self._sample, tau, self._t_pilot,
-                                      self._scheme, self._reference, self.counts, self._vectors,
-                                      value=self._value)
-        rate = (self.counts.get("gradient", 0) - before) / (len(self._sample) * self._t_pilot)
-        agreed = self._agree(values, self._runs[j + 1][0], self._t_pilot, self._t_end)
-        ok, worst = passes(agreed, errors, self._quantile, self._ceiling)
-        self._tried.append([tau, float(np.mean(agreed)), worst])
-        if ok:
-            largest = float(np.max(errors[np.isfinite(errors)], initial=0.0))
-            self._refined = (tau, int(agreed.sum()), largest, rate)
 
     @property
     def rate(self):
         """The force evaluations per orbit and unit of time at the step
         chosen so far (None while none passed)."""
-        if self._refined is not None:
-            return float(self._refined[3])
         return None if self._chosen is None else float(self._runs[self._chosen[0]][2])
 
     def cheaper_than(self, rate, scale=1.0):
@@ -344,12 +296,8 @@ class ConstantLadder:
                                   "tau/2 at any step tried")
             return None, choice
         j, n_agree, largest = self._chosen
-        tau, rate = self._step(j), float(self._runs[j][2])
-        if self._refined is not None:
-            tau, n_agree, largest, rate = self._refined
-        choice.update(rule="indicator", tau=tau, energy_error=largest, gradient_rate=rate,
-                      refined=self._refined is not None,
-                      summary=summary(n_agree, len(self._sample), largest, "tau")
-                      + ("; tau refined between two rungs, its FLI against a step below "
-                         "tau/2" if self._refined is not None else ""))
+        tau = self._step(j)
+        choice.update(rule="indicator", tau=tau, energy_error=largest,
+                      gradient_rate=float(self._runs[j][2]),
+                      summary=summary(n_agree, len(self._sample), largest, "tau"))
         return tau, choice
