@@ -50,13 +50,15 @@ def test_a_map_that_calls_every_orbit_alike_cannot_judge():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("t_end, judges", [(map_steps.CR3BP_T_END, True), (200.0, False)])
-def test_the_three_body_grid_can_judge_and_the_old_one_cannot(t_end, judges):
-    """The reference (heyoka, tol 1e-15) on the quick three-body grid: at
-    t = 1000 a real mix with a gap about the threshold; at t = 200 (the
-    grid of stop 47) the FLIs overlap the threshold and the race refuses it."""
+@pytest.mark.parametrize("grid_of, judges", [(map_steps.race_map, True),
+                                             (map_steps.case, False)])
+def test_the_three_body_race_grid_can_judge_and_the_old_one_cannot(grid_of, judges):
+    """The reference (heyoka, tol 1e-15) on the quick three-body grid: to
+    t = 1000 (the race's) a real mix with a gap about the threshold; to
+    t = 200 (the race of stop 47) the FLIs overlap the threshold and the
+    race refuses it."""
     pytest.importorskip("heyoka")
-    model, grid, _ = map_steps.case("cr3bp", quick=True)
+    model, grid, t_end = grid_of("cr3bp", True)
     if judges:
         ref = map_steps.reference("cr3bp", model, grid.states, t_end)
         assert 0.25 <= ref["judging"]["chaotic"] <= 0.75
