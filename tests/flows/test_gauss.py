@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tests.flows.steppers import (coupled_general, finite_difference, gauss_steps,
-                                  symplectic_form, taylor_reference, tao_example)
+                                  symplectic_form, taylor_reference)
 from tests.helpers import fitted_slope
 from varint.flows.gauss import GAUSS, GaussLegendre
 
@@ -74,17 +74,19 @@ def test_tangent_is_symplectic(name):
 
 
 def test_energy_bounded_over_long_times():
-    """Tao's example H = (q² + 1)(p² + 1)/2: a symplectic method's energy
-    error stays bounded (no drift) over 10⁴ steps."""
-    model = tao_example()
-    x0 = np.array([-3.0, -1e-3])
+    """A symplectic method's energy error stays bounded (no drift) over
+    10⁴ steps (measured 5e-9 to 5e-8 in every tenth). On the coupled
+    general H the order tests use, with GL4: their compiled loop, not one
+    of its own for another model (Tao's example took 11 CPU s cold)."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
     e0 = model.energy(x0)
     errs = []
     x = x0
     for _ in range(10):
         x, _ = gauss_steps(model, x, None, 0.1, 1000, "GL4")
         errs.append(abs(model.energy(x) - e0) / e0)
-    assert max(errs) < 1e-4
+    assert max(errs) < 1e-6
     # Bounded: the last tenth's error is not an order above the first's.
     assert errs[-1] < 10 * max(errs[:3])
 
