@@ -242,3 +242,66 @@ def test_constant_pilot_that_wins_stops_the_lh_descent():
         fixed = varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False,
                                  time_transform=None, tau=tau, scheme=maps.MAP_SCHEME)
     assert np.array_equal(r.values, fixed.values, equal_nan=True)
+
+
+def _cored(radius=0.03):
+    x, y = sp.symbols("x y")
+    return from_potential(sp.log(sp.Float(radius)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2,
+                          [x, y], name=f"cored logarithmic, R_c = {radius}")
+
+
+def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
+    """The defaults' switch prices the pilot each choice still has to run
+    (maps._pilot_share): once the LH's pilot is spent, a constant rung is
+    judged only while its τ/2 pilot run and its map together cost less
+    than the LH's map. A small cored map (R_c = 0.05, 26 orbits: a rung's
+    pilot run costs 0.6 of its map), runs counted by hook: no constant run
+    after the LH's last is the fine run of a rung that cannot pay for
+    itself, and the LH's map is run. The switch as it was (pilot share 0,
+    the map alone priced) makes exactly such a run, and takes the constant
+    step whose pilot run and map together cost more than the LH's map, so
+    the test fails without the change."""
+    model = _cored(0.05)
+    grid = varint.section_grid(model, 0.0, np.linspace(-0.9, 0.9, 6), np.linspace(-0.9, 0.9, 5),
+                               plane=1)
+
+    def defaults(mp):
+        runs = _pilot_runs(mp)
+        hooked = LogHamiltonian.outputs
+
+        def log(self, X, W0, t_end, *args, **kwargs):
+            # The LH's map runs through the hook too: mark its runs (to t_end).
+            out = hooked(self, X, W0, t_end, *args, **kwargs)
+            runs[-1] = (*runs[-1], t_end)
+            return out
+
+        mp.setattr(LogHamiltonian, "outputs", log)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False)
+        return r, [run[:3] for run in runs if len(run) == 3 or run[3] < T_END]
+
+    def dear(runs, prices, share):
+        # Each run after the LH's pilot is the fine run of a rung at twice
+        # the rung's rate.
+        last = max(i for i, (kind, _, _) in enumerate(runs) if kind == "log")
+        return [rate for kind, _, rate in runs[last + 1:] if kind == "constant"
+                and rate / 2 * prices["constant_gradient_cost"] * (1 + share) > prices["log"]]
+
+    with pytest.MonkeyPatch.context() as mp:
+        r, runs = defaults(mp)
+    prices = r.provenance.tau_choice["prices"]
+    share = prices["pilot_share"]
+    m, pilots = len(grid.states), min(len(grid.states), 16)
+    assert share == pytest.approx(2 * pilots * 100.0 / (m * T_END))
+    assert r.provenance.method == "tm+log" and dear(runs, prices, share) == [], runs
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(maps, "_pilot_share", lambda spec: 0.0)
+        before, runs_before = defaults(mp)
+    constant_runs = [Counter(kind for kind, _, _ in rs)["constant"] for rs in (runs, runs_before)]
+    assert before.provenance.method == "tm" and constant_runs[1] == constant_runs[0] + 1
+    assert dear(runs_before, prices, share), runs_before
+    # What the old choice still had to run when the LH's pilot was spent:
+    # its rung's fine pilot run and its map, dearer than the LH's map.
+    constant = before.provenance.tau_choice["gradient_rate"] * prices["constant_gradient_cost"]
+    assert constant < prices["log"] < constant * (1 + share)

@@ -606,13 +606,16 @@ def _cheaper_steps(spec, k, clock):
     priced by fixed tables of the LH's scalar code and of the lanes,
     vectorised or not, so the choice does not depend on the timing of the
     run that makes it). The two pilots run in order of price
-    (:class:`~varint.step_agreement.ConstantLadder`): before each rung of
-    the LH's descent is judged, every constant step that costs less is, and
-    a constant step that passed below the LH rung's price stops the LH's
-    descent (its finer rungs cost more); once the LH passes, the constant
-    steps priced below the LH's (retries counted) are judged. The choice is
+    (:class:`~varint.step_agreement.ConstantLadder`), each choice priced
+    with the pilot it still has to run (:func:`_pilot_share`): before each
+    rung of the LH's descent is judged, every constant step that costs less
+    is, and a constant step that passed, whose map is cheaper than the LH
+    rung's map and pilot run together, stops the LH's descent (its finer
+    rungs cost more); once the LH passes, the constant steps whose map and
+    pilot run together cost less than the LH's map (retries counted) are
+    judged. The choice is
     that of the LH's pilot followed by the constant one stopped at its
-    price, with fewer runs. Returns ``(h_choice,
+    price over 1 + the pilot share, with fewer runs. Returns ``(h_choice,
     stepped)``: the LH's choice (with the ``prices``) and None, or None and
     ``spec`` at the constant step chosen by agreement (with the map's check
     steps, :func:`_with_step`), or None and None where the LH's FLI agrees
@@ -636,11 +639,17 @@ def _cheaper_steps(spec, k, clock):
             accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
             quantile=MAP_QUANTILE, ceiling=spec.energy_tol, agree=step_agreement.same_verdict)
 
+        share = _pilot_share(spec)
+
         def beaten(rate):
             # Pilots ordered by price: before each LH rung is judged, the
-            # constant steps that cost less are; one that passed stops the
-            # LH's descent before its finer, dearer rungs.
-            return ladder.cheaper_than(rate, log_cost / constant_cost)
+            # constant steps that cost less are. A constant step that passed
+            # has nothing left to run but the map; the LH rung still has its
+            # h/2 run to make, so it stops the LH's descent once its map is
+            # cheaper than the LH's map and that run together.
+            scale = log_cost / constant_cost
+            ladder.advance(rate * scale)
+            return ladder.rate is not None and ladder.rate < rate * scale * (1.0 + share)
 
         # The LH map retries each orbit to energy_tol itself (_log_map):
         # its pilot's ceiling is looser, its price counts the retries; its
@@ -653,13 +662,15 @@ def _cheaper_steps(spec, k, clock):
         if h is None and not stopped:
             return None, None
         log_price = math.inf if stopped else choice["gradient_rate"] * log_cost
-        # Constant steps that cost more than the LH's are not tried: the
-        # search stops there.
-        ladder.advance(log_price / constant_cost)
+        # The LH's pilot is spent, its map is what is left; a constant rung
+        # still to be judged has its τ/2 run to make before its map: it is
+        # judged only while both cost less than the LH's map.
+        ladder.advance(log_price / constant_cost / (1.0 + share))
         tau, constant = ladder.result()
     prices = {"log": None if stopped else log_price,
               "constant": constant["gradient_rate"] * constant_cost,
-              "log_gradient_cost": log_cost, "constant_gradient_cost": constant_cost}
+              "log_gradient_cost": log_cost, "constant_gradient_cost": constant_cost,
+              "pilot_share": share}
     if tau is None or log_price < prices["constant"]:
         choice.update(prices=prices, constant=constant)
         _log.info("chaos_map: the logarithmic-Hamiltonian step (h = %.4g) is predicted "
@@ -677,6 +688,19 @@ def _cheaper_steps(spec, k, clock):
         spec, method_options={**spec.method_options, "scheme": MAP_SCHEME}).with_step(
             tau, constant, indicator_times=False)
     return None, _check_steps(stepped)
+
+
+def _pilot_share(spec):
+    """The price of a rung's pilot run in units of the map's run at the same
+    step, for the defaults' switch (:func:`_cheaper_steps`): judging a rung
+    of either ladder (the LH's or the constant step's) runs its pilot
+    orbits at half its step to the pilot's time, 2·P·t_p force-evaluation
+    units of its rate for P pilot orbits and a pilot time t_p, against
+    M·t_end for the map's M orbits. A map of few or short orbits pays for
+    its pilot more than a large one, so a rung whose run and pilot together
+    cost more than the other stepper's map is not judged."""
+    pilots = len(step_agreement.pilot_sample(spec.x0, spec.seed))
+    return 2.0 * pilots * min(spec.t_end, stepsize.PILOT_T) / (len(spec.x0) * spec.t_end)
 
 
 def _threshold(threshold, spec):
