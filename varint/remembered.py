@@ -44,7 +44,7 @@ _lock = threading.Lock()
 
 #: The plain values a key holds by type and value (a bool is not an int
 #: there: ``seed=True`` is refused where ``seed=1`` is not).
-_PLAIN = (int, float, str, bool, type(None), np.float64, np.int64, np.bool_)
+_PLAIN = frozenset((int, float, str, bool, type(None), np.float64, np.int64, np.bool_))
 
 
 class _Unkeyed(Exception):
@@ -62,10 +62,11 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     if depth > 4:
         raise _Unkeyed
     if kind is tuple or kind is list:
-        return kind, tuple(_frozen(v, held, depth + 1) for v in value)
+        return kind, tuple([_frozen(v, held, depth + 1) for v in value])
     if kind is dict:
-        return kind, tuple((_frozen(k, held, depth + 1), _frozen(v, held, depth + 1))
-                           for k, v in value.items())
+        # (Plain values inline: a model's attributes are mostly these.)
+        return kind, tuple([(k, (type(v), v) if type(v) in _PLAIN else
+                             _frozen(v, held, depth + 1)) for k, v in value.items()])
     if kind is np.ndarray:
         if value.size > _ARRAY_MAX or value.dtype.hasobject:
             raise _Unkeyed
@@ -104,7 +105,8 @@ def call_key(model: Any, x0: Any, indicator: Any, t_end: Any, tau: Any,
                # the vectors' presence and number how they are made.
                getattr(x0, "shape", None),
                None if deviations is None else np.shape(deviations))
-    except _Unkeyed:
+        hash(key)
+    except (_Unkeyed, TypeError):     # (TypeError: an unhashable dict key)
         return None
     return key, held
 

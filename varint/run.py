@@ -149,6 +149,14 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
     AccuracyWarning
         When the energy error exceeds ``energy_tol``.
 
+    Notes
+    -----
+    A call that repeats one of the last few calls' arguments (τ given, no
+    checkpoint, a fixed seed) but its initial states and vectors runs that
+    call's checked set-up again (:mod:`varint.remembered`), as a prepared
+    run's call does (:func:`varint.prepare`): same result, bit for bit,
+    for a fraction of the fixed cost.
+
     Examples
     --------
     >>> import varint
