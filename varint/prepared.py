@@ -11,13 +11,15 @@ states (shape, finite, the model's kernels finite there, what the
 indicator requires), measures their reference energy, starts the state and
 drives it (:meth:`varint.run.Run.with_orbits`). A short call (one expected
 to last less than one of the driver's chunks, 0.2 s, by a generated TM
-stepper on the CPU) takes a shorter path, :class:`varint.rerun.ShortCall`: the whole
-run in one stepper call on buffers kept per thread, the outputs read once,
-the energy errors and the verdict in one compiled pass, the result
-assembled directly, everything that does not depend on the states made
-once (issue 28: the fixed cost of a call). The result is the one-shot
+stepper on the CPU) takes a shorter path, :class:`varint.rerun.ShortCall`:
+the whole run in one stepper call on buffers kept per thread, the outputs
+read once, the energy errors and the verdict in one compiled pass, the
+result assembled directly, everything that does not depend on the states
+made once (issue 28: the fixed cost of a call). The result is the one-shot
 call's, bitwise, with the same type and provenance (heyoka's counterpart
-is a built integrator's ``propagate_until`` from a new state).
+is a built integrator's ``propagate_until`` from a new state). A one-shot
+call that repeats an earlier call's arguments takes the same path
+(:mod:`varint.remembered`).
 """
 
 from __future__ import annotations
@@ -116,7 +118,6 @@ class PreparedRun:
         self.spec = spec
         self._deviations = deviations
         self._progress, self._errors = progress, errors
-        # The kernels' check at each call's states, its buffers kept.
         # The first call's run and its calls again (Rerun: its propagator,
         # set-up and short path serve every later call).
         self._first: Run | None = None

@@ -37,7 +37,8 @@ __all__ = ["Rerun", "ShortCall"]
 
 
 class ShortCall:
-    """A prepared run's call whose whole run is one compiled call: its
+    """A call of a :class:`Rerun` (a prepared run's, or a remembered
+    one-shot call's) whose whole run is one compiled call: its
     orbits stepped from their start to the last output by the propagator's
     :meth:`~varint.methods.tm.TangentMapPropagator.fresh_run` (one thread's
     buffers kept between calls), every output copied inside it, then
