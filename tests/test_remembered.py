@@ -3,6 +3,9 @@ again (:mod:`varint.remembered`) and gives, bit for bit, the result built
 from scratch; a changed argument or a model changed in place is not
 mistaken for the earlier call; bad input is refused as before."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -93,3 +96,26 @@ def test_a_drawn_seed_or_a_pilot_step_is_not_remembered():
     a = varint.megno(model, x0, 1.0, tau=0.05, seed=None)
     b = varint.megno(model, x0, 1.0, tau=0.05, seed=None)
     assert a.provenance.seed != b.provenance.seed and not remembered._calls
+
+
+def test_a_call_without_a_short_path_is_run_from_scratch(general):
+    model, x0 = varint.paper_orbit("R1")
+    for x in _states(x0, 3):
+        got = varint.megno(model, x, 1.0, tau=0.05, method="dop853")
+        _same(got, _one_shot(model, x, "megno", 1.0, 0.05, method="dop853"))
+    assert len(general) == 6
+    # Kept as such, holding no run.
+    (entry,) = remembered._calls.values()
+    assert entry[0] is None and entry[2] is False
+
+
+def test_a_first_run_imports_no_rerun():
+    # The short path's kernels load at a process's first repeated call,
+    # not in its first run (issue 28's start-up).
+    code = ("import sys, varint\n"
+            "model, x0 = varint.paper_orbit('R1')\n"
+            "varint.megno(model, x0, 1.0, tau=0.05)\n"
+            "assert 'varint.rerun' not in sys.modules\n"
+            "varint.megno(model, x0 + 1e-3, 1.0, tau=0.05)\n"
+            "assert 'varint.rerun' in sys.modules\n")
+    subprocess.run([sys.executable, "-c", code], check=True)

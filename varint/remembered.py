@@ -14,19 +14,25 @@ with equal arguments and a model in the same state; anything else, a model
 changed in place included, misses and is run from scratch. The remembered
 calls hold every object their key names by identity, so no identity is
 reused while the key lives. At most :data:`CAPACITY` calls are kept, the
-least recently used dropped; only calls whose runs have a short path
-(:class:`varint.rerun.ShortCall`, which bounds what they keep) are kept.
+least recently used dropped, each a run of small outputs
+(:data:`RECORD_BYTES`); at its first repeat the call's
+:class:`~varint.rerun.Rerun` is made, and a call without a short path
+(:class:`varint.rerun.ShortCall`) is marked as such and run from scratch.
 """
 
 from __future__ import annotations
 
 import collections
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .rerun import Rerun
+from . import _validate as check
+
+if TYPE_CHECKING:
+    from .rerun import Rerun
+    from .run import Run
 
 __all__ = ["CAPACITY", "call_key", "model_token", "recall", "remember", "forget"]
 
@@ -34,12 +40,17 @@ __all__ = ["CAPACITY", "call_key", "model_token", "recall", "remember", "forget"
 #: buffers of at most 1 MiB per thread that called it, and its model).
 CAPACITY = 8
 
+#: Most bytes of outputs of a run that is remembered (about what its
+#: records hold; :meth:`varint.rerun.ShortCall.over` bounds them again).
+RECORD_BYTES = 1 << 22
+
 #: Largest array (elements) of a model's attributes a key copies: a model
 #: holding a larger one is not remembered (its copy would cost more than
 #: the set-up it saves).
 _ARRAY_MAX = 4096
 
-_calls: collections.OrderedDict[tuple, tuple[Rerun, list]] = collections.OrderedDict()
+#: key -> [the first run, its run's seconds, its Rerun once made, held].
+_calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
 _lock = threading.Lock()
 
 #: The plain values a key holds by type and value (a bool is not an int
@@ -112,22 +123,40 @@ def call_key(model: Any, x0: Any, indicator: Any, t_end: Any, tau: Any,
 
 
 def recall(key: tuple) -> Rerun | None:
-    """The remembered call of ``key``, or None."""
+    """The remembered call of ``key`` (its :class:`~varint.rerun.Rerun`,
+    made at its first repeat), or None; a call without a short path is
+    forgotten there."""
     with _lock:
         entry = _calls.get(key)
         if entry is None:
             return None
         _calls.move_to_end(key)
-    return entry[0]
+        first, seconds, again, _ = entry
+        if again is None:
+            # Imported at a process's first repeated call, not by its first
+            # run (the short path's compiled energy errors load ~0.1 s of
+            # kernels from the cache; issue 28's start-up).
+            from .rerun import Rerun
+
+            again = Rerun(first, seconds, check.KernelCheck(first.model))
+            # Without a short path: kept as such (no run held), so that
+            # its calls are neither made again nor remembered again.
+            entry[:3] = [None, seconds, again if again.short is not None else False]
+    return entry[2] or None
 
 
-def remember(key: tuple, held: list, rerun: Rerun) -> None:
-    """Keep ``rerun`` for the calls of ``key`` (holding ``held``, the
-    objects it names by identity), if it has a short path."""
-    if rerun.short is None:
+def remember(key: tuple, held: list, first: Run, run_seconds: float) -> None:
+    """Keep the executed run ``first`` (``run_seconds`` the time of its run)
+    for the calls of ``key`` (holding ``held``, the objects it names by
+    identity), if it is small: its records held no more than
+    :data:`RECORD_BYTES`."""
+    m, dim = first.x0.shape
+    if 8 * len(first.steps) * m * (dim + 1) * (first.W0.shape[2] + 1) > RECORD_BYTES:
         return
     with _lock:
-        _calls[key] = (rerun, held)
+        if key in _calls:
+            return      # (a call without a short path, kept as such)
+        _calls[key] = [first, run_seconds, None, held]
         _calls.move_to_end(key)
         while len(_calls) > CAPACITY:
             _calls.popitem(last=False)

@@ -120,9 +120,9 @@ class ShortCall:
                                   protocol=pickle.HIGHEST_PROTOCOL)
 
     @classmethod
-    def over(cls, first: Run, result: _Result) -> ShortCall | None:
-        """The short path over the prepared run's first run (``result`` its
-        result), or None where it cannot take its calls."""
+    def over(cls, first: Run, run_seconds: float) -> ShortCall | None:
+        """The short path over a first run (executed, ``run_seconds`` the
+        time of its run), or None where it cannot take its calls."""
         prop, spec = first.propagator, first.spec
         m, _, k = first.W0.shape
         runs_fresh = getattr(prop, "runs_fresh", None)
@@ -132,7 +132,7 @@ class ShortCall:
         short = cls(first)
         if short.snapshot_bytes > SNAPSHOT_BYTES:
             return None     # the driver's bound on one chunk's snapshots
-        short.timed(result)
+        short.per_step = run_seconds / max(short.steps, 1)
         return short
 
     def timed(self, result: _Result) -> None:
@@ -313,17 +313,19 @@ class Rerun:
     ----------
     first : varint.run.Run
         The first run, executed.
-    result : result
-        Its result (the short path's first estimate of the time per step).
+    run_seconds : float
+        The time of its run (its result's ``provenance.timing["run"]``):
+        the short path's first estimate of the time per step.
     kernel_check : varint._validate.KernelCheck
         The check of the model's kernels at each call's states.
     """
 
-    def __init__(self, first: Run, result: _Result, kernel_check: check.KernelCheck) -> None:
+    def __init__(self, first: Run, run_seconds: float, kernel_check: check.KernelCheck
+                 ) -> None:
         self.first = first
         self.kernel_check = kernel_check
         #: The short calls' path, where the first run has one.
-        self.short = ShortCall.over(first, result)
+        self.short = ShortCall.over(first, run_seconds)
 
     def __call__(self, x0: Any, deviations: Any = None, default: Any = None) -> _Result:
         """The result from ``x0`` ((2N,) or (M, 2N)) with ``deviations``
