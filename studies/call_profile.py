@@ -39,7 +39,7 @@ round: ``round2_before`` (main 93ccc3a, one-shot only) and
 one after the other in one load window; its fourth (the prepared call's
 kernel check and the TM propagator's per-call set-up): ``round4_before``
 (main fc6a4bb) and ``round4_after``, likewise; its fifth (the prepared
-call's short path, :class:`varint.prepared._ShortCall`): ``round5``, the
+call's short path, :class:`varint.prepared._ShortCall`, now :class:`varint.rerun.ShortCall`): ``round5``, the
 three paths of :data:`PATHS` interleaved (``prepared_general`` is the
 previous path of the same code), and ``round5_before`` (main 7b2b6c8, where
 ``prepared`` is the general path), run one after the other in one load
@@ -87,6 +87,12 @@ PATHS = ("oneshot", "prepared", "prepared_general")
 #: another module is wrapped where it is called from.
 STAGES = (
     (0, "integrate (whole call)", "varint.api", "run"),
+    (1, "key of a remembered call", "varint.remembered", "call_key"),
+    (1, "remembered call (varint.remembered)", "varint.rerun:Rerun", "__call__"),
+    (2, "x0 and its kernels finite, one pass", "varint._validate:KernelCheck", "states"),
+    (2, "given vectors checked", "varint.rerun:ShortCall", "vectors"),
+    (2, "short call (varint.rerun)", "varint.rerun:ShortCall", "__call__"),
+    (3, "energy errors and verdict", "varint.rerun:ShortCall", "_energy_verdict"),
     (1, "specify: check every argument", "varint.run", "specify"),
     (2, "model check", "varint.runspec:check", "model"),
     (2, "states check", "varint.runspec:check", "states"),
@@ -147,6 +153,8 @@ SHORT_STAGES = (
     (2, "kernels finite at x0, kept buffers", "varint._validate:KernelCheck", "__call__"),
     (2, "x0 and its kernels finite, one pass", "varint._validate:KernelCheck", "states"),
     (1, "short call", "varint.prepared:_ShortCall", "__call__"),
+    (1, "rerun of the first run", "varint.rerun:Rerun", "__call__"),
+    (2, "short call (varint.rerun)", "varint.rerun:ShortCall", "__call__"),
     (2, "stepper from fresh arrays", "varint.methods.tm:TangentMapPropagator", "advance_fresh"),
     (2, "snapshot rows", "varint.state:Snapshots", "rows"),
     (2, "reference and energy errors", "varint.accuracy", "reference_and_errors"),
@@ -155,6 +163,7 @@ SHORT_STAGES = (
     (2, "stepper, kept buffers", "varint.methods.fresh_run:FreshRun", "__call__"),
     (2, "snapshot rows, kept views", "varint.methods.fresh_run:FreshRun", "rows"),
     (2, "energy errors and verdict", "varint.prepared:_ShortCall", "_energy_verdict"),
+    (3, "energy errors and verdict", "varint.rerun:ShortCall", "_energy_verdict"),
     (2, "provenance, fixed part pickled", "varint.results:Provenance", "with_pickled"),
     (2, "machine identity", "varint.identity", "machine"),
     (2, "accuracy warning", "varint.accuracy", "warn"),
@@ -269,13 +278,18 @@ def main(argv=None):
                              deviations=w0[:, None])
         run(x0)
         if not short:
-            run._short = None   # every call by the general path (older code has none)
+            # Every call by the general path (older code has none).
+            if hasattr(run, "_again"):
+                run._again.short = None
+            else:
+                run._short = None
         return functools.partial(run, x0)
 
     paths = {"oneshot": (oneshot, STAGES)}
     if "prepared" in args.path:
         paths["prepared"] = (prepared(), SHORT_STAGES if hasattr(
-            varint.prepared, "_ShortCall") else PREPARED_STAGES)
+            varint.prepared, "_ShortCall") or hasattr(varint.prepared, "Rerun")
+            else PREPARED_STAGES)
     if "prepared_general" in args.path:
         paths["prepared_general"] = (prepared(short=False), PREPARED_STAGES)
     paths = {k: v for k, v in paths.items() if k in args.path}

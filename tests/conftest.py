@@ -39,6 +39,15 @@ def pytest_xdist_make_scheduler(config, log):
     return None
 
 
+@pytest.fixture(autouse=True)
+def _no_remembered_calls():
+    """Each test starts with no one-shot call remembered (varint.remembered):
+    a test that patches what a run calls gets the run it patched."""
+    from varint import remembered
+
+    remembered.forget()
+
+
 @pytest.fixture(scope="session")
 def r1():
     return varint.paper_orbit("R1")

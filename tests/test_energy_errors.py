@@ -152,7 +152,7 @@ def test_a_prepared_short_call_compiles_t_only_below_eight_terms(model, compiled
     states = 0.05 * rng.standard_normal((3, model.dim))
     run = varint.prepare(model, "integrate", 0.3, tau=0.1, t_out=3)
     run(states[0])
-    assert run._short is not None and (run._short.state_kernel is not None) == compiled_t
+    assert run._again.short is not None and (run._again.short.state_kernel is not None) == compiled_t
     for x0 in states[1:]:
         got, alone = run(x0), varint.integrate(model, x0, 0.3, tau=0.1, t_out=3)
         np.testing.assert_array_equal(got.energy_error, alone.energy_error, strict=True)

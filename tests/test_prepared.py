@@ -9,6 +9,7 @@ import pytest
 
 import varint
 from varint.models import StandardMap
+from varint.run import prepare as prepare_run
 
 #: Provenance fields that differ between any two runs: when and how long,
 #: and the counts of force evaluations (a chunk's first step evaluates the
@@ -41,6 +42,13 @@ def _same(a, b):
             assert x == y, f.name
 
 
+def _one_shot(*args, **kwargs):
+    """``varint.run(*args, **kwargs)`` built from scratch (never a
+    remembered call's set-up, :mod:`varint.remembered`): the independent
+    reference of a prepared run's calls."""
+    return prepare_run(*args, **kwargs).execute()
+
+
 def _states(x0, n):
     """``n`` states near ``x0``, seeded."""
     return x0 + 1e-3 * np.random.default_rng(7).standard_normal((n, len(x0)))
@@ -64,7 +72,7 @@ def test_seeded_indicators_are_the_one_shot_calls(indicator, options):
     model, x0 = varint.paper_orbit("C1")
     run = varint.prepare(model, indicator, 20.0, tau=0.05, **options)
     for x in _states(x0, 2):
-        _same(run(x), varint.run(model, x, indicator, 20.0, 0.05, **options))
+        _same(run(x), _one_shot(model, x, indicator, 20.0, 0.05, **options))
 
 
 def test_batches_of_other_sizes_and_given_vectors_per_call():
@@ -107,7 +115,7 @@ def test_a_map():
     smap = StandardMap(K=1.2)
     run = varint.prepare(smap, "fli", 50)
     for x in ([0.1, 0.2], [[0.3, 0.1], [2.0, 1.0]]):
-        _same(run(x), varint.run(smap, x, "fli", 50))
+        _same(run(x), _one_shot(smap, x, "fli", 50))
 
 
 def test_a_drawn_seed_is_drawn_at_every_call():
@@ -209,7 +217,7 @@ def test_the_one_pass_check_of_a_short_call_refuses_and_accepts_as_the_one_shot_
     good = np.array([1.0, 0.1, 0.1, 0.0])
     run = varint.prepare(model, "lyapunov", 0.2, tau=0.05)
     run(good)
-    assert run._short is not None
+    assert run._again.short is not None
     accepted = [good[::-1][::-1], good.astype(np.float32), good.tolist(), good.astype(">f8"),
                 np.array([good, good])[:, ::1][0], np.array([[1.0, 0.1, 0.1, 0.0]])]
     for state in accepted:

@@ -1,4 +1,4 @@
-"""A prepared run's short calls (:class:`varint.prepared._ShortCall`: the
+"""A prepared run's short calls (:class:`varint.rerun.ShortCall`: the
 stepper driven from fresh arrays, the result assembled directly) give the
 one-shot call's result bit for bit, and leave failures and long calls to
 the general path (:meth:`varint.run.Run.with_orbits`)."""
@@ -14,11 +14,11 @@ import pytest
 
 import varint
 from varint import accuracy
-from varint.prepared import _ShortCall
+from varint.rerun import ShortCall
 from varint.protocol import Status
 from varint.run import Run
 
-from .test_prepared import _same, _states
+from .test_prepared import _one_shot, _same, _states
 
 
 @pytest.fixture
@@ -51,10 +51,10 @@ def test_short_calls_are_the_one_shot_calls(indicator, options, general):
     states = _states(x0, 4)
     run(states[0])
     for x in (*states[1:], states[:2], states[2:]):
-        _same(run(x), varint.run(model, x, indicator, 1.0, 0.05, **options))
+        _same(run(x), _one_shot(model, x, indicator, 1.0, 0.05, **options))
     # The first run was one orbit: the batches of two take the general
     # path (as many orbits as the first call only).
-    assert run._short is not None and len(general) == 2
+    assert run._again.short is not None and len(general) == 2
 
 
 def test_a_failing_orbit_takes_the_general_path(general):
@@ -95,13 +95,13 @@ def test_a_long_call_takes_the_general_path(general):
     model, x0 = varint.paper_orbit("R1")
     run = varint.prepare(model, "megno", 20.0, tau=0.05)
     run(x0)
-    assert run._short.takes(run.spec.with_states(x0).x0)
-    run._short.per_step = 1e-3          # 400 steps: 0.4 s
+    assert run._again.short.takes(run.spec.with_states(x0).x0)
+    run._again.short.per_step = 1e-3          # 400 steps: 0.4 s
     x = x0 + [0.0, 0.0, 1e-3, 0.0]
     _same(run(x), varint.megno(model, x, 20.0, tau=0.05))
     assert len(general) == 1
     # That call's own time per step is taken as the next estimate.
-    assert run._short.per_step < 1e-3
+    assert run._again.short.per_step < 1e-3
 
 
 @pytest.mark.parametrize("indicator, t_out", [("megno", 9), ("lyapunov", None)])
@@ -114,7 +114,7 @@ def test_a_call_of_many_driver_chunks_is_one_stepper_call_with_the_same_bits(
     run = varint.prepare(model, indicator, 40.0, tau=0.05, t_out=t_out)
     run(x0)
     for x in _states(x0, 2):
-        _same(run(x), varint.run(model, x, indicator, 40.0, 0.05, t_out=t_out))
+        _same(run(x), _one_shot(model, x, indicator, 40.0, 0.05, t_out=t_out))
     assert len(general) == 0
 
 
@@ -192,7 +192,7 @@ def test_the_short_calls_verdict_and_warning_are_the_one_shot_calls(model, m, ge
             _same(a, b)
             _same_verdict(a.accuracy, b.accuracy)
             assert a.accuracy.accurate.all() == (tol is None)
-    assert len(general) == 0 and run._short.plain == (type(model) is not _Doubled)
+    assert len(general) == 0 and run._again.short.plain == (type(model) is not _Doubled)
 
 
 def test_a_result_outlives_the_next_calls():
@@ -219,13 +219,13 @@ def test_a_result_outlives_the_next_calls():
 def test_large_snapshots_are_not_kept_between_calls(monkeypatch, general):
     # Over KEEP_BYTES, each call makes its buffers: the same bits, and the
     # prepared run holds none of them after the call.
-    monkeypatch.setattr(_ShortCall, "KEEP_BYTES", 0)
+    monkeypatch.setattr(ShortCall, "KEEP_BYTES", 0)
     model, x0 = varint.paper_orbit("R1")
     run = varint.prepare(model, "lyapunov", 0.5, tau=0.05, t_out=4)
     run(x0)
     for x in _states(x0, 2):
         _same(run(x), varint.lyapunov_spectrum(model, x, 0.5, tau=0.05, t_out=4))
-    assert getattr(run._short._local, "run", None) is None and len(general) == 0
+    assert getattr(run._again.short._local, "run", None) is None and len(general) == 0
 
 
 def test_threads_calling_one_prepared_run_get_the_one_shot_results():

@@ -63,12 +63,12 @@ def test_a_prepared_runs_short_calls_skip_the_dispatch():
     run(x0)
     run(x0)
     a = run(x0 + [0.0, 0.0, 1e-3, 0.0])
-    assert run._short._run()._kernel._entry is not None
+    assert run._again.short._run()._kernel._entry is not None
     # Hénon–Heiles' T is the base model's over 2 degrees of freedom: the
     # energy errors are the kernel that computes T with them.
-    assert run._short.state_kernel is not None
-    assert run._short.state_kernel._entry is not None
-    assert all(r._entry is not None for r in run._kernel_check._resolved)
+    assert run._again.short.state_kernel is not None
+    assert run._again.short.state_kernel._entry is not None
+    assert all(r._entry is not None for r in run._again.kernel_check._resolved)
     b = varint.integrate(model, x0 + [0.0, 0.0, 1e-3, 0.0], 0.05, tau=0.05, scheme="s15odr8",
                          deviations=np.eye(4)[:, :1])
     assert a.state.tobytes() == b.state.tobytes()

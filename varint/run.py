@@ -27,7 +27,7 @@ from numba.core.errors import NumbaError
 from numpy.typing import ArrayLike
 
 from . import _validate as check
-from . import accuracy, compiling, identity
+from . import accuracy, compiling, identity, remembered
 from .driver import IntegrationError, drive, failure_message
 from .files import canonical, digest
 from .indicators import Indicator
@@ -148,6 +148,14 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
     AccuracyWarning
         When the energy error exceeds ``energy_tol``.
 
+    Notes
+    -----
+    A call that repeats one of the last few calls' arguments (τ given, no
+    checkpoint, a fixed seed) but its initial states and vectors runs that
+    call's checked set-up again (:mod:`varint.remembered`), as a prepared
+    run's call does (:func:`varint.prepare`): same result, bit for bit,
+    for a fraction of the fixed cost.
+
     Examples
     --------
     >>> import varint
@@ -156,7 +164,18 @@ def run(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
     >>> r.local.shape
     (4, 1)
     """
-    return prepare(model, x0, indicator, t_end, tau, **options).execute()
+    found = remembered.call_key(model, x0, indicator, t_end, tau, options)
+    if found is not None:
+        again = remembered.recall(found[0])
+        if again is not None:
+            # An earlier call's arguments but the states and vectors: its
+            # set-up run again (varint.remembered), the result bitwise.
+            return again(x0, options.get("deviations"))
+    first = prepare(model, x0, indicator, t_end, tau, **options)
+    result = first.execute()
+    if found is not None and not result.interrupted:
+        remembered.remember(*found, first, result.provenance.timing.get("run", np.inf))
+    return result
 
 
 def prepare(model: Model, x0: ArrayLike, indicator: str | Indicator, t_end: float,
@@ -396,6 +415,12 @@ class Run:
             norms = np.linalg.norm(W0, axis=1, keepdims=True)
             W0 = np.where(np.abs(norms - 1.0) <= 8 * np.finfo(float).eps, W0, W0 / norms)
         return W0, None
+
+    def checked_vectors(self, deviations):
+        """``deviations`` (([M,] 2N, k)) checked as this run's given vectors
+        were (:meth:`_initial_vectors`, the same errors), for as many
+        orbits as this run's: W0 (M, 2N, k)."""
+        return self._initial_vectors(deviations, None, None)[0]
 
     @staticmethod
     def _seed(seed, saved):

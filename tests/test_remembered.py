@@ -1,0 +1,121 @@
+"""A one-shot call that repeats an earlier one's arguments runs its set-up
+again (:mod:`varint.remembered`) and gives, bit for bit, the result built
+from scratch; a changed argument or a model changed in place is not
+mistaken for the earlier call; bad input is refused as before."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import varint
+from varint import remembered
+from varint.run import Run
+
+from .test_prepared import _one_shot, _same, _states
+
+
+@pytest.fixture
+def general(monkeypatch):
+    """The one-shot calls that built their run from scratch, counted."""
+    calls = []
+    original = Run.__init__
+
+    def counted(self, *args, **kwargs):
+        calls.append(args)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(Run, "__init__", counted)
+    return calls
+
+
+def test_repeated_calls_are_the_calls_built_from_scratch(general):
+    model, x0 = varint.paper_orbit("R1")
+    states = _states(x0, 4)
+    w = np.random.default_rng(3).standard_normal((4, 4, 1))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    for x, v in zip(states, w, strict=True):
+        got = varint.integrate(model, x, 0.5, tau=0.05, scheme="s15odr8", deviations=v)
+        _same(got, _one_shot(model, x, "integrate", 0.5, 0.05, scheme="s15odr8", deviations=v))
+        got = varint.lyapunov_spectrum(model, x, 1.0, tau=0.05, t_out=[0.5, 1.0])
+        _same(got, _one_shot(model, x, "lyapunov", 1.0, 0.05, t_out=[0.5, 1.0]))
+    # Each reference built its run; of the calls, only the first of each
+    # argument set (the t_out list is keyed by its values).
+    assert len(general) == 2 * len(states) + 2
+
+
+@pytest.mark.parametrize("change", ["params", "escape_radius", "inverse_mass"])
+def test_a_model_changed_in_place_is_run_from_scratch(change, general):
+    model, x0 = varint.paper_orbit("R1")
+    first = varint.megno(model, x0, 1.0, tau=0.05)
+    if change == "params":
+        model.params = np.array([1.0])
+    elif change == "escape_radius":
+        model.escape_radius = 10.0
+    else:
+        model.inverse_mass[:] = 2.0     # in place: the array's bytes change
+    second = varint.megno(model, x0, 1.0, tau=0.05)
+    assert len(general) == 2
+    _same(second, _one_shot(model, x0, "megno", 1.0, 0.05))
+    if change == "inverse_mass":
+        assert not np.array_equal(first.megno, second.megno)
+
+
+def test_bad_input_after_a_remembered_call_is_refused_as_before():
+    model, x0 = varint.paper_orbit("R1")
+    varint.megno(model, x0, 1.0, tau=0.05, seed=1)
+    # Equal to 1 but a bool: another key, refused by the seed's check.
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        varint.megno(model, x0, 1.0, tau=0.05, seed=True)
+    with pytest.raises(ValueError, match="x0 must be finite"):
+        varint.megno(model, x0 * np.nan, 1.0, tau=0.05, seed=1)
+    w = np.eye(4)[:, :1]
+    varint.integrate(model, x0, 1.0, tau=0.05, deviations=w)
+    with pytest.raises(ValueError, match="deviations must be finite"):
+        varint.integrate(model, x0, 1.0, tau=0.05, deviations=np.where(w == 1.0, np.inf, w))
+
+
+def test_another_number_of_vectors_is_another_call():
+    model, x0 = varint.paper_orbit("R1")
+    one = varint.integrate(model, x0, 0.5, tau=0.05, deviations=np.eye(4)[:, :1])
+    two = varint.integrate(model, x0, 0.5, tau=0.05, deviations=np.eye(4)[:, :2])
+    assert one.deviations.shape == (4, 1) and two.deviations.shape == (4, 2)
+    np.testing.assert_array_equal(one.deviations[:, 0], two.deviations[:, 0])
+
+
+def test_at_most_capacity_calls_are_kept():
+    model, x0 = varint.paper_orbit("R1")
+    for i in range(remembered.CAPACITY + 3):
+        varint.megno(model, x0, 0.5 + 0.05 * i, tau=0.05)
+    assert len(remembered._calls) == remembered.CAPACITY
+
+
+def test_a_drawn_seed_or_a_pilot_step_is_not_remembered():
+    model, x0 = varint.paper_orbit("R1")
+    a = varint.megno(model, x0, 1.0, tau=0.05, seed=None)
+    b = varint.megno(model, x0, 1.0, tau=0.05, seed=None)
+    assert a.provenance.seed != b.provenance.seed and not remembered._calls
+
+
+def test_a_call_without_a_short_path_is_run_from_scratch(general):
+    model, x0 = varint.paper_orbit("R1")
+    for x in _states(x0, 3):
+        got = varint.megno(model, x, 1.0, tau=0.05, method="dop853")
+        _same(got, _one_shot(model, x, "megno", 1.0, 0.05, method="dop853"))
+    assert len(general) == 6
+    # Kept as such, holding no run.
+    (entry,) = remembered._calls.values()
+    assert entry[0] is None and entry[2] is False
+
+
+def test_a_first_run_imports_no_rerun():
+    # The short path's kernels load at a process's first repeated call,
+    # not in its first run (issue 28's start-up).
+    code = ("import sys, varint\n"
+            "model, x0 = varint.paper_orbit('R1')\n"
+            "varint.megno(model, x0, 1.0, tau=0.05)\n"
+            "assert 'varint.rerun' not in sys.modules\n"
+            "varint.megno(model, x0 + 1e-3, 1.0, tau=0.05)\n"
+            "assert 'varint.rerun' in sys.modules\n")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -1,0 +1,168 @@
+"""One-shot calls remembered per process: a call of :func:`varint.run`
+(and of the public functions over it) that repeats an earlier call's
+arguments but its initial states and vectors runs that call's set-up again
+(:class:`varint.rerun.Rerun`: its checked arguments, propagator and short
+path) instead of building it anew (issue 28: the fixed cost of a call; at
+one step about a tenth of a one-shot call's time is arithmetic).
+
+A call is remembered by a key of everything it was given but ``x0`` and
+``deviations`` (of which only the shapes): every argument by type and
+value, an object that is not a plain value (the model, a scheme, an
+indicator) by identity, and the model's state (:func:`model_token`: every
+attribute's value, its arrays' bytes included). So a later call hits only
+with equal arguments and a model in the same state; anything else, a model
+changed in place included, misses and is run from scratch. The remembered
+calls hold every object their key names by identity, so no identity is
+reused while the key lives. At most :data:`CAPACITY` calls are kept, the
+least recently used dropped, each a run of small outputs
+(:data:`RECORD_BYTES`); at its first repeat the call's
+:class:`~varint.rerun.Rerun` is made, and a call without a short path
+(:class:`varint.rerun.ShortCall`) is marked as such and run from scratch.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import _validate as check
+
+if TYPE_CHECKING:
+    from .rerun import Rerun
+    from .run import Run
+
+__all__ = ["CAPACITY", "call_key", "model_token", "recall", "remember", "forget"]
+
+#: How many calls a process keeps (each holds its first run, one thread's
+#: buffers of at most 1 MiB per thread that called it, and its model).
+CAPACITY = 8
+
+#: Most bytes of outputs of a run that is remembered (about what its
+#: records hold; :meth:`varint.rerun.ShortCall.over` bounds them again).
+RECORD_BYTES = 1 << 22
+
+#: Largest array (elements) of a model's attributes a key copies: a model
+#: holding a larger one is not remembered (its copy would cost more than
+#: the set-up it saves).
+_ARRAY_MAX = 4096
+
+#: key -> [the first run, its run's seconds, its Rerun once made, held].
+_calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
+_lock = threading.Lock()
+
+#: The plain values a key holds by type and value (a bool is not an int
+#: there: ``seed=True`` is refused where ``seed=1`` is not).
+_PLAIN = frozenset((int, float, str, bool, type(None), np.float64, np.int64, np.bool_))
+
+
+class _Unkeyed(Exception):
+    """An argument a key cannot hold: the call is not remembered."""
+
+
+def _frozen(value: Any, held: list, depth: int = 0) -> Any:
+    """``value`` as part of a key: plain values by type and value, tuples,
+    lists and dicts by their items, arrays by dtype, shape and bytes,
+    functions and other objects by identity (kept in ``held``), objects
+    with attributes (not callables) by their attributes too."""
+    kind = type(value)
+    if kind in _PLAIN:
+        return kind, value
+    if depth > 4:
+        raise _Unkeyed
+    if kind is tuple or kind is list:
+        return kind, tuple([_frozen(v, held, depth + 1) for v in value])
+    if kind is dict:
+        # (Plain values inline: a model's attributes are mostly these.)
+        return kind, tuple([(k, (type(v), v) if type(v) in _PLAIN else
+                             _frozen(v, held, depth + 1)) for k, v in value.items()])
+    if kind is np.ndarray:
+        if value.size > _ARRAY_MAX or value.dtype.hasobject:
+            raise _Unkeyed
+        held.append(value)
+        return kind, id(value), value.dtype.str, value.shape, value.tobytes()
+    held.append(value)
+    attributes = getattr(value, "__dict__", None)
+    if attributes is None or callable(value):
+        # Code (functions, compiled kernels) and values without attributes
+        # (frozen scheme and indicator records of slots, SymPy expressions).
+        return kind, id(value)
+    return kind, id(value), _frozen(attributes, held, depth + 1)
+
+
+def model_token(model: Any, held: list) -> Any:
+    """The state of ``model`` as part of a key: its identity and every
+    attribute's value (:func:`_frozen`)."""
+    return _frozen(model, held)
+
+
+def call_key(model: Any, x0: Any, indicator: Any, t_end: Any, tau: Any,
+             options: dict) -> tuple[tuple, list] | None:
+    """(key, held objects) of a call of :func:`varint.run`, or None for a
+    call not remembered: τ chosen by a pilot (the pilot runs per orbit), a
+    checkpoint, a drawn seed, or an argument a key cannot hold."""
+    if tau is None or "checkpoint" in options or options.get("seed", 0) is None:
+        return None
+    deviations = options.get("deviations")
+    held: list = []
+    try:
+        key = (model_token(model, held), _frozen(indicator, held), _frozen(t_end, held),
+               _frozen(tau, held),
+               tuple((name, _frozen(value, held)) for name, value in sorted(options.items())
+                     if name != "deviations"),
+               # The shapes only: the number of orbits picks the short path,
+               # the vectors' presence and number how they are made.
+               getattr(x0, "shape", None),
+               None if deviations is None else np.shape(deviations))
+        hash(key)
+    except (_Unkeyed, TypeError):     # (TypeError: an unhashable dict key)
+        return None
+    return key, held
+
+
+def recall(key: tuple) -> Rerun | None:
+    """The remembered call of ``key`` (its :class:`~varint.rerun.Rerun`,
+    made at its first repeat), or None; a call without a short path is
+    forgotten there."""
+    with _lock:
+        entry = _calls.get(key)
+        if entry is None:
+            return None
+        _calls.move_to_end(key)
+        first, seconds, again, _ = entry
+        if again is None:
+            # Imported at a process's first repeated call, not by its first
+            # run (the short path's compiled energy errors load ~0.1 s of
+            # kernels from the cache; issue 28's start-up).
+            from .rerun import Rerun
+
+            again = Rerun(first, seconds, check.KernelCheck(first.model))
+            # Without a short path: kept as such (no run held), so that
+            # its calls are neither made again nor remembered again.
+            entry[:3] = [None, seconds, again if again.short is not None else False]
+    return entry[2] or None
+
+
+def remember(key: tuple, held: list, first: Run, run_seconds: float) -> None:
+    """Keep the executed run ``first`` (``run_seconds`` the time of its run)
+    for the calls of ``key`` (holding ``held``, the objects it names by
+    identity), if it is small: its records held no more than
+    :data:`RECORD_BYTES`."""
+    m, dim = first.x0.shape
+    if 8 * len(first.steps) * m * (dim + 1) * (first.W0.shape[2] + 1) > RECORD_BYTES:
+        return
+    with _lock:
+        if key in _calls:
+            return      # (a call without a short path, kept as such)
+        _calls[key] = [first, run_seconds, None, held]
+        _calls.move_to_end(key)
+        while len(_calls) > CAPACITY:
+            _calls.popitem(last=False)
+
+
+def forget() -> None:
+    """Drop every remembered call (tests that patch what a run calls)."""
+    with _lock:
+        _calls.clear()
