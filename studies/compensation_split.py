@@ -66,6 +66,7 @@ def main(argv=None):
                       f"{r['roundoff_state']:.2e}  tangent {r['roundoff_tangent']:.2e}",
                       flush=True)
     print(save_csv(args.out, "compensation_split", rows, COLUMNS))
+    return {"rows": rows}
 
 
 if __name__ == "__main__":
