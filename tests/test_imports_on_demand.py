@@ -175,3 +175,49 @@ def test_a_first_run_loads_no_derivative_kernel_for_its_input_check():
     assert "the derivatives of V (HenonHeiles) are not finite at the initial state, " \
            "q = [1e+200, " in error and "the gradient ∇V is [" in error
     assert after == [True, True, True]      # named by the compiled kernels
+
+
+def test_a_first_run_with_a_cache_dir_set_reads_no_package_metadata(monkeypatch):
+    """With ``$VARINT_CACHE_DIR`` set, a first R1 run neither imports
+    ``platformdirs`` (it only names the default directory) nor asks
+    :func:`importlib.metadata.version` (SymPy's version is read from its
+    ``release.py``: a metadata look-up scans every installed distribution)."""
+    from varint import cachedir
+
+    monkeypatch.setenv("VARINT_CACHE_DIR", str(cachedir.location()))
+    code = ("import sys, json, importlib.metadata as md; asked = []; "
+            "real = md.version; "
+            "md.version = lambda name: asked.append(name) or real(name); "
+            "import varint; "
+            "m, x = varint.paper_orbit('R1'); "
+            "varint.lyapunov_spectrum(m, x, t_end=1.0, tau=0.05, progress=False); "
+            "print(json.dumps(['platformdirs' in sys.modules, asked]))")
+    assert fresh(code) == [False, []]
+
+
+def test_the_generator_identity_follows_sympys_version_and_the_sources(tmp_path, monkeypatch):
+    """A changed SymPy release or a changed generator source changes the
+    generator identity (numba's cache does not follow dependencies)."""
+    from varint.codegen import stepper
+
+    release = tmp_path / "release.py"
+    release.write_bytes(stepper._sympy_release().read_bytes())
+    source = tmp_path / "layer.py"
+    source.write_text("X = 1\n")
+    monkeypatch.setattr(stepper, "_sympy_release", lambda: release)
+    monkeypatch.setattr(stepper, "generator_sources", lambda: [source])
+
+    def identity():
+        stepper._generator_id.cache_clear()
+        return stepper._generator_id()
+
+    try:
+        base = identity()
+        assert identity() == base
+        release.write_text(release.read_text() + "__version__ = '0.0.0-other'\n")
+        bumped = identity()
+        assert bumped != base
+        source.write_text("X = 2\n")
+        assert identity() not in (base, bumped)
+    finally:
+        stepper._generator_id.cache_clear()

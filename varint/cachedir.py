@@ -51,8 +51,6 @@ import threading
 import warnings
 from pathlib import Path
 
-import platformdirs
-
 __all__ = ["location", "private_dir", "subdir", "secret", "sign", "verify",
            "CacheDirWarning", "SECRET_FILE", "warn_once"]
 
@@ -92,6 +90,9 @@ def location() -> Path:
     path = os.environ.get("VARINT_CACHE_DIR")
     if path:
         return Path(path).expanduser()
+    # Imported here: a process with $VARINT_CACHE_DIR set needs none of it.
+    import platformdirs
+
     # appauthor=False: no vendor folder above "varint" on Windows.
     return Path(platformdirs.user_cache_dir("varint", appauthor=False))
 
