@@ -1,0 +1,171 @@
+"""Where one cold kernel compile goes (issue 26: why one compile costs 4-8 s).
+
+For each case, ``--repeats`` new interpreters with empty varint and numba
+cache directories run one representative first call, with numba's event
+API (:mod:`numba.core.event`) listening to every kind it emits
+(``numba:compile``, ``numba:run_pass``, ``numba:compiler_lock``,
+``numba:llvm_lock``). Times are *exclusive*: a nested event (a helper
+compiled while typing its caller, a pass inside a compile) is subtracted
+from its parent, so the kinds and passes add up to the total. Per case the
+median over repeats is stored: the compile seconds, the process CPU
+seconds, the seconds per compiler pass (``numba:run_pass`` by pass name),
+the time under the LLVM lock (LLVM's optimisation and code generation) and
+the number of dispatcher compiles with the largest by exclusive seconds.
+
+Cases: ``stepper`` (the generated one-orbit stepper, SALI of Hénon–Heiles
+R1), ``lattice`` (the part stepper of a disordered Klein–Gordon lattice
+from :func:`varint.kernels.interval.batch_loop`, a Lyapunov spectrum) and
+``tdh`` (Hénon–Heiles with the TDH scheme ``tdhes``).
+
+``--profile`` instead runs each case once under :mod:`cProfile` and stores
+the functions with the largest own time (cProfile slows the compile; use it
+for shares, not seconds).
+
+Usage: ``python studies/compile_cost.py [--cases stepper lattice tdh]
+[--repeats N] [--profile] [--quick] [--out DIR]``
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+try:
+    from common import parse_args, save_json
+except ImportError:  # imported as studies.compile_cost
+    from .common import parse_args, save_json
+
+#: The first call of each case, in a new process with empty caches.
+CASES = {
+    "stepper": ("m = varint.models.HenonHeiles(); "
+                "r = varint.sali(m, np.array([0.0, 0.558, 0.23337397, 0.0]), t_end=10.0, "
+                "tau=0.05, progress=False); value = r.sali"),
+    "lattice": ("m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
+                "r = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
+                "value = r.exponents"),
+    "tdh": ("m = varint.models.HenonHeiles(); "
+            "r = varint.integrate(m, np.array([0.0, 0.558, 0.23337397, 0.0]), 5.0, tau=0.1, "
+            "method='tdhes', deviations=np.eye(4)); value = r.deviations"),
+}
+
+#: The child: an exclusive-time listener on every numba event, then the case.
+CHILD = r"""
+import cProfile, json, pstats, sys, time
+import numpy as np
+from numba.core import event
+import varint
+from varint import compiling
+
+stack, kinds, passes, compiles = [], {}, {}, {}
+
+class Listener(event.Listener):
+    def on_start(self, e):
+        stack.append([e.kind, e.data, time.perf_counter(), 0.0])
+
+    def on_end(self, e):
+        kind, data, start, inner = stack.pop()
+        elapsed = time.perf_counter() - start
+        own = elapsed - inner
+        if stack:
+            stack[-1][3] += elapsed
+        kinds[kind] = kinds.get(kind, 0.0) + own
+        if kind == "numba:run_pass":
+            passes[data["name"]] = passes.get(data["name"], 0.0) + own
+        elif kind == "numba:compile":
+            name = getattr(data["dispatcher"], "__qualname__", None) or str(data["dispatcher"])
+            compiles[name] = compiles.get(name, 0.0) + own
+
+for kind in ("numba:compile", "numba:run_pass", "numba:compiler_lock", "numba:llvm_lock"):
+    event.register(kind, Listener())
+
+profiler = cProfile.Profile() if PROFILE else None
+if profiler:
+    profiler.enable()
+exec(CASE)
+if profiler:
+    profiler.disable()
+    stats = pstats.Stats(profiler).sort_stats("tottime")
+    own = sorted(stats.stats.items(), key=lambda kv: -kv[1][2])[:40]
+    top = [[f"{f}:{n}:{fn}", round(st[2], 3), round(st[3], 3), st[1]] for (f, n, fn), st in own]
+else:
+    top = []
+print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_time(),
+                  "kinds": kinds, "passes": passes, "compiles": compiles, "top": top,
+                  "value": np.ascontiguousarray(value).tobytes().hex()}))
+"""
+
+
+def child(case, profile):
+    """One new interpreter with empty caches: its measurements as a dict."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, VARINT_CACHE_DIR=os.path.join(cache, "varint"),
+                   NUMBA_CACHE_DIR=os.path.join(cache, "numba"))
+        code = f"CASE = {CASES[case]!r}\nPROFILE = {profile!r}\n" + CHILD
+        done = subprocess.run([sys.executable, "-c", code], env=env,
+                              capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"case {case!r} failed:\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def median_of(runs, key):
+    """Per name, the median over runs of ``run[key][name]`` (0 when absent)."""
+    names = {name for run in runs for name in run[key]}
+    return {name: statistics.median(run[key].get(name, 0.0) for run in runs) for name in names}
+
+
+def largest(table, n):
+    """The ``n`` largest entries of a name -> seconds table, rounded."""
+    return {k: round(v, 3) for k, v in sorted(table.items(), key=lambda kv: -kv[1])[:n]}
+
+
+def summarise(runs):
+    """The medians of one case's repeats."""
+    first = runs[0]
+    return {
+        "median compile s": round(statistics.median(r["compile"] for r in runs), 3),
+        "median process CPU s": round(statistics.median(r["cpu"] for r in runs), 3),
+        "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 10),
+        "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 12),
+        "dispatcher compiles": len(first["compiles"]),
+        "dispatchers, exclusive median s (largest)": largest(median_of(runs, "compiles"), 12),
+        "same bits in every repeat": len({r["value"] for r in runs}) == 1,
+    }
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+        parser.add_argument("--repeats", type=int, default=3)
+        parser.add_argument("--profile", action="store_true",
+                            help="one cProfile run per case instead of timed repeats")
+
+    args = parse_args(__doc__, argv, extra=extra)
+    load = os.getloadavg()
+    rows, raw = {}, {}
+    if args.profile:
+        for case in args.cases:
+            run = child(case, True)
+            rows[case] = {"compile s (under cProfile)": round(run["compile"], 3),
+                          "largest own time (file:line:function, own s, cumulative s, calls)":
+                              run["top"]}
+    else:
+        # Repeats interleave the cases, so a change of load hits all alike.
+        for _ in range(args.repeats):
+            for case in args.cases:
+                raw.setdefault(case, []).append(child(case, False))
+        rows = {case: summarise(runs) for case, runs in raw.items()}
+    for case, row in rows.items():
+        print(case, json.dumps(row, indent=1))
+    name = "compile_cost_profile" if args.profile else "compile_cost"
+    save_json(args.out, name, {"summary": rows, "repeats": args.repeats, "loadavg at start": load,
+                               "finished": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())})
+
+
+if __name__ == "__main__":
+    main()
