@@ -296,14 +296,9 @@ def indicator_names() -> list:
 
 
 def get_indicator(name: str | Indicator) -> Indicator:
-    """The registered :class:`Indicator` called ``name`` (case-insensitive),
-    or ``name`` itself if it is an Indicator.
-
-    Raises
-    ------
-    ValueError
-        For an unknown name; the message lists the valid ones.
-    """
+    """The indicator of :func:`resolve` among those registered so far
+    (:func:`varint.indicators.get_indicator` loads a built-in's module
+    first); a ValueError lists the valid names."""
     return resolve(name)[0]
 
 

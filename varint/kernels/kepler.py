@@ -61,7 +61,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["stumpff", "gauss", "solve_universal", "solve_fast", "prepare", "finish",
+__all__ = ["stumpff", "gauss", "solve_universal", "solve_fast", "prepare", "fg_tangent",
+           "beta_derivatives", "finish",
            "kepler_step", "KEPLER_OK", "KEPLER_UNCONVERGED", "KEPLER_DEGENERATE",
            "MAX_ITERATIONS", "RESIDUAL"]
 
@@ -370,6 +371,42 @@ def prepare(x, iq, ip, mu, inv_m):
 
 
 @njit(inline="always")
+def beta_derivatives(X, eta0, zeta0, G2, G3, G4, G5):
+    """(∂G₁/∂β, ∂G₂/∂β, ∂G₃/∂β, η₀ ∂G₂/∂β + ζ₀ ∂G₃/∂β) at fixed X, from
+    ∂G_k/∂β = (kG_{k+2} − XG_{k+1})/2 (Mikkola & Innanen 1999; module
+    docstring): the β-terms of δX, the same for every deviation vector."""
+    G1b = 0.5 * (G3 - X * G2)
+    G2b = 0.5 * (2.0 * G4 - X * G3)
+    G3b = 0.5 * (3.0 * G5 - X * G4)
+    return G1b, G2b, G3b, eta0 * G2b + zeta0 * G3b
+
+
+@njit(inline="always")
+def fg_tangent(dx, dy, dz, dvx, dvy, dvz, rx, ry, rz, vx, vy, vz, r0, beta, eta0, zeta0,
+               X, G0, G1, G2, G3, G1b, G2b, G3b, tb, mu, inv_r0, inv_r):
+    """(δf, δg, δḟ, δġ) along one deviation (δr₀, δv₀): δβ, δη₀, δζ₀,
+    then δX from Kepler's equation differentiated at fixed h, then the
+    chain rule (Mikkola & Innanen 1999; module docstring). ``tb`` and the
+    ``G·b`` are :func:`beta_derivatives`. Scalar and inlined, so that
+    :func:`finish` and the lanes of :mod:`varint.kernels.planetary_lanes`
+    share it and the lanes still vectorise."""
+    dr0 = (dx * rx + dy * ry + dz * rz) * inv_r0
+    dbeta = -2.0 * mu * dr0 * inv_r0 * inv_r0 - 2.0 * (dvx * vx + dvy * vy + dvz * vz)
+    deta0 = dx * vx + dy * vy + dz * vz + rx * dvx + ry * dvy + rz * dvz
+    dzeta0 = -beta * dr0 - r0 * dbeta
+    dX = -(X * dr0 + G2 * deta0 + G3 * dzeta0 + tb * dbeta) * inv_r
+    dG1 = G0 * dX + G1b * dbeta
+    dG2 = G1 * dX + G2b * dbeta
+    dG3 = G2 * dX + G3b * dbeta
+    dr = dr0 + G1 * deta0 + G2 * dzeta0 + eta0 * dG1 + zeta0 * dG2
+    df = mu * (G2 * dr0 * inv_r0 - dG2) * inv_r0
+    dg = -mu * dG3
+    dfd = mu * (G1 * (dr0 * inv_r0 + dr * inv_r) - dG1) * inv_r0 * inv_r
+    dgd = mu * (G2 * dr * inv_r - dG2) * inv_r
+    return df, dg, dfd, dgd
+
+
+@njit(inline="always")
 def finish(x, V, k, iq, ip, mu, mass, inv_m, h, rx, ry, rz, vx, vy, vz, r0, beta, eta0, zeta0,
            X, G0, G1, G2, G3, G4, G5):
     """Move the body (and the k rows of V) along the solved step: the f
@@ -396,27 +433,13 @@ def finish(x, V, k, iq, ip, mu, mass, inv_m, h, rx, ry, rz, vx, vy, vz, r0, beta
     x[ip + 2] = pz + (fm * rz + gd * pz)
     if k == 0:
         return KEPLER_OK
-    # ∂G_k/∂β = (k G_{k+2} − X G_{k+1})/2.
-    G1b = 0.5 * (G3 - X * G2)
-    G2b = 0.5 * (2.0 * G4 - X * G3)
-    G3b = 0.5 * (3.0 * G5 - X * G4)
-    tb = eta0 * G2b + zeta0 * G3b
+    G1b, G2b, G3b, tb = beta_derivatives(X, eta0, zeta0, G2, G3, G4, G5)
     for c in range(k):
         dx, dy, dz = V[c, iq], V[c, iq + 1], V[c, iq + 2]
         dvx, dvy, dvz = V[c, ip] * inv_m, V[c, ip + 1] * inv_m, V[c, ip + 2] * inv_m
-        dr0 = (dx * rx + dy * ry + dz * rz) * inv_r0
-        dbeta = -2.0 * mu * dr0 * inv_r0 * inv_r0 - 2.0 * (dvx * vx + dvy * vy + dvz * vz)
-        deta0 = dx * vx + dy * vy + dz * vz + rx * dvx + ry * dvy + rz * dvz
-        dzeta0 = -beta * dr0 - r0 * dbeta
-        dX = -(X * dr0 + G2 * deta0 + G3 * dzeta0 + tb * dbeta) * inv_r
-        dG1 = G0 * dX + G1b * dbeta
-        dG2 = G1 * dX + G2b * dbeta
-        dG3 = G2 * dX + G3b * dbeta
-        dr = dr0 + G1 * deta0 + G2 * dzeta0 + eta0 * dG1 + zeta0 * dG2
-        df = mu * (G2 * dr0 * inv_r0 - dG2) * inv_r0
-        dg = -mu * dG3
-        dfd = mu * (G1 * (dr0 * inv_r0 + dr * inv_r) - dG1) * inv_r0 * inv_r
-        dgd = mu * (G2 * dr * inv_r - dG2) * inv_r
+        df, dg, dfd, dgd = fg_tangent(dx, dy, dz, dvx, dvy, dvz, rx, ry, rz, vx, vy, vz, r0, beta,
+                                      eta0, zeta0, X, G0, G1, G2, G3, G1b, G2b, G3b, tb, mu,
+                                      inv_r0, inv_r)
         V[c, iq] = dx + (f * dx + g * dvx + df * rx + dg * vx)
         V[c, iq + 1] = dy + (f * dy + g * dvy + df * ry + dg * vy)
         V[c, iq + 2] = dz + (f * dz + g * dvz + df * rz + dg * vz)

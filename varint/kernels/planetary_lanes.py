@@ -182,26 +182,13 @@ def _planet_drift(i, n, k, width):
                 inv_r0, inv_r, f, g, fd, gd = _fg(r0, eta0, zeta0, G1, G2, G3, mu, h)
                 fm = fd * mass
                 px, py, pz = X[p + lane], X[p + W + lane], X[p + 2 * W + lane]
-                G1b = 0.5 * (G3 - Xu * G2)
-                G2b = 0.5 * (2.0 * G4 - Xu * G3)
-                G3b = 0.5 * (3.0 * G5 - Xu * G4)
-                tb = eta0 * G2b + zeta0 * G3b
+                G1b, G2b, G3b, tb = kep.beta_derivatives(Xu, eta0, zeta0, G2, G3, G4, G5)
                 dx, dy, dz = V[vq + lane], V[vq + W + lane], V[vq + 2 * W + lane]
                 wx, wy, wz = V[vp + lane], V[vp + W + lane], V[vp + 2 * W + lane]
                 dvx, dvy, dvz = wx * inv_m, wy * inv_m, wz * inv_m
-                dr0 = (dx * rx + dy * ry + dz * rz) * inv_r0
-                dbeta = -2.0 * mu * dr0 * inv_r0 * inv_r0 - 2.0 * (dvx * vx + dvy * vy + dvz * vz)
-                deta0 = dx * vx + dy * vy + dz * vz + rx * dvx + ry * dvy + rz * dvz
-                dzeta0 = -beta * dr0 - r0 * dbeta
-                dX = -(Xu * dr0 + G2 * deta0 + G3 * dzeta0 + tb * dbeta) * inv_r
-                dG1 = G0 * dX + G1b * dbeta
-                dG2 = G1 * dX + G2b * dbeta
-                dG3 = G2 * dX + G3b * dbeta
-                dr = dr0 + G1 * deta0 + G2 * dzeta0 + eta0 * dG1 + zeta0 * dG2
-                df = mu * (G2 * dr0 * inv_r0 - dG2) * inv_r0
-                dg = -mu * dG3
-                dfd = mu * (G1 * (dr0 * inv_r0 + dr * inv_r) - dG1) * inv_r0 * inv_r
-                dgd = mu * (G2 * dr * inv_r - dG2) * inv_r
+                df, dg, dfd, dgd = kep.fg_tangent(dx, dy, dz, dvx, dvy, dvz, rx, ry, rz, vx, vy,
+                                                  vz, r0, beta, eta0, zeta0, Xu, G0, G1, G2, G3,
+                                                  G1b, G2b, G3b, tb, mu, inv_r0, inv_r)
                 dfm = dfd * mass
                 V[vq + lane] = dx if keep else dx + (f * dx + g * dvx + df * rx + dg * vx)
                 V[vq + W + lane] = dy if keep else dy + (f * dy + g * dvy + df * ry + dg * vy)

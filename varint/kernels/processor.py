@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from .banded import band_kick_block
+from .drift import drift
 
 __all__ = ["processor_map"]
 
@@ -45,11 +46,7 @@ def processor_map(x, W, rows, kinds, h, minv, par, bw, grad, hess):
         for st in range(kinds.shape[0]):
             hs = h[st]
             if kinds[st] == 0:
-                for i in range(n):
-                    a = hs * minv[i]
-                    xo[i] += a * xo[n + i]
-                    for j in range(k):
-                        Wo[i, j] += a * Wo[n + i, j]
+                drift(xo, Wo, minv, hs, n, k)
                 continue
             for i in range(n):
                 q[i] = xo[i]

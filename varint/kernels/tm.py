@@ -54,6 +54,7 @@ from numba import njit
 from ..protocol import Status
 from .banded import band_kick_block, band_matvec, band_square_add
 from .checks import all_finite, derivative_status, orbit_status
+from .drift import drift
 from .interval import StepBody, batch_loop, no_accumulator, orbit_loop, orbit_record
 
 __all__ = ["tm_body", "tm_batch", "orbit_kernel", "batch_kernel", "specialised_sizes",
@@ -144,11 +145,7 @@ def tm_body(N_C, K_C, BW_C, kernels, TIME=False):
             hs = h[st]
             if kinds[st] == 0:
                 # Drift e^{h L_AV}.
-                for i in range(n):
-                    a = hs * minv[i]
-                    x[i] += a * x[n + i]
-                    for j in range(k):
-                        W[i, j] += a * W[n + i, j]
+                drift(x, W, minv, hs, n, k)
                 have_g = have_h = have_c = have_hc = False
                 continue
             # Kick e^{h L_BV}, fused with a corrector e^{hc L_CV} at the same q.

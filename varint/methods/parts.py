@@ -173,28 +173,18 @@ def _tables(model, scheme, tau):
 
 
 def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
-    """Low-level: ``n_steps`` steps of the numerical map S and its tangent
-    map TS through the model's part flows, without renormalisation; τ may
-    be negative (S(−τ) inverts S(τ) for the symmetric schemes).
+    """Low-level: :func:`varint.methods.tm.tangent_map_steps` through the
+    model's part flows — ``n_steps`` steps of the numerical map S and its
+    tangent map TS, without renormalisation; τ may be negative.
 
     Parameters
     ----------
     model : LatticeModel
-    x : array_like, shape (2N,)
-    W : array_like, shape (2N, k), optional
-    tau : float
-    n_steps : int
+    x, W, tau, n_steps
+        As :func:`~varint.methods.tm.tangent_map_steps`, which also gives
+        the returned ``(x, W)`` and the FloatingPointError of a failed map.
     scheme : str, SplittingScheme or CompositionScheme, optional
-
-    Returns
-    -------
-    x : ndarray, shape (2N,)
-    W : ndarray, shape (2N, k)
-
-    Raises
-    ------
-    FloatingPointError
-        If the map fails (the message gives the step and the reason).
+        The model's default scheme when None.
     """
     x, W = steps_arguments(model, x, W, tau)
     W = np.ascontiguousarray(W[None])
