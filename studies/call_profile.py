@@ -144,7 +144,8 @@ PREPARED_STAGES = (
 
 #: The stages of a prepared run's short call (:class:`varint.prepared._ShortCall`),
 #: as :data:`STAGES`; each code has some of them (those only older code
-#: passes: :data:`SHORT_STAGES_BEFORE_ROUND6`, :data:`SHORT_STAGES_BEFORE_ROUND8`).
+#: passes: :data:`SHORT_STAGES_BEFORE_ROUND6`, :data:`SHORT_STAGES_BEFORE_ROUND8`,
+#: :data:`SHORT_STAGES_BEFORE_ROUND9`).
 SHORT_STAGES = (
     (0, "prepared run (whole call)", "varint.prepared:PreparedRun", "__call__"),
     (1, "check x0, a new specification", "varint.runspec:RunSpec", "with_states"),
@@ -176,6 +177,11 @@ SHORT_STAGES_BEFORE_ROUND6 = frozenset({
     "stepper from fresh arrays", "reference and energy errors", "accuracy verdict",
     "provenance", "accuracy warning",
 })
+
+#: The labels of :data:`SHORT_STAGES` that only the code of rounds 8 and
+#: before passes (round 9's prepared run and remembered one-shot calls share
+#: one short path, :class:`varint.rerun.ShortCall`).
+SHORT_STAGES_BEFORE_ROUND9 = frozenset({"short call"})
 
 #: The labels of :data:`SHORT_STAGES` that only the code of rounds 7 and
 #: before passes (round 8's short call checks the states without making a
