@@ -31,8 +31,7 @@ import numpy as np
 from . import _validate as check
 
 if TYPE_CHECKING:
-    from .rerun import Rerun
-    from .run import Run
+    from .rerun import FirstRun, Rerun
 
 __all__ = ["CAPACITY", "call_key", "model_token", "recall", "remember", "forget"]
 
@@ -145,7 +144,7 @@ def recall(key: tuple) -> Rerun | None:
     return entry[2] or None
 
 
-def remember(key: tuple, held: list, first: Run, run_seconds: float) -> None:
+def remember(key: tuple, held: list, first: FirstRun, run_seconds: float) -> None:
     """Keep the executed run ``first`` (``run_seconds`` the time of its run)
     for the calls of ``key`` (holding ``held``, the objects it names by
     identity), if it is small: its records held no more than

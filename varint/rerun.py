@@ -15,7 +15,7 @@ from __future__ import annotations
 import pickle
 import threading
 import time
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -30,8 +30,11 @@ from .protocol import COUNTERS
 from .results import Provenance, _Result
 from .state import renormalized_copy
 
-if TYPE_CHECKING:
-    from .run import Run
+# The first run is a :class:`varint.run.Run`, annotated ``Any``: naming it
+# here, even for the type checker only, would tie this module and the run
+# module (which imports :mod:`varint.remembered`, which imports this one)
+# into a circle.
+FirstRun = Any
 
 __all__ = ["Rerun", "ShortCall"]
 
@@ -70,7 +73,7 @@ class ShortCall:
     than the fraction of a chunk it would save.
     """
 
-    def __init__(self, first: Run) -> None:
+    def __init__(self, first: FirstRun) -> None:
         self.first = first
         self.prop = prop = first.propagator
         m, _, k = first.W0.shape
@@ -120,7 +123,7 @@ class ShortCall:
                                   protocol=pickle.HIGHEST_PROTOCOL)
 
     @classmethod
-    def over(cls, first: Run, run_seconds: float) -> ShortCall | None:
+    def over(cls, first: FirstRun, run_seconds: float) -> ShortCall | None:
         """The short path over a first run (executed, ``run_seconds`` the
         time of its run), or None where it cannot take its calls."""
         prop, spec = first.propagator, first.spec
@@ -320,7 +323,7 @@ class Rerun:
         The check of the model's kernels at each call's states.
     """
 
-    def __init__(self, first: Run, run_seconds: float, kernel_check: check.KernelCheck
+    def __init__(self, first: FirstRun, run_seconds: float, kernel_check: check.KernelCheck
                  ) -> None:
         self.first = first
         self.kernel_check = kernel_check
