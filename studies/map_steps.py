@@ -641,7 +641,7 @@ def _sequential(call):
 
     from varint.step_agreement import ConstantLadder
 
-    with mock.patch.object(ConstantLadder, "cheaper_than", lambda self, rate, scale=1.0: False):
+    with mock.patch.object(ConstantLadder, "cheaper_than", lambda self, rate, scale=1.0, margin=1.0: False):
         return call()
 
 

@@ -647,9 +647,7 @@ def _cheaper_steps(spec, k, clock):
             # has nothing left to run but the map; the LH rung still has its
             # h/2 run to make, so it stops the LH's descent once its map is
             # cheaper than the LH's map and that run together.
-            scale = log_cost / constant_cost
-            ladder.advance(rate * scale)
-            return ladder.rate is not None and ladder.rate < rate * scale * (1.0 + share)
+            return ladder.cheaper_than(rate, log_cost / constant_cost, 1.0 + share)
 
         # The LH map retries each orbit to energy_tol itself (_log_map):
         # its pilot's ceiling is looser, its price counts the retries; its

@@ -271,15 +271,17 @@ class ConstantLadder:
         chosen so far (None while none passed)."""
         return None if self._chosen is None else float(self._runs[self._chosen[0]][2])
 
-    def cheaper_than(self, rate, scale=1.0):
+    def cheaper_than(self, rate, scale=1.0, margin=1.0):
         """Whether a step passed whose price is below a competitor's
         ``rate`` (force evaluations per orbit and unit of time) times
         ``scale`` (the price of the competitor's force evaluation in units of
-        this stepper's), once every rung priced below it has been judged:
-        the ``stop_above`` of the competitor's descent."""
+        this stepper's) times ``margin`` (what the competitor's rung still
+        has to run besides its map, e.g. its pilot run), once every rung
+        priced below ``rate * scale`` has been judged: the ``stop_above`` of
+        the competitor's descent."""
         limit = rate * scale
         self.advance(limit)
-        return self.rate is not None and self.rate < limit
+        return self.rate is not None and self.rate < limit * margin
 
     def result(self):
         """``(tau, choice)`` as :func:`agreeing_tau` returns them, of the
