@@ -1175,17 +1175,20 @@ def _prepared_cost(R):
 @quote("remembered_cost")
 def _remembered_cost(R):
     """A one-step R1 call repeating a remembered call's arguments, against
-    the same call on stop 47's tree, which builds it anew, and the prepared
-    call (studies/call_overhead.py: minimum CPU time over interleaved
-    rounds, results bitwise equal)."""
+    the same call on the baseline tree (``call_overhead.py --baseline``, a
+    tree without remembered calls, which builds it anew) and the prepared
+    call (minimum CPU time over interleaved rounds; whether every case's
+    results were bitwise equal, as stored)."""
     d = R.json("call_overhead")
     s = d["summary"]
     lo, hi = d["_provenance"]["machine"]["load"], d["_provenance"]["load_end"]
+    same = all(s[case]["bitwise_equal"] for case in ("fixed", "frontier", "prepared"))
     return (f"{s['fixed']['this_cpu_us']:.0f} µs of CPU against "
             f"{s['fixed']['baseline_cpu_us']:.0f} µs built anew "
             f"({s['fixed']['ratio_cpu']:.1f}×; the prepared call "
             f"{s['prepared']['this_cpu_us']:.0f} µs; minimum of {d['rounds']} rounds of "
-            f"{d['calls']} calls, bitwise equal, load {lo:.1f} → {hi:.1f})")
+            f"{d['calls']} calls, {'bitwise equal' if same else 'NOT bitwise equal'}, "
+            f"load {lo:.1f} → {hi:.1f})")
 
 
 @quote("lh_defaults")
