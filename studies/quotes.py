@@ -274,8 +274,10 @@ def _frontier_rows(R):
                 f"{sci(r['target'])}, 1 thread (CPU time)")
         if r["cpu_prepared_seconds"] is None:
             continue
-        scheme = r["cpu_prepared_scheme"].removesuffix(" prepared")
-        scheme = scheme.replace("+co", ', compensated="orbit"').replace("+c", ", compensated")
+        scheme, _, level = r["cpu_prepared_scheme"].removesuffix(" prepared").partition("+")
+        # The suffixes of studies/frontier.py's labels, as the keyword a user passes.
+        scheme += {"": "", "c": ", compensated", "co": ', compensated="orbit"',
+                   "cs": ', compensated="step"'}[level]
         mine = f"{1e3 * r['cpu_prepared_seconds']:.2f} ms ({scheme}, prepared)"
         if r["cpu_heyoka_seconds"] is None:
             rows.append((what, mine, f"heyoka cannot reach it (its floor "
