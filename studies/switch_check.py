@@ -114,9 +114,9 @@ CLASSES = step_cost.CLASSES
 #: lanes of the cored potentials and of the halo vectorise; tables fitted
 #: again): the second's were 4.63, 7.17 and 2.55 (the halo's lanes scalar).
 PREDICTED: dict[str, float] = {
-    "two centres": 4.87,            # LH 102 ns, lanes 21 ns (vectorised)
-    "rotating point mass": 7.13,    # LH 115 ns, lanes 16.1 ns (vectorised)
-    "halo and mass": 5.19,          # LH 96.5 ns, lanes 18.6 ns (vectorised)
+    "two centres": 5.12,            # LH 68.9 ns, lanes 13.5 ns (vectorised)
+    "rotating point mass": 8.81,    # LH 91.6 ns, lanes 10.4 ns (vectorised)
+    "halo and mass": 5.90,          # LH 70.2 ns, lanes 11.9 ns (vectorised)
 }
 #: How far a held-out measured ratio may lie from its prediction.
 TOLERANCE = 1.5

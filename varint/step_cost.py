@@ -123,11 +123,11 @@ def _by_kind(per_class):
 #: pendulums' sines and cosines, it prices their checks alone: leave one
 #: out 0.38 and 2.3).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 2.0, "call": 4.1, "check": 1.4})
+    {"arithmetic": 0.0, "division": 0.57, "call": 4.1, "check": 1.3})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.82, "call": 0.0, "check": 1.1})
+    {"arithmetic": 0.0080, "division": 0.49, "call": 0.0, "check": 0.68})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 4.7})
+    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 4.0})
 
 
 def vectorises(counts):
