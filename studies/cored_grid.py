@@ -20,7 +20,8 @@ judge", the rule of the three-body race):
   of the race, R_c = 0.03 ≤ 0.05, and the grid's orbits pass close to the
   centre: each row keeps the smallest pericentre distance over the grid's
   orbits to t_end and the median over orbits of each orbit's smallest one
-  (heyoka's events at ṙ = 0, :func:`closest_approach`).
+  (heyoka's events at ṙ = 0,
+  :func:`studies.map_steps.closest_approach`).
 
 Candidates (:data:`CANDIDATES`): the old grid (the section y = 0,
 p_y ≥ 0 at E = 0, (x, p_x) ∈ [−0.9, 0.9]²) to t = 200 and 1000, and
@@ -47,7 +48,7 @@ if __package__ in (None, ""):
 import varint
 from studies.bench_peers import HeyokaMap, antimode, seeded_vectors
 from studies.common import parse_args, save_csv, save_json
-from studies.map_steps import (BATCH, CORE_FLATTENING, CORE_RADIUS, INDICATOR, REF_EVERY, REF_TOL,
+from studies.map_steps import (BATCH, CORE_RADIUS, INDICATOR, REF_EVERY, REF_TOL, closest_approach,
                                cored_logarithmic, judging)
 
 #: (label, energy, x range, p_x range, grid points in x and p_x, t_end).
@@ -68,35 +69,6 @@ def grid_of(model, energy, xr, pr, n):
     (x, p_x)."""
     return varint.section_grid(model, energy, np.linspace(*xr, n[0]), np.linspace(*pr, n[1]),
                                plane=1)
-
-
-def closest_approach(X, t_end, tol=1e-12):
-    """Each orbit's smallest distance from the centre on [0, t_end]: the
-    minimum of r at the events ṙ = 0 from below (pericentres: x p_x + y p_y
-    = r ṙ crosses zero upwards; H = T + V, so q̇ = p) and at t = 0."""
-    import heyoka as hy
-
-    x, y, px, py = hy.make_vars("x", "y", "px", "py")
-    # V = ½ ln(R_c² + x² + y²/q²): the force is −(x, y/q²)/s.
-    q2 = CORE_FLATTENING**2
-    s = CORE_RADIUS**2 + x * x + y * y / q2
-    eqs = [(x, px), (y, py), (px, -x / s), (py, -y / (q2 * s))]
-    closest = np.hypot(X[:, 0], X[:, 1])
-    current = {"m": 0}
-
-    def pericentre(ta, t, d_sign):
-        ta.update_d_output(t)
-        r = float(np.hypot(ta.d_output[0], ta.d_output[1]))
-        closest[current["m"]] = min(closest[current["m"]], r)
-
-    ev = hy.nt_event(x * px + y * py, pericentre, direction=hy.event_direction.positive)
-    ta = hy.taylor_adaptive(eqs, [0.0] * 4, tol=tol, nt_events=[ev])
-    for m, state in enumerate(X):
-        current["m"] = m
-        ta.time = 0.0
-        ta.state[:] = state
-        ta.propagate_until(t_end)
-    return closest
 
 
 def explore(label, energy, xr, pr, n, t_end):
