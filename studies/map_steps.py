@@ -179,6 +179,33 @@ Fixed SRKN14a steps (``--part fixed``, one repeat, not stored): τ = 0.5
 agrees on 90.8 %, τ = 0.25 on 98.7 %: the defaults' step is the coarsest
 of the ladder at their agreement.
 
+The race on the cored judging grid (stop 49, ``--quick --part log --case
+core``, ``map_steps_quick_core_log.json``, 5 repeats, load 1.6–2.3, to be
+rerun quiet): the reference calls 45 % of the 120 orbits chaotic, none
+within ±1.5 of 2 ln 2000; the orbits' closest approaches to the centre
+have median 3.0e-4 and minimum 2.8e-6. heyoka batch 8 agrees on every
+orbit from tol 1e-4 (0.89 s). The defaults (constant SRKN14a, τ = 1/128,
+256 000 steps per orbit) agree on 100 %: 0.31×; constant steps at the
+verdict rule's τ (1/64) on 90.0 %: 0.64× (not equal agreement: heyoka's
+cheapest is at 100 %); the LH at its automatic h on 92.5 %: 0.32×;
+hand-tuned LH ABA864, δ = 0.25: h = 0.05 97.5 % 0.51×, h = 0.035 99.2 %
+0.35×, h = 0.025 100 % 0.26× (h = 0.1 and 0.07, the old grid's tuned
+contenders, agree on 50 % and 79 %: orbits crossing the core unresolved).
+The target (≥ 1× at equal agreement) is not met. Where the defaults'
+time goes (``--part profile``, ``map_steps_quick_core_profile.json``, load
+0.8–1.7): the run 97.7 % (the generated SIMD stepper, 93 ns per orbit
+step), the pilot 2.3 %. The defaults never price the LH here: the
+switch's test (``varint.maps._log_candidate``) measures U's spread over
+the pilot orbits' initial conditions, all near the centre on this grid
+(under ``U_SPREAD_MIN``), not along the orbits, which reach r ≈ 1; so the
+energy pilot (tol 1e-7, its 90 % quantile orbit) chooses τ = 1/128. By
+agreement (the largest τ = 2^−j from which every smaller step classifies
+the orbit as the reference does) 50 orbits need no step below τ = 1, 7
+one of 1/2 … 1/16, 25 1/32, 26 1/64, 12 1/128: a step per orbit chosen by
+agreement would take 3.7 times fewer steps than the map's one step
+(``best_gain``), ``tau='orbit'`` (energy errors) 1.3 times fewer, and its
+run cost 5.5 s against the defaults' 2.8 s.
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
