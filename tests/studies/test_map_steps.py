@@ -66,3 +66,34 @@ def test_the_three_body_race_grid_can_judge_and_the_old_one_cannot(grid_of, judg
     else:
         with pytest.raises(ValueError, match="cannot judge"):
             map_steps.reference("cr3bp", model, grid.states, t_end)
+
+
+def test_the_cored_race_grid_can_judge_and_the_old_one_cannot():
+    """The reference (heyoka, tol 1e-15) on a 6 × 5 grid over the cored
+    race's region, to its t_end: a mix (47 % chaotic when written) with no
+    orbit within ±1.5 of 2 ln t; on the quick grid of the race before stop
+    49 (the whole section to t = 200, 3.8 % chaotic) the race refuses to
+    judge (a few seconds each)."""
+    pytest.importorskip("heyoka")
+    model = map_steps.cored_logarithmic()
+    grid = map_steps.core_grid(model, (6, 5))
+    ref = map_steps.reference("core", model, grid.states, map_steps.CORE_T_END)
+    assert ref["threshold"] == 2 * np.log(map_steps.CORE_T_END)
+    assert 0.25 <= ref["judging"]["chaotic"] <= 0.75
+    assert ref["judging"]["in_band"] <= 0.05
+    model, old, t_end = map_steps.case("core", True)
+    with pytest.raises(ValueError, match=r"'core' cannot judge .* calls 3\.8% of its orbits"):
+        map_steps.reference("core", model, old.states, t_end)
+
+
+def test_a_radial_orbit_passes_through_the_centre_and_a_loop_orbit_does_not():
+    """On the x axis (y = p_y = 0) the orbit oscillates through the centre:
+    its closest approach is 0 to round-off. A loop orbit started at x = 0.5
+    with p_x = 0 and p_y = 1 (angular momentum L = 0.5) keeps r ≥ L / v_max,
+    v_max² = 2(E − ln R_c) (energy conservation bounds the speed)."""
+    pytest.importorskip("heyoka")
+    X = np.array([[0.5, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 1.0]])
+    closest = map_steps.closest_approach(X, 20.0)
+    energy = map_steps.cored_logarithmic().energy(X[1:])[0]
+    assert closest[0] < 1e-9
+    assert 0.5 / np.sqrt(2 * (energy - np.log(map_steps.CORE_RADIUS))) <= closest[1] <= 0.5
