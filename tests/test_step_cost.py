@@ -176,7 +176,7 @@ def test_held_out_ratios_are_predicted():
     from studies import switch_check
 
     stored = json.loads((Path(switch_check.__file__).parent / "results"
-                         / "switch_check_quick.json").read_text())
+                         / "switch_check.json").read_text())
     rows = stored["heldout"]["rows"]
     assert rows
     acc = varint.INDICATORS["fli"].accumulator_for({})

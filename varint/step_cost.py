@@ -110,10 +110,12 @@ def _by_kind(per_class):
 #: Nanoseconds per operation of each class (:data:`CLASSES`) as the maps
 #: run each stepper, fitted by non-negative least squares to the measured
 #: nanoseconds per force evaluation of the two maps of training models
-#: (``studies/switch_check.py`` part "fit", ``studies/results/
-#: switch_check_quick.json``; Intel Xeon at 2.5 GHz, load 5–9 on 2 cores;
-#: the rows whose source the printing of negative powers changed measured
-#: again, the others' kept), two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
+#: (``studies/switch_check.py`` part "fit", full grids, every row measured
+#: in one run, ``studies/results/switch_check.json``; Intel Xeon at
+#: 2.5 GHz, load 1–2 on 2 cores: the tables fitted at load 5–9 priced the
+#: LH's divisions 3.5 times dearer and so its step too cheap against the
+#: lanes, 5.9 times a lane's force evaluation on the cored potential
+#: against 8.5 measured), two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
 #: scalar code, whose chain (dτ = h/U needs V before each drift) makes it
 #: pay for divisions and calls, not for arithmetic. The constant step's
 #: lanes: ``VECTOR_LANE_WEIGHTS`` where the loop over the lanes
