@@ -42,11 +42,14 @@ def _plummer():
     return from_potential(-1 / sp.sqrt(x**2 + y**2 + sp.Float(1e-3)**2), [x, y])
 
 
-def _plummer_orbits(seed, m):
-    """Eccentric bound orbits of a softened point mass, pericentres ~0.01."""
+def _plummer_orbits(seed, m, p_y=(0.05, 0.5)):
+    """Bound orbits of a softened point mass from (x, 0) with x in
+    [0.5, 1] and the velocity p_y in ``p_y``: eccentric (the default range,
+    pericentres ~0.01) or near-circular (p_y ~ 1, the circular velocity at
+    x = 1)."""
     rng = np.random.default_rng(seed)
     return np.column_stack([rng.uniform(0.5, 1.0, m), np.zeros(m), np.zeros(m),
-                            rng.uniform(0.05, 0.5, m)])
+                            rng.uniform(*p_y, m)])
 
 
 def _fli(lh, X, h, seed=0):
@@ -244,26 +247,21 @@ def test_constant_pilot_that_wins_stops_the_lh_descent():
     assert np.array_equal(r.values, fixed.values, equal_nan=True)
 
 
-def _cored(radius=0.03):
-    x, y = sp.symbols("x y")
-    return from_potential(sp.log(sp.Float(radius)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2,
-                          [x, y], name=f"cored logarithmic, R_c = {radius}")
-
-
 def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     """The defaults' switch prices the pilot each choice still has to run
     (maps._pilot_share): once the LH's pilot is spent, a constant rung is
     judged only while its τ/2 pilot run and its map together cost less
-    than the LH's map. A small cored map (R_c = 0.05, 26 orbits: a rung's
-    pilot run costs 0.6 of its map), runs counted by hook: no constant run
+    than the LH's map. A small map of the softened point mass (26
+    near-circular orbits, p_y in [0.7, 1.1]: the LH priced 1.16x the
+    constant step's map, a rung's pilot run costs 0.6 of its map; the
+    kernels of the held-out test above and of tests/test_time_transform_step.py),
+    runs counted by hook: no constant run
     after the LH's last is the fine run of a rung that cannot pay for
     itself, and the LH's map is run. The switch as it was (pilot share 0,
     the map alone priced) makes exactly such a run, and takes the constant
     step whose pilot run and map together cost more than the LH's map, so
     the test fails without the change."""
-    model = _cored(0.05)
-    grid = varint.section_grid(model, 0.0, np.linspace(-0.9, 0.9, 6), np.linspace(-0.9, 0.9, 5),
-                               plane=1)
+    model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.7, 1.1))
 
     def defaults(mp):
         runs = _pilot_runs(mp)
@@ -278,7 +276,7 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
         mp.setattr(LogHamiltonian, "outputs", log)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            r = varint.chaos_map(model, grid, "fli", t_end=T_END, progress=False)
+            r = varint.chaos_map(model, X, "fli", t_end=T_END, progress=False)
         return r, [run[:3] for run in runs if len(run) == 3 or run[3] < T_END]
 
     def dear(runs, prices, share):
@@ -292,7 +290,7 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
         r, runs = defaults(mp)
     prices = r.provenance.tau_choice["prices"]
     share = prices["pilot_share"]
-    m, pilots = len(grid.states), min(len(grid.states), 16)
+    m, pilots = len(X), min(len(X), 16)
     assert share == pytest.approx(2 * pilots * 100.0 / (m * T_END))
     assert r.provenance.method == "tm+log" and dear(runs, prices, share) == [], runs
     with pytest.MonkeyPatch.context() as mp:
