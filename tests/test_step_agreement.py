@@ -252,8 +252,8 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     (maps._pilot_share): once the LH's pilot is spent, a constant rung is
     judged only while its τ/2 pilot run and its map together cost less
     than the LH's map. A small map of the softened point mass (26
-    near-circular orbits, p_y in [0.7, 1.1]: the LH priced 1.16x the
-    constant step's map, a rung's pilot run costs 0.6 of its map; the
+    orbits, p_y in [0.55, 0.95]: the LH priced 1.21x the constant step's
+    map by the tables of varint.step_cost, a rung's pilot run costs 0.6 of its map; the
     kernels of the held-out test above and of tests/test_time_transform_step.py),
     runs counted by hook: no constant run
     after the LH's last is the fine run of a rung that cannot pay for
@@ -261,7 +261,7 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     the map alone priced) makes exactly such a run, and takes the constant
     step whose pilot run and map together cost more than the LH's map, so
     the test fails without the change."""
-    model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.7, 1.1))
+    model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.55, 0.95))
 
     def defaults(mp):
         runs = _pilot_runs(mp)
