@@ -1314,9 +1314,9 @@ def _lh_race(R):
                 f"{s['varint_agreement']:.1%} of the orbits classified as the reference does, "
                 f"{ratio(s['ratio'])}× heyoka")
 
-    cr3, core = "varint LH ABA864, h 1.6, offset None", "varint LH ABA864, h 0.1, offset 0.25"
+    cr3, core = "varint LH ABA864, h 1.6, offset None", "varint LH ABA864, h 0.05, offset 0.25"
     half = "varint LH ABA864, h 0.8, offset None"
-    fine = "varint LH ABA864, h 0.07, offset 0.25"
+    fine = "varint LH ABA864, h 0.025, offset 0.25"
     load = max(d["load"][0], d["load_end"][0])
     three = rows["cr3bp", cr3]
     return (f"on the restricted three-body map (Sun–Jupiter, {three['orbits']} orbits to "
@@ -1325,8 +1325,11 @@ def _lh_race(R):
             f"reference's by a median {three['dfli_median']:.0f} on the regular orbits "
             f"(h = 0.8: {one('cr3bp', half)}; the defaults: "
             f"{one('cr3bp', 'varint defaults')}); on the cored "
-            f"logarithmic potential ({rows['core', core]['orbits']} orbits) ABA864 with h = 0.1 "
-            f"and δ = 0.25: {one('core', core)} (h = 0.07: {one('core', fine)}; the defaults: "
+            f"logarithmic potential ({rows['core', core]['orbits']} orbits about its centre to "
+            f"t = {rows['core', core]['t_end']:g}, "
+            f"{100 * rows['core', core]['reference_chaotic']:.0f} % of them chaotic in the "
+            f"reference) ABA864 with h = 0.05 "
+            f"and δ = 0.25: {one('core', core)} (h = 0.025: {one('core', fine)}; the defaults: "
             f"{one('core', 'varint defaults')}); one thread, machine load up to {load:.0f} on "
             f"2 cores")
 
