@@ -209,6 +209,14 @@ agreement would take 3.7 times fewer steps than the map's one step
 (``best_gain``), ``tau='orbit'`` (energy errors) 1.3 times fewer, and its
 run cost 5.5 s against the defaults' 2.8 s.
 
+Both races quiet (stop 49, ``--quick --part log``,
+``map_steps_quick_log.json``, 3 repeats, load 1.1 → 1.0, with
+:mod:`varint.step_cost`'s tables refitted at load 1–2): CR3BP defaults
+2.97× heyoka batch 8 (tol 1e-5, 0.224 s) at 98.7 %, the constant
+contender at the verdict rule's τ with its pilot 3.31×; cored defaults
+0.312× (heyoka tol 1e-4, 0.858 s) at 100 %, hand-tuned LH h = 0.025 0.252×
+at 100 %. Neither target is met.
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
