@@ -1,0 +1,117 @@
+"""What the defaults' pilot costs on the three-body map (issue 29: the
+CR3BP map's defaults ≥ 3× heyoka batch 8).
+
+Case: the race map of :mod:`studies.map_steps` (Sun–Jupiter, C = 3.05,
+76 orbits with ``--quick``, t = 1000, FLI, one thread). Two contenders,
+interleaved, the minimum of the repeats, CPU time: the map with every
+default (``chaos_map(model, X, "fli", t_end=...)``: the pilots, then the
+run at the step they choose) and the same run at that step with no pilot
+(``tau=``, ``scheme=``, ``time_transform=None``: the bits of the defaults'
+run). Their difference is the pilots' share.
+
+Where the pilots' time goes: the defaults' map under :mod:`cProfile`
+(which slows Python more than the kernels: read shares, not seconds), by
+cumulative time of the functions in :data:`PARTS` per map. They nest: the
+switch holds the LH's pilot, whose descent runs the constant-step
+ladder's pilot runs between its rungs (:class:`varint.step_agreement.ConstantLadder`),
+and both build propagators.
+
+Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
+results ``map_pilot_cost.json``.
+"""
+
+from __future__ import annotations
+
+import cProfile
+import os
+import pstats
+import sys
+import time
+import warnings
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+
+import varint  # noqa: E402
+from studies.common import interleaved, parse_args, save_json  # noqa: E402
+from studies.map_steps import race_map  # noqa: E402
+
+#: The pilots' parts, each by the function whose cumulative time is its
+#: cost: (label, file suffix, function name).
+PARTS = (("LH pilot, the ladder within (agreeing_offset)", "time_transform_step.py", "agreeing_offset"),
+         ("constant ladder's pilot runs (pilot_errors)", "stepsize.py", "pilot_errors"),
+         ("propagators built (make_propagator)", "methods/__init__.py", "make_propagator"),
+         ("the switch (_cheaper_steps)", "maps.py", "_cheaper_steps"),
+         ("the run (run_chunk)", "maps.py", "run_chunk"),
+         ("whole map (chaos_map)", "maps.py", "chaos_map"))
+
+
+def _map(model, X, t_end, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return varint.chaos_map(model, X, "fli", t_end=t_end, progress=False, **kwargs)
+
+
+def _profile(model, X, t_end, maps):
+    """Cumulative seconds per map of each of :data:`PARTS` under cProfile."""
+    profile = cProfile.Profile()
+    profile.enable()
+    for _ in range(maps):
+        _map(model, X, t_end)
+    profile.disable()
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    shares = {}
+    for label, suffix, name in PARTS:
+        shares[label] = sum(row[3] for (file, _, func), row in stats.items()
+                            if func == name and file.endswith(suffix)) / maps
+    return shares
+
+
+def main(argv=None):
+    def extra(parser):
+        parser.add_argument("--repeats", type=int, default=7)
+
+    args = parse_args(__doc__.split("\n\n")[0], argv, extra)
+    numba.set_num_threads(1)
+    model, X, t_end = race_map("cr3bp", args.quick)
+    load = list(os.getloadavg())
+    defaults = _map(model, X, t_end)
+    choice = defaults.provenance.tau_choice
+    tau, method = choice["tau"], defaults.provenance.method
+    if method != "tm":
+        raise SystemExit(f"the defaults chose {method!r}, not constant steps: this study "
+                         "splits the constant-step choice only")
+    scheme = defaults.provenance.method_options.get("scheme")
+    scheme = scheme.get("name") if isinstance(scheme, dict) else scheme
+    bare = _map(model, X, t_end, tau=tau, scheme=scheme, time_transform=None)
+    tasks = {"defaults": lambda: _map(model, X, t_end),
+             "run alone": lambda: _map(model, X, t_end, tau=tau, scheme=scheme,
+                                       time_transform=None)}
+    best, _ = interleaved(tasks, args.repeats, clock=time.process_time)
+    parts = _profile(model, X, t_end, maps=max(3, args.repeats // 2))
+    result = {"quick": args.quick, "orbits": len(X), "t_end": t_end, "tau": tau,
+              "scheme": scheme, "bitwise_run": bool(np.array_equal(bare.values, defaults.values, equal_nan=True)),
+              "seconds": best, "pilot_seconds": best["defaults"] - best["run alone"],
+              "pilot_share": 1.0 - best["run alone"] / best["defaults"],
+              "profile_seconds_per_map": parts, "load": load,
+              "load_end": list(os.getloadavg())}
+    print(f"CR3BP map, {len(X)} orbits, t = {t_end:g}, defaults τ = {tau:g} ({scheme}), "
+          f"CPU, min of {args.repeats} interleaved, load {load[0]:.1f}")
+    for k, v in best.items():
+        print(f"  {k:<12} {1e3 * v:8.2f} ms")
+    print(f"  pilots       {1e3 * result['pilot_seconds']:8.2f} ms "
+          f"({100 * result['pilot_share']:.0f} % of the defaults)"
+          f"; the run alone gives the defaults' bits: {result['bitwise_run']}")
+    print("under cProfile, per map (shares, not seconds):")
+    for k, v in parts.items():
+        print(f"  {k:<45} {1e3 * v:8.2f} ms")
+    save_json(args.out, "map_pilot_cost", result)
+    return result
+
+
+if __name__ == "__main__":
+    main()
