@@ -48,7 +48,7 @@ import varint
 from studies.bench_peers import HeyokaMap, antimode, seeded_vectors
 from studies.common import parse_args, save_csv, save_json
 from studies.map_steps import (BATCH, CORE_RADIUS, INDICATOR, REF_EVERY, REF_TOL, closest_approach,
-                               cored_logarithmic, judging)
+                               cored_logarithmic, fli_threshold, judging)
 
 #: (label, energy, x range, p_x range, grid points in x and p_x, t_end).
 CANDIDATES = [
@@ -83,8 +83,9 @@ def explore(label, energy, xr, pr, n, t_end):
     values = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, REF_TOL,
                        every=REF_EVERY).run(X, seeded_vectors(model.dim, 1, len(X)), t_end)
     seconds = time.perf_counter() - t0
-    threshold = 2.0 * np.log(t_end)
+    threshold = fli_threshold(t_end)[0]
     judged = judging(values, threshold)
+    mode = antimode(values)[0]
     closest = closest_approach(X, t_end)
     regular, chaos = values[values <= threshold], values[values > threshold]
     return {"candidate": label, "energy": energy, "x": list(xr), "px": list(pr),
@@ -92,8 +93,7 @@ def explore(label, energy, xr, pr, n, t_end):
             "chaotic": judged["chaotic"], "in_band": judged["in_band"], "judging": judged["ok"],
             "regular_max": float(regular.max()) if len(regular) else None,
             "chaotic_min": float(chaos.min()) if len(chaos) else None,
-            "antimode": antimode(values)[0],
-            "antimode_chaotic": float(np.mean(values > antimode(values)[0])),
+            "antimode": mode, "antimode_chaotic": float(np.mean(values > mode)),
             "closest_min": float(closest.min()), "closest_median": float(np.median(closest)),
             "within_2_rc": float(np.mean(closest < 2 * CORE_RADIUS)),
             "reference_seconds": seconds}

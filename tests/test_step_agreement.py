@@ -45,8 +45,8 @@ def _plummer():
 def _plummer_orbits(seed, m, p_y=(0.05, 0.5)):
     """Bound orbits of a softened point mass from (x, 0) with x in
     [0.5, 1] and the velocity p_y in ``p_y``: eccentric (the default range,
-    pericentres ~0.01) or near-circular (p_y ~ 1, the circular velocity at
-    x = 1)."""
+    pericentres ~0.01) or rounder as p_y nears the circular velocity
+    (1/√x: 1 to 1.4)."""
     rng = np.random.default_rng(seed)
     return np.column_stack([rng.uniform(0.5, 1.0, m), np.zeros(m), np.zeros(m),
                             rng.uniform(*p_y, m)])
@@ -253,10 +253,10 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     judged only while its τ/2 pilot run and its map together cost less
     than the LH's map. A small map of the softened point mass (26
     orbits, p_y in [0.55, 0.95]: the LH priced 1.21x the constant step's
-    map by the tables of varint.step_cost, a rung's pilot run costs 0.6 of its map; the
-    kernels of the held-out test above and of tests/test_time_transform_step.py),
-    runs counted by hook: no constant run
-    after the LH's last is the fine run of a rung that cannot pay for
+    map by the tables of varint.step_cost, a rung's pilot run costs 0.6
+    of its map; the kernels of the held-out test above and of
+    tests/test_time_transform_step.py), runs counted by hook: no constant
+    run after the LH's last is the fine run of a rung that cannot pay for
     itself, and the LH's map is run. The switch as it was (pilot share 0,
     the map alone priced) makes exactly such a run, and takes the constant
     step whose pilot run and map together cost more than the LH's map, so
