@@ -240,9 +240,9 @@ def test_the_one_pass_check_of_a_short_call_refuses_and_accepts_as_the_one_shot_
 
 def test_the_compiled_finiteness_test_is_numpys():
     # KernelCheck.states tests the kernels' values finite in one compiled
-    # pass (_all_finite): a NaN or infinity anywhere refuses, the largest
-    # and smallest finite numbers do not.
-    from varint._validate import _all_finite
+    # pass (varint.finite_values): a NaN or infinity anywhere refuses, the
+    # largest and smallest finite numbers do not.
+    from varint.finite_values import ALL_FINITE, _all_finite
 
     base = np.linspace(-1.0, 1.0, 14)
     assert _all_finite(base) and _all_finite(base[:0])
@@ -251,3 +251,4 @@ def test_the_compiled_finiteness_test_is_numpys():
             v = base.copy()
             v[i] = bad
             assert _all_finite(v) == bool(np.isfinite(v).all()), (bad, i)
+            assert ALL_FINITE(v) == _all_finite(v)

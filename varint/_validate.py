@@ -11,7 +11,6 @@ import threading
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from .files import is_device_path
 from .kernels.resolved import Resolved
@@ -460,6 +459,11 @@ class KernelCheck:
         #: :meth:`states` may evaluate them before the state is known
         #: finite).
         self._compiled = False
+        # (A model's kernels are numba's: numba is loaded already.)
+        from .finite_values import ALL_FINITE
+
+        #: The compiled test of the kept values (:meth:`states`).
+        self._all_finite = ALL_FINITE
 
     def _made(self):
         """(the state, all values, ∇V, D²V, third derivatives, v): the
@@ -478,7 +482,7 @@ class KernelCheck:
         """Whether the state ``x`` (2N,) and the kernels there are all
         finite (what a kernel raises, it raises); the values are left in
         the buffers. ``all_finite``: the test of the values, compiled
-        (:data:`_ALL_FINITE`), else NumPy's."""
+        (:data:`varint.finite_values.ALL_FINITE`), else NumPy's."""
         model = self.model
         state, values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
         values.fill(0.0)     # a banded kernel need not write every entry
@@ -531,30 +535,13 @@ class KernelCheck:
             return None
         try:
             # (The values are a C-contiguous float64 vector of the kept
-            # buffers, as _ALL_FINITE's compiled version takes them.)
-            if not self._finite_at(x0, _ALL_FINITE):
+            # buffers, as ALL_FINITE's compiled version takes them.)
+            if not self._finite_at(x0, self._all_finite):
                 return None
         except Exception:
             return None
         # The same new array as states'.
         return x0[None].copy(), True
-
-
-@njit(cache=True)
-def _all_finite(values):
-    """Whether every number of the vector ``values`` is finite: one
-    compiled pass (NumPy's isfinite and count_nonzero cost ~2 µs on a
-    state's kernels, a prepared run's short call; issue 28)."""
-    i = 0
-    while i < values.size and np.isfinite(values[i]):
-        i += 1
-    return i == values.size
-
-
-#: :func:`_all_finite` through its compiled version (:class:`Resolved`):
-#: :meth:`KernelCheck.states` passes it the kept buffers, the same array
-#: type at every call.
-_ALL_FINITE = Resolved(_all_finite)
 
 
 def _scan(model, Q):
