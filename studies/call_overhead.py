@@ -14,7 +14,12 @@ Two calls of the frontier study's kind (orbit + one tangent vector, R1,
 * ``prepared``: the ``fixed`` call as a prepared run's call
   (``varint.prepare(model, "integrate", 0.05, tau=0.05, scheme="s15odr8",
   deviations=w)`` once, then ``run(x0)``): issue 28's "fixed cost of a
-  one-step run" (:mod:`studies.call_profile` gives its stages).
+  one-step run" (:mod:`studies.call_profile` gives its stages);
+* ``prepared_new``: the same prepared run, every call from another x0 of
+  a fixed seeded set of :data:`NEW_STATES` states near R1 (offsets of
+  1e-6, seed 2), taken in turn, so that nothing kept from one x0 to the
+  next can flatter ``prepared``; its SHA-256 covers the results of the
+  whole set.
 
 Each code runs in its own worker process (``python -c`` with the code's
 directory first on ``sys.path``), the workers alternate (interleaved
@@ -35,6 +40,7 @@ branch started (its commit message gives the figures).
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -49,7 +55,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The worker: run in a fresh interpreter with one code's directory first
 #: on sys.path; prints one JSON line.
 WORKER = r"""
-import functools, hashlib, json, sys, time
+import functools, hashlib, itertools, json, sys, time
 sys.path.insert(0, sys.argv[1])
 import numpy as np
 import varint
@@ -57,21 +63,29 @@ calls = int(sys.argv[2])
 model, x0 = varint.paper_orbit("R1")
 w0 = np.random.default_rng(1).standard_normal(len(x0))
 w0 /= np.linalg.norm(w0)
+new = [x0 + 1e-6 * d for d in np.random.default_rng(2).standard_normal((int(sys.argv[3]), len(x0)))]
 cases = {"fixed": (0.05, 0.05, "s15odr8"), "frontier": (1e3, 0.4, "s35odr10"),
-         "prepared": (0.05, 0.05, "s15odr8")}
+         "prepared": (0.05, 0.05, "s15odr8"), "prepared_new": (0.05, 0.05, "s15odr8")}
 out = {"varint": varint.__file__}
 for name, (t_end, tau, scheme) in cases.items():
     def call():
         return varint.integrate(model, x0, t_end, tau=tau, scheme=scheme,
                                 deviations=w0[:, None])
-    if name == "prepared":
-        call = functools.partial(varint.prepare(model, "integrate", t_end, tau=tau,
-                                                scheme=scheme, deviations=w0[:, None]), x0)
-        call()          # builds the run; later calls take the short path
-    r = call()
+    starts = [x0]
+    if name.startswith("prepared"):
+        run = varint.prepare(model, "integrate", t_end, tau=tau, scheme=scheme,
+                             deviations=w0[:, None])
+        run(x0)         # builds the run; later calls take the short path
+        call = functools.partial(run, x0)
+    if name == "prepared_new":
+        starts, turn = new, itertools.cycle(new)
+        def call():
+            return run(next(turn))
     h = hashlib.sha256()
-    for a in (r.state, r.deviations, r.energy_error, r.t):
-        h.update(np.ascontiguousarray(a).tobytes())
+    for x in starts:
+        r = run(x) if name == "prepared_new" else call()
+        for a in (r.state, r.deviations, r.energy_error, r.t):
+            h.update(np.ascontiguousarray(a).tobytes())
     n = max(3, calls // 50) if name == "frontier" else calls
     cpu = wall = float("inf")
     for _ in range(n):
@@ -85,12 +99,16 @@ print(json.dumps(out))
 
 
 #: The cases each worker times (:data:`WORKER`).
-CASES = ("fixed", "frontier", "prepared")
+CASES = ("fixed", "frontier", "prepared", "prepared_new")
+
+#: How many states ``prepared_new`` takes in turn.
+NEW_STATES = 64
 
 
 def worker(code_dir, calls):
     """One worker's minima (see :data:`WORKER`)."""
-    done = subprocess.run([sys.executable, "-c", WORKER, str(code_dir), str(calls)],
+    done = subprocess.run([sys.executable, "-c", WORKER, str(code_dir), str(calls),
+                           str(NEW_STATES)],
                           capture_output=True, text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -108,6 +126,7 @@ def main(argv=None):
     baseline = ROOT if args.baseline is None else args.baseline.resolve()
     contenders = {"this": ROOT, "baseline": baseline}
     best = {}
+    load_before = os.getloadavg()
     for _ in range(rounds):
         for label, code in contenders.items():
             got = worker(code, calls)
@@ -130,9 +149,12 @@ def main(argv=None):
     for label in contenders:
         summary[f"fixed_share_{label}"] = (best[label]["fixed"]["cpu_us"]
                                            / best[label]["frontier"]["cpu_us"])
-    data = {"rounds": rounds, "calls": calls, "baseline": str(args.baseline),
+    data = {"rounds": rounds, "calls": calls, "new_states": NEW_STATES,
+            "baseline": str(args.baseline),
+            "load": {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()},
             "best": best, "summary": summary}
     save_json(args.out, "call_overhead", data)
+    print(f"load {data['load']['before']} -> {data['load']['after']}")
     for case in CASES:
         s = summary[case]
         print(f"{case}: CPU {s['baseline_cpu_us']:.0f} -> {s['this_cpu_us']:.0f} µs "

@@ -53,7 +53,13 @@ errors returned as one array, the load average read once a second):
 eighth (the states checked without a new specification, the state and its
 kernels tested finite in one pass, the start states kept before the
 outputs, NumPy's error handling set without rebuilding it):
-``round8_before`` (main 2aef9d2) and ``round8_after``, likewise.
+``round8_before`` (main 2aef9d2) and ``round8_after``, likewise. Its
+ninth (Hénon–Heiles' V of the short call's rows compiled,
+``HenonHeiles.potential_rows``; the kernels' values tested finite in one
+compiled pass; the counts made in one dict) is stored in ``results/`` as
+``round6`` (the issue's sixth stored profile, after ``round5``; not the
+quick ``round6_before``/``round6_after`` above): this code alone, every
+path, the figures against main (63e9f7c) in ``call_overhead.json``.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general]``

@@ -236,3 +236,19 @@ def test_the_one_pass_check_of_a_short_call_refuses_and_accepts_as_the_one_shot_
         assert str(prepared.value) == str(one_shot.value)
     # The buffers hold nothing over from a refused state.
     _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05))
+
+
+def test_the_compiled_finiteness_test_is_numpys():
+    # KernelCheck.states tests the kernels' values finite in one compiled
+    # pass (varint.finite_values): a NaN or infinity anywhere refuses, the
+    # largest and smallest finite numbers do not.
+    from varint.finite_values import ALL_FINITE, _all_finite
+
+    base = np.linspace(-1.0, 1.0, 14)
+    assert _all_finite(base) and _all_finite(base[:0])
+    for bad in (np.nan, np.inf, -np.inf, 1.7976931348623157e308, 5e-324, -0.0):
+        for i in range(base.size):
+            v = base.copy()
+            v[i] = bad
+            assert _all_finite(v) == bool(np.isfinite(v).all()), (bad, i)
+            assert ALL_FINITE(v) == _all_finite(v)

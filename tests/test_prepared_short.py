@@ -272,3 +272,23 @@ def test_a_short_calls_provenance_is_read_saved_and_pickled_whole(tmp_path):
     assert loaded.provenance.to_dict() == b.provenance.to_dict()
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         b.provenance.nothing  # noqa: B018
+
+
+def test_a_short_call_measures_v_compiled_only_where_it_is_the_models_own(general):
+    # Hénon–Heiles' compiled V (potential_rows) serves its short calls; a
+    # subclass with another V keeps its own, and both give the one-shot
+    # call's result.
+    model, x0 = varint.paper_orbit("R1")
+
+    class Shifted(type(model)):
+        def potential(self, q, t=0.0):
+            return super().potential(q, t) + 0.125
+
+    x = _states(x0, 1)[0]
+    for m, compiled in ((model, True), (Shifted(), False)):
+        run = varint.prepare(m, "integrate", 0.2, tau=0.05)
+        run(x0)
+        short = run._again.short
+        assert short is not None and (short.potential_kernel is not None) == compiled
+        _same(run(x), _one_shot(m, x, "integrate", 0.2, 0.05))
+    assert not general

@@ -455,6 +455,15 @@ class KernelCheck:
         # the same way at every call, and the parameters are the model's
         # array of that first check.
         self._params = self._resolved = None
+        #: Whether all three of :attr:`_resolved` are compiled (then
+        #: :meth:`states` may evaluate them before the state is known
+        #: finite).
+        self._compiled = False
+        # (A model's kernels are numba's: numba is loaded already.)
+        from .finite_values import ALL_FINITE
+
+        #: The compiled test of the kept values (:meth:`states`).
+        self._all_finite = ALL_FINITE
 
     def _made(self):
         """(the state, all values, ∇V, D²V, third derivatives, v): the
@@ -469,22 +478,29 @@ class KernelCheck:
                                found[n * (1 + rows):].reshape(rows, n), np.ones(n))
         return self._local.buffers
 
-    def _finite_at(self, x):
+    def _finite_at(self, x, all_finite=None):
         """Whether the state ``x`` (2N,) and the kernels there are all
         finite (what a kernel raises, it raises); the values are left in
-        the buffers."""
+        the buffers. ``all_finite``: the test of the values, compiled
+        (:data:`varint.finite_values.ALL_FINITE`), else NumPy's."""
         model = self.model
         state, values, G, H, T, v = getattr(self._local, "buffers", None) or self._made()
         values.fill(0.0)     # a banded kernel need not write every entry
         state[:] = x
         q = state[:model.n_dof]
-        par, kernels3 = model.params, (model.grad_kernel, model.hess_kernel, model.third_kernel)
-        if self._resolved is None:
-            self._params, self._resolved = par, tuple(Resolved.of(f) for f in kernels3)
-        grad, hess, third = self._resolved if par is self._params else kernels3
+        par, resolved = model.params, self._resolved
+        if resolved is None:
+            resolved = tuple(Resolved.of(f) for f in (model.grad_kernel, model.hess_kernel,
+                                                      model.third_kernel))
+            self._params, self._resolved = par, resolved
+            self._compiled = all(type(f) is Resolved for f in resolved)
+        grad, hess, third = (resolved if par is self._params else
+                             (model.grad_kernel, model.hess_kernel, model.third_kernel))
         grad(q, par, G)
         hess(q, par, H)
         third(q, par, v, T)
+        if all_finite is not None:
+            return all_finite(values)
         return np.count_nonzero(np.isfinite(values)) == values.size    # (see states)
 
     def __call__(self, X, what="the initial state"):
@@ -514,12 +530,13 @@ class KernelCheck:
         stop on a NaN."""
         model = self.model
         if not (type(x0) is np.ndarray and x0.dtype == np.float64
-                and x0.shape == (model.dim,) and self._resolved is not None
-                and model.params is self._params
-                and all(type(f) is Resolved for f in self._resolved)):
+                and x0.shape == (model.dim,) and self._compiled
+                and model.params is self._params):
             return None
         try:
-            if not self._finite_at(x0):
+            # (The values are a C-contiguous float64 vector of the kept
+            # buffers, as ALL_FINITE's compiled version takes them.)
+            if not self._finite_at(x0, self._all_finite):
                 return None
         except Exception:
             return None

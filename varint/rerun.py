@@ -112,6 +112,14 @@ class ShortCall:
                              and type(model).kinetic is Model.kinetic
                              and model.n_dof < SEQUENTIAL_TERMS
                              and _float_vector(model.inverse_mass, model.n_dof) else None)
+        #: V compiled, where the model has it (``potential_rows``, bitwise
+        #: its NumPy V) and does not override ``potential``: called with
+        #: :attr:`FreshRun.states <varint.methods.fresh_run.FreshRun.states>`,
+        #: a C-contiguous (R, 2N) float64 array at every call, so through
+        #: its compiled version (:class:`Resolved`).
+        rows_v = getattr(model, "potential_rows", None)
+        self.potential_kernel = (Resolved(rows_v) if self.plain and rows_v is not None
+                                 and type(model).potential is Model.potential else None)
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()
@@ -221,9 +229,9 @@ class ShortCall:
                  else run.W.copy())
             fields["deviations"] = W[0] if single else W
         # (No orbit failed: each made every step.)
-        counters = run.counters[0] if m == 1 else np.add.reduce(run.counters, axis=0)
-        counts = {"steps": m * self.steps,
-                  **dict(zip(COUNTERS, counters.tolist(), strict=True))}
+        counters = (run.counters.tolist()[0] if m == 1
+                    else np.add.reduce(run.counters, axis=0).tolist())
+        counts = dict(zip(_COUNT_KEYS, [m * self.steps, *counters], strict=True))
         provenance = Provenance.with_pickled(
             self.fixed, kind=ind.name, x0=(x0[0] if single else x0).tolist(),
             method=first.method, tau=tau, t_end=first.t_end, counts=counts, wall_time=wall,
@@ -250,18 +258,23 @@ class ShortCall:
         model, tol = first.model, first.energy_tol
         if self.plain:
             n, rows = model.n_dof, len(states)
-            state_kernel = self.state_kernel
-            # (np.errstate(all="ignore")'s handling, for less:
-            # varint.floating_errors.)
-            quiet = floating_errors.ignoring()
-            try:
-                # The model's own V (Reference's operations), once over the
-                # states and the outputs, and its T (or T's operations,
-                # compiled with the errors).
-                potential = model.potential(states[:, :n])
-                kinetic = None if state_kernel is not None else model.kinetic(states[:, n:])
-            finally:
-                floating_errors.restore(quiet)
+            state_kernel, potential_kernel = self.state_kernel, self.potential_kernel
+            if potential_kernel is not None and state_kernel is not None:
+                # V and T compiled (Reference's operations): nothing warns.
+                potential, kinetic = potential_kernel(states), None
+            else:
+                # (np.errstate(all="ignore")'s handling, for less:
+                # varint.floating_errors.)
+                quiet = floating_errors.ignoring()
+                try:
+                    # The model's own V (Reference's operations), once over
+                    # the states and the outputs, and its T (or T's
+                    # operations, compiled with the errors).
+                    potential = (model.potential(states[:, :n]) if potential_kernel is None
+                                 else potential_kernel(states))
+                    kinetic = None if state_kernel is not None else model.kinetic(states[:, n:])
+                finally:
+                    floating_errors.restore(quiet)
             if not _float_vector(potential, rows):
                 computed = None
             elif state_kernel is not None:
@@ -355,6 +368,11 @@ class Rerun:
         if short is not None:
             short.timed(result)
         return result
+
+
+#: The keys of a result's ``provenance.counts``, in the general path's
+#: order (:meth:`varint.run.Run.provenance`).
+_COUNT_KEYS = ("steps", *COUNTERS)
 
 
 def _float_vector(a: Any, size: int) -> bool:

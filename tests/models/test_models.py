@@ -120,3 +120,22 @@ def test_bad_inverse_mass(minv, match):
     with pytest.raises(ValueError, match=match):
         varint.models.Model(2, m.potential, m.grad_kernel, m.hess_kernel, m.third_kernel, 1,
                             inverse_mass=minv)
+
+
+def test_henon_heiles_compiled_v_is_its_numpy_v_bit_for_bit():
+    # potential_rows (a prepared run's short call measures V with it) must
+    # round as the NumPy V of every other path: over wide scales, through
+    # overflow, and at signed zeros, infinities and NaN.
+    model = HenonHeiles()
+    rng = np.random.default_rng(5)
+    states = np.concatenate([rng.standard_normal((20_000, 4)) * scale
+                             for scale in (1e-8, 1e-3, 0.3, 1.0, 1e3, 1e100, 1e160)])
+    special = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1e308, -1e-310, 1.0])
+    pairs = np.array(np.meshgrid(special, special)).reshape(2, -1).T
+    states = np.concatenate([states, np.hstack([pairs, pairs])])
+    with np.errstate(all="ignore"):
+        expected = model.potential(states[:, :2])
+    got = model.potential_rows(states)
+    assert got.dtype == np.float64 and got.shape == expected.shape
+    # Bit for bit, NaNs included.
+    np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
