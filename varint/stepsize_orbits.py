@@ -9,6 +9,19 @@ reaches the map's check times (whole multiples of U) exactly, and the map's
 records, early stopping and ``t_stop`` stay on one time grid. A chunk runs
 its orbits in groups of equal n (:func:`run_grouped`), one batch run each.
 
+Groups. A batch run advances up to
+:data:`~varint.codegen.interval.LANE_WIDTH` orbits of one step in SIMD
+lanes; a group of a few orbits leaves most lanes empty, and its steps cost
+several times those of a full block (SRKN14a on the cored map of
+``studies/map_steps.py``: ~5 times for one orbit, ~1.3 times for 16,
+full from ~32, measured while developing this at load 9–10, not stored).
+Every divisor is therefore rounded up to :func:`on_ladder` (at most
+:data:`LADDER_BITS` significant binary digits: 1, 2, 3, 4, 6, 8, 12, …),
+a step at most 1.5 times smaller than the orbit's pilot asks for, from a
+rule on n alone, so each orbit's step still depends on its own pilot only.
+On that map's 120 orbits the divisors fell into 72 groups (one per
+integer n from 38 to 150), 6 on the ladder.
+
 The pilot is :mod:`varint.stepsize`'s — the largest relative error of the
 conserved quantities at 50 times along a short run, with the run's own
 deviation vectors and stepper — but each orbit reads its own error and its
@@ -92,7 +105,7 @@ from .stepsize import (FALLBACK_TAU, PILOT_MARGIN, PILOT_STEPS, PILOT_T, TAU_MAX
                        default_scheme, dividing_step, pilot_errors)
 
 __all__ = ["choose_steps", "run_grouped", "indicator_judge", "Judge", "PILOT_SHARE", "AGREEMENT",
-           "BOUND_FACTOR"]
+           "BOUND_FACTOR", "LADDER_BITS"]
 
 #: The per-orbit pilot runs to at most this share of t_end (and at most
 #: PILOT_T time units).
@@ -108,6 +121,11 @@ AGREEMENT = 0.05
 BOUND_FACTOR = 10.0
 #: Factor by which n grows after a non-finite pilot error.
 BLOWUP_DROP = 16
+#: Every divisor n has at most this many significant binary digits (1, 2,
+#: 3, 4, 6, 8, 12, 16, 24, …; :func:`on_ladder`): a step at most 1.5 times
+#: smaller than the pilot asks for, and few groups of equal n, so that each
+#: group fills the SIMD lanes of its batch run (module docstring, "Groups").
+LADDER_BITS = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,7 +239,7 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
     # "not shrinking" test: a column per round.
     tried_n, tried_e = np.zeros((m, 0), dtype=np.int64), np.zeros((m, 0))
     counts = {}
-    n_fallback = max(1, math.ceil(unit / FALLBACK_TAU * (1 - 1e-12)))
+    n_fallback = int(on_ladder(max(1, math.ceil(unit / FALLBACK_TAU * (1 - 1e-12)))))
     n_most = max(1, int(PILOT_STEPS * unit / t_pilot))
     while not done.all():
         active = np.flatnonzero(~done)
@@ -247,7 +265,7 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
         met = ~done & (errors <= tolerance)
         done |= met
         missed = np.flatnonzero(~done)
-        nxt = _next_divisor(n[missed], errors[missed], tolerance, sch.order)
+        nxt = on_ladder(_next_divisor(n[missed], errors[missed], tolerance, sch.order))
         if judge is not None:
             # Within the judge's bound, at most half the step: every factor
             # 2 gets its verdict. Above it the search goes on as without a
@@ -277,6 +295,18 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
             "(provenance.tau_choice['fallback'] lists them)", AccuracyWarning,
             stacklevel=user_stacklevel())
     return unit, n, choice
+
+
+def on_ladder(n):
+    """Per divisor, the smallest integer ≥ ``n`` with at most
+    :data:`LADDER_BITS` significant binary digits (``n`` ≥ 1, int64)."""
+    n = np.asarray(n, dtype=np.int64)
+    if np.any(n < 1):
+        raise ValueError(f"divisors must be at least 1, got {int(n.min())}")
+    # Bits below the leading LADDER_BITS, rounded up (n < 2^62 here).
+    low = np.array([max(0, int(v).bit_length() - LADDER_BITS) for v in n.ravel()],
+                   dtype=np.int64).reshape(n.shape)
+    return ((n + (np.int64(1) << low) - 1) >> low) << low
 
 
 def _next_divisor(level, error, tolerance, order):
