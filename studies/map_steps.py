@@ -483,8 +483,28 @@ def profile_case(name, quick):
         "agreement_steps": {"ladder": ladder, **_quantiles(agreeing),
                             "never": int((~fine).sum()),
                             "counts": {f"{t:g}": int(np.sum(agreeing == t)) for t in ladder},
-                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine]))},
+                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine])),
+                            **_by_verdict(agreeing, per_tau, ref["truth"], tau)},
     }
+
+
+def _by_verdict(agreeing, per_tau, truth, tau):
+    """The agreeing steps split by the reference's verdict: a step too large
+    to resolve an orbit can still call it chaotic (a wrong FLI is large),
+    which a pilot cannot know in advance. ``counts_regular`` and
+    ``counts_chaotic`` (per step of the ladder), how many orbits the
+    per-orbit pilot gives a smaller step than agreement needs
+    (``per_orbit_below``, regular orbits), and ``best_gain_regular``: the map's steps over
+    the sum with the regular orbits at their agreeing step and the chaotic
+    ones at the per-orbit pilot's."""
+    truth = np.asarray(truth, dtype=bool)
+    fine = np.isfinite(agreeing)
+    ladder = np.unique(agreeing[fine])
+    need = np.where(truth, per_tau, np.where(fine, agreeing, per_tau))
+    return {"counts_regular": {f"{t:g}": int(np.sum(agreeing[~truth] == t)) for t in ladder},
+            "counts_chaotic": {f"{t:g}": int(np.sum(agreeing[truth] == t)) for t in ladder},
+            "per_orbit_below": int(np.sum(per_tau[~truth & fine] < agreeing[~truth & fine])),
+            "best_gain_regular": float(len(agreeing) / tau / np.sum(1 / need))}
 
 
 def reference(name, model, X, t_end):
@@ -675,6 +695,16 @@ def log_case(name, quick, repeats):
         # descends to its agreeing h before the constant steps' runs.
         tasks["varint defaults, sequential pilots (before pilot13)"] = lambda: _sequential(
             lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False))
+        # A step per orbit (issue 27 item 4a), pilot included; before
+        # orbit16 (the baseline in the same run) every integer divisor was
+        # its own group of lanes.
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                         tau="orbit")   # compiles
+        tasks["varint, tau='orbit'"] = lambda: varint.chaos_map(
+            model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")
+        tasks["varint, tau='orbit', every divisor (before orbit16)"] = lambda: _every_divisor(
+            lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                                     tau="orbit"))
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -707,6 +737,14 @@ def log_case(name, quick, repeats):
             row["steps"] = c["steps"] if "steps" in c else c["lh_steps"] + c["tail_steps"]
             row["steps_per_orbit"] = row["steps"] / len(X)
             row["tau"] = out.provenance.tau
+            row["timing"] = out.provenance.timing
+            if "steps" in c:
+                # The run's nanoseconds per orbit step (pilot excluded).
+                row["ns_per_step"] = 1e9 * out.provenance.timing["run"] / c["steps"]
+            choice = out.provenance.tau_choice
+            if choice.get("rule") == "orbit":
+                row["pilot_steps"] = choice["counts"]["steps"]
+                row["groups"] = len(set(choice["divisions"]))
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
@@ -739,6 +777,17 @@ def _rule_offset(call):
         return (lh, *time_transform_step.agreeing_h(lh, X, t_end, **kwargs))
 
     with mock.patch.object(time_transform_step, "agreeing_offset", unpriced):
+        return call()
+
+
+def _every_divisor(call):
+    """``call()`` with every integer divisor of ``tau="orbit"`` its own
+    group, as before :func:`varint.stepsize_orbits.on_ladder`."""
+    from unittest import mock
+
+    from varint import stepsize_orbits
+
+    with mock.patch.object(stepsize_orbits, "LADDER_BITS", 63):
         return call()
 
 
