@@ -582,7 +582,10 @@ def race_case(name, quick, repeats):
         tasks = {"varint defaults": lambda: varint.chaos_map(
             model, grid, INDICATOR, t_end=t_end, progress=False),
             "varint, tau='orbit'": lambda: varint.chaos_map(
-                model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")}
+                model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit"),
+            "varint, tau='orbit', every divisor (before orbit16)": lambda: _every_divisor(
+                lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                                         tau="orbit"))}
         for tol in HEYOKA_TOLS:
             hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, tol, every=EVERY)
             tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = lambda hm=hm: hm.run(X, W0, t_end)
@@ -604,6 +607,7 @@ def race_case(name, quick, repeats):
             if "judged" in choice:
                 row["judged"] = len(choice["judged"])
                 row["rounds"] = choice["rounds"]
+                row["groups"] = len(set(choice["divisions"]))
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
