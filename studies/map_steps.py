@@ -209,6 +209,33 @@ agreement would take 3.7 times fewer steps than the map's one step
 (``best_gain``), ``tau='orbit'`` (energy errors) 1.3 times fewer, and its
 run cost 5.5 s against the defaults' 2.8 s.
 
+Why, and the lanes (orbit16; ``--part profile``, stored
+``results/orbit16/map_steps_quick_core_profile.json``, load 5–11). The
+3.7 is not a step a pilot can find: the 50 orbits that agree from τ = 1
+are all orbits the reference calls chaotic (at a step that does not
+resolve an orbit its FLI comes out large, which reads as chaotic; the
+pilot, to t = 100, cannot tell them from regular ones, whose FLIs overlap
+theirs there). The 66 regular orbits need 1/16 (4), 1/32 (25), 1/64 (26)
+and 1/128 (11) (``counts_regular``); with each at that step and the
+chaotic ones at the per-orbit pilot's, the gain is 1.36
+(``best_gain_regular``). The per-orbit pilot gives 58 of the 66 a smaller
+step than agreement needs (mostly one factor 2: the energy tolerance),
+1.12 times fewer steps than the map's one step (``step_gain``; its
+divisors rounded up to two significant bits, :func:`varint.stepsize_orbits.on_ladder`).
+Its run was slower per step because every integer divisor (38 … 150) was
+its own batch run: 72 groups on 120 orbits, most of 1–4 orbits in blocks of
+64 SIMD lanes; on the ladder, 5 groups. The race with both (``--quick
+--part race --case core``, stored ``results/orbit16/map_steps_quick_core_race.json``,
+3 repeats, load 5.5 → 6.8): the defaults 3.94 s (0.32× heyoka batch 8 at
+tol 1e-4, 1.27 s, all at 100 %), ``tau='orbit'`` 4.56 s (0.28×; its run
+144 ns per orbit step against the defaults' 128, 27.5 M steps against
+30.7 M, its pilot 0.79 s against 0.10 s: 1.95 M pilot steps in batches of
+one divisor each, not on the ladder), every divisor its own group 8.73 s
+(0.15×; 336 ns per step). A step per orbit does not beat the map's one
+step on this map, and on the three-body map it takes more steps than the
+defaults (537 000 against 304 000, at 100 % against 98.7 %; measured
+while developing this, not stored): not proposed as the default.
+
 Both races quiet (stop 49, ``--quick --part log``,
 ``map_steps_quick_log.json``, 3 repeats, load 1.1 → 1.0, with
 :mod:`varint.step_cost`'s tables refitted at load 1–2): CR3BP defaults

@@ -20,7 +20,9 @@ Every divisor is therefore rounded up to :func:`on_ladder` (at most
 a step at most 1.5 times smaller than the orbit's pilot asks for, from a
 rule on n alone, so each orbit's step still depends on its own pilot only.
 On that map's 120 orbits the divisors fell into 72 groups (one per
-integer n from 38 to 150), 6 on the ladder. Only the search's result is
+integer n from 38 to 150), 5 on the ladder: the run's 336 ns per orbit
+step became 144 (the map's one step: 128; ``map_steps.py --quick --part
+race --case core``, ``results/orbit16/map_steps_quick_core_race.json``). Only the search's result is
 rounded: a search whose every trial is on the ladder took orbit 18 of that
 map from n = 1 (energy error 0.099, far outside the order's law) to
 n = 12 (0.072), found the error not shrinking and sent the orbit to the
