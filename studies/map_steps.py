@@ -233,8 +233,10 @@ tol 1e-4, 1.27 s, all at 100 %), ``tau='orbit'`` 4.56 s (0.28×; its run
 one divisor each, not on the ladder), every divisor its own group 8.73 s
 (0.15×; 336 ns per step). A step per orbit does not beat the map's one
 step on this map, and on the three-body map it takes more steps than the
-defaults (537 000 against 304 000, at 100 % against 98.7 %; measured
-while developing this, not stored): not proposed as the default.
+defaults (``results/orbit16/map_steps_quick_cr3bp_race.json``, 3 repeats,
+load 6.3 → 6.8: 537 000 against 304 000, 0.273 s against 0.100 s, at
+100 % against 98.7 %; every divisor its own group 491 000 steps, 0.360 s):
+not proposed as the default.
 
 Both races quiet (stop 49, ``--quick --part log``,
 ``map_steps_quick_log.json``, 3 repeats, load 1.1 → 1.0, with
