@@ -209,6 +209,35 @@ agreement would take 3.7 times fewer steps than the map's one step
 (``best_gain``), ``tau='orbit'`` (energy errors) 1.3 times fewer, and its
 run cost 5.5 s against the defaults' 2.8 s.
 
+Why, and the lanes (orbit16; ``--part profile``, stored
+``results/orbit16/map_steps_quick_core_profile.json``, load 5–11). The
+3.7 is not a step a pilot can find: the 50 orbits that agree from τ = 1
+are all orbits the reference calls chaotic (at a step that does not
+resolve an orbit its FLI comes out large, which reads as chaotic; the
+pilot, to t = 100, cannot tell them from regular ones, whose FLIs overlap
+theirs there). The 66 regular orbits need 1/16 (4), 1/32 (25), 1/64 (26)
+and 1/128 (11) (``counts_regular``); with each at that step and the
+chaotic ones at the per-orbit pilot's, the gain is 1.36
+(``best_gain_regular``). The per-orbit pilot gives 58 of the 66 a smaller
+step than agreement needs (mostly one factor 2: the energy tolerance),
+1.12 times fewer steps than the map's one step (``step_gain``; its
+divisors rounded up to two significant bits, :func:`varint.stepsize_orbits.on_ladder`).
+Its run was slower per step because every integer divisor (38 … 150) was
+its own batch run: 72 groups on 120 orbits, most of 1–4 orbits in blocks of
+64 SIMD lanes; on the ladder, 5 groups. The race with both (``--quick
+--part race --case core``, stored ``results/orbit16/map_steps_quick_core_race.json``,
+3 repeats, load 5.5 → 6.8): the defaults 3.94 s (0.32× heyoka batch 8 at
+tol 1e-4, 1.27 s, all at 100 %), ``tau='orbit'`` 4.56 s (0.28×; its run
+144 ns per orbit step against the defaults' 128, 27.5 M steps against
+30.7 M, its pilot 0.79 s against 0.10 s: 1.95 M pilot steps in batches of
+one divisor each, not on the ladder), every divisor its own group 8.73 s
+(0.15×; 336 ns per step). A step per orbit does not beat the map's one
+step on this map, and on the three-body map it takes more steps than the
+defaults (``results/orbit16/map_steps_quick_cr3bp_race.json``, 3 repeats,
+load 6.3 → 6.8: 537 000 against 304 000, 0.273 s against 0.100 s, at
+100 % against 98.7 %; every divisor its own group 491 000 steps, 0.360 s):
+not proposed as the default.
+
 Both races quiet (stop 49, ``--quick --part log``,
 ``map_steps_quick_log.json``, 3 repeats, load 1.1 → 1.0, with
 :mod:`varint.step_cost`'s tables refitted at load 1–2): CR3BP defaults
@@ -483,8 +512,28 @@ def profile_case(name, quick):
         "agreement_steps": {"ladder": ladder, **_quantiles(agreeing),
                             "never": int((~fine).sum()),
                             "counts": {f"{t:g}": int(np.sum(agreeing == t)) for t in ladder},
-                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine]))},
+                            "best_gain": float(fine.sum() / tau / np.sum(1 / agreeing[fine])),
+                            **_by_verdict(agreeing, per_tau, ref["truth"], tau)},
     }
+
+
+def _by_verdict(agreeing, per_tau, truth, tau):
+    """The agreeing steps split by the reference's verdict: a step too large
+    to resolve an orbit can still call it chaotic (a wrong FLI is large),
+    which a pilot cannot know in advance. ``counts_regular`` and
+    ``counts_chaotic`` (per step of the ladder), how many orbits the
+    per-orbit pilot gives a smaller step than agreement needs
+    (``per_orbit_below``, regular orbits), and ``best_gain_regular``: the map's steps over
+    the sum with the regular orbits at their agreeing step and the chaotic
+    ones at the per-orbit pilot's."""
+    truth = np.asarray(truth, dtype=bool)
+    fine = np.isfinite(agreeing)
+    ladder = np.unique(agreeing[fine])
+    need = np.where(truth, per_tau, np.where(fine, agreeing, per_tau))
+    return {"counts_regular": {f"{t:g}": int(np.sum(agreeing[~truth] == t)) for t in ladder},
+            "counts_chaotic": {f"{t:g}": int(np.sum(agreeing[truth] == t)) for t in ladder},
+            "per_orbit_below": int(np.sum(per_tau[~truth & fine] < agreeing[~truth & fine])),
+            "best_gain_regular": float(len(agreeing) / tau / np.sum(1 / need))}
 
 
 def reference(name, model, X, t_end):
@@ -562,7 +611,10 @@ def race_case(name, quick, repeats):
         tasks = {"varint defaults": lambda: varint.chaos_map(
             model, grid, INDICATOR, t_end=t_end, progress=False),
             "varint, tau='orbit'": lambda: varint.chaos_map(
-                model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")}
+                model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit"),
+            "varint, tau='orbit', every divisor (before orbit16)": lambda: _every_divisor(
+                lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                                         tau="orbit"))}
         for tol in HEYOKA_TOLS:
             hm = HeyokaMap(model, INDICATOR, "var_ode_sys", BATCH, tol, every=EVERY)
             tasks[f"heyoka batch {BATCH}, tol {tol:g}"] = lambda hm=hm: hm.run(X, W0, t_end)
@@ -584,6 +636,7 @@ def race_case(name, quick, repeats):
             if "judged" in choice:
                 row["judged"] = len(choice["judged"])
                 row["rounds"] = choice["rounds"]
+                row["groups"] = len(set(choice["divisions"]))
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
@@ -675,6 +728,16 @@ def log_case(name, quick, repeats):
         # descends to its agreeing h before the constant steps' runs.
         tasks["varint defaults, sequential pilots (before pilot13)"] = lambda: _sequential(
             lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False))
+        # A step per orbit (issue 27 item 4a), pilot included; before
+        # orbit16 (the baseline in the same run) every integer divisor was
+        # its own group of lanes.
+        varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                         tau="orbit")   # compiles
+        tasks["varint, tau='orbit'"] = lambda: varint.chaos_map(
+            model, grid, INDICATOR, t_end=t_end, progress=False, tau="orbit")
+        tasks["varint, tau='orbit', every divisor (before orbit16)"] = lambda: _every_divisor(
+            lambda: varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
+                                     tau="orbit"))
         for scheme, h, offset in LOG_CONTENDERS[name]:
             lh = LogHamiltonian(model, scheme, offset=offset)
             label = f"varint LH {scheme}, h {h:g}, offset {offset}"
@@ -707,6 +770,14 @@ def log_case(name, quick, repeats):
             row["steps"] = c["steps"] if "steps" in c else c["lh_steps"] + c["tail_steps"]
             row["steps_per_orbit"] = row["steps"] / len(X)
             row["tau"] = out.provenance.tau
+            row["timing"] = out.provenance.timing
+            if "steps" in c:
+                # The run's nanoseconds per orbit step (pilot excluded).
+                row["ns_per_step"] = 1e9 * out.provenance.timing["run"] / c["steps"]
+            choice = out.provenance.tau_choice
+            if choice.get("rule") == "orbit":
+                row["pilot_steps"] = choice["counts"]["steps"]
+                row["groups"] = len(set(choice["divisions"]))
         rows.append(row)
     summary = {label: _equal_agreement(rows, label) for label in tasks
                if label.startswith("varint")}
@@ -739,6 +810,17 @@ def _rule_offset(call):
         return (lh, *time_transform_step.agreeing_h(lh, X, t_end, **kwargs))
 
     with mock.patch.object(time_transform_step, "agreeing_offset", unpriced):
+        return call()
+
+
+def _every_divisor(call):
+    """``call()`` with every integer divisor of ``tau="orbit"`` its own
+    group, as before :func:`varint.stepsize_orbits.on_ladder`."""
+    from unittest import mock
+
+    from varint import stepsize_orbits
+
+    with mock.patch.object(stepsize_orbits, "LADDER_BITS", 63):
         return call()
 
 

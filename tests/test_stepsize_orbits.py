@@ -45,6 +45,7 @@ def test_orbits_through_the_core_take_smaller_steps(cored):
     n = np.asarray(choice["divisions"])
     assert choice["rule"] == "orbit" and r.provenance.tau == choice["unit"]
     assert n[0] >= 4 * n[2]
+    assert np.array_equal(stepsize_orbits.on_ladder(n), n)
     assert np.all(r.t_stop == r.t[-1])
     assert choice["fallback"] == [] and choice["tolerance"] == maps.pilot_tolerance(
         resolve("fli")[0])
@@ -193,6 +194,25 @@ def test_the_divisor_follows_the_order():
     stuck = stepsize_orbits._not_shrinking(tried_n, tried_e, np.array([2, 2, 2]),
                                            np.array([9e-4, 1e-5, np.inf]))
     assert stuck.tolist() == [True, False, True]
+
+
+def test_divisors_round_up_to_the_ladder():
+    """Each divisor becomes the smallest integer at least as large with at
+    most LADDER_BITS significant binary digits (checked against a search
+    over the integers): a step at most 1.5 times smaller, and within each
+    octave only 2^(LADDER_BITS − 1) divisors, so orbits share few groups."""
+    n = np.arange(1, 2000)
+    up = stepsize_orbits.on_ladder(n)
+
+    def bits(v):
+        return v.bit_length() - (v & -v).bit_length() + 1
+
+    ladder = [v for v in range(1, 4000) if bits(v) <= stepsize_orbits.LADDER_BITS]
+    assert up.tolist() == [next(v for v in ladder if v >= m) for m in n.tolist()]
+    assert np.all(up < 1.5 * n + 1)
+    assert len([v for v in ladder if 64 <= v < 128]) == 2 ** (stepsize_orbits.LADDER_BITS - 1)
+    with pytest.raises(ValueError, match="at least 1, got 0"):
+        stepsize_orbits.on_ladder(np.array([3, 0]))
 
 
 @pytest.mark.parametrize("model, kwargs, match", [

@@ -9,6 +9,25 @@ reaches the map's check times (whole multiples of U) exactly, and the map's
 records, early stopping and ``t_stop`` stay on one time grid. A chunk runs
 its orbits in groups of equal n (:func:`run_grouped`), one batch run each.
 
+Groups. A batch run advances up to
+:data:`~varint.codegen.interval.LANE_WIDTH` orbits of one step in SIMD
+lanes; a group of a few orbits leaves most lanes empty, and its steps cost
+several times those of a full block (SRKN14a on the cored map of
+``studies/map_steps.py``: ~5 times for one orbit, ~1.3 times for 16,
+full from ~32, measured while developing this at load 9–10, not stored).
+Every divisor is therefore rounded up to :func:`on_ladder` (at most
+:data:`LADDER_BITS` significant binary digits: 1, 2, 3, 4, 6, 8, 12, …),
+a step at most 1.5 times smaller than the orbit's pilot asks for, from a
+rule on n alone, so each orbit's step still depends on its own pilot only.
+On that map's 120 orbits the divisors fell into 72 groups (one per
+integer n from 38 to 150), 5 on the ladder: the run's 336 ns per orbit
+step became 144 (the map's one step: 128; ``map_steps.py --quick --part
+race --case core``, ``results/orbit16/map_steps_quick_core_race.json``). Only the search's result is
+rounded: a search whose every trial is on the ladder took orbit 18 of that
+map from n = 1 (energy error 0.099, far outside the order's law) to
+n = 12 (0.072), found the error not shrinking and sent the orbit to the
+fallback step, its energy error over the map 8.9e-3.
+
 The pilot is :mod:`varint.stepsize`'s — the largest relative error of the
 conserved quantities at 50 times along a short run, with the run's own
 deviation vectors and stepper — but each orbit reads its own error and its
@@ -92,7 +111,7 @@ from .stepsize import (FALLBACK_TAU, PILOT_MARGIN, PILOT_STEPS, PILOT_T, TAU_MAX
                        default_scheme, dividing_step, pilot_errors)
 
 __all__ = ["choose_steps", "run_grouped", "indicator_judge", "Judge", "PILOT_SHARE", "AGREEMENT",
-           "BOUND_FACTOR"]
+           "BOUND_FACTOR", "LADDER_BITS"]
 
 #: The per-orbit pilot runs to at most this share of t_end (and at most
 #: PILOT_T time units).
@@ -108,6 +127,11 @@ AGREEMENT = 0.05
 BOUND_FACTOR = 10.0
 #: Factor by which n grows after a non-finite pilot error.
 BLOWUP_DROP = 16
+#: Every divisor n has at most this many significant binary digits (1, 2,
+#: 3, 4, 6, 8, 12, 16, 24, …; :func:`on_ladder`): a step at most 1.5 times
+#: smaller than the pilot asks for, and few groups of equal n, so that each
+#: group fills the SIMD lanes of its batch run (module docstring, "Groups").
+LADDER_BITS = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -259,6 +283,11 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
         prev_n[missed], prev_v[missed], prev_e[missed] = n[missed], values[missed], errors[missed]
         n[missed] = np.where(stuck, n_fallback, nxt)
         done[missed[stuck]] = fallback[missed[stuck]] = True
+    # The search's own divisors (and the judge's comparisons) stay as they
+    # were: an error at a step far too large need not follow the order's
+    # law, and a search on the ladder sent an orbit through the core to the
+    # fallback step (module docstring, "Groups").
+    n = on_ladder(n)
     choice = StepChoice(rule="orbit", unit=unit, tau=unit, divisions=n.tolist(),
                         scheme=sch.name, tolerance=float(tolerance), pilot_t=float(t_pilot),
                         orbits=m, fallback=np.flatnonzero(fallback).tolist(),
@@ -277,6 +306,18 @@ def choose_steps(model, X, t_end, tolerance, *, scheme=None, cap=None, seed=0, k
             "(provenance.tau_choice['fallback'] lists them)", AccuracyWarning,
             stacklevel=user_stacklevel())
     return unit, n, choice
+
+
+def on_ladder(n):
+    """Per divisor, the smallest integer ≥ ``n`` with at most
+    :data:`LADDER_BITS` significant binary digits (``n`` ≥ 1, int64)."""
+    n = np.asarray(n, dtype=np.int64)
+    if np.any(n < 1):
+        raise ValueError(f"divisors must be at least 1, got {int(n.min())}")
+    # Bits below the leading LADDER_BITS, rounded up (n < 2^62 here).
+    low = np.array([max(0, int(v).bit_length() - LADDER_BITS) for v in n.ravel()],
+                   dtype=np.int64).reshape(n.shape)
+    return ((n + (np.int64(1) << low) - 1) >> low) << low
 
 
 def _next_divisor(level, error, tolerance, order):
