@@ -52,6 +52,7 @@ from .state import initial_deviations
 from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
 __all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
+
            "same_verdict", "summary", "ConstantLadder",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
 
@@ -130,7 +131,7 @@ def summary(n_agree, n, errors_max, step_name):
 
 
 def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=math.inf,
-            agree=agreeing):
+            agree=agreeing, floor=None):
     """Down a ladder of steps, the first that passes (:func:`passes`): the
     pilot's values at step(j) compared with those at step(j + 1) = step(j)/2
     by ``agree`` (:func:`agreeing`, or :func:`same_verdict`),
@@ -145,19 +146,51 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
     (a competitor's pilot that runs its own cheaper steps first,
     :class:`ConstantLadder`).
 
+    Two shortcuts spare pilot runs without changing the rung chosen:
+
+    - A rung whose energy errors at step(j) already exceed ``ceiling``
+      fails whatever its fine run says (:func:`passes` asks for both), so
+      its fine run is not made for it.
+    - ``floor(j)``, if given, is a lower bound of the force evaluations of
+      run(j) before it is made (None where it is made already, or where no
+      bound is known): the rung below one that failed on its energy errors
+      is not run where that bound already stops the descent. Stopping is
+      monotone in the rate (a larger rate exceeds ``stop_above`` too; a
+      :meth:`ConstantLadder.cheaper_than` true at a lower rate stays true at
+      a higher one, the ladder descending further under a higher limit),
+      so a bound that stops the descent stops it where the run's own rate
+      would have.
+
+    On the three-body map of ``studies/map_steps.py`` the LH's rungs at
+    2h₀ and h₀ fail on their energy errors (9.3 and 2.9 against a ceiling
+    of 0.01), and below h₀ the constant step wins: the LH's run at h₀/2
+    (its dearest, 2 of its 4 ms) is neither h₀'s fine run nor, its price
+    bounded from h₀'s, the next rung's coarse run.
+
     Returns
     -------
     tried : list
-        [step, agreeing share, energy error quantile] per step compared.
+        [step, agreeing share (None where the energy errors alone failed
+        the rung), energy error quantile] per step judged.
     chosen : tuple or None
         (j, orbits agreeing, the largest finite energy error at step(j)),
         None when no step passed.
     """
-    tried = []
+    def stops(rate):
+        return stop_above(rate) if callable(stop_above) else rate > stop_above
+
+    tried: list = []
     for j in levels:
-        coarse, errors, rate = run(j)
-        if stop_above(rate) if callable(stop_above) else rate > stop_above:
+        bound = None if floor is None else floor(j)
+        if bound is not None and stops(bound):
             break
+        coarse, errors, rate = run(j)
+        if stops(rate):
+            break
+        worst = float(np.quantile(errors, quantile, method="higher"))
+        if not worst <= ceiling:
+            tried.append([step(j), None, worst])
+            continue
         agreed = agree(coarse, run(j + 1)[0], t_pilot, t_end)
         ok, worst = passes(agreed, errors, quantile, ceiling)
         tried.append([step(j), float(np.mean(agreed)), worst])
@@ -253,6 +286,17 @@ class ConstantLadder:
                              / (len(self._sample) * self._t_pilot))
         return self._runs[j]
 
+    def _floor(self, j):
+        """A lower bound of run j's force evaluations per orbit and unit of
+        time before it is made (:func:`descend`): twice run j − 1's where
+        every pilot orbit reached the pilot's end there (its steps to the
+        end double with each halving of τ); None where run j is made or
+        run j − 1 is not, or an orbit stopped early in it."""
+        if j in self._runs or j - 1 not in self._runs \
+                or not np.isfinite(self._runs[j - 1][0]).all():
+            return None
+        return 2.0 * float(self._runs[j - 1][2])
+
     def advance(self, stop_above):
         """Descend from the first rung not judged yet until one passes, the
         ladder ends, or a rung's force evaluations per orbit and unit of
@@ -261,7 +305,8 @@ class ConstantLadder:
             return
         tried, self._chosen = descend(self._run, range(self._next, LEVELS), self._step,
                                       self._t_pilot, self._t_end, self._quantile,
-                                      self._ceiling, stop_above, agree=self._agree)
+                                      self._ceiling, stop_above, agree=self._agree,
+                                      floor=self._floor)
         self._tried += tried
         self._next += len(tried)
 
