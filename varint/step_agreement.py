@@ -161,11 +161,13 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
       so a bound that stops the descent stops it where the run's own rate
       would have.
 
-    On the three-body map of ``studies/map_steps.py`` the LH's rungs at
-    2h₀ and h₀ fail on their energy errors (9.3 and 2.9 against a ceiling
-    of 0.01), and below h₀ the constant step wins: the LH's run at h₀/2
-    (its dearest, 2 of its 4 ms) is neither h₀'s fine run nor, its price
-    bounded from h₀'s, the next rung's coarse run.
+    :class:`ConstantLadder` gives a floor (its rates double with each
+    halving of τ); the logarithmic Hamiltonian's descent
+    (:func:`varint.time_transform_step.agreeing_h`) does not: its steps in
+    fictitious time double, but at a coarse h the orbit, and with it
+    ∫U dt, is another, and its rate grew by as little as 1.11 from h₀ to
+    h₀/2 on eccentric orbits of a softened point mass (every orbit run to
+    the end at both; 1.69 on the three-body map of ``studies/map_steps.py``).
 
     Returns
     -------

@@ -84,16 +84,6 @@ SMALLEST = 2.0**-12
 #: ``studies/lh_yardstick.py``; an orbit still above the ceiling there
 #: keeps that run and the map's accuracy verdict names it.
 RETRY_LEVELS = 4
-#: The least growth of the LH pilot's force evaluations per orbit and unit
-#: of physical time from h to h/2 where every pilot orbit ran to the
-#: pilot's end at h (:func:`agreeing_h` prices a rung with it before it
-#: runs, :func:`varint.step_agreement.descend`). Not 2: the steps in
-#: fictitious time double, but at a coarse h the orbit, and with it
-#: ∫U dt, is another (the three-body and cored maps of
-#: ``studies/map_steps.py``, every rung from 2h₀ to h₀/256 and every offset
-#: priced: 1.69 to 2.0; ``tests/test_step_agreement.py`` checks the bound
-#: on held-out orbits).
-RUN_GROWTH = 1.25
 #: The pilot's energy ceiling of a map whose orbits are retried, in units
 #: of the map's ``energy_tol``: the pilot's h only needs the verdicts to
 #: agree and most orbits to pass at once; each orbit then meets
@@ -257,17 +247,8 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
                        out.counts[:, 2])
         return runs[j][:3]
 
-    def floor(j):
-        # A lower bound of run j's rate before it is made (descend): run
-        # j − 1's times RUN_GROWTH, where every pilot orbit ran to its end
-        # there (an orbit stopped early at h may run on at h/2).
-        if j in runs or j - 1 not in runs or not np.isfinite(runs[j - 1][1]).all():
-            return None
-        return RUN_GROWTH * float(runs[j - 1][2])
-
     tried, chosen = descend(run, range(TOP, TOP + LEVELS), lambda j: h0 * 2.0**-j, t_pilot,
-                            t_end, quantile, ceiling, agree=agree, stop_above=stop_above,
-                            floor=floor)
+                            t_end, quantile, ceiling, agree=agree, stop_above=stop_above)
     choice = {"h0": h0, "pilot_t": t_pilot, "orbits": len(sample), "quantile": float(quantile),
               "ceiling": float(ceiling), "agreement": agree.__name__,
               "scheme": lh.scheme.name, "tried": tried,
