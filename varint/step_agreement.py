@@ -290,14 +290,20 @@ class ConstantLadder:
 
     def _floor(self, j):
         """A lower bound of run j's force evaluations per orbit and unit of
-        time before it is made (:func:`descend`): twice run j − 1's where
-        every pilot orbit reached the pilot's end there (its steps to the
-        end double with each halving of τ); None where run j is made or
-        run j − 1 is not, or an orbit stopped early in it."""
+        time before it is made (:func:`descend`): run j − 1's times the
+        ratio of their steps to the pilot's end (about 2: each orbit's
+        evaluations are its steps times the scheme's stages), where every
+        pilot orbit reached the pilot's end at step(j − 1). None where
+        run j is made or run j − 1 is not, or an orbit stopped early in it."""
         if j in self._runs or j - 1 not in self._runs \
                 or not np.isfinite(self._runs[j - 1][0]).all():
             return None
-        return 2.0 * float(self._runs[j - 1][2])
+        return float(self._runs[j - 1][2]) * self._steps(j) / self._steps(j - 1)
+
+    def _steps(self, j):
+        """The steps of a pilot run at step(j) to the pilot's end, as
+        :func:`~varint.stepsize.pilot_errors` counts them."""
+        return max(1, int(round(self._t_pilot / self._step(j))))
 
     def advance(self, stop_above):
         """Descend from the first rung not judged yet until one passes, the
