@@ -259,7 +259,7 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     tests/test_time_transform_step.py), runs counted by hook: no constant
     run after the LH's last is the fine run of a rung that cannot pay for
     itself, and the LH's map is run. The switch as it was (pilot share 0,
-    the map alone priced) makes exactly such a run, and takes the constant
+    the map alone priced) makes such a run, and takes the constant
     step whose pilot run and map together cost more than the LH's map, so
     the test fails without the change."""
     model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.55, 0.95))
@@ -298,7 +298,9 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
         mp.setattr(maps, "_pilot_share", lambda spec: 0.0)
         before, runs_before = defaults(mp)
     constant_runs = [Counter(kind for kind, _, _ in rs)["constant"] for rs in (runs, runs_before)]
-    assert before.provenance.method == "tm" and constant_runs[1] == constant_runs[0] + 1
+    # The extra run, and (step_agreement.descend) the fine run of the last
+    # rung the current switch judged, failing on its energy errors alone.
+    assert before.provenance.method == "tm" and constant_runs[1] == constant_runs[0] + 2
     assert dear(runs_before, prices, share), runs_before
     # What the old choice still had to run when the LH's pilot was spent:
     # its rung's fine pilot run and its map, dearer than the LH's map.
@@ -363,3 +365,31 @@ def test_descend_spares_runs_that_cannot_change_the_rung(stop_above, chosen, spa
     assert [share for _, share, _ in tried][:3] == [None] * min(3, len(tried))
     assert sorted(made) == sorted(set(made)) and len(made) == len(set(naive_made)) - spared
     assert set(made) <= set(naive_made)
+
+
+def test_constant_ladder_spares_the_fine_run_of_a_rung_failing_on_energy():
+    """The small softened-point-mass map of the test above, where the LH
+    wins: its constant ladder, judged under the LH's prices, ends on the
+    rung τ = 1/16, whose energy errors (0.086) exceed the ceiling
+    (energy_tol 1e-3). Every constant pilot run made (counted by hook) is
+    the coarse run of a rung judged, or the fine run of a rung judged by
+    agreement: the ladder as it was also made τ = 1/32, the fine run of that
+    last rung and its dearest run (half of its force evaluations), so this
+    fails without the shortcuts of step_agreement.descend. The choice is
+    the prices' (the LH's, its map bitwise that of the LH at its h, tested
+    above), the ladder's rungs judged down to the same step."""
+    model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.55, 0.95))
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        runs = _pilot_runs(mp)
+        r = varint.chaos_map(model, X, "fli", t_end=T_END, progress=False)
+    constant = r.provenance.tau_choice["constant"]
+    assert r.provenance.method == "tm+log" and constant["rule"] == "none"
+    tried = constant["tried"]
+    judged = {round(tau, 12) for tau, _, _ in tried}
+    compared = {round(tau / 2, 12) for tau, share, _ in tried if share is not None}
+    made = [round(tau, 12) for kind, tau, _ in runs if kind == "constant"]
+    assert made and len(made) == len(set(made)) and set(made) <= judged | compared, (made, tried)
+    # The last rung judged failed on its energy errors alone, above the ceiling.
+    assert tried[-1][1] is None and tried[-1][2] > constant["ceiling"]
+    assert min(made) == tried[-1][0]

@@ -161,6 +161,16 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
       so a bound that stops the descent stops it where the run's own rate
       would have.
 
+    Where the logarithmic Hamiltonian wins, the constant ladder judged under
+    its prices often ends on a rung failing on its energy errors, whose
+    fine run, the ladder's dearest, was made for nothing: on the softened
+    point mass map of ``tests/test_step_agreement.py`` (26 orbits) the
+    ladder's force evaluations halve (6 runs to 5), and on the held-out
+    maps of ``studies/switch_check.py`` (two centres, the rotating point
+    mass, the halo with a central mass; 40 orbits, t = 500) the defaults
+    made one pilot run fewer, every choice and map bitwise the same. On
+    the three-body race map nothing changes (the same 7 runs).
+
     :class:`ConstantLadder` gives a floor (its rates double with each
     halving of τ); the logarithmic Hamiltonian's descent
     (:func:`varint.time_transform_step.agreeing_h`) does not: its steps in
@@ -228,8 +238,8 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
     choice : dict
         ``rule`` ("indicator", or "none"), ``tau``, ``pilot_t``,
         ``orbits``, ``agreement`` (the name of ``agree``), ``tried`` ([τ,
-        agreeing share, energy error quantile]
-        per step compared with its half), ``energy_error`` (the largest
+        agreeing share, energy error quantile] per step judged; the share
+        None where the energy errors alone failed it, :func:`descend`), ``energy_error`` (the largest
         pilot orbit's at τ), ``gradient_rate`` (force evaluations per orbit
         and unit of time at τ, or at the last step tried), ``counts`` and
         ``summary``.
