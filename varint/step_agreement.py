@@ -52,7 +52,6 @@ from .state import initial_deviations
 from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
 
 __all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
-
            "same_verdict", "summary", "ConstantLadder",
            "AGREEMENT_DEX", "CHAOTIC_GROWTH", "LEVELS"]
 
@@ -239,10 +238,10 @@ def agreeing_tau(model, X, t_end, *, scheme, seed, k, renorm, accumulator, value
         ``rule`` ("indicator", or "none"), ``tau``, ``pilot_t``,
         ``orbits``, ``agreement`` (the name of ``agree``), ``tried`` ([τ,
         agreeing share, energy error quantile] per step judged; the share
-        None where the energy errors alone failed it, :func:`descend`), ``energy_error`` (the largest
-        pilot orbit's at τ), ``gradient_rate`` (force evaluations per orbit
-        and unit of time at τ, or at the last step tried), ``counts`` and
-        ``summary``.
+        None where the energy errors alone failed it, :func:`descend`),
+        ``energy_error`` (the largest pilot orbit's at τ),
+        ``gradient_rate`` (force evaluations per orbit and unit of time at
+        τ, or at the last step tried), ``counts`` and ``summary``.
     """
     ladder = ConstantLadder(model, X, t_end, scheme=scheme, seed=seed, k=k, renorm=renorm,
                             accumulator=accumulator, value=value, quantile=quantile,
@@ -303,8 +302,10 @@ class ConstantLadder:
         time before it is made (:func:`descend`): run j − 1's times the
         ratio of their steps to the pilot's end (about 2: each orbit's
         evaluations are its steps times the scheme's stages), where every
-        pilot orbit reached the pilot's end at step(j − 1). None where
-        run j is made or run j − 1 is not, or an orbit stopped early in it."""
+        pilot orbit reached the pilot's end at step(j − 1) (an orbit that
+        then stopped early at step(j), escaping where the coarser step
+        did not, would make it too high: not seen). None where run j is
+        made or run j − 1 is not, or an orbit stopped early in it."""
         if j in self._runs or j - 1 not in self._runs \
                 or not np.isfinite(self._runs[j - 1][0]).all():
             return None
