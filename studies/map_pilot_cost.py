@@ -14,7 +14,8 @@ Where the pilots' time goes: the defaults' map under :mod:`cProfile`
 cumulative time of the functions in :data:`PARTS` per map. They nest: the
 switch holds the LH's pilot, whose descent runs the constant-step
 ladder's pilot runs between its rungs (:class:`varint.step_agreement.ConstantLadder`),
-and both build propagators.
+and both build propagators. The pilots' force evaluations and the rungs
+each judged (counts, not timings) come from the defaults' ``tau_choice``.
 
 Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
 results ``map_pilot_cost.json``.
@@ -97,7 +98,13 @@ def main(argv=None):
               "scheme": scheme, "bitwise_run": bool(np.array_equal(bare.values, defaults.values, equal_nan=True)),
               "seconds": best, "pilot_seconds": best["defaults"] - best["run alone"],
               "pilot_share": 1.0 - best["run alone"] / best["defaults"],
-              "profile_seconds_per_map": parts, "load": load,
+              "profile_seconds_per_map": parts,
+              # Counts, not timings: the same on any machine and load.
+              "pilot_runs": {"constant": len(choice["tried"]),
+                             "log": len(choice["log"]["tried"])},
+              "pilot_gradients": {"constant": choice["counts"]["gradient"],
+                                  "log": choice["log"]["counts"]["gradient_evaluations"]},
+              "load": load,
               "load_end": list(os.getloadavg())}
     print(f"CR3BP map, {len(X)} orbits, t = {t_end:g}, defaults τ = {tau:g} ({scheme}), "
           f"CPU, min of {args.repeats} interleaved, load {load[0]:.1f}")
@@ -106,6 +113,9 @@ def main(argv=None):
     print(f"  pilots       {1e3 * result['pilot_seconds']:8.2f} ms "
           f"({100 * result['pilot_share']:.0f} % of the defaults)"
           f"; the run alone gives the defaults' bits: {result['bitwise_run']}")
+    print(f"  pilot force evaluations: constant ladder {result['pilot_gradients']['constant']}"
+          f" ({result['pilot_runs']['constant']} rungs judged), LH "
+          f"{result['pilot_gradients']['log']} ({result['pilot_runs']['log']} rungs judged)")
     print("under cProfile, per map (shares, not seconds):")
     for k, v in parts.items():
         print(f"  {k:<45} {1e3 * v:8.2f} ms")

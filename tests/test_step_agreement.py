@@ -8,6 +8,7 @@ the cost-based switch of the map defaults takes the LH where it is priced
 cheaper, the constant step chosen by the same agreement where it is not,
 and says so."""
 
+import math
 import warnings
 from collections import Counter
 
@@ -21,7 +22,7 @@ from varint.maps import MAP_QUANTILE
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.state import initial_deviations
-from varint.step_agreement import agreeing, chaotic_level, passes, same_verdict
+from varint.step_agreement import agreeing, chaotic_level, descend, passes, same_verdict
 from varint.time_transform import LogHamiltonian
 from varint.time_transform_step import agreeing_h
 
@@ -258,7 +259,7 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     tests/test_time_transform_step.py), runs counted by hook: no constant
     run after the LH's last is the fine run of a rung that cannot pay for
     itself, and the LH's map is run. The switch as it was (pilot share 0,
-    the map alone priced) makes exactly such a run, and takes the constant
+    the map alone priced) makes such a run, and takes the constant
     step whose pilot run and map together cost more than the LH's map, so
     the test fails without the change."""
     model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.55, 0.95))
@@ -297,9 +298,98 @@ def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
         mp.setattr(maps, "_pilot_share", lambda spec: 0.0)
         before, runs_before = defaults(mp)
     constant_runs = [Counter(kind for kind, _, _ in rs)["constant"] for rs in (runs, runs_before)]
-    assert before.provenance.method == "tm" and constant_runs[1] == constant_runs[0] + 1
+    # The extra run, and (step_agreement.descend) the fine run of the last
+    # rung the current switch judged, failing on its energy errors alone.
+    assert before.provenance.method == "tm" and constant_runs[1] == constant_runs[0] + 2
     assert dear(runs_before, prices, share), runs_before
     # What the old choice still had to run when the LH's pilot was spent:
     # its rung's fine pilot run and its map, dearer than the LH's map.
     constant = before.provenance.tau_choice["gradient_rate"] * prices["constant_gradient_cost"]
     assert constant < prices["log"] < constant * (1 + share)
+
+
+def _synthetic_ladder(levels):
+    """A ladder of ``levels`` rungs whose pilot runs are made up, recorded
+    as they are made: the energy error at step j is 10^−j, the force
+    evaluations 2^j, and the values agree between rungs 3 and 4 only."""
+    made = []
+
+    def run(j):
+        made.append(j)
+        values = np.full(10, 5.0 if j >= 3 else float(j))
+        return values, np.full(10, 10.0**-j), 2.0**j
+
+    return run, made
+
+
+def _naive(levels, ceiling, stop_above):
+    """The descent as it was, every rung's fine run made: the first j that
+    agrees with j + 1 with energy errors within ``ceiling``, stopping where
+    a coarse run's rate exceeds ``stop_above``."""
+    run, made = _synthetic_ladder(levels)
+    for j in range(levels):
+        coarse, errors, rate = run(j)
+        if rate > stop_above:
+            return None, made
+        fine = run(j + 1)[0]
+        if np.all(np.abs(coarse - fine) < 0.5) and errors.max() <= ceiling:
+            return j, made
+    return None, made
+
+
+@pytest.mark.parametrize("stop_above, chosen, spared", [(math.inf, 3, 0), (3.0, None, 1)])
+def test_descend_spares_runs_that_cannot_change_the_rung(stop_above, chosen, spared):
+    """descend on a made-up ladder (energy errors 10^−j against a ceiling
+    of 2e-3, values agreeing between rungs 3 and 4, rates 2^j): the rung
+    chosen is the one a descent that makes every fine run chooses; the
+    rungs 0–2, failing on their energy errors alone, are judged without
+    their fine runs (share None); with stop_above 3 (rung 2's rate 4)
+    rung 1 fails on its energy and rung 2, priced by the floor before it
+    runs, is never run, where the full descent ran it as rung 1's fine run."""
+    run, made = _synthetic_ladder(8)
+    memo: dict = {}
+
+    def memoised(j):
+        if j not in memo:
+            memo[j] = run(j)
+        return memo[j]
+
+    def floor(j):
+        return None if j in memo or j - 1 not in memo else 2.0 * memo[j - 1][2]
+
+    tried, got = descend(memoised, range(8), lambda j: 2.0**-j, 100.0, None, 1.0, 2e-3,
+                         stop_above=stop_above, agree=lambda a, b, t, t_end: np.abs(a - b) < 0.5,
+                         floor=floor)
+    expected, naive_made = _naive(8, 2e-3, stop_above)
+    assert (None if got is None else got[0]) == expected == chosen
+    assert [share for _, share, _ in tried][:3] == [None] * min(3, len(tried))
+    assert sorted(made) == sorted(set(made)) and len(made) == len(set(naive_made)) - spared
+    assert set(made) <= set(naive_made)
+
+
+def test_constant_ladder_spares_the_fine_run_of_a_rung_failing_on_energy():
+    """The small softened-point-mass map of the test above, where the LH
+    wins: its constant ladder, judged under the LH's prices, ends on the
+    rung τ = 1/16, whose energy errors (0.086) exceed the ceiling
+    (energy_tol 1e-3). Every constant pilot run made (counted by hook) is
+    the coarse run of a rung judged, or the fine run of a rung judged by
+    agreement: the ladder as it was also made τ = 1/32, the fine run of that
+    last rung and its dearest run (half of its force evaluations), so this
+    fails without the shortcuts of step_agreement.descend. The choice is
+    the prices' (the LH's, its map bitwise that of the LH at its h, tested
+    above), the ladder's rungs judged down to the same step."""
+    model, X = _plummer(), _plummer_orbits(0, 26, p_y=(0.55, 0.95))
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        runs = _pilot_runs(mp)
+        r = varint.chaos_map(model, X, "fli", t_end=T_END, progress=False)
+    constant = r.provenance.tau_choice["constant"]
+    assert r.provenance.method == "tm+log" and constant["rule"] == "none"
+    tried = constant["tried"]
+    judged = {round(tau, 12) for tau, _, _ in tried}
+    compared = {round(tau / 2, 12) for tau, share, _ in tried if share is not None}
+    made = [round(tau, 12) for kind, tau, _ in runs if kind == "constant"]
+    assert made and len(made) == len(set(made)) and set(made) <= judged | compared, (made, tried)
+    # The last rung judged failed on its energy errors alone, above the ceiling.
+    assert tried[-1][1] is None and tried[-1][2] > constant["ceiling"]
+    assert min(made) == tried[-1][0]

@@ -219,8 +219,9 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     choice : dict
         ``rule`` ("indicator", or "none"), ``h``, ``h0``, ``pilot_t``,
         ``orbits``, ``agreement`` (the name of ``agree``), ``tried`` ([h,
-        agreeing share, energy error quantile] per step compared with its
-        half), ``energy_error`` (the largest
+        agreeing share, energy error quantile] per step judged; the share
+        None where the energy errors alone failed it,
+        :func:`~varint.step_agreement.descend`), ``energy_error`` (the largest
         pilot orbit's at h), ``gradient_rate`` (force evaluations per
         orbit and unit of physical time at h), ``counts`` and
         ``summary``, the sentence the map reports.
