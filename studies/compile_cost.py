@@ -15,13 +15,16 @@ the number of dispatcher compiles with the largest by exclusive seconds.
 Cases: ``stepper`` (the generated one-orbit stepper, SALI of Hénon–Heiles
 R1), ``lattice`` (the part stepper of a disordered Klein–Gordon lattice
 from :func:`varint.kernels.interval.batch_loop`, a Lyapunov spectrum) and
-``tdh`` (Hénon–Heiles with the TDH scheme ``tdhes``).
+``tdh`` (Hénon–Heiles with the TDH scheme ``tdhes``); ``skeleton`` compiles
+four skeleton kernels in one process, as a test suite does (the lattice's
+spectrum for k = 4 and k = 1, Hénon–Heiles by ``tdhes`` and ``tdhcc``): what
+a helper compiled once and called, rather than inlined into each, saves.
 
 ``--profile`` instead runs each case once under :mod:`cProfile` and stores
 the functions with the largest own time (cProfile slows the compile; use it
 for shares, not seconds).
 
-Usage: ``python studies/compile_cost.py [--cases stepper lattice tdh]
+Usage: ``python studies/compile_cost.py [--cases stepper lattice tdh skeleton]
 [--repeats N] [--profile] [--quick] [--out DIR]``
 """
 
@@ -51,6 +54,14 @@ CASES = {
     "tdh": ("m = varint.models.HenonHeiles(); "
             "r = varint.integrate(m, np.array([0.0, 0.558, 0.23337397, 0.0]), 5.0, tau=0.1, "
             "method='tdhes', deviations=np.eye(4)); value = r.deviations"),
+    "skeleton": ("m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
+                 "a = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
+                 "b = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, n_exponents=1, progress=False); "
+                 "h = varint.models.HenonHeiles(); x0 = np.array([0.0, 0.558, 0.23337397, 0.0]); "
+                 "c = varint.integrate(h, x0, 5.0, tau=0.1, method='tdhes', deviations=np.eye(4)); "
+                 "e = varint.integrate(h, x0, 5.0, tau=0.1, method='tdhcc', deviations=np.eye(4)); "
+                 "value = np.concatenate([a.exponents.ravel(), b.exponents.ravel(), "
+                 "c.deviations.ravel(), e.deviations.ravel()])"),
 }
 
 #: The child: an exclusive-time listener on every numba event, then the case.
