@@ -246,6 +246,15 @@ contender at the verdict rule's τ with its pilot 3.31×; cored defaults
 0.312× (heyoka tol 1e-4, 0.858 s) at 100 %, hand-tuned LH h = 0.025 0.252×
 at 100 %. Neither target is met.
 
+The three-body race again, quiet, on another machine (stop 50, ``--quick
+--part log --case cr3bp``, ``map_steps_quick_cr3bp_log_stop50.json``,
+3 repeats, AMD EPYC without AVX-512, load 1.0 → 1.0; the defaults' pilots
+skip the runs that cannot change their rung, with the same choice and
+bits on this map): defaults 0.0736 s, 3.22× heyoka batch 8 (tol 1e-5,
+0.237 s) at 98.7 %; the constant contender at the verdict rule's τ 3.20×.
+The defaults' choice and run are those of stop 49, so 2.97× and 3.22×
+are the spread of two quiet runs on two machines around the target.
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part
