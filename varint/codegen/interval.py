@@ -99,9 +99,12 @@ class OneOrbit:
     #: kernel's compile, studies/stepper_compile_parts.py); the same bits.
     log = "vlog_called"
 
-    def fail(self, src, condition, value):
+    def fail(self, src, condition, value, settle=()):
+        """Where ``condition`` holds: the statements ``settle`` (what puts
+        the state in its locals mid-step: :meth:`~varint.codegen.tm.TMBody.
+        unsettled`), the status, out of the loop."""
         with src.block(f"if {condition}:"):
-            src(f"status = {value}", "break")
+            src(*settle, f"status = {value}", "break")
 
     fail_each = fail
     fail_due = fail
@@ -325,11 +328,13 @@ class Interval:
                 out += [(body.a[i][j], f"W[{i}, {j}]"), (body.b[i][j], f"W[{n + i}, {j}]")]
         for j in range(k):
             out += [(f"am{j}", f"acc_m[{j}]"), (f"ae{j}", f"acc_e[{j}]")]
-        if body.compensated:
-            c = body.compensation
-            out += [(c(body.coordinate(i)), f"comp[{i}, 0]") for i in range(2 * n)]
-            out += [(c(body.component(i, j)), f"comp[{i}, {j + 1}]") for j in range(k)
-                    for i in range(2 * n)]
+        # The compensations a level changes (those of the others stay zero
+        # in the state: not loaded, not kept in registers).
+        c, kept = body.compensation, body.compensated_names()
+        out += [(c(body.coordinate(i)), f"comp[{i}, 0]") for i in range(2 * n)
+                if body.coordinate(i) in kept]
+        out += [(c(body.component(i, j)), f"comp[{i}, {j + 1}]") for j in range(k)
+                for i in range(2 * n) if body.component(i, j) in kept]
         return out + [("next_renorm", "rsched[0]"), ("interval", "rsched[1]")]
 
     def live_columns(self, where):
@@ -420,7 +425,7 @@ class Interval:
             src(f"inv = 1.0 / r{j}")
             for i in range(2 * self.n):
                 src(f"{w[i, j]} *= inv")
-                if self.body.compensated:
+                if names[i, j] in self.body.compensated_names():
                     # The vector is scaled: its compensation with it (one
                     # orbit only: lanes are not emitted compensated).
                     src(f"{self.body.compensation(names[i, j])} *= inv")

@@ -103,6 +103,9 @@ class TMBody:
 
         self.printer = StepperPrinter()
         self.reuse_first = self.kinds[0] != DRIFT and self.kinds[-1] != DRIFT
+        #: The momenta a kick of the step being written has moved and no
+        #: stage has read since (:meth:`unsettled`).
+        self._unsettled = []
 
     # -- names --------------------------------------------------------------------------
     def coordinate(self, i):
@@ -127,6 +130,13 @@ class TMBody:
         if self.compensated == "orbit":
             return name in self.q or name in self.p
         return self.compensated is True
+
+    def compensated_names(self):
+        """The state and vector locals whose compensation the level changes
+        (:meth:`compensates`, or the orbit's with ``"step"``): the others'
+        stay zero, and the stepper neither loads nor keeps them."""
+        names = self.q + self.p + [v for rows in (self.a, self.b) for row in rows for v in row]
+        return {v for v in names if self.compensates(v) or self.displaces(v)}
 
     def displaces(self, name):
         """Whether updates of state local ``name`` add to its displacement
@@ -243,10 +253,12 @@ class TMBody:
         for x in orbit:
             src(f"{self.start_of_step(x)} = {x}",
                 f"{self.displacement(x)} = -{self.compensation(x)}")
+        self._unsettled = []
         self.stages(src, target)
         for x in orbit:
             x0, d = self.start_of_step(x), self.displacement(x)
             src(f"ks = {x0} + {d}", f"{self.compensation(x)} = (ks - {x0}) - {d}", f"{x} = ks")
+        self._unsettled = []
 
     def stages(self, src, target):
         """The scheme's stages, drifts and kicks, in order."""
@@ -298,13 +310,24 @@ class TMBody:
                 src(f"{t} = {self.printer.doprint(e)}")
             for t, e in zip(targets, reduced, strict=True):
                 src(f"{t} = {self.printer.doprint(e)}")
+            settle = self.unsettled()
             for _, names, _, status, counter in groups:
                 if counter and target.counts:
                     src(f"{counter} += 1")
                 if names:
                     src(f"fin = {' + '.join(names)}")
                     target.fail(src, "fin - fin != 0.0",
-                                f"{status} if {rq} < HUGE else {_NONFINITE}")
+                                f"{status} if {rq} < HUGE else {_NONFINITE}",
+                                **({"settle": settle} if settle else {}))
+
+    def unsettled(self):
+        """The statements that put the state's locals mid-step where a
+        failure leaves the loop: with ``compensated="step"``, each p a kick
+        of this step has moved and no stage has read since, as the start
+        plus its displacement (the values the plain stepper's locals hold
+        there, bit for bit those a stage reading them would have)."""
+        return [f"{p} = {self.start_of_step(p)} + {self.displacement(p)}"
+                for p in self._unsettled]
 
     # Drifts and kicks are chains of fused multiply–adds (varint.kernels.fma).
     def drift(self, src, st):
@@ -372,10 +395,17 @@ class TMBody:
         floating point without fastmath).
         """
         if self.displaces(name):
-            # To the displacement, plainly, and the state read from it (an
-            # unread one is compiled away: a kick's p before the next kick).
+            # To the displacement, plainly, and the state read from it where
+            # a stage reads it (q for the forces; p in a rotating frame's
+            # drift); a kick's p otherwise only where the step fails before
+            # it ends (:meth:`unsettled`): it would be kept in a register,
+            # or spilled, through every failure check of the step.
             d = self.displacement(name)
-            src(f"{d} = {increment(d)}", f"{name} = {self.start_of_step(name)} + {d}")
+            src(f"{d} = {increment(d)}")
+            if name in self.q or self.E.planar is not None:
+                src(f"{name} = {self.start_of_step(name)} + {d}")
+            elif name not in self._unsettled:
+                self._unsettled.append(name)
             return
         if not self.compensates(name):
             src(f"{name} = {increment(name)}")

@@ -1,0 +1,93 @@
+"""What ``compensated="step"`` costs per step over the plain stepper
+(issue 27: C2 at 1e-10, where s35odr10 with ``compensated="step"`` is
+varint's cheapest run).
+
+The cost of a step, without the call's fixed cost: the CPU time of a
+prepared run (:func:`studies.frontier.prepared_runner`) to a long horizon
+less that of the same run to a short one, over the steps between them.
+Both levels and both horizons are called in turn (:func:`studies.common.
+interleaved`, this process's CPU time, one thread), the minimum over the
+repeats, so that the machine's load falls on all alike; the ratio of the
+levels' per-step costs is the figure (only ratios within one run mean
+anything; the load is stored with them).
+
+Case: the paper's C2 with the seeded unit tangent vector of
+:mod:`studies.frontier`, s35odr10 and SRKN14a at τ = 0.2 and 0.125
+(``--quick``: s35odr10 only, horizons ten times shorter, three repeats).
+
+Usage: ``python studies/step_compensation_cost.py [--quick] [--out DIR]``
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numba  # noqa: E402
+
+import varint  # noqa: E402
+from studies.bench_peers import seeded_vectors  # noqa: E402
+from studies.common import interleaved, parse_args, save_csv, save_json  # noqa: E402
+from studies.frontier import prepared_runner  # noqa: E402
+
+#: scheme -> step.
+CASES = {"s35odr10": 0.2, "SRKN14a": 0.125}
+LEVELS = (False, "step")
+#: The two horizons whose difference is timed.
+HORIZONS = (200.0, 1000.0)
+
+
+def level_name(level):
+    return "+cs" if level == "step" else "plain"
+
+
+def main(argv=None):
+    args = parse_args(__doc__.splitlines()[0], argv)
+    numba.set_num_threads(1)
+    load = {"before": list(os.getloadavg()), "cpus": os.cpu_count()}
+    cases = {"s35odr10": CASES["s35odr10"]} if args.quick else CASES
+    horizons = tuple(t / 10 for t in HORIZONS) if args.quick else HORIZONS
+    repeats = 3 if args.quick else 21
+    model, x0 = varint.paper_orbit("C2")
+    w0 = seeded_vectors(model.dim, 1, 1, seed=0)[0][:, 0]
+    tasks = {}
+    for scheme, tau in cases.items():
+        for level in LEVELS:
+            run = prepared_runner(model, scheme, tau, w0, level)
+            for t_end in horizons:
+                run(x0, w0, t_end)          # compile, prepare
+                tasks[(scheme, level, t_end)] = (lambda f=run, te=t_end: f(x0, w0, te))
+    best, _ = interleaved(tasks, repeats, clock=time.process_time)
+    rows = []
+    for scheme, tau in cases.items():
+        per = {}
+        for level in LEVELS:
+            short, long = (best[(scheme, level, t)] for t in horizons)
+            steps = round((horizons[1] - horizons[0]) / tau)
+            per[level] = (long - short) / steps
+            rows.append({"scheme": scheme, "tau": tau, "level": level_name(level),
+                         "short_cpu_seconds": short, "long_cpu_seconds": long,
+                         "steps_between": steps, "per_step_ns": 1e9 * per[level]})
+        rows[-1]["over_plain"] = per["step"] / per[False] - 1.0
+    load["after"] = list(os.getloadavg())
+    save_csv(args.out, "step_compensation_cost", rows,
+             ["scheme", "tau", "level", "short_cpu_seconds", "long_cpu_seconds",
+              "steps_between", "per_step_ns", "over_plain"])
+    result = {"rows": rows, "horizons": horizons, "repeats": repeats, "load": load,
+              "quick": args.quick}
+    save_json(args.out, "step_compensation_cost", result)
+    print(f"load {load}; {repeats} repeats, min; CPU time per step (horizons {horizons})")
+    for r in rows:
+        over = "" if "over_plain" not in r else f"  +cs over plain {r['over_plain']:+.1%}"
+        print(f"{r['scheme']:9s} tau={r['tau']:<6g} {r['level']:6s} "
+              f"{r['per_step_ns']:7.1f} ns/step{over}")
+    return result
+
+
+if __name__ == "__main__":
+    main()
