@@ -15,6 +15,13 @@ Case: the paper's C2 with the seeded unit tangent vector of
 :mod:`studies.frontier`, s35odr10 and SRKN14a at τ = 0.2 and 0.125
 (``--quick``: s35odr10 only, horizons ten times shorter, three repeats).
 
+Measured (21 repeats, this machine's CPU time): on main before the change
+(``step_compensation_cost_before.json``, 63e9f7c, load 0.4 → 1.0) +cs cost
++68.7 % (s35odr10) and +60.8 % (SRKN14a) per step over plain; with each
+kick's p left unmaterialised and only the changed compensations kept
+(``step_compensation_cost.json``, load 1.6 → 1.2) +19.1 % and +22.4 %, the
+results bitwise those of before.
+
 Usage: ``python studies/step_compensation_cost.py [--quick] [--out DIR]``
 """
 
