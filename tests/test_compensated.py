@@ -5,6 +5,7 @@ resumes bitwise."""
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import varint
 from varint.methods.tm import TangentMapPropagator
@@ -333,3 +334,27 @@ def test_step_compensation_against_the_reference():
         assert err["step"] < bound and err["step"] < err[False] / 10, (name, err)
         assert not np.array_equal(runs["step"].state, runs[False].state)
         assert runs["step"].provenance.method_options["compensated"] == "step"
+
+
+def test_step_compensation_fails_mid_step_where_the_plain_step_fails():
+    # V = −√x has no force for x < 0: the orbit heads there and a kick's
+    # forces turn non-finite in the middle of a step. With
+    # compensated="step" a kick's p is kept as the step's start plus its
+    # displacement and written back only on a failure's way out, so the
+    # run must end as the plain one does (the same status, step and force
+    # evaluations, mid-step) and leave the plain run's state, p included,
+    # within round-off (a p left at the step's start would be off by the
+    # step's kicks).
+    x, y = sp.symbols("x y")
+    model = varint.models.from_potential(-sp.sqrt(x) + y**2 / 2, [x, y])
+    x0 = np.array([0.5, 0.0, -2.0, 0.1])
+    runs = {}
+    for level in (False, "step"):
+        with pytest.warns(RuntimeWarning, match="failed"):
+            runs[level] = varint.integrate(model, x0, 5.0, tau=0.01, scheme="SRKN14a",
+                                           compensated=level, errors="flag")
+    plain, step = runs[False], runs["step"]
+    assert int(plain.status) == int(step.status) != int(Status.OK)
+    assert plain.provenance.counts == step.provenance.counts
+    assert plain.provenance.counts["gradient"] % 14 != 0      # it failed mid-step
+    assert _relative(step.state, plain.state) < 1e-13

@@ -12,6 +12,11 @@ import functools
 import numpy as np
 from numba import njit
 
+try:
+    from numpy._core._multiarray_umath import __cpu_features__ as _NUMPY_CPU
+except ImportError:  # another NumPy's layout: assume its SIMD loops
+    _NUMPY_CPU = {}
+
 from .base import Model
 
 __all__ = ["HenonHeiles"]
@@ -66,6 +71,14 @@ def _potential_rows(states):
     return out
 
 
+#: Whether NumPy's float64 ``power`` is libm's ``pow`` on this CPU, as
+#: :func:`_potential_rows` is: on a CPU with AVX-512 NumPy's loop calls
+#: Intel SVML's ``pow`` (``numpy/_core/src/umath/loops_umath_fp.dispatch.c.src``,
+#: even for a scalar exponent), whose last bit need not be libm's, so the
+#: compiled V would not be bitwise the NumPy V there.
+NUMPY_POWER_IS_LIBM = _NUMPY_CPU.get("AVX512F") is False
+
+
 class HenonHeiles(Model):
     """The 2-degree-of-freedom Hénon–Heiles Hamiltonian.
 
@@ -84,8 +97,9 @@ class HenonHeiles(Model):
 
     escape_energy = ESCAPE_ENERGY
     #: V of states (R, 2N), C-contiguous, compiled (:func:`_potential_rows`):
-    #: bitwise ``potential(states[:, :2])`` (:class:`varint.rerun.ShortCall`).
-    potential_rows = staticmethod(_potential_rows)
+    #: bitwise ``potential(states[:, :2])`` (:class:`varint.rerun.ShortCall`);
+    #: None where NumPy's power is not libm's (:data:`NUMPY_POWER_IS_LIBM`).
+    potential_rows = staticmethod(_potential_rows) if NUMPY_POWER_IS_LIBM else None
 
     def __init__(self, escape_radius: float | None = None) -> None:
         super().__init__(2, _potential, _grad, _hess, _third, bandwidth=1,
