@@ -19,7 +19,16 @@ Two calls of the frontier study's kind (orbit + one tangent vector, R1,
   a fixed seeded set of :data:`NEW_STATES` states near R1 (offsets of
   1e-6, seed 2), taken in turn, so that nothing kept from one x0 to the
   next can flatter ``prepared``; its SHA-256 covers the results of the
-  whole set.
+  whole set;
+* ``prepared_nov``: ``prepared`` with Hénon–Heiles' compiled V switched off
+  (``HenonHeiles.potential_rows = None`` in the worker, both codes, and a
+  new ``HenonHeiles()`` after it), as on
+  a CPU with AVX-512, where NumPy's power is SVML's and the compiled V of
+  ``y ** 3`` is not made (issue 28);
+* ``generated``: ``prepared`` on a model built from an expression,
+  ``from_potential((x**2 + y**2)/2 + x**2*y**2, [x, y])`` (the x²y²
+  coupled oscillators: squares only, so its compiled V is made on every
+  CPU, :mod:`varint.models.potential_rows`), from (0.3, 0.2, 0.1, −0.2).
 
 Each code runs in its own worker process (``python -c`` with the code's
 directory first on ``sys.path``), the workers alternate (interleaved
@@ -58,21 +67,34 @@ WORKER = r"""
 import functools, hashlib, itertools, json, sys, time
 sys.path.insert(0, sys.argv[1])
 import numpy as np
+import sympy as sp
 import varint
+from varint.models.henon_heiles import HenonHeiles
 calls = int(sys.argv[2])
-model, x0 = varint.paper_orbit("R1")
-w0 = np.random.default_rng(1).standard_normal(len(x0))
+hh, hh_x0 = varint.paper_orbit("R1")
+qx, qy = sp.symbols("x y")
+generated = varint.models.from_potential((qx**2 + qy**2) / 2 + qx**2 * qy**2, [qx, qy],
+                                         name="x2y2")
+gen_x0 = np.array([0.3, 0.2, 0.1, -0.2])
+w0 = np.random.default_rng(1).standard_normal(len(hh_x0))
 w0 /= np.linalg.norm(w0)
-new = [x0 + 1e-6 * d for d in np.random.default_rng(2).standard_normal((int(sys.argv[3]), len(x0)))]
+new = [hh_x0 + 1e-6 * d
+       for d in np.random.default_rng(2).standard_normal((int(sys.argv[3]), len(hh_x0)))]
 cases = {"fixed": (0.05, 0.05, "s15odr8"), "frontier": (1e3, 0.4, "s35odr10"),
-         "prepared": (0.05, 0.05, "s15odr8"), "prepared_new": (0.05, 0.05, "s15odr8")}
+         "prepared": (0.05, 0.05, "s15odr8"), "prepared_new": (0.05, 0.05, "s15odr8"),
+         "prepared_nov": (0.05, 0.05, "s15odr8"), "generated": (0.05, 0.05, "s15odr8")}
 out = {"varint": varint.__file__}
 for name, (t_end, tau, scheme) in cases.items():
+    model, x0 = (generated, gen_x0) if name == "generated" else (hh, hh_x0)
+    if name == "prepared_nov":
+        # A class attribute that a new model reads (the last case of R1).
+        HenonHeiles.potential_rows = None
+        model = HenonHeiles()
     def call():
         return varint.integrate(model, x0, t_end, tau=tau, scheme=scheme,
                                 deviations=w0[:, None])
     starts = [x0]
-    if name.startswith("prepared"):
+    if name.startswith("prepared") or name == "generated":
         run = varint.prepare(model, "integrate", t_end, tau=tau, scheme=scheme,
                              deviations=w0[:, None])
         run(x0)         # builds the run; later calls take the short path
@@ -99,7 +121,7 @@ print(json.dumps(out))
 
 
 #: The cases each worker times (:data:`WORKER`).
-CASES = ("fixed", "frontier", "prepared", "prepared_new")
+CASES = ("fixed", "frontier", "prepared", "prepared_new", "prepared_nov", "generated")
 
 #: How many states ``prepared_new`` takes in turn.
 NEW_STATES = 64

@@ -112,14 +112,15 @@ class ShortCall:
                              and type(model).kinetic is Model.kinetic
                              and model.n_dof < SEQUENTIAL_TERMS
                              and _float_vector(model.inverse_mass, model.n_dof) else None)
-        #: V compiled, where the model has it (``potential_rows``, bitwise
-        #: its NumPy V) and does not override ``potential``: called with
+        #: V compiled, where the model has it (:attr:`Model.potential_rows
+        #: <varint.models.base.Model.potential_rows>`, bitwise its NumPy V)
+        #: and does not override ``potential``: called with
         #: :attr:`FreshRun.states <varint.methods.fresh_run.FreshRun.states>`,
         #: a C-contiguous (R, 2N) float64 array at every call, so through
         #: its compiled version (:class:`Resolved`).
-        rows_v = getattr(model, "potential_rows", None)
-        self.potential_kernel = (Resolved(rows_v) if self.plain and rows_v is not None
-                                 and type(model).potential is Model.potential else None)
+        rows_v = (model.potential_rows if self.plain
+                  and type(model).potential is Model.potential else None)
+        self.potential_kernel = None if rows_v is None else Resolved(rows_v)
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()
@@ -259,20 +260,20 @@ class ShortCall:
         if self.plain:
             n, rows = model.n_dof, len(states)
             state_kernel, potential_kernel = self.state_kernel, self.potential_kernel
-            if potential_kernel is not None and state_kernel is not None:
-                # V and T compiled (Reference's operations): nothing warns.
-                potential, kinetic = potential_kernel(states), None
-            else:
-                # (np.errstate(all="ignore")'s handling, for less:
-                # varint.floating_errors.)
+            # V compiled (it warns about nothing), else the model's own
+            # (Reference's operations, once over the states and the
+            # outputs); T's operations compiled with the errors, else the
+            # model's own T: NumPy's parts under ignoring() (np.errstate's
+            # handling, for less: varint.floating_errors).
+            potential = None if potential_kernel is None else potential_kernel(states)
+            kinetic = None
+            if potential is None or state_kernel is None:
                 quiet = floating_errors.ignoring()
                 try:
-                    # The model's own V (Reference's operations), once over
-                    # the states and the outputs, and its T (or T's
-                    # operations, compiled with the errors).
-                    potential = (model.potential(states[:, :n]) if potential_kernel is None
-                                 else potential_kernel(states))
-                    kinetic = None if state_kernel is not None else model.kinetic(states[:, n:])
+                    if potential is None:
+                        potential = model.potential(states[:, :n])
+                    if state_kernel is None:
+                        kinetic = model.kinetic(states[:, n:])
                 finally:
                     floating_errors.restore(quiet)
             if not _float_vector(potential, rows):

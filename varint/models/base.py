@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import numbers
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
@@ -106,6 +107,14 @@ class Model:
     #: takes t).
     time_dependent = False
     time_kernel = None
+    #: V compiled over rows of states, where the model has it: a numba
+    #: dispatcher taking states (R, 2N), C-contiguous float64, and
+    #: returning V at each row, bitwise ``potential(states[:, :N])`` on this
+    #: CPU (a prepared run's short call measures V with it,
+    #: :class:`varint.rerun.ShortCall`); None here. A model whose NumPy V is
+    #: one expression emits it from that expression
+    #: (:func:`varint.models.potential_rows.rows_from`).
+    potential_rows: Any = None
 
     def __init__(self, n_dof: int, potential: Callable[[np.ndarray], np.ndarray],
                  grad: Dispatcher, hess: Dispatcher, third: Dispatcher, bandwidth: int,

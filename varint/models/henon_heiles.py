@@ -9,15 +9,10 @@ from __future__ import annotations
 
 import functools
 
-import numpy as np
 from numba import njit
 
-try:
-    from numpy._core._multiarray_umath import __cpu_features__ as _NUMPY_CPU
-except ImportError:  # another NumPy's layout: assume its SIMD loops
-    _NUMPY_CPU = {}
-
 from .base import Model
+from .potential_rows import rows_from
 
 __all__ = ["HenonHeiles"]
 
@@ -52,31 +47,13 @@ def _third(q, par, v, B):
 
 
 def _potential(q):
-    x, y = q[..., 0], q[..., 1]
+    return _V(q[..., 0], q[..., 1])
+
+
+def _V(x, y):
+    # The one expression of V: NumPy's (through _potential) and the
+    # compiled one over rows (potential_rows) are both made from it.
     return 0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0
-
-
-@njit(cache=True, error_model="numpy")
-def _potential_rows(states):
-    """V at each row of the states ``states`` (R, 4), compiled: bitwise
-    :func:`_potential` of ``states[:, :2]`` (the same operations in the same
-    order; ``y ** 3.0`` is libm's ``pow``, as NumPy's ``y ** 3`` is, where
-    ``y ** 3`` would be two roundings of multiplications). A prepared
-    run's short call measures V of its few start and output states with it
-    (NumPy's ten operations on such tiny arrays cost ~8 µs; issue 28)."""
-    out = np.empty(states.shape[0])
-    for i in range(states.shape[0]):
-        x, y = states[i, 0], states[i, 1]
-        out[i] = 0.5 * (x * x + y * y) + x * x * y - y ** 3.0 / 3.0
-    return out
-
-
-#: Whether NumPy's float64 ``power`` is libm's ``pow`` on this CPU, as
-#: :func:`_potential_rows` is: on a CPU with AVX-512 NumPy's loop calls
-#: Intel SVML's ``pow`` (``numpy/_core/src/umath/loops_umath_fp.dispatch.c.src``,
-#: even for a scalar exponent), whose last bit need not be libm's, so the
-#: compiled V would not be bitwise the NumPy V there.
-NUMPY_POWER_IS_LIBM = _NUMPY_CPU.get("AVX512F") is False
 
 
 class HenonHeiles(Model):
@@ -96,10 +73,6 @@ class HenonHeiles(Model):
     """
 
     escape_energy = ESCAPE_ENERGY
-    #: V of states (R, 2N), C-contiguous, compiled (:func:`_potential_rows`):
-    #: bitwise ``potential(states[:, :2])`` (:class:`varint.rerun.ShortCall`);
-    #: None where NumPy's power is not libm's (:data:`NUMPY_POWER_IS_LIBM`).
-    potential_rows = staticmethod(_potential_rows) if NUMPY_POWER_IS_LIBM else None
 
     def __init__(self, escape_radius: float | None = None) -> None:
         super().__init__(2, _potential, _grad, _hess, _third, bandwidth=1,
@@ -109,6 +82,14 @@ class HenonHeiles(Model):
         d = super().describe()
         d["escape_radius"] = self.escape_radius
         return d
+
+    @functools.cached_property
+    def potential_rows(self):
+        """V compiled over rows from :func:`_V`'s expression
+        (:meth:`Model.potential_rows <varint.models.base.Model.potential_rows>`):
+        only where NumPy's power is libm's, for ``y ** 3``
+        (:mod:`varint.models.potential_rows`)."""
+        return rows_from(_V, 2)
 
     def symbolic(self):
         """The potential in SymPy: the one definition the Taylor reference

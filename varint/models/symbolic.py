@@ -35,6 +35,7 @@ like :class:`~varint.models.FPUBeta`.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import warnings
@@ -50,6 +51,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from .. import codecache
 from .base import Model
 from .maps import MapModel
+from .potential_rows import rows_from
 
 __all__ = ["SymbolicPotential", "SymbolicModel", "from_potential", "SymbolicMap", "from_map",
            "NonSymplecticWarning",
@@ -306,8 +308,11 @@ class SymbolicModel(Model):
         V_std = V.xreplace({**dict(zip(q, qs, strict=True)), **({time: t} if time is not None else {})})
         source, bw = _kernel_source(V_std, n, time=time is not None)
         kernels = _load_kernels(source)
+        #: SymPy's NumPy V, where V is autonomous (its source is the compiled
+        #: V's, :attr:`potential_rows`).
+        self._numpy_V = None
         if time is None:
-            numpy_V = sp.lambdify(qs, V_std, modules="numpy")
+            self._numpy_V = numpy_V = sp.lambdify(qs, V_std, modules="numpy")
 
             def autonomous(x):
                 # A constant term comes back as a scalar; broadcast to x's shape.
@@ -329,6 +334,20 @@ class SymbolicModel(Model):
         if time is not None:
             self.time_dependent = True
             self.time_kernel = kernels.dtime
+
+    @functools.cached_property
+    def potential_rows(self) -> Any:
+        """V compiled over rows, emitted from the expression of SymPy's
+        NumPy V (:meth:`Model.potential_rows
+        <varint.models.base.Model.potential_rows>`,
+        :func:`~varint.models.potential_rows.rows_from`: on every CPU for a
+        V of sums, products, quotients, squares and square roots; with other
+        powers only where NumPy's power is libm's); None for a V(q, t)."""
+        if self._numpy_V is None:
+            return None
+        # (The NumPy V adds zeros to the expression's value: a constant V
+        # broadcast.)
+        return rows_from(self._numpy_V, self.n_dof, plus_zero=True)
 
     def symbolic(self) -> SymbolicPotential:
         """The potential, coordinates and inverse mass as given."""
