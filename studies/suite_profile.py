@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -126,7 +127,9 @@ class CompileTimer:
     teardown, the seconds numba spent compiling during them and the number
     of functions it compiled (outermost ``numba:compile`` events only: a
     generated stepper's ``orbit``, compiled inside its ``batch_serial``,
-    counts in the caller's)."""
+    counts in the caller's), and the CPU seconds of the child processes it
+    ran and waited for (``child_cpu_s``: a test that runs a script in a
+    subprocess, such as the CUDA simulator's, spends its time there)."""
 
     def __init__(self, path):
         self.path = Path(path)
@@ -136,8 +139,8 @@ class CompileTimer:
         self.compiled = 0
         self.what = []
         self.file = None
-        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0,
-                                         "compiles": 0, "compiled": []})
+        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "child_cpu_s": 0.0,
+                                         "compile_s": 0.0, "compiles": 0, "compiled": []})
 
     def on_start(self, event):
         if self.depth == 0:
@@ -170,6 +173,7 @@ class CompileTimer:
     def pytest_runtest_protocol(self, item, nextitem):
         self.item_start = time.perf_counter()
         self.item_cpu = time.process_time()
+        self.item_children = _children_cpu()
         self.item_compile = self.compiling
         self.item_compiled = self.compiled
         self.what = []
@@ -178,6 +182,7 @@ class CompileTimer:
         row = self.rows[nodeid]
         row["s"] += time.perf_counter() - self.item_start
         row["cpu_s"] += time.process_time() - self.item_cpu
+        row["child_cpu_s"] += _children_cpu() - self.item_children
         row["compile_s"] += self.compiling - self.item_compile
         row["compiles"] += self.compiled - self.item_compiled
         row["compiled"] += self.what
@@ -191,6 +196,12 @@ class CompileTimer:
 
     def pytest_sessionfinish(self, session):
         self.path.write_text(json.dumps(self.rows))
+
+
+def _children_cpu():
+    """User and system CPU seconds of this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def pytest_configure(config):
@@ -237,20 +248,23 @@ def profile(cache, pytest_args):
 def by_file(rows):
     """Per test file: wall seconds, CPU seconds, compile CPU seconds, the
     compile share of the CPU seconds, the functions numba compiled (None
-    where the rows predate the count) and the number of tests."""
+    where the rows predate the count), the number of tests and the CPU
+    seconds of their child processes (0 where the rows predate it)."""
     files = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0, "compiles": 0,
-                                 "tests": 0})
+                                 "tests": 0, "child_cpu_s": 0.0})
     for nodeid, row in rows.items():
         f = files[nodeid.split("::")[0]]
         for key in ("s", "cpu_s", "compile_s"):
             f[key] += row[key]
+        f["child_cpu_s"] += row.get("child_cpu_s", 0.0)
         f["compiles"] = None if f["compiles"] is None or "compiles" not in row \
             else f["compiles"] + row["compiles"]
         f["tests"] += 1
     return {name: {"s": round(f["s"], 1), "cpu_s": round(f["cpu_s"], 1),
                    "compile_s": round(f["compile_s"], 1),
                    "compile_share": round(f["compile_s"] / f["cpu_s"], 2) if f["cpu_s"] else 0.0,
-                   "compiles": f["compiles"], "tests": f["tests"]}
+                   "compiles": f["compiles"], "tests": f["tests"],
+                   "child_cpu_s": round(f["child_cpu_s"], 1)}
             for name, f in sorted(files.items(), key=lambda kv: -kv[1]["cpu_s"])}
 
 
@@ -296,7 +310,7 @@ def main(argv=None):
     stored.pop("_provenance", None)
     tests = {**stored.get("tests", {}),
              **{k: {key: round(v[key], 2) if key != "compiles" else v[key]
-                    for key in ("s", "cpu_s", "compile_s", "compiles") if key in v}
+                    for key in ("s", "cpu_s", "child_cpu_s", "compile_s", "compiles") if key in v}
                 for k, v in rows.items()}}
     # From rows, the load now is not the run's (the note says what it was);
     # the rows' folder by name only (a path of this machine means nothing
