@@ -225,6 +225,15 @@ def _extra(parser):
                              "instead of running pytest")
     parser.add_argument("--note", default=None,
                         help="what the table's run was (kept beside it, e.g. an interruption)")
+    parser.add_argument("--compare", nargs=3, action="append", default=None,
+                        metavar=("LABEL", "BEFORE", "AFTER"),
+                        help="instead of a profile: per test file, the CPU seconds, child "
+                             "CPU seconds and compiles of the plugin's rows in folder "
+                             "BEFORE against those in AFTER (each run cold on the same "
+                             "files; a load.json beside the rows gives the run's load); "
+                             "repeatable, stored as suite_cut_<--name>.json")
+    parser.add_argument("--name", default="cut",
+                        help="the stored comparison's name (suite_cut_NAME.json)")
     parser.add_argument("pytest_args", nargs="*", help="pytest arguments (files) after --")
 
 
@@ -294,8 +303,52 @@ def duplicates(rows_by_process):
             "keys": len(table), "functions": table}
 
 
+def _rows_of(folder):
+    """The plugin's rows of every process in ``folder``, merged, and the
+    folder's ``load.json`` (None where it has none)."""
+    rows = {}
+    for path in sorted(Path(folder).glob("*.rows.json")):
+        rows.update(json.loads(path.read_text()))
+    load = Path(folder) / "load.json"
+    return rows, json.loads(load.read_text()) if load.exists() else None
+
+
+def compare(pairs):
+    """Per comparison (label, rows before, rows after): per test file, the
+    CPU seconds (the test processes' and their children's), compile seconds
+    and compiles before and after, their sums, and each run's load. Only
+    what each pair ran is compared: a pair runs the same files twice, on
+    the old tree and the new, each on fresh caches."""
+    out = {}
+    for label, before, after in pairs:
+        entry = {"files": {}, "load": {}}
+        for when, folder in (("before", before), ("after", after)):
+            rows, load = _rows_of(folder)
+            entry["load"][when] = load
+            for name, f in by_file(rows).items():
+                entry["files"].setdefault(name, {})[when] = {
+                    key: f[key] for key in ("cpu_s", "child_cpu_s", "compile_s", "compiles",
+                                            "tests")}
+        for when in ("before", "after"):
+            entry[f"{when}_cpu_s"] = round(sum(f[when]["cpu_s"] + f[when]["child_cpu_s"]
+                                               for f in entry["files"].values()
+                                               if when in f), 1)
+        entry["cut_cpu_s"] = round(entry["before_cpu_s"] - entry["after_cpu_s"], 1)
+        out[label] = entry
+    return {"comparisons": out,
+            "cut_cpu_s": round(sum(e["cut_cpu_s"] for e in out.values()), 1)}
+
+
 def main(argv=None):
     args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
+    if args.compare:
+        table = compare(args.compare)
+        save_json(args.out, f"suite_cut_{args.name}", table)
+        for label, e in table["comparisons"].items():
+            print(f"{label:24s} {e['before_cpu_s']:8.1f} -> {e['after_cpu_s']:8.1f} s CPU "
+                  f"({e['cut_cpu_s']:+.1f} cut)")
+        print(f"{'total cut':24s} {table['cut_cpu_s']:8.1f} s CPU")
+        return table
     load_start = [round(x, 2) for x in os.getloadavg()]
     if args.rows is None:
         rows, code = profile(args.cache, args.pytest_args)
