@@ -16,7 +16,8 @@ import varint
 #:   CPU seconds of the second compile): a compensated generated stepper
 #:   (34 s); a generated stepper over SIMD lanes (18 s) and a map's batch
 #:   kernel (3 s); a Poincaré-section kernel (15 s); a TDH batch kernel
-#:   (14 s).
+#:   (14 s); "result_classes" also runs every result class's runs of
+#:   test_tables, test_xarray and test_stored_files on one set of kernels.
 SHARED_UNITS = {
     **{f"tests/studies/{name}.py": "paper_quick"
        for name in ("test_table1", "test_paper_figures", "test_report", "test_roundoff_floor")},
@@ -25,8 +26,10 @@ SHARED_UNITS = {
     "tests/test_bad_input.py": "lanes_stepper",
     "tests/test_cli.py": "lanes_stepper",
     "tests/test_compiling.py": "lanes_stepper",
-    "tests/test_sections.py": "sections",
-    "tests/test_stored_files.py": "sections",
+    "tests/test_sections.py": "result_classes",
+    "tests/test_stored_files.py": "result_classes",
+    "tests/test_tables.py": "result_classes",
+    "tests/test_xarray.py": "result_classes",
     "tests/studies/test_accuracy.py": "tdh_batch",
     "tests/studies/test_work_precision.py": "tdh_batch",
 }
