@@ -342,7 +342,7 @@ def compare(pairs):
 def main(argv=None):
     args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
     if args.compare:
-        table = compare(args.compare)
+        table = {**compare(args.compare), "note": args.note}
         save_json(args.out, f"suite_cut_{args.name}", table)
         for label, e in table["comparisons"].items():
             print(f"{label:24s} {e['before_cpu_s']:8.1f} -> {e['after_cpu_s']:8.1f} s CPU "
