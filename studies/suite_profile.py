@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -126,7 +127,9 @@ class CompileTimer:
     teardown, the seconds numba spent compiling during them and the number
     of functions it compiled (outermost ``numba:compile`` events only: a
     generated stepper's ``orbit``, compiled inside its ``batch_serial``,
-    counts in the caller's)."""
+    counts in the caller's), and the CPU seconds of the child processes it
+    ran and waited for (``child_cpu_s``: a test that runs a script in a
+    subprocess, such as the CUDA simulator's, spends its time there)."""
 
     def __init__(self, path):
         self.path = Path(path)
@@ -136,8 +139,8 @@ class CompileTimer:
         self.compiled = 0
         self.what = []
         self.file = None
-        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0,
-                                         "compiles": 0, "compiled": []})
+        self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "child_cpu_s": 0.0,
+                                         "compile_s": 0.0, "compiles": 0, "compiled": []})
 
     def on_start(self, event):
         if self.depth == 0:
@@ -170,6 +173,7 @@ class CompileTimer:
     def pytest_runtest_protocol(self, item, nextitem):
         self.item_start = time.perf_counter()
         self.item_cpu = time.process_time()
+        self.item_children = _children_cpu()
         self.item_compile = self.compiling
         self.item_compiled = self.compiled
         self.what = []
@@ -178,6 +182,7 @@ class CompileTimer:
         row = self.rows[nodeid]
         row["s"] += time.perf_counter() - self.item_start
         row["cpu_s"] += time.process_time() - self.item_cpu
+        row["child_cpu_s"] += _children_cpu() - self.item_children
         row["compile_s"] += self.compiling - self.item_compile
         row["compiles"] += self.compiled - self.item_compiled
         row["compiled"] += self.what
@@ -191,6 +196,12 @@ class CompileTimer:
 
     def pytest_sessionfinish(self, session):
         self.path.write_text(json.dumps(self.rows))
+
+
+def _children_cpu():
+    """User and system CPU seconds of this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def pytest_configure(config):
@@ -214,6 +225,15 @@ def _extra(parser):
                              "instead of running pytest")
     parser.add_argument("--note", default=None,
                         help="what the table's run was (kept beside it, e.g. an interruption)")
+    parser.add_argument("--compare", nargs=3, action="append", default=None,
+                        metavar=("LABEL", "BEFORE", "AFTER"),
+                        help="instead of a profile: per test file, the CPU seconds, child "
+                             "CPU seconds and compiles of the plugin's rows in folder "
+                             "BEFORE against those in AFTER (each run cold on the same "
+                             "files; a load.json beside the rows gives the run's load); "
+                             "repeatable, stored as suite_cut_<--name>.json")
+    parser.add_argument("--name", default="cut",
+                        help="the stored comparison's name (suite_cut_NAME.json)")
     parser.add_argument("pytest_args", nargs="*", help="pytest arguments (files) after --")
 
 
@@ -237,20 +257,23 @@ def profile(cache, pytest_args):
 def by_file(rows):
     """Per test file: wall seconds, CPU seconds, compile CPU seconds, the
     compile share of the CPU seconds, the functions numba compiled (None
-    where the rows predate the count) and the number of tests."""
+    where the rows predate the count), the number of tests and the CPU
+    seconds of their child processes (0 where the rows predate it)."""
     files = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "compile_s": 0.0, "compiles": 0,
-                                 "tests": 0})
+                                 "tests": 0, "child_cpu_s": 0.0})
     for nodeid, row in rows.items():
         f = files[nodeid.split("::")[0]]
         for key in ("s", "cpu_s", "compile_s"):
             f[key] += row[key]
+        f["child_cpu_s"] += row.get("child_cpu_s", 0.0)
         f["compiles"] = None if f["compiles"] is None or "compiles" not in row \
             else f["compiles"] + row["compiles"]
         f["tests"] += 1
     return {name: {"s": round(f["s"], 1), "cpu_s": round(f["cpu_s"], 1),
                    "compile_s": round(f["compile_s"], 1),
                    "compile_share": round(f["compile_s"] / f["cpu_s"], 2) if f["cpu_s"] else 0.0,
-                   "compiles": f["compiles"], "tests": f["tests"]}
+                   "compiles": f["compiles"], "tests": f["tests"],
+                   "child_cpu_s": round(f["child_cpu_s"], 1)}
             for name, f in sorted(files.items(), key=lambda kv: -kv[1]["cpu_s"])}
 
 
@@ -280,8 +303,52 @@ def duplicates(rows_by_process):
             "keys": len(table), "functions": table}
 
 
+def _rows_of(folder):
+    """The plugin's rows of every process in ``folder``, merged, and the
+    folder's ``load.json`` (None where it has none)."""
+    rows = {}
+    for path in sorted(Path(folder).glob("*.rows.json")):
+        rows.update(json.loads(path.read_text()))
+    load = Path(folder) / "load.json"
+    return rows, json.loads(load.read_text()) if load.exists() else None
+
+
+def compare(pairs):
+    """Per comparison (label, rows before, rows after): per test file, the
+    CPU seconds (the test processes' and their children's), compile seconds
+    and compiles before and after, their sums, and each run's load. Only
+    what each pair ran is compared: a pair runs the same files twice, on
+    the old tree and the new, each on fresh caches."""
+    out = {}
+    for label, before, after in pairs:
+        entry = {"files": {}, "load": {}}
+        for when, folder in (("before", before), ("after", after)):
+            rows, load = _rows_of(folder)
+            entry["load"][when] = load
+            for name, f in by_file(rows).items():
+                entry["files"].setdefault(name, {})[when] = {
+                    key: f[key] for key in ("cpu_s", "child_cpu_s", "compile_s", "compiles",
+                                            "tests")}
+        for when in ("before", "after"):
+            entry[f"{when}_cpu_s"] = round(sum(f[when]["cpu_s"] + f[when]["child_cpu_s"]
+                                               for f in entry["files"].values()
+                                               if when in f), 1)
+        entry["cut_cpu_s"] = round(entry["before_cpu_s"] - entry["after_cpu_s"], 1)
+        out[label] = entry
+    return {"comparisons": out,
+            "cut_cpu_s": round(sum(e["cut_cpu_s"] for e in out.values()), 1)}
+
+
 def main(argv=None):
     args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
+    if args.compare:
+        table = {**compare(args.compare), "note": args.note}
+        save_json(args.out, f"suite_cut_{args.name}", table)
+        for label, e in table["comparisons"].items():
+            print(f"{label:24s} {e['before_cpu_s']:8.1f} -> {e['after_cpu_s']:8.1f} s CPU "
+                  f"({e['cut_cpu_s']:+.1f} cut)")
+        print(f"{'total cut':24s} {table['cut_cpu_s']:8.1f} s CPU")
+        return table
     load_start = [round(x, 2) for x in os.getloadavg()]
     if args.rows is None:
         rows, code = profile(args.cache, args.pytest_args)
@@ -296,7 +363,7 @@ def main(argv=None):
     stored.pop("_provenance", None)
     tests = {**stored.get("tests", {}),
              **{k: {key: round(v[key], 2) if key != "compiles" else v[key]
-                    for key in ("s", "cpu_s", "compile_s", "compiles") if key in v}
+                    for key in ("s", "cpu_s", "child_cpu_s", "compile_s", "compiles") if key in v}
                 for k, v in rows.items()}}
     # From rows, the load now is not the run's (the note says what it was);
     # the rows' folder by name only (a path of this machine means nothing

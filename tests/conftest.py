@@ -6,12 +6,33 @@ from xdist.scheduler import LoadFileScheduling
 
 import varint
 
-#: Test files whose tests share session fixtures, run as one xdist work
-#: unit: the paper studies' quick runs (tests/studies/conftest.py), made
-#: once, in one worker, and read by all four files.
-SHARED_UNITS = {f"tests/studies/{name}.py": "paper_quick"
-                for name in ("test_table1", "test_paper_figures", "test_report",
-                             "test_roundoff_floor")}
+#: Test files run as one xdist work unit (one worker, one after another):
+#:
+#: * "paper_quick": the paper studies' quick runs (tests/studies/conftest.py),
+#:   session fixtures made once and read by all four files;
+#: * the others: files that compile the same kernels, each of which the two
+#:   workers of a cold run both compiled when the files ran in different
+#:   workers (``duplicates`` of studies/results/suite_profile_stop50.json,
+#:   CPU seconds of the second compile): a compensated generated stepper
+#:   (34 s); a generated stepper over SIMD lanes (18 s) and a map's batch
+#:   kernel (3 s); a Poincaré-section kernel (15 s); a TDH batch kernel
+#:   (14 s); "result_classes" also runs every result class's runs of
+#:   test_tables, test_xarray and test_stored_files on one set of kernels.
+SHARED_UNITS = {
+    **{f"tests/studies/{name}.py": "paper_quick"
+       for name in ("test_table1", "test_paper_figures", "test_report", "test_roundoff_floor")},
+    "tests/studies/test_compensated_floor.py": "compensated_stepper",
+    "tests/studies/test_compensation_levels.py": "compensated_stepper",
+    "tests/test_bad_input.py": "lanes_stepper",
+    "tests/test_cli.py": "lanes_stepper",
+    "tests/test_compiling.py": "lanes_stepper",
+    "tests/test_sections.py": "result_classes",
+    "tests/test_stored_files.py": "result_classes",
+    "tests/test_tables.py": "result_classes",
+    "tests/test_xarray.py": "result_classes",
+    "tests/studies/test_accuracy.py": "tdh_batch",
+    "tests/studies/test_work_precision.py": "tdh_batch",
+}
 
 
 class FileScheduling(LoadFileScheduling):

@@ -150,8 +150,12 @@ CASES = [
     ("KG with a NaN site", lambda: varint.run(DisorderedKG(4, seed=1),
                                               [np.nan] + [0.0] * 7, "dvd", 1.0, 0.1),
      ValueError, "must be finite"),
+    # SABA1, the scheme of fewest stages: the coefficients compile all the
+    # same, in a smaller kernel than ABA864's (the same run as
+    # tests/test_options_in_verdict.py, hence one compilation).
     ("FPUT alpha=beta=1e300", lambda: varint.run(FPUT(4, alpha=1e300, beta=1e300),
-                                                 FPUT(4).initial_block(2, 0.4), "x1", 3.0, 0.1),
+                                                 FPUT(4).initial_block(2, 0.4), "x1", 3.0, 0.1,
+                                                 scheme="SABA1"),
      varint.IntegrationError, "non-finite"),
     # SBAB2C's corrector (an FPUT chain's own default, ABA864, has none).
     ("FPUT alpha=1e200 (corrector 1e401)", lambda: varint.run(

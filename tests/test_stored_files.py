@@ -504,19 +504,25 @@ def test_chunk_store_keys_name_the_call():
 
 def test_every_result_class_loads_back_whole(tmp_path):
     """The validation of load_result accepts what every result class saves:
-    series, dict fields, maps, sections, local exponents, ensembles."""
+    series, dict fields, maps, sections, local exponents, ensembles. The
+    runs are those of tests/test_tables.py and tests/test_xarray.py (the
+    same kinds, indicators, vectors and orbits per kernel; other horizons
+    and outputs), which run in the same worker (tests/conftest.py): their
+    kernels, not ones of their own (about 30 CPU s cold)."""
     hh = HenonHeiles()
     R1 = [0.0, 0.558, 0.23337397, 0.0]
     grid = varint.section_grid(hh, 0.125, np.linspace(-0.3, 0.5, 3), np.linspace(-0.3, 0.3, 3))
     results = [
-        varint.gali(hh, R1, 10.0, k=(2, 3), t_out=3),
+        varint.gali(hh, R1, 10.0, k=(2, 4), t_out=3),
         varint.megno(hh, np.array([R1, R1]), 10.0, t_out=3),
         varint.run(hh, R1, "fli", 10.0, t_out=3),
-        varint.run(hh, R1, "local_exponents", 10.0, window=4.0, t_out=[1.0, 8.0]),
+        varint.run(hh, R1, "local_exponents", 10.0, window=4.0, n_exponents=2,
+                   t_out=[1.0, 8.0]),
         varint.integrate(hh, R1, 10.0, t_out=3),
-        varint.chaos_map(hh, grid, "x1", t_end=5.0, tau=0.05, progress=False),
+        varint.chaos_map(hh, grid, "sali", t_end=5.0, progress=False),
         varint.surface_of_section(hh, R1, 20.0),
-        small([1, 2], None),
+        varint.ensemble(DDNLS, [1, 2], block, "dvd", 2.0, tau=0.1,
+                        params={"shape": 16, "W": 4, "beta": 0.04}, t_out=4, progress=False),
     ]
     for r in results:
         path = tmp_path / f"{type(r).__name__}.npz"

@@ -5,7 +5,9 @@ one function for every step body, are told apart by what they close over
 
 from numba import njit
 
-from studies.suite_profile import compiled_key, duplicates
+import json
+
+from studies.suite_profile import compare, compiled_key, duplicates
 from varint.kernels.interval import batch_loop
 from varint.kernels.map_stepper import map_body
 from varint.models.maps import (
@@ -92,3 +94,33 @@ def test_duplicates_counts_only_what_was_compiled_again():
     assert table["functions"][a] == {"times": 2, "extra_s": 2.0, "processes": ["gw0", "gw1"],
                                      "files": ["tests/x.py", "tests/y.py"]}
     assert table["extra_s"] == 2.0
+
+
+def _row(cpu, child=0.0, compile_s=0.0, compiles=0):
+    return {"s": cpu, "cpu_s": cpu, "child_cpu_s": child, "compile_s": compile_s,
+            "compiles": compiles, "compiled": []}
+
+
+def test_compare_sums_each_files_cpu_and_its_childrens(tmp_path):
+    """The cut of a comparison is the sum over its files of (process CPU +
+    children's CPU) before minus after; a file only one side ran counts on
+    that side; rows without child CPU (older runs) count none."""
+    before, after = tmp_path / "before", tmp_path / "after"
+    before.mkdir()
+    after.mkdir()
+    (before / "gw0.rows.json").write_text(json.dumps({
+        "tests/a.py::t1": _row(10.0, 5.0, 8.0, 2), "tests/a.py::t2": _row(2.0),
+        "tests/b.py::t": {k: v for k, v in _row(7.0).items() if k != "child_cpu_s"}}))
+    (after / "main.rows.json").write_text(json.dumps({
+        "tests/a.py::t1": _row(4.0, 1.0, 3.0, 1), "tests/a.py::t2": _row(2.0),
+        "tests/c.py::t": _row(1.0)}))
+    (after / "load.json").write_text(json.dumps({"load_start": [1.0], "load_end": [2.0]}))
+    table = compare([("pair", str(before), str(after))])
+    entry = table["comparisons"]["pair"]
+    assert entry["files"]["tests/a.py"]["before"] == {
+        "cpu_s": 12.0, "child_cpu_s": 5.0, "compile_s": 8.0, "compiles": 2, "tests": 2}
+    assert entry["files"]["tests/a.py"]["after"]["cpu_s"] == 6.0
+    assert "after" not in entry["files"]["tests/b.py"]
+    assert entry["before_cpu_s"] == 12.0 + 5.0 + 7.0 and entry["after_cpu_s"] == 6.0 + 1.0 + 1.0
+    assert entry["cut_cpu_s"] == table["cut_cpu_s"] == 24.0 - 8.0
+    assert entry["load"] == {"before": None, "after": {"load_start": [1.0], "load_end": [2.0]}}
