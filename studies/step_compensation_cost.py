@@ -15,12 +15,34 @@ Case: the paper's C2 with the seeded unit tangent vector of
 :mod:`studies.frontier`, s35odr10 and SRKN14a at τ = 0.2 and 0.125
 (``--quick``: s35odr10 only, horizons ten times shorter, three repeats).
 
+Accuracy beside the cost (a cheaper step must not be a less accurate one):
+the global error (the larger relative error of the final state and of
+the final tangent vector against the extended-precision Taylor reference,
+:func:`varint.cache.reference`) of each level, on the timed cases at the
+long horizon and on the case of ``tests/test_compensated.py::
+test_step_compensation_against_the_reference`` (R1 and C2, SRKN14a at
+τ = 1/32 to t = 400, its tangent vector; its bound on R1 is 1e-13). Not
+with ``--quick``.
+
 Measured (21 repeats, this machine's CPU time): on main before the change
 (``step_compensation_cost_before.json``, 63e9f7c, load 0.4 → 1.0) +cs cost
 +68.7 % (s35odr10) and +60.8 % (SRKN14a) per step over plain; with each
 kick's p left unmaterialised and only the changed compensations kept
 (``step_compensation_cost.json``, load 1.6 → 1.2) +19.1 % and +22.4 %, the
 results bitwise those of before.
+
+Tried and not taken (stop 51; ``step_compensation_cost_displaced_drift.json``
+and ``_displaced_drift.diff``, with ``step_compensation_cost.json`` rerun
+on main beside it): forming each drift's q for the forces as
+fma(h, δp, q_start + (δq + h p_start)) (one fused multiply–add after the
+kick instead of a multiply–add and an addition). It is cheaper per step,
+but the test case's error on R1 rose from 3.6e-14 to 9.0e-13 (the tangent
+vector's; the state's 1.2e-14 to 2.4e-14), above the test's bound. Starting
+each step's displacement at zero and subtracting the compensation only at
+the step's end (so the next step's first stages do not wait on it) gave
+6.7e-13 there, with that idea: the stages then read a state off by the
+compensation for a whole step, and the compensated step's good tangent
+vector relies on its forces being read where the orbit's state is.
 
 Usage: ``python studies/step_compensation_cost.py [--quick] [--out DIR]``
 """
@@ -36,11 +58,13 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numba  # noqa: E402
+import numpy as np  # noqa: E402
 
 import varint  # noqa: E402
 from studies.bench_peers import seeded_vectors  # noqa: E402
 from studies.common import interleaved, parse_args, save_csv, save_json  # noqa: E402
-from studies.frontier import prepared_runner  # noqa: E402
+from studies.frontier import prepared_runner, relative  # noqa: E402
+from varint.cache import reference  # noqa: E402
 
 #: scheme -> step.
 CASES = {"s35odr10": 0.2, "SRKN14a": 0.125}
@@ -49,8 +73,47 @@ LEVELS = (False, "step")
 HORIZONS = (200.0, 1000.0)
 
 
+#: The case of test_step_compensation_against_the_reference: orbits, scheme,
+#: step and horizon.
+TEST_CASE = (("R1", "C2"), "SRKN14a", 1 / 32, 400.0)
+
+
 def level_name(level):
     return "+cs" if level == "step" else "plain"
+
+
+def global_error(model, x0, w0, t_end, scheme, tau, level):
+    """The larger relative error of the final state and tangent vector of
+    ``varint.integrate`` against the Taylor reference (as the frontier's)."""
+    ref = reference(model, x0, t_end, tau=0.1, deviations=w0[:, None])
+    r = varint.integrate(model, x0, t_end, tau=tau, scheme=scheme, deviations=w0[:, None],
+                         compensated=level)
+    return {"state_error": relative(r.state, ref.state),
+            "vector_error": relative(r.deviations[:, 0], ref.deviations[:, 0])}
+
+
+def accuracy(model, x0, w0, cases, t_end):
+    """Rows of :func:`global_error` for every level, on the timed cases (C2
+    to ``t_end``) and on the test's case (module docstring)."""
+    rows = []
+    for scheme, tau in cases.items():
+        for level in LEVELS:
+            rows.append({"orbit": "C2", "scheme": scheme, "tau": tau, "t_end": t_end,
+                         "level": level_name(level),
+                         **global_error(model, x0, w0, t_end, scheme, tau, level)})
+    names, scheme, tau, t_end = TEST_CASE
+    for name in names:
+        m, x = varint.paper_orbit(name)
+        # The test's tangent vector.
+        w = np.random.default_rng(0).standard_normal(m.dim)
+        w /= np.linalg.norm(w)
+        for level in LEVELS:
+            rows.append({"orbit": name, "scheme": scheme, "tau": tau, "t_end": t_end,
+                         "level": level_name(level),
+                         **global_error(m, x, w, t_end, scheme, tau, level)})
+    for r in rows:
+        r["error"] = max(r["state_error"], r["vector_error"])
+    return rows
 
 
 def main(argv=None):
@@ -82,10 +145,11 @@ def main(argv=None):
                          "steps_between": steps, "per_step_ns": 1e9 * per[level]})
         rows[-1]["over_plain"] = per["step"] / per[False] - 1.0
     load["after"] = list(os.getloadavg())
+    errors = [] if args.quick else accuracy(model, x0, w0, cases, horizons[1])
     save_csv(args.out, "step_compensation_cost", rows,
              ["scheme", "tau", "level", "short_cpu_seconds", "long_cpu_seconds",
               "steps_between", "per_step_ns", "over_plain"])
-    result = {"rows": rows, "horizons": horizons, "repeats": repeats, "load": load,
+    result = {"rows": rows, "errors": errors, "horizons": horizons, "repeats": repeats, "load": load,
               "quick": args.quick}
     save_json(args.out, "step_compensation_cost", result)
     print(f"load {load}; {repeats} repeats, min; CPU time per step (horizons {horizons})")
@@ -93,6 +157,10 @@ def main(argv=None):
         over = "" if "over_plain" not in r else f"  +cs over plain {r['over_plain']:+.1%}"
         print(f"{r['scheme']:9s} tau={r['tau']:<6g} {r['level']:6s} "
               f"{r['per_step_ns']:7.1f} ns/step{over}")
+    for e in errors:
+        print(f"{e['orbit']} {e['scheme']:9s} tau={e['tau']:<8g} t={e['t_end']:<6g} "
+              f"{e['level']:6s} error {e['error']:.2e} (state {e['state_error']:.2e}, "
+              f"vector {e['vector_error']:.2e})")
     return result
 
 
