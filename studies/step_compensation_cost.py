@@ -21,8 +21,11 @@ the final tangent vector against the extended-precision Taylor reference,
 :func:`varint.cache.reference`) of each level, on the timed cases at the
 long horizon and on the case of ``tests/test_compensated.py::
 test_step_compensation_against_the_reference`` (R1 and C2, SRKN14a at
-τ = 1/32 to t = 400, its tangent vector; its bound on R1 is 1e-13). Not
-with ``--quick``.
+τ = 1/32 to t = 400, its tangent vector; its bound on R1 is 1e-13) and
+three neighbours of it (p_x + 10⁻³ k, the tangent vector of seed k, k =
+1 … 3): one orbit's round-off error is one draw of a random walk, whose
+spread over the four shows what a difference between two variants
+means. Not with ``--quick``.
 
 Measured (21 repeats, this machine's CPU time): on main before the change
 (``step_compensation_cost_before.json``, 63e9f7c, load 0.4 → 1.0) +cs cost
@@ -76,6 +79,9 @@ HORIZONS = (200.0, 1000.0)
 #: The case of test_step_compensation_against_the_reference: orbits, scheme,
 #: step and horizon.
 TEST_CASE = (("R1", "C2"), "SRKN14a", 1 / 32, 400.0)
+#: Its realisations: k = 0 is the test's own, k > 0 its neighbours
+#: (module docstring).
+REALISATIONS = 4
 
 
 def level_name(level):
@@ -103,17 +109,35 @@ def accuracy(model, x0, w0, cases, t_end):
                          **global_error(model, x0, w0, t_end, scheme, tau, level)})
     names, scheme, tau, t_end = TEST_CASE
     for name in names:
-        m, x = varint.paper_orbit(name)
-        # The test's tangent vector.
-        w = np.random.default_rng(0).standard_normal(m.dim)
-        w /= np.linalg.norm(w)
-        for level in LEVELS:
-            rows.append({"orbit": name, "scheme": scheme, "tau": tau, "t_end": t_end,
-                         "level": level_name(level),
-                         **global_error(m, x, w, t_end, scheme, tau, level)})
+        m, x_test = varint.paper_orbit(name)
+        for k in range(REALISATIONS):
+            x = np.array(x_test, dtype=float)
+            x[m.dim // 2] += 1e-3 * k               # p_x
+            # k = 0: the test's tangent vector.
+            w = np.random.default_rng(k).standard_normal(m.dim)
+            w /= np.linalg.norm(w)
+            for level in LEVELS:
+                rows.append({"orbit": name, "realisation": k, "scheme": scheme, "tau": tau,
+                             "t_end": t_end, "level": level_name(level),
+                             **global_error(m, x, w, t_end, scheme, tau, level)})
     for r in rows:
         r["error"] = max(r["state_error"], r["vector_error"])
     return rows
+
+
+def spread(errors):
+    """Per orbit and level of the test's case, the geometric means over its
+    realisations of the state's, the vector's and the global error."""
+    out = []
+    for name in TEST_CASE[0]:
+        for level in LEVELS:
+            mine = [e for e in errors if e["orbit"] == name and "realisation" in e
+                    and e["level"] == level_name(level)]
+            if mine:
+                out.append({"orbit": name, "level": level_name(level), "realisations": len(mine),
+                            **{f"geomean_{c}": float(np.exp(np.mean(np.log([e[c] for e in mine]))))
+                               for c in ("state_error", "vector_error", "error")}})
+    return out
 
 
 def main(argv=None):
@@ -146,10 +170,11 @@ def main(argv=None):
         rows[-1]["over_plain"] = per["step"] / per[False] - 1.0
     load["after"] = list(os.getloadavg())
     errors = [] if args.quick else accuracy(model, x0, w0, cases, horizons[1])
+    means = spread(errors)
     save_csv(args.out, "step_compensation_cost", rows,
              ["scheme", "tau", "level", "short_cpu_seconds", "long_cpu_seconds",
               "steps_between", "per_step_ns", "over_plain"])
-    result = {"rows": rows, "errors": errors, "horizons": horizons, "repeats": repeats, "load": load,
+    result = {"rows": rows, "errors": errors, "error_means": means, "horizons": horizons, "repeats": repeats, "load": load,
               "quick": args.quick}
     save_json(args.out, "step_compensation_cost", result)
     print(f"load {load}; {repeats} repeats, min; CPU time per step (horizons {horizons})")
@@ -158,9 +183,14 @@ def main(argv=None):
         print(f"{r['scheme']:9s} tau={r['tau']:<6g} {r['level']:6s} "
               f"{r['per_step_ns']:7.1f} ns/step{over}")
     for e in errors:
-        print(f"{e['orbit']} {e['scheme']:9s} tau={e['tau']:<8g} t={e['t_end']:<6g} "
+        print(f"{e['orbit']} {e.get('realisation', '')} {e['scheme']:9s} tau={e['tau']:<8g} "
+              f"t={e['t_end']:<6g} "
               f"{e['level']:6s} error {e['error']:.2e} (state {e['state_error']:.2e}, "
               f"vector {e['vector_error']:.2e})")
+    for m in means:
+        print(f"{m['orbit']} {m['level']:6s} geometric mean over {m['realisations']}: error "
+              f"{m['geomean_error']:.2e} (state {m['geomean_state_error']:.2e}, vector "
+              f"{m['geomean_vector_error']:.2e})")
     return result
 
 
