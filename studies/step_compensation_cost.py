@@ -31,21 +31,34 @@ Measured (21 repeats, this machine's CPU time): on main before the change
 (``step_compensation_cost_before.json``, 63e9f7c, load 0.4 → 1.0) +cs cost
 +68.7 % (s35odr10) and +60.8 % (SRKN14a) per step over plain; with each
 kick's p left unmaterialised and only the changed compensations kept
-(``step_compensation_cost.json``, load 1.6 → 1.2) +19.1 % and +22.4 %, the
-results bitwise those of before.
+(stop 50's ``step_compensation_cost.json``, 7af3a92, load 1.6 → 1.2)
++19.1 % and +22.4 %, the results bitwise those of before.
 
-Tried and not taken (stop 51; ``step_compensation_cost_displaced_drift.json``
-and ``_displaced_drift.diff``, with ``step_compensation_cost.json`` rerun
-on main beside it): forming each drift's q for the forces as
-fma(h, δp, q_start + (δq + h p_start)) (one fused multiply–add after the
-kick instead of a multiply–add and an addition). It is cheaper per step,
-but the test case's error on R1 rose from 3.6e-14 to 9.0e-13 (the tangent
-vector's; the state's 1.2e-14 to 2.4e-14), above the test's bound. Starting
-each step's displacement at zero and subtracting the compensation only at
-the step's end (so the next step's first stages do not wait on it) gave
-6.7e-13 there, with that idea: the stages then read a state off by the
-compensation for a whole step, and the compensated step's good tangent
-vector relies on its forces being read where the orbit's state is.
+Rerun at stop 51 on main (``step_compensation_cost.json``, and
+``_main_alt1``/``_alt2``, load 10–13 on 2 CPUs): +cs over plain per step
++21.4 %, +19.9 %, +12.7 % (s35odr10) and +35.2 %, +26.1 %, +33.1 %
+(SRKN14a); at this load a run's ratio moves by ±8 points. The errors
+(geometric means over the test case's four realisations, stored with
+them): R1 1.41e-13 with +cs against 1.37e-12 plain, C2 9.8e-14 against
+2.9e-12. The test's own realisation is the luckiest of R1's four (3.6e-14;
+the others 1.0e-13 to 3.4e-13).
+
+Tried at stop 51 and not taken, each stored with its diff of
+``varint/codegen/tm.py`` and run as above (the study's code the same):
+
+* ``_displaced_drift`` (front16's idea): each drift's q for the forces as
+  fma(h, δp, q_start + (δq + h p_start)), the kick's δp one fused
+  multiply–add from the forces instead of a multiply–add and an addition.
+  Not faster: +16.8 %, +34.5 %, +22.1 % (s35odr10; ``_alt1``, ``_alt2``)
+  against main's above. Less accurate: the forces read q rounded twice
+  instead of once (start + displacement), and the errors rose to R1
+  2.8e-13 and C2 1.35e-13 (R1's state's 2.3e-14 against 1.6e-14), the
+  test's realisation on R1 to 9.0e-13, above its bound 1e-13.
+* ``_zero_start``: that, and each step's displacement started at zero with
+  the compensation subtracted at the step's end (Kahan's y = δ − c), so
+  that the next step's first stages do not wait on the two subtractions
+  that form c. +22.9 % (one run); R1 4.5e-13 (C2 9.6e-14): the stages
+  then read a state off by the compensation for a whole step.
 
 Usage: ``python studies/step_compensation_cost.py [--quick] [--out DIR]``
 """
