@@ -35,7 +35,9 @@ not to the latency of the updates.
 
 The loop around the step — ``advance`` (LH steps, the undone step, the
 physical-time tail, the projection), ``project`` and ``outputs`` — is emitted
-unchanged for every model (:data:`_SKELETON`).
+unchanged for every model (:data:`_SKELETON`); ``outputs`` over SIMD lanes
+(``lanes0``, ``lanes1``) by :mod:`varint.codegen.lh_lanes`, from this
+emitter's groups and flows.
 
 References
 ----------
