@@ -24,16 +24,24 @@ loop (µs per call, the minimum of repeats, interleaved):
 time on the same orbits and h, µs per orbit-step (LH + tail steps), each
 bitwise checked against the other, interleaved, the minimum of repeats.
 
-Run: ``python studies/lh_lanes.py [--part profile|lanes] [--repeats N]``;
-writes ``lh_lanes_profile.json`` / ``lh_lanes.json`` under ``--out``.
+``--part compile``: the first ``outputs`` calls (a vector, then none) of a
+process with empty caches, with lanes and one orbit at a time, and the
+vector instructions in the lanes kernel's machine code.
+
+Run: ``python studies/lh_lanes.py [--part profile|lanes|compile] [--repeats N]``;
+writes ``lh_lanes_profile.json``, ``lh_lanes.json``, ``lh_lanes_compile.json``
+under ``--out``.
 """
 
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -193,9 +201,49 @@ def lanes(out, repeats):
     save_json(out, "lh_lanes", res)
 
 
+#: Instructions counted in the compiled lanes kernel (AVX2: 4 doubles in a
+#: ymm register; the scalar forms are the events' and the remainders').
+_INSTRUCTIONS = ("vmulpd\t%ymm", "vaddpd\t%ymm", "vsubpd\t%ymm", "vdivpd\t%ymm", "vmulsd",
+                 "vdivsd", "vfmadd")
+
+
+def _first_calls(which):
+    """Seconds of the first ``outputs`` calls (one vector, then none) of a
+    process with empty caches (``which``: "lanes" or "one"), and for
+    "lanes" the counts of :data:`_INSTRUCTIONS` in ``lanes1``'s machine
+    code: the loop over the lanes vectorised, without fused multiply–adds."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "NUMBA_CACHE_DIR": f"{tmp}/nc", "VARINT_CACHE_DIR": f"{tmp}/vc"}
+        code = ("import copy, json, time, sys; sys.path.insert(0, '.');"
+                "from studies.lh_lanes import _setup, H, _INSTRUCTIONS;"
+                "lh, X, W0 = _setup(); one = copy.copy(lh); one.lanes_kernels = (None, None);"
+                f"run = lh if {which!r} == 'lanes' else one;"
+                "t = time.perf_counter(); run.outputs(X[:8], W0[:8], 1.0, H);"
+                "run.outputs(X[:8], None, 1.0, H); s = time.perf_counter() - t;"
+                "asm = ''.join(lh.lanes_kernels[1].inspect_asm().values()) "
+                f"if {which!r} == 'lanes' else '';"
+                "print(json.dumps({'seconds': s, 'asm': {i: asm.count(i) for i in _INSTRUCTIONS}}))")
+        done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                              text=True, check=True)
+        return json.loads(done.stdout.splitlines()[-1])
+
+
+def compile_cost(out):
+    """The first calls of ``outputs`` in a cold process, with lanes and one
+    orbit at a time (what the lanes' larger module adds to compiling), and
+    the lanes kernel's vector instructions."""
+    load = os.getloadavg()
+    res = {which: _first_calls(which) for which in ("one", "lanes")}
+    res["load"], res["load_end"] = load, os.getloadavg()
+    print(f"first calls, cold caches: one orbit {res['one']['seconds']:.1f} s, lanes "
+          f"{res['lanes']['seconds']:.1f} s; lanes1: {res['lanes']['asm']}"
+          f"  (load {load} -> {res['load_end']})")
+    save_json(out, "lh_lanes_compile", res)
+
+
 def main(argv=None):
     def extra(parser):
-        parser.add_argument("--part", choices=("profile", "lanes"), default=None)
+        parser.add_argument("--part", choices=("profile", "lanes", "compile"), default=None)
         parser.add_argument("--repeats", type=int, default=7)
 
     cli = parse_args(__doc__.split("\n\n")[0], argv, extra)
@@ -203,6 +251,8 @@ def main(argv=None):
         profile(cli.out, cli.repeats)
     if cli.part in (None, "lanes"):
         lanes(cli.out, cli.repeats)
+    if cli.part in (None, "compile"):
+        compile_cost(cli.out)
 
 
 if __name__ == "__main__":
