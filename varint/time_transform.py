@@ -54,6 +54,10 @@ __all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS", "offset
 #: The values of ``time_transform``.
 TIME_TRANSFORMS = ("log",)
 
+#: Orbits from which :meth:`LogHamiltonian.outputs` runs them over SIMD
+#: lanes (:mod:`varint.codegen.lh_lanes`), not one at a time.
+MIN_LANES = 4
+
 #: Steps one output interval may take before the orbit is stopped.
 MAX_STEPS = 10_000_000
 
@@ -200,6 +204,9 @@ class LogHamiltonian:
         self._kinetic, self._potential = mod.kinetic, mod.potential
         self.advance_kernel, self.step_kernel, self.project_kernel, self.outputs_kernel = \
             mod.advance, mod.step, mod.project, mod.outputs
+        # outputs over SIMD lanes, one kernel per number of vectors (absent
+        # where the step cannot be written over lanes).
+        self.lanes_kernels = (getattr(mod, "lanes0", None), getattr(mod, "lanes1", None))
 
     def with_offset(self, offset):
         """This stepper with δ = ``offset`` (> 0, or None: the rule of the
@@ -310,7 +317,11 @@ class LogHamiltonian:
         fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
-        self.outputs_kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
+        kernel = self.outputs_kernel
+        lanes = self.lanes_kernels[W.shape[1]]
+        if lanes is not None and M >= MIN_LANES and max_steps >= 1:
+            kernel = lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
+        kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                             t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                             status, counts, x_end, t, x_worst, t_worst)
         fli[status != 0] = np.nan   # nothing computed is passed off as a value

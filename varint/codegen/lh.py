@@ -35,7 +35,9 @@ not to the latency of the updates.
 
 The loop around the step — ``advance`` (LH steps, the undone step, the
 physical-time tail, the projection), ``project`` and ``outputs`` — is emitted
-unchanged for every model (:data:`_SKELETON`).
+unchanged for every model (:data:`_SKELETON`); ``outputs`` over SIMD lanes
+(``lanes0``, ``lanes1``) by :mod:`varint.codegen.lh_lanes`, from this
+emitter's groups and flows.
 
 References
 ----------
@@ -53,6 +55,7 @@ from pathlib import Path
 
 from ..kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from ..protocol import Status
+from .lh_lanes import emit_lanes
 from .source import Source
 
 __all__ = ["lh_source", "lh_name", "Flow", "generator_sources"]
@@ -82,7 +85,8 @@ def generator_sources():
     protocol's status codes, the source builder and the printers
     (:mod:`varint.codegen.printer` and ``varint.models.symbolic``)."""
     package = Path(__file__).resolve().parent.parent
-    return [Path(__file__), Path(__file__).with_name("printer.py"),
+    return [Path(__file__), Path(__file__).with_name("lh_lanes.py"),
+            Path(__file__).with_name("printer.py"),
             Path(__file__).with_name("source.py"), package / "protocol.py",
             package / "kernels" / "time_transform.py", package / "models" / "symbolic.py"]
 
@@ -140,6 +144,7 @@ def lh_source(A, V, q, p, flow, kinds):
               hessian=True)
     em.step(src, tuple(int(k) for k in kinds))
     src(*_SKELETON.splitlines())
+    emit_lanes(src, em, tuple(int(k) for k in kinds))
     return src.text()
 
 

@@ -82,6 +82,14 @@ vector), ``status`` (M,) and ``counts`` (M, 3) as ``advance``'s,
 ``x_worst``, ``t_worst`` the output state whose H lies furthest from
 H(x₀) = −p_t and its time.
 
+``lanes0`` and ``lanes1`` (same arguments as ``outputs``, for orbits with
+k = 0 and k = 1 vectors): ``outputs`` over SIMD lanes
+(:mod:`varint.codegen.lh_lanes`), every orbit's results bitwise those of
+``outputs``: every lane takes the same step with the same operations in
+the same order (no fused multiply–adds), and the steps that pass an output
+time or fail are finished by ``step`` and ``project`` one orbit at a time,
+in ``advance``'s order.
+
 References
 ----------
 S. Mikkola & K. Tanikawa, MNRAS 310, 745 (1999).

@@ -1,0 +1,92 @@
+"""The LH map's outputs over SIMD lanes (varint.codegen.lh_lanes) give, for
+every orbit, the one-orbit kernel's bits: FLI, status, counts, final and
+worst states and their times, on the cored logarithmic potential (a
+free drift, libm's log in every kick) and the Sun–Jupiter three-body
+problem (a rotating frame: a sine and a cosine in every drift), with
+orbits whose steps, output counts and tails differ, more orbits than
+lanes, and orbits that fail (U ≤ 0, the step budget) among the others."""
+
+import copy
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from varint.codegen.lh_lanes import LANE_WIDTH
+from varint.models import from_potential
+from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
+from varint.time_transform import MIN_LANES, LogHamiltonian
+
+FIELDS = ("fli", "status", "x", "t", "x_worst", "t_worst", "counts")
+
+
+@pytest.fixture(scope="module")
+def cored():
+    x, y = sp.symbols("x y")
+    V = sp.log(sp.Float(0.03)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2
+    return LogHamiltonian(from_potential(V, [x, y]), "ABA864", offset=0.25)
+
+
+@pytest.fixture(scope="module")
+def cr3bp():
+    return LogHamiltonian(CR3BP(SUN_JUPITER_MU), "ABA864", offset=0.5)
+
+
+def _both(lh, X, W0, t_end, h, **kwargs):
+    """outputs over lanes and one orbit at a time, every field bitwise
+    equal; the lanes' result."""
+    one = copy.copy(lh)
+    one.lanes_kernels = (None, None)
+    assert lh.lanes_kernels[0 if W0 is None else 1] is not None and len(X) >= MIN_LANES
+    a = lh.outputs(X, W0, t_end, h, **kwargs)
+    b = one.outputs(X, W0, t_end, h, **kwargs)
+    for name in FIELDS:
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+    return a
+
+
+def _cored_orbits(m):
+    """Orbits of the cored potential at E = 0, some through the core."""
+    rng = np.random.default_rng(7)
+    X = np.column_stack([rng.uniform(-0.6, 0.6, m), np.zeros(m), rng.uniform(-0.6, 0.6, m),
+                         np.zeros(m)])
+    # p_y ≥ 0 from E = ½p² + V = 0 (V < 0 inside r ≈ 1).
+    V = 0.5 * np.log(0.03**2 + X[:, 0]**2)
+    X[:, 3] = np.sqrt(np.maximum(-2 * V - X[:, 2]**2, 0.0) + 0.01)
+    return X
+
+
+@pytest.mark.parametrize("vector", [True, False])
+def test_cored_lanes_are_the_one_orbit_bits(cored, vector):
+    """More orbits than lanes, each with its own h (steps, outputs and
+    tails differ), one with C below V (U ≤ 0 at its first kick)."""
+    m = LANE_WIDTH + 5
+    X = _cored_orbits(m)
+    rng = np.random.default_rng(3)
+    W0 = rng.standard_normal(X.shape) if vector else None
+    h = rng.uniform(0.02, 0.08, m)
+    C = cored.constants(X)
+    C[4] = -10.0
+    out = _both(cored, X, W0, 23.0, h, every=4.0, C=C)
+    assert out.status[4] == -1 and (np.delete(out.status, 4) == 0).all()
+    steps = out.counts[:, 0]
+    assert len(set(steps.tolist())) > m // 2 and (np.delete(out.counts[:, 1], 4) > 0).all()
+
+
+def test_cored_budget_stops_every_orbit_in_the_lanes_as_in_one(cored):
+    X = _cored_orbits(MIN_LANES + 2)
+    out = _both(cored, X, np.ones_like(X), 10.0, 0.05, every=2.0, max_steps=7)
+    assert (out.status == -2).all() and (out.counts[:, 0] == 7).all()
+
+
+@pytest.mark.parametrize("vector", [True, False])
+def test_cr3bp_lanes_are_the_one_orbit_bits(cr3bp, vector):
+    """Twelve Sun–Jupiter orbits (tests/test_time_transform.py's): with δ =
+    0.5 orbit 9 meets U ≤ 0 in a rotating frame."""
+    rng = np.random.default_rng(1)
+    X = np.column_stack([rng.uniform(0.3, 0.9, 12), rng.uniform(-0.1, 0.1, 12),
+                         rng.uniform(-0.2, 0.2, 12), rng.uniform(0.3, 1.0, 12)])
+    W0 = np.random.default_rng(2).standard_normal(X.shape) if vector else None
+    out = _both(cr3bp, X, W0, 20.0, 0.2, every=5.0)
+    assert out.status[9] == -1 and (np.delete(out.status, 9) == 0).all()
+    assert len(set(out.counts[:, 0].tolist())) > 6
