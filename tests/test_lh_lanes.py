@@ -15,7 +15,8 @@ import sympy as sp
 from varint.codegen.lh_lanes import LANE_WIDTH
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
-from varint.time_transform import MIN_LANES, LogHamiltonian
+from varint import time_transform
+from varint.time_transform import LANES_WORK, MIN_LANES, LogHamiltonian
 
 FIELDS = ("fli", "status", "x", "t", "x_worst", "t_worst", "counts")
 
@@ -30,6 +31,12 @@ def cored():
 @pytest.fixture(scope="module")
 def cr3bp():
     return LogHamiltonian(CR3BP(SUN_JUPITER_MU), "ABA864", offset=0.5)
+
+
+@pytest.fixture(autouse=True)
+def every_run_in_lanes(monkeypatch):
+    """These runs are short: take the lanes whatever their work."""
+    monkeypatch.setattr(time_transform, "LANES_WORK", 0.0)
 
 
 def _both(lh, X, W0, t_end, h, **kwargs):
@@ -90,3 +97,24 @@ def test_cr3bp_lanes_are_the_one_orbit_bits(cr3bp, vector):
     out = _both(cr3bp, X, W0, 20.0, 0.2, every=5.0)
     assert out.status[9] == -1 and (np.delete(out.status, 9) == 0).all()
     assert len(set(out.counts[:, 0].tolist())) > 6
+
+
+class _Refused:
+    """A lanes kernel that must not be called."""
+
+    def __call__(self, *args):
+        raise AssertionError("the lanes kernel ran")
+
+
+def test_lanes_only_from_the_work_that_repays_their_compile(cored, monkeypatch):
+    """A pilot-sized run (Σ t_end/h below LANES_WORK) runs one orbit at a
+    time, so it never compiles the lanes kernel; from LANES_WORK on the
+    lanes run."""
+    monkeypatch.setattr(time_transform, "LANES_WORK", LANES_WORK)
+    lh = copy.copy(cored)
+    lh.lanes_kernels = (_Refused(), _Refused())
+    X = _cored_orbits(16)
+    h = 16 * 10.0 / LANES_WORK * 1.01     # Σ t_end/h just below LANES_WORK
+    lh.outputs(X, None, 10.0, h, every=5.0, max_steps=3)
+    with pytest.raises(AssertionError, match="lanes kernel ran"):
+        lh.outputs(X, None, 10.0, h / 1.02, every=5.0, max_steps=3)

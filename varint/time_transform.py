@@ -58,6 +58,19 @@ TIME_TRANSFORMS = ("log",)
 #: lanes (:mod:`varint.codegen.lh_lanes`), not one at a time.
 MIN_LANES = 4
 
+#: Work from which :meth:`LogHamiltonian.outputs` runs the orbits over
+#: lanes: Σ t_end/h over the orbits, the LH steps they take where U ≈ 1.
+#: The lanes kernel's first compile costs about as much again as the
+#: one-orbit kernel's (``studies/results/lhlanes17/lh_lanes_compile.json``:
+#: the first calls of a cold process 124.6 s one orbit at a time, 172.5 s
+#: with lanes, loaded). A pilot's short runs (16 orbits to t = 100, about
+#: 1e5 steps) would pay it and save a few milliseconds; a map's run of
+#: 1e6 steps or more saves at least half a second at every call (0.98 →
+#: 0.31 µs a step, ``lh_lanes.json``) and later processes load it cached.
+#: Both kernels give the same bits for every orbit, so the choice never
+#: changes a result.
+LANES_WORK = 1e6
+
 #: Steps one output interval may take before the orbit is stopped.
 MAX_STEPS = 10_000_000
 
@@ -319,11 +332,12 @@ class LogHamiltonian:
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
         kernel = self.outputs_kernel
         lanes = self.lanes_kernels[W.shape[1]]
-        if lanes is not None and M >= MIN_LANES and max_steps >= 1:
+        if (lanes is not None and M >= MIN_LANES and max_steps >= 1
+                and float(np.sum(t_end / hs)) >= LANES_WORK):
             kernel = lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
         kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
-                            t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
-                            status, counts, x_end, t, x_worst, t_worst)
+               t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
+               status, counts, x_end, t, x_worst, t_worst)
         fli[status != 0] = np.nan   # nothing computed is passed off as a value
         return LHOutputs(fli, status, x_end, t, x_worst, t_worst, counts)
 
