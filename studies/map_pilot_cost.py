@@ -17,6 +17,12 @@ ladder's pilot runs between its rungs (:class:`varint.step_agreement.ConstantLad
 and both build propagators. The pilots' force evaluations and the rungs
 each judged (counts, not timings) come from the defaults' ``tau_choice``.
 
+Their arithmetic: the pilots alone (``maps._cheaper_steps``, the switch)
+under cProfile, the CPU seconds of their compiled kernels (the generated
+steppers' and LH's functions, which cProfile times as one call each, so
+it does not slow them) against the pilots' own seconds without the
+profiler: what no cut of Python or NumPy can take from them.
+
 Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
 results ``map_pilot_cost.json``.
 """
@@ -38,6 +44,7 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import varint  # noqa: E402
+from varint import maps as varint_maps  # noqa: E402
 from studies.common import interleaved, parse_args, save_json  # noqa: E402
 from studies.map_steps import race_map  # noqa: E402
 
@@ -72,6 +79,33 @@ def _profile(model, X, t_end, maps):
     return shares
 
 
+def _kernel_seconds(model, X, t_end, maps):
+    """CPU seconds per map of the pilots' compiled kernels: the functions
+    of the generated modules (the kernel cache's ``varint_*`` files) under
+    cProfile, which is on only inside the switch
+    (:func:`varint.maps._cheaper_steps`)."""
+    # CPU time, as the contenders are timed (a loaded machine's wall
+    # time counts other processes' turns).
+    profile, switch = cProfile.Profile(time.process_time), varint_maps._cheaper_steps
+
+    def profiled(*args):
+        profile.enable()
+        try:
+            return switch(*args)
+        finally:
+            profile.disable()
+
+    varint_maps._cheaper_steps = profiled
+    try:
+        for _ in range(maps):
+            _map(model, X, t_end)
+    finally:
+        varint_maps._cheaper_steps = switch
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    return sum(row[2] for (file, _, _), row in stats.items()
+               if Path(file).name.startswith("varint_")) / maps
+
+
 def main(argv=None):
     def extra(parser):
         parser.add_argument("--repeats", type=int, default=7)
@@ -94,11 +128,13 @@ def main(argv=None):
                                        time_transform=None)}
     best, _ = interleaved(tasks, args.repeats, clock=time.process_time)
     parts = _profile(model, X, t_end, maps=max(3, args.repeats // 2))
+    kernels = _kernel_seconds(model, X, t_end, maps=max(3, args.repeats // 2))
     result = {"quick": args.quick, "orbits": len(X), "t_end": t_end, "tau": tau,
               "scheme": scheme, "bitwise_run": bool(np.array_equal(bare.values, defaults.values, equal_nan=True)),
               "seconds": best, "pilot_seconds": best["defaults"] - best["run alone"],
               "pilot_share": 1.0 - best["run alone"] / best["defaults"],
               "profile_seconds_per_map": parts,
+              "pilot_kernel_seconds": kernels,
               # Counts, not timings: the same on any machine and load.
               "pilot_runs": {"constant": len(choice["tried"]),
                              "log": len(choice["log"]["tried"])},
@@ -113,6 +149,7 @@ def main(argv=None):
     print(f"  pilots       {1e3 * result['pilot_seconds']:8.2f} ms "
           f"({100 * result['pilot_share']:.0f} % of the defaults)"
           f"; the run alone gives the defaults' bits: {result['bitwise_run']}")
+    print(f"  of which the pilots' compiled kernels {1e3 * kernels:8.2f} ms (under cProfile)")
     print(f"  pilot force evaluations: constant ladder {result['pilot_gradients']['constant']}"
           f" ({result['pilot_runs']['constant']} rungs judged), LH "
           f"{result['pilot_gradients']['log']} ({result['pilot_runs']['log']} rungs judged)")
