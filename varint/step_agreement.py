@@ -119,18 +119,19 @@ def passes(agree, errors, quantile, ceiling):
 def pilot_sample(X, seed):
     """The indices of the pilot's orbits among the map's ``X``: all, or a
     seeded sample of :data:`~varint.stepsize.PILOT_ORBITS` (as the energy
-    pilots draw it). Read-only: for an integer seed they depend on len(X)
-    and the seed alone and are drawn once (the defaults' switch asks for
-    them five times a map, a generator each)."""
+    pilots draw it). For an integer seed they depend on len(X) and the
+    seed alone and are drawn once (the defaults' switch asks for them five
+    times a map, a generator each); each caller gets its own copy (a
+    read-only array would make numba compile its kernels again)."""
     if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
-        return _sample_indices(len(X), int(seed))
+        return _sample_indices(len(X), int(seed)).copy()
     return _draw_sample(len(X), seed)
 
 
 @functools.lru_cache(maxsize=64)
 def _sample_indices(m, seed):
     pick = _draw_sample(m, seed)
-    pick.flags.writeable = False
+    pick.flags.writeable = False   # shared: only copies leave
     return pick
 
 

@@ -314,7 +314,8 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
     way."""
     W0, renorm, accumulator, compensated = setup
     n = max(1, int(round(t_pilot / tau)))
-    checks = _checks(n)
+    # A copy: numba compiles a kernel again for a read-only array.
+    checks = _checks(n).copy()
     if build is None:
         build = PilotPropagators(model, renorm, accumulator, scheme, compensated)
     prop = build(tau)
@@ -368,7 +369,7 @@ def _checks(n):
     """The steps of a pilot of ``n`` steps at which its errors are
     measured: :data:`PILOT_CHECKS` nearly equally spaced, the last one
     ``n`` (worked out once per ``n``: a ladder's rungs repeat from map to
-    map; read-only, as it is shared)."""
+    map; read-only, as it is shared: callers copy it)."""
     checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
     checks.flags.writeable = False
     return checks
