@@ -28,6 +28,16 @@ steppers' and LH's functions, which cProfile times as one call each, so
 it does not slow them) against the pilots' own seconds without the
 profiler: what no cut of Python or NumPy can take from them.
 
+Measured (quick map, this AMD EPYC without AVX-512): on main 8c4a645
+(``map_pilot_cost_before_pilot17.json``, load 0.38 → 0.43) the switch
+took 18.0 ms CPU a map, 7.3 of it in kernels; with the pilots' fixed
+costs cut (pilot17, ``map_pilot_cost.json``, load 0.43 → 0.47) 13.8 ms,
+7.2 in kernels, the same 7 runs, choice and bits. In a scratch profile
+the rest (6.6 ms) was mostly the TM advance's and the LH outputs' own
+Python per run (:mod:`varint.methods.tm`, :mod:`varint.time_transform`);
+of the kernels, the LH's third run, its finest and dearest, is made only
+to learn that its rate stops the descent.
+
 Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
 results ``map_pilot_cost.json``.
 """
