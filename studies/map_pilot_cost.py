@@ -17,6 +17,27 @@ ladder's pilot runs between its rungs (:class:`varint.step_agreement.ConstantLad
 and both build propagators. The pilots' force evaluations and the rungs
 each judged (counts, not timings) come from the defaults' ``tau_choice``.
 
+The switch itself (``maps._cheaper_steps``: both pilots, the prices
+and the choice), timed around each of its calls in the defaults' repeats
+(CPU, the minimum), is the pilots' time measured directly rather than as
+a difference of two noisy minima.
+
+Their arithmetic: the pilots alone (``maps._cheaper_steps``, the switch)
+under cProfile, the CPU seconds of their compiled kernels (the generated
+steppers' and LH's functions, which cProfile times as one call each, so
+it does not slow them) against the pilots' own seconds without the
+profiler: what no cut of Python or NumPy can take from them.
+
+Measured (quick map, this AMD EPYC without AVX-512): on main 8c4a645
+(``map_pilot_cost_before_pilot17.json``, load 0.38 → 0.43) the switch
+took 18.0 ms CPU a map, 7.3 of it in kernels; with the pilots' fixed
+costs cut (pilot17, ``map_pilot_cost.json``, load 0.43 → 0.47) 13.8 ms,
+7.2 in kernels, the same 7 runs, choice and bits. In a scratch profile
+the rest (6.6 ms) was mostly the TM advance's and the LH outputs' own
+Python per run (:mod:`varint.methods.tm`, :mod:`varint.time_transform`);
+of the kernels, the LH's third run, its finest and dearest, is made only
+to learn that its rate stops the descent.
+
 Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
 results ``map_pilot_cost.json``.
 """
@@ -38,6 +59,7 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import varint  # noqa: E402
+from varint import maps as varint_maps  # noqa: E402
 from studies.common import interleaved, parse_args, save_json  # noqa: E402
 from studies.map_steps import race_map  # noqa: E402
 
@@ -72,6 +94,54 @@ def _profile(model, X, t_end, maps):
     return shares
 
 
+def _kernel_seconds(model, X, t_end, maps):
+    """CPU seconds per map of the pilots' compiled kernels: the functions
+    of the generated modules (the kernel cache's ``varint_*`` files) under
+    cProfile, which is on only inside the switch
+    (:func:`varint.maps._cheaper_steps`)."""
+    # CPU time, as the contenders are timed (a loaded machine's wall
+    # time counts other processes' turns).
+    profile, switch = cProfile.Profile(time.process_time), varint_maps._cheaper_steps
+
+    def profiled(*args):
+        profile.enable()
+        try:
+            return switch(*args)
+        finally:
+            profile.disable()
+
+    varint_maps._cheaper_steps = profiled
+    try:
+        for _ in range(maps):
+            _map(model, X, t_end)
+    finally:
+        varint_maps._cheaper_steps = switch
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    return sum(row[2] for (file, _, _), row in stats.items()
+               if Path(file).name.startswith("varint_")) / maps
+
+
+def _timed_switch(record):
+    """Install a wrapper of the switch (:func:`varint.maps._cheaper_steps`)
+    that appends each call's CPU seconds to ``record``; returns a function
+    that removes it."""
+    switch = varint_maps._cheaper_steps
+
+    def timed(*args):
+        start = time.process_time()
+        try:
+            return switch(*args)
+        finally:
+            record.append(time.process_time() - start)
+
+    varint_maps._cheaper_steps = timed
+
+    def remove():
+        varint_maps._cheaper_steps = switch
+
+    return remove
+
+
 def main(argv=None):
     def extra(parser):
         parser.add_argument("--repeats", type=int, default=7)
@@ -92,13 +162,21 @@ def main(argv=None):
     tasks = {"defaults": lambda: _map(model, X, t_end),
              "run alone": lambda: _map(model, X, t_end, tau=tau, scheme=scheme,
                                        time_transform=None)}
-    best, _ = interleaved(tasks, args.repeats, clock=time.process_time)
+    switch_seconds: list = []
+    remove = _timed_switch(switch_seconds)
+    try:
+        best, _ = interleaved(tasks, args.repeats, clock=time.process_time)
+    finally:
+        remove()
     parts = _profile(model, X, t_end, maps=max(3, args.repeats // 2))
+    kernels = _kernel_seconds(model, X, t_end, maps=max(3, args.repeats // 2))
     result = {"quick": args.quick, "orbits": len(X), "t_end": t_end, "tau": tau,
               "scheme": scheme, "bitwise_run": bool(np.array_equal(bare.values, defaults.values, equal_nan=True)),
               "seconds": best, "pilot_seconds": best["defaults"] - best["run alone"],
               "pilot_share": 1.0 - best["run alone"] / best["defaults"],
+              "switch_seconds": min(switch_seconds),
               "profile_seconds_per_map": parts,
+              "pilot_kernel_seconds": kernels,
               # Counts, not timings: the same on any machine and load.
               "pilot_runs": {"constant": len(choice["tried"]),
                              "log": len(choice["log"]["tried"])},
@@ -113,6 +191,9 @@ def main(argv=None):
     print(f"  pilots       {1e3 * result['pilot_seconds']:8.2f} ms "
           f"({100 * result['pilot_share']:.0f} % of the defaults)"
           f"; the run alone gives the defaults' bits: {result['bitwise_run']}")
+    print(f"  the switch alone (both pilots, timed inside the defaults) "
+          f"{1e3 * result['switch_seconds']:8.2f} ms")
+    print(f"  of which the pilots' compiled kernels {1e3 * kernels:8.2f} ms (under cProfile)")
     print(f"  pilot force evaluations: constant ladder {result['pilot_gradients']['constant']}"
           f" ({result['pilot_runs']['constant']} rungs judged), LH "
           f"{result['pilot_gradients']['log']} ({result['pilot_runs']['log']} rungs judged)")

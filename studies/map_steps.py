@@ -255,6 +255,20 @@ bits on this map): defaults 0.0736 s, 3.22× heyoka batch 8 (tol 1e-5,
 The defaults' choice and run are those of stop 49, so 2.97× and 3.22×
 are the spread of two quiet runs on two machines around the target.
 
+With the pilots' fixed costs cut (pilot17: the propagator class chosen
+once per ladder, energy errors measured only where the descent reads
+them, the two pilots sharing their orbits' reference and vectors; the
+same choice and bits), the same race on the same machine:
+``map_steps_quick_cr3bp_log_pilot17_quiet.json`` (3 repeats, load 0.05 →
+0.32): defaults 0.0640 s, 3.52× heyoka batch 8 (tol 1e-5, 0.225 s) at
+98.7 %, the constant contender at the verdict τ without pilots 3.85×;
+``map_steps_quick_cr3bp_log_pilot17.json`` (load 5.0 → 2.6): defaults
+0.0756 s, 2.98× (heyoka 0.225 s). A third run
+(``..._pilot17_inconsistent.json``, load 2.3 → 2.6, another run of mine
+started during it) is not read: its heyoka times do not grow with the
+tolerance (1e-10 faster than 1e-8). The pilots themselves:
+``map_pilot_cost.py``.
+
 Where the time of the three-body map goes. Before its generated stepper
 (full race, load 14–17): heyoka did the whole map in 1.6 s; varint's
 defaults took 1.64 M orbit steps in 20 s, ~19 µs each on the generic part

@@ -393,3 +393,104 @@ def test_constant_ladder_spares_the_fine_run_of_a_rung_failing_on_energy():
     # The last rung judged failed on its energy errors alone, above the ceiling.
     assert tried[-1][1] is None and tried[-1][2] > constant["ceiling"]
     assert min(made) == tried[-1][0]
+
+
+def _constant_pilot_run(model, X, tau, **kwargs):
+    """One constant-step pilot run of an FLI map's ladder on ``X`` at ``tau``
+    (the map's scheme, vector, accumulator and judge): (errors, values,
+    counts)."""
+    from varint import accuracy
+    from varint.stepsize import default_scheme, pilot_errors
+    from varint.stepsize_orbits import indicator_judge
+
+    ind = varint.INDICATORS["fli"]
+    judge = indicator_judge(ind, model, {}, maps.pilot_tolerance(ind), 1e-3)
+    W0 = initial_deviations(model.dim, 1, len(X), 0)
+    counts: dict = {}
+    errors, values = pilot_errors(model, X, tau, 100.0, default_scheme(model, maps.MAP_SCHEME),
+                                  accuracy.Reference(model, X), counts,
+                                  (W0, ind.renorm, ind.accumulator_for({}), False),
+                                  value=judge.value, **kwargs)
+    return errors, values, counts
+
+
+def test_a_ladder_propagator_and_lazy_errors_give_a_fresh_runs_bits():
+    """The propagators of a ladder's rungs (PilotPropagators: the class
+    chosen once by make_propagator, the others built at their τ) run as
+    propagators built afresh, and errors measured on demand (lazy) are
+    those measured at once: on the three-body problem (a rotating frame,
+    whose class make_propagator chooses from its symbolic form), at the
+    first τ built and at two more, every error, FLI and count bitwise
+    equal; the lazy errors are measured once, on their first read."""
+    from varint.stepsize import PilotPropagators
+
+    model = CR3BP(SUN_JUPITER_MU)
+    X = _cr3bp_orbits(4, 12, 3.05)
+    ind = varint.INDICATORS["fli"]
+    from varint.stepsize import default_scheme
+
+    build = PilotPropagators(model, ind.renorm, ind.accumulator_for({}),
+                             default_scheme(model, maps.MAP_SCHEME))
+    for tau in (0.5, 0.25, 1.0):
+        fresh = _constant_pilot_run(model, X, tau)
+        measure, values, counts = _constant_pilot_run(model, X, tau, build=build, lazy=True)
+        assert callable(measure) and counts == fresh[2] and counts["gradient"] > 0
+        errors = measure()
+        assert measure() is errors
+        assert np.array_equal(errors, fresh[0]) and np.array_equal(values, fresh[1],
+                                                                     equal_nan=True)
+        assert np.all(np.isfinite(errors)) and np.all(errors > 0)
+
+
+def test_descend_measures_the_energy_errors_of_judged_rungs_only():
+    """descend with errors given as functions (pilot_errors' lazy) on the
+    made-up ladder of the tests above: it measures the errors of each rung
+    it judges as a coarse run, once, and never those of the fine run of
+    the rung that passes (rung 4, 3's fine run), nor of a run whose rate
+    stops the descent; the rung chosen is the one of the same ladder with
+    its errors given as arrays."""
+    measured = []
+
+    def lazy(run):
+        memo: dict = {}
+
+        def memoised(j):
+            if j not in memo:
+                values, errors, rate = run(j)
+                memo[j] = (values, lambda e=errors, j=j: measured.append(j) or e, rate)
+            return memo[j]
+
+        return memoised
+
+    def agree(a, b, t, t_end):
+        return np.abs(a - b) < 0.5
+
+    for stop_above, chosen, judged in ((math.inf, 3, [0, 1, 2, 3]), (5.0, None, [0, 1, 2])):
+        measured.clear()
+        eager, _ = _synthetic_ladder(8)
+        run, made = _synthetic_ladder(8)
+        tried, got = descend(lazy(run), range(8), lambda j: 2.0**-j, 100.0, None, 1.0, 2e-3,
+                             stop_above=stop_above, agree=agree)
+        expected_tried, expected = descend(eager, range(8), lambda j: 2.0**-j, 100.0, None,
+                                           1.0, 2e-3, stop_above=stop_above, agree=agree)
+        assert tried == expected_tried and got == expected
+        assert (None if got is None else got[0]) == chosen
+        assert measured == judged and max(made) == judged[-1] + 1, (measured, made)
+
+
+def test_pilot_sample_is_drawn_once_and_each_caller_gets_a_copy():
+    """The pilot's orbits of a map depend on the number of orbits and the
+    seed alone: the indices handed out again are a fresh draw's (a seeded
+    sample of 16, sorted), each caller's own writable copy, so no caller
+    changes them for the next (and numba sees no read-only array)."""
+    from varint.step_agreement import pilot_sample
+
+    X = np.zeros((40, 4))
+    pick = pilot_sample(X, 3)
+    fresh = np.sort(np.random.default_rng(3).choice(40, 16, replace=False))
+    assert np.array_equal(pick, fresh) and pick.flags.writeable
+    pick[0] = 39
+    again = pilot_sample(np.ones((40, 4)), 3)
+    assert again is not pick and np.array_equal(again, fresh)
+    assert not np.array_equal(pilot_sample(X, 4), fresh)
+    assert np.array_equal(pilot_sample(X[:10], 3), np.arange(10))

@@ -136,7 +136,7 @@ def test_the_ladder_search_finds_the_largest_passing_rung(monkeypatch):
     τ⁴ ≤ tol, having climbed back from its prediction."""
     calls = []
 
-    def fake(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
+    def fake(model, X, tau, t_end, scheme, reference, quantile, counts, setup, build):
         calls.append(tau)
         return tau ** 4
 

@@ -652,10 +652,13 @@ def _cheaper_steps(spec, k, clock):
         # The LH map retries each orbit to energy_tol itself (_log_map):
         # its pilot's ceiling is looser, its price counts the retries; its
         # offset δ is the cheapest the pilot priced.
+        # Both pilots run the same orbits: one reference, and (one vector
+        # each) the same vectors, drawn once.
         _, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
                                        ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
                                        every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol,
-                                       stop_above=beaten)
+                                       stop_above=beaten, reference=ladder.reference,
+                                       deviations=ladder.W0[:, :, 0] if k == 1 else None)
         stopped = h is None and ladder.rate is not None
         if h is None and not stopped:
             return None, None

@@ -43,13 +43,16 @@ step 2 times finer than the verdicts need on the three-body map).
 
 from __future__ import annotations
 
+import functools
 import math
+import numbers
 
 import numpy as np
 
 from .accuracy import Reference
 from .state import initial_deviations
-from .stepsize import PILOT_ORBITS, PILOT_T, TAU_MAX, default_scheme, dividing_step, pilot_errors
+from .stepsize import (PILOT_ORBITS, PILOT_T, TAU_MAX, PilotPropagators, default_scheme,
+                       dividing_step, pilot_errors)
 
 __all__ = ["agreeing", "chaotic_level", "descend", "passes", "pilot_sample", "agreeing_tau",
            "same_verdict", "summary", "ConstantLadder",
@@ -116,10 +119,26 @@ def passes(agree, errors, quantile, ceiling):
 def pilot_sample(X, seed):
     """The indices of the pilot's orbits among the map's ``X``: all, or a
     seeded sample of :data:`~varint.stepsize.PILOT_ORBITS` (as the energy
-    pilots draw it)."""
-    if len(X) <= PILOT_ORBITS:
-        return np.arange(len(X))
-    return np.sort(np.random.default_rng(seed).choice(len(X), PILOT_ORBITS, replace=False))
+    pilots draw it). For an integer seed they depend on len(X) and the
+    seed alone and are drawn once (the defaults' switch asks for them five
+    times a map, a generator each); each caller gets its own copy (a
+    read-only array would make numba compile its kernels again)."""
+    if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
+        return _sample_indices(len(X), int(seed)).copy()
+    return _draw_sample(len(X), seed)
+
+
+@functools.lru_cache(maxsize=64)
+def _sample_indices(m, seed):
+    pick = _draw_sample(m, seed)
+    pick.flags.writeable = False   # shared: only copies leave
+    return pick
+
+
+def _draw_sample(m, seed):
+    if m <= PILOT_ORBITS:
+        return np.arange(m)
+    return np.sort(np.random.default_rng(seed).choice(m, PILOT_ORBITS, replace=False))
 
 
 def summary(n_agree, n, errors_max, step_name):
@@ -139,7 +158,12 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
     ``run(j)`` returns the pilot orbits' (indicator values, energy errors,
     force evaluations per orbit and unit of time) at step(j), memoised by
     the caller (each run serves as the fine run of one rung and the coarse
-    one of the next). The descent stops early where the force evaluations
+    one of the next). The energy errors may be a function that returns
+    them (:func:`~varint.stepsize.pilot_errors` with ``lazy``): they are
+    read only where run(j) is judged as a rung's coarse run, so the fine
+    run of the rung that passes, and a run whose rate stops the descent,
+    never measure theirs (on the three-body map of ``studies/map_steps.py``
+    one run of each ladder; 50 checks of 16 orbits each). The descent stops early where the force evaluations
     exceed ``stop_above`` (a competitor is cheaper than any step left), or,
     where ``stop_above`` is a callable, where ``stop_above(rate)`` is true
     (a competitor's pilot that runs its own cheaper steps first,
@@ -198,6 +222,7 @@ def descend(run, levels, step, t_pilot, t_end, quantile, ceiling, stop_above=mat
         coarse, errors, rate = run(j)
         if stops(rate):
             break
+        errors = errors() if callable(errors) else errors
         worst = float(np.quantile(errors, quantile, method="higher"))
         if not worst <= ceiling:
             tried.append([step(j), None, worst])
@@ -270,13 +295,18 @@ class ConstantLadder:
                  quantile, ceiling, agree=agreeing):
         pick = pilot_sample(X, seed)
         self._sample = X[pick]
-        self._W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
-        self._reference = Reference(model, self._sample)
+        #: The pilot orbits' vectors (M, 2N, k), each orbit's own
+        #: (``default_rng([seed, m])``), and their :class:`~varint.accuracy.Reference`:
+        #: a competitor's pilot of the same orbits may share them.
+        self.W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
+        self.reference = Reference(model, self._sample)
         self._t_pilot = float(min(t_end, PILOT_T))
         self._model, self._t_end = model, t_end
         self._scheme = default_scheme(model, scheme)
         self._top = dividing_step(t_end, min(TAU_MAX, t_end))
-        self._vectors = (self._W0, renorm, accumulator, False)
+        self._vectors = (self.W0, renorm, accumulator, False)
+        # The rungs' propagators differ in τ alone: the class is chosen once.
+        self._build = PilotPropagators(model, renorm, accumulator, self._scheme)
         self._value, self._quantile, self._ceiling, self._agree = value, quantile, ceiling, agree
         self.counts: dict = {}
         self._runs: dict = {}
@@ -291,8 +321,9 @@ class ConstantLadder:
         if j not in self._runs:
             before = self.counts.get("gradient", 0)
             errors, values = pilot_errors(self._model, self._sample, self._step(j),
-                                          self._t_pilot, self._scheme, self._reference,
-                                          self.counts, self._vectors, value=self._value)
+                                          self._t_pilot, self._scheme, self.reference,
+                                          self.counts, self._vectors, value=self._value,
+                                          build=self._build, lazy=True)
             self._runs[j] = (values, errors, (self.counts.get("gradient", 0) - before)
                              / (len(self._sample) * self._t_pilot))
         return self._runs[j]

@@ -52,6 +52,7 @@ of τ = 0.05 with the pilot (3–4 pilot runs, 3300–6200 gradients) included
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import warnings
 
@@ -66,7 +67,7 @@ from .schemes import default_for, get_scheme
 from .state import Rows, RunState, initial_deviations
 
 __all__ = ["choose_step", "default_scheme", "dividing_step", "pilot_errors", "pilots", "check_options",
-           "StepChoice", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
+           "StepChoice", "PilotPropagators", "PILOT_MARGIN", "PILOT_T", "FALLBACK_TAU"]
 
 #: The pilot's tolerance is the run's energy_tol divided by this (see the
 #: module docstring for the measurements).
@@ -193,11 +194,13 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
     setup = (W0, renorm, accumulator, compensated)
     reference = Reference(model, X)
     tried, counts = {}, {}
+    # The rungs' propagators differ in τ alone: the class is chosen once.
+    build = PilotPropagators(model, renorm, accumulator, sch, compensated)
 
     def error(j):
         if j not in tried:
             tried[j] = _pilot(model, X, rung(j), t_end, sch, reference, quantile,
-                              counts, setup)
+                              counts, setup, build)
         return tried[j]
 
     def rung(j):
@@ -277,15 +280,17 @@ def _pilot_by_checks(prop, advance, state, checks, tau, reference):
     return worst
 
 
-def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup):
+def _pilot(model, X, tau, t_end, scheme, reference, quantile, counts, setup, build):
     """The ``quantile`` over orbits of the largest relative error of the
     conserved quantities along a pilot with step ``tau`` (inf if an orbit
     became non-finite; an escaped orbit counts up to its escape)."""
-    worst = pilot_errors(model, X, tau, min(t_end, PILOT_T), scheme, reference, counts, setup)
+    worst = pilot_errors(model, X, tau, min(t_end, PILOT_T), scheme, reference, counts, setup,
+                         build=build)
     return float(np.quantile(worst, quantile, method="higher"))
 
 
-def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value=None):
+def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value=None,
+                 build=None, lazy=False):
     """Per orbit, the largest relative error of the conserved quantities
     at :data:`PILOT_CHECKS` times along a pilot with step ``tau`` to
     ``t_pilot`` (inf if the orbit became non-finite; an escaped orbit counts
@@ -298,14 +303,22 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
     indicator value from a :class:`~varint.state.Rows`) it returns
     ``(errors, values)``: also each orbit's ``value`` at the pilot's end
     (NaN for an orbit that stopped before it), read as a run reads its
-    outputs."""
+    outputs.
+
+    ``build`` (``build(tau) -> propagator``, :class:`PilotPropagators`)
+    builds the propagator; by default :func:`~varint.methods.make_propagator`.
+    With ``lazy`` the errors are a function that computes them on its
+    first call and returns the same array after (a ladder's rule reads a
+    run's energy errors only where it judges that run as a rung's coarse
+    run: :func:`varint.step_agreement.descend`); the same numbers either
+    way."""
     W0, renorm, accumulator, compensated = setup
     n = max(1, int(round(t_pilot / tau)))
-    checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
-    # make_propagator: a lattice's "tm" is its part stepper.
-    prop = make_propagator("tm", model, tau, Renorm.parse(renorm), accumulator, scheme=scheme,
-                           # As given: the propagator checks the value.
-                           **({} if compensated is False else {"compensated": compensated}))
+    # A copy: numba compiles a kernel again for a read-only array.
+    checks = _checks(n).copy()
+    if build is None:
+        build = PilotPropagators(model, renorm, accumulator, scheme, compensated)
+    prop = build(tau)
     advance = _advance if type(prop) is TangentMapPropagator else type(prop).advance
     state = RunState.start(X, W0)
     if accumulator is not None:
@@ -314,14 +327,18 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
     if advance is _advance and prop.takes_snapshots(state):
         # One compiled call copies the state at every check.
         snaps = advance(prop, state, n, checks)
-        t = np.repeat(checks * tau, len(X))
-        errs = reference.errors(snaps.x.reshape(-1, X.shape[1]), t)
-        e = np.max(np.stack(list(errs.values())), axis=0).reshape(len(checks), len(X))
-        # A check after an orbit stopped has no copy (NaN): an escaped
-        # orbit counts up to its escape, one that failed otherwise is inf.
-        taken = np.isfinite(snaps.x).all(axis=2)
-        worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
-        worst[(state.status > STATUS_OK) & (state.status != Status.ESCAPED)] = np.inf
+
+        def measure():
+            t = np.repeat(checks * tau, len(X))
+            errs = reference.errors(snaps.x.reshape(-1, X.shape[1]), t)
+            e = np.max(np.stack(list(errs.values())), axis=0).reshape(len(checks), len(X))
+            # A check after an orbit stopped has no copy (NaN): an escaped
+            # orbit counts up to its escape, one that failed otherwise is inf.
+            taken = np.isfinite(snaps.x).all(axis=2)
+            worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
+            worst[(state.status > STATUS_OK) & (state.status != Status.ESCAPED)] = np.inf
+            return worst
+
         # The copy at the last check (the pilot's end), as a run reads it.
         rows = dataclasses.replace(snaps, steps=snaps.steps[-1:], x=snaps.x[-1:],
                                    W=snaps.W[-1:], acc_m=snaps.acc_m[-1:],
@@ -329,14 +346,59 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
                                    extra={key: v[-1:] for key, v in snaps.extra.items()}
                                    ).rows(Renorm.parse(renorm)) if value is not None else None
     else:
+        # The errors are measured between the checks as the run advances.
         worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
         rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
+
+        def measure():
+            return worst
     for key, number in state.counts.items():
         counts[key] = counts.get(key, 0) + int(number)
+    errors = functools.cache(measure) if lazy else measure()
     if value is None:
-        return worst
+        return errors
     with np.errstate(all="ignore"):
         values = np.asarray(value(rows, rows.step * tau), dtype=float)
     # An orbit that stopped before the end has no value there.
     values[(state.status != STATUS_OK) | (rows.step != n)] = np.nan
-    return worst, values
+    return errors, values
+
+
+@functools.lru_cache(maxsize=64)
+def _checks(n):
+    """The steps of a pilot of ``n`` steps at which its errors are
+    measured: :data:`PILOT_CHECKS` nearly equally spaced, the last one
+    ``n`` (worked out once per ``n``: a ladder's rungs repeat from map to
+    map; read-only, as it is shared: callers copy it)."""
+    checks = np.unique(np.round(np.linspace(0, n, PILOT_CHECKS + 1)).astype(np.int64))[1:]
+    checks.flags.writeable = False
+    return checks
+
+
+class PilotPropagators:
+    """The propagators of a pilot's rungs, one per step τ, for one model,
+    scheme, ``renorm``, ``accumulator`` and ``compensated``:
+    :func:`~varint.methods.make_propagator` for the first, which chooses
+    the class (a lattice's "tm" is its part stepper, and the checks of that
+    choice ask the model's symbolic form, ~0.3 ms a call on the CR3BP); the
+    same class with the same arguments but τ for the others, as
+    ``make_propagator`` would build them: its choice does not depend on τ.
+    A propagator holds no state of a run, so each one's runs are those of a
+    fresh one (``tests/test_step_agreement.py``)."""
+
+    def __init__(self, model, renorm, accumulator, scheme, compensated=False):
+        self._model, self._accumulator = model, accumulator
+        self._renorm = Renorm.parse(renorm)
+        # As given: the propagator checks the value.
+        self._options = {"scheme": scheme,
+                         **({} if compensated is False else {"compensated": compensated})}
+        self._class = None
+
+    def __call__(self, tau):
+        if self._class is None:
+            prop = make_propagator("tm", self._model, tau, self._renorm, self._accumulator,
+                                   **self._options)
+            self._class = type(prop)
+            return prop
+        return self._class(self._model, tau, self._renorm, accumulator=self._accumulator,
+                           **self._options)

@@ -57,6 +57,7 @@ factor 2 in the error of an order-4 scheme), and that 2h does not.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -193,7 +194,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict,
-               retry=None, t_pilot=None, stop_above=math.inf, deviations=None):
+               retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
     each with the map's own vector (``default_rng([seed, m])``) and
@@ -210,7 +211,8 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     the pilot orbits' own errors at h, h/2, … (the runs the descent made).
     ``deviations``, if given, are the sample's vectors as this function
     draws them (:func:`_pilot_deviations`; a caller that runs several
-    descents on the same orbits draws them once).
+    descents on the same orbits draws them once), and ``reference`` their
+    :class:`~varint.accuracy.Reference` (the sample's rows of ``X``).
 
     Returns
     -------
@@ -230,7 +232,7 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     sample = X[pick]
     n = sample.shape[1] // 2
     W0 = _pilot_deviations(lh, X, seed) if deviations is None else deviations
-    reference = Reference(lh.model, sample)
+    reference = Reference(lh.model, sample) if reference is None else reference
     h0 = float(np.median(lh.constants(sample) - lh.model.potential(sample[:, :n])))
     t_pilot = float(min(t_end, PILOT_T if t_pilot is None else t_pilot))
     counts = np.zeros(3, dtype=np.int64)
@@ -240,11 +242,18 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
         if j not in runs:
             out = lh.outputs(sample, W0, t_pilot, h0 * 2.0**-j, every=every)
             counts[:] += out.counts.sum(axis=0)
-            with np.errstate(all="ignore"):
-                errs = reference.errors(out.x_worst)
-            e = np.max(np.stack(list(errs.values())), axis=0)
-            e = np.where((out.status == 0) & np.isfinite(e), e, np.inf)
-            runs[j] = (out.fli, e, out.counts[:, 2].sum() / (len(sample) * t_pilot),
+
+            # Measured where read (descend; _retry_rate): a run whose rate
+            # stops the descent, or the fine run of the rung that passes
+            # without retries, never needs its errors.
+            @functools.cache
+            def errors(out=out):
+                with np.errstate(all="ignore"):
+                    errs = reference.errors(out.x_worst)
+                e = np.max(np.stack(list(errs.values())), axis=0)
+                return np.where((out.status == 0) & np.isfinite(e), e, np.inf)
+
+            runs[j] = (out.fli, errors, out.counts[:, 2].sum() / (len(sample) * t_pilot),
                        out.counts[:, 2])
         return runs[j][:3]
 
@@ -289,7 +298,7 @@ PRICE_T = PILOT_T / 4
 
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
-                    offsets=OFFSETS, stop_above=math.inf):
+                    offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
@@ -314,7 +323,10 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     Every figure is a count of the pilots' own runs, never a timing: the
     same call chooses the same δ and h, bit for bit. ``stop_above`` is the
     map's h descent's (:func:`agreeing_h`; not the pricing pilots'): a
-    competitor cheaper than any step left stops it (h None).
+    competitor cheaper than any step left stops it (h None). ``deviations``
+    and ``reference`` are :func:`agreeing_h`'s, drawn here when not given
+    (the defaults' switch shares those of its constant-step pilot, the same
+    orbits with the same vectors).
 
     For an A that takes both signs (a rotating frame,
     :attr:`~varint.time_transform.LogHamiltonian.kinetic` False) only the
@@ -336,7 +348,8 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     # once (a generator per orbit: ~2 ms a draw of 16 orbits on the loaded
     # 2-core machine, cProfile of the cored map's defaults; 5 draws a map).
     kwargs = {"quantile": quantile, "ceiling": ceiling, "seed": seed, "every": every,
-              "retry": retry, "deviations": _pilot_deviations(lh, X, seed)}
+              "retry": retry, "reference": reference,
+              "deviations": _pilot_deviations(lh, X, seed) if deviations is None else deviations}
     priced, pricing = [], 0
     if lh.kinetic and lh.offset is None:
         best = None
@@ -377,18 +390,20 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
 def _retry_rate(runs, j, tolerance, orbit_time):
     """The force evaluations per orbit and unit of time of a map at the
     pilot's rung ``j`` whose orbits are retried to ``tolerance``
-    (:func:`retried`), predicted from the pilot's ``runs``: each pilot orbit
+    (:func:`retried`), predicted from the pilot's ``runs`` (:func:`agreeing_h`'s:
+    (FLI, energy errors as a function, rate, force evaluations per orbit)
+    by rung): each pilot orbit
     pays its runs at j, j + 1, … up to the first whose energy error meets
     ``tolerance`` (or the last rung the descent ran). Returns it and the
     share of pilot orbits retried."""
     work = runs[j][3].astype(float)
-    failing = runs[j][1] > tolerance
+    failing = runs[j][1]() > tolerance
     share = float(np.mean(failing))
     for k in range(j + 1, j + 1 + RETRY_LEVELS):
         if k not in runs or not failing.any():
             break
         work = work + np.where(failing, runs[k][3], 0)
-        failing &= runs[k][1] > tolerance
+        failing &= runs[k][1]() > tolerance
     return float(work.sum() / orbit_time), share
 
 
