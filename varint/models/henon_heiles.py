@@ -83,7 +83,7 @@ class HenonHeiles(Model):
         d["escape_radius"] = self.escape_radius
         return d
 
-    @functools.cached_property
+    @property
     def potential_rows(self):
         """V compiled over rows from :func:`_V`'s expression
         (:meth:`Model.potential_rows <varint.models.base.Model.potential_rows>`):

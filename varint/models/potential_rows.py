@@ -45,6 +45,7 @@ signed, named by its source), and numba caches its compilation beside it.
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import inspect
 import operator
@@ -210,13 +211,18 @@ def rows_source(expression: str, names: tuple[str, ...], plus_zero: bool = False
         *unpack, f"        out[i] = {body}", "    return out", ""])
 
 
+@functools.lru_cache(maxsize=256)
 def rows_from(function: Callable[..., Any], n: int, plus_zero: bool = False) -> Any:
     """V compiled over rows from the NumPy V's ``function`` of the ``n``
     coordinates (``def f(q_0, …): return <expression>``), a numba
     dispatcher taking states (R, ≥ n) C-contiguous float64 and returning
     V (R,), bitwise ``function`` of their columns (``+ 0.0`` where
     ``plus_zero``); None where it could round otherwise (module
-    docstring) or ``function`` is not of that form."""
+    docstring) or ``function`` is not of that form. Made once per
+    ``function``: the models ask for it on every prepared run and keep
+    nothing of it, since a remembered call's key reads every attribute of
+    its model (:mod:`varint.remembered`), and one set at a first call would
+    make the next call with the same arguments miss."""
     try:
         expression, names = _expression(function, n)
     except (_Unsafe, OSError, TypeError, SyntaxError):

@@ -35,7 +35,6 @@ like :class:`~varint.models.FPUBeta`.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import math
 import warnings
@@ -335,7 +334,7 @@ class SymbolicModel(Model):
             self.time_dependent = True
             self.time_kernel = kernels.dtime
 
-    @functools.cached_property
+    @property
     def potential_rows(self) -> Any:
         """V compiled over rows, emitted from the expression of SymPy's
         NumPy V (:meth:`Model.potential_rows
