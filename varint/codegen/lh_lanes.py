@@ -59,6 +59,11 @@ def _printed(em, group):
     return tmp.lines
 
 
+class _NoLanes(Exception):
+    """The step cannot be written over lanes (a kinetic part with calls:
+    its flow's libm calls would sit in the lanes' loop)."""
+
+
 class _Step:
     """The loops of one LH step of every lane (``k`` vectors, 0 or 1), for
     the emitter ``em`` (:class:`varint.codegen.lh._Emitter`) and the stage
@@ -75,7 +80,7 @@ class _Step:
         self.potential_calls = _calls(_printed(em, em.potential_group))
         self.hessian_calls = k and _calls(_printed(em, em.hessian_group))
         if _calls(_printed(em, em.kinetic_group)):
-            raise NotImplementedError("a kinetic part with calls has no lanes")
+            raise _NoLanes("a kinetic part with calls has no lanes")
         if self.potential_calls:
             names += [f"gV_{i}" for i in range(n)] + ["v"]
         if self.hessian_calls:
@@ -250,7 +255,7 @@ def emit_lanes(src, em, kinds):
     the step cannot be written over lanes (a kinetic part with calls)."""
     try:
         steps = [_Step(em, kinds, k) for k in (0, 1)]
-    except NotImplementedError:
+    except _NoLanes:
         return
     src("", f"LANE_WIDTH = {LANE_WIDTH}")
     kicks = sum(1 for kind in kinds if kind != 0)
