@@ -26,6 +26,7 @@ from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
+from .models.potential_rows import NumPyPowers
 from .protocol import COUNTERS
 from .results import Provenance, _Result
 from .state import renormalized_copy
@@ -113,14 +114,16 @@ class ShortCall:
                              and model.n_dof < SEQUENTIAL_TERMS
                              and _float_vector(model.inverse_mass, model.n_dof) else None)
         #: V compiled, where the model has it (:attr:`Model.potential_rows
-        #: <varint.models.base.Model.potential_rows>`, bitwise its NumPy V)
+        #: <varint.models.base.Model.potential_rows>`, bitwise its NumPy V;
+        #: on some CPUs compiled but for its powers, :class:`NumPyPowers`)
         #: and does not override ``potential``: called with
         #: :attr:`FreshRun.states <varint.methods.fresh_run.FreshRun.states>`,
         #: a C-contiguous (R, 2N) float64 array at every call, so through
-        #: its compiled version (:class:`Resolved`).
+        #: its compiled versions (:class:`Resolved`).
         rows_v = (model.potential_rows if self.plain
                   and type(model).potential is Model.potential else None)
-        self.potential_kernel = None if rows_v is None else Resolved(rows_v)
+        self.potential_kernel = (None if rows_v is None else rows_v.resolved()
+                                 if isinstance(rows_v, NumPyPowers) else Resolved(rows_v))
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()
