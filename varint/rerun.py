@@ -104,6 +104,9 @@ class ShortCall:
         #: T + V; otherwise by :func:`varint.accuracy.reference_and_errors`.
         self.plain = accuracy.plain_energy(first.model)
         self.errors_kernel = Resolved(energy_errors)
+        #: What the verdict cannot check (the model's and propagator's,
+        #: :func:`varint.accuracy.notes`), each verdict given a copy.
+        self.notes = accuracy.notes(first.model, prop)
         #: T computed in that call too, from the states (bitwise NumPy's
         #: where T is the base model's over fewer than SEQUENTIAL_TERMS
         #: degrees of freedom, :mod:`varint.kernels.energy_errors`);
@@ -225,7 +228,8 @@ class ShortCall:
             # (One state: the one orbit's block, (n_out, ...) as it is.)
             fields[key] = (block if single else
                            block.reshape((s, m) + block.shape[1:]).swapaxes(0, 1))
-        accuracy.annotate(verdict, first.model, self.prop)
+        if self.notes:
+            verdict.notes.update(self.notes)     # (accuracy.annotate's notes)
         fields = ind.finish(fields, options)
         x, status = run.x.copy(), run.status[0] if single else run.status.copy()
         if self.has_deviations:
@@ -279,7 +283,8 @@ class ShortCall:
                         kinetic = model.kinetic(states[:, n:])
                 finally:
                     floating_errors.restore(quiet)
-            if not _float_vector(potential, rows):
+            if potential_kernel is None and not _float_vector(potential, rows):
+                # (The compiled V's is such a vector: np.empty(rows) filled.)
                 computed = None
             elif state_kernel is not None:
                 computed = state_kernel(states, potential, model.inverse_mass, m, self.t)
