@@ -46,7 +46,9 @@ Usage::
     python studies/call_overhead.py --baseline /tmp/base
 
 The stored result compared this branch with ``main`` as it was when the
-branch started (its commit message gives the figures).
+branch started (its commit message gives the figures). call18's is also in
+``results/call18/``, with a second run of 7 rounds in the same load window
+(``call_overhead_repeat.json``).
 """
 
 from __future__ import annotations
