@@ -20,11 +20,14 @@ Two calls of the frontier study's kind (orbit + one tangent vector, R1,
   1e-6, seed 2), taken in turn, so that nothing kept from one x0 to the
   next can flatter ``prepared``; its SHA-256 covers the results of the
   whole set;
-* ``prepared_nov``: ``prepared`` with Hénon–Heiles' compiled V switched off
-  (``HenonHeiles.potential_rows = None`` in the worker, both codes, and a
-  new ``HenonHeiles()`` after it), as on
-  a CPU with AVX-512, where NumPy's power is SVML's and the compiled V of
-  ``y ** 3`` is not made (issue 28);
+* ``prepared_nov``: ``prepared`` as on a CPU with AVX-512, where NumPy's
+  power is SVML's (issue 28): in the worker, both codes,
+  ``potential_rows.NUMPY_POWER_IS_LIBM = False`` and the memoised compiled
+  V's forgotten (``rows_from.cache_clear()``), then a new
+  ``HenonHeiles()``: main before call18 makes no compiled V of ``y ** 3``
+  there (NumPy's V at each call), call18's leaves only the cube to NumPy
+  (:class:`varint.models.potential_rows.NumPyPowers`). The flag is set
+  back once the run's first call has made its short path;
 * ``generated``: ``prepared`` on a model built from an expression,
   ``from_potential((x**2 + y**2)/2 + x**2*y**2, [x, y])`` (the x²y²
   coupled oscillators: squares only, so its compiled V is made on every
@@ -43,7 +46,9 @@ Usage::
     python studies/call_overhead.py --baseline /tmp/base
 
 The stored result compared this branch with ``main`` as it was when the
-branch started (its commit message gives the figures).
+branch started (its commit message gives the figures). call18's is also in
+``results/call18/``, with a second run of 7 rounds in the same load window
+(``call_overhead_repeat.json``).
 """
 
 from __future__ import annotations
@@ -69,6 +74,7 @@ sys.path.insert(0, sys.argv[1])
 import numpy as np
 import sympy as sp
 import varint
+from varint.models import potential_rows
 from varint.models.henon_heiles import HenonHeiles
 calls = int(sys.argv[2])
 hh, hh_x0 = varint.paper_orbit("R1")
@@ -87,8 +93,10 @@ out = {"varint": varint.__file__}
 for name, (t_end, tau, scheme) in cases.items():
     model, x0 = (generated, gen_x0) if name == "generated" else (hh, hh_x0)
     if name == "prepared_nov":
-        # A class attribute that a new model reads (the last case of R1).
-        HenonHeiles.potential_rows = None
+        # As on a CPU with AVX-512 (see the module docstring).
+        libm = potential_rows.NUMPY_POWER_IS_LIBM
+        potential_rows.NUMPY_POWER_IS_LIBM = False
+        potential_rows.rows_from.cache_clear()
         model = HenonHeiles()
     def call():
         return varint.integrate(model, x0, t_end, tau=tau, scheme=scheme,
@@ -99,6 +107,9 @@ for name, (t_end, tau, scheme) in cases.items():
                              deviations=w0[:, None])
         run(x0)         # builds the run; later calls take the short path
         call = functools.partial(run, x0)
+    if name == "prepared_nov":
+        potential_rows.NUMPY_POWER_IS_LIBM = libm
+        potential_rows.rows_from.cache_clear()
     if name == "prepared_new":
         starts, turn = new, itertools.cycle(new)
         def call():

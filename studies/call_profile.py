@@ -55,14 +55,23 @@ kernels tested finite in one pass, the start states kept before the
 outputs, NumPy's error handling set without rebuilding it):
 ``round8_before`` (main 2aef9d2) and ``round8_after``, likewise. Its
 ninth (Hénon–Heiles' V of the short call's rows compiled,
-``HenonHeiles.potential_rows``; the kernels' values tested finite in one
-compiled pass; the counts made in one dict) is stored in ``results/`` as
-``round6`` (the issue's sixth stored profile, after ``round5``; not the
+``HenonHeiles.potential_rows``, then a hand-written twin of its NumPy V,
+since vgen17 compiled from that V's own expression,
+:mod:`varint.models.potential_rows`; the kernels' values tested finite in
+one compiled pass; the counts made in one dict) is stored in ``results/``
+as ``round6`` (the issue's sixth stored profile, after ``round5``; not the
 quick ``round6_before``/``round6_after`` above): this code alone, every
-path, the figures against main (63e9f7c) in ``call_overhead.json``.
+path, the figures against main (63e9f7c) in ``call_overhead.json``. Its
+tenth (call18: the prepared call as on a CPU with AVX-512, ``--avx512``,
+where NumPy's power is SVML's and Hénon–Heiles' V is now compiled but for
+its cube, :class:`varint.models.potential_rows.NumPyPowers`; the
+verdict's notes made once per prepared run): ``call18/`` holds
+``call_profile_avx512_before`` (main a37e246, which has no compiled V
+there) and ``call_profile_avx512_after``, run one after the other in one
+load window, the figures against main in ``call_overhead.json``.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
-[--path oneshot prepared prepared_general]``
+[--path oneshot prepared prepared_general] [--avx512]``
 """
 
 from __future__ import annotations
@@ -171,6 +180,8 @@ SHORT_STAGES = (
     (2, "snapshot rows, kept views", "varint.methods.fresh_run:FreshRun", "rows"),
     (2, "energy errors and verdict", "varint.prepared:_ShortCall", "_energy_verdict"),
     (3, "energy errors and verdict", "varint.rerun:ShortCall", "_energy_verdict"),
+    (4, "V compiled, its powers NumPy's", "varint.models.potential_rows:NumPyPowers",
+     "__call__"),
     (2, "provenance, fixed part pickled", "varint.results:Provenance", "with_pickled"),
     (2, "machine identity", "varint.identity", "machine"),
     (2, "accuracy warning", "varint.accuracy", "warn"),
@@ -196,6 +207,24 @@ SHORT_STAGES_BEFORE_ROUND9 = frozenset({"short call"})
 SHORT_STAGES_BEFORE_ROUND8 = frozenset({
     "check x0, a new specification", "states check", "kernels finite at x0, kept buffers",
 })
+
+
+#: The labels of :data:`SHORT_STAGES` that only a model whose V is
+#: compiled but for its powers passes (Hénon–Heiles where NumPy's power is
+#: not libm's: a CPU with AVX-512, or ``--avx512``).
+SHORT_STAGES_NUMPY_POWERS = frozenset({"V compiled, its powers NumPy's"})
+
+
+def as_on_avx512():
+    """Make the models' compiled V from now on as on a CPU with AVX-512,
+    where NumPy's power is SVML's, not libm's
+    (:data:`varint.models.potential_rows.NUMPY_POWER_IS_LIBM` false; code
+    before call18 then makes no compiled V of a cube, call18's leaves the
+    cube to NumPy)."""
+    from varint.models import potential_rows
+
+    potential_rows.NUMPY_POWER_IS_LIBM = False
+    potential_rows.rows_from.cache_clear()
 
 
 def _owner(path):
@@ -274,9 +303,14 @@ def main(argv=None):
                             help="suffix of the stored files (e.g. before/after a change)")
         parser.add_argument("--path", nargs="+", choices=PATHS, default=list(PATHS),
                             help="which calls to profile (default all, interleaved)")
+        parser.add_argument("--avx512", action="store_true",
+                            help="the models' compiled V as on a CPU with AVX-512 "
+                                 "(as_on_avx512)")
 
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     calls = 100 if args.quick else args.calls
+    if args.avx512:
+        as_on_avx512()
     model, x0 = varint.paper_orbit("R1")
     w0 = np.random.default_rng(1).standard_normal(len(x0))
     w0 /= np.linalg.norm(w0)
@@ -317,7 +351,8 @@ def main(argv=None):
             found[key][0].append(rows)
             found[key][1].append(whole)
     load = {"before": load_before, "after": os.getloadavg(), "cpus": os.cpu_count()}
-    out = {"calls": calls, "load": load, "quick": args.quick, "label": args.label}
+    out = {"calls": calls, "load": load, "quick": args.quick, "label": args.label,
+           "avx512": args.avx512}
     csv_rows = []
     print(f"one-step call, R1, s15odr8: {calls} calls a path, load {load['before']} -> "
           f"{load['after']} on {load['cpus']} CPUs")

@@ -57,7 +57,7 @@ import numpy as np
 from .protocol import STATUS_OK, Status
 
 __all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
-           "Reference", "assess", "annotate", "warn", "flag_nonfinite", "NO_MAP_VERDICT",
+           "Reference", "assess", "annotate", "notes", "warn", "flag_nonfinite", "NO_MAP_VERDICT",
            "plain_energy"]
 
 #: Largest relative error of a conserved quantity at which indicators are
@@ -374,17 +374,27 @@ NO_MAP_VERDICT = ("no verdict: a map has no energy to check (its energy_error is
                   "definition); it is iterated exactly, up to round-off")
 
 
-def annotate(verdict, model, propagator=None):
-    """Record in ``verdict.notes`` what the verdict cannot check, so that
-    it says so: a map model has no energy (``no_verdict``), and a
-    propagator whose class declares ``TANGENT_NOTE`` integrates the
-    deviation vectors apart from the orbit, so the energy says nothing of
-    their error (``tangent``). Returns ``verdict``."""
+def notes(model, propagator=None):
+    """What a verdict of ``model``'s run by ``propagator`` cannot check, as
+    notes (a new dict, :attr:`Accuracy.notes`): a map model has no energy
+    (``no_verdict``), and a propagator whose class declares
+    ``TANGENT_NOTE`` integrates the deviation vectors apart from the orbit,
+    so the energy says nothing of their error (``tangent``). They depend on
+    the model and propagator alone: a prepared run's short call makes them
+    once (:class:`varint.rerun.ShortCall`)."""
+    found = {}
     if getattr(model, "kind", "flow") == "map":
-        verdict.notes["no_verdict"] = NO_MAP_VERDICT
+        found["no_verdict"] = NO_MAP_VERDICT
     note = getattr(propagator, "TANGENT_NOTE", None)
     if note:
-        verdict.notes["tangent"] = note
+        found["tangent"] = note
+    return found
+
+
+def annotate(verdict, model, propagator=None):
+    """Record in ``verdict.notes`` what the verdict cannot check
+    (:func:`notes`), so that it says so. Returns ``verdict``."""
+    verdict.notes.update(notes(model, propagator))
     return verdict
 
 

@@ -26,6 +26,7 @@ from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
+from .models.potential_rows import NumPyPowers
 from .protocol import COUNTERS
 from .results import Provenance, _Result
 from .state import renormalized_copy
@@ -103,6 +104,9 @@ class ShortCall:
         #: T + V; otherwise by :func:`varint.accuracy.reference_and_errors`.
         self.plain = accuracy.plain_energy(first.model)
         self.errors_kernel = Resolved(energy_errors)
+        #: What the verdict cannot check (the model's and propagator's,
+        #: :func:`varint.accuracy.notes`), each verdict given a copy.
+        self.notes = accuracy.notes(first.model, prop)
         #: T computed in that call too, from the states (bitwise NumPy's
         #: where T is the base model's over fewer than SEQUENTIAL_TERMS
         #: degrees of freedom, :mod:`varint.kernels.energy_errors`);
@@ -113,14 +117,16 @@ class ShortCall:
                              and model.n_dof < SEQUENTIAL_TERMS
                              and _float_vector(model.inverse_mass, model.n_dof) else None)
         #: V compiled, where the model has it (:attr:`Model.potential_rows
-        #: <varint.models.base.Model.potential_rows>`, bitwise its NumPy V)
+        #: <varint.models.base.Model.potential_rows>`, bitwise its NumPy V;
+        #: on some CPUs compiled but for its powers, :class:`NumPyPowers`)
         #: and does not override ``potential``: called with
         #: :attr:`FreshRun.states <varint.methods.fresh_run.FreshRun.states>`,
         #: a C-contiguous (R, 2N) float64 array at every call, so through
-        #: its compiled version (:class:`Resolved`).
+        #: its compiled versions (:class:`Resolved`).
         rows_v = (model.potential_rows if self.plain
                   and type(model).potential is Model.potential else None)
-        self.potential_kernel = None if rows_v is None else Resolved(rows_v)
+        self.potential_kernel = (None if rows_v is None else rows_v.resolved()
+                                 if isinstance(rows_v, NumPyPowers) else Resolved(rows_v))
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()
@@ -222,7 +228,8 @@ class ShortCall:
             # (One state: the one orbit's block, (n_out, ...) as it is.)
             fields[key] = (block if single else
                            block.reshape((s, m) + block.shape[1:]).swapaxes(0, 1))
-        accuracy.annotate(verdict, first.model, self.prop)
+        if self.notes:
+            verdict.notes.update(self.notes)     # (accuracy.annotate's notes)
         fields = ind.finish(fields, options)
         x, status = run.x.copy(), run.status[0] if single else run.status.copy()
         if self.has_deviations:
@@ -276,7 +283,8 @@ class ShortCall:
                         kinetic = model.kinetic(states[:, n:])
                 finally:
                     floating_errors.restore(quiet)
-            if not _float_vector(potential, rows):
+            if potential_kernel is None and not _float_vector(potential, rows):
+                # (The compiled V's is such a vector: np.empty(rows) filled.)
                 computed = None
             elif state_kernel is not None:
                 computed = state_kernel(states, potential, model.inverse_mass, m, self.t)

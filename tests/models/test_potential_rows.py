@@ -9,6 +9,7 @@ import sympy as sp
 import varint
 from varint.models import from_potential
 from varint.models import potential_rows as rows_module
+from varint.models.henon_heiles import _V, HenonHeiles
 from varint.models.potential_rows import NUMPY_POWER_IS_LIBM, rows_source
 
 x, y, z = sp.symbols("x y z")
@@ -63,11 +64,10 @@ def test_a_generated_models_compiled_v_is_its_numpy_v_on_every_cpu(V):
 
 
 @pytest.mark.parametrize("V", LIBM_ONLY, ids=str)
-def test_other_powers_are_compiled_only_where_numpys_power_is_libms(V):
+def test_other_powers_are_compiled_wholly_only_where_numpys_power_is_libms(V):
     model = from_potential(V, sorted(V.free_symbols, key=str))
-    assert (model.potential_rows is not None) == NUMPY_POWER_IS_LIBM
-    if model.potential_rows is None:
-        pytest.skip("NumPy's power is SVML's on this CPU (AVX-512): no compiled V")
+    # Elsewhere compiled but for its powers (NumPyPowers, tested below).
+    assert isinstance(model.potential_rows, rows_module.NumPyPowers) != NUMPY_POWER_IS_LIBM
     _assert_bitwise(model)
 
 
@@ -86,9 +86,10 @@ def test_the_compiled_copy_writes_squares_as_products_and_other_powers_as_pow(mo
     # (numba's q_1 ** 3 would be products).
     if NUMPY_POWER_IS_LIBM:
         assert "q_0 * q_0 * q_1 - 1 / 3 * q_1 ** 3.0 + 1.0 / (q_0 - q_1)" in source
-    # As on a CPU with AVX-512: a cube is SVML's there, a square is not.
+    # As on a CPU with AVX-512: a cube is SVML's there, left to NumPy; a
+    # square is not.
     monkeypatch.setattr(rows_module, "NUMPY_POWER_IS_LIBM", False)
-    assert rows_source("q_0**2*q_1 - 1/3*q_1**3", names) is None
+    assert "q_0 * q_0 * q_1 - 1 / 3 * _pw0" in rows_source("q_0**2*q_1 - 1/3*q_1**3", names)
     assert "(q_0 - q_1) * (q_0 - q_1)" in rows_source("(q_0 - q_1)**2 + sqrt(q_1)", names)
     # Names that are not coordinates, other functions, comparisons, huge
     # integers: refused.
@@ -103,6 +104,105 @@ def test_a_generated_models_short_call_takes_its_compiled_v_bitwise():
     run = varint.prepare(model, "integrate", 0.2, tau=0.05)
     run(x0)
     assert run._again.short is not None and run._again.short.potential_kernel is not None
+    for x1 in (x0, x0 + [1e-3, 0.0, -2e-3, 0.0]):
+        got, want = run(x1), varint.integrate(model, x1, 0.2, tau=0.05)
+        for key in ("state", "states", "energy_error", "t"):
+            np.testing.assert_array_equal(getattr(got, key), getattr(want, key))
+        assert got.accuracy.energy_error == want.accuracy.energy_error
+
+
+def _assert_rows_bitwise(rows, numpy_v, n, seed=0):
+    """``rows`` (a compiled V over rows) is ``numpy_v`` of the coordinates
+    (:func:`_assert_bitwise`'s comparison) over wide scales and special
+    values, and warns about nothing."""
+    states = _states(n, seed=seed)
+    with np.errstate(all="ignore"):
+        expected = numpy_v(states[:, :n])
+    with np.errstate(all="raise"):
+        got = rows(states)
+    assert got.dtype == np.float64 and got.shape == expected.shape
+    nan = np.isnan(expected)
+    np.testing.assert_array_equal(np.isnan(got), nan)
+    np.testing.assert_array_equal(got[~nan].view(np.int64), expected[~nan].view(np.int64))
+
+
+@pytest.mark.parametrize("V", LIBM_ONLY, ids=str)
+def test_other_powers_left_to_numpy_give_the_numpy_v_bitwise(V):
+    # What a CPU with AVX-512 runs (numpy_powers): the rest compiled, the
+    # powers NumPy's own. Here NumPy's power is that CPU's or libm's: the
+    # same ufunc the NumPy V calls, on the same doubles.
+    model = from_potential(V, sorted(V.free_symbols, key=str))
+    rows = rows_module.rows_from(model._numpy_V, model.n_dof, plus_zero=True,
+                                 numpy_powers=True)
+    assert isinstance(rows, rows_module.NumPyPowers)
+    _assert_rows_bitwise(rows, model.potential, model.n_dof, seed=3)
+    _assert_rows_bitwise(rows.resolved(), model.potential, model.n_dof, seed=3)
+    # Where NumPy's power is libm's, the model's own compiled V is whole.
+    assert isinstance(model.potential_rows, rows_module.NumPyPowers) != NUMPY_POWER_IS_LIBM
+
+
+def test_henon_heiles_v_with_its_cube_left_to_numpy_is_its_numpy_v():
+    rows = rows_module.rows_from(_V, 2, numpy_powers=True)
+    assert rows.exponents == (3.0,)
+    _assert_rows_bitwise(rows, HenonHeiles().potential, 2, seed=5)
+
+
+def test_the_powers_are_numpys_whatever_it_computes(monkeypatch):
+    # As on a CPU where NumPy's power is not libm's (SVML's on AVX-512): a
+    # stand-in power one ulp above libm's. The compiled V must take its
+    # values, not compute its own: V is then the NumPy expression over the
+    # stand-in's powers.
+    def power(b, e):
+        return np.nextafter(np.power(b, e), np.inf)
+
+    monkeypatch.setattr(rows_module, "_power", power)
+    source = rows_source("0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0 + (x - y) ** 4",
+                         ("x", "y"), numpy_powers=True)
+    assert "EXPONENTS = (3.0, 4.0,)" in source and "_pw0 / 3.0 + _pw1" in source
+
+    def expected(q):
+        x, y = q[:, 0], q[:, 1]
+        return 0.5 * (x * x + y * y) + x * x * y - power(y, 3) / 3.0 + power(x - y, 4)
+
+    def v(x, y):
+        return 0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0 + (x - y) ** 4
+
+    rows = rows_module.rows_from(v, 2, numpy_powers=True)
+    _assert_rows_bitwise(rows, expected, 2, seed=7)
+    # (Not libm's: the stand-in moved some finite values.)
+    states = _states(2, seed=7)
+    with np.errstate(all="ignore"):
+        got, libm = rows(states), v(states[:, 0], states[:, 1])
+    finite = np.isfinite(libm)
+    assert np.any(got[finite] != libm[finite])
+
+
+def test_numpy_powers_are_refused_inside_a_powers_base_and_for_reserved_names():
+    names = ("q_0", "q_1")
+    assert rows_source("(1 + q_0**3)**1.5", names, numpy_powers=True) is None
+    # (With libm's pow compiled, the same expression is made.)
+    assert rows_source("(1 + q_0**3)**1.5", names, numpy_powers=False) is not None
+    # A square of a NumPy power is a product of it; a sqrt of one its sqrt.
+    assert "_pw0 * _pw0 + _sqrt(_pw1)" in rows_source("(q_0**3)**2 + sqrt(q_1**5)", names,
+                                                     numpy_powers=True)
+    for reserved in ("out", "i", "states", "powers", "_pw0", "np"):
+        assert rows_source(f"q_0 * {reserved}", ("q_0", reserved)) is None, reserved
+
+
+class _HenonHeilesAVX512(HenonHeiles):
+    """Hénon–Heiles with its V compiled as on a CPU with AVX-512."""
+
+    @property
+    def potential_rows(self):
+        return rows_module.rows_from(_V, 2, numpy_powers=True)
+
+
+def test_a_short_call_with_powers_left_to_numpy_is_the_one_shot_call_bitwise():
+    model = _HenonHeilesAVX512()
+    _, x0 = varint.paper_orbit("R1")
+    run = varint.prepare(model, "integrate", 0.2, tau=0.05)
+    run(x0)
+    assert isinstance(run._again.short.potential_kernel, rows_module.NumPyPowers)
     for x1 in (x0, x0 + [1e-3, 0.0, -2e-3, 0.0]):
         got, want = run(x1), varint.integrate(model, x1, 0.2, tau=0.05)
         for key in ("state", "states", "energy_error", "t"):

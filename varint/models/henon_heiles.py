@@ -87,8 +87,8 @@ class HenonHeiles(Model):
     def potential_rows(self):
         """V compiled over rows from :func:`_V`'s expression
         (:meth:`Model.potential_rows <varint.models.base.Model.potential_rows>`):
-        only where NumPy's power is libm's, for ``y ** 3``
-        (:mod:`varint.models.potential_rows`)."""
+        wholly where NumPy's power is libm's, else but for ``y ** 3``, which
+        NumPy computes (:mod:`varint.models.potential_rows`)."""
         return rows_from(_V, 2)
 
     def symbolic(self):

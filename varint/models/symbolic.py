@@ -341,7 +341,8 @@ class SymbolicModel(Model):
         <varint.models.base.Model.potential_rows>`,
         :func:`~varint.models.potential_rows.rows_from`: on every CPU for a
         V of sums, products, quotients, squares and square roots; with other
-        powers only where NumPy's power is libm's); None for a V(q, t)."""
+        powers wholly where NumPy's power is libm's, else but for those
+        powers, which NumPy computes); None for a V(q, t)."""
         if self._numpy_V is None:
             return None
         # (The NumPy V adds zeros to the expression's value: a constant V
