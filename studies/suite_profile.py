@@ -131,21 +131,31 @@ class CompileTimer:
     ran and waited for (``child_cpu_s``: a test that runs a script in a
     subprocess, such as the CUDA simulator's, spends its time there)."""
 
-    def __init__(self, path):
+    def __init__(self, path, nested=False):
         self.path = Path(path)
+        # With ``nested``, every compile event is kept too (the functions
+        # an outer compile compiled inside it, each with its own seconds
+        # and depth): a function compiled for a second signature while
+        # compiling its caller shows only there.
+        self.nested = nested
+        self.stack = []
         self.depth = 0
         self.started = 0.0
         self.compiling = 0.0
         self.compiled = 0
         self.what = []
+        self.inner = []
         self.file = None
         self.rows = defaultdict(lambda: {"s": 0.0, "cpu_s": 0.0, "child_cpu_s": 0.0,
-                                         "compile_s": 0.0, "compiles": 0, "compiled": []})
+                                         "compile_s": 0.0, "compiles": 0, "compiled": [],
+                                         "inner": []})
 
     def on_start(self, event):
         if self.depth == 0:
             self.started = time.process_time()
             self.key = compiled_key(event.data)
+        elif self.nested:
+            self.stack.append((compiled_key(event.data), time.process_time()))
         self.depth += 1
 
     def on_end(self, event):
@@ -155,6 +165,9 @@ class CompileTimer:
             self.compiling += seconds
             self.compiled += 1
             self.what.append([self.key, round(seconds, 2)])
+        elif self.nested:
+            key, started = self.stack.pop()
+            self.inner.append([key, round(time.process_time() - started, 2), self.depth])
 
     def pytest_sessionstart(self, session):
         from numba.core import event
@@ -177,6 +190,7 @@ class CompileTimer:
         self.item_compile = self.compiling
         self.item_compiled = self.compiled
         self.what = []
+        self.inner = []
 
     def pytest_runtest_logfinish(self, nodeid, location):
         row = self.rows[nodeid]
@@ -186,7 +200,9 @@ class CompileTimer:
         row["compile_s"] += self.compiling - self.item_compile
         row["compiles"] += self.compiled - self.item_compiled
         row["compiled"] += self.what
+        row["inner"] += self.inner
         self.what = []
+        self.inner = []
         # Written after each file too: a run cut short (a loaded machine,
         # a killed worker) still leaves the rows of the files it finished.
         path = nodeid.split("::")[0]
@@ -211,7 +227,9 @@ def pytest_configure(config):
     # An xdist controller (numprocesses set) runs no test: its workers time them.
     if folder and not getattr(config.option, "numprocesses", None):
         worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
-        config.pluginmanager.register(CompileTimer(Path(folder) / f"{worker}.rows.json"))
+        config.pluginmanager.register(CompileTimer(
+            Path(folder) / f"{worker}.rows.json",
+            nested=bool(os.environ.get("VARINT_SUITE_PROFILE_NESTED"))))
 
 
 def _extra(parser):
@@ -232,6 +250,12 @@ def _extra(parser):
                              "BEFORE against those in AFTER (each run cold on the same "
                              "files; a load.json beside the rows gives the run's load); "
                              "repeatable, stored as suite_cut_<--name>.json")
+    parser.add_argument("--signatures", type=Path, default=None, metavar="DIR",
+                        help="instead of a profile: per compiled function, the signatures "
+                             "compiled, seconds each and the test that compiled each, from "
+                             "the plugin's rows in DIR (run with "
+                             "VARINT_SUITE_PROFILE_NESTED=1 to see nested compiles too); "
+                             "and in its subfolders; stored as signatures_<--name>.json")
     parser.add_argument("--name", default="cut",
                         help="the stored comparison's name (suite_cut_NAME.json)")
     parser.add_argument("pytest_args", nargs="*", help="pytest arguments (files) after --")
@@ -303,6 +327,58 @@ def duplicates(rows_by_process):
             "keys": len(table), "functions": table}
 
 
+def split_key(key):
+    """A :func:`compiled_key` cut in two: the function (module, name,
+    file and what it closes over) and its argument types, the last
+    bracketed group."""
+    if not key.endswith(")"):
+        return key, ""
+    depth = 0
+    for i in range(len(key) - 1, -1, -1):
+        depth += {")": 1, "(": -1}.get(key[i], 0)
+        if depth == 0:
+            return key[:i], key[i + 1:-1]
+    return key, ""
+
+
+def signatures(rows_by_process):
+    """Per compiled function (a dispatcher: :func:`split_key`'s first part),
+    every compile the plugin saw of it, outermost and, where the rows have
+    them (``VARINT_SUITE_PROFILE_NESTED``), nested: its argument types, CPU
+    seconds, depth (0: outermost), process and test. Then per function
+    without what it closes over (``module:name@file``): how many distinct
+    closures of it were compiled (the same code specialised on other
+    values). A dispatcher with two signatures, or a function with two
+    closures, is a compile a normalised call might save. The seconds of a
+    nested compile are part of its caller's."""
+    by_function = defaultdict(list)
+    for process, rows in rows_by_process.items():
+        for nodeid, row in rows.items():
+            events = [(k, s, 0) for k, s in row.get("compiled", [])]
+            events += [tuple(e) for e in row.get("inner", [])]
+            for key, seconds, depth in events:
+                function, args = split_key(key)
+                by_function[function].append({"args": args, "s": seconds, "depth": depth,
+                                              "process": process, "test": nodeid})
+    functions = {}
+    for function, events in by_function.items():
+        sigs = sorted({e["args"] for e in events})
+        functions[function] = {"signatures": len(sigs),
+                               "s": round(sum(e["s"] for e in events if e["depth"] == 0), 2),
+                               "nested_s": round(sum(e["s"] for e in events if e["depth"]), 2),
+                               "compiles": sorted(events, key=lambda e: -e["s"])}
+    functions = dict(sorted(functions.items(), key=lambda kv: -(kv[1]["s"] + kv[1]["nested_s"])))
+    closures = defaultdict(set)
+    for function in functions:
+        closures[function.split("[", 1)[0]].add(function)
+    return {"functions": functions,
+            "several_signatures": {f: v["signatures"] for f, v in functions.items()
+                                   if v["signatures"] > 1},
+            "several_closures": {f: len(c) for f, c in sorted(closures.items(),
+                                                               key=lambda kv: -len(kv[1]))
+                                 if len(c) > 1}}
+
+
 def _rows_of(folder):
     """The plugin's rows of every process in ``folder``, merged, and the
     folder's ``load.json`` (None where it has none)."""
@@ -348,6 +424,17 @@ def main(argv=None):
             print(f"{label:24s} {e['before_cpu_s']:8.1f} -> {e['after_cpu_s']:8.1f} s CPU "
                   f"({e['cut_cpu_s']:+.1f} cut)")
         print(f"{'total cut':24s} {table['cut_cpu_s']:8.1f} s CPU")
+        return table
+    if args.signatures:
+        # Rows in subfolders too (runs of groups of files side by side).
+        by_process = {str(p.relative_to(args.signatures)).removesuffix(".rows.json"):
+                      json.loads(p.read_text())
+                      for p in sorted(args.signatures.rglob("*.rows.json"))}
+        table = {**signatures(by_process), "note": args.note}
+        save_json(args.out, f"signatures_{args.name}", table)
+        for function, f in list(table["functions"].items())[:40]:
+            print(f"{f['s']:8.1f} s {f['nested_s']:8.1f} s nested {f['signatures']:3d} sig "
+                  f"{len(f['compiles']):3d}x  {function[:100]}")
         return table
     load_start = [round(x, 2) for x in os.getloadavg()]
     if args.rows is None:

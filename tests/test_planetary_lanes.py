@@ -131,3 +131,24 @@ def test_lanes_option_is_checked():
     model = Planetary([1.0, 0.000954, 0.000285])
     with pytest.raises(ValueError, match="lanes must be True or False, got 'yes'"):
         _map(model, _grid(model)[:4], lanes="yes")
+
+
+def test_serial_and_parallel_batches_step_one_block():
+    """The lanes' block is made once for both batches (it does not depend
+    on ``parallel``): a map run serial and parallel compiles it once."""
+    from varint.kernels.interval import no_accumulator
+    from varint.kernels.planetary_batch import lane_batch
+
+    model = Planetary([1.0, 0.000954, 0.000285])
+    parts = model.parts
+
+    def block(parallel):
+        batch = lane_batch(model.n_planets, 1, parts.apply, parts.field, no_accumulator,
+                           False, parallel)
+        cells = dict(zip(batch.py_func.__code__.co_freevars, batch.py_func.__closure__,
+                         strict=True))
+        return batch, cells["block"].cell_contents
+
+    (serial, a), (parallel, b) = block(False), block(True)
+    assert serial is not parallel
+    assert a is b

@@ -379,3 +379,20 @@ def test_r1_x1_levels_off_for_tdh_as_in_fig2(r1):
     assert abs(es[2] / 9.4e-4 - 1) < 0.1            # the paper's level (measured 9.41e-4)
     assert cc[2] > 5 * tm[2]                        # measured 10.8×
     assert 1.3 * tm[2] < eps[2] < cc[2] / 3         # measured 1.55× TM, cc/6.9
+
+
+def test_tdhcc_and_tdheps_share_one_kernel(c1):
+    """TDHcc and TDHeps are one step body read from different tables (the
+    setup's n_sub, tidx and need): a run of both compiles one kernel;
+    TDHes's exact flow is a kernel of its own."""
+    from varint.kernels.tm import model_kernels
+    from varint.tdh import _kernels as TK
+    from varint.tdh.frozen import lapack_eig
+
+    model = c1[0]
+    kernels = model_kernels(model)
+    batch = {mode: TK.batch_kernel(model.n_dof, 4, model.bandwidth, mode, False, kernels,
+                                   lapack_eig)
+             for mode in (TK.CC, TK.EPS, TK.ES)}
+    assert batch[TK.CC] is batch[TK.EPS]
+    assert batch[TK.ES] is not batch[TK.CC]

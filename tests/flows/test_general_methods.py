@@ -5,6 +5,7 @@ expression, and what cannot run is refused with one clear line."""
 
 import math
 
+import numba
 import numpy as np
 import pytest
 import sympy as sp
@@ -96,6 +97,12 @@ def test_every_indicator_and_bitwise_resume(tmp_path):
                                     n_exponents=K, progress=False)
     assert np.array_equal(one.state, many.state)
     assert np.array_equal(one.exponents[-1], many.exponents[-1])
+    # MEGNO and FLI step one vector, SALI two: the Gauss–Legendre step
+    # behind the part stepper's flows is compiled for a run-time k only
+    # (none at all where the kernels came from the disk cache).
+    apply = model.parts.apply.py_func
+    step = dict(zip(apply.__code__.co_freevars, apply.__closure__, strict=True))["step"].cell_contents
+    assert {sig[3] for sig in step.signatures} <= {numba.types.int64}
 
 
 def test_refusals():

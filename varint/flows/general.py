@@ -158,11 +158,17 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
 
     @njit(error_model="numpy")
     def apply(part, h, x, V, k, par, work):
+        # k as a run-time integer: the part stepper passes its compile-time
+        # k (a literal, 1 to SPECIALISE_K), and numba compiles a function
+        # once per literal it is called with; the step's loops over the
+        # vectors are the same arithmetic for any k (its cost is the stage
+        # solves), so one compiled step serves every k.
+        kr = np.int64(k)
         if part == 0:
-            step(h, x, V, k, par, work, A4, b4, c4, d4, E4)
+            step(h, x, V, kr, par, work, A4, b4, c4, d4, E4)
         elif part == 1:
-            step(h, x, V, k, par, work, A6, b6, c6, d6, E6)
+            step(h, x, V, kr, par, work, A6, b6, c6, d6, E6)
         else:
-            step(h, x, V, k, par, work, A8, b8, c8, d8, E8)
+            step(h, x, V, kr, par, work, A8, b8, c8, d8, E8)
 
     return apply

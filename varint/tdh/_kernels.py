@@ -49,7 +49,7 @@ from ..kernels.interval import (Call, StepBody, batch_loop, no_accumulator, orbi
 from ..protocol import COUNTERS as TM_COUNTERS, Renorm, Status
 from .frozen import _oscillator
 
-#: The three methods (compile-time constants of the kernel).
+#: The three methods (TDHes's flow is a compile-time constant of the kernel).
 CC, ES, EPS = 0, 1, 2
 
 #: Counters kept per orbit: those of the TM stepper, and eigen-decompositions.
@@ -116,10 +116,13 @@ def generated_orbit(module):
 
 
 @cache
-def tdh_body(N_C, K_C, BW_C, MODE, kernels, eig, run_orbit, TIME=False):
-    """The step body of method ``MODE`` for the model ``kernels``
-    (:func:`varint.kernels.tm.model_kernels`) and eigensolver ``eig``
-    (TDHes); sizes are constants when ≥ 0, else read from the arrays.
+def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
+    """The step body of the TDH methods for the model ``kernels``
+    (:func:`varint.kernels.tm.model_kernels`): with ``EXACT`` TDHes's exact
+    flow by the eigensolver ``eig``, else the splitting flows of TDHcc and
+    TDHeps, one body for both (they differ only in the setup's tables:
+    ``n_sub``, ``tidx`` and ``need``); sizes are constants when ≥ 0, else
+    read from the arrays.
     ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
     :func:`generated_orbit`); with ``TIME`` (a time-dependent V) its orbit
     is the generic stepper's in the extended phase space.
@@ -143,7 +146,7 @@ def tdh_body(N_C, K_C, BW_C, MODE, kernels, eig, run_orbit, TIME=False):
         bwc = min(2 * bw, n - 1)
         n_sub = setup.n_sub
         n_grid = n_sub + 1
-        ne = n if MODE == ES else 0
+        ne = n if EXACT else 0
         block = max(1, min(call.n_steps, _BLOCK_VALUES // (n_sub * d)))
         orbit_setup = K.TMSetup(setup.kinds, setup.h, setup.hc, setup.minv, setup.par, setup.bw,
                                 setup.ctime)
@@ -228,7 +231,7 @@ def tdh_body(N_C, K_C, BW_C, MODE, kernels, eig, run_orbit, TIME=False):
                     for i in range(ws.q0.shape[0]):
                         ws.q0[i] = q[i]
             have_end = need[n_sub]
-        if k > 0 and MODE == ES:
+        if k > 0 and EXACT:
             # Exact flow of the frozen TDH: the modal coordinates
             # Qᵀ S⁻¹δq and Qᵀ S δp evolve as uncoupled oscillators.
             Kd, lam, Qm, rs = ws.Kd, ws.lam, ws.Qm, ws.rs
@@ -339,8 +342,11 @@ def tdh_batch(n, k, bw, mode, parallel, kernels, eig, run_orbit, accumulate=no_a
     :class:`TDHOrbit` and a :class:`TDHSetup`; ``call.tau`` is the
     renormalisation interval τ and ``done[m]`` receives the intervals orbit
     m completed. ``run_orbit`` integrates the orbit (:func:`generic_orbit`
-    or :func:`generated_orbit`). With ``time`` V depends on t."""
-    body = tdh_body(n, k, bw, mode, kernels, eig, run_orbit, time)
+    or :func:`generated_orbit`). With ``time`` V depends on t.
+
+    TDHcc and TDHeps share one kernel (their arithmetic is the same code,
+    read from the setup's tables): a run of both compiles it once."""
+    body = tdh_body(n, k, bw, mode == ES, kernels, eig, run_orbit, time)
     return batch_loop(body, parallel, accumulate, flow)
 
 
