@@ -96,6 +96,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from unittest import mock
 
 import numba
 import numpy as np
@@ -107,7 +108,7 @@ if __package__ in (None, ""):
 import varint
 from studies.common import interleaved, parse_args, save_json
 from studies.lh_defaults import cored
-from varint import step_cost
+from varint import step_cost, time_transform
 from varint.codegen.tm import step_counts
 from varint.maps import MAP_SCHEME
 from varint.models import from_hamiltonian, from_potential
@@ -240,7 +241,8 @@ def measure(name, model, X, repeats):
 
         def go(**kw):
             return varint.chaos_map(model, X, "fli", t_end=T_END, progress=False, **kw)
-        tasks = {"log": lambda: go(time_transform="log", tau=H),
+        tasks = {"log": lambda: _lanes(math.inf, go, time_transform="log", tau=H),
+                 "log_lanes": lambda: _lanes(0.0, go, time_transform="log", tau=H),
                  "constant": lambda: go(time_transform=None, tau=TAU, scheme=MAP_SCHEME)}
         t0 = time.process_time()
         for task in tasks.values():
@@ -248,6 +250,8 @@ def measure(name, model, X, repeats):
         compile_s = time.process_time() - t0
         best, outs = interleaved(tasks, repeats, clock=time.process_time)
     ns = {k: 1e9 * best[k] / _gradients(outs[k]) for k in tasks}
+    if not np.array_equal(outs["log"].values, outs["log_lanes"].values, equal_nan=True):
+        raise AssertionError(f"{name}: the LH map over lanes differs from one orbit at a time")
     stopped = {k: int(np.sum(np.asarray(outs[k].status) != 0)) for k in tasks}
     row = {"model": name, "orbits": len(X), "compile_s": compile_s,
            "predicted": {"log": log_cost, "constant": constant_cost,
@@ -266,6 +270,15 @@ def measure(name, model, X, repeats):
     return row
 
 
+def _lanes(work, go, **kw):
+    """``go(**kw)`` with :data:`varint.time_transform.LANES_WORK` at
+    ``work``: 0 runs every LH map of at least
+    :data:`~varint.time_transform.MIN_LANES` orbits over SIMD lanes, inf one
+    orbit at a time (the same bits)."""
+    with mock.patch.object(time_transform, "LANES_WORK", work):
+        return go(**kw)
+
+
 def _design(rows, key, per):
     return np.array([list(_classes(r[key], r[per]).values()) for r in rows])
 
@@ -282,6 +295,9 @@ def _tables(rows):
     L = _design(rows, "log_operations", "log_kicks")
     b = np.array([r["measured"]["ns_per_gradient"]["log"] for r in rows])
     tables = {"lh": _nnls(L, b)}
+    if all("log_lanes" in r["measured"]["ns_per_gradient"] for r in rows):
+        tables["lh_lanes"] = _nnls(L, np.array([r["measured"]["ns_per_gradient"]["log_lanes"]
+                                                for r in rows]))
     for side, flag in (("vector", True), ("scalar", False)):
         sub = [r for r in rows if step_cost.vectorises(r["constant_operations"]) == flag]
         A = _design(sub, "constant_operations", "constant_gradients_per_step")
@@ -310,7 +326,18 @@ def fit(rows):
         lh, lanes = _predict(_tables(rows[:i] + rows[i + 1:]), row)
         m = row["measured"]["ns_per_gradient"]
         loo[names[i]] = lh / lanes / (m["log"] / m["constant"]) if lanes > 0 else math.inf
-    return {**{f"{side}_ns": dict(zip(CLASSES, t.tolist(), strict=True))
+    loo_lanes = {}
+    if "lh_lanes" in tables:
+        # The LH over lanes against the constant step's lanes, alike.
+        for i, row in enumerate(rows):
+            others = _tables(rows[:i] + rows[i + 1:])
+            lh = float(_design([row], "log_operations", "log_kicks")[0] @ others["lh_lanes"])
+            lanes = _predict(others, row)[1]
+            m = row["measured"]["ns_per_gradient"]
+            loo_lanes[names[i]] = (lh / lanes / (m["log_lanes"] / m["constant"])
+                                   if lanes > 0 else math.inf)
+    return {"leave_one_out_lanes_predicted_over_measured": loo_lanes,
+            **{f"{side}_ns": dict(zip(CLASSES, t.tolist(), strict=True))
                for side, t in tables.items()},
             "fitted_ns": {name: _predict(tables, r) for name, r in zip(names, rows, strict=True)},
             "vectorises": {r["model"]: step_cost.vectorises(r["constant_operations"])
@@ -373,12 +400,17 @@ def main(argv=None):
         rows = None
     if rows is not None:
         result["fit"] = {"rows": rows, **fit(rows)}
-        for side in ("lh", "vector", "scalar"):
+        for side in ("lh", "lh_lanes", "vector", "scalar"):
+            if f"{side}_ns" not in result["fit"]:
+                continue
             print(f"{side} ns per operation: " + ", ".join(
                 f"{k} {v:.2g}" for k, v in result["fit"][f"{side}_ns"].items()), flush=True)
         print("leave one out, predicted / measured ratio: " + ", ".join(
             f"{k} {v:.2g}" for k, v in
             result["fit"]["leave_one_out_predicted_over_measured"].items()), flush=True)
+        print("leave one out, LH over lanes: " + ", ".join(
+            f"{k} {v:.2g}" for k, v in
+            result["fit"]["leave_one_out_lanes_predicted_over_measured"].items()), flush=True)
     if "heldout" in parts:
         rows = []
         for name, model, X in heldout(m):
