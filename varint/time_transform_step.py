@@ -65,7 +65,7 @@ import numpy as np
 from .accuracy import Reference
 from .kernels.time_transform import BUDGET
 from .state import initial_deviations
-from .step_agreement import descend, pilot_sample, same_verdict, summary
+from .step_agreement import agreeing, descend, pilot_sample, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 
 __all__ = ["choose_h", "agreeing_h", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
@@ -193,7 +193,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 
-def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict,
+def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=agreeing,
                retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
@@ -298,7 +298,8 @@ PRICE_T = PILOT_T / 4
 
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
-                    offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None):
+                    offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None,
+                    agree=agreeing):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
@@ -348,7 +349,7 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     # once (a generator per orbit: ~2 ms a draw of 16 orbits on the loaded
     # 2-core machine, cProfile of the cored map's defaults; 5 draws a map).
     kwargs = {"quantile": quantile, "ceiling": ceiling, "seed": seed, "every": every,
-              "retry": retry, "reference": reference,
+              "retry": retry, "reference": reference, "agree": agree,
               "deviations": _pilot_deviations(lh, X, seed) if deviations is None else deviations}
     priced, pricing = [], 0
     if lh.kinetic and lh.offset is None:
