@@ -374,6 +374,9 @@ def _recounted(row, model):
 def main(argv=None):
     def extra(parser):
         parser.add_argument("--part", default=",".join(PARTS))
+        parser.add_argument("--models", default="",
+                            help="the training models to measure (comma-separated names; "
+                                 "default: all)")
         parser.add_argument("--reuse", default="",
                             help="earlier results of this study (comma-separated) whose "
                                  "measured rows part fit takes instead of measuring again")
@@ -390,9 +393,11 @@ def main(argv=None):
     stored = args.out / "switch_check.json"
     if "fit" in parts:
         earlier = _earlier(args.reuse)
+        chosen = [name for name in args.models.split(",") if name]
         rows = [_recounted(earlier[name], model) if name in earlier
                 else measure(name, model, X, repeats)
-                for models in (training(m), seen(m)) for name, model, X in models]
+                for models in (training(m), seen(m)) for name, model, X in models
+                if not chosen or name in chosen]
     elif stored.exists():
         # The training rows of an earlier run: fitted again (deterministic).
         rows = json.loads(stored.read_text())["fit"]["rows"]
