@@ -4,11 +4,15 @@ as the maps run them (issue 29, issue 27 item 4b): the tables of
 force evaluation on held-out models, with the prediction stated before
 the held-out run.
 
-Each model's two maps run at fixed steps (no pilot), FLI, one thread,
+Each model's maps run at fixed steps (no pilot), FLI, one thread,
 interleaved, the minimum of the repeats, CPU time: the LH map
 (``time_transform="log", tau=H``, ABA864, one orbit at a time in scalar
-code) and the constant-step map (``time_transform=None, tau=TAU,
-scheme="SRKN14a"``, the generated stepper's lanes). Each map's seconds over
+code), the same LH map over SIMD lanes (``log_lanes``, lhprice18:
+:mod:`varint.codegen.lh_lanes`, taken whatever the work,
+:data:`varint.time_transform.LANES_WORK` = 0; its FLIs checked equal to
+one orbit's bit for bit) and the constant-step map
+(``time_transform=None, tau=TAU, scheme="SRKN14a"``, the generated
+stepper's lanes). Each map's seconds over
 its force evaluations is the measured cost of one; the operations of each
 stepper's step are counted from its emitted source
 (:func:`varint.step_cost.operations`).
@@ -21,6 +25,8 @@ evaluation: the LH's on all, the lanes' separately where their loop
 vectorises and where it does not (:func:`varint.step_cost.vectorises`: a
 library call in the step keeps it scalar; a negative integer power did,
 until the steppers printed it as a division, :mod:`varint.codegen.printer`).
+The LH over lanes is fitted alike on the LH's operations (the lanes run
+the one-orbit step's statements): :data:`varint.step_cost.LH_LANES_WEIGHTS`.
 They are :data:`varint.step_cost.LH_WEIGHTS`,
 :data:`~varint.step_cost.VECTOR_LANE_WEIGHTS` and
 :data:`~varint.step_cost.SCALAR_LANE_WEIGHTS` (copied by hand, two

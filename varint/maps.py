@@ -603,9 +603,11 @@ def _cheaper_steps(spec, k, clock):
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,
     :func:`~varint.step_cost.constant_gradient_cost`: its operations,
-    priced by fixed tables of the LH's scalar code and of the lanes,
-    vectorised or not, so the choice does not depend on the timing of the
-    run that makes it). The two pilots run in order of price
+    priced by fixed tables of the LH's scalar code or its lanes, as its map
+    will run (:meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`;
+    its descent is stopped at its lowest price), and of the constant
+    step's lanes, vectorised or not, so the choice does not depend on the
+    timing of the run that makes it). The two pilots run in order of price
     (:class:`~varint.step_agreement.ConstantLadder`), each choice priced
     with the pilot it still has to run (:func:`_pilot_share`): before each
     rung of the LH's descent is judged, every constant step that costs less
@@ -623,12 +625,15 @@ def _cheaper_steps(spec, k, clock):
     constant step's at none whose price is below the LH's and the LH's is
     not cheaper (the map then takes the energy pilot's constant step, as
     every other map)."""
+    from .time_transform import MIN_LANES
     from .time_transform_step import RETRY_CEILING, agreeing_offset
 
     model, X = spec.model, spec.x0
     with clock.part("pilot"):
         lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
-        log_cost, _ = step_cost.log_gradient_cost(lh)
+        # The LH's lowest price (over lanes where the map has orbits enough
+        # for them) stops its descent; its map is priced as it will run.
+        log_cost, _ = step_cost.log_gradient_cost(lh, lanes=len(X) >= MIN_LANES)
         constant_cost, _ = step_cost.constant_gradient_cost(
             model, MAP_SCHEME, k, spec.indicator.accumulator_for(spec.options))
         judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
@@ -654,7 +659,7 @@ def _cheaper_steps(spec, k, clock):
         # offset δ is the cheapest the pilot priced.
         # Both pilots run the same orbits: one reference, and (one vector
         # each) the same vectors, drawn once.
-        _, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
+        chosen, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
                                        ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
                                        every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol,
                                        stop_above=beaten, reference=ladder.reference,
@@ -662,6 +667,9 @@ def _cheaper_steps(spec, k, clock):
         stopped = h is None and ladder.rate is not None
         if h is None and not stopped:
             return None, None
+        if not stopped:
+            log_cost, _ = step_cost.log_gradient_cost(
+                chosen, lanes=chosen.runs_in_lanes(X, spec.t_end, h))
         log_price = math.inf if stopped else choice["gradient_rate"] * log_cost
         # The LH's pilot is spent, its map is what is left; a constant rung
         # still to be judged has its τ/2 run to make before its map: it is

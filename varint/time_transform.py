@@ -341,13 +341,17 @@ class LogHamiltonian:
                         np.full(len(X), h), float(every), C, max_steps, -E)
         return run.fli, run.counts, run.status
 
-    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
+    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS, lanes=None):
         """Orbits ``X`` (M, 2N) with one vector each (``W0`` (M, 2N), or
         None: no vector) to the physical time ``t_end`` through outputs at
         the multiples of ``every``, with the fictitious step ``h`` (a number,
         or one per orbit (M,)): the FLI as :meth:`fli` computes it (the
         same bits for the same h), the final states and the output state
-        furthest from the initial energy (:class:`LHOutputs`)."""
+        furthest from the initial energy (:class:`LHOutputs`). Over SIMD
+        lanes where their work repays them (``lanes`` None:
+        :func:`takes_lanes`), or wherever there are :data:`MIN_LANES`
+        orbits (``lanes`` True: a pilot whose map runs over lanes, which
+        compiles them anyway); the same bits either way."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         M, d = X.shape
         W = np.zeros((M, d, 0)) if W0 is None else np.asarray(W0, dtype=float)[..., None]
@@ -364,9 +368,9 @@ class LogHamiltonian:
         E = self.energy(X)
         C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
             np.asarray(C, float), M)
-        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E)
+        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E, lanes)
 
-    def _run(self, X, W, t_end, hs, every, C, max_steps, pt):
+    def _run(self, X, W, t_end, hs, every, C, max_steps, pt, lanes=None):
         """The generated ``outputs`` loop over checked orbits ``X``, vectors
         ``W`` (M, k, 2N), steps ``hs`` (M,), constants ``C`` (M,) and
         p_t = −H (M,); an orbit that stopped has a NaN FLI."""
@@ -375,11 +379,11 @@ class LogHamiltonian:
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
         kernel = self.outputs_kernel
-        lanes = self.lanes_kernels[W.shape[1]]
+        over_lanes = self.lanes_kernels[W.shape[1]]
         # Orbits too few for lanes need no estimate of their work.
-        if (lanes is not None and max_steps >= 1 and M >= MIN_LANES
-                and takes_lanes(M, lanes_work(self.start_u(X, C), t_end, hs))):
-            kernel = lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
+        if (over_lanes is not None and max_steps >= 1 and M >= MIN_LANES
+                and (lanes or takes_lanes(M, lanes_work(self.start_u(X, C), t_end, hs)))):
+            kernel = over_lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
         kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                status, counts, x_end, t, x_worst, t_worst)
