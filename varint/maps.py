@@ -566,26 +566,31 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
     from .time_transform import refuse
 
     try:
-        refuse(model)
+        parts, _ = refuse(model)
     except ValueError:
         return False
-    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)]) \
-        >= U_SPREAD_MIN
+    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)],
+                     kinetic=parts[4].kind == "free") >= U_SPREAD_MIN
 
 
-def _u_spread(model, X):
+def _u_spread(model, X, kinetic=False):
     """max U / min U over the states ``X``, U = C − V(q) with C of
     :class:`~varint.time_transform.LogHamiltonian` (δ = max(−E, 1)): how
-    much its physical step would vary between them (inf where U ≤ 0)."""
+    much its physical step would vary between them (inf where U ≤ 0).
+    With a ``kinetic`` A ≥ 0, U = A + δ ≥ δ along each orbit, δ where it
+    turns (A = 0): the lowest U counted is δ. (Without it the cored race
+    of ``studies/map_steps.py``, whose orbits all start fast at the bottom
+    of the core and turn at r ≈ 1, measured 1.4 and was never priced.)"""
     from .time_transform import offset_constant
 
     n = X.shape[1] // 2
     with np.errstate(all="ignore"):
         E = np.asarray(model.conserved(X)["energy"], dtype=float)
-        U = offset_constant(E, None) - np.asarray(model.potential(X[:, :n]), dtype=float)
+        C = offset_constant(E, None)
+        U = C - np.asarray(model.potential(X[:, :n]), dtype=float)
     if not (np.all(np.isfinite(U)) and np.all(U > 0)):
         return math.inf
-    return float(U.max() / U.min())
+    return float(U.max() / (min(U.min(), float(np.min(C - E))) if kinetic else U.min()))
 
 
 def _cheaper_steps(spec, k, clock):
