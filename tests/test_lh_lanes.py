@@ -116,7 +116,7 @@ def test_lanes_only_from_the_work_that_repays_their_compile(cored, monkeypatch):
     lh.lanes_kernels = (_Refused(), _Refused())
     X = _cored_orbits(16)
     u0 = lh.start_u(X)
-    assert (u0 > 1.0).all()   # the estimate counts U, not one per unit time
+    assert u0.sum() > 1.5 * len(X)   # the estimate counts U, not one per unit time
     h = float(np.sum(10.0 * u0)) / LANES_WORK * 1.01     # just below LANES_WORK
     assert not lh.runs_in_lanes(X, 10.0, h, vectors=0)
     lh.outputs(X, None, 10.0, h, every=5.0, max_steps=3)
@@ -130,11 +130,12 @@ def test_lanes_only_from_the_work_that_repays_their_compile(cored, monkeypatch):
     assert not lh.runs_in_lanes(X[:MIN_LANES - 1], 10.0, h / 1e3, vectors=0)
 
 
-def test_lanes_work_counts_physical_time_over_the_step():
+def test_lanes_work_counts_physical_time_over_the_step(monkeypatch):
     """lanes_work is Σ t_end·U₀/h: linear in t_end and in U₀, inverse in h
     (one number or one per orbit); an orbit with U₀ ≤ 0 or not finite
     (it stops at once) counts nothing; takes_lanes is monotone in the work
     and needs MIN_LANES orbits."""
+    monkeypatch.setattr(time_transform, "LANES_WORK", LANES_WORK)
     u0 = np.array([1.0, 2.0, 0.5, 4.0])
     assert time_transform.lanes_work(u0, 10.0, 0.5) == pytest.approx(150.0)
     assert time_transform.lanes_work(u0, 20.0, 0.5) == pytest.approx(300.0)

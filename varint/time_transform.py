@@ -94,7 +94,7 @@ def lanes_work(U0, t_end, h):
 def takes_lanes(orbits, work):
     """Whether a run of ``orbits`` orbits whose :func:`lanes_work` is
     ``work`` runs over SIMD lanes (:data:`MIN_LANES`, :data:`LANES_WORK`)."""
-    return orbits >= MIN_LANES and work >= LANES_WORK
+    return bool(orbits >= MIN_LANES and work >= LANES_WORK)
 
 
 #: Steps one output interval may take before the orbit is stopped.
