@@ -132,11 +132,15 @@ LH_WEIGHTS: Mapping[str, float] = _by_kind(
 #: long runs take it, over SIMD lanes (:mod:`varint.codegen.lh_lanes`,
 #: where :meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`):
 #: the same operations as :data:`LH_WEIGHTS` prices (every lane runs the
-#: one-orbit step's statements in the same order), fitted alike on the
-#: same models' LH maps run over lanes (``studies/switch_check.py`` part
-#: "fit", column ``log_lanes``; PLACEHOLDER).
+#: one-orbit step's statements in the same order), :data:`LH_WEIGHTS`
+#: times the lanes' measured share of one orbit's time on the cored race
+#: map, 44.1 / 138.8 ns per force evaluation (``studies/lh_lanes.py``,
+#: ``studies/results/lhlanes17/lh_lanes.json``, t_end = 2000, one vector,
+#: load 10; AMD EPYC), two significant figures. The fit of its own
+#: (``studies/switch_check.py`` part "fit", column ``log_lanes``) did not
+#: finish at load 12–22 in lhprice18's session.
 LH_LANES_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.19, "call": 1.4, "check": 0.43})
+    {"arithmetic": 0.0, "division": 0.18, "call": 1.3, "check": 0.41})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
     {"arithmetic": 0.0080, "division": 0.49, "call": 0.0, "check": 0.68})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
