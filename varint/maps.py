@@ -389,8 +389,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
         ``checkpoint``). ``tau`` is then the step h in the fictitious time
-        s, by default the largest h at which the pilot orbits' FLI gives
-        the same verdict (chaotic or not at ln(1000 t)) as at h/2, with
+        s, by default the largest h at which the pilot orbits' FLI agrees
+        with that at h/2 to the map's t_end (values within 0.05 dex times
+        t_pilot/t_end, or both chaotic at ln(1000 t)), with
         their energy errors within ten times ``energy_tol``
         (:func:`varint.time_transform_step.agreeing_h`,
         ``provenance.tau_choice``), each orbit whose own energy error
@@ -407,7 +408,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         normalisations of the vector, default 10). "auto" (the default): an
         FLI map with no τ, scheme or other option, of a model the LH takes,
         whose U = C − V varies by :data:`U_SPREAD_MIN` or more over the
-        pilot orbits' starts, prices the LH at its agreeing h against
+        pilot orbits (their starts, and δ where a kinetic A turns), prices the LH at its agreeing h against
         constant steps at theirs (the largest multiple of the energy
         pilot's step at which the FLI agrees with that at half of it) and
         runs the cheaper (:func:`_cheaper_steps`; the LH's method is
@@ -598,10 +599,11 @@ def _cheaper_steps(spec, k, clock):
     guarantee, for a map ``spec`` whose step is not chosen yet: each one's
     largest step at which the pilot orbits' FLI agrees with that at half
     the step (:mod:`varint.step_agreement`: the LH's
-    :func:`~varint.time_transform_step.agreeing_h`, its verdicts at the
-    chaotic level; the constant step's
+    :func:`~varint.time_transform_step.agreeing_h`, its values to the
+    map's t_end; the constant step's
     :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`,
-    by the same verdict rule, so that both are judged alike; both with
+    by the verdict rule at the pilot's t (which favours constant steps
+    on a map much longer than its pilot); both with
     energy errors within ``energy_tol``, the LH's pilot 10 times that: its
     map retries each orbit to ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
