@@ -93,7 +93,7 @@ def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
     lh = LogHamiltonian(model, "ABA864")
     h, choice = agreeing_h(lh, pilot, T_END, quantile=MAP_QUANTILE, ceiling=1e-3)
     assert choice["rule"] == "indicator" and choice["h"] == h
-    assert choice["agreement"] == "agreeing"
+    assert choice["agreement"] == "map_verdict"
     # The ladder's first step, 2h₀, was tried and rejected (the search
     # stops at the first that passes).
     coarse_h = choice["tried"][0][0]

@@ -217,7 +217,7 @@ def test_agreeing_h_keeps_the_verdicts_of_a_map_ten_times_its_pilot(monkeypatch)
     lh = LogHamiltonian(model, "ABA864", offset=0.25)
     W0 = initial_deviations(model.dim, 1, len(X), 0)[:, :, 0]
     h, choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=1e-2)
-    assert choice["agreement"] == "agreeing" and h is not None
+    assert choice["agreement"] == "map_verdict" and h is not None
     h_verdict, _ = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=1e-2,
                               agree=same_verdict)
     assert h_verdict > h

@@ -3,10 +3,11 @@ given.
 
 :func:`agreeing_h` (the maps' rule) judges h by what the map reports: the
 largest h = h₀·2^−j (j = :data:`TOP`, …) at which the FLI of the pilot
-orbits, each with the map's own vector, agrees with the FLI at h/2 to the
-map's own t_end (:func:`varint.step_agreement.agreeing`: the values
-within 0.05 dex times t_pilot/t_end, or both above the chaotic level
-ln(1000 t)), with the energy errors at h under a sanity ceiling (the map's
+orbits, each with the map's own vector, agrees with the FLI at h/2 as the
+map needs (:func:`map_verdict`): the same verdict at the chaotic level
+ln(1000 t) where the pilot runs to the map's t_end; where the map runs
+longer, to its own t_end (:func:`varint.step_agreement.agreeing`: the
+values within 0.05 dex times t_pilot/t_end, or both chaotic), with the energy errors at h under a sanity ceiling (the map's
 ``energy_tol``). The pilot runs to t = 100, a map often much longer; a
 regular orbit's phase error, and with it the error of its FLI, grows
 linearly in time under a symplectic scheme (Hairer, Lubich & Wanner,
@@ -79,11 +80,11 @@ import numpy as np
 from .accuracy import Reference
 from .kernels.time_transform import BUDGET
 from .state import initial_deviations
-from .step_agreement import agreeing, descend, pilot_sample, summary
+from .step_agreement import agreeing, descend, pilot_sample, same_verdict, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 from .time_transform import lanes_work, takes_lanes
 
-__all__ = ["choose_h", "agreeing_h", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
+__all__ = ["choose_h", "agreeing_h", "map_verdict", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
 
 #: The indicator pilot's steps h = h₀·2^−j, j = TOP … TOP + LEVELS − 1:
 #: from 2h₀ (two time units per step where the orbits start) to h₀/256
@@ -105,6 +106,20 @@ RETRY_LEVELS = 4
 #: agree and most orbits to pass at once; each orbit then meets
 #: ``energy_tol`` itself (``studies/lh_yardstick.py --part retry``).
 RETRY_CEILING = 10.0
+
+
+def map_verdict(coarse, fine, t, t_end=None):
+    """Per orbit, whether its FLI at a step (``coarse``) and at half of it
+    (``fine``), both at the pilot's time ``t``, agree as a map to
+    ``t_end`` needs (module docstring): the same verdict at the chaotic
+    level where the pilot runs to the map's end
+    (:func:`~varint.step_agreement.same_verdict`), the values within
+    0.05 dex times t/t_end where the map is longer
+    (:func:`~varint.step_agreement.agreeing`: its verdict at t_end is not
+    seen, and a regular orbit's FLI error grows linearly in time)."""
+    if t_end is None or float(t_end) <= float(t):
+        return same_verdict(coarse, fine, t)
+    return agreeing(coarse, fine, t, t_end)
 
 
 def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
@@ -208,7 +223,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 
-def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=agreeing,
+def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map_verdict,
                retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
@@ -217,9 +232,9 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=agr
     at h/2 on a ``quantile`` share of them, with the ``quantile`` of their
     energy errors at h within ``ceiling`` (a map's ``energy_tol``;
     :mod:`varint.step_agreement`); the pilot runs to min(t_end,
-    :data:`~varint.stepsize.PILOT_T`). "Agrees" is ``agree``: the values
-    to the map's t_end (:func:`~varint.step_agreement.agreeing`, the maps'
-    rule, module docstring) or the same verdict at the pilot's t
+    :data:`~varint.stepsize.PILOT_T`). "Agrees" is ``agree``:
+    :func:`map_verdict` (the maps' rule, module docstring), or the same
+    verdict at the pilot's t whatever t_end
     (:func:`~varint.step_agreement.same_verdict`, the rule before). ``retry``, the
     energy tolerance a map retries its orbits to (:func:`retried`), makes
     ``gradient_rate`` the price of the map with its retries, predicted from
@@ -320,7 +335,7 @@ PRICE_T = PILOT_T / 4
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
                     offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None,
-                    agree=agreeing):
+                    agree=map_verdict):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
