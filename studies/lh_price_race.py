@@ -13,6 +13,13 @@ variational equations, normalising every 10 time units) at the tolerances
 repeats (wall time). The ratio: heyoka's cheapest tolerance whose agreement
 reaches the defaults', seconds over the defaults' seconds.
 
+Stored run (``studies/results/lhprice18/lh_price_race.json``, lhprice18,
+3 repeats, load 19.2 → 17.9, wall time): the cored map, defaults (the LH,
+h = 0.0247, δ = 0.25) 10.97 s at 100 % against heyoka tol 1e-4 11.11 s at
+100 %: 1.01×; the three-body map, defaults (constant SRKN14a, τ = 0.25,
+as on main) 0.754 s at 98.7 % against heyoka tol 1e-5 3.24 s at 100 %:
+4.30× (pilot 0.25 s, run 0.49 s).
+
 Usage: ``python studies/lh_price_race.py [--maps core,cr3bp] [--repeats N]``;
 result ``lh_price_race.json``. State the load (recorded).
 """
