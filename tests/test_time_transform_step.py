@@ -103,7 +103,11 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     # pilots: the run costs twice the map).
     prices = choice["prices"]
     assert choice["rule"] == "indicator" and prices["pilot_share"] == 2.0
-    assert prices["log"] < prices["constant"] * (1 + prices["pilot_share"])
+    # Cheaper, or no constant step agreed below the LH's price (since
+    # lhprice18 the LH's pricing pilots to t = 25 agree to the map's t = 40,
+    # map_verdict: its price here is above the constant's last rung).
+    assert (prices["log"] < prices["constant"] * (1 + prices["pilot_share"])
+            or choice["constant"]["rule"] == "none"), (prices, choice["constant"]["rule"])
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                 time_transform="log", tau=choice["h"], offset=choice["offset"])
