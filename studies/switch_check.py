@@ -4,11 +4,15 @@ as the maps run them (issue 29, issue 27 item 4b): the tables of
 force evaluation on held-out models, with the prediction stated before
 the held-out run.
 
-Each model's two maps run at fixed steps (no pilot), FLI, one thread,
+Each model's maps run at fixed steps (no pilot), FLI, one thread,
 interleaved, the minimum of the repeats, CPU time: the LH map
 (``time_transform="log", tau=H``, ABA864, one orbit at a time in scalar
-code) and the constant-step map (``time_transform=None, tau=TAU,
-scheme="SRKN14a"``, the generated stepper's lanes). Each map's seconds over
+code), the same LH map over SIMD lanes (``log_lanes``, lhprice18:
+:mod:`varint.codegen.lh_lanes`, taken whatever the work,
+:data:`varint.time_transform.LANES_WORK` = 0; its FLIs checked equal to
+one orbit's bit for bit) and the constant-step map
+(``time_transform=None, tau=TAU, scheme="SRKN14a"``, the generated
+stepper's lanes). Each map's seconds over
 its force evaluations is the measured cost of one; the operations of each
 stepper's step are counted from its emitted source
 (:func:`varint.step_cost.operations`).
@@ -21,6 +25,8 @@ evaluation: the LH's on all, the lanes' separately where their loop
 vectorises and where it does not (:func:`varint.step_cost.vectorises`: a
 library call in the step keeps it scalar; a negative integer power did,
 until the steppers printed it as a division, :mod:`varint.codegen.printer`).
+The LH over lanes is fitted alike on the LH's operations (the lanes run
+the one-orbit step's statements): :data:`varint.step_cost.LH_LANES_WEIGHTS`.
 They are :data:`varint.step_cost.LH_WEIGHTS`,
 :data:`~varint.step_cost.VECTOR_LANE_WEIGHTS` and
 :data:`~varint.step_cost.SCALAR_LANE_WEIGHTS` (copied by hand, two
@@ -96,6 +102,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from unittest import mock
 
 import numba
 import numpy as np
@@ -107,7 +114,7 @@ if __package__ in (None, ""):
 import varint
 from studies.common import interleaved, parse_args, save_json
 from studies.lh_defaults import cored
-from varint import step_cost
+from varint import step_cost, time_transform
 from varint.codegen.tm import step_counts
 from varint.maps import MAP_SCHEME
 from varint.models import from_hamiltonian, from_potential
@@ -240,7 +247,8 @@ def measure(name, model, X, repeats):
 
         def go(**kw):
             return varint.chaos_map(model, X, "fli", t_end=T_END, progress=False, **kw)
-        tasks = {"log": lambda: go(time_transform="log", tau=H),
+        tasks = {"log": lambda: _lanes(math.inf, go, time_transform="log", tau=H),
+                 "log_lanes": lambda: _lanes(0.0, go, time_transform="log", tau=H),
                  "constant": lambda: go(time_transform=None, tau=TAU, scheme=MAP_SCHEME)}
         t0 = time.process_time()
         for task in tasks.values():
@@ -248,6 +256,8 @@ def measure(name, model, X, repeats):
         compile_s = time.process_time() - t0
         best, outs = interleaved(tasks, repeats, clock=time.process_time)
     ns = {k: 1e9 * best[k] / _gradients(outs[k]) for k in tasks}
+    if not np.array_equal(outs["log"].values, outs["log_lanes"].values, equal_nan=True):
+        raise AssertionError(f"{name}: the LH map over lanes differs from one orbit at a time")
     stopped = {k: int(np.sum(np.asarray(outs[k].status) != 0)) for k in tasks}
     row = {"model": name, "orbits": len(X), "compile_s": compile_s,
            "predicted": {"log": log_cost, "constant": constant_cost,
@@ -266,6 +276,15 @@ def measure(name, model, X, repeats):
     return row
 
 
+def _lanes(work, go, **kw):
+    """``go(**kw)`` with :data:`varint.time_transform.LANES_WORK` at
+    ``work``: 0 runs every LH map of at least
+    :data:`~varint.time_transform.MIN_LANES` orbits over SIMD lanes, inf one
+    orbit at a time (the same bits)."""
+    with mock.patch.object(time_transform, "LANES_WORK", work):
+        return go(**kw)
+
+
 def _design(rows, key, per):
     return np.array([list(_classes(r[key], r[per]).values()) for r in rows])
 
@@ -282,6 +301,9 @@ def _tables(rows):
     L = _design(rows, "log_operations", "log_kicks")
     b = np.array([r["measured"]["ns_per_gradient"]["log"] for r in rows])
     tables = {"lh": _nnls(L, b)}
+    if all("log_lanes" in r["measured"]["ns_per_gradient"] for r in rows):
+        tables["lh_lanes"] = _nnls(L, np.array([r["measured"]["ns_per_gradient"]["log_lanes"]
+                                                for r in rows]))
     for side, flag in (("vector", True), ("scalar", False)):
         sub = [r for r in rows if step_cost.vectorises(r["constant_operations"]) == flag]
         A = _design(sub, "constant_operations", "constant_gradients_per_step")
@@ -310,7 +332,18 @@ def fit(rows):
         lh, lanes = _predict(_tables(rows[:i] + rows[i + 1:]), row)
         m = row["measured"]["ns_per_gradient"]
         loo[names[i]] = lh / lanes / (m["log"] / m["constant"]) if lanes > 0 else math.inf
-    return {**{f"{side}_ns": dict(zip(CLASSES, t.tolist(), strict=True))
+    loo_lanes = {}
+    if "lh_lanes" in tables:
+        # The LH over lanes against the constant step's lanes, alike.
+        for i, row in enumerate(rows):
+            others = _tables(rows[:i] + rows[i + 1:])
+            lh = float(_design([row], "log_operations", "log_kicks")[0] @ others["lh_lanes"])
+            lanes = _predict(others, row)[1]
+            m = row["measured"]["ns_per_gradient"]
+            loo_lanes[names[i]] = (lh / lanes / (m["log_lanes"] / m["constant"])
+                                   if lanes > 0 else math.inf)
+    return {"leave_one_out_lanes_predicted_over_measured": loo_lanes,
+            **{f"{side}_ns": dict(zip(CLASSES, t.tolist(), strict=True))
                for side, t in tables.items()},
             "fitted_ns": {name: _predict(tables, r) for name, r in zip(names, rows, strict=True)},
             "vectorises": {r["model"]: step_cost.vectorises(r["constant_operations"])
@@ -347,6 +380,9 @@ def _recounted(row, model):
 def main(argv=None):
     def extra(parser):
         parser.add_argument("--part", default=",".join(PARTS))
+        parser.add_argument("--models", default="",
+                            help="the training models to measure (comma-separated names; "
+                                 "default: all)")
         parser.add_argument("--reuse", default="",
                             help="earlier results of this study (comma-separated) whose "
                                  "measured rows part fit takes instead of measuring again")
@@ -363,9 +399,11 @@ def main(argv=None):
     stored = args.out / "switch_check.json"
     if "fit" in parts:
         earlier = _earlier(args.reuse)
+        chosen = [name for name in args.models.split(",") if name]
         rows = [_recounted(earlier[name], model) if name in earlier
                 else measure(name, model, X, repeats)
-                for models in (training(m), seen(m)) for name, model, X in models]
+                for models in (training(m), seen(m)) for name, model, X in models
+                if not chosen or name in chosen]
     elif stored.exists():
         # The training rows of an earlier run: fitted again (deterministic).
         rows = json.loads(stored.read_text())["fit"]["rows"]
@@ -373,12 +411,17 @@ def main(argv=None):
         rows = None
     if rows is not None:
         result["fit"] = {"rows": rows, **fit(rows)}
-        for side in ("lh", "vector", "scalar"):
+        for side in ("lh", "lh_lanes", "vector", "scalar"):
+            if f"{side}_ns" not in result["fit"]:
+                continue
             print(f"{side} ns per operation: " + ", ".join(
                 f"{k} {v:.2g}" for k, v in result["fit"][f"{side}_ns"].items()), flush=True)
         print("leave one out, predicted / measured ratio: " + ", ".join(
             f"{k} {v:.2g}" for k, v in
             result["fit"]["leave_one_out_predicted_over_measured"].items()), flush=True)
+        print("leave one out, LH over lanes: " + ", ".join(
+            f"{k} {v:.2g}" for k, v in
+            result["fit"]["leave_one_out_lanes_predicted_over_measured"].items()), flush=True)
     if "heldout" in parts:
         rows = []
         for name, model, X in heldout(m):

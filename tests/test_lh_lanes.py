@@ -107,14 +107,43 @@ class _Refused:
 
 
 def test_lanes_only_from_the_work_that_repays_their_compile(cored, monkeypatch):
-    """A pilot-sized run (Σ t_end/h below LANES_WORK) runs one orbit at a
-    time, so it never compiles the lanes kernel; from LANES_WORK on the
-    lanes run."""
+    """A pilot-sized run (Σ t_end·U₀/h below LANES_WORK) runs one orbit at
+    a time, so it never compiles the lanes kernel; from LANES_WORK on the
+    lanes run, and so does a run told that its map takes them
+    (``lanes=True``, a pilot); runs_in_lanes says which."""
     monkeypatch.setattr(time_transform, "LANES_WORK", LANES_WORK)
     lh = copy.copy(cored)
     lh.lanes_kernels = (_Refused(), _Refused())
     X = _cored_orbits(16)
-    h = 16 * 10.0 / LANES_WORK * 1.01     # Σ t_end/h just below LANES_WORK
+    u0 = lh.start_u(X)
+    assert u0.sum() > 1.5 * len(X)   # the estimate counts U, not one per unit time
+    h = float(np.sum(10.0 * u0)) / LANES_WORK * 1.01     # just below LANES_WORK
+    assert not lh.runs_in_lanes(X, 10.0, h, vectors=0)
     lh.outputs(X, None, 10.0, h, every=5.0, max_steps=3)
+    assert lh.runs_in_lanes(X, 10.0, h / 1.02, vectors=0)
     with pytest.raises(AssertionError, match="lanes kernel ran"):
         lh.outputs(X, None, 10.0, h / 1.02, every=5.0, max_steps=3)
+    with pytest.raises(AssertionError, match="lanes kernel ran"):
+        lh.outputs(X, None, 10.0, h, every=5.0, max_steps=3, lanes=True)
+    # Too few orbits for lanes: one at a time whatever the work.
+    lh.outputs(X[:MIN_LANES - 1], None, 10.0, h / 1e3, every=5.0, max_steps=3, lanes=True)
+    assert not lh.runs_in_lanes(X[:MIN_LANES - 1], 10.0, h / 1e3, vectors=0)
+
+
+def test_lanes_work_counts_physical_time_over_the_step(monkeypatch):
+    """lanes_work is Σ t_end·U₀/h: linear in t_end and in U₀, inverse in h
+    (one number or one per orbit); an orbit with U₀ ≤ 0 or not finite
+    (it stops at once) counts nothing; takes_lanes is monotone in the work
+    and needs MIN_LANES orbits."""
+    monkeypatch.setattr(time_transform, "LANES_WORK", LANES_WORK)
+    u0 = np.array([1.0, 2.0, 0.5, 4.0])
+    assert time_transform.lanes_work(u0, 10.0, 0.5) == pytest.approx(150.0)
+    assert time_transform.lanes_work(u0, 20.0, 0.5) == pytest.approx(300.0)
+    assert time_transform.lanes_work(2 * u0, 10.0, 0.5) == pytest.approx(300.0)
+    assert time_transform.lanes_work(u0, 10.0, np.array([0.5, 1.0, 0.5, 1.0])) \
+        == pytest.approx(10.0 * (2.0 + 2.0 + 1.0 + 4.0))
+    assert time_transform.lanes_work(np.array([1.0, -1.0, 0.0, np.nan]), 10.0, 1.0) == 10.0
+    works = np.geomspace(LANES_WORK / 100, LANES_WORK * 100, 41)
+    taken = [time_transform.takes_lanes(MIN_LANES, w) for w in works]
+    assert taken == sorted(taken) and taken[0] is False and taken[-1] is True
+    assert not time_transform.takes_lanes(MIN_LANES - 1, LANES_WORK * 100)

@@ -93,7 +93,7 @@ def test_chosen_h_keeps_held_out_verdicts_and_coarse_h_is_rejected(which):
     lh = LogHamiltonian(model, "ABA864")
     h, choice = agreeing_h(lh, pilot, T_END, quantile=MAP_QUANTILE, ceiling=1e-3)
     assert choice["rule"] == "indicator" and choice["h"] == h
-    assert choice["agreement"] == "same_verdict"
+    assert choice["agreement"] == "map_verdict"
     # The ladder's first step, 2h₀, was tried and rejected (the search
     # stops at the first that passes).
     coarse_h = choice["tried"][0][0]
@@ -128,7 +128,7 @@ def test_henon_heiles_defaults_build_no_log_hamiltonian():
     price the LH, and keep the constant-step map bit for bit."""
     hh = varint.models.HenonHeiles()
     grid = varint.section_grid(hh, 0.125, np.linspace(-0.4, 0.65, 4), np.linspace(-0.4, 0.4, 3))
-    assert maps._u_spread(hh, grid.states) < maps.U_SPREAD_MIN
+    assert maps._u_spread(hh, grid.states, kinetic=True) < maps.U_SPREAD_MIN
     a = varint.chaos_map(hh, grid, "fli", t_end=50.0, progress=False)
     b = varint.chaos_map(hh, grid, "fli", t_end=50.0, progress=False, time_transform=None)
     assert "prices" not in a.provenance.tau_choice
@@ -146,7 +146,7 @@ def test_switch_follows_the_prices(cost, method):
     model = CR3BP(SUN_JUPITER_MU)
     X = _cr3bp_orbits(3, 8, 3.05)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(step_cost, "log_gradient_cost", lambda lh: (cost, Counter()))
+        mp.setattr(step_cost, "log_gradient_cost", lambda lh, lanes=False: (cost, Counter()))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             r = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False)
@@ -158,7 +158,7 @@ def test_switch_follows_the_prices(cost, method):
         == (method == "tm+log")
     if method == "tm":
         assert choice["rule"] == "indicator" and r.provenance.tau == choice["tau"]
-        # Judged as the LH is: by the verdict at the chaotic level.
+        # By the verdict at the chaotic level (the LH: by its values to t_end).
         assert choice["agreement"] == "same_verdict"
         assert "step chosen by indicator agreement between tau and tau/2" in r.accuracy.verdict
     else:

@@ -106,6 +106,21 @@ def test_costs_are_positive_and_reproducible():
     assert a == b > 0 and c == d > 0
 
 
+def test_lh_over_lanes_is_priced_below_one_orbit_at_a_time():
+    """The LH's lanes table (fitted on the same models' maps over lanes)
+    prices no class of operation above the one-orbit table, and the
+    LH's force evaluation over lanes below one orbit's on the two race
+    models (the lanes run the same statements, several orbits at once)."""
+    assert all(step_cost.LH_LANES_WEIGHTS[k] <= step_cost.LH_WEIGHTS[k] for k in step_cost.KINDS)
+    x, y = sp.symbols("x y")
+    cored = from_potential(sp.log(sp.Float(0.03)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2, [x, y])
+    for model in (cored, CR3BP(SUN_JUPITER_MU)):
+        lh = LogHamiltonian(model, "ABA864")
+        one, counts = step_cost.log_gradient_cost(lh)
+        lanes, same = step_cost.log_gradient_cost(lh, lanes=True)
+        assert 0 < lanes < one and same == counts
+
+
 def test_a_negative_power_is_an_inverse_that_keeps_lanes_scalar():
     """x**(-2) is one multiplication and one inverse (numba's, which keeps
     the loop around it from vectorising); 1/(x*x) a multiplication and a

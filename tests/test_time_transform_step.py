@@ -103,7 +103,11 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     # pilots: the run costs twice the map).
     prices = choice["prices"]
     assert choice["rule"] == "indicator" and prices["pilot_share"] == 2.0
-    assert prices["log"] < prices["constant"] * (1 + prices["pilot_share"])
+    # Cheaper, or no constant step agreed below the LH's price (since
+    # lhprice18 the LH's pricing pilots to t = 25 agree to the map's t = 40,
+    # map_verdict: its price here is above the constant's last rung).
+    assert (prices["log"] < prices["constant"] * (1 + prices["pilot_share"])
+            or choice["constant"]["rule"] == "none"), (prices, choice["constant"]["rule"])
     assert sum("logarithmic-Hamiltonian step" in m for m in caplog.messages) == 1
     explicit = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                 time_transform="log", tau=choice["h"], offset=choice["offset"])
@@ -184,3 +188,45 @@ def test_a_retried_map_is_the_same_in_any_chunks_and_threads_and_records_each_st
         alone = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False,
                                  time_transform="log", tau=h, offset=choice["offset"])
         assert np.array_equal(alone.values[rows], a.values[rows])
+
+
+def _cored_section(nx, npx):
+    """The cored race's section of studies/map_steps.py (V = ½ ln(R_c² + x²
+    + y²/q²), R_c = 0.03, q = 0.8; y = 0, p_y ≥ 0 at E = 0; box orbits
+    through the near-singular centre): an nx × npx grid of (x, p_x) in
+    [−0.1, 0.1] × [0.3, 0.85]."""
+    x, y = sp.symbols("x y")
+    model = from_potential(sp.log(sp.Float(0.03)**2 + x**2 + y**2 / sp.Float(0.8)**2) / 2,
+                           [x, y])
+    grid = varint.section_grid(model, 0.0, np.linspace(-0.1, 0.1, nx),
+                               np.linspace(0.3, 0.85, npx), plane=1)
+    return model, grid.states
+
+
+def test_agreeing_h_keeps_the_verdicts_of_a_map_ten_times_its_pilot(monkeypatch):
+    """A cored map of 24 orbits to t = 1000, ten times the pilot's t = 100:
+    at the h its pilot chooses (values agreeing to the map's t_end, the
+    maps' rule) at least MAP_QUANTILE of the orbits have the verdict of a
+    tight reference (the same orbits at h/8) at the chaotic level, the
+    pilot's own criterion; at the coarser h the verdict rule chooses (the
+    same side of the level at the pilot's t, the rule before) fewer do."""
+    from varint import time_transform
+    from varint.state import initial_deviations
+    from varint.step_agreement import same_verdict
+    from varint.time_transform_step import agreeing_h
+
+    monkeypatch.setattr(time_transform, "LANES_WORK", 0.0)   # the same bits, faster
+    model, X = _cored_section(6, 4)
+    t_end = 1000.0
+    lh = LogHamiltonian(model, "ABA864", offset=0.25)
+    W0 = initial_deviations(model.dim, 1, len(X), 0)[:, :, 0]
+    h, choice = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=1e-2)
+    assert choice["agreement"] == "map_verdict" and h is not None
+    h_verdict, _ = agreeing_h(lh, X, t_end, quantile=MAP_QUANTILE, ceiling=1e-2,
+                              agree=same_verdict)
+    assert h_verdict > h
+    reference = lh.outputs(X, W0, t_end, h / 8).fli
+    assert np.isfinite(reference).all()
+    at_h = same_verdict(lh.outputs(X, W0, t_end, h).fli, reference, t_end)
+    at_verdict_h = same_verdict(lh.outputs(X, W0, t_end, h_verdict).fli, reference, t_end)
+    assert at_h.mean() >= MAP_QUANTILE > at_verdict_h.mean(), (h, at_h, h_verdict, at_verdict_h)

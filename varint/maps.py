@@ -389,8 +389,9 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         (refused for other indicators, backends and schemes with a
         corrector or processor, early stopping, ``t_check``, ``client``,
         ``checkpoint``). ``tau`` is then the step h in the fictitious time
-        s, by default the largest h at which the pilot orbits' FLI gives
-        the same verdict (chaotic or not at ln(1000 t)) as at h/2, with
+        s, by default the largest h at which the pilot orbits' FLI agrees
+        with that at h/2 to the map's t_end (values within 0.05 dex times
+        t_pilot/t_end, or both chaotic at ln(1000 t)), with
         their energy errors within ten times ``energy_tol``
         (:func:`varint.time_transform_step.agreeing_h`,
         ``provenance.tau_choice``), each orbit whose own energy error
@@ -407,7 +408,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
         normalisations of the vector, default 10). "auto" (the default): an
         FLI map with no τ, scheme or other option, of a model the LH takes,
         whose U = C − V varies by :data:`U_SPREAD_MIN` or more over the
-        pilot orbits' starts, prices the LH at its agreeing h against
+        pilot orbits (their starts, and δ where a kinetic A turns), prices the LH at its agreeing h against
         constant steps at theirs (the largest multiple of the energy
         pilot's step at which the FLI agrees with that at half of it) and
         runs the cheaper (:func:`_cheaper_steps`; the LH's method is
@@ -566,26 +567,31 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
     from .time_transform import refuse
 
     try:
-        refuse(model)
+        parts, _ = refuse(model)
     except ValueError:
         return False
-    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)]) \
-        >= U_SPREAD_MIN
+    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)],
+                     kinetic=parts[4].kind == "free") >= U_SPREAD_MIN
 
 
-def _u_spread(model, X):
+def _u_spread(model, X, kinetic=False):
     """max U / min U over the states ``X``, U = C − V(q) with C of
     :class:`~varint.time_transform.LogHamiltonian` (δ = max(−E, 1)): how
-    much its physical step would vary between them (inf where U ≤ 0)."""
+    much its physical step would vary between them (inf where U ≤ 0).
+    With a ``kinetic`` A ≥ 0, U = A + δ ≥ δ along each orbit, δ where it
+    turns (A = 0): the lowest U counted is δ. (Without it the cored race
+    of ``studies/map_steps.py``, whose orbits all start fast at the bottom
+    of the core and turn at r ≈ 1, measured 1.4 and was never priced.)"""
     from .time_transform import offset_constant
 
     n = X.shape[1] // 2
     with np.errstate(all="ignore"):
         E = np.asarray(model.conserved(X)["energy"], dtype=float)
-        U = offset_constant(E, None) - np.asarray(model.potential(X[:, :n]), dtype=float)
+        C = offset_constant(E, None)
+        U = C - np.asarray(model.potential(X[:, :n]), dtype=float)
     if not (np.all(np.isfinite(U)) and np.all(U > 0)):
         return math.inf
-    return float(U.max() / U.min())
+    return float(U.max() / (min(U.min(), float(np.min(C - E))) if kinetic else U.min()))
 
 
 def _cheaper_steps(spec, k, clock):
@@ -593,19 +599,22 @@ def _cheaper_steps(spec, k, clock):
     guarantee, for a map ``spec`` whose step is not chosen yet: each one's
     largest step at which the pilot orbits' FLI agrees with that at half
     the step (:mod:`varint.step_agreement`: the LH's
-    :func:`~varint.time_transform_step.agreeing_h`, its verdicts at the
-    chaotic level; the constant step's
+    :func:`~varint.time_transform_step.agreeing_h`, its values to the
+    map's t_end; the constant step's
     :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`,
-    by the same verdict rule, so that both are judged alike; both with
+    by the verdict rule at the pilot's t (which favours constant steps
+    on a map much longer than its pilot); both with
     energy errors within ``energy_tol``, the LH's pilot 10 times that: its
     map retries each orbit to ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,
     :func:`~varint.step_cost.constant_gradient_cost`: its operations,
-    priced by fixed tables of the LH's scalar code and of the lanes,
-    vectorised or not, so the choice does not depend on the timing of the
-    run that makes it). The two pilots run in order of price
+    priced by fixed tables of the LH's scalar code or its lanes, as its map
+    will run (:meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`;
+    its descent is stopped at its lowest price), and of the constant
+    step's lanes, vectorised or not, so the choice does not depend on the
+    timing of the run that makes it). The two pilots run in order of price
     (:class:`~varint.step_agreement.ConstantLadder`), each choice priced
     with the pilot it still has to run (:func:`_pilot_share`): before each
     rung of the LH's descent is judged, every constant step that costs less
@@ -623,12 +632,15 @@ def _cheaper_steps(spec, k, clock):
     constant step's at none whose price is below the LH's and the LH's is
     not cheaper (the map then takes the energy pilot's constant step, as
     every other map)."""
+    from .time_transform import MIN_LANES
     from .time_transform_step import RETRY_CEILING, agreeing_offset
 
     model, X = spec.model, spec.x0
     with clock.part("pilot"):
         lh = _log_hamiltonian(model, LOG_MAP_OPTIONS["scheme"], None)
-        log_cost, _ = step_cost.log_gradient_cost(lh)
+        # The LH's lowest price (over lanes where the map has orbits enough
+        # for them) stops its descent; its map is priced as it will run.
+        log_cost, _ = step_cost.log_gradient_cost(lh, lanes=len(X) >= MIN_LANES)
         constant_cost, _ = step_cost.constant_gradient_cost(
             model, MAP_SCHEME, k, spec.indicator.accumulator_for(spec.options))
         judge = stepsize_orbits.indicator_judge(spec.indicator, model, spec.options,
@@ -654,7 +666,7 @@ def _cheaper_steps(spec, k, clock):
         # offset δ is the cheapest the pilot priced.
         # Both pilots run the same orbits: one reference, and (one vector
         # each) the same vectors, drawn once.
-        _, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
+        chosen, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
                                        ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
                                        every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol,
                                        stop_above=beaten, reference=ladder.reference,
@@ -662,6 +674,9 @@ def _cheaper_steps(spec, k, clock):
         stopped = h is None and ladder.rate is not None
         if h is None and not stopped:
             return None, None
+        if not stopped:
+            log_cost, _ = step_cost.log_gradient_cost(
+                chosen, lanes=chosen.runs_in_lanes(X, spec.t_end, h))
         log_price = math.inf if stopped else choice["gradient_rate"] * log_cost
         # The LH's pilot is spent, its map is what is left; a constant rung
         # still to be judged has its τ/2 run to make before its map: it is

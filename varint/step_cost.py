@@ -11,7 +11,9 @@ executes, by kind (:data:`KINDS`): additions, multiplications, fused
 multiply–adds, divisions, square roots, logarithms, exponentials, sines and
 cosines, powers, comparisons and array accesses. The weighted sum
 (:func:`weighted`) with the table of the stepper's context
-(:data:`LH_WEIGHTS` for the LH, one orbit in scalar code;
+(:data:`LH_WEIGHTS` for the LH one orbit at a time in scalar code,
+:data:`LH_LANES_WEIGHTS` for the LH over SIMD lanes, as a map's long runs
+take it, :meth:`varint.time_transform.LogHamiltonian.runs_in_lanes`;
 :data:`VECTOR_LANE_WEIGHTS` or :data:`SCALAR_LANE_WEIGHTS` for a lane of
 the constant step, as its loop over the lanes vectorises or not,
 :func:`vectorises`: nanoseconds per operation of four classes,
@@ -57,7 +59,7 @@ from collections import Counter
 from collections.abc import Mapping
 from functools import lru_cache
 
-__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "SCALAR_KINDS", "LH_WEIGHTS",
+__all__ = ["KINDS", "CALLS", "WEIGHTS", "CLASSES", "SCALAR_KINDS", "LH_WEIGHTS", "LH_LANES_WEIGHTS",
            "VECTOR_LANE_WEIGHTS", "SCALAR_LANE_WEIGHTS", "vectorises", "operations", "weighted",
            "lh_cost", "lanes_cost", "log_gradient_cost", "constant_gradient_cost"]
 
@@ -126,6 +128,19 @@ def _by_kind(per_class):
 #: out 0.39 and 2.6).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
     {"arithmetic": 0.0, "division": 0.57, "call": 4.1, "check": 1.3})
+#: Nanoseconds per operation of each class of the LH stepper as a map's
+#: long runs take it, over SIMD lanes (:mod:`varint.codegen.lh_lanes`,
+#: where :meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`):
+#: the same operations as :data:`LH_WEIGHTS` prices (every lane runs the
+#: one-orbit step's statements in the same order), :data:`LH_WEIGHTS`
+#: times the lanes' measured share of one orbit's time on the cored race
+#: map, 44.1 / 138.8 ns per force evaluation (``studies/lh_lanes.py``,
+#: ``studies/results/lhlanes17/lh_lanes.json``, t_end = 2000, one vector,
+#: load 10; AMD EPYC), two significant figures. The fit of its own
+#: (``studies/switch_check.py`` part "fit", column ``log_lanes``) did not
+#: finish at load 12–22 in lhprice18's session.
+LH_LANES_WEIGHTS: Mapping[str, float] = _by_kind(
+    {"arithmetic": 0.0, "division": 0.18, "call": 1.3, "check": 0.41})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
     {"arithmetic": 0.0080, "division": 0.49, "call": 0.0, "check": 0.68})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
@@ -194,19 +209,20 @@ def weighted(counts, table=None):
     return float(sum(table[kind] * n for kind, n in sorted(counts.items())))
 
 
-def lh_cost(source, n, kinds):
+def lh_cost(source, n, kinds, lanes=False):
     """The cost of one force evaluation of the LH stepper whose module
     source is ``source`` (:func:`varint.codegen.lh.lh_source`; ``n``
     degrees of freedom, the scheme's stage ``kinds``, 0 drift, 1 kick), with
     one deviation vector, as an FLI map runs it: one LH step (``step``
     with ``log``) and the copies of ``advance`` around it, priced by
-    :data:`LH_WEIGHTS` (nanoseconds), over its kicks. Returns ``(cost,
-    counts)``."""
+    :data:`LH_WEIGHTS` (one orbit at a time) or, with ``lanes``,
+    :data:`LH_LANES_WEIGHTS` (nanoseconds), over its kicks. Returns
+    ``(cost, counts)``."""
     known = {"log": True, "k": 1, "d": 2 * n, "n": n}
     counts = operations(source, "step", known) + operations(source, "advance", known,
                                                             loop=_last_loop(source))
     kicks = int(sum(1 for kind in kinds if kind == 1))
-    return weighted(counts, LH_WEIGHTS) / kicks, counts
+    return weighted(counts, LH_LANES_WEIGHTS if lanes else LH_WEIGHTS) / kicks, counts
 
 
 def lanes_cost(source, gradients):
@@ -223,17 +239,20 @@ def lanes_cost(source, gradients):
     return weighted(counts, table) / gradients, counts
 
 
-def log_gradient_cost(lh):
+def log_gradient_cost(lh, lanes=False):
     """:func:`lh_cost` of the LH stepper ``lh`` (a
-    :class:`~varint.time_transform.LogHamiltonian`): ``(cost, counts)``,
-    read once per process and source (parsing a three-body module takes a
-    good part of a quick map's time)."""
-    return _log_cost(lh.source(), lh.model.dim // 2, tuple(int(v) for v in lh.kinds))
+    :class:`~varint.time_transform.LogHamiltonian`), one orbit at a time
+    or with ``lanes`` over SIMD lanes, as the map's run will take it
+    (:meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`):
+    ``(cost, counts)``, read once per process and source (parsing a
+    three-body module takes a good part of a quick map's time)."""
+    return _log_cost(lh.source(), lh.model.dim // 2, tuple(int(v) for v in lh.kinds),
+                     bool(lanes))
 
 
 @lru_cache(maxsize=32)
-def _log_cost(source, n, kinds):
-    return lh_cost(source, n, kinds)
+def _log_cost(source, n, kinds, lanes):
+    return lh_cost(source, n, kinds, lanes)
 
 
 def constant_gradient_cost(model, scheme, k, accumulator):

@@ -49,7 +49,8 @@ from .kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
-__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS", "offset_constant"]
+__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS", "offset_constant",
+           "lanes_work", "takes_lanes", "MIN_LANES", "LANES_WORK"]
 
 #: The values of ``time_transform``.
 TIME_TRANSFORMS = ("log",)
@@ -59,7 +60,7 @@ TIME_TRANSFORMS = ("log",)
 MIN_LANES = 4
 
 #: Work from which :meth:`LogHamiltonian.outputs` runs the orbits over
-#: lanes: Σ t_end/h over the orbits, the LH steps they take where U ≈ 1.
+#: lanes: the LH steps :func:`lanes_work` estimates they take (Σ t_end·U₀/h).
 #: The lanes kernel's first compile costs about as much again as the
 #: one-orbit kernel's (``studies/results/lhlanes17/lh_lanes_compile.json``:
 #: the first calls of a cold process 124.6 s one orbit at a time, 172.5 s
@@ -68,8 +69,33 @@ MIN_LANES = 4
 #: 1e6 steps or more saves at least half a second at every call (0.98 →
 #: 0.31 µs a step, ``lh_lanes.json``) and later processes load it cached.
 #: Both kernels give the same bits for every orbit, so the choice never
-#: changes a result.
+#: changes a result; :func:`varint.step_cost.log_gradient_cost` prices the
+#: LH by the kernel this decision takes (:meth:`LogHamiltonian.runs_in_lanes`).
 LANES_WORK = 1e6
+
+
+
+def lanes_work(U0, t_end, h):
+    """The LH steps orbits take to the physical time ``t_end`` at the
+    fictitious step ``h`` (a number or one per orbit), estimated from
+    ``U0`` (M,), U = C − V at each orbit's start: Σ t_end·U₀/h. A step
+    lasts h/U of physical time, so an orbit takes t_end·Ū/h steps, Ū the
+    mean of U along it in physical time, which is not known before the run:
+    U₀ stands for it (Σ t_end/h, U ≈ 1, was the estimate before; on the
+    cored map of ``studies/map_steps.py``, whose orbits start at the bottom
+    of the core, U₀ is about 4 times Ū: an overestimate there). An orbit
+    with U₀ ≤ 0 (it stops at once) or not finite counts nothing."""
+    U0 = np.asarray(U0, dtype=float)
+    with np.errstate(invalid="ignore"):
+        steps = np.where(U0 > 0, U0, 0.0) * float(t_end) / np.asarray(h, dtype=float)
+    return float(np.sum(steps))
+
+
+def takes_lanes(orbits, work):
+    """Whether a run of ``orbits`` orbits whose :func:`lanes_work` is
+    ``work`` runs over SIMD lanes (:data:`MIN_LANES`, :data:`LANES_WORK`)."""
+    return bool(orbits >= MIN_LANES and work >= LANES_WORK)
+
 
 #: Steps one output interval may take before the orbit is stopped.
 MAX_STEPS = 10_000_000
@@ -257,6 +283,24 @@ class LogHamiltonian:
         """C of every orbit of ``X`` (module docstring)."""
         return offset_constant(self.energy(X), self.offset)
 
+    def start_u(self, X, C=None):
+        """U = C − V(q) of every orbit of ``X`` (M, 2N) at its start, by
+        the generated kernels (``C``: :meth:`constants` where not given)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        n = X.shape[1] // 2
+        gV, HV = np.empty(n), np.empty((n, n))
+        V = np.array([self._potential(x[:n].copy(), gV, HV, False) for x in X])
+        return (self.constants(X) if C is None else np.asarray(C, dtype=float)) - V
+
+    def runs_in_lanes(self, X, t_end, h, vectors=1, C=None):
+        """Whether :meth:`outputs` runs the orbits ``X`` with ``vectors``
+        (0 or 1) each to ``t_end`` at the fictitious step ``h`` over SIMD
+        lanes (:mod:`varint.codegen.lh_lanes`): a lanes kernel for that
+        many vectors, :func:`takes_lanes` of :func:`lanes_work`."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return (self.lanes_kernels[vectors] is not None and len(X) >= MIN_LANES
+                and takes_lanes(len(X), lanes_work(self.start_u(X, C), t_end, h)))
+
     # -- runs --------------------------------------------------------------------------
     def advance(self, X, W, t_end, h, t0=0.0, C=None, pt=None, max_steps=MAX_STEPS):
         """Move orbits ``X`` (M, 2N) and vectors ``W`` (M, 2N, k) from
@@ -297,13 +341,17 @@ class LogHamiltonian:
                         np.full(len(X), h), float(every), C, max_steps, -E)
         return run.fli, run.counts, run.status
 
-    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS):
+    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS, lanes=None):
         """Orbits ``X`` (M, 2N) with one vector each (``W0`` (M, 2N), or
         None: no vector) to the physical time ``t_end`` through outputs at
         the multiples of ``every``, with the fictitious step ``h`` (a number,
         or one per orbit (M,)): the FLI as :meth:`fli` computes it (the
         same bits for the same h), the final states and the output state
-        furthest from the initial energy (:class:`LHOutputs`)."""
+        furthest from the initial energy (:class:`LHOutputs`). Over SIMD
+        lanes where their work repays them (``lanes`` None:
+        :func:`takes_lanes`), or wherever there are :data:`MIN_LANES`
+        orbits (``lanes`` True: a pilot whose map runs over lanes, which
+        compiles them anyway); the same bits either way."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         M, d = X.shape
         W = np.zeros((M, d, 0)) if W0 is None else np.asarray(W0, dtype=float)[..., None]
@@ -320,9 +368,9 @@ class LogHamiltonian:
         E = self.energy(X)
         C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
             np.asarray(C, float), M)
-        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E)
+        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E, lanes)
 
-    def _run(self, X, W, t_end, hs, every, C, max_steps, pt):
+    def _run(self, X, W, t_end, hs, every, C, max_steps, pt, lanes=None):
         """The generated ``outputs`` loop over checked orbits ``X``, vectors
         ``W`` (M, k, 2N), steps ``hs`` (M,), constants ``C`` (M,) and
         p_t = −H (M,); an orbit that stopped has a NaN FLI."""
@@ -331,10 +379,11 @@ class LogHamiltonian:
         counts = np.zeros((M, 3), dtype=np.int64)
         x_end, t, x_worst, t_worst = np.empty_like(X), np.zeros(M), np.empty_like(X), np.zeros(M)
         kernel = self.outputs_kernel
-        lanes = self.lanes_kernels[W.shape[1]]
-        if (lanes is not None and M >= MIN_LANES and max_steps >= 1
-                and float(np.sum(t_end / hs)) >= LANES_WORK):
-            kernel = lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
+        over_lanes = self.lanes_kernels[W.shape[1]]
+        # Orbits too few for lanes need no estimate of their work.
+        if (over_lanes is not None and max_steps >= 1 and M >= MIN_LANES
+                and (lanes or takes_lanes(M, lanes_work(self.start_u(X, C), t_end, hs)))):
+            kernel = over_lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
         kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                status, counts, x_end, t, x_worst, t_worst)

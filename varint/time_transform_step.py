@@ -3,15 +3,28 @@ given.
 
 :func:`agreeing_h` (the maps' rule) judges h by what the map reports: the
 largest h = h₀·2^−j (j = :data:`TOP`, …) at which the FLI of the pilot
-orbits, each with the map's own vector, gives the same verdict as the FLI
-at h/2 (the same side of the chaotic level ln(1000 t),
-:func:`varint.step_agreement.same_verdict`), with the energy errors at h
-under a sanity ceiling (the map's ``energy_tol``). The rule and the
-ceiling were chosen on held-out orbits (``studies/lh_yardstick.py``): every
-rule tried kept the held-out verdicts, the verdict rule at the coarsest h;
-looser ceilings (1e-2, 1e-1), under which the pilot agreed at twice that
-h, lost held-out verdicts (the cored map 97.7 %, the softened point mass
-87.5 %; criterion 99 %). Chaos maps ask for verdicts: an energy
+orbits, each with the map's own vector, agrees with the FLI at h/2 as the
+map needs (:func:`map_verdict`): the same verdict at the chaotic level
+ln(1000 t) where the pilot runs to the map's t_end; where the map runs
+longer, to its own t_end (:func:`varint.step_agreement.agreeing`: the
+values within 0.05 dex times t_pilot/t_end, or both chaotic), with the energy errors at h under a sanity ceiling (the map's
+``energy_tol``). The pilot runs to t = 100, a map often much longer; a
+regular orbit's phase error, and with it the error of its FLI, grows
+linearly in time under a symplectic scheme (Hairer, Lubich & Wanner,
+*Geometric Numerical Integration*, 2nd ed., Thm. X.3.1), so a map 20 times
+longer than its pilot needs agreement 20 times closer at the pilot's t.
+The rule before (:func:`~varint.step_agreement.same_verdict`: the same
+side of the chaotic level at the pilot's t, whatever t_end; chosen on
+held-out orbits run twice as long as the pilot, ``studies/lh_yardstick.py``)
+chose h = 0.099 on the cored map of ``studies/map_steps.py`` (t_end =
+2000), where 16 of 16 pilot orbits gave the same verdict at h and h/2 to
+t = 100, and its map (every orbit retried to ``energy_tol``) called 9 of
+120 regular orbits chaotic (92.5 %): a coarse step's spurious growth of
+the FLI through the near-singular core shows only after the pilot's t.
+This rule chooses h = 0.025 there, every orbit as a tight reference does
+(``studies/lh_horizon.py``, ``studies/results/lhprice18/lh_horizon.json``,
+with the three-body map, a softened point mass and a cored halo with a
+central mass). Chaos maps ask for verdicts: an energy
 tolerance tight enough for every orbit's value (the map pilot's 1e-7) costs
 steps no verdict needs (the three-body map of ``studies/map_steps.py``
 classifies every orbit as a tight reference does at h = 1.6, with energy
@@ -20,7 +33,9 @@ to :func:`choose_h` and warns. ``tests/test_step_agreement.py`` checks that
 the h chosen on 16 orbits keeps held-out orbits (a softened point mass;
 the three-body problem at another Jacobi constant), run twice as long as
 the pilot, on the same side of the chaotic level as the same orbits at
-h/16, and that the ladder's rejected first step does not.
+h/16, and that the ladder's rejected first step does not;
+``tests/test_time_transform_step.py`` that the h chosen for a cored map 20
+times longer than its pilot keeps every orbit's verdict there.
 
 :func:`choose_h` is the energy rule: the largest h whose pilot keeps the
 energy within a tolerance, as :func:`varint.stepsize.choose_step` chooses
@@ -65,10 +80,11 @@ import numpy as np
 from .accuracy import Reference
 from .kernels.time_transform import BUDGET
 from .state import initial_deviations
-from .step_agreement import descend, pilot_sample, same_verdict, summary
+from .step_agreement import agreeing, descend, pilot_sample, same_verdict, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
+from .time_transform import lanes_work, takes_lanes
 
-__all__ = ["choose_h", "agreeing_h", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
+__all__ = ["choose_h", "agreeing_h", "map_verdict", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
 
 #: The indicator pilot's steps h = h₀·2^−j, j = TOP … TOP + LEVELS − 1:
 #: from 2h₀ (two time units per step where the orbits start) to h₀/256
@@ -90,6 +106,20 @@ RETRY_LEVELS = 4
 #: agree and most orbits to pass at once; each orbit then meets
 #: ``energy_tol`` itself (``studies/lh_yardstick.py --part retry``).
 RETRY_CEILING = 10.0
+
+
+def map_verdict(coarse, fine, t, t_end=None):
+    """Per orbit, whether its FLI at a step (``coarse``) and at half of it
+    (``fine``), both at the pilot's time ``t``, agree as a map to
+    ``t_end`` needs (module docstring): the same verdict at the chaotic
+    level where the pilot runs to the map's end
+    (:func:`~varint.step_agreement.same_verdict`), the values within
+    0.05 dex times t/t_end where the map is longer
+    (:func:`~varint.step_agreement.agreeing`: its verdict at t_end is not
+    seen, and a regular orbit's FLI error grows linearly in time)."""
+    if t_end is None or float(t_end) <= float(t):
+        return same_verdict(coarse, fine, t)
+    return agreeing(coarse, fine, t, t_end)
 
 
 def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
@@ -193,7 +223,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 
-def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=same_verdict,
+def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map_verdict,
                retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
@@ -202,10 +232,10 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     at h/2 on a ``quantile`` share of them, with the ``quantile`` of their
     energy errors at h within ``ceiling`` (a map's ``energy_tol``;
     :mod:`varint.step_agreement`); the pilot runs to min(t_end,
-    :data:`~varint.stepsize.PILOT_T`). "Agrees" is ``agree``: the same
-    verdict at the chaotic level
-    (:func:`~varint.step_agreement.same_verdict`, the maps' rule), or the
-    value rule :func:`~varint.step_agreement.agreeing`. ``retry``, the
+    :data:`~varint.stepsize.PILOT_T`). "Agrees" is ``agree``:
+    :func:`map_verdict` (the maps' rule, module docstring), or the same
+    verdict at the pilot's t whatever t_end
+    (:func:`~varint.step_agreement.same_verdict`, the rule before). ``retry``, the
     energy tolerance a map retries its orbits to (:func:`retried`), makes
     ``gradient_rate`` the price of the map with its retries, predicted from
     the pilot orbits' own errors at h, h/2, … (the runs the descent made).
@@ -237,10 +267,16 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=sam
     t_pilot = float(min(t_end, PILOT_T if t_pilot is None else t_pilot))
     counts = np.zeros(3, dtype=np.int64)
     runs: dict = {}
+    # A rung whose map runs over lanes runs its pilot over them too (the
+    # map compiles them anyway): the same bits, in about a third of the
+    # time (studies/results/lhlanes17/lh_lanes.json).
+    u0 = lh.start_u(X)
 
     def run(j):
         if j not in runs:
-            out = lh.outputs(sample, W0, t_pilot, h0 * 2.0**-j, every=every)
+            h = h0 * 2.0**-j
+            out = lh.outputs(sample, W0, t_pilot, h, every=every,
+                             lanes=takes_lanes(len(X), lanes_work(u0, t_end, h)))
             counts[:] += out.counts.sum(axis=0)
 
             # Measured where read (descend; _retry_rate): a run whose rate
@@ -298,7 +334,8 @@ PRICE_T = PILOT_T / 4
 
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
-                    offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None):
+                    offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None,
+                    agree=map_verdict):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
@@ -326,7 +363,7 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     competitor cheaper than any step left stops it (h None). ``deviations``
     and ``reference`` are :func:`agreeing_h`'s, drawn here when not given
     (the defaults' switch shares those of its constant-step pilot, the same
-    orbits with the same vectors).
+    orbits with the same vectors), and so is ``agree``.
 
     For an A that takes both signs (a rotating frame,
     :attr:`~varint.time_transform.LogHamiltonian.kinetic` False) only the
@@ -348,7 +385,7 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     # once (a generator per orbit: ~2 ms a draw of 16 orbits on the loaded
     # 2-core machine, cProfile of the cored map's defaults; 5 draws a map).
     kwargs = {"quantile": quantile, "ceiling": ceiling, "seed": seed, "every": every,
-              "retry": retry, "reference": reference,
+              "retry": retry, "reference": reference, "agree": agree,
               "deviations": _pilot_deviations(lh, X, seed) if deviations is None else deviations}
     priced, pricing = [], 0
     if lh.kinetic and lh.offset is None:
