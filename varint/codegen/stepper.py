@@ -36,7 +36,7 @@ from ..kernels.closures import Unnamed, describe_cells
 from .accumulators import rule_text
 from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
-from .tm import TMBody, level
+from .tm import TMBody, compact_shape, level
 
 __all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper"]
 
@@ -63,6 +63,12 @@ class Plan:
         ``"step"``: the orbit's displacement over each step) add by
         compensated summation (:class:`~varint.codegen.tm.TMBody`); such a
         module has no lanes.
+    compact : bool
+        The stages as a loop over the stage arrays
+        (:meth:`~varint.codegen.tm.TMBody.compact_stages`): ``kinds`` and
+        ``corrected`` are then the scheme's
+        :func:`~varint.codegen.tm.compact_shape`, shared by every scheme of
+        that shape; such a module has no lanes.
     """
 
     kinds: tuple
@@ -70,6 +76,7 @@ class Plan:
     k: int
     accumulator: str
     compensated: bool | str = False
+    compact: bool = False
 
 
 def generated_source(E, plan, accumulator=None):
@@ -78,7 +85,7 @@ def generated_source(E, plan, accumulator=None):
     file's name does (:func:`symbolic_stepper`): numba's cache does not
     follow a changed dependency, so a changed generator must write a new
     file."""
-    body = TMBody(E, plan.kinds, plan.corrected, plan.k, plan.compensated)
+    body = TMBody(E, plan.kinds, plan.corrected, plan.k, plan.compensated, plan.compact)
     source = Interval(body, plan.k, accumulator).module(plan.accumulator)
     return f"# varint generator {_generator_id()}\n" + source
 
@@ -193,7 +200,8 @@ def _source(key, plan, accumulator):
     return generated_source(expressions(key), plan, accumulator)
 
 
-def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=False):
+def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=False,
+                     compact=False):
     """The generated stepper module for a model that
     :func:`~varint.codegen.expressions.symbolic_fits`.
 
@@ -211,18 +219,29 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
         Compensated summation in every drift and kick, in the orbit's
         drifts and kicks (``"orbit"``), or of the orbit's displacement over
         each step (``"step"``; :class:`~varint.codegen.tm.TMBody`).
+    compact : bool, default False
+        The stages as a loop (:meth:`~varint.codegen.tm.TMBody.
+        compact_stages`; bitwise the stages written out): the module of
+        every scheme of the same :func:`~varint.codegen.tm.compact_shape`.
 
     Returns
     -------
     module
         With ``orbit``, ``batch_serial``, ``batch_parallel``, ``lanes``,
         ``blocks_serial`` and ``blocks_parallel`` (see
-        :mod:`varint.codegen.interval`; compensated: the first three);
-        compiled on first call, or loaded from numba's cache.
+        :mod:`varint.codegen.interval`; compensated or compact: the first
+        three); compiled on first call, or loaded from numba's cache.
     """
+    if compact:
+        shape = compact_shape(kinds, corrected)
+        if shape is None:
+            raise ValueError(f"stages {tuple(int(v) for v in kinds)} with correctors "
+                             f"{tuple(bool(c) for c in corrected)} have no compact stepper: "
+                             "drifts and kicks must alternate, correctors on the end kicks")
+        kinds, corrected = shape
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
                 k=int(k), accumulator=_accumulator_id(accumulator),
-                compensated=level(compensated))
+                compensated=level(compensated), compact=bool(compact))
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:

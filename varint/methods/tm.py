@@ -27,7 +27,7 @@ from ..codegen.expressions import symbolic_fits
 from ..codegen.interval import (LANE_WIDTH, CompensatedOrbit, LaneBlock, Outputs, StepperOrbit,
                                 StepperSetup)
 from ..codegen.stepper import symbolic_stepper
-from ..codegen.tm import LEVELS, step_counts
+from ..codegen.tm import LEVELS, compact_shape, step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
@@ -170,6 +170,7 @@ class TangentMapPropagator:
                             self.scheme.processor_stages(self.tau, inverse=True))
                            if processed else None)
         self._kinds, self._h, self._hc = stage_arrays(kernel, self.tau)
+        self._corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
         # A time-dependent V: the time of every stage (kernels/tm.py).
         self._ctime = stage_times(kernel) if model.time_dependent else np.empty(0)
         r = model.escape_radius
@@ -216,18 +217,37 @@ class TangentMapPropagator:
         return {"numba": numba.__version__}
 
     # -- which stepper ----------------------------------------------------------------
-    def _stepper(self, k):
-        """The generated stepper module for k vectors, or None (generic)."""
-        if k not in self._generated:
-            self._generated[k] = _generated_stepper(self.model, self._kinds, self._hc, k,
-                                                    self.accumulator, self.compensated)
-        return self._generated[k]
+    #: Orbit-steps of one call (steps × orbits) from which one orbit at a
+    #: time runs the stepper with its stages written out rather than the
+    #: compact one (:meth:`~varint.codegen.tm.TMBody.compact_stages`: the
+    #: same bits). The compact stepper compiles in a fraction of the time
+    #: and runs within a few per cent of it
+    #: (``studies/compact_steps.py``, ``results/suite18/compact_steps.json``);
+    #: from here on a run is long enough that the written-out stepper's few
+    #: per cent repay its longer compile. Lanes always run written out:
+    #: a loop over stages inside the loop over lanes would not vectorise.
+    COMPACT_WORK = 10 ** 8
+
+    def _stepper(self, k, compact=False):
+        """The generated stepper module for k vectors, or None (generic):
+        ``compact`` where the scheme's stages fit the compact loop
+        (:func:`~varint.codegen.tm.compact_shape`)."""
+        compact = bool(compact) and compact_shape(self._kinds, self._corrected) is not None
+        if (k, compact) not in self._generated:
+            self._generated[k, compact] = _generated_stepper(
+                self.model, self._kinds, self._hc, k, self.accumulator, self.compensated, compact)
+        return self._generated[k, compact]
+
+    def _orbit_stepper(self, k, work):
+        """The module whose one-orbit stepper runs a call of ``work``
+        orbit-steps: compact below :attr:`COMPACT_WORK`."""
+        return self._stepper(k, compact=work < self.COMPACT_WORK)
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
         the compiled loop (a generated stepper for this model and k; not
         for a processed scheme, whose outputs pass through its processor)."""
-        return self._processor is None and self._stepper(state.k) is not None
+        return self._processor is None and self._stepper(state.k, compact=True) is not None
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -259,7 +279,8 @@ class TangentMapPropagator:
     def _advance_steps(self, state, n, outputs=None):
         """:meth:`advance` by the scheme's steps (the kernel's, for a
         processed scheme)."""
-        module = self._stepper(state.k)
+        active = np.flatnonzero(state.status == STATUS_OK)
+        module = self._orbit_stepper(state.k, n * len(active))
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
@@ -281,7 +302,6 @@ class TangentMapPropagator:
             self._advance_generic(state, n)
             return None
         snaps = self._snapshots(state, outputs)
-        active = np.flatnonzero(state.status == STATUS_OK)
         # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
         # on the GPU (the same arithmetic; see the ``backend`` option);
         # compensated ones one at a time.
@@ -308,7 +328,8 @@ class TangentMapPropagator:
         vectors: a generated stepper, one orbit at a time on the CPU (fewer
         orbits than :attr:`MIN_LANES`, or compensated), no processor."""
         return (self._processor is None and self.backend == "cpu"
-                and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
+                and (m < self.MIN_LANES or self.compensated)
+                and self._stepper(k, compact=True) is not None)
 
     def fresh_run(self, m, k, outs, aux0):
         """A :class:`~varint.methods.fresh_run.FreshRun`: orbits started at
@@ -329,7 +350,7 @@ class TangentMapPropagator:
         aux0 : ndarray, shape (M, k, c)
             The accumulator's start ((M, 0, 0) without one).
         """
-        module = self._stepper(k)
+        module = self._orbit_stepper(k, m * int(outs[-1]))
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
         call = Call(int(outs[-1]), 0, self.tau, int(self.renorm), self._escape_r2)
         return FreshRun(kernel, self._setup(), call, outs, (m, self.model.dim, k), aux0,
@@ -461,7 +482,10 @@ class TangentMapPropagator:
         se = np.zeros(shape + (k, lanes.width), dtype=np.int64)
         saux = np.full(shape + (lanes.width,) + aux.shape[1:], np.nan)
         parallel = use_parallel(self.parallel, lanes.blocks)
-        kernel = module.blocks_parallel if parallel else module.blocks_serial
+        # Lanes run the stages written out (COMPACT_WORK); an orbit that
+        # fails is rerun by ``module``'s one-orbit stepper, the same bits.
+        written_out = self._stepper(k)
+        kernel = written_out.blocks_parallel if parallel else written_out.blocks_serial
         # Blocks are handed out one at a time: a thread that is descheduled
         # holds up one block, not a share of them. Set here, around the call
         # (numba's chunk size is per calling thread), not in the kernel: a
@@ -617,20 +641,21 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
 _STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False):
+def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False, compact=False):
     """The generated stepper module of (model, scheme stages, k,
-    accumulator), or None when the model has none
+    accumulator, compensation, compact), or None when the model has none
     (:func:`varint.codegen.expressions.symbolic_fits`). Remembered per
     model, keyed by what the module depends on (its parameters and masses
     included), so that repeated runs skip the lookup (~50 µs)."""
     corrected = (hc != 0.0) & (kinds != DRIFT)
     # Beside the model, not in it: a model must stay picklable (Dask).
     memo = _STEPPERS.setdefault(model, {})
-    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, compensated,
+    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, compensated, compact,
            np.asarray(model.params, dtype=float).tobytes(),
            np.asarray(model.inverse_mass, dtype=float).tobytes())
     if key not in memo:
-        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator, compensated)
+        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator, compensated,
+                                      compact)
                      if symbolic_fits(model, k) else None)
     return memo[key]
 
