@@ -177,6 +177,8 @@ class TangentMapPropagator:
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
         self._counts = {}
+        #: One-orbit orbit-steps run so far per k (:meth:`_orbit_stepper`).
+        self._work = {}
 
     def _every(self, every):
         if every is None:
@@ -217,31 +219,41 @@ class TangentMapPropagator:
         return {"numba": numba.__version__}
 
     # -- which stepper ----------------------------------------------------------------
-    #: Orbit-steps of one call (steps × orbits) from which one orbit at a
-    #: time runs the stepper with its stages written out rather than the
-    #: compact one (:meth:`~varint.codegen.tm.TMBody.compact_stages`: the
-    #: same bits). The compact stepper compiles in a fraction of the time
-    #: and runs within a few per cent of it
-    #: (``studies/compact_steps.py``, ``results/suite18/compact_steps.json``);
-    #: from here on a run is long enough that the written-out stepper's few
-    #: per cent repay its longer compile. Lanes always run written out:
+    #: Orbit-steps (steps × orbits) this propagator runs one orbit at a
+    #: time with k vectors by the compact stepper
+    #: (:meth:`~varint.codegen.tm.TMBody.compact_stages`) before it takes
+    #: the stepper with its stages written out: a call that would reach it
+    #: runs written out. Both give the same bits, so a run's chunks may
+    #: take either. The compact stepper compiles in a fraction of the time
+    #: and runs slower per step, most on small models (a loop and a branch
+    #: per stage: ``studies/compact_steps.py``,
+    #: ``results/suite18/compact_steps.json``), so a run that stays below
+    #: this saves most of a compile of seconds at the cost of at most this
+    #: many slower steps (~0.1 s), and a long run (from ~0.05 s of steps on)
+    #: runs written out, at its full speed. Lanes always run written out:
     #: a loop over stages inside the loop over lanes would not vectorise.
-    COMPACT_WORK = 10 ** 8
+    COMPACT_WORK = 10 ** 6
 
     def _stepper(self, k, compact=False):
         """The generated stepper module for k vectors, or None (generic):
         ``compact`` where the scheme's stages fit the compact loop
         (:func:`~varint.codegen.tm.compact_shape`)."""
+        # Per k, the modules by form, or None: the generic stepper.
+        forms = self._generated.setdefault(k, {})
+        if forms is None:
+            return None
         compact = bool(compact) and compact_shape(self._kinds, self._corrected) is not None
-        if (k, compact) not in self._generated:
-            self._generated[k, compact] = _generated_stepper(
-                self.model, self._kinds, self._hc, k, self.accumulator, self.compensated, compact)
-        return self._generated[k, compact]
+        if compact not in forms:
+            forms[compact] = _generated_stepper(self.model, self._kinds, self._hc, k,
+                                                self.accumulator, self.compensated, compact)
+        return forms[compact]
 
     def _orbit_stepper(self, k, work):
         """The module whose one-orbit stepper runs a call of ``work``
-        orbit-steps: compact below :attr:`COMPACT_WORK`."""
-        return self._stepper(k, compact=work < self.COMPACT_WORK)
+        orbit-steps: compact while this propagator's one-orbit work with k
+        vectors, this call's included, stays below :attr:`COMPACT_WORK`."""
+        self._work[k] = self._work.get(k, 0) + work
+        return self._stepper(k, compact=self._work[k] < self.COMPACT_WORK)
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
@@ -280,7 +292,9 @@ class TangentMapPropagator:
         """:meth:`advance` by the scheme's steps (the kernel's, for a
         processed scheme)."""
         active = np.flatnonzero(state.status == STATUS_OK)
-        module = self._orbit_stepper(state.k, n * len(active))
+        # The compact module: whether there is one, and it reruns an orbit
+        # that failed in the lanes or on the GPU (the same bits).
+        module = self._stepper(state.k, compact=True)
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
@@ -306,7 +320,8 @@ class TangentMapPropagator:
         # on the GPU (the same arithmetic; see the ``backend`` option);
         # compensated ones one at a time.
         if self.compensated:
-            self._advance_generated(module, state, n, snaps)
+            self._advance_generated(self._orbit_stepper(state.k, n * len(active)), state, n,
+                                    snaps)
             return snaps
         if len(active) and device.use_gpu(self.backend, len(active)):
             # The CUDA emitter (SymPy's printers) is imported for a GPU run
@@ -320,7 +335,8 @@ class TangentMapPropagator:
         if len(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, snaps, active)
         else:
-            self._advance_generated(module, state, n, snaps)
+            self._advance_generated(self._orbit_stepper(state.k, n * len(active)), state, n,
+                                    snaps)
         return snaps
 
     def runs_fresh(self, m, k):
