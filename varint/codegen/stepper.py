@@ -7,7 +7,10 @@ written out as Python source and compiled by numba: the scheme's stages
 unrolled with straight-line derivatives (:mod:`varint.codegen.tm`), the
 state in registers, the end of every step and the copies at output steps
 inside the loop (:mod:`varint.codegen.interval`), as one orbit and as SIMD
-lanes.
+lanes; or, compact (``compact=True``), one orbit whose stages are a loop
+over the stage arrays, bitwise the same, compiled in a fraction of the
+time and shared by every scheme of its shape
+(:meth:`~varint.codegen.tm.TMBody.compact_stages`).
 
 The source goes to ``<cache dir>/kernels/`` under a name that hashes the
 generator's code, the model's potential and the plan, signed, and is

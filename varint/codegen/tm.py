@@ -36,8 +36,11 @@ motion or an oscillator's rotation in each (q_i, p_i), then the rotation by
 Ωh of the plane's (q_u, q_v) and (p_u, p_v); linear, so the same map moves
 every deviation vector, and its coefficients depend only on the stage's
 length, worked out once per call. Each is written as an increment
-(cos θ − 1 = −2 sin²(θ/2)), so that compensation applies to it too. The
-loop around the step and the end of every step are the emitted skeleton's
+(cos θ − 1 = −2 sin²(θ/2)), so that compensation applies to it too.
+Compact (``compact=True``), the stages are one loop over the stage arrays,
+each kind of stage written once, with the same operations in the same
+order (:meth:`TMBody.compact_stages`): the same bits from a few times less
+source, for one orbit. The loop around the step and the end of every step are the emitted skeleton's
 (:mod:`varint.codegen.interval`), the same for one orbit and for SIMD
 lanes; this body writes into either through its *target*, which says how a
 failure is recorded and whether work is counted.

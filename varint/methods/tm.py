@@ -9,7 +9,10 @@ the vectors may be renormalised).
 Models that know their potential symbolically and are small get a stepper
 generated for them and for the scheme (:mod:`varint.codegen`):
 stages unrolled, straight-line derivatives, state in registers, outputs
-copied inside the compiled loop, cached on disk. Others use the generic
+copied inside the compiled loop, cached on disk. One orbit at a time, a
+run's first :attr:`TangentMapPropagator.COMPACT_WORK` orbit-steps take the
+compact stepper (its stages a loop: the same bits, a fraction of the
+compile), which spares short runs most of the compile. Others use the generic
 stepper (:mod:`varint.kernels.tm`).
 """
 
