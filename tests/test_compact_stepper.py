@@ -144,16 +144,36 @@ def test_schemes_of_one_shape_share_one_compact_stepper():
     assert module("SBAB2C", True) is not module("ABA864", True)
 
 
-def test_the_rule_runs_compact_until_the_work_reaches_compact_work():
-    """One orbit runs compact (a module without lanes) while the
-    propagator's one-orbit work with k vectors, the call's included, stays
-    below COMPACT_WORK, and written out (with lanes) from the call that
-    reaches it on; the work is counted per k."""
-    p = TangentMapPropagator(HH, 0.05, Renorm.QR, scheme="SBAB2C")
-    p.COMPACT_WORK = 1000
+def test_the_rule_runs_compact_until_the_work_reaches_compact_work(monkeypatch):
+    """Where the written-out stepper is not compiled yet, one orbit runs
+    compact (a module without lanes) while the model's one-orbit work with
+    k vectors in this process, the call's included, stays below
+    COMPACT_WORK, and written out (with lanes) from the call that reaches
+    it on; the work is counted per k and per model, across propagators."""
+    monkeypatch.setattr(TangentMapPropagator, "COMPACT_WORK", 1000)
+    model = HenonHeiles()            # its own count of work
+    p = TangentMapPropagator(model, 0.05, Renorm.QR, scheme="SBAB2C")
+    p._readiness.update({1: False, 2: False})
     first = p._orbit_stepper(1, 600)
     assert not hasattr(first, "lanes") and first is p._stepper(1, compact=True)
-    then = p._orbit_stepper(1, 400)
-    assert hasattr(then, "lanes") and then is p._stepper(1)
+    again = TangentMapPropagator(model, 0.05, Renorm.QR, scheme="SBAB2C")
+    again._readiness.update({1: False})
+    then = again._orbit_stepper(1, 400)
+    assert hasattr(then, "lanes") and then is again._stepper(1)
     assert p._orbit_stepper(2, 999) is p._stepper(2, compact=True)
     assert p._orbit_stepper(2, 1) is p._stepper(2)
+
+
+def test_a_compiled_written_out_stepper_is_taken_for_any_work():
+    """Once the written-out stepper is loaded (or its file is in the cache),
+    even the shortest run takes it: its compile is paid."""
+    x, y = sp.symbols("x y")
+    # A coupling no other test uses: its steppers are made here.
+    c = 0.5 + np.random.default_rng().random()
+    model = varint.models.from_potential((x**2 + y**2) / 2 + c * x**2 * y**2, [x, y])
+    p = TangentMapPropagator(model, 0.05, Renorm.QR, scheme="ABA864")
+    assert not p._ready(1)
+    assert p._orbit_stepper(1, 10) is p._stepper(1, compact=True)
+    written = p._stepper(1)
+    fresh = TangentMapPropagator(model, 0.05, Renorm.QR, scheme="ABA864")
+    assert fresh._ready(1) and fresh._orbit_stepper(1, 10) is written

@@ -41,7 +41,7 @@ from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
 from .tm import TMBody, compact_shape, level
 
-__all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper"]
+__all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper", "written_out_ready"]
 
 
 @dataclass(frozen=True)
@@ -242,9 +242,7 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
                              f"{tuple(bool(c) for c in corrected)} have no compact stepper: "
                              "drifts and kicks must alternate, correctors on the end kicks")
         kinds, corrected = shape
-    plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
-                k=int(k), accumulator=_accumulator_id(accumulator),
-                compensated=level(compensated), compact=bool(compact))
+    plan = _plan(kinds, corrected, k, accumulator, compensated, compact)
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:
@@ -264,6 +262,26 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
                                                 make_source, extra,
                                                 on_disk=_on_disk(accumulator))
     return _LOADED[digest]
+
+
+def written_out_ready(model, kinds, corrected, k, accumulator=None, compensated=False):
+    """Whether the stepper with its stages written out (``compact=False``)
+    for these arguments is loaded in this process or its file is in the
+    kernel cache, where the process that wrote it compiled it: then its
+    compile is paid, and a short run need not take the compact stepper
+    (:attr:`~varint.methods.tm.TangentMapPropagator.COMPACT_WORK`). Only a
+    choice between two forms with the same bits rests on it; the file is
+    verified when it is loaded, as every cached file is."""
+    plan = _plan(kinds, corrected, k, accumulator, compensated, False)
+    digest = _digest(model_key(model), plan)
+    return digest in _LOADED or (_on_disk(accumulator) and codecache.module_on_disk(
+        f"varint_stepper_{digest}", "kernels"))
+
+
+def _plan(kinds, corrected, k, accumulator, compensated, compact):
+    return Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
+                k=int(k), accumulator=_accumulator_id(accumulator),
+                compensated=level(compensated), compact=bool(compact))
 
 
 @lru_cache(maxsize=256)

@@ -29,7 +29,7 @@ import numba
 from ..codegen.expressions import symbolic_fits
 from ..codegen.interval import (LANE_WIDTH, CompensatedOrbit, LaneBlock, Outputs, StepperOrbit,
                                 StepperSetup)
-from ..codegen.stepper import symbolic_stepper
+from ..codegen.stepper import symbolic_stepper, written_out_ready
 from ..codegen.tm import LEVELS, compact_shape, step_counts
 from ..kernels import tm as K
 from ..gpu import device
@@ -180,8 +180,8 @@ class TangentMapPropagator:
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
         self._counts = {}
-        #: One-orbit orbit-steps run so far per k (:meth:`_orbit_stepper`).
-        self._work = {}
+        #: Per k: whether the written-out stepper costs no compile (:meth:`_ready`).
+        self._readiness = {}
 
     def _every(self, every):
         if every is None:
@@ -235,6 +235,10 @@ class TangentMapPropagator:
     #: many slower steps (~0.1 s), and a long run (from ~0.05 s of steps on)
     #: runs written out, at its full speed. Lanes always run written out:
     #: a loop over stages inside the loop over lanes would not vectorise.
+    #: The work is counted per model and stepper in this process, not per
+    #: propagator, and a stepper written out that an earlier run (or
+    #: process: its file in the cache) has compiled is taken whatever the
+    #: work: short runs are slow only until the compile is worth paying.
     COMPACT_WORK = 10 ** 6
 
     def _stepper(self, k, compact=False):
@@ -251,18 +255,36 @@ class TangentMapPropagator:
                                                 self.accumulator, self.compensated, compact)
         return forms[compact]
 
+    def _ready(self, k):
+        """Whether the written-out stepper for k vectors is compiled already
+        (:func:`~varint.codegen.stepper.written_out_ready`), asked once per
+        propagator and k."""
+        if k not in self._readiness:
+            self._readiness[k] = (symbolic_fits(self.model, k) and written_out_ready(
+                self.model, self._kinds, self._corrected, k, self.accumulator, self.compensated))
+        return self._readiness[k]
+
     def _orbit_stepper(self, k, work):
         """The module whose one-orbit stepper runs a call of ``work``
-        orbit-steps: compact while this propagator's one-orbit work with k
-        vectors, this call's included, stays below :attr:`COMPACT_WORK`."""
-        self._work[k] = self._work.get(k, 0) + work
-        return self._stepper(k, compact=self._work[k] < self.COMPACT_WORK)
+        orbit-steps: written out where that is compiled already, else
+        compact while the one-orbit work of this model's stepper with k
+        vectors in this process, this call's included, stays below
+        :attr:`COMPACT_WORK`."""
+        if self._ready(k):
+            return self._stepper(k)
+        done = _WORK.setdefault(self.model, {})
+        key = (self._kinds.tobytes(), self._corrected.tobytes(), int(k), self.accumulator,
+               self.compensated, np.asarray(self.model.params, dtype=float).tobytes(),
+               np.asarray(self.model.inverse_mass, dtype=float).tobytes())
+        done[key] = done.get(key, 0) + work
+        return self._stepper(k, compact=done[key] < self.COMPACT_WORK)
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
         the compiled loop (a generated stepper for this model and k; not
         for a processed scheme, whose outputs pass through its processor)."""
-        return self._processor is None and self._stepper(state.k, compact=True) is not None
+        return (self._processor is None
+                and self._stepper(state.k, compact=not self._ready(state.k)) is not None)
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -295,9 +317,9 @@ class TangentMapPropagator:
         """:meth:`advance` by the scheme's steps (the kernel's, for a
         processed scheme)."""
         active = np.flatnonzero(state.status == STATUS_OK)
-        # The compact module: whether there is one, and it reruns an orbit
-        # that failed in the lanes or on the GPU (the same bits).
-        module = self._stepper(state.k, compact=True)
+        # Whether there is a generated stepper; this module reruns an orbit
+        # that failed in the lanes or on the GPU (either form: the same bits).
+        module = self._stepper(state.k, compact=not self._ready(state.k))
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
@@ -348,7 +370,7 @@ class TangentMapPropagator:
         orbits than :attr:`MIN_LANES`, or compensated), no processor."""
         return (self._processor is None and self.backend == "cpu"
                 and (m < self.MIN_LANES or self.compensated)
-                and self._stepper(k, compact=True) is not None)
+                and self._stepper(k, compact=not self._ready(k)) is not None)
 
     def fresh_run(self, m, k, outs, aux0):
         """A :class:`~varint.methods.fresh_run.FreshRun`: orbits started at
@@ -658,6 +680,9 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
 
 #: Generated stepper modules per model (:func:`_generated_stepper`).
 _STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Per model: the one-orbit orbit-steps each of its steppers ran compact in
+#: this process (:meth:`TangentMapPropagator._orbit_stepper`).
+_WORK: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False, compact=False):
