@@ -69,7 +69,7 @@ from . import cachedir, collector
 from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
-__all__ = ["load_module", "read_json", "write_json", "read_signed", "write_signed",
+__all__ = ["load_module", "module_on_disk", "read_json", "write_json", "read_signed", "write_signed",
            "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
            "CacheDirWarning", "unique_symbol_names", "named_by_file"]
 
@@ -214,6 +214,14 @@ def load_module(name, folder, make_source, extra_globals=None, on_disk=True):
         if not on_disk:
             return _execute(name, make_source().encode(), None, extra_globals)
         return _load(name, folder, make_source, extra_globals)
+
+
+def module_on_disk(name, folder):
+    """Whether the generated module ``name`` has a file in
+    ``<cache>/<folder>`` (not whether it is valid: :func:`load_module`
+    verifies it before anything of it runs)."""
+    directory = cachedir.subdir(folder)
+    return directory is not None and (directory / f"{name}.py").is_file()
 
 
 def _load(name, folder, make_source, extra_globals):

@@ -565,8 +565,9 @@ class Interval:
         self.orbit()
         self.batch("orbit")
         # Compensated steppers run one orbit at a time: their lanes would
-        # need the compensations in the lane arrays too.
-        if not self.body.compensated:
+        # need the compensations in the lane arrays too. A compact step's
+        # loop over stages inside the loop over lanes would not vectorise.
+        if not (self.body.compensated or self.body.compact):
             self.lanes()
             self.batch("lanes")
         return src.text()

@@ -7,7 +7,10 @@ written out as Python source and compiled by numba: the scheme's stages
 unrolled with straight-line derivatives (:mod:`varint.codegen.tm`), the
 state in registers, the end of every step and the copies at output steps
 inside the loop (:mod:`varint.codegen.interval`), as one orbit and as SIMD
-lanes.
+lanes; or, compact (``compact=True``), one orbit whose stages are a loop
+over the stage arrays, bitwise the same, compiled in a fraction of the
+time and shared by every scheme of its shape
+(:meth:`~varint.codegen.tm.TMBody.compact_stages`).
 
 The source goes to ``<cache dir>/kernels/`` under a name that hashes the
 generator's code, the model's potential and the plan, signed, and is
@@ -36,9 +39,9 @@ from ..kernels.closures import Unnamed, describe_cells
 from .accumulators import rule_text
 from .expressions import ensure_form, expressions, model_key
 from .interval import Interval
-from .tm import TMBody, level
+from .tm import TMBody, compact_shape, level
 
-__all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper"]
+__all__ = ["Plan", "generated_source", "generator_sources", "symbolic_stepper", "written_out_ready"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,12 @@ class Plan:
         ``"step"``: the orbit's displacement over each step) add by
         compensated summation (:class:`~varint.codegen.tm.TMBody`); such a
         module has no lanes.
+    compact : bool
+        The stages as a loop over the stage arrays
+        (:meth:`~varint.codegen.tm.TMBody.compact_stages`): ``kinds`` and
+        ``corrected`` are then the scheme's
+        :func:`~varint.codegen.tm.compact_shape`, shared by every scheme of
+        that shape; such a module has no lanes.
     """
 
     kinds: tuple
@@ -70,6 +79,7 @@ class Plan:
     k: int
     accumulator: str
     compensated: bool | str = False
+    compact: bool = False
 
 
 def generated_source(E, plan, accumulator=None):
@@ -78,7 +88,7 @@ def generated_source(E, plan, accumulator=None):
     file's name does (:func:`symbolic_stepper`): numba's cache does not
     follow a changed dependency, so a changed generator must write a new
     file."""
-    body = TMBody(E, plan.kinds, plan.corrected, plan.k, plan.compensated)
+    body = TMBody(E, plan.kinds, plan.corrected, plan.k, plan.compensated, plan.compact)
     source = Interval(body, plan.k, accumulator).module(plan.accumulator)
     return f"# varint generator {_generator_id()}\n" + source
 
@@ -193,7 +203,8 @@ def _source(key, plan, accumulator):
     return generated_source(expressions(key), plan, accumulator)
 
 
-def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=False):
+def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=False,
+                     compact=False):
     """The generated stepper module for a model that
     :func:`~varint.codegen.expressions.symbolic_fits`.
 
@@ -211,18 +222,27 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
         Compensated summation in every drift and kick, in the orbit's
         drifts and kicks (``"orbit"``), or of the orbit's displacement over
         each step (``"step"``; :class:`~varint.codegen.tm.TMBody`).
+    compact : bool, default False
+        The stages as a loop (:meth:`~varint.codegen.tm.TMBody.
+        compact_stages`; bitwise the stages written out): the module of
+        every scheme of the same :func:`~varint.codegen.tm.compact_shape`.
 
     Returns
     -------
     module
         With ``orbit``, ``batch_serial``, ``batch_parallel``, ``lanes``,
         ``blocks_serial`` and ``blocks_parallel`` (see
-        :mod:`varint.codegen.interval`; compensated: the first three);
-        compiled on first call, or loaded from numba's cache.
+        :mod:`varint.codegen.interval`; compensated or compact: the first
+        three); compiled on first call, or loaded from numba's cache.
     """
-    plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
-                k=int(k), accumulator=_accumulator_id(accumulator),
-                compensated=level(compensated))
+    if compact:
+        shape = compact_shape(kinds, corrected)
+        if shape is None:
+            raise ValueError(f"stages {tuple(int(v) for v in kinds)} with correctors "
+                             f"{tuple(bool(c) for c in corrected)} have no compact stepper: "
+                             "drifts and kicks must alternate, correctors on the end kicks")
+        kinds, corrected = shape
+    plan = _plan(kinds, corrected, k, accumulator, compensated, compact)
     key = model_key(model)
     digest = _digest(key, plan)
     if digest not in _LOADED:
@@ -242,6 +262,26 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
                                                 make_source, extra,
                                                 on_disk=_on_disk(accumulator))
     return _LOADED[digest]
+
+
+def written_out_ready(model, kinds, corrected, k, accumulator=None, compensated=False):
+    """Whether the stepper with its stages written out (``compact=False``)
+    for these arguments is loaded in this process or its file is in the
+    kernel cache, where the process that wrote it compiled it: then its
+    compile is paid, and a short run need not take the compact stepper
+    (:attr:`~varint.methods.tm.TangentMapPropagator.COMPACT_WORK`). Only a
+    choice between two forms with the same bits rests on it; the file is
+    verified when it is loaded, as every cached file is."""
+    plan = _plan(kinds, corrected, k, accumulator, compensated, False)
+    digest = _digest(model_key(model), plan)
+    return digest in _LOADED or (_on_disk(accumulator) and codecache.module_on_disk(
+        f"varint_stepper_{digest}", "kernels"))
+
+
+def _plan(kinds, corrected, k, accumulator, compensated, compact):
+    return Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
+                k=int(k), accumulator=_accumulator_id(accumulator),
+                compensated=level(compensated), compact=bool(compact))
 
 
 @lru_cache(maxsize=256)

@@ -36,8 +36,11 @@ motion or an oscillator's rotation in each (q_i, p_i), then the rotation by
 Ωh of the plane's (q_u, q_v) and (p_u, p_v); linear, so the same map moves
 every deviation vector, and its coefficients depend only on the stage's
 length, worked out once per call. Each is written as an increment
-(cos θ − 1 = −2 sin²(θ/2)), so that compensation applies to it too. The
-loop around the step and the end of every step are the emitted skeleton's
+(cos θ − 1 = −2 sin²(θ/2)), so that compensation applies to it too.
+Compact (``compact=True``), the stages are one loop over the stage arrays,
+each kind of stage written once, with the same operations in the same
+order (:meth:`TMBody.compact_stages`): the same bits from a few times less
+source, for one orbit. The loop around the step and the end of every step are the emitted skeleton's
 (:mod:`varint.codegen.interval`), the same for one orbit and for SIMD
 lanes; this body writes into either through its *target*, which says how a
 failure is recorded and whether work is counted.
@@ -50,7 +53,7 @@ import numpy as np
 from ..protocol import Status
 from ..schemes import DRIFT
 
-__all__ = ["TMBody", "step_counts", "LEVELS", "level"]
+__all__ = ["TMBody", "step_counts", "LEVELS", "level", "compact_shape"]
 
 _NONFINITE = int(Status.ORBIT_NONFINITE)
 _GRAD, _HESS, _THIRD = (int(Status.GRADIENT_NONFINITE), int(Status.HESSIAN_NONFINITE),
@@ -86,8 +89,12 @@ class TMBody:
     (:meth:`carried`).
     """
 
-    def __init__(self, E, kinds, corrected, k, compensated=False):
+    def __init__(self, E, kinds, corrected, k, compensated=False, compact=False):
         self.E, self.kinds, self.corrected, self.k = E, tuple(kinds), tuple(corrected), k
+        #: The stages as a loop over the stage lengths (:meth:`compact_stages`)
+        #: instead of written out one by one; ``kinds`` and ``corrected`` are
+        #: then a scheme's :func:`compact_shape`.
+        self.compact = bool(compact)
         #: False, True (every drift and kick), "orbit" (the orbit's only) or
         #: "step" (the orbit's displacement over each step).
         self.compensated = level(compensated)
@@ -185,7 +192,19 @@ class TMBody:
     # -- what is written before the loop ---------------------------------------------
     def prologue(self, src):
         """The stage lengths as locals, from ``h`` and ``hc``; with a
-        rotating frame, each drift's coefficients (:meth:`planar_drift`)."""
+        rotating frame, each drift's coefficients (:meth:`planar_drift`).
+        Compact, the stage count and the drifts' coefficients as arrays
+        over the stages, worked out by the same expressions."""
+        if self.compact:
+            src("nst = h.shape[0]")
+            if self.E.planar is not None:
+                names = self.planar_names("_")
+                src(*(f"A{name} = np.zeros(nst)" for name in names))
+                with src.block(f"for stg in range({int(self.kinds[0] != DRIFT)}, nst, 2):"):
+                    src("h_ = h[stg]")
+                    self.planar_coefficients(src, "_")
+                    src(*(f"A{name}[stg] = {name}" for name in names))
+            return
         for st in range(len(self.kinds)):
             src(f"h{st} = h[{st}]")
             if self.corrected[st]:
@@ -200,6 +219,16 @@ class TMBody:
         groups = [("p", a, b, (u, v))]
         groups += [(str(i), ai, bi, (i,)) for i, (ai, bi) in enumerate(pairs) if i not in (u, v)]
         return groups
+
+    def planar_names(self, st):
+        """The locals :meth:`planar_coefficients` writes for drift ``st``."""
+        names = []
+        for g, a, b, _ in self._groups():
+            if b != 0.0:
+                names += [f"oc{st}_{g}", f"os1{st}_{g}", f"os2{st}_{g}"]
+            elif a != 1.0:
+                names.append(f"da{st}_{g}")
+        return names + [f"rc{st}", f"rs{st}"]
 
     def planar_coefficients(self, src, st):
         """The locals of drift ``st`` of A: per oscillator (a, b) the free
@@ -262,6 +291,9 @@ class TMBody:
 
     def stages(self, src, target):
         """The scheme's stages, drifts and kicks, in order."""
+        if self.compact:
+            self.compact_stages(src, target)
+            return
         for st, kind in enumerate(self.kinds):
             if kind == DRIFT:
                 self.drift(src, st)
@@ -276,7 +308,45 @@ class TMBody:
                 self.derivatives(src, target, st, what)
             self.kick(src, target, st, corrected)
 
-    def derivatives(self, src, target, label, what):
+    def compact_stages(self, src, target):
+        """The stages as one loop over them (``stg``), each drift and each
+        kind of kick written once: drifts and kicks alternate, so a stage's
+        parity says which it is; a corrected kick is the first or last
+        stage (:func:`compact_shape`). Its lengths ``h_``, ``hc_`` and a
+        rotating frame's coefficients are read from the stage arrays. The
+        same floating-point operations in the same order as the stages
+        written out (:meth:`stages`), so the same bits: a stepper compiled
+        from a few times less source, a loop and a branch per stage."""
+        drift_parity = int(self.kinds[0] != DRIFT)
+        first_kick = 1 - drift_parity
+        ends = any(self.corrected)
+        with src.block("for stg in range(nst):"):
+            src("h_ = h[stg]")
+            with src.block(f"if stg % 2 == {drift_parity}:"):
+                if self.E.planar is not None:
+                    src(*(f"{name} = A{name}[stg]" for name in self.planar_names("_")))
+                self.drift(src, "_")
+            kicks = [(True, "stg == 0 or stg == nst - 1")] if ends else []
+            kicks.append((False, None))
+            for corrected, condition in kicks:
+                with src.block("else:" if condition is None else f"elif {condition}:"):
+                    if corrected:
+                        src("hc_ = hc[stg]")
+                    what = self.needs(corrected)
+                    label = "c" if corrected else "k"
+                    if self.reuse_first and (corrected or not ends):
+                        # After the first step the first kick reuses the
+                        # last kick's values (same q).
+                        with src.block("if stg > 0 or s == 0:"):
+                            self.derivatives(src, target, label, what, first_kick)
+                    else:
+                        self.derivatives(src, target, label, what, first_kick)
+                    self.kick(src, target, "_", corrected)
+        if not target.carries:
+            # A failure left the loop over stages: leave the loop over steps.
+            src("if status != 0:", "    break")
+
+    def derivatives(self, src, target, label, what, first_kick=None):
         """Evaluate ∇V and, as ``what`` asks, D²V, ∇C, D²C at the current q,
         with a singular value caught before it is used.
 
@@ -310,7 +380,7 @@ class TMBody:
                 src(f"{t} = {self.printer.doprint(e)}")
             for t, e in zip(targets, reduced, strict=True):
                 src(f"{t} = {self.printer.doprint(e)}")
-            settle = self.unsettled()
+            settle = self.unsettled(first_kick)
             for _, names, _, status, counter in groups:
                 if counter and target.counts:
                     src(f"{counter} += 1")
@@ -320,12 +390,20 @@ class TMBody:
                                 f"{status} if {rq} < HUGE else {_NONFINITE}",
                                 **({"settle": settle} if settle else {}))
 
-    def unsettled(self):
+    def unsettled(self, first_kick=None):
         """The statements that put the state's locals mid-step where a
         failure leaves the loop: with ``compensated="step"``, each p a kick
         of this step has moved and no stage has read since, as the start
         plus its displacement (the values the plain stepper's locals hold
-        there, bit for bit those a stage reading them would have)."""
+        there, bit for bit those a stage reading them would have). In the
+        compact loop, every p the kicks move (:meth:`update`), where stage
+        ``stg`` comes after the step's first kick ``first_kick``."""
+        if first_kick is not None:
+            moved = [p for p in self.p if self.displaces(p) and self.E.planar is None]
+            if not moved:
+                return []
+            return [f"if stg > {first_kick}:"] + [
+                f"    {p} = {self.start_of_step(p)} + {self.displacement(p)}" for p in moved]
         return [f"{p} = {self.start_of_step(p)} + {self.displacement(p)}"
                 for p in self._unsettled]
 
@@ -513,3 +591,24 @@ def step_counts(kinds, corrected, k, flow=False):
     if flow and kinds[-1] == DRIFT:
         per[0] += 1
     return per, first
+
+
+def compact_shape(kinds, corrected):
+    """The stage structure a compact stepper (:meth:`TMBody.compact_stages`)
+    is emitted for, as ``(kinds, corrected)`` of the shortest scheme that
+    has it, or None when the stages do not fit its loop. Drifts and kicks
+    must alternate; correctors, if any, sit on the first and last stages,
+    both kicks (every scheme of :data:`varint.schemes.SCHEMES`:
+    :func:`varint.schemes.stage_arrays`). Schemes of one shape, whatever
+    their stage count, share one compact stepper."""
+    kinds, corrected = [int(v) for v in kinds], [bool(c) for c in corrected]
+    n = len(kinds)
+    if n < 2 or any(kinds[i] == kinds[i + 1] for i in range(n - 1)):
+        return None
+    ends = [i for i, c in enumerate(corrected) if c]
+    if ends and (ends != [0, n - 1] or DRIFT in (kinds[0], kinds[-1])):
+        return None
+    # Three stages hold every (first, last) pair of an alternation but
+    # (D, K) and (K, D), which two hold.
+    short = kinds[:3] if kinds[0] == kinds[-1] else kinds[:2]
+    return tuple(short), tuple([bool(ends)] + [False] * (len(short) - 2) + [bool(ends)])

@@ -9,7 +9,10 @@ the vectors may be renormalised).
 Models that know their potential symbolically and are small get a stepper
 generated for them and for the scheme (:mod:`varint.codegen`):
 stages unrolled, straight-line derivatives, state in registers, outputs
-copied inside the compiled loop, cached on disk. Others use the generic
+copied inside the compiled loop, cached on disk. One orbit at a time, a
+run's first :attr:`TangentMapPropagator.COMPACT_WORK` orbit-steps take the
+compact stepper (its stages a loop: the same bits, a fraction of the
+compile), which spares short runs most of the compile. Others use the generic
 stepper (:mod:`varint.kernels.tm`).
 """
 
@@ -26,8 +29,8 @@ import numba
 from ..codegen.expressions import symbolic_fits
 from ..codegen.interval import (LANE_WIDTH, CompensatedOrbit, LaneBlock, Outputs, StepperOrbit,
                                 StepperSetup)
-from ..codegen.stepper import symbolic_stepper
-from ..codegen.tm import LEVELS, step_counts
+from ..codegen.stepper import symbolic_stepper, written_out_ready
+from ..codegen.tm import LEVELS, compact_shape, step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
@@ -170,12 +173,15 @@ class TangentMapPropagator:
                             self.scheme.processor_stages(self.tau, inverse=True))
                            if processed else None)
         self._kinds, self._h, self._hc = stage_arrays(kernel, self.tau)
+        self._corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
         # A time-dependent V: the time of every stage (kernels/tm.py).
         self._ctime = stage_times(kernel) if model.time_dependent else np.empty(0)
         r = model.escape_radius
         self._escape_r2 = np.inf if r is None else float(r) ** 2
         self._generated = {}
         self._counts = {}
+        #: Per k: whether the written-out stepper costs no compile (:meth:`_ready`).
+        self._readiness = {}
 
     def _every(self, every):
         if every is None:
@@ -216,18 +222,69 @@ class TangentMapPropagator:
         return {"numba": numba.__version__}
 
     # -- which stepper ----------------------------------------------------------------
-    def _stepper(self, k):
-        """The generated stepper module for k vectors, or None (generic)."""
-        if k not in self._generated:
-            self._generated[k] = _generated_stepper(self.model, self._kinds, self._hc, k,
-                                                    self.accumulator, self.compensated)
-        return self._generated[k]
+    #: Orbit-steps (steps × orbits) this propagator runs one orbit at a
+    #: time with k vectors by the compact stepper
+    #: (:meth:`~varint.codegen.tm.TMBody.compact_stages`) before it takes
+    #: the stepper with its stages written out: a call that would reach it
+    #: runs written out. Both give the same bits, so a run's chunks may
+    #: take either. The compact stepper compiles in a fraction of the time
+    #: and runs slower per step, most on small models (a loop and a branch
+    #: per stage: ``studies/compact_steps.py``,
+    #: ``results/suite18/compact_steps.json``), so a run that stays below
+    #: this saves most of a compile of seconds at the cost of at most this
+    #: many slower steps (~0.1 s), and a long run (from ~0.05 s of steps on)
+    #: runs written out, at its full speed. Lanes always run written out:
+    #: a loop over stages inside the loop over lanes would not vectorise.
+    #: The work is counted per model and stepper in this process, not per
+    #: propagator, and a stepper written out that an earlier run (or
+    #: process: its file in the cache) has compiled is taken whatever the
+    #: work: short runs are slow only until the compile is worth paying.
+    COMPACT_WORK = 10 ** 6
+
+    def _stepper(self, k, compact=False):
+        """The generated stepper module for k vectors, or None (generic):
+        ``compact`` where the scheme's stages fit the compact loop
+        (:func:`~varint.codegen.tm.compact_shape`)."""
+        # Per k, the modules by form, or None: the generic stepper.
+        forms = self._generated.setdefault(k, {})
+        if forms is None:
+            return None
+        compact = bool(compact) and compact_shape(self._kinds, self._corrected) is not None
+        if compact not in forms:
+            forms[compact] = _generated_stepper(self.model, self._kinds, self._hc, k,
+                                                self.accumulator, self.compensated, compact)
+        return forms[compact]
+
+    def _ready(self, k):
+        """Whether the written-out stepper for k vectors is compiled already
+        (:func:`~varint.codegen.stepper.written_out_ready`), asked once per
+        propagator and k."""
+        if k not in self._readiness:
+            self._readiness[k] = (symbolic_fits(self.model, k) and written_out_ready(
+                self.model, self._kinds, self._corrected, k, self.accumulator, self.compensated))
+        return self._readiness[k]
+
+    def _orbit_stepper(self, k, work):
+        """The module whose one-orbit stepper runs a call of ``work``
+        orbit-steps: written out where that is compiled already, else
+        compact while the one-orbit work of this model's stepper with k
+        vectors in this process, this call's included, stays below
+        :attr:`COMPACT_WORK`."""
+        if self._ready(k):
+            return self._stepper(k)
+        done = _WORK.setdefault(self.model, {})
+        key = (self._kinds.tobytes(), self._corrected.tobytes(), int(k), self.accumulator,
+               self.compensated, np.asarray(self.model.params, dtype=float).tobytes(),
+               np.asarray(self.model.inverse_mass, dtype=float).tobytes())
+        done[key] = done.get(key, 0) + work
+        return self._stepper(k, compact=done[key] < self.COMPACT_WORK)
 
     def takes_snapshots(self, state):
         """Whether :meth:`advance` can copy ``state`` at output steps inside
         the compiled loop (a generated stepper for this model and k; not
         for a processed scheme, whose outputs pass through its processor)."""
-        return self._processor is None and self._stepper(state.k) is not None
+        return (self._processor is None
+                and self._stepper(state.k, compact=not self._ready(state.k)) is not None)
 
     #: Orbits per block of the SIMD kernel (``lanes``): a multiple of the
     #: vector width (8 doubles with AVX-512), small enough that a block's
@@ -259,7 +316,10 @@ class TangentMapPropagator:
     def _advance_steps(self, state, n, outputs=None):
         """:meth:`advance` by the scheme's steps (the kernel's, for a
         processed scheme)."""
-        module = self._stepper(state.k)
+        active = np.flatnonzero(state.status == STATUS_OK)
+        # Whether there is a generated stepper; this module reruns an orbit
+        # that failed in the lanes or on the GPU (either form: the same bits).
+        module = self._stepper(state.k, compact=not self._ready(state.k))
         if module is None and self.backend == "cuda":
             raise ValueError(f"backend='cuda' runs generated steppers; {self.model.name} with "
                              f"{state.k} vectors has none (a model without a symbolic potential,"
@@ -281,12 +341,12 @@ class TangentMapPropagator:
             self._advance_generic(state, n)
             return None
         snaps = self._snapshots(state, outputs)
-        active = np.flatnonzero(state.status == STATUS_OK)
         # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
         # on the GPU (the same arithmetic; see the ``backend`` option);
         # compensated ones one at a time.
         if self.compensated:
-            self._advance_generated(module, state, n, snaps)
+            self._advance_generated(self._orbit_stepper(state.k, n * len(active)), state, n,
+                                    snaps)
             return snaps
         if len(active) and device.use_gpu(self.backend, len(active)):
             # The CUDA emitter (SymPy's printers) is imported for a GPU run
@@ -300,7 +360,8 @@ class TangentMapPropagator:
         if len(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, snaps, active)
         else:
-            self._advance_generated(module, state, n, snaps)
+            self._advance_generated(self._orbit_stepper(state.k, n * len(active)), state, n,
+                                    snaps)
         return snaps
 
     def runs_fresh(self, m, k):
@@ -308,7 +369,8 @@ class TangentMapPropagator:
         vectors: a generated stepper, one orbit at a time on the CPU (fewer
         orbits than :attr:`MIN_LANES`, or compensated), no processor."""
         return (self._processor is None and self.backend == "cpu"
-                and (m < self.MIN_LANES or self.compensated) and self._stepper(k) is not None)
+                and (m < self.MIN_LANES or self.compensated)
+                and self._stepper(k, compact=not self._ready(k)) is not None)
 
     def fresh_run(self, m, k, outs, aux0):
         """A :class:`~varint.methods.fresh_run.FreshRun`: orbits started at
@@ -329,7 +391,7 @@ class TangentMapPropagator:
         aux0 : ndarray, shape (M, k, c)
             The accumulator's start ((M, 0, 0) without one).
         """
-        module = self._stepper(k)
+        module = self._orbit_stepper(k, m * int(outs[-1]))
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
         call = Call(int(outs[-1]), 0, self.tau, int(self.renorm), self._escape_r2)
         return FreshRun(kernel, self._setup(), call, outs, (m, self.model.dim, k), aux0,
@@ -461,7 +523,10 @@ class TangentMapPropagator:
         se = np.zeros(shape + (k, lanes.width), dtype=np.int64)
         saux = np.full(shape + (lanes.width,) + aux.shape[1:], np.nan)
         parallel = use_parallel(self.parallel, lanes.blocks)
-        kernel = module.blocks_parallel if parallel else module.blocks_serial
+        # Lanes run the stages written out (COMPACT_WORK); an orbit that
+        # fails is rerun by ``module``'s one-orbit stepper, the same bits.
+        written_out = self._stepper(k)
+        kernel = written_out.blocks_parallel if parallel else written_out.blocks_serial
         # Blocks are handed out one at a time: a thread that is descheduled
         # holds up one block, not a share of them. Set here, around the call
         # (numba's chunk size is per calling thread), not in the kernel: a
@@ -615,22 +680,26 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
 
 #: Generated stepper modules per model (:func:`_generated_stepper`).
 _STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Per model: the one-orbit orbit-steps each of its steppers ran compact in
+#: this process (:meth:`TangentMapPropagator._orbit_stepper`).
+_WORK: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False):
+def _generated_stepper(model, kinds, hc, k, accumulator, compensated=False, compact=False):
     """The generated stepper module of (model, scheme stages, k,
-    accumulator), or None when the model has none
+    accumulator, compensation, compact), or None when the model has none
     (:func:`varint.codegen.expressions.symbolic_fits`). Remembered per
     model, keyed by what the module depends on (its parameters and masses
     included), so that repeated runs skip the lookup (~50 µs)."""
     corrected = (hc != 0.0) & (kinds != DRIFT)
     # Beside the model, not in it: a model must stay picklable (Dask).
     memo = _STEPPERS.setdefault(model, {})
-    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, compensated,
+    key = (kinds.tobytes(), corrected.tobytes(), int(k), accumulator, compensated, compact,
            np.asarray(model.params, dtype=float).tobytes(),
            np.asarray(model.inverse_mass, dtype=float).tobytes())
     if key not in memo:
-        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator, compensated)
+        memo[key] = (symbolic_stepper(model, kinds, corrected, k, accumulator, compensated,
+                                      compact)
                      if symbolic_fits(model, k) else None)
     return memo[key]
 
