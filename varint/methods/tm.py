@@ -16,6 +16,7 @@ stepper (:mod:`varint.kernels.tm`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import numbers
 import weakref
@@ -364,11 +365,14 @@ class TangentMapPropagator:
 
     def _step_counts(self, k):
         """:func:`~varint.codegen.tm.step_counts` for k vectors (worked
-        out once: a map with early stopping calls the stepper at every
-        check time)."""
+        out once per propagator, :func:`_scheme_step_counts` once per
+        scheme: a map with early stopping calls the stepper at every check
+        time, and a pilot's ladder builds a propagator for each of its
+        steps)."""
         if k not in self._counts:
-            self._counts[k] = step_counts(
-                self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
+            corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
+            self._counts[k] = _scheme_step_counts(
+                tuple(self._kinds.tolist()), tuple(corrected.tolist()), int(k),
                 self.accumulator is not None and self.accumulator.needs_flow)
         return self._counts[k]
 
@@ -443,9 +447,6 @@ class TangentMapPropagator:
         width = -(-len(active) // (blocks * self.MIN_LANES)) * self.MIN_LANES
         lanes = _Lanes(active, width)
         sched = self._schedule(state)     # first: part of the state to restore
-        start = {"x": state.x[active], "W": state.W[active], "acc_m": state.acc_m[active],
-                 "acc_e": state.acc_e[active]}
-        extra_start = {key: arr[active] for key, arr in state.extra.items()}
         aux = self._accumulator(state)
         X, W = lanes.soa(state.x), lanes.soa(state.W)
         am, ae = lanes.soa(state.acc_m), lanes.soa(state.acc_e)
@@ -470,6 +471,14 @@ class TangentMapPropagator:
         with numba.parallel_chunksize(1) if parallel else contextlib.nullcontext():
             kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
                    self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
+        failed = active[lanes.aos(st) != 0]
+        # The call's start, for the orbits that fail (rare): the kernel
+        # stepped copies (the lanes), so the state's rows are still the start
+        # until they are written back below.
+        start, extra_start = {}, {}
+        if failed.size:
+            start = {name: getattr(state, name)[active] for name in ("x", "W", "acc_m", "acc_e")}
+            extra_start = {key: arr[active] for key, arr in state.extra.items()}
         for lane_array, target in ((X, state.x), (W, state.W), (am, state.acc_m),
                                    (ae, state.acc_e)):
             lanes.put(lane_array, target)
@@ -487,7 +496,6 @@ class TangentMapPropagator:
         done = np.zeros(m, dtype=np.int64)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done[active], counters[active] = n, per * int(n) + first
-        failed = active[lanes.aos(st) != 0]
         self._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
                            counters)
 
@@ -611,6 +619,17 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
         raise FloatingPointError(f"the map failed in step {state.fail_step[0]}: "
                                  f"{REASONS.get(Status(state.status[0]), state.status[0])}")
     return state.x[0], state.W[0]
+
+
+@functools.lru_cache(maxsize=64)
+def _scheme_step_counts(kinds, corrected, k, flow):
+    """:func:`~varint.codegen.tm.step_counts` of a scheme's stage kinds and
+    corrected stages (tuples), read-only: shared by every propagator of
+    that scheme (~0.1 ms each on a pilot's rungs, which differ in τ alone,
+    and τ does not change which stages are corrected)."""
+    per, first = step_counts(kinds, corrected, k, flow)
+    per.flags.writeable = first.flags.writeable = False
+    return per, first
 
 
 #: Generated stepper modules per model (:func:`_generated_stepper`).
