@@ -144,6 +144,25 @@ def _draw_sample(m, seed):
     return np.sort(np.random.default_rng(seed).choice(m, PILOT_ORBITS, replace=False))
 
 
+def pilot_vectors(dim, k, pick, seed):
+    """The pilot orbits' vectors (M, 2N, k): those of the map's orbits
+    ``pick`` (:func:`~varint.state.initial_deviations`). For an integer
+    seed they are drawn once (a generator and a QR per orbit, ~0.1 ms for
+    the sixteen orbits of a map's pilot, at every map); each caller gets
+    its own copy, as :func:`pilot_sample`."""
+    if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
+        return _kept_vectors(int(dim), int(k), int(seed), pick.dtype.str, pick.tobytes()).copy()
+    return initial_deviations(dim, k, len(pick), seed, pick)
+
+
+@functools.lru_cache(maxsize=64)
+def _kept_vectors(dim, k, seed, dtype, pick):
+    W = initial_deviations(dim, k, len(pick) // np.dtype(dtype).itemsize, seed,
+                           np.frombuffer(pick, dtype=dtype))
+    W.flags.writeable = False   # shared: only copies leave
+    return W
+
+
 def summary(n_agree, n, errors_max, step_name):
     """The sentence a result's step choice carries (``provenance.tau_choice``
     and its accuracy verdict)."""
@@ -301,7 +320,7 @@ class ConstantLadder:
         #: The pilot orbits' vectors (M, 2N, k), each orbit's own
         #: (``default_rng([seed, m])``), and their :class:`~varint.accuracy.Reference`:
         #: a competitor's pilot of the same orbits may share them.
-        self.W0 = initial_deviations(model.dim, k, len(pick), seed, pick)
+        self.W0 = pilot_vectors(model.dim, k, pick, seed)
         self.reference = Reference(model, self._sample)
         self._t_pilot = float(min(t_end, PILOT_T))
         self._model, self._t_end = model, t_end
