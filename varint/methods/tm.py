@@ -32,7 +32,7 @@ from ..codegen.tm import LEVELS, step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
-from ..kernels.lanes import gather, scatter
+from ..kernels.lanes import gather, scatter, scatter_outputs
 from ..kernels.processor import processor_map
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
@@ -486,10 +486,9 @@ class TangentMapPropagator:
         if aux.size:
             aux[active] = lanes.from_rows_by_lane(lane_aux)
         if s:
-            snaps.x[:, active] = lanes.snapshot_rows(sx)
-            snaps.W[:, active] = lanes.snapshot_rows(sW)
-            snaps.acc_m[:, active] = lanes.snapshot_rows(sm)
-            snaps.acc_e[:, active] = lanes.snapshot_rows(se)
+            for lane_array, target in ((sx, snaps.x), (sW, snaps.W), (sm, snaps.acc_m),
+                                       (se, snaps.acc_e)):
+                lanes.put_outputs(lane_array, target)
             if aux.size:
                 snaps.extra[self.accumulator.key][:, active] = lanes.snapshot_rows_by_lane(saux)
         per, first = self._step_counts(k)
@@ -687,6 +686,17 @@ class _Lanes:
                     target.reshape(len(target), f))
         else:
             target[self.active] = self.aos(a)
+
+    def put_outputs(self, a, target):
+        """Write the lanes' outputs ``a`` (blocks, S, ..., lanes) into the
+        active orbits' rows of ``target`` (S, M, ...), in place."""
+        if target.flags.c_contiguous:
+            s, m = target.shape[:2]
+            f = math.prod(target.shape[2:])
+            scatter_outputs(a.reshape(self.blocks, s, f, self.width), self.active,
+                            target.reshape(s, m, f))
+        else:
+            target[:, self.active] = self.snapshot_rows(a)
 
     def rows_by_lane(self, a):
         """Rows of ``a`` (M, ...) -> (blocks, lanes, ...): per-lane arrays
