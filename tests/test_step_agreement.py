@@ -435,7 +435,7 @@ def test_a_ladder_propagator_and_lazy_errors_give_a_fresh_runs_bits():
         return make_propagator("tm", model, tau, ind.renorm, ind.accumulator_for({}),
                                scheme=scheme)
 
-    for ladder in range(2):
+    for _ in range(2):   # the second ladder reuses the first one's propagators
         build = PilotPropagators(model, ind.renorm, ind.accumulator_for({}), scheme)
         for tau in (0.5, 0.25, 1.0):
             fresh = _constant_pilot_run(model, X, tau, build=afresh)
