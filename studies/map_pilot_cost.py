@@ -36,7 +36,15 @@ costs cut (pilot17, ``map_pilot_cost.json``, load 0.43 → 0.47) 13.8 ms,
 the rest (6.6 ms) was mostly the TM advance's and the LH outputs' own
 Python per run (:mod:`varint.methods.tm`, :mod:`varint.time_transform`);
 of the kernels, the LH's third run, its finest and dearest, is made only
-to learn that its rate stops the descent.
+to learn that its rate stops the descent. pilot18 cut the constant
+pilots' Python (step counts once per scheme, propagators kept across
+maps, outputs scattered from the lanes in one compiled pass, the pilot's
+vectors drawn once, one error quantile per judged rung): on a machine
+loaded 19–22 (no quiet period that session) the switch went 20.2 → 19.6
+ms CPU (21 interleaved repeats, ``pilot18/map_pilot_cost_*_loaded2.json``),
+its cProfile share 473 → 385 ms, the constant pilot runs' 212 → 175 ms
+(the profiler inflates Python, not the kernels); same 7 runs, choice
+and bits.
 
 Usage: ``python studies/map_pilot_cost.py [--quick] [--repeats N] [--out DIR]``;
 results ``map_pilot_cost.json``.

@@ -298,6 +298,30 @@ def test_lane_layout_round_trip():
         assert not np.delete(target, active, axis=0).any()
 
 
+def test_lane_outputs_back_into_rows():
+    """The lanes' copies at outputs (blocks, S, ..., lanes) back into the
+    active orbits' rows of (S, M, ...): each output's row of each active
+    orbit, padding dropped, inactive rows untouched, for contiguous
+    (compiled) and strided (NumPy) targets, floats and integers."""
+    from varint.methods.tm import _Lanes
+
+    rng = np.random.default_rng(3)
+    active = np.sort(rng.choice(40, 27, replace=False))
+    lanes = _Lanes(active, 8)
+    for shape, draw in (((5, 40, 4, 3), rng.standard_normal), ((5, 40, 2), rng.standard_normal),
+                        ((5, 40, 1), lambda s: rng.integers(0, 99, s))):
+        rows = draw(shape)
+        # The lanes' layout, by index: row active[i] is lane i % 8 of block i // 8.
+        src = np.full((lanes.blocks, shape[0]) + shape[2:] + (8,), -1, dtype=rows.dtype)
+        for i, row in enumerate(active):
+            src[i // 8, ..., i % 8] = rows[:, row]
+        for target in (np.zeros_like(rows), np.zeros(shape[:1] + (2 * shape[1],) + shape[2:],
+                                                      dtype=rows.dtype)[:, ::2]):
+            lanes.put_outputs(src, target)
+            assert np.array_equal(target[:, active], rows[:, active])
+            assert not np.delete(target, active, axis=1).any()
+
+
 def test_a_built_in_models_symbolic_facts_are_read_from_the_cache(monkeypatch, tmp_path):
     """Whether a built-in model gets a generated stepper, and the key of its
     potential, are kept beside the steppers under its description: a new

@@ -416,30 +416,69 @@ def _constant_pilot_run(model, X, tau, **kwargs):
 
 def test_a_ladder_propagator_and_lazy_errors_give_a_fresh_runs_bits():
     """The propagators of a ladder's rungs (PilotPropagators: the class
-    chosen once by make_propagator, the others built at their τ) run as
-    propagators built afresh, and errors measured on demand (lazy) are
-    those measured at once: on the three-body problem (a rotating frame,
-    whose class make_propagator chooses from its symbolic form), at the
-    first τ built and at two more, every error, FLI and count bitwise
-    equal; the lazy errors are measured once, on their first read."""
-    from varint.stepsize import PilotPropagators
+    chosen once by make_propagator, the others built at their τ, each kept
+    for later ladders) run as propagators built afresh, also when a later
+    ladder reuses them, and errors measured on demand (lazy) are those
+    measured at once: on the three-body problem (a rotating frame, whose
+    class make_propagator chooses from its symbolic form), at the first τ
+    built and at two more, every error, FLI and count bitwise equal; the
+    lazy errors are measured once, on their first read."""
+    from varint.methods import make_propagator
+    from varint.stepsize import PilotPropagators, default_scheme
 
     model = CR3BP(SUN_JUPITER_MU)
     X = _cr3bp_orbits(4, 12, 3.05)
     ind = varint.INDICATORS["fli"]
-    from varint.stepsize import default_scheme
+    scheme = default_scheme(model, maps.MAP_SCHEME)
 
-    build = PilotPropagators(model, ind.renorm, ind.accumulator_for({}),
-                             default_scheme(model, maps.MAP_SCHEME))
-    for tau in (0.5, 0.25, 1.0):
-        fresh = _constant_pilot_run(model, X, tau)
-        measure, values, counts = _constant_pilot_run(model, X, tau, build=build, lazy=True)
-        assert callable(measure) and counts == fresh[2] and counts["gradient"] > 0
-        errors = measure()
-        assert measure() is errors
-        assert np.array_equal(errors, fresh[0]) and np.array_equal(values, fresh[1],
-                                                                     equal_nan=True)
-        assert np.all(np.isfinite(errors)) and np.all(errors > 0)
+    def afresh(tau):
+        return make_propagator("tm", model, tau, ind.renorm, ind.accumulator_for({}),
+                               scheme=scheme)
+
+    for _ in range(2):   # the second ladder reuses the first one's propagators
+        build = PilotPropagators(model, ind.renorm, ind.accumulator_for({}), scheme)
+        for tau in (0.5, 0.25, 1.0):
+            fresh = _constant_pilot_run(model, X, tau, build=afresh)
+            measure, values, counts = _constant_pilot_run(model, X, tau, build=build, lazy=True)
+            assert callable(measure) and counts == fresh[2] and counts["gradient"] > 0
+            errors = measure()
+            assert measure() is errors
+            assert np.array_equal(errors, fresh[0]) and np.array_equal(values, fresh[1],
+                                                                         equal_nan=True)
+            assert np.all(np.isfinite(errors)) and np.all(errors > 0)
+
+
+def test_pilot_propagators_are_kept_per_model_state_and_settings():
+    """A later ladder of the same model, settings and τ gets the propagator
+    built before; another τ, another model object, other settings, or the
+    model changed in place (its parameters, escape radius, masses: what a
+    propagator reads of it) get a new one, built as make_propagator builds
+    it."""
+    from varint.methods import make_propagator
+    from varint.stepsize import PilotPropagators, default_scheme
+
+    model = CR3BP(SUN_JUPITER_MU)
+    ind = varint.INDICATORS["fli"]
+    acc = ind.accumulator_for({})
+    scheme = default_scheme(model, maps.MAP_SCHEME)
+
+    def ladder(m=model, renorm=ind.renorm):
+        return PilotPropagators(m, renorm, acc, scheme)
+
+    first = ladder()(0.25)
+    assert type(first) is type(make_propagator("tm", model, 0.25, ind.renorm, acc, scheme=scheme))
+    assert ladder()(0.25) is first and ladder()(np.float64(0.25)) is first
+    assert ladder()(0.125) is not first and ladder()(0.125).tau == 0.125
+    assert ladder(CR3BP(SUN_JUPITER_MU))(0.25) is not first
+    assert ladder(renorm="qr")(0.25) is not first
+    model.escape_radius = 10.0
+    moved = ladder()(0.25)
+    assert moved is not first and moved._escape_r2 == 100.0
+    model.params = np.array([1.0])
+    assert ladder()(0.25) is not moved
+    changed = ladder()(0.25)
+    model.inverse_mass[:] = 2.0     # in place: the array's bytes change
+    assert ladder()(0.25) is not changed
 
 
 def test_descend_measures_the_energy_errors_of_judged_rungs_only():

@@ -54,7 +54,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import threading
 import warnings
+import weakref
 
 import numpy as np
 
@@ -384,7 +386,10 @@ class PilotPropagators:
     same class with the same arguments but τ for the others, as
     ``make_propagator`` would build them: its choice does not depend on τ.
     A propagator holds no state of a run, so each one's runs are those of a
-    fresh one (``tests/test_step_agreement.py``)."""
+    fresh one (``tests/test_step_agreement.py``), and a propagator built
+    once serves every later pilot of the same model and settings at its τ
+    (:func:`_kept_propagators`: a map's ladders repeat their rungs from map
+    to map; each new one would look up its stepper again)."""
 
     def __init__(self, model, renorm, accumulator, scheme, compensated=False):
         self._model, self._accumulator = model, accumulator
@@ -392,13 +397,60 @@ class PilotPropagators:
         # As given: the propagator checks the value.
         self._options = {"scheme": scheme,
                          **({} if compensated is False else {"compensated": compensated})}
-        self._class = None
+        self._kept = _kept_propagators(model, (self._renorm, accumulator, scheme, compensated))
 
     def __call__(self, tau):
-        if self._class is None:
-            prop = make_propagator("tm", self._model, tau, self._renorm, self._accumulator,
-                                   **self._options)
-            self._class = type(prop)
+        kept = self._kept
+        prop = kept.get(tau)
+        if prop is not None:
             return prop
-        return self._class(self._model, tau, self._renorm, accumulator=self._accumulator,
+        # (Locked: maps run in threads share these dicts.)
+        with _KEPT_LOCK:
+            cls = kept.get(_CLASS)
+            if cls is None:
+                prop = make_propagator("tm", self._model, tau, self._renorm, self._accumulator,
+                                       **self._options)
+                kept[_CLASS] = type(prop)
+            else:
+                prop = cls(self._model, tau, self._renorm, accumulator=self._accumulator,
                            **self._options)
+            if len(kept) > _KEPT_STEPS:
+                del kept[next(k for k in kept if k != _CLASS)]   # the oldest step
+            kept[float(tau)] = prop
+        return prop
+
+
+#: The key of the propagators' class among the steps of :func:`_kept_propagators`.
+_CLASS = "class"
+
+#: Most propagators kept per model and settings (a ladder has
+#: :data:`varint.step_agreement.LEVELS` + 1 steps; maps of other lengths
+#: start other ladders).
+_KEPT_STEPS = 32
+
+#: The pilots' propagators per model (:func:`_kept_propagators`): beside
+#: the model, not in it (a model must stay picklable, Dask).
+_PILOT_PROPAGATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_KEPT_LOCK = threading.Lock()
+
+
+def _kept_propagators(model, settings):
+    """The propagators built for ``model`` with ``settings`` (renorm,
+    accumulator, scheme, compensated), by step τ, and their class (key
+    :data:`_CLASS`): a dict shared by every :class:`PilotPropagators` of
+    the same model in the same state. Keyed as the generated steppers
+    (:func:`varint.methods.tm._generated_stepper`), by what the propagator
+    reads of the model besides its form: its parameters, masses, escape
+    radius and time dependence, so a model changed in place gets new ones.
+    A fresh dict (nothing shared) where the model or the settings cannot
+    be keyed."""
+    try:
+        key = (settings, np.asarray(model.params, dtype=float).tobytes(),
+               np.asarray(model.inverse_mass, dtype=float).tobytes(), model.escape_radius,
+               bool(model.time_dependent))
+        with _KEPT_LOCK:
+            return _PILOT_PROPAGATORS.setdefault(model, {}).setdefault(key, {})
+    except (TypeError, AttributeError):
+        # A model without these attributes or weak references, settings
+        # that cannot be hashed.
+        return {}

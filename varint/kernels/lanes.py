@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["gather", "scatter"]
+__all__ = ["gather", "scatter", "scatter_outputs"]
 
 
 @njit(cache=True)
@@ -36,3 +36,18 @@ def scatter(src, rows, a):
         b, lane = divmod(i, width)
         for f in range(src.shape[1]):
             a[rows[i], f] = src[b, f, lane]
+
+
+@njit(cache=True)
+def scatter_outputs(src, rows, a):
+    """``a[s, rows[i], f] = src[i // L, s, f, i % L]`` for ``src`` (B, S, F, L)
+    and ``a`` (S, M, F): the lanes' copies at S outputs back into the rows
+    they came from (padding lanes dropped), as :func:`scatter` per output
+    (NumPy's moveaxis, reshape and fancy assignment cost more than the
+    copy for a pilot's few orbits)."""
+    width = src.shape[3]
+    for s in range(src.shape[1]):
+        for i in range(len(rows)):
+            b, lane = divmod(i, width)
+            for f in range(src.shape[2]):
+                a[s, rows[i], f] = src[b, s, f, lane]

@@ -19,6 +19,7 @@ stepper (:mod:`varint.kernels.tm`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import numbers
 import weakref
@@ -34,7 +35,7 @@ from ..codegen.tm import LEVELS, compact_shape, step_counts
 from ..kernels import tm as K
 from ..gpu import device
 from ..kernels.interval import Call, no_accumulator, use_parallel
-from ..kernels.lanes import gather, scatter
+from ..kernels.lanes import gather, scatter, scatter_outputs
 from ..kernels.processor import processor_map
 from ..protocol import COUNTERS, STATUS_OK, Renorm, Status
 from ..schemes import (DEFAULT_SCHEME, DRIFT, ProcessedScheme, default_for, get_scheme,
@@ -426,11 +427,14 @@ class TangentMapPropagator:
 
     def _step_counts(self, k):
         """:func:`~varint.codegen.tm.step_counts` for k vectors (worked
-        out once: a map with early stopping calls the stepper at every
-        check time)."""
+        out once per propagator, :func:`_scheme_step_counts` once per
+        scheme: a map with early stopping calls the stepper at every check
+        time, and a pilot's ladder builds a propagator for each of its
+        steps)."""
         if k not in self._counts:
-            self._counts[k] = step_counts(
-                self._kinds, (self._hc != 0.0) & (self._kinds != DRIFT), k,
+            corrected = (self._hc != 0.0) & (self._kinds != DRIFT)
+            self._counts[k] = _scheme_step_counts(
+                tuple(self._kinds.tolist()), tuple(corrected.tolist()), int(k),
                 self.accumulator is not None and self.accumulator.needs_flow)
         return self._counts[k]
 
@@ -505,9 +509,6 @@ class TangentMapPropagator:
         width = -(-len(active) // (blocks * self.MIN_LANES)) * self.MIN_LANES
         lanes = _Lanes(active, width)
         sched = self._schedule(state)     # first: part of the state to restore
-        start = {"x": state.x[active], "W": state.W[active], "acc_m": state.acc_m[active],
-                 "acc_e": state.acc_e[active]}
-        extra_start = {key: arr[active] for key, arr in state.extra.items()}
         aux = self._accumulator(state)
         X, W = lanes.soa(state.x), lanes.soa(state.W)
         am, ae = lanes.soa(state.acc_m), lanes.soa(state.acc_e)
@@ -535,6 +536,14 @@ class TangentMapPropagator:
         with numba.parallel_chunksize(1) if parallel else contextlib.nullcontext():
             kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
                    self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
+        failed = active[lanes.aos(st) != 0]
+        # The call's start, for the orbits that fail (rare): the kernel
+        # stepped copies (the lanes), so the state's rows are still the start
+        # until they are written back below.
+        start, extra_start = {}, {}
+        if failed.size:
+            start = {name: getattr(state, name)[active] for name in ("x", "W", "acc_m", "acc_e")}
+            extra_start = {key: arr[active] for key, arr in state.extra.items()}
         for lane_array, target in ((X, state.x), (W, state.W), (am, state.acc_m),
                                    (ae, state.acc_e)):
             lanes.put(lane_array, target)
@@ -542,17 +551,15 @@ class TangentMapPropagator:
         if aux.size:
             aux[active] = lanes.from_rows_by_lane(lane_aux)
         if s:
-            snaps.x[:, active] = lanes.snapshot_rows(sx)
-            snaps.W[:, active] = lanes.snapshot_rows(sW)
-            snaps.acc_m[:, active] = lanes.snapshot_rows(sm)
-            snaps.acc_e[:, active] = lanes.snapshot_rows(se)
+            for lane_array, target in ((sx, snaps.x), (sW, snaps.W), (sm, snaps.acc_m),
+                                       (se, snaps.acc_e)):
+                lanes.put_outputs(lane_array, target)
             if aux.size:
                 snaps.extra[self.accumulator.key][:, active] = lanes.snapshot_rows_by_lane(saux)
         per, first = self._step_counts(k)
         done = np.zeros(m, dtype=np.int64)
         counters = np.zeros((m, len(COUNTERS)), dtype=np.int64)
         done[active], counters[active] = n, per * int(n) + first
-        failed = active[lanes.aos(st) != 0]
         self._rerun_failed(module, state, n, snaps, active, failed, start, extra_start, done,
                            counters)
 
@@ -678,6 +685,17 @@ def tangent_map_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=DEFAULT_SCHE
     return state.x[0], state.W[0]
 
 
+@functools.lru_cache(maxsize=64)
+def _scheme_step_counts(kinds, corrected, k, flow):
+    """:func:`~varint.codegen.tm.step_counts` of a scheme's stage kinds and
+    corrected stages (tuples), read-only: shared by every propagator of
+    that scheme (~0.1 ms each on a pilot's rungs, which differ in τ alone,
+    and τ does not change which stages are corrected)."""
+    per, first = step_counts(kinds, corrected, k, flow)
+    per.flags.writeable = first.flags.writeable = False
+    return per, first
+
+
 #: Generated stepper modules per model (:func:`_generated_stepper`).
 _STEPPERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 #: Per model: the one-orbit orbit-steps each of its steppers ran compact in
@@ -737,6 +755,17 @@ class _Lanes:
                     target.reshape(len(target), f))
         else:
             target[self.active] = self.aos(a)
+
+    def put_outputs(self, a, target):
+        """Write the lanes' outputs ``a`` (blocks, S, ..., lanes) into the
+        active orbits' rows of ``target`` (S, M, ...), in place."""
+        if target.flags.c_contiguous:
+            s, m = target.shape[:2]
+            f = math.prod(target.shape[2:])
+            scatter_outputs(a.reshape(self.blocks, s, f, self.width), self.active,
+                            target.reshape(s, m, f))
+        else:
+            target[:, self.active] = self.snapshot_rows(a)
 
     def rows_by_lane(self, a):
         """Rows of ``a`` (M, ...) -> (blocks, lanes, ...): per-lane arrays
