@@ -240,6 +240,8 @@ class TangentMapPropagator:
     #: propagator, and a stepper written out that an earlier run (or
     #: process: its file in the cache) has compiled is taken whatever the
     #: work: short runs are slow only until the compile is worth paying.
+    #: A prepared run's or a repeated call's calls run written out
+    #: (:meth:`fresh_run`).
     COMPACT_WORK = 10 ** 6
 
     def _stepper(self, k, compact=False):
@@ -392,7 +394,11 @@ class TangentMapPropagator:
         aux0 : ndarray, shape (M, k, c)
             The accumulator's start ((M, 0, 0) without one).
         """
-        module = self._orbit_stepper(k, m * int(outs[-1]))
+        # Written out, whatever the work: a fresh run serves a prepared
+        # run's or a repeated call's calls (:mod:`varint.rerun`), which come
+        # many times, so the compile the compact stepper would spare is
+        # repaid (:attr:`COMPACT_WORK`; the same bits either way).
+        module = self._stepper(k)
         kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
         call = Call(int(outs[-1]), 0, self.tau, int(self.renorm), self._escape_r2)
         return FreshRun(kernel, self._setup(), call, outs, (m, self.model.dim, k), aux0,
