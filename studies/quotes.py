@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import json
+import contextlib
 import re
 import sys
 from functools import cached_property
@@ -324,10 +325,8 @@ def _newest_map_run(R, name):
     ``name``: the run of both maps (``map_steps_quick_log``) or of that map
     alone (``map_steps_quick_<name>_log``), whichever was made last."""
     runs = [R.json("map_steps_quick_log")]
-    try:
+    with contextlib.suppress(FileNotFoundError):
         runs.append(R.json(f"map_steps_quick_{name}_log"))
-    except FileNotFoundError:
-        pass
     return max(runs, key=lambda d: d["_provenance"]["created"])
 
 
