@@ -31,6 +31,18 @@ Maps: ``cr3bp`` and ``core``, the races' maps of ``studies/map_steps.py``
 ``studies/switch_check.py`` (two fixed softened centres, masses 1 and 0.5;
 40 orbits, t = 500).
 
+Stored run (``studies/results/pilot19/ladder_rule.json``, pilot19, load
+15.8 → 17.1; counts only): by either rule the defaults chose the same
+stepper and step, with the same pilot force evaluations and the same
+values bit for bit: the three-body map constant SRKN14a τ = 0.25 (98.7 %;
+pilots 336 000 constant and 80 066 LH force evaluations), the two
+centres the LH at h = 0.0318 (100 %; 11.4e6 and 2.82e6), the cored map
+the LH at h = 0.0247 (100 %; 1.41e6 and 1.35e6). The constant ladder
+alone: τ = 0.25 on the three-body map by both rules, none on the two
+centres (every rung above the energy ceiling), and on the cored map
+τ = 1/128 by the maps' rule against 1/64 by the verdict (at 1/64 all 16
+verdicts agree at t = 100, 7 of 16 values to t_end = 2000).
+
 Usage: ``python studies/ladder_rule.py [--maps cr3bp,core,two]``; result
 ``ladder_rule.json``.
 """
@@ -54,10 +66,15 @@ from studies.common import parse_args, save_json
 from studies.map_steps import (BATCH, INDICATOR, REF_EVERY, REF_TOL, HeyokaMap, fli_threshold,
                                race_map, seeded_vectors)
 from studies.switch_check import heldout
-from varint import maps, step_agreement
+from varint import maps, step_agreement, time_transform_step
 from varint.accuracy import DEFAULT_ENERGY_TOL
 from varint.stepsize_orbits import indicator_judge
 
+#: The LH's rule, imported before any patch below: the switch imports
+#: :mod:`varint.time_transform_step` on its first call, and a patched
+#: ``step_agreement.map_verdict`` would then become the LH's rule too (its
+#: functions bind it as a default argument).
+LH_RULE = time_transform_step.map_verdict
 MAPS = ("cr3bp", "core", "two")
 RULES = {"verdict": step_agreement.same_verdict, "map_verdict": step_agreement.map_verdict}
 #: The held-out map's orbits and t_end (as ``studies/switch_check.py``).
@@ -101,6 +118,7 @@ def measure(name):
             warnings.simplefilter("ignore")
             out = varint.chaos_map(model, X, INDICATOR, t_end=t_end, progress=False)
             tau, alone = ladder(model, X, t_end, agree)
+        assert time_transform_step.agreeing_h.__kwdefaults__["agree"] is LH_RULE
         v = np.asarray(out.values)
         choice = out.provenance.tau_choice
         log = choice if out.provenance.method == "tm+log" else choice.get("log", {})
