@@ -19,6 +19,25 @@ Maps: ``cr3bp`` and ``core``, the races' maps of ``studies/map_steps.py``
 (quick grids); ``two``, the held-out two centres of
 ``studies/switch_check.py`` (``studies/ladder_rule.py``).
 
+Stored run (``studies/results/pilot19/pilot_runs.json``, pilot19, 3
+repeats, load 15.2 → 15.2: read the counts, and the seconds as shares).
+The three-body map: the switch 27.5 ms CPU, its pilot runs 19.1 ms: four
+LH runs (h = 3.30, 1.65, 0.82 and 0.41, the fine run of the rung 0.82,
+which fails by 7 of 16 orbits: 80 066 force evaluations, 11.3 ms, about
+141 ns each: the one-orbit kernel, as a map of 76 orbits at these h runs)
+and four constant runs (τ = 1 and 0.5 failing on their energy errors, 0.25
+passing against 0.125: 336 000, 7.8 ms, 23 ns each, lanes). Every one of
+them is needed by the rules: the LH rung 0.82 is priced (13.25 force
+evaluations per orbit and unit of time at the lanes' 30.3 units, 402)
+below the constant step that wins (760), so it must be judged, and its
+fine run is then the next rung's coarse run, whose rate (25.6: 775)
+stops the descent. The cored map: the switch 145 ms CPU, its pilot runs
+89 ms: 37 LH runs of the offset pricing to t = 25 (1.08e6 force
+evaluations, 40 ms, most of them rungs above the energy ceiling, each
+~0.5 ms whatever its size), 10 LH runs of the map's descent at δ = 0.25
+to t = 100 (1.35e6), the constant ladder's 6 runs (1.41e6, all above the
+energy ceiling, down to τ = 1/32, whose rate stops it).
+
 Usage: ``python studies/pilot_runs.py [--maps cr3bp,core] [--repeats N]``;
 result ``pilot_runs.json``.
 """
