@@ -861,12 +861,15 @@ def _sequential(call):
 
 
 def _verdict_tau_map(model, grid, t_end):
-    """The constant-step map at the largest τ whose pilot FLI verdicts agree
-    with those at τ/2 (:func:`varint.step_agreement.agreeing_tau` with the
-    verdict rule, as the defaults' switch searches it; pilot included)."""
+    """The constant-step map at the largest τ whose pilot FLI agrees with
+    that at τ/2 (:func:`varint.step_agreement.agreeing_tau` with the maps'
+    rule, :func:`~varint.step_agreement.map_verdict`, as the defaults'
+    switch searches it since pilot19; the verdict at the pilot's t,
+    ``same_verdict``, before; pilot included). The row keeps its label
+    ("verdict tau") for the stored results."""
     from varint.accuracy import DEFAULT_ENERGY_TOL
     from varint.maps import MAP_QUANTILE, MAP_SCHEME, pilot_tolerance
-    from varint.step_agreement import agreeing_tau, same_verdict
+    from varint.step_agreement import agreeing_tau, map_verdict
     from varint.stepsize_orbits import indicator_judge
 
     ind = varint.INDICATORS[INDICATOR]
@@ -874,7 +877,7 @@ def _verdict_tau_map(model, grid, t_end):
     tau, _ = agreeing_tau(model, grid.states, t_end, scheme=MAP_SCHEME, seed=0, k=1,
                           renorm=ind.renorm, accumulator=ind.accumulator_for({}),
                           value=judge.value, quantile=MAP_QUANTILE, ceiling=DEFAULT_ENERGY_TOL,
-                          agree=same_verdict)
+                          agree=map_verdict)
     return varint.chaos_map(model, grid, INDICATOR, t_end=t_end, progress=False,
                             time_transform=None, tau=tau, scheme=MAP_SCHEME)
 

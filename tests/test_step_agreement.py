@@ -22,7 +22,8 @@ from varint.maps import MAP_QUANTILE
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.state import initial_deviations
-from varint.step_agreement import agreeing, chaotic_level, descend, passes, same_verdict
+from varint.step_agreement import (agreeing, chaotic_level, descend, map_verdict, passes,
+                                   same_verdict)
 from varint.time_transform import LogHamiltonian
 from varint.time_transform_step import agreeing_h
 
@@ -71,6 +72,15 @@ def test_agreement_rule():
     assert agreeing(coarse, fine, t).tolist() == [True, False, True, False, False, True]
     assert same_verdict(coarse, fine, t).tolist() == [True, True, True, False, False, True]
     assert same_verdict(coarse, fine, t, t_end=1e4).tolist() == same_verdict(coarse, fine, t).tolist()
+    # The maps' rule: the verdict where the pilot reaches the map's end, the
+    # values within 0.05 dex times t/t_end beyond it (5.0 and 5.5 differ by
+    # 0.041 dex: within 0.05, not within 0.005).
+    assert map_verdict(coarse, fine, t, t_end=t).tolist() == same_verdict(coarse, fine, t).tolist()
+    assert map_verdict(coarse, fine, t).tolist() == same_verdict(coarse, fine, t).tolist()
+    assert map_verdict(coarse, fine, t, t_end=2 * t).tolist() == agreeing(coarse, fine, t, 2 * t).tolist()
+    assert map_verdict(coarse, fine, t, t_end=10 * t).tolist() == [False, False, True, False,
+                                                                   False, True]
+    assert map_verdict([5.0], [5.0 * 10**0.0049], t, t_end=10 * t).tolist() == [True]
     assert passes(np.ones(10, bool), np.full(10, 1e-4), 0.9, 1e-3)[0]
     assert not passes(np.ones(10, bool), np.full(10, 1e-2), 0.9, 1e-3)[0]
     assert not passes(np.arange(10) < 8, np.full(10, 1e-4), 0.9, 1e-3)[0]
@@ -158,8 +168,9 @@ def test_switch_follows_the_prices(cost, method):
         == (method == "tm+log")
     if method == "tm":
         assert choice["rule"] == "indicator" and r.provenance.tau == choice["tau"]
-        # By the verdict at the chaotic level (the LH: by its values to t_end).
-        assert choice["agreement"] == "same_verdict"
+        # By the LH's rule: the values to the map's t_end (the verdict at the
+        # pilot's t before pilot19).
+        assert choice["agreement"] == "map_verdict"
         assert "step chosen by indicator agreement between tau and tau/2" in r.accuracy.verdict
     else:
         assert choice["rule"] == "indicator" and choice["constant"]["rule"] in ("indicator", "none")
@@ -239,7 +250,7 @@ def test_constant_pilot_that_wins_stops_the_lh_descent():
     tau, _ = agreeing_tau(model, X, T_END, scheme=maps.MAP_SCHEME, seed=0, k=1,
                           renorm=ind.renorm, accumulator=ind.accumulator_for({}),
                           value=judge.value, quantile=MAP_QUANTILE, ceiling=tol,
-                          stop_above=log_price / unit["constant"], agree=same_verdict)
+                          stop_above=log_price / unit["constant"], agree=map_verdict)
     assert tau is not None and tau == r.provenance.tau == choice["tau"] and winner < log_price
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -365,6 +376,82 @@ def test_descend_spares_runs_that_cannot_change_the_rung(stop_above, chosen, spa
     assert [share for _, share, _ in tried][:3] == [None] * min(3, len(tried))
     assert sorted(made) == sorted(set(made)) and len(made) == len(set(naive_made)) - spared
     assert set(made) <= set(naive_made)
+
+
+#: The made-up ladders' pilot time, map's t_end, rungs and quantile.
+_LAW_T, _LAW_T_END, _LAW_LEVELS, _LAW_QUANTILE = 100.0, 1000.0, 8, 0.9
+
+
+def _made_up_ladder(rng):
+    """A made-up ladder of 16 orbits (values converging as 2^−pj, p from
+    0.5 to 4, to each orbit's own, some chaotic; energy errors as 2^−pj;
+    rates growing down the ladder by 1 to 2.5 a rung), a ceiling and a
+    competitor's price (none, or about one rung's rate)."""
+    level, levels = chaotic_level(_LAW_T), _LAW_LEVELS
+    truth = np.where(rng.random(16) < 0.3, level + rng.uniform(1, 20, 16),
+                     rng.uniform(2.0, 8.0, 16))
+    scale, order = 10.0 ** rng.uniform(-3, 1), rng.uniform(0.5, 4.0)
+    values = [truth * (1 + scale * 2.0**(-order * j) * rng.normal(size=16))
+              for j in range(levels + 1)]
+    errors = [scale * 2.0**(-order * j) * rng.lognormal(size=16) for j in range(levels + 1)]
+    rates = np.cumprod(rng.uniform(1.0, 2.5, levels + 1))
+    ceiling = 10.0 ** rng.uniform(-5, 0)
+    limit = rng.choice([math.inf, *rates[:levels]]) * rng.uniform(0.8, 1.2)
+    return values, errors, rates, ceiling, limit
+
+
+def _passes_by_hand(values, errors, ceiling, j):
+    """Rung j of a made-up ladder passes: a 0.9 share agreeing with rung
+    j + 1 by map_verdict to the map's t_end, the 0.9 quantile of its
+    energy errors within the ceiling."""
+    share = np.mean(map_verdict(values[j], values[j + 1], _LAW_T, _LAW_T_END))
+    return bool(share >= _LAW_QUANTILE
+                and np.quantile(errors[j], _LAW_QUANTILE, method="higher") <= ceiling)
+
+
+def _descend_made_up(values, errors, rates, ceiling, limit, with_floor):
+    """descend over a made-up ladder: the rung chosen (or None)."""
+    made: set = set()
+
+    def run(j):
+        made.add(j)
+        return values[j], errors[j], rates[j]
+
+    def floor(j):
+        # The rung above's rate: a lower bound where rates grow.
+        return rates[j - 1] if j - 1 in made and j not in made else None
+
+    _, chosen = descend(run, range(_LAW_LEVELS), lambda j: 2.0**-j, _LAW_T, _LAW_T_END,
+                        _LAW_QUANTILE, ceiling, stop_above=limit, agree=map_verdict,
+                        floor=floor if with_floor else None)
+    return None if chosen is None else chosen[0]
+
+
+def test_descend_never_picks_a_failing_rung_nor_stops_before_a_cheaper_passing_one():
+    """The laws of a ladder's descent, on 400 made-up ladders
+    (_made_up_ladder): the rung chosen passes by map_verdict to a map 10
+    times the pilot's t (checked by hand), and it is the first rung in
+    order that does; where a competitor's price stops the descent, every
+    rung that passes costs more than that price, so no cheaper agreeing
+    step is discarded — with the floor and without it alike."""
+    rng = np.random.default_rng(19)
+    outcomes: Counter = Counter()
+    for _ in range(400):
+        values, errors, rates, ceiling, limit = _made_up_ladder(rng)
+        passing = [j for j in range(_LAW_LEVELS) if _passes_by_hand(values, errors, ceiling, j)]
+        first_dear = next((j for j in range(_LAW_LEVELS) if rates[j] > limit), _LAW_LEVELS)
+        expected = next((j for j in passing if j < first_dear), None)
+        for with_floor in (False, True):
+            got = _descend_made_up(values, errors, rates, ceiling, limit, with_floor)
+            assert got == expected
+            if got is None:
+                assert all(rates[j] > limit for j in passing)
+            else:
+                assert passing[0] == got
+        outcomes["chosen" if expected is not None else
+                 "stopped" if passing else "none passes"] += 1
+    # The made-up ladders reach every outcome.
+    assert min(outcomes.values()) >= 20 and len(outcomes) == 3, outcomes
 
 
 def test_constant_ladder_spares_the_fine_run_of_a_rung_failing_on_energy():

@@ -599,13 +599,14 @@ def _cheaper_steps(spec, k, clock):
     guarantee, for a map ``spec`` whose step is not chosen yet: each one's
     largest step at which the pilot orbits' FLI agrees with that at half
     the step (:mod:`varint.step_agreement`: the LH's
-    :func:`~varint.time_transform_step.agreeing_h`, its values to the
-    map's t_end; the constant step's
-    :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`,
-    by the verdict rule at the pilot's t (which favours constant steps
-    on a map much longer than its pilot); both with
-    energy errors within ``energy_tol``, the LH's pilot 10 times that: its
-    map retries each orbit to ``energy_tol``),
+    :func:`~varint.time_transform_step.agreeing_h`; the constant step's
+    :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`;
+    both by one rule, :func:`~varint.step_agreement.map_verdict`, the FLI
+    values to the map's t_end (the constant ladder was judged by the
+    verdict at the pilot's t before pilot19, which favoured constant steps
+    on a map much longer than its pilot; ``studies/ladder_rule.py``); both
+    with energy errors within ``energy_tol``, the LH's pilot 10 times that:
+    its map retries each orbit to ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
     cost, each stepper's from its emitted source
     (:func:`varint.step_cost.log_gradient_cost`,
@@ -649,7 +650,7 @@ def _cheaper_steps(spec, k, clock):
             model, X, spec.t_end, scheme=MAP_SCHEME, seed=spec.seed, k=k,
             renorm=spec.indicator.renorm,
             accumulator=spec.indicator.accumulator_for(spec.options), value=judge.value,
-            quantile=MAP_QUANTILE, ceiling=spec.energy_tol, agree=step_agreement.same_verdict)
+            quantile=MAP_QUANTILE, ceiling=spec.energy_tol, agree=step_agreement.map_verdict)
 
         share = _pilot_share(spec)
 

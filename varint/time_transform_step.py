@@ -80,7 +80,7 @@ import numpy as np
 from .accuracy import Reference
 from .kernels.time_transform import BUDGET
 from .state import initial_deviations
-from .step_agreement import agreeing, descend, pilot_sample, same_verdict, summary
+from .step_agreement import descend, map_verdict, pilot_sample, summary
 from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
 from .time_transform import lanes_work, takes_lanes
 
@@ -106,20 +106,6 @@ RETRY_LEVELS = 4
 #: agree and most orbits to pass at once; each orbit then meets
 #: ``energy_tol`` itself (``studies/lh_yardstick.py --part retry``).
 RETRY_CEILING = 10.0
-
-
-def map_verdict(coarse, fine, t, t_end=None):
-    """Per orbit, whether its FLI at a step (``coarse``) and at half of it
-    (``fine``), both at the pilot's time ``t``, agree as a map to
-    ``t_end`` needs (module docstring): the same verdict at the chaotic
-    level where the pilot runs to the map's end
-    (:func:`~varint.step_agreement.same_verdict`), the values within
-    0.05 dex times t/t_end where the map is longer
-    (:func:`~varint.step_agreement.agreeing`: its verdict at t_end is not
-    seen, and a regular orbit's FLI error grows linearly in time)."""
-    if t_end is None or float(t_end) <= float(t):
-        return same_verdict(coarse, fine, t)
-    return agreeing(coarse, fine, t, t_end)
 
 
 def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
