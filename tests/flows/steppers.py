@@ -15,21 +15,40 @@ from varint.models.hamiltonian import from_hamiltonian
 from varint.schemes import get_scheme, part_stages
 
 
-@njit
-def _gauss_loop(h, n, x, V, pars, A, b, c, d, E, work, grad, grad_hess, prev, timed, dtime, pt):
-    s = c.shape[0]
-    for i in range(n):
-        if timed:
-            # The times of this step's stages and start, from the integer step.
-            t = i * h
-            for j in range(s):
-                pars[j, -1] = t + c[j] * h
-            pars[s, -1] = t
-        status, _ = gauss_step(h, x, V, V.shape[0], pars, A, b, c, d, E, work, grad, grad_hess,
-                               prev, timed, dtime, pt)
-        if status != 0:
-            return status
-    return 0
+@functools.cache
+def _gauss_loop(timed):
+    """The compiled loop of :func:`gauss_steps` for a time-dependent model
+    (``timed``) or not. It calls ``gauss_step`` with the argument types of
+    the part stepper's flow (:func:`varint.flows.general.general_apply`:
+    ``timed`` a compile-time constant, the method's tables read-only), so
+    that a test comparing the two compiles the step once, not once per
+    caller (10 CPU s cold on the coupled general model)."""
+
+    @njit
+    def loop(h, n, x, V, pars, A, b, c, d, E, work, grad, grad_hess, prev, dtime, pt):
+        s = c.shape[0]
+        for i in range(n):
+            if timed:
+                # The times of this step's stages and start, from the integer step.
+                t = i * h
+                for j in range(s):
+                    pars[j, -1] = t + c[j] * h
+                pars[s, -1] = t
+            status, _ = gauss_step(h, x, V, V.shape[0], pars, A, b, c, d, E, work, grad,
+                                   grad_hess, prev, timed, dtime, pt)
+            if status != 0:
+                return status
+        return 0
+
+    return loop
+
+
+def _read_only(a):
+    """A read-only copy of ``a``: numba types it as the part stepper's flow
+    sees the tables it closes over."""
+    a = np.array(a, dtype=np.float64)
+    a.flags.writeable = False
+    return a
 
 
 def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None, pt=None):
@@ -43,16 +62,16 @@ def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None, pt=None)
     W = np.zeros((model.dim, 0)) if W is None else np.array(W, dtype=np.float64)
     V = np.ascontiguousarray(W.T)
     g = GAUSS[scheme]
-    A, b, c, d, E = g.arrays
+    A, b, c, d, E = (_read_only(a) for a in g.arrays)
     work = np.empty(gauss_work(model.n_dof, g.stages, V.shape[0]))
     if prev is None:
         prev = np.full(g.stages * model.dim, np.nan)
     timed = bool(model.time_dependent)
     pt = np.zeros(1) if pt is None else pt
-    status = _gauss_loop(float(h), int(n), x, V, stage_parameters(model.parameters_at(0.0),
-                                                                     g.stages),
-                         A, b, c, d, E, work, model.grad_h, model.grad_hess_h, prev, timed,
-                         model.dtime_h if timed else no_dtime, pt)
+    status = _gauss_loop(timed)(float(h), int(n), x, V,
+                                stage_parameters(model.parameters_at(0.0), g.stages),
+                                A, b, c, d, E, work, model.grad_h, model.grad_hess_h, prev,
+                                model.dtime_h if timed else no_dtime, pt)
     assert status == 0, f"Gauss–Legendre failed with status {status}"
     return x, np.ascontiguousarray(V.T)
 

@@ -140,8 +140,11 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
     def step(h, x, V, k, par, work, A, b, c, d, E):
         s = c.shape[0]
         pars = work[:(s + 1) * n_par].reshape((s + 1, n_par))
+        # Element by element: a slice assignment compiles numba's error
+        # message for mismatched shapes (4-6 CPU s per process).
         for j in range(s + 1):
-            pars[j, :] = par[:n_par]
+            for i in range(n_par):
+                pars[j, i] = par[i]
         if timed:
             for j in range(s):
                 pars[j, n_par - 1] = par[n_par - 1] + c[j] * h
