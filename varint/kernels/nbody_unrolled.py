@@ -223,9 +223,7 @@ def flows(n, jacobi):
     kick = kick_kernel(n, jacobi)
     drift = drift_kernel(n)
 
-    # Inlined into the part stepper (and the flows into it): a call with
-    # array arguments costs their reference counts, ~50 ns a step here.
-    @numba.njit(error_model="numpy", inline="always")
+    @numba.njit(error_model="numpy")
     def apply(part, h, x, V, k, par, work):
         if part == KEPLER:
             status = drift(x, V, k, h, par)
