@@ -8,8 +8,8 @@ coordinates (three parts). Run with two trees (``PYTHONPATH``) on fresh
 caches and compare the printed hashes: a change that should not change a
 bit changes none of them.
 
-Usage: ``python studies/planetary_bits.py [--out DIR]`` (stored as
-``planetary_bits.json``).
+Usage: ``python studies/planetary_bits.py [--only PREFIX …] [--out DIR]``
+(stored as ``planetary_bits.json``).
 """
 
 from __future__ import annotations
@@ -72,12 +72,19 @@ def cases():
     ]
 
 
+def _extra(parser):
+    parser.add_argument("--only", nargs="*", default=None, metavar="PREFIX",
+                        help="run only the cases whose label starts with one of these")
+
+
 def main(argv=None):
-    args = parse_args(__doc__.splitlines()[0], argv)
+    args = parse_args(__doc__.splitlines()[0], argv, extra=_extra)
     table = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for label, run in cases():
+            if args.only and not label.startswith(tuple(args.only)):
+                continue
             table[label] = digest(run())
             print(f"{label:24s} {table[label]}", flush=True)
     save_json(args, "planetary_bits", {"digests": table})
