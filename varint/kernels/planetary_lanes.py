@@ -334,15 +334,13 @@ def lane_word(n, jacobi, k, apply, width):
                     if not bad[lane]:
                         continue
                     alone += 1
-                    # Element by element, and the part as a number read at
-                    # run time: the one-orbit stepper's compile of apply
-                    # serves (a literal KEPLER compiled another), and no
-                    # shape-error code of a slice assignment is compiled.
+                    # Element by element: no shape-error code of a slice
+                    # assignment is compiled (4-7 s a process).
                     for i in range(x.shape[0]):
                         x[i] = X[i, lane]
                         for c in range(k):
                             W[c, i] = V[c, i, lane]
-                    apply(parts[st], h[st], x, W, k, par, work)
+                    apply(KEPLER, h[st], x, W, k, par, work)
                     for i in range(x.shape[0]):
                         X[i, lane] = x[i]
                         for c in range(k):
