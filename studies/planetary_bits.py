@@ -87,7 +87,7 @@ def main(argv=None):
                 continue
             table[label] = digest(run())
             print(f"{label:24s} {table[label]}", flush=True)
-    save_json(args, "planetary_bits", {"digests": table})
+    save_json(args.out, "planetary_bits", {"digests": table})
 
 
 if __name__ == "__main__":

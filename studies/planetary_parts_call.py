@@ -106,7 +106,7 @@ def main(argv=None):
             "compile_cpu_s": compile_s}
         print(f"k={k}: {rows[f'k={k}']}", flush=True)
     load.append(os.getloadavg()[0])
-    save_json(args, "planetary_parts_call", {"steps": n, "repeats": repeats, "rows": rows,
+    save_json(args.out, "planetary_parts_call", {"steps": n, "repeats": repeats, "rows": rows,
                                               "load": load})
 
 
