@@ -388,6 +388,15 @@ _KERNEL_BLOCK = 2 ** 18
 _PYTHON_STATES = 16
 
 
+def checked_kernels(model):
+    """The kernels (∇V, D²V, third derivatives) :func:`kernels` evaluates:
+    the model's ``checked_kernels`` where it names them (a model whose
+    singular states one of its kernels already shows, e.g.
+    :attr:`varint.models.Planetary.checked_kernels`), else its own three."""
+    return getattr(model, "checked_kernels", None) or (model.grad_kernel, model.hess_kernel,
+                                                       model.third_kernel)
+
+
 def kernels(model, X, what="the initial state"):
     """Evaluate the model's derivative kernels (∇V, D²V, the third
     derivatives) at every state of ``X`` (M, 2N) before any long work, and
@@ -489,12 +498,10 @@ class KernelCheck:
         state[:] = x
         par, resolved = model.params, self._resolved
         if resolved is None:
-            resolved = tuple(Resolved.of(f) for f in (model.grad_kernel, model.hess_kernel,
-                                                      model.third_kernel))
+            resolved = tuple(Resolved.of(f) for f in checked_kernels(model))
             self._params, self._resolved = par, resolved
             self._compiled = all(type(f) is Resolved for f in resolved)
-        grad, hess, third = (resolved if par is self._params else
-                             (model.grad_kernel, model.hess_kernel, model.third_kernel))
+        grad, hess, third = resolved if par is self._params else checked_kernels(model)
         grad(q, par, G)
         hess(q, par, H)
         third(q, par, v, T)
@@ -552,7 +559,7 @@ def _scan(model, Q):
     """The first row of ``Q`` where a kernel of ``model`` is not finite, −1
     if none; None where the compiled pass cannot call the kernels or one
     raises (then :func:`_evaluate` says why)."""
-    kernels = (model.grad_kernel, model.hess_kernel, model.third_kernel)
+    kernels = checked_kernels(model)
     par = model.params
     if not (all(hasattr(k, "py_func") for k in kernels) and isinstance(par, np.ndarray)
             and par.dtype == np.float64 and par.ndim == 1 and par.flags.c_contiguous):
@@ -592,7 +599,7 @@ def _finite_from_source(model, Q):
     value that is not, any exception or warning turned error, goes to the
     compiled check, so every error message is the compiled check's.
     """
-    kernels = (model.grad_kernel, model.hess_kernel, model.third_kernel)
+    kernels = checked_kernels(model)
     par = model.params
     if Q.size > _SOURCE_NUMBERS or not all(_unloaded_built_in(k) for k in kernels):
         return False
@@ -654,11 +661,12 @@ def _evaluate(model, q_all, todo, what, total):
         G = np.empty((len(Q), n))
         H = np.zeros((len(Q), rows, n))
         T = np.zeros((len(Q), rows, n))
+        grad, hess, third = checked_kernels(model)
         try:
             for i in range(len(Q)):
-                model.grad_kernel(Q[i], model.params, G[i])
-                model.hess_kernel(Q[i], model.params, H[i])
-                model.third_kernel(Q[i], model.params, v, T[i])
+                grad(Q[i], model.params, G[i])
+                hess(Q[i], model.params, H[i])
+                third(Q[i], model.params, v, T[i])
         except (NumbaError, TypeError) as exc:
             reason = first_line(exc)
             if reason.startswith("Int value is too large"):

@@ -51,7 +51,8 @@ from .kepler import KEPLER_OK, kepler_step
 __all__ = ["planetary_params", "JACOBI", "DEMOCRATIC", "KEPLER", "INTERACTION", "JUMP",
            "ENCOUNTER",
            "apply_flow", "vector_field", "potential_gradient", "potential_hessian_band",
-           "potential_third_band", "interaction_gradient", "jacobi_to_helio",
+           "potential_third_band", "unchecked_hessian", "unchecked_third",
+           "interaction_gradient", "jacobi_to_helio",
            "jacobi_transpose", "n_work", "apply_word"]
 
 #: Coordinate flags (``par[COORDS]``).
@@ -319,6 +320,19 @@ def potential_hessian_band(q, par, B):
 def potential_third_band(q, par, v, B):
     """Σ_k v_k D²(∂_kU)(q) in band storage of full bandwidth."""
     _potential_columns(q, par, v, B, True)
+
+
+@njit(cache=True, error_model="numpy")
+def unchecked_hessian(q, par, B):
+    """The ``hess`` kernel a start check evaluates in place of
+    :func:`potential_hessian_band` (:attr:`varint.models.Planetary.checked_kernels`):
+    writes nothing, so the check's zeroed band stays finite."""
+
+
+@njit(cache=True, error_model="numpy")
+def unchecked_third(q, par, v, B):
+    """The ``third`` kernel a start check evaluates in place of
+    :func:`potential_third_band` (as :func:`unchecked_hessian`)."""
 
 
 # -- the Wisdom–Holman parts ---------------------------------------------------

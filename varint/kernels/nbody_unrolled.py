@@ -212,7 +212,12 @@ def drift_kernel(n):
              "solve_fast": kep.solve_fast, "solve_universal": kep.solve_universal,
              "KEPLER_OK": KEPLER_OK, "KEPLER_DEGENERATE": KEPLER_DEGENERATE}
     exec(compile(_drift_source(n), f"<varint planetary drift n={n}>", "exec"), scope)
-    return numba.njit(error_model="numpy", inline="always")(scope["drift"])
+    # Called, not inlined: compiled once per process and signature (k),
+    # shared by every part stepper and lane block, where inlined it was
+    # compiled into each (about half of a stepper's 60 CPU s). The call
+    # costs 0-10 % of a two-planet WH step (studies/planetary_parts_call.py,
+    # measured 1.001-1.10 on a loaded machine).
+    return numba.njit(error_model="numpy")(scope["drift"])
 
 
 @cache
@@ -223,8 +228,9 @@ def flows(n, jacobi):
     kick = kick_kernel(n, jacobi)
     drift = drift_kernel(n)
 
-    # Inlined into the part stepper (and the flows into it): a call with
-    # array arguments costs their reference counts, ~50 ns a step here.
+    # Inlined into the part stepper: a call with array arguments costs their
+    # reference counts, ~50 ns a step here (the drift is called: see
+    # drift_kernel).
     @numba.njit(error_model="numpy", inline="always")
     def apply(part, h, x, V, k, par, work):
         if part == KEPLER:

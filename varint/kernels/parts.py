@@ -126,7 +126,13 @@ def parts_body(apply, field, K_C, TIME=False):
 
     @njit(inline="always")
     def end(state, ws):
-        state.W[:, :] = ws.V.T
+        # Element by element: a slice assignment makes numba compile its
+        # shape-mismatch error message (4-7 s a process, kern18), for
+        # shapes that match by construction.
+        W, V = state.W, ws.V
+        for c in range(V.shape[0]):
+            for i in range(V.shape[1]):
+                W[i, c] = V[c, i]
 
     return StepBody(begin=begin, step=step, check=check, flow=flow, vectors=vectors, end=end)
 

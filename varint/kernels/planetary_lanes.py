@@ -334,11 +334,17 @@ def lane_word(n, jacobi, k, apply, width):
                     if not bad[lane]:
                         continue
                     alone += 1
-                    x[:] = X[:, lane]
-                    W[:, :] = V[:, :, lane]
+                    # Element by element: no shape-error code of a slice
+                    # assignment is compiled (4-7 s a process).
+                    for i in range(x.shape[0]):
+                        x[i] = X[i, lane]
+                        for c in range(k):
+                            W[c, i] = V[c, i, lane]
                     apply(KEPLER, h[st], x, W, k, par, work)
-                    X[:, lane] = x
-                    V[:, :, lane] = W
+                    for i in range(x.shape[0]):
+                        X[i, lane] = x[i]
+                        for c in range(k):
+                            V[c, i, lane] = W[c, i]
             elif parts[st] == INTERACTION:
                 kick(Xf, Vf, h[st], par, met)
                 for lane in range(width):

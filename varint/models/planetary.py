@@ -179,6 +179,13 @@ class Planetary(Model):
         names = ("Kepler", "Interaction") if jacobi else ("Kepler", "Interaction", "Jump")
         splits = {2: ("Kepler", "Interaction")} if jacobi else {3: ("Interaction", "Jump",
                                                                      "Kepler")}
+        #: The kernels the start check evaluates (varint._validate.kernels):
+        #: ∇U alone. U's singular states (two bodies at one place) are
+        #: exactly those where ∇U is not finite (0·∞ there), and the part
+        #: flows that run the model call neither D²U nor its third
+        #: derivatives, whose compiles (12 CPU s) the check alone caused.
+        self.checked_kernels = (K.potential_gradient if jacobi else no_gradient_kernel,
+                                K.unchecked_hessian, K.unchecked_third)
         self.parts = Parts(names=names, apply=flows(n, jacobi), field=K.vector_field,
                            splits=splits, par=par, n_work=K.n_work(n),
                            default_scheme="SABA1" if jacobi else "ABC2")
