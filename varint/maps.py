@@ -602,9 +602,9 @@ def _cheaper_steps(spec, k, clock):
     :func:`~varint.time_transform_step.agreeing_h`; the constant step's
     :func:`~varint.step_agreement.agreeing_tau` with :data:`MAP_SCHEME`;
     both by one rule, :func:`~varint.step_agreement.map_verdict`, the FLI
-    values to the map's t_end (the constant ladder was judged by the
-    verdict at the pilot's t before pilot19, which favoured constant steps
-    on a map much longer than its pilot; ``studies/ladder_rule.py``); both
+    values to the map's t_end (the constant ladder was once judged by the
+    verdict at the pilot's t, which favoured constant steps on a map much
+    longer than its pilot; ``studies/ladder_rule.py``); both
     with energy errors within ``energy_tol``, the LH's pilot 10 times that:
     its map retries each orbit to ``energy_tol``),
     priced as force evaluations per orbit and unit of time times their
