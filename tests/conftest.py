@@ -57,11 +57,12 @@ def file_costs(folder=PROFILES):
     return costs, sum(costs.values()) / max(1, sum(f["tests"] for f in files.values()))
 
 
-def unit_cost(unit, tests, costs, per_test):
-    """The expected CPU seconds of a work unit (a file, or a name of
-    :data:`SHARED_UNITS`) of ``tests`` node ids: its files' stored costs;
-    a file the profile does not know counts its tests at ``per_test``
-    (its number of tests, xdist's own order, without a profile)."""
+def unit_cost(tests, costs, per_test):
+    """The expected CPU seconds of a work unit (a file, or the files of a
+    name of :data:`SHARED_UNITS`) of ``tests`` node ids: its files' stored
+    costs; a file the profile does not know counts its tests at
+    ``per_test`` (its number of tests, xdist's own order, without a
+    profile)."""
     files = {nodeid.split("::")[0] for nodeid in tests}
     known = [costs[f] for f in files if f in costs]
     unknown = sum(1 for nodeid in tests if nodeid.split("::")[0] not in costs)
@@ -73,8 +74,9 @@ class FileScheduling(LoadFileScheduling):
     files of :data:`SHARED_UNITS` together; the dearest unit left goes to
     the next worker that asks (:func:`unit_cost`), so the workers end
     together (xdist hands out the units with the most tests first: a file
-    of few, long tests, such as test_planetary_runs, came near the end and
-    one worker ran it alone).
+    of few, long tests, such as test_planetary_runs, 12 tests and 152 CPU
+    s in stop 52's profile, may come last, one worker running it while
+    the other has finished).
 
     A file's tests mostly run the same models, schemes and indicators,
     hence the same generated kernels, and share module fixtures (a study's
@@ -92,8 +94,8 @@ class FileScheduling(LoadFileScheduling):
     def _assign_work_unit(self, node):
         if not hasattr(self, "_costs"):
             self._costs = file_costs()
-        dearest = max(self.workqueue, key=lambda unit: unit_cost(
-            unit, self.workqueue[unit], *self._costs))
+        dearest = max(self.workqueue,
+                      key=lambda unit: unit_cost(self.workqueue[unit], *self._costs))
         self.workqueue.move_to_end(dearest, last=False)
         super()._assign_work_unit(node)
 

@@ -28,10 +28,10 @@ def test_a_unit_costs_its_files_and_unknown_files_their_tests(tmp_path):
     costs = {"tests/a.py": 4.0, "tests/b.py": 20.0}
     tests = ["tests/a.py::x", "tests/a.py::y", "tests/b.py::z", "tests/new.py::w",
              "tests/new.py::v"]
-    assert unit_cost("shared", tests, costs, 0.5) == 4.0 + 20.0 + 2 * 0.5
+    assert unit_cost(tests, costs, 0.5) == 4.0 + 20.0 + 2 * 0.5
     # Without a profile: the number of tests, as xdist orders the units.
     assert file_costs(tmp_path) == ({}, None)
-    assert unit_cost("shared", tests, {}, None) == 5
+    assert unit_cost(tests, {}, None) == 5
 
 
 class _Node:
