@@ -704,7 +704,8 @@ def test_a_map_refuses_a_directory_holding_another_map_even_when_resuming(tmp_pa
     pilot chooses another τ) into its directory: refused, naming τ. The
     scheme given to both, as the default map's (SBAB2C): the pilot then
     runs the SIMD lanes of the map above's stepper, not those of the maps'
-    pilot scheme (SRKN14a, 17 CPU s cold, for this test alone)."""
+    pilot scheme (SRKN14a, 17 CPU s cold; test_cli's map, in this file's
+    xdist unit, compiles those anyway)."""
     grid = varint.section_grid(HH, 0.125, np.linspace(-0.4, 0.6, 4), np.linspace(-0.4, 0.4, 4))
     kw = dict(t_end=20.0, checkpoint=tmp_path / "m", progress=False, scheme="SBAB2C")
     varint.chaos_map(HH, grid, "sali", tau=0.05, **kw)
