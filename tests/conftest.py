@@ -1,10 +1,18 @@
 """Shared fixtures: the paper's orbits, built once per session; and how
 pytest-xdist shares the tests out among its workers."""
 
+import json
+import re
+from pathlib import Path
+
 import pytest
 from xdist.scheduler import LoadFileScheduling
 
 import varint
+
+#: The stored profiles of the cold suite (studies/suite_profile.py, one per
+#: stop: ``suite_profile_stopNN.json``); the newest gives each file's cost.
+PROFILES = Path(__file__).resolve().parent.parent / "studies" / "results"
 
 #: Test files run as one xdist work unit (one worker, one after another):
 #:
@@ -35,9 +43,40 @@ SHARED_UNITS = {
 }
 
 
+def file_costs(folder=PROFILES):
+    """Per test file, the CPU seconds it took in the newest stored cold
+    profile of ``folder`` (its tests' and their child processes'), and the
+    profile's mean seconds per test (for files it does not know); ``({},
+    None)`` without a profile."""
+    stops = {int(m.group(1)): path for path in folder.glob("suite_profile_stop*.json")
+             if (m := re.fullmatch(r"suite_profile_stop(\d+)\.json", path.name))}
+    if not stops:
+        return {}, None
+    files = json.loads(stops[max(stops)].read_text())["files"]
+    costs = {name: f["cpu_s"] + f.get("child_cpu_s", 0.0) for name, f in files.items()}
+    return costs, sum(costs.values()) / max(1, sum(f["tests"] for f in files.values()))
+
+
+def unit_cost(tests, costs, per_test):
+    """The expected CPU seconds of a work unit (a file, or the files of a
+    name of :data:`SHARED_UNITS`) of ``tests`` node ids: its files' stored
+    costs; a file the profile does not know counts its tests at
+    ``per_test`` (its number of tests, xdist's own order, without a
+    profile)."""
+    files = {nodeid.split("::")[0] for nodeid in tests}
+    known = [costs[f] for f in files if f in costs]
+    unknown = sum(1 for nodeid in tests if nodeid.split("::")[0] not in costs)
+    return sum(known) + unknown * (per_test if per_test is not None else 1.0)
+
+
 class FileScheduling(LoadFileScheduling):
     """``--dist loadfile``: each test file runs in one worker, and the
-    files of :data:`SHARED_UNITS` together.
+    files of :data:`SHARED_UNITS` together; the dearest unit left goes to
+    the next worker that asks (:func:`unit_cost`), so the workers end
+    together (xdist hands out the units with the most tests first: a file
+    of few, long tests, such as test_planetary_runs, 12 tests and 152 CPU
+    s in stop 52's profile, may come last, one worker running it while
+    the other has finished).
 
     A file's tests mostly run the same models, schemes and indicators,
     hence the same generated kernels, and share module fixtures (a study's
@@ -51,6 +90,14 @@ class FileScheduling(LoadFileScheduling):
     def _split_scope(self, nodeid):
         path = super()._split_scope(nodeid)
         return SHARED_UNITS.get(path, path)
+
+    def _assign_work_unit(self, node):
+        if not hasattr(self, "_costs"):
+            self._costs = file_costs()
+        dearest = max(self.workqueue,
+                      key=lambda unit: unit_cost(self.workqueue[unit], *self._costs))
+        self.workqueue.move_to_end(dearest, last=False)
+        super()._assign_work_unit(node)
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -601,22 +601,40 @@ def test_two_particle_method_with_its_separation(capsys, tmp_path):
 
 def test_select(capsys, monkeypatch, tmp_path):
     """The command prints select_scheme's table with what its columns mean,
-    its choice, and writes the table: every candidate, and those piloted
-    again with compensated summation. (Two default schemes: the command's
-    plumbing, not the selection, is tested here, and every default
-    candidate is a kernel of its own; tests/test_selection.py tests the
-    choice.)"""
-    monkeypatch.setattr(varint.selection, "DEFAULT_SCHEMES", ("SBAB2C", "ABA864"))
-    monkeypatch.setattr(varint.selection, "HIGH_ORDER_CANDIDATES", ())
+    its choice, and writes the table: every candidate. (Two default
+    schemes and no compensated pilots: the command's plumbing, not the
+    selection, is tested here, and every default candidate is a kernel of
+    its own, each compensated level two more, compact and written out: 27
+    CPU s cold for the three levels of one scheme;
+    tests/test_selection.py tests the choice and the compensated pilots,
+    test_a_table_of_mixed_values_is_written_as_text below their column.)"""
+    # Named by path: imports varint.selection where no earlier test has.
+    monkeypatch.setattr("varint.selection.DEFAULT_SCHEMES", ("SBAB2C", "ABA864"))
+    monkeypatch.setattr("varint.selection.HIGH_ORDER_CANDIDATES", ())
+    # A candidate is piloted compensated where target < error <= range × target.
+    monkeypatch.setattr("varint.selection.COMPENSATION_RANGE", 1.0)
     code, out, err = _run(capsys, ["select", "--orbit", "R1", "--target", "1e-6", "--t-end",
                                    "1", "--csv", str(tmp_path / "s.csv")])
     assert code == 0, err
     assert "growth a" in out and "the error grows as t^a" in out
     assert "chosen: method=tm" in out
     rows = _rows(tmp_path / "s.csv")
-    plain = [r for r in rows[1:] if r[rows[0].index("compensated")] == "False"]
-    assert len(plain) == 2 * len(varint.selection.DEFAULT_TAUS)
+    assert {r[rows[0].index("compensated")] for r in rows[1:]} == {"False"}
+    assert len(rows) - 1 == 2 * len(varint.selection.DEFAULT_TAUS)
     assert {r[rows[0].index("scheme")] for r in rows[1:]} == {"SBAB2C", "ABA864"}
+
+
+def test_a_table_of_mixed_values_is_written_as_text(capsys, tmp_path):
+    """A column of select's table mixes values (compensated: False, True,
+    "orbit", "step"): the CSV holds each as written, in the table's order."""
+    path = tmp_path / "t.csv"
+    cli._write_csv(path, {"scheme": ["SBAB2C", "SBAB2C", "SBAB2C", "ABA864"],
+                          "compensated": [False, "step", True, "orbit"],
+                          "tau": [0.1, 0.1, 0.1, 0.05]})
+    assert "table written to" in capsys.readouterr().out
+    assert _rows(path) == [["scheme", "compensated", "tau"], ["SBAB2C", "False", "0.1"],
+                           ["SBAB2C", "step", "0.1"], ["SBAB2C", "True", "0.1"],
+                           ["ABA864", "orbit", "0.05"]]
 
 
 def test_demo(capsys, tmp_path):
