@@ -676,7 +676,9 @@ def _indicator_options(args, model):
     if args.k is not None:
         name = "k" if "k" in indicator.options else indicator.count_option
         if name is None or name in fixed:
-            takers = [n for n, i in INDICATORS.items() if "k" in i.options or i.count_option]
+            # Sorted: the registry's order depends on which modules were
+            # imported first, and the message must not.
+            takers = sorted(n for n, i in INDICATORS.items() if "k" in i.options or i.count_option)
             raise ValueError(f"--k applies to {', '.join(takers)}, not {args.indicator}")
         values = _ints(args.k, "--k", None if name == "k" else 1, 1, model.dim)
         options[name] = values[0] if len(values) == 1 else tuple(values)
