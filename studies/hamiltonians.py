@@ -73,7 +73,7 @@ Parts (``--part``, several separated by commas; all by default):
     cost–error front at varint's errors, log–log interpolated).
 
 Usage: ``python studies/hamiltonians.py [--quick] [--out DIR] [--part maps,bar,...]
-[--repeats N]``. State the machine load (``uptime``, recorded in the JSON)
+[--repeats N] [--galpy-rtols 1e-6,1e-9]``. State the machine load (``uptime``, recorded in the JSON)
 with every figure.
 """
 
@@ -112,6 +112,8 @@ REF_TOL = 1e-15
 REF_EVERY = 1.0
 #: AGAMA's relative accuracies of its DOP853 orbit (and GL4 variational) steps.
 AGAMA_ACCURACIES = (1e-6, 1e-9, 1e-12)
+#: galpy's relative tolerances of Orbit.lyapunov (``--galpy-rtols``).
+GALPY_RTOLS = (1e-6, 1e-9)
 EVERY = 10.0
 BATCH = 8
 #: Koon, Lo, Marsden & Ross (2011), Sect. 2.4: Earth–Moon, μ = 0.01215.
@@ -264,9 +266,10 @@ def _equal_agreement(rows):
 
 
 # -- the bar target -----------------------------------------------------------------------
-def bar_case(quick, repeats):
-    """X1 of the named bar orbits: varint (defaults, and ABA864 at a few
-    steps) and galpy's Orbit.lyapunov, error against a tight reference."""
+def bar_case(quick, repeats, galpy_rtols=GALPY_RTOLS):
+    """X1 of the named bar orbits: varint (defaults, and SRKN14a at a few
+    steps), galpy's Orbit.lyapunov (at ``galpy_rtols``: minutes per call)
+    and AGAMA, error against a tight reference."""
     t_end = 20.0 if quick else 100.0
     rows = []
     try:
@@ -304,7 +307,7 @@ def bar_case(quick, repeats):
             if have_galpy:
                 # Minutes per call: timed once each (the load's noise is small
                 # against it).
-                for rtol in (1e-6, 1e-9):
+                for rtol in galpy_rtols:
                     label = f"galpy lyapunov rtol {rtol:g}"
                     t0 = time.perf_counter()
                     outs[label] = _galpy_lyapunov(x0, w0[:, 0], t_end, rtol)
@@ -670,6 +673,8 @@ def main(argv=None):
         parser.add_argument("--part", default=",".join(PARTS),
                             help=f"parts to run, comma-separated, of {', '.join(PARTS)}")
         parser.add_argument("--repeats", type=int, default=REPEATS)
+        parser.add_argument("--galpy-rtols", default=",".join(map(str, GALPY_RTOLS)),
+                            help="galpy's rtols in the bar part, comma-separated (minutes each)")
 
     args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     parts = [p.strip() for p in args.part.split(",") if p.strip()]
@@ -692,10 +697,11 @@ def main(argv=None):
         result["maps"] = {"rows": rows, "summary": summary, "load": start, "load_end": load()}
     if "bar" in parts:
         start = load()
-        rows = bar_case(args.quick, args.repeats)
+        rtols = tuple(float(v) for v in args.galpy_rtols.split(",") if v.strip())
+        rows = bar_case(args.quick, args.repeats, rtols)
         save_csv(args.out, "hamiltonians_bar", rows,
                  ["orbit", "contender", "seconds", "x1", "x1_reference", "error", "t_end"])
-        result["bar"] = {"rows": rows, "load": start, "load_end": load()}
+        result["bar"] = {"rows": rows, "load": start, "load_end": load(), "galpy_rtols": rtols}
     if "precision" in parts:
         start = load()
         rows, summary = precision_case(args.quick, args.repeats)
