@@ -117,9 +117,10 @@ def build(name, H, q, p):
 
 def contenders(model, structure):
     """The precision part's contenders (label, method, options, knobs,
-    model) of varint on ``model``: its defaults (τ chosen by varint) and
-    its schemes at a ladder of steps."""
-    out = [("varint defaults", "tm", {}, (None,), model)]
+    model) of varint on ``model``: its defaults (scheme and τ chosen by
+    varint for the default energy tolerance, the pilot included in its
+    cost) and its schemes at a ladder of steps."""
+    out = [("varint defaults", "tm", {"energy_tol": None}, (None,), model)]
     if structure == "general":
         for scheme in ("GL4", "GL6", "GL8"):
             out.append((scheme, "tm", {"scheme": scheme}, GENERAL_TAUS, model))

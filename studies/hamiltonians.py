@@ -489,9 +489,11 @@ def _peers(model):
 
 
 def _one(model, x0, t_end, method, options, knob):
-    """One run, orbit and one tangent vector from the first unit vector."""
+    """One run, orbit and one tangent vector from the first unit vector
+    (no energy tolerance unless ``options`` give one: ``energy_tol=None``,
+    the default tolerance, for varint's defaults, whose step it sets)."""
     w0 = np.eye(model.dim)[:, :1]
-    opts = dict(options)
+    opts = {"energy_tol": math.inf, **options}
     if method == "taylor":
         opts.update(tol=knob)
         tau = 1.0
@@ -501,7 +503,7 @@ def _one(model, x0, t_end, method, options, knob):
     else:
         tau = knob
     r = varint.lyapunov_spectrum(model, x0, t_end, tau=tau, method=method, deviations=w0,
-                                 t_out=[t_end], energy_tol=math.inf, progress=False, **opts)
+                                 t_out=[t_end], progress=False, **opts)
     return r.state, float(r.exponents[-1, 0]) * t_end
 
 
