@@ -268,8 +268,8 @@ def _equal_agreement(rows):
 # -- the bar target -----------------------------------------------------------------------
 def bar_case(quick, repeats, galpy_rtols=GALPY_RTOLS):
     """X1 of the named bar orbits: varint (defaults, and SRKN14a at a few
-    steps), galpy's Orbit.lyapunov (at ``galpy_rtols``: minutes per call)
-    and AGAMA, error against a tight reference."""
+    steps), galpy's Orbit.lyapunov (at ``galpy_rtols``: minutes per call;
+    none runs no galpy) and AGAMA, error against a tight reference."""
     t_end = 20.0 if quick else 100.0
     rows = []
     try:
@@ -304,7 +304,7 @@ def bar_case(quick, repeats, galpy_rtols=GALPY_RTOLS):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             best, outs = interleaved(tasks, 1 if quick else repeats)
-            if have_galpy:
+            if have_galpy and galpy_rtols:
                 # Minutes per call: timed once each (the load's noise is small
                 # against it).
                 for rtol in galpy_rtols:
