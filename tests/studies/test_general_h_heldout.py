@@ -34,7 +34,8 @@ def test_bar_speedup_takes_the_peers_most_favourable_run():
             {"contender": "varint b", "seconds": 2.0, "error": 1e-10},
             {"contender": "AGAMA x", "seconds": 10.0, "error": 1e-5},
             {"contender": "AGAMA y", "seconds": 4.0, "error": 1e-9},
-            {"contender": "AGAMA z", "seconds": 1.0, "error": math.nan}]
+            {"contender": "AGAMA z", "seconds": 1.0, "error": math.nan},
+            {"contender": "AGAMA n", "seconds": 1.0, "error": "nan"}]
     ratio, ours, theirs = hamiltonians.bar_speedup(rows, "AGAMA")
     assert ratio == 2.0 and ours["contender"] == "varint b" and theirs["contender"] == "AGAMA y"
     ratio, ours, theirs = hamiltonians.bar_speedup(rows + [
