@@ -150,8 +150,9 @@ def test_henon_heiles_transform_is_the_papers_formula(q):
 
 
 def test_analytic_and_lapack_eigensolvers_give_the_same_tdhes(r1):
-    # The full tangent map: LAPACK's is then the stepper the tests against
-    # the paper's maps compile (one vector would compile both eigensolvers).
+    # The full tangent map: four vectors, the kernel every TDH test on
+    # Hénon–Heiles compiles (one for the three methods and both
+    # eigensolvers; one vector would compile another).
     model, x0 = r1
     w0 = np.eye(4)
     runs = [varint.integrate(model, x0, 200.0, tau=0.05, method="tdhes", deviations=w0,
