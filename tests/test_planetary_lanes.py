@@ -115,12 +115,11 @@ def test_a_map_in_lanes_is_bitwise_the_map_one_orbit_at_a_time_whatever_its_chun
     # MEGNO with early stopping, escapes and failed drifts (the eccentric
     # lanes): lanes (default) against one orbit at a time, one chunk
     # against chunks of 7 (blocks part-filled and refilled as orbits stop)
-    # and one thread against all. One orbit at a time on one thread (the
-    # one-orbit kernel the lanes' fallback compiles; its parallel batch
-    # would be compiled for this reference alone, 9 CPU s cold); one
-    # thread as numba's thread count, so that the lanes' parallel batch
-    # serves all three runs (a serial one costs 3 CPU s more, and steps
-    # the same single block: a call of at most LANES orbits is one block).
+    # and one thread against all. The reference one orbit at a time on one
+    # thread (it needs no threads); one thread as numba's thread count, so
+    # that the runs asked to be parallel share the lanes' parallel batch
+    # (a serial one is another compile, and steps the same single block: a
+    # call of at most LANES orbits is one block either way).
     model = Planetary([1.0, 0.000954, 0.000285])
     X = _grid(model)
     one = _map(model, X, lanes=False, chunk_size=len(X), parallel=False)
