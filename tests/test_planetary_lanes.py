@@ -7,6 +7,7 @@ import platform
 import re
 import warnings
 
+import numba
 import numpy as np
 import pytest
 
@@ -114,14 +115,24 @@ def test_a_map_in_lanes_is_bitwise_the_map_one_orbit_at_a_time_whatever_its_chun
     # MEGNO with early stopping, escapes and failed drifts (the eccentric
     # lanes): lanes (default) against one orbit at a time, one chunk
     # against chunks of 7 (blocks part-filled and refilled as orbits stop)
-    # and one thread against all.
+    # and one thread against all. The reference one orbit at a time on one
+    # thread (it needs no threads); one thread as numba's thread count, so
+    # that the runs asked to be parallel share the lanes' parallel batch
+    # (a serial one is another compile, and steps the same single block: a
+    # call of at most LANES orbits is one block either way).
     model = Planetary([1.0, 0.000954, 0.000285])
     X = _grid(model)
-    one = _map(model, X, lanes=False, chunk_size=len(X))
+    one = _map(model, X, lanes=False, chunk_size=len(X), parallel=False)
     assert (one.status > 0).any() and (one.status < 0).any()   # failures and early stops
-    for options in (dict(chunk_size=len(X)), dict(chunk_size=7, parallel=True),
-                    dict(chunk_size=len(X), parallel=False)):
-        lanes = _map(model, X, **options)
+    threads = numba.get_num_threads()
+    for options, n_threads in ((dict(chunk_size=len(X)), threads),
+                               (dict(chunk_size=7, parallel=True), threads),
+                               (dict(chunk_size=len(X), parallel=True), 1)):
+        numba.set_num_threads(n_threads)
+        try:
+            lanes = _map(model, X, **options)
+        finally:
+            numba.set_num_threads(threads)
         for key in ("values", "status", "t_stop"):
             assert np.array_equal(getattr(lanes, key), getattr(one, key), equal_nan=True), \
                 (key, options)

@@ -90,6 +90,28 @@ def test_tdhes_is_exact_for_a_linear_system(A, minv):
     assert np.max(np.abs(r.deviations - ref)) < 1e-13 * np.max(np.abs(ref))
 
 
+@pytest.mark.parametrize("method, tangent_scheme, order", [
+    ("tdheps", "SBAB2C", 4), ("tdheps", "SBAB1", 2), ("tdhcc", "SBAB2C", 4)])
+def test_splitting_tdh_has_its_order_with_masses(method, tangent_scheme, order):
+    """On a linear system D²V is constant, so TDHcc and TDHeps integrate the
+    exact tangent dynamics by their tangent scheme: the error of W(T)
+    against the exact exp(TG) is O(τ^r) with r its order on this quadratic
+    Hamiltonian (4 for SBAB2C, whose corrector is {B, {B, A}} only with
+    the masses in D²V M⁻¹ D²V; 2 for SBAB1). The masses and coupling of
+    the second linear system above (the kernel TDHes compiled for it)."""
+    A = rotation(3, 1) @ np.diag([1.5, 0.0, -0.3]) @ rotation(3, 1).T
+    minv = [1.0, math.sqrt(2), math.sqrt(3)]
+    model = linear_model(A, minv)
+    x0 = np.array([0.3, -0.2, 0.1, 0.0, 0.2, -0.1])
+    ref = exact_tangent_map(A, minv, 5.0)
+    taus = [0.1, 0.05, 0.025, 0.0125]
+    errors = [np.max(np.abs(varint.integrate(model, x0, 5.0, tau=tau, method=method,
+                                             tangent_scheme=tangent_scheme,
+                                             deviations=np.eye(6)).deviations - ref))
+              for tau in taus]
+    assert abs(fitted_slope(taus, errors) - order) < 0.3
+
+
 @pytest.mark.parametrize("lam", [-3.0, -1e-7, -1e-12, 0.0, 1e-12, 1e-7, 2.5])
 def test_oscillator_flow_for_every_sign_of_lambda(lam):
     """The 1-dof flow of ½(P² + λQ²) is exp(h [[0, 1], [−λ, 0]]), smoothly
@@ -128,8 +150,9 @@ def test_henon_heiles_transform_is_the_papers_formula(q):
 
 
 def test_analytic_and_lapack_eigensolvers_give_the_same_tdhes(r1):
-    # The full tangent map: LAPACK's is then the stepper the tests against
-    # the paper's maps compile (one vector would compile both eigensolvers).
+    # The full tangent map: four vectors, the kernel every TDH test on
+    # Hénon–Heiles compiles (one for the three methods and both
+    # eigensolvers; one vector would compile another).
     model, x0 = r1
     w0 = np.eye(4)
     runs = [varint.integrate(model, x0, 200.0, tau=0.05, method="tdhes", deviations=w0,
@@ -183,11 +206,13 @@ def tight_reference():
     ("R1", "tdhcc", {}, 1), ("R1", "tdhes", {}, 1), ("R1", "tdheps", {}, 4),
     ("R1", "tdheps", {"tangent_scheme": "SBAB1"}, 2),
     # M⁻¹ = diag(1, √2, √3): the modal transform and the drifts respect it.
-    # TDHes on R2 compiles a stepper for it alone (17 CPU s cold): its
-    # order is R1's above, and the masses in its modal transform are held
-    # to the exact flow by test_tdhes_is_exact_for_a_linear_system (the
-    # same masses); TDHeps on R2 keeps the masses in the default suite.
-    pytest.param("R2", "tdhes", {}, 1, marks=pytest.mark.slow), ("R2", "tdheps", {}, 4)])
+    # R2 compiles a TDH kernel and a reference stepper for itself alone
+    # (34 CPU s cold): its orders are R1's above, and the masses are held
+    # to the exact flow in the default suite on the linear system of the
+    # same masses, by TDHes (test_tdhes_is_exact_for_a_linear_system) and
+    # the splitting flows (test_splitting_tdh_has_its_order_with_masses).
+    pytest.param("R2", "tdhes", {}, 1, marks=pytest.mark.slow),
+    pytest.param("R2", "tdheps", {}, 4, marks=pytest.mark.slow)])
 def test_tangent_error_has_the_derived_order(tight_reference, orbit, method, options, order):
     """‖W(T) − W_ref(T)‖ ∝ τ^p with p the order each class derives:
     1 for TDHcc and TDHes, 4 for TDHeps with SBAB2C, 2 for its leapfrog
@@ -408,18 +433,12 @@ def test_r1_x1_levels_off_for_tdh_as_in_fig2(r1):
     assert 1.3 * tm[2] < eps[2] < cc[2] / 3         # measured 1.55× TM, cc/6.9
 
 
-def test_tdhcc_and_tdheps_share_one_kernel(c1):
-    """TDHcc and TDHeps are one step body read from different tables (the
-    setup's n_sub, tidx and need): a run of both compiles one kernel;
-    TDHes's exact flow is a kernel of its own."""
-    from varint.kernels.tm import model_kernels
-    from varint.tdh import _kernels as TK
-    from varint.tdh.frozen import lapack_eig
-
+def test_the_three_methods_share_one_kernel(c1):
+    """TDHcc, TDHeps and TDHes (either eigensolver) are one step body whose
+    method the setup chooses at run time: a run of several compiles one
+    kernel."""
     model = c1[0]
-    kernels = model_kernels(model)
-    batch = {mode: TK.batch_kernel(model.n_dof, 4, model.bandwidth, mode, False, kernels,
-                                   lapack_eig)
-             for mode in (TK.CC, TK.EPS, TK.ES)}
-    assert batch[TK.CC] is batch[TK.EPS]
-    assert batch[TK.ES] is not batch[TK.CC]
+    kernels = [make_propagator(method, model, 0.05, "qr", **options).batch_kernel(4, False)
+               for method, options in (("tdhcc", {}), ("tdheps", {}), ("tdhes", {}),
+                                       ("tdhes", {"eigensolver": "analytic"}))]
+    assert all(kernel is kernels[0] for kernel in kernels)

@@ -39,6 +39,7 @@ H. Rein & D. Tamayo, Mon. Not. R. Astron. Soc. 452, 376 (2015).
 from __future__ import annotations
 
 import warnings
+from functools import cache
 
 import numba
 import numpy as np
@@ -46,8 +47,8 @@ from numba import njit
 
 from ..accuracy import AccuracyWarning
 from ..correctors import WHT_ORDERS, corrector_word
+from ..kernels.closures import cache_on_disk
 from ..kernels.interval import Call, no_accumulator, use_parallel
-from ..kernels.nbody import apply_word
 from ..kernels.planetary_batch import LANES, lane_batch
 from ..protocol import STATUS_OK, Renorm, Status
 from ..schemes import get_scheme
@@ -64,27 +65,50 @@ MIN_LANE_ORBITS = 4
 MAPPED_STATE, MAPPED_VECTORS = "wh_mapped_x", "wh_mapped_W"
 
 
-@njit(cache=True, error_model="numpy")
-def _apply_word_batch(parts, h, X, W, par, n_work, active, out_X, out_W):
-    """``out_X[m], out_W[m]`` = the word applied to orbit m of ``X`` and its
-    vectors ``W[m]`` (2N, k), for the ``active`` orbits; the others are
-    copied. Returns the status of each (0, or the Kepler failure)."""
-    m_all = X.shape[0]
-    status = np.zeros(m_all, dtype=np.int64)
-    work = np.empty(n_work)
-    for m in range(m_all):
-        out_X[m] = X[m]
-        out_W[m] = W[m]
-        if not active[m]:
-            continue
-        V = np.ascontiguousarray(W[m].T)
-        status[m] = apply_word(parts, h, out_X[m], V, V.shape[0], par, work)
-        if status[m] == 0:
-            out_W[m] = V.T
-        else:
-            out_X[m] = X[m]
-            out_W[m] = W[m]
-    return status
+@cache
+def word_batch(apply, k):
+    """``batch(parts, h, X, W, par, n_work, active, out_X, out_W)``:
+    ``out_X[m], out_W[m]`` = the word (the flows ``parts[s]`` for times
+    ``h[s]`` in order: a corrector, :mod:`varint.correctors`) applied to
+    orbit m of ``X`` (M, 2N) and its ``k`` vectors ``W[m]`` (2N, k), for
+    the ``active`` orbits; the others, and an orbit whose flow fails, are
+    copied. Returns the status of each (0, or the first failure's).
+
+    ``apply`` is the model's part flows (:func:`varint.kernels.nbody_unrolled.flows`,
+    held bit for bit to the generic :func:`varint.kernels.nbody.apply_flow`
+    by the tests), with ``k`` a constant as the part stepper calls it: the
+    Kepler drift the stepper compiled serves the corrector too, where the
+    generic flows cost a compile of their own (20 CPU s). Vectors are
+    copied element by element (a slice assignment compiles numba's
+    shape-error code)."""
+
+    @njit(error_model="numpy")
+    def batch(parts, h, X, W, par, n_work, active, out_X, out_W):
+        m_all, dim = X.shape[0], X.shape[1]
+        status = np.zeros(m_all, dtype=np.int64)
+        work = np.empty(n_work)
+        x = np.empty(dim)
+        V = np.empty((k, dim))
+        for m in range(m_all):
+            st = 0
+            if active[m]:
+                for i in range(dim):
+                    x[i] = X[m, i]
+                    for c in range(k):
+                        V[c, i] = W[m, i, c]
+                for s in range(parts.shape[0]):
+                    st = apply(parts[s], h[s], x, V, k, par, work)
+                    if st != 0:
+                        break
+                status[m] = st
+            moved = active[m] and st == 0
+            for i in range(dim):
+                out_X[m, i] = x[i] if moved else X[m, i]
+                for c in range(k):
+                    out_W[m, i, c] = V[c, i] if moved else W[m, i, c]
+        return status
+
+    return cache_on_disk(batch)
 
 
 def _name_failures(state, was_active):
@@ -299,5 +323,6 @@ class PlanetaryPropagator:
 
     def _apply(self, word, X, W, out_X, out_W, active):
         parts, h = word
-        _apply_word_batch(parts, h, X, W, self.model.params, self.model.parts.n_work,
-                          np.ascontiguousarray(active), out_X, out_W)
+        word_batch(self.model.parts.apply, W.shape[2])(
+            parts, h, X, W, self.model.params, self.model.parts.n_work,
+            np.ascontiguousarray(active), out_X, out_W)

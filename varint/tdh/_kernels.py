@@ -1,7 +1,8 @@
 """The step body of the three TDH methods (Skokos & Gerlach 2010, Sect.
-V.B): one body, specialised at compile time to the method; the loop over
-intervals and their ends are the stepping skeleton's
-(:mod:`varint.kernels.interval`).
+V.B): one body for all three, the method read from the setup at run time
+(a kernel costs ~20 CPU s to compile, and a run of two methods, or of
+TDHes with both eigensolvers, compiles one); the loop over intervals and
+their ends are the stepping skeleton's (:mod:`varint.kernels.interval`).
 
 Every renormalisation interval [t_i, t_i + τ) the orbit is advanced by
 ``n_sub`` steps Δt of its splitting scheme, and the deviation vectors
@@ -47,9 +48,9 @@ from ..kernels.banded import band_kick_block, band_square_add
 from ..kernels.checks import all_finite, derivative_status
 from ..kernels.interval import (Call, StepBody, batch_loop, no_accumulator, orbit_record)
 from ..protocol import COUNTERS as TM_COUNTERS, Renorm, Status
-from .frozen import _oscillator
+from .frozen import _oscillator, lapack_eig
 
-#: The three methods (TDHes's flow is a compile-time constant of the kernel).
+#: The three methods (the setup's ``exact`` says whether TDHes's flow runs).
 CC, ES, EPS = 0, 1, 2
 
 #: Counters kept per orbit: those of the TM stepper, and eigen-decompositions.
@@ -72,10 +73,12 @@ TDHOrbit = orbit_record("TDHOrbit", ("pt",))
 #: for the step Δt = τ/n_sub; ``ctime``: their times, for a time-dependent
 #: V), orbit steps per interval, the tangent scheme's stage tables
 #: (``tkinds``, ``th``, ``thc``; ``tidx``: the grid point of each stage's
-#: D²V), the grid points whose D²V the method needs, and the model's inverse
-#: masses, parameters and bandwidth.
+#: D²V), the grid points whose D²V the method needs, the model's inverse
+#: masses, parameters and bandwidth; ``exact``: TDHes's exact flow instead of
+#: the stage tables, its eigen-decompositions by the kernel's closed-form
+#: eigensolver where ``analytic``, else by LAPACK.
 TDHSetup = namedtuple("TDHSetup", ("kinds", "h", "hc", "ctime", "n_sub", "tkinds", "th", "thc",
-                                   "tidx", "need", "minv", "par", "bw"))
+                                   "tidx", "need", "minv", "par", "bw", "exact", "analytic"))
 
 _Work = namedtuple("_Work", (
     "n", "k", "d", "xe", "bw", "bwc", "block", "rec", "x0", "orbit_setup", "no_W", "no_m", "no_e",
@@ -116,13 +119,17 @@ def generated_orbit(module):
 
 
 @cache
-def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
+def tdh_body(N_C, K_C, BW_C, kernels, analytic, run_orbit, TIME=False):
     """The step body of the TDH methods for the model ``kernels``
-    (:func:`varint.kernels.tm.model_kernels`): with ``EXACT`` TDHes's exact
-    flow by the eigensolver ``eig``, else the splitting flows of TDHcc and
-    TDHeps, one body for both (they differ only in the setup's tables:
-    ``n_sub``, ``tidx`` and ``need``); sizes are constants when ≥ 0, else
-    read from the arrays.
+    (:func:`varint.kernels.tm.model_kernels`): with the setup's ``exact``
+    TDHes's exact flow, its eigen-decompositions by LAPACK or, where the
+    setup's ``analytic`` is set, by the closed-form eigensolver
+    ``analytic`` (None: the model has none), else the splitting flows of
+    TDHcc and TDHeps (they differ only in the setup's tables: ``n_sub``,
+    ``tidx`` and ``need``). One body for the three methods: a run of
+    several compiles one kernel (the bits are those of one body per method,
+    the same arithmetic behind a branch taken once per interval). Sizes are
+    constants when ≥ 0, else read from the arrays.
     ``run_orbit`` integrates the orbit (:func:`generic_orbit` or
     :func:`generated_orbit`); with ``TIME`` (a time-dependent V) its orbit
     is the generic stepper's in the extended phase space.
@@ -136,6 +143,9 @@ def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
     both at its end.
     """
     grad, hess = kernels[0], kernels[1]
+    # Without a closed-form eigensolver both branches call LAPACK's.
+    ANALYTIC = analytic is not None
+    eig = lapack_eig if analytic is None else analytic
 
     @njit(inline="always")
     def begin(state, setup, call):
@@ -146,7 +156,7 @@ def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
         bwc = min(2 * bw, n - 1)
         n_sub = setup.n_sub
         n_grid = n_sub + 1
-        ne = n if EXACT else 0
+        ne = n if setup.exact else 0
         block = max(1, min(call.n_steps, _BLOCK_VALUES // (n_sub * d)))
         orbit_setup = K.TMSetup(setup.kinds, setup.h, setup.hc, setup.minv, setup.par, setup.bw,
                                 setup.ctime)
@@ -231,7 +241,7 @@ def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
                     for i in range(ws.q0.shape[0]):
                         ws.q0[i] = q[i]
             have_end = need[n_sub]
-        if k > 0 and EXACT:
+        if k > 0 and setup.exact:
             # Exact flow of the frozen TDH: the modal coordinates
             # Qᵀ S⁻¹δq and Qᵀ S δp evolve as uncoupled oscillators.
             Kd, lam, Qm, rs = ws.Kd, ws.lam, ws.Qm, ws.rs
@@ -250,7 +260,10 @@ def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
                 for i in range(d):
                     x[i] = rec[end_row, i]
                 return _DEGENERATE, (first, following, complete, orbit_status, have_end)
-            eig(ws.q0, Kd, lam, Qm)
+            if ANALYTIC and setup.analytic:
+                eig(ws.q0, Kd, lam, Qm)
+            else:
+                lapack_eig(ws.q0, Kd, lam, Qm)
             counters[4] += 1
             for r in range(n):
                 ca[r], sa[r] = _oscillator(lam[r], tau)
@@ -333,29 +346,31 @@ def tdh_body(N_C, K_C, BW_C, EXACT, kernels, eig, run_orbit, TIME=False):
 
 
 @cache
-def tdh_batch(n, k, bw, mode, parallel, kernels, eig, run_orbit, accumulate=no_accumulator,
+def tdh_batch(n, k, bw, parallel, kernels, analytic, run_orbit, accumulate=no_accumulator,
               flow=False, time=False):
-    """The batch stepper of method ``mode`` (``CC``, ``ES`` or ``EPS``) for
+    """The batch stepper of the TDH methods (the setup says which) for
     N = ``n``, ``k`` vectors and bandwidth ``bw`` (−1 for all three: sizes
     read at run time): ``batch(states, setup, call, status, done)``
     (:func:`varint.kernels.interval.batch_loop`) with a batch of
     :class:`TDHOrbit` and a :class:`TDHSetup`; ``call.tau`` is the
     renormalisation interval τ and ``done[m]`` receives the intervals orbit
-    m completed. ``run_orbit`` integrates the orbit (:func:`generic_orbit`
-    or :func:`generated_orbit`). With ``time`` V depends on t.
+    m completed. ``analytic``: the model's closed-form eigensolver for
+    TDHes, or None. ``run_orbit`` integrates the orbit
+    (:func:`generic_orbit` or :func:`generated_orbit`). With ``time`` V
+    depends on t.
 
-    TDHcc and TDHeps share one kernel (their arithmetic is the same code,
-    read from the setup's tables): a run of both compiles it once."""
-    body = tdh_body(n, k, bw, mode == ES, kernels, eig, run_orbit, time)
+    TDHcc, TDHeps and TDHes (with either eigensolver) share one kernel
+    (:func:`tdh_body`): a run of several compiles it once."""
+    body = tdh_body(n, k, bw, kernels, analytic, run_orbit, time)
     return batch_loop(body, parallel, accumulate, flow)
 
 
-def batch_kernel(n, k, bw, mode, parallel, kernels, eig, accumulate=no_accumulator, flow=False,
-                 module=None, time=False):
+def batch_kernel(n, k, bw, parallel, kernels, analytic=None, accumulate=no_accumulator,
+                 flow=False, module=None, time=False):
     """:func:`tdh_batch` specialised to the sizes when they are small (the
     TM stepper's rule, :func:`varint.kernels.tm.batch_kernel`), its orbit
     by the generated stepper ``module`` if given, else the generic one."""
     sizes = K.specialised_sizes(n, k, bw)
     run_orbit = (generic_orbit(sizes[0], sizes[2], kernels, time) if module is None
                  else generated_orbit(module))
-    return tdh_batch(*sizes, mode, parallel, kernels, eig, run_orbit, accumulate, flow, time)
+    return tdh_batch(*sizes, parallel, kernels, analytic, run_orbit, accumulate, flow, time)

@@ -40,7 +40,7 @@ from ..models.henon_heiles import HenonHeiles
 from ..protocol import COUNTERS, STATUS_OK, Renorm
 from ..schemes import DEFAULT_SCHEME, DRIFT, get_scheme, registered, stage_arrays, stage_times
 from . import _kernels as TK
-from .frozen import henon_heiles_eig, lapack_eig
+from .frozen import henon_heiles_eig
 
 __all__ = ["TDHccPropagator", "TDHesPropagator", "TDHepsPropagator", "eps_grid"]
 
@@ -86,6 +86,14 @@ def eps_grid(scheme):
     return None, np.zeros(0, dtype=np.int64)
 
 
+def _analytic_eig(model):
+    """The closed-form eigensolver of ``model``'s frozen TDH: the paper's
+    (A.10) for Hénon–Heiles with unit masses, else None (LAPACK's only)."""
+    if isinstance(model, HenonHeiles) and np.all(model.inverse_mass == 1.0):
+        return henon_heiles_eig
+    return None
+
+
 def _eps_schemes():
     return [s.name for s in registered(2) if eps_grid(s)[0] is not None]
 
@@ -125,7 +133,7 @@ class _TDHPropagator:
         self._tidx = np.zeros(0, dtype=np.int64)
         self._need = np.zeros(self.n_sub + 1, dtype=np.bool_)
         self._need[0] = True
-        self._eig = lapack_eig
+        self._analytic = False
 
     def describe(self):
         # tangent_order: order p of the tangent error, ‖w − w_exact‖ = O(τ^p)
@@ -146,18 +154,25 @@ class _TDHPropagator:
                 self._generated = symbolic_stepper(self.model, self._kinds, corrected, 0)
         return self._generated
 
+    def batch_kernel(self, k, parallel):
+        """The compiled batch stepper for ``k`` vectors
+        (:func:`varint.tdh._kernels.batch_kernel`): one for the three
+        methods and both eigensolvers, which the setup of each call
+        chooses."""
+        model, acc = self.model, self.accumulator
+        update, flow = (no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
+        return TK.batch_kernel(model.n_dof, k, model.bandwidth, parallel, K.model_kernels(model),
+                               _analytic_eig(model), update, flow, self._orbit_stepper(),
+                               model.time_dependent)
+
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` intervals τ."""
         m = state.n_orbits
-        parallel = use_parallel(self.parallel, m)
         model = self.model
         acc = self.accumulator
-        update, aux, flow = ((no_accumulator, np.empty((m, 0, 0)), False) if acc is None
-                             else (acc.update, state.extra[acc.key], acc.needs_flow))
+        aux = np.empty((m, 0, 0)) if acc is None else state.extra[acc.key]
         time = model.time_dependent
-        kernel = TK.batch_kernel(model.n_dof, state.k, model.bandwidth, self._mode, parallel,
-                                 K.model_kernels(model), self._eig, update, flow,
-                                 self._orbit_stepper(), time)
+        kernel = self.batch_kernel(state.k, use_parallel(self.parallel, m))
         counters = np.zeros((m, len(TK.COUNTERS)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         was_active = state.status == STATUS_OK
@@ -165,7 +180,7 @@ class _TDHPropagator:
         kernel(TK.TDHOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters, pt),
                TK.TDHSetup(self._kinds, self._h, self._hc, self._ctime, self.n_sub, self._tkinds,
                            self._th, self._thc, self._tidx, self._need, model.inverse_mass,
-                           model.params, model.bandwidth),
+                           model.params, model.bandwidth, self._mode == TK.ES, self._analytic),
                Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
                state.status, done)
         state.after_kernel(n, was_active, done, counters,
@@ -278,11 +293,11 @@ class TDHesPropagator(_TDHPropagator):
         self.eigensolver = choice(options.get("eigensolver", "lapack"), ("lapack", "analytic"),
                                   "eigensolver")
         if self.eigensolver == "analytic":
-            if not isinstance(model, HenonHeiles) or not np.all(model.inverse_mass == 1.0):
+            if _analytic_eig(model) is None:
                 raise ValueError(
                     f"eigensolver='analytic' is the paper's transformation (A.10) for the "
                     f"Hénon–Heiles model with unit masses; got {model!r}: use 'lapack'")
-            self._eig = henon_heiles_eig
+            self._analytic = True
 
     @property
     def tangent_order(self):
