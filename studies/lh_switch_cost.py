@@ -5,7 +5,9 @@ default, cold and warm, and the bits of what they chose.
 
 Each turn runs a fresh child process (``python -c`` in the tree, with
 the tree first on ``PYTHONPATH`` and its own numba and varint cache
-directories, ``--caches``) that builds the map (``studies/ladder_rule.py``'s
+directories: ``<prefix>_nc`` and ``<prefix>_vc`` of ``--cache-this`` and
+``--cache-base``; real directories, as varint's cache refuses others and
+then compiles in memory) that builds the map (``studies/ladder_rule.py``'s
 ``case``: ``core`` and ``cr3bp``, the races' quick maps of
 ``studies/map_steps.py``; ``two``, the held-out two centres), runs it once
 with every default (``chaos_map(model, X, "fli", t_end=...)``, one thread:
@@ -18,7 +20,8 @@ of the map's values and of its ``tau_choice`` (every pilot's choice, with
 its counts: the same bits, or not).
 
 Usage: ``python studies/lh_switch_cost.py --base /tmp/main_tree [--maps
-core] [--rounds 3] [--repeats 5]``; result ``lh_switch_cost.json``.
+core] [--rounds 3] [--repeats 5] [--cache-this P] [--cache-base P]``;
+result ``lh_switch_cost.json``.
 State the load (recorded).
 """
 
@@ -69,10 +72,11 @@ print(json.dumps({"cold_map": maps_cpu[0], "warm_map": min(maps_cpu[1:]),
 """
 
 
-def turn(tree, caches, name, repeats):
-    """One child's measurements of map ``name`` in ``tree``."""
-    env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(caches / "nc"),
-           "VARINT_CACHE_DIR": str(caches / "vc")}
+def turn(tree, cache, name, repeats):
+    """One child's measurements of map ``name`` in ``tree`` with the
+    caches ``<cache>_nc`` and ``<cache>_vc``."""
+    env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": f"{cache}_nc",
+           "VARINT_CACHE_DIR": f"{cache}_vc"}
     done = subprocess.run([sys.executable, "-c", CHILD, name, str(repeats)], cwd=tree, env=env,
                           capture_output=True, text=True, check=False)
     if done.returncode != 0:
@@ -87,18 +91,21 @@ def main(argv=None):
         parser.add_argument("--maps", default="core")
         parser.add_argument("--rounds", type=int, default=3)
         parser.add_argument("--repeats", type=int, default=5)
-        parser.add_argument("--caches", default="/tmp/lh_switch_cost",
-                            help="cache directories: <caches>/<tree label>/{nc,vc}")
+        parser.add_argument("--cache-this", default="/tmp/lh_switch_cost_this",
+                            help="this tree's caches: <prefix>_nc, <prefix>_vc")
+        parser.add_argument("--cache-base", default="/tmp/lh_switch_cost_base",
+                            help="the other tree's caches: <prefix>_nc, <prefix>_vc")
 
     args = parse_args(__doc__.split("\n\n")[0], argv, extra)
     trees = {"this": Path(__file__).resolve().parent.parent, "base": Path(args.base).resolve()}
+    caches = {"this": args.cache_this, "base": args.cache_base}
     load = list(os.getloadavg())
     rows = []
     for name in [m for m in args.maps.split(",") if m]:
         turns: dict = {label: [] for label in trees}
         for _ in range(args.rounds):
             for label, tree in trees.items():
-                turns[label].append(turn(tree, Path(args.caches) / label, name, args.repeats))
+                turns[label].append(turn(tree, caches[label], name, args.repeats))
         best = {label: {key: min(t[key] for t in ts)
                         for key in ("cold_map", "warm_map", "cold_switch", "warm_switch")}
                 for label, ts in turns.items()}

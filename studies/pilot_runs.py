@@ -7,10 +7,7 @@ switch's own CPU seconds.
 Each pilot run is recorded by hook: the constant ladder's
 (:func:`varint.stepsize.pilot_errors` as :mod:`varint.step_agreement`
 calls it) and the logarithmic Hamiltonian's
-(``varint.time_transform.LogHamiltonian._run``, which every LH run goes
-through: :meth:`~varint.time_transform.LogHamiltonian.outputs` and the
-pilots' prepared runs; before lh20 the hook was around ``outputs``, so
-its seconds held the checks and layout of each call), CPU time around
+(:meth:`varint.time_transform.LogHamiltonian.outputs`), CPU time around
 each call, the minimum over the repeats of the map with every default
 (``chaos_map(model, X, "fli", t_end=...)``, one thread, caches warm).
 The counts are the same on any machine and load; the seconds are not
@@ -71,7 +68,7 @@ from varint.time_transform import LogHamiltonian
 def _hooked(runs):
     """Patches that append each pilot run to ``runs``: (stepper, step,
     orbits, force evaluations, CPU seconds)."""
-    constant_run, lh_run = step_agreement.pilot_errors, LogHamiltonian._run
+    constant_run, lh_run = step_agreement.pilot_errors, LogHamiltonian.outputs
 
     def constant(model, X, tau, t_pilot, *args, **kwargs):
         counts = args[2]
@@ -81,17 +78,15 @@ def _hooked(runs):
                      int(counts["gradient"] - before), time.process_time() - start))
         return out
 
-    def log(self, X, W, t_end, hs, *args, **kwargs):
+    def log(self, X, W0, t_end, h, *args, **kwargs):
         start = time.process_time()
-        out = lh_run(self, X, W, t_end, hs, *args, **kwargs)
-        runs.append(("log", float(hs[0]), len(X), float(t_end), int(out.counts[:, 2].sum()),
+        out = lh_run(self, X, W0, t_end, h, *args, **kwargs)
+        runs.append(("log", float(h), len(X), float(t_end), int(out.counts[:, 2].sum()),
                      time.process_time() - start))
         return out
 
-    # Every LH run, the pilots' prepared runs and LogHamiltonian.outputs,
-    # goes through _run (the checks and layout before it are outside).
     return (mock.patch.object(step_agreement, "pilot_errors", constant),
-            mock.patch.object(LogHamiltonian, "_run", log))
+            mock.patch.object(LogHamiltonian, "outputs", log))
 
 
 def measure(name, repeats):

@@ -164,21 +164,18 @@ def test_starts_are_each_orbits_own_and_a_run_given_them_is_the_same_run(core):
         assert np.all(other.start_u(X, starts=starts) > 0)
     W0 = initial_deviations(core.dim, 1, len(pick), 0, pick)[:, :, 0]
     other = lh.with_offset(0.25)
-    run = other.prepared(X[pick], W0, every=4.0, starts=mine)
     for t_end, h, lanes in ((20.0, 0.05, None), (9.0, 0.1, True), (9.0, 0.1, False)):
         a = other.outputs(X[pick], W0, t_end, h, every=4.0, starts=mine, lanes=lanes)
         b = other.outputs(X[pick], W0, t_end, h, every=4.0)
-        c = run(t_end, h, lanes=lanes)
         for name in ("fli", "status", "x", "t", "x_worst", "t_worst", "counts"):
             assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
-            assert np.array_equal(getattr(c, name), getattr(b, name), equal_nan=True), name
     assert (b.status == 0).all() and np.isfinite(b.fli).all()
     with pytest.raises(ValueError, match="starts must hold the 4 orbits"):
         lh.outputs(X[pick], W0, 20.0, 0.05, starts=starts)
     with pytest.raises(ValueError, match="t_end must be a finite number > 0, got -1"):
-        run(-1.0, 0.05)
+        other.outputs(X[pick], W0, -1.0, 0.05, starts=mine)
     with pytest.raises(ValueError, match="h must be finite numbers > 0, got nan"):
-        run(1.0, math.nan)
+        other.outputs(X[pick], W0, 1.0, math.nan, starts=mine)
 
 
 def test_the_pilot_over_lanes_chooses_what_one_orbit_at_a_time_does(core, monkeypatch):

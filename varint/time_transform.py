@@ -414,25 +414,6 @@ class LogHamiltonian:
             np.asarray(C, float), len(X))
         return self._run(X, W, t_end, hs, every, C, max_steps, -E, lanes, starts.potential)
 
-    def prepared(self, X, W0, every=10.0, starts=None):
-        """:meth:`outputs` of the orbits ``X`` with the vectors ``W0``
-        through outputs at the multiples of ``every``, checked and laid out
-        once (``starts``: :meth:`starts` of ``X``, computed here where not
-        given): a function ``run(t_end, h, lanes=None)`` that runs them, the
-        same bits as :meth:`outputs` with the same arguments. A pilot runs
-        its orbits at every rung it judges (on the cored map of
-        ``studies/map_steps.py`` 47 runs of 16 orbits, most of them short,
-        where the checks and layout of each call were ~0.1 ms of Python)."""
-        X, W, every, starts = self._laid_out(X, W0, every, starts)
-        E = starts.energy
-        C, pt = np.ascontiguousarray(offset_constant(E, self.offset)), -E
-
-        def run(t_end, h, lanes=None):
-            t_end, hs = _checked_run(t_end, h, len(X))
-            return self._run(X, W, t_end, hs, every, C, MAX_STEPS, pt, lanes, starts.potential)
-
-        return run
-
     def _laid_out(self, X, W0, every, starts):
         """:meth:`outputs`' orbits ``X`` (M, 2N), their vectors in the
         kernels' layout (M, k, 2N) (k = 0 where ``W0`` is None), ``every``

@@ -268,13 +268,13 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map
     # once this process has them compiled (a coarse rung before a fine one,
     # a later map).
     u0 = lh.start_u(X, starts=starts)
-    pilot = lh.prepared(sample, W0, every=every, starts=mine)
 
     def run(j):
         if j not in runs:
             h = h0 * 2.0**-j
-            out = pilot(t_pilot, h, lanes=lh.lanes_ready(1)
-                        or takes_lanes(len(X), lanes_work(u0, t_end, h)))
+            out = lh.outputs(sample, W0, t_pilot, h, every=every, starts=mine,
+                             lanes=lh.lanes_ready(1) or takes_lanes(len(X),
+                                                                    lanes_work(u0, t_end, h)))
             counts[:] += out.counts.sum(axis=0)
 
             # Measured where read (descend; _retry_rate): a run whose rate
