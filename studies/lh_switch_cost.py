@@ -19,6 +19,15 @@ switch and map and of the cold map, their ratios, and each child's hashes
 of the map's values and of its ``tau_choice`` (every pilot's choice, with
 its counts: the same bits, or not).
 
+Stored run (``studies/results/lh20/lh_switch_cost.json``, lh20 against
+4f2bb83 on this AMD EPYC, the cored map, 3 turns × 3 repeats, load 18.7
+→ 15.8: read ratios): the switch 84.99 → 65.86 ms CPU warm (1.29×), the
+whole map 908.7 → 766.8 ms warm (1.19×; the switch is ~19 ms of that
+difference, the rest the load's noise), cold 2553 → 2866 ms (0.89×: the
+kernels' loading from the disk caches, ~1.2 s, dominates, and moves by
+hundreds of ms between turns at this load); values and every choice
+(δ, h, prices, counts) bit for bit the same in all 18 children.
+
 Usage: ``python studies/lh_switch_cost.py --base /tmp/main_tree [--maps
 core] [--rounds 3] [--repeats 5] [--cache-this P] [--cache-base P]``;
 result ``lh_switch_cost.json``.
