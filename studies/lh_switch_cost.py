@@ -26,7 +26,16 @@ whole map 908.7 → 766.8 ms warm (1.19×; the switch is ~19 ms of that
 difference, the rest the load's noise), cold 2553 → 2866 ms (0.89×: the
 kernels' loading from the disk caches, ~1.2 s, dominates, and moves by
 hundreds of ms between turns at this load); values and every choice
-(δ, h, prices, counts) bit for bit the same in all 18 children.
+(δ, h, prices, counts) bit for bit the same in all 18 children. Again
+as the load fell (``lh_switch_cost_2.json``, load 16.4 → 2.0): the
+switch 66.49 → 61.36 ms warm (1.08×), the map 739.4 → 740.6 ms (1.00×),
+cold 2376 → 2465 ms (0.96×), the same bits. The Python the change
+removed (the start energies, ~5 ms a switch here) weighs more on a
+loaded machine; the rest of the switch is its kernels (the LH lanes'
+2.43e6 and the constant ladder's 1.41e6 force evaluations, the same
+runs as before). In both runs this tree's cold switch (min 1221 and 1433
+ms) was above 4f2bb83's (1104 and 1238 ms), within the turns' spread
+(1104–1543 ms) and not explained: to be measured quietly.
 
 Usage: ``python studies/lh_switch_cost.py --base /tmp/main_tree [--maps
 core] [--rounds 3] [--repeats 5] [--cache-this P] [--cache-base P]``;
