@@ -27,7 +27,7 @@ difference, the rest the load's noise), cold 2553 → 2866 ms (0.89×: the
 kernels' loading from the disk caches, ~1.2 s, dominates, and moves by
 hundreds of ms between turns at this load); values and every choice
 (δ, h, prices, counts) bit for bit the same in all 18 children. Again
-as the load fell (``lh_switch_cost_2.json``, load 16.4 → 2.0): the
+at a lower load (``lh_switch_cost_2.json``, load 4.9 → 3.9): the
 switch 66.49 → 61.36 ms warm (1.08×), the map 739.4 → 740.6 ms (1.00×),
 cold 2376 → 2465 ms (0.96×), the same bits. The Python the change
 removed (the start energies, ~5 ms a switch here) weighs more on a
