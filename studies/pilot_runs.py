@@ -38,6 +38,17 @@ evaluations, 40 ms, most of them rungs above the energy ceiling, each
 to t = 100 (1.35e6), the constant ladder's 6 runs (1.41e6, all above the
 energy ceiling, down to τ = 1/32, whose rate stops it).
 
+lh20 (``studies/results/lh20/pilot_runs_before.json`` on 4f2bb83, load
+3.5 → 13.0, and ``pilot_runs_after.json``, load 15.1 → 12.6; 3 repeats):
+the cored map's pilots make the same 53 runs, step for step, with the
+same force evaluations (LH 2 427 219, constant 1 411 200); the energies
+at the orbits' starts, computed per run and per descent before (the
+profile's two list comprehensions of ``time_transform.py``, its largest
+own times after the lanes kernel), are computed once per switch
+(:class:`varint.time_transform.Starts`). The seconds of the two runs
+are at different loads (switch 73.9 vs 119.5 ms): the before/after
+figure is ``studies/lh_switch_cost.py``'s, interleaved.
+
 Usage: ``python studies/pilot_runs.py [--maps cr3bp,core] [--repeats N]``;
 result ``pilot_runs.json``.
 """

@@ -139,3 +139,61 @@ def test_with_offset_is_a_fresh_stepper_at_that_offset(core):
     assert lh.offset is None and other.offset == 0.25
     assert np.array_equal(other.constants(X), lh.energy(X) + 0.25)
     assert np.array_equal(lh.constants(X), lh.energy(X) + 1.0)   # E = 0: δ = max(−E, 1)
+
+
+def test_starts_are_each_orbits_own_and_a_run_given_them_is_the_same_run(core):
+    """LogHamiltonian.starts: H = A + V and V of each orbit (the model's
+    own energy and potential to round-off), the same bits for an orbit
+    whatever the others (a pilot takes its sample's rows of the map's
+    starts), C and U₀ as constants and start_u compute them; a run given
+    them is the run that computes them, bit for bit."""
+    lh = LogHamiltonian(core, "ABA864")
+    X = _core_orbits(core, 5)
+    starts = lh.starts(X)
+    n = X.shape[1] // 2
+    assert np.allclose(starts.energy, core.energy(X), rtol=0, atol=1e-14)
+    assert np.allclose(starts.potential, core.potential(X[:, :n]), rtol=0, atol=1e-14)
+    pick = np.array([17, 3, 11, 20])
+    mine = lh.starts(X[pick])
+    assert np.array_equal(mine.energy, starts.rows(pick).energy)
+    assert np.array_equal(mine.potential, starts.rows(pick).potential)
+    for offset in (None, 0.25):
+        other = lh.with_offset(offset)
+        assert np.array_equal(other.constants(X, starts), other.constants(X))
+        assert np.array_equal(other.start_u(X, starts=starts), other.start_u(X))
+        assert np.all(other.start_u(X, starts=starts) > 0)
+    W0 = initial_deviations(core.dim, 1, len(pick), 0, pick)[:, :, 0]
+    other = lh.with_offset(0.25)
+    for t_end, h, lanes in ((20.0, 0.05, None), (9.0, 0.1, True), (9.0, 0.1, False)):
+        a = other.outputs(X[pick], W0, t_end, h, every=4.0, starts=mine, lanes=lanes)
+        b = other.outputs(X[pick], W0, t_end, h, every=4.0)
+        for name in ("fli", "status", "x", "t", "x_worst", "t_worst", "counts"):
+            assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+    assert (b.status == 0).all() and np.isfinite(b.fli).all()
+    with pytest.raises(ValueError, match="starts must hold the 4 orbits"):
+        lh.outputs(X[pick], W0, 20.0, 0.05, starts=starts)
+    with pytest.raises(ValueError, match="t_end must be a finite number > 0, got -1"):
+        other.outputs(X[pick], W0, -1.0, 0.05, starts=mine)
+    with pytest.raises(ValueError, match="h must be finite numbers > 0, got nan"):
+        other.outputs(X[pick], W0, 1.0, math.nan, starts=mine)
+
+
+def test_the_pilot_over_lanes_chooses_what_one_orbit_at_a_time_does(core, monkeypatch):
+    """Every pilot run of the offset's pricing and the h descent over SIMD
+    lanes (their work threshold at 0, as when the map runs over them or
+    this process has them compiled) gives the choice of the same pilot run
+    one orbit at a time, every figure of it (prices, counts, energy
+    errors, h and δ) bit for bit."""
+    from varint import time_transform
+
+    pilot = _core_orbits(core, 6)
+    one = LogHamiltonian(core, "ABA864")
+    one.lanes_kernels = (None, None)
+    assert not one.lanes_ready(1)
+    _, h_one, one_choice = agreeing_offset(one, pilot, T_END, **PILOT)
+    monkeypatch.setattr(time_transform, "LANES_WORK", 0.0)
+    lanes = LogHamiltonian(core, "ABA864")
+    _, h_lanes, lanes_choice = agreeing_offset(lanes, pilot, T_END, **PILOT)
+    assert lanes.lanes_ready(1)
+    assert h_one is not None and h_lanes == h_one
+    assert repr(lanes_choice) == repr(one_choice)

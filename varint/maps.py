@@ -666,18 +666,21 @@ def _cheaper_steps(spec, k, clock):
         # its pilot's ceiling is looser, its price counts the retries; its
         # offset δ is the cheapest the pilot priced.
         # Both pilots run the same orbits: one reference, and (one vector
-        # each) the same vectors, drawn once.
+        # each) the same vectors, drawn once; the LH's energies at the
+        # orbits' starts serve every δ and the lanes' choice.
+        starts = lh.starts(X)
         chosen, h, choice = agreeing_offset(lh, X, spec.t_end, quantile=MAP_QUANTILE,
                                        ceiling=RETRY_CEILING * spec.energy_tol, seed=spec.seed,
                                        every=LOG_MAP_OPTIONS["every"], retry=spec.energy_tol,
                                        stop_above=beaten, reference=ladder.reference,
-                                       deviations=ladder.W0[:, :, 0] if k == 1 else None)
+                                       deviations=ladder.W0[:, :, 0] if k == 1 else None,
+                                       starts=starts)
         stopped = h is None and ladder.rate is not None
         if h is None and not stopped:
             return None, None
         if not stopped:
             log_cost, _ = step_cost.log_gradient_cost(
-                chosen, lanes=chosen.runs_in_lanes(X, spec.t_end, h))
+                chosen, lanes=chosen.runs_in_lanes(X, spec.t_end, h, starts=starts))
         log_price = math.inf if stopped else choice["gradient_rate"] * log_cost
         # The LH's pilot is spent, its map is what is left; a constant rung
         # still to be judged has its τ/2 run to make before its map: it is

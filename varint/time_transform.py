@@ -49,8 +49,8 @@ from .kernels.time_transform import BUDGET, U_NOT_POSITIVE
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
-__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "TIME_TRANSFORMS", "offset_constant",
-           "lanes_work", "takes_lanes", "MIN_LANES", "LANES_WORK"]
+__all__ = ["LogHamiltonian", "LHResult", "LHOutputs", "Starts", "TIME_TRANSFORMS",
+           "offset_constant", "lanes_work", "takes_lanes", "MIN_LANES", "LANES_WORK"]
 
 #: The values of ``time_transform``.
 TIME_TRANSFORMS = ("log",)
@@ -171,6 +171,39 @@ class LHOutputs:
     counts: np.ndarray
 
 
+@dataclass(frozen=True)
+class Starts:
+    """H = A + V and V at the starts of orbits, by the generated kernels
+    (:meth:`LogHamiltonian.starts`): what every run of the same orbits
+    needs before it starts (C = E + δ and p_t = −E for each δ, U₀ = C − V
+    for the lanes' work), computed once by a pilot that runs them again
+    and again (a Python loop over the orbits, two kernel calls each: on the
+    cored map of ``studies/map_steps.py`` the defaults' switch made 47 LH
+    runs of the same 16 orbits, and asked U₀ of the map's 120 orbits in
+    each of its 5 descents).
+
+    Attributes
+    ----------
+    energy : ndarray (M,)
+        H = A + V, as :meth:`LogHamiltonian.energy` (the same bits).
+    potential : ndarray (M,)
+        V(q).
+    """
+
+    energy: np.ndarray
+    potential: np.ndarray
+
+    def rows(self, idx):
+        """These values of the orbits ``idx``."""
+        return Starts(self.energy[idx], self.potential[idx])
+
+    def u(self, offset, C=None):
+        """U₀ = C − V with C = E + δ (:func:`offset_constant` of
+        ``offset``), or the given ``C``."""
+        return (offset_constant(self.energy, offset) if C is None
+                else np.asarray(C, dtype=float)) - self.potential
+
+
 def _symbolic_parts(model):
     """(A, V, q, p, flow, par) of ``model``: A(q, p) and V(q) as SymPy in
     the symbols q, p, A's exact flow (:class:`~varint.codegen.lh.Flow`)
@@ -271,35 +304,52 @@ class LogHamiltonian:
         return self._source
 
     # -- values ------------------------------------------------------------------------
-    def energy(self, X):
-        """H = A + V of states ``X`` (M, 2N), by the generated kernels."""
+    def starts(self, X):
+        """H = A + V and V(q) of states ``X`` (M, 2N) by the generated
+        kernels (:class:`Starts`)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         n = X.shape[1] // 2
         gA, gV, HV = np.empty(2 * n), np.empty(n), np.empty((n, n))
-        return np.array([self._kinetic(x, gA) + self._potential(x[:n].copy(), gV, HV, False)
-                         for x in X])
+        K, V = np.empty(len(X)), np.empty(len(X))
+        for m, x in enumerate(X):
+            K[m] = self._kinetic(x, gA)
+            V[m] = self._potential(x[:n].copy(), gV, HV, False)
+        return Starts(K + V, V)
 
-    def constants(self, X):
-        """C of every orbit of ``X`` (module docstring)."""
-        return offset_constant(self.energy(X), self.offset)
+    def energy(self, X):
+        """H = A + V of states ``X`` (M, 2N), by the generated kernels."""
+        return self.starts(X).energy
 
-    def start_u(self, X, C=None):
+    def constants(self, X, starts=None):
+        """C of every orbit of ``X`` (module docstring); ``starts``, if
+        given, are :meth:`starts` of ``X``."""
+        return offset_constant((self.starts(X) if starts is None else starts).energy,
+                               self.offset)
+
+    def start_u(self, X, C=None, starts=None):
         """U = C − V(q) of every orbit of ``X`` (M, 2N) at its start, by
-        the generated kernels (``C``: :meth:`constants` where not given)."""
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        n = X.shape[1] // 2
-        gV, HV = np.empty(n), np.empty((n, n))
-        V = np.array([self._potential(x[:n].copy(), gV, HV, False) for x in X])
-        return (self.constants(X) if C is None else np.asarray(C, dtype=float)) - V
+        the generated kernels (``C``: :meth:`constants` where not given;
+        ``starts``, if given, are :meth:`starts` of ``X``)."""
+        return (self.starts(X) if starts is None else starts).u(self.offset, C)
 
-    def runs_in_lanes(self, X, t_end, h, vectors=1, C=None):
+    def lanes_ready(self, vectors=1):
+        """Whether the lanes kernel for ``vectors`` (0 or 1) vectors has
+        been compiled (or loaded from numba's cache) in this process: a
+        pilot's run over it then costs no compile, and the same bits as one
+        orbit at a time."""
+        # numba's dispatcher holds its compiled versions in ``overloads``
+        # (``signatures`` lists them, hashing every type: ~0.1 ms a call).
+        return len(getattr(self.lanes_kernels[vectors], "overloads", ())) > 0
+
+    def runs_in_lanes(self, X, t_end, h, vectors=1, C=None, starts=None):
         """Whether :meth:`outputs` runs the orbits ``X`` with ``vectors``
         (0 or 1) each to ``t_end`` at the fictitious step ``h`` over SIMD
         lanes (:mod:`varint.codegen.lh_lanes`): a lanes kernel for that
-        many vectors, :func:`takes_lanes` of :func:`lanes_work`."""
+        many vectors, :func:`takes_lanes` of :func:`lanes_work`
+        (``starts``, if given, are :meth:`starts` of ``X``)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         return (self.lanes_kernels[vectors] is not None and len(X) >= MIN_LANES
-                and takes_lanes(len(X), lanes_work(self.start_u(X, C), t_end, h)))
+                and takes_lanes(len(X), lanes_work(self.start_u(X, C, starts), t_end, h)))
 
     # -- runs --------------------------------------------------------------------------
     def advance(self, X, W, t_end, h, t0=0.0, C=None, pt=None, max_steps=MAX_STEPS):
@@ -311,8 +361,10 @@ class LogHamiltonian:
         if not t0 < t_end:
             raise ValueError(f"t_end must be after t0 = {t0!r}, got {t_end!r}")
         M = len(X)
-        C = self.constants(X) if C is None else np.broadcast_to(np.asarray(C, float), M)
-        pt = -self.energy(X) if pt is None else np.broadcast_to(np.asarray(pt, float), M)
+        E = self.energy(X) if C is None or pt is None else None
+        C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
+            np.asarray(C, float), M)
+        pt = -E if pt is None else np.broadcast_to(np.asarray(pt, float), M)
         out_x, out_W = X.copy(), W.copy()
         t, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
@@ -341,7 +393,8 @@ class LogHamiltonian:
                         np.full(len(X), h), float(every), C, max_steps, -E)
         return run.fli, run.counts, run.status
 
-    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS, lanes=None):
+    def outputs(self, X, W0, t_end, h, every=10.0, C=None, max_steps=MAX_STEPS, lanes=None,
+                starts=None):
         """Orbits ``X`` (M, 2N) with one vector each (``W0`` (M, 2N), or
         None: no vector) to the physical time ``t_end`` through outputs at
         the multiples of ``every``, with the fictitious step ``h`` (a number,
@@ -351,29 +404,42 @@ class LogHamiltonian:
         lanes where their work repays them (``lanes`` None:
         :func:`takes_lanes`), or wherever there are :data:`MIN_LANES`
         orbits (``lanes`` True: a pilot whose map runs over lanes, which
-        compiles them anyway); the same bits either way."""
+        compiles them anyway); the same bits either way. ``starts``, if
+        given, are :meth:`starts` of ``X`` (a pilot that runs the same
+        orbits again passes them: the same values, not recomputed)."""
+        X, W, every, starts = self._laid_out(X, W0, every, starts)
+        t_end, hs = _checked_run(t_end, h, len(X))
+        E = starts.energy
+        C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
+            np.asarray(C, float), len(X))
+        return self._run(X, W, t_end, hs, every, C, max_steps, -E, lanes, starts.potential)
+
+    def _laid_out(self, X, W0, every, starts):
+        """:meth:`outputs`' orbits ``X`` (M, 2N), their vectors in the
+        kernels' layout (M, k, 2N) (k = 0 where ``W0`` is None), ``every``
+        and their :class:`Starts`, after refusing what is not finite or
+        not of their shapes."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         M, d = X.shape
         W = np.zeros((M, d, 0)) if W0 is None else np.asarray(W0, dtype=float)[..., None]
-        X, W, t_end, _ = _checked(X, W, t_end, 1.0)
+        X, W, _, _ = _checked(X, W, 1.0, 1.0)
         W = np.ascontiguousarray(np.swapaxes(W, 1, 2))   # rows: the kernels' layout
-        hs = np.array(np.broadcast_to(np.asarray(h, dtype=float), (M,)))
-        if not (np.all(np.isfinite(hs)) and np.all(hs > 0)):
-            raise ValueError(f"h must be finite numbers > 0, got {h!r}")
         if isinstance(every, bool) or not isinstance(every, numbers.Real) \
                 or not float(every) > 0.0 or not np.isfinite(every):
             raise ValueError(f"every must be a finite number > 0, got {every!r}")
         # The energies once for C and p_t (a Python loop over the orbits:
-        # a pilot calls this for every step it tries).
-        E = self.energy(X)
-        C = offset_constant(E, self.offset) if C is None else np.broadcast_to(
-            np.asarray(C, float), M)
-        return self._run(X, W, t_end, hs, float(every), C, max_steps, -E, lanes)
+        # a pilot passes them, computed once for all its runs).
+        if starts is None:
+            starts = self.starts(X)
+        elif len(starts.energy) != M:
+            raise ValueError(f"starts must hold the {M} orbits of X, got {len(starts.energy)}")
+        return X, W, float(every), starts
 
-    def _run(self, X, W, t_end, hs, every, C, max_steps, pt, lanes=None):
+    def _run(self, X, W, t_end, hs, every, C, max_steps, pt, lanes=None, V=None):
         """The generated ``outputs`` loop over checked orbits ``X``, vectors
         ``W`` (M, k, 2N), steps ``hs`` (M,), constants ``C`` (M,) and
-        p_t = −H (M,); an orbit that stopped has a NaN FLI."""
+        p_t = −H (M,); an orbit that stopped has a NaN FLI. ``V`` (M,), if
+        given, is V(q) at the orbits' starts (for the lanes' work)."""
         M = len(X)
         fli, status = np.zeros(M), np.zeros(M, dtype=np.int64)
         counts = np.zeros((M, 3), dtype=np.int64)
@@ -382,7 +448,8 @@ class LogHamiltonian:
         over_lanes = self.lanes_kernels[W.shape[1]]
         # Orbits too few for lanes need no estimate of their work.
         if (over_lanes is not None and max_steps >= 1 and M >= MIN_LANES
-                and (lanes or takes_lanes(M, lanes_work(self.start_u(X, C), t_end, hs)))):
+                and (lanes or takes_lanes(M, lanes_work(
+                    self.start_u(X, C) if V is None else C - V, t_end, hs)))):
             kernel = over_lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
         kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
                t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
@@ -422,6 +489,18 @@ def describe(status):
     if status == BUDGET:
         return "the step budget ran out before the output time (a larger h?)"
     return Status(int(status)).name
+
+
+def _checked_run(t_end, h, M):
+    """``t_end`` and the steps ``h`` of ``M`` orbits ((M,): one number
+    each), after refusing what is not finite and > 0."""
+    if isinstance(t_end, bool) or not isinstance(t_end, numbers.Real) \
+            or not float(t_end) > 0.0 or not np.isfinite(t_end):
+        raise ValueError(f"t_end must be a finite number > 0, got {t_end!r}")
+    hs = np.array(np.broadcast_to(np.asarray(h, dtype=float), (M,)))
+    if not (np.all(np.isfinite(hs)) and np.all(hs > 0)):
+        raise ValueError(f"h must be finite numbers > 0, got {h!r}")
+    return float(t_end), hs
 
 
 def _checked(X, W, t_end, h):

@@ -108,13 +108,15 @@ RETRY_LEVELS = 4
 RETRY_CEILING = 10.0
 
 
-def pilot_errors(lh, X, h, t_pilot, reference, counts=None):
+def pilot_errors(lh, X, h, t_pilot, reference, counts=None, starts=None):
     """Per orbit of ``X``, the largest relative error of the conserved
     quantities at :data:`~varint.stepsize.PILOT_CHECKS` output times of an
     LH run with the fictitious step ``h`` to ``t_pilot`` (inf where the
     orbit stopped: U ≤ 0, the step budget, a non-finite state). ``counts``
-    (3,), if given, accumulates the LH steps, tail steps and gradients."""
-    out = lh.outputs(X, None, t_pilot, h, every=t_pilot / PILOT_CHECKS)
+    (3,), if given, accumulates the LH steps, tail steps and gradients;
+    ``starts`` are :meth:`~varint.time_transform.LogHamiltonian.starts`
+    of ``X`` (computed here where not given)."""
+    out = lh.outputs(X, None, t_pilot, h, every=t_pilot / PILOT_CHECKS, starts=starts)
     if counts is not None:
         counts += out.counts.sum(axis=0)
     with np.errstate(all="ignore"):
@@ -146,7 +148,8 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
     sample = X[pick]
     n = sample.shape[1] // 2
     reference = Reference(lh.model, sample)
-    U = lh.constants(sample) - lh.model.potential(sample[:, :n])
+    starts = lh.starts(sample)   # every rung's run starts from them
+    U = lh.constants(sample, starts) - lh.model.potential(sample[:, :n])
     h0 = float(np.median(U))
     t_pilot = float(min(t_end, PILOT_T))
     order = lh.scheme.order
@@ -161,7 +164,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
     def error(j):
         if j not in tried:
             before = int(counts[2])
-            e = pilot_errors(lh, sample, rung(j), t_pilot, reference, counts)
+            e = pilot_errors(lh, sample, rung(j), t_pilot, reference, counts, starts)
             tried[j] = float(np.quantile(e, quantile, method="higher"))
             work[j] = int(counts[2]) - before
         return tried[j]
@@ -210,7 +213,8 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
 
 
 def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map_verdict,
-               retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None):
+               retry=None, t_pilot=None, stop_above=math.inf, deviations=None, reference=None,
+               starts=None):
     """The largest fictitious step h = h₀·2^−j (j = :data:`TOP`, …; h₀ as
     in :func:`choose_h`) at which the FLI of a sample of the orbits ``X``,
     each with the map's own vector (``default_rng([seed, m])``) and
@@ -228,7 +232,10 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map
     ``deviations``, if given, are the sample's vectors as this function
     draws them (:func:`_pilot_deviations`; a caller that runs several
     descents on the same orbits draws them once), and ``reference`` their
-    :class:`~varint.accuracy.Reference` (the sample's rows of ``X``).
+    :class:`~varint.accuracy.Reference` (the sample's rows of ``X``), and
+    ``starts`` :meth:`~varint.time_transform.LogHamiltonian.starts` of
+    ``X`` (the same for every offset: a caller that prices several passes
+    them, computed once).
 
     Returns
     -------
@@ -249,20 +256,25 @@ def agreeing_h(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, agree=map
     n = sample.shape[1] // 2
     W0 = _pilot_deviations(lh, X, seed) if deviations is None else deviations
     reference = Reference(lh.model, sample) if reference is None else reference
-    h0 = float(np.median(lh.constants(sample) - lh.model.potential(sample[:, :n])))
+    starts = lh.starts(X) if starts is None else starts
+    mine = starts.rows(pick)
+    h0 = float(np.median(lh.constants(sample, mine) - lh.model.potential(sample[:, :n])))
     t_pilot = float(min(t_end, PILOT_T if t_pilot is None else t_pilot))
     counts = np.zeros(3, dtype=np.int64)
     runs: dict = {}
     # A rung whose map runs over lanes runs its pilot over them too (the
     # map compiles them anyway): the same bits, in about a third of the
-    # time (studies/results/lhlanes17/lh_lanes.json).
-    u0 = lh.start_u(X)
+    # time (studies/results/lhlanes17/lh_lanes.json); so does every rung
+    # once this process has them compiled (a coarse rung before a fine one,
+    # a later map).
+    u0 = lh.start_u(X, starts=starts)
 
     def run(j):
         if j not in runs:
             h = h0 * 2.0**-j
-            out = lh.outputs(sample, W0, t_pilot, h, every=every,
-                             lanes=takes_lanes(len(X), lanes_work(u0, t_end, h)))
+            out = lh.outputs(sample, W0, t_pilot, h, every=every, starts=mine,
+                             lanes=lh.lanes_ready(1) or takes_lanes(len(X),
+                                                                    lanes_work(u0, t_end, h)))
             counts[:] += out.counts.sum(axis=0)
 
             # Measured where read (descend; _retry_rate): a run whose rate
@@ -321,7 +333,7 @@ PRICE_T = PILOT_T / 4
 
 def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retry=None,
                     offsets=OFFSETS, stop_above=math.inf, deviations=None, reference=None,
-                    agree=map_verdict):
+                    agree=map_verdict, starts=None):
     """The offset δ and the fictitious step h of an LH map of the orbits
     ``X`` whose ``lh`` has no offset of its own (δ = None): the cheapest δ
     of ``offsets`` whose pilot agrees, and the h of :func:`agreeing_h` at it.
@@ -349,7 +361,9 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     competitor cheaper than any step left stops it (h None). ``deviations``
     and ``reference`` are :func:`agreeing_h`'s, drawn here when not given
     (the defaults' switch shares those of its constant-step pilot, the same
-    orbits with the same vectors), and so is ``agree``.
+    orbits with the same vectors), and so are ``agree`` and ``starts``
+    (computed once here where not given: every δ's C and U₀ come from the
+    same energies).
 
     For an A that takes both signs (a rotating frame,
     :attr:`~varint.time_transform.LogHamiltonian.kinetic` False) only the
@@ -372,6 +386,7 @@ def agreeing_offset(lh, X, t_end, *, quantile, ceiling, seed=0, every=10.0, retr
     # 2-core machine, cProfile of the cored map's defaults; 5 draws a map).
     kwargs = {"quantile": quantile, "ceiling": ceiling, "seed": seed, "every": every,
               "retry": retry, "reference": reference, "agree": agree,
+              "starts": lh.starts(X) if starts is None else starts,
               "deviations": _pilot_deviations(lh, X, seed) if deviations is None else deviations}
     priced, pricing = [], 0
     if lh.kinetic and lh.offset is None:
