@@ -97,6 +97,31 @@ FALLBACK_TAU = 0.05
 _advance = TangentMapPropagator.advance
 
 
+class Bracket:
+    """The rungs of a step ladder tried so far (τ or h ∝ 2^(j/RUNGS)): the
+    largest that met the tolerance, ``best``, and the smallest that did
+    not, ``lowest_fail`` (None until one has). The pilots of
+    :func:`choose_tau` and :func:`varint.time_transform_step.choose_h`
+    climb and descend it differently but stop by the same rule
+    (:meth:`settled`)."""
+
+    def __init__(self):
+        self.best = None
+        self.lowest_fail = None
+
+    def note(self, j, met):
+        """Record that rung ``j`` met the tolerance (``met``) or not."""
+        if met:
+            self.best = j if self.best is None else max(self.best, j)
+        else:
+            self.lowest_fail = j if self.lowest_fail is None else min(self.lowest_fail, j)
+
+    def settled(self, top):
+        """Whether the largest rung that meets the tolerance is found: the
+        ``top`` rung met it, or the rung above the best failed."""
+        return self.best is not None and (self.best == top or self.best + 1 == self.lowest_fail)
+
+
 class StepChoice(dict):
     """How the step was chosen (a dict, stored in the provenance as
     ``tau_choice``): ``rule`` ("pilot", "fallback", "fixed", or "orbit"
@@ -209,17 +234,14 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
         return cap * 2.0 ** (j / RUNGS)
 
     top = 0
-    j, best, lowest_fail, stuck = top, None, None, False
+    j, tried_rungs, stuck = top, Bracket(), False
     while True:
         e = error(j)
-        if e <= tolerance:
-            best = j if best is None else max(best, j)
-        else:
-            lowest_fail = j if lowest_fail is None else min(lowest_fail, j)
-        if best is not None:
-            if best == top or best + 1 == lowest_fail:
-                break
-            j = best + 1
+        tried_rungs.note(j, e <= tolerance)
+        if tried_rungs.settled(top):
+            break
+        if tried_rungs.best is not None:
+            j = tried_rungs.best + 1
             continue
         # No step met it yet: predict from the order, at least one rung down.
         drop = (RUNGS * math.log2(e / tolerance) / sch.order if math.isfinite(e) and e > 0
@@ -234,6 +256,7 @@ def choose_step(model, X, t_end, tolerance, *, method="tm", scheme=None, cap=Non
                       pilot_t=float(min(t_end, PILOT_T)), orbits=len(X), quantile=quantile,
                       tried=[[rung(k), float(v)] for k, v in sorted(tried.items())],
                       counts=counts)
+    best = tried_rungs.best
     if best is None:
         tau = dividing_step(t_end, min(FALLBACK_TAU, cap))
         smallest = min(tried)

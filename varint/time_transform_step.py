@@ -81,7 +81,7 @@ from .accuracy import Reference
 from .kernels.time_transform import BUDGET
 from .state import initial_deviations
 from .step_agreement import descend, map_verdict, pilot_sample, summary
-from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS
+from .stepsize import PILOT_CHECKS, PILOT_ORBITS, PILOT_T, RUNGS, Bracket
 from .time_transform import lanes_work, takes_lanes
 
 __all__ = ["choose_h", "agreeing_h", "map_verdict", "agreeing_offset", "pilot_errors", "retried", "orbit_errors"]
@@ -169,16 +169,14 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
             work[j] = int(counts[2]) - before
         return tried[j]
 
-    j, best, lowest_fail = 0, None, None
+    j, tried_rungs = 0, Bracket()
     while True:
         e = error(j)
-        if e <= tolerance:
-            best = j if best is None else max(best, j)
-        else:
-            lowest_fail = j if lowest_fail is None else min(lowest_fail, j)
+        tried_rungs.note(j, e <= tolerance)
+        if tried_rungs.settled(0):
+            break
+        best, lowest_fail = tried_rungs.best, tried_rungs.lowest_fail
         if best is not None:
-            if best == 0 or best + 1 == lowest_fail:
-                break
             # Halve the gap to the lowest failing rung (the error need not
             # follow h^p between them: a pericentre resolved or not).
             j = best + (1 if lowest_fail is None else max(1, (lowest_fail - best) // 2))
@@ -200,6 +198,7 @@ def choose_h(lh, X, t_end, tolerance, *, quantile, seed=0):
               "tried": [[rung(k), v] for k, v in sorted(tried.items())],
               "counts": {"lh_steps": int(counts[0]), "tail_steps": int(counts[1]),
                          "gradient_evaluations": int(counts[2])}}
+    best = tried_rungs.best
     if best is None:
         h = rung(min(tried))
         choice.update(rule="smallest", h=h)
