@@ -138,9 +138,7 @@ def ferrers_w(lam, axes2, W1, W2, W3):
     """W (returned) and W_i, W_ij, W_ijk (written to W1 (3,), W2 (3, 3),
     W3 (3, 3, 3), symmetric) at λ for semi-axes² ``axes2`` (module
     docstring)."""
-    al = np.empty(3)
-    for i in range(3):
-        al[i] = axes2[i] + lam
+    al = (axes2[0] + lam, axes2[1] + lam, axes2[2] + lam)
     delta = math.sqrt(al[0] * al[1] * al[2])
     W0 = 2.0 * carlson_rf(al[0], al[1], al[2])
     W1[0] = 2.0 / 3.0 * carlson_rd(al[1], al[2], al[0])
