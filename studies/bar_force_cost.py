@@ -17,7 +17,8 @@ Method
 ------
 varint: a compiled loop over the positions calls the function (its
 gradient and Hessian added to accumulators, so nothing is optimised away);
-``ferrers`` is the bar's ``ferrers_grad_hess`` alone, ``model`` the bar
+``ferrers_grad_hess`` is the bar alone with its potential, ``ferrers_kick``
+the same without the potential (where the code has it), ``model`` the bar
 model's ``grad_hess_v`` (Miyamoto–Nagai disc + Plummer bulge + bar, what
 the tangent map's kick evaluates). AGAMA: ``eval`` of the Ferrers
 potential alone, and of the whole model, on the (M, 3) array of positions
@@ -63,6 +64,24 @@ def _ferrers_loop(Q, axes2, gm, inside):
     for m in range(Q.shape[0]):
         ferrers_grad_hess(Q[m], axes2, gm, g, D, True, inside)
     return g.sum() + D.sum()
+
+
+def _kick_loop():
+    """:func:`_ferrers_loop` of ``ferrers_kick`` (no Φ: what the model's
+    kick calls), or None in code that has none (main 4f2bb83)."""
+    try:
+        from varint.models.ferrers import ferrers_kick
+    except ImportError:
+        return None
+
+    @njit(error_model="numpy")
+    def loop(Q, axes2, gm, inside):
+        g = np.zeros(3)
+        D = np.zeros((3, 3))
+        for m in range(Q.shape[0]):
+            ferrers_kick(Q[m], axes2, gm, g, D, True, inside)
+        return g.sum() + D.sum()
+    return loop
 
 
 def _model_loop(grad_hess):
@@ -123,6 +142,7 @@ def measure(quick, repeats):
     inside = inside_table(axes2)
     par = np.empty(0)
     model_loop = _model_loop(model.grad_hess_v)
+    kick_loop = _kick_loop()
     peers = _agama()
     rows = []
     for name, Q in positions(quick).items():
@@ -130,6 +150,9 @@ def measure(quick, repeats):
         model_loop(Q, par)
         tasks = {"varint ferrers_grad_hess": lambda Q=Q: _ferrers_loop(Q, axes2, gm, inside),
                  "varint model grad_hess_v": lambda Q=Q: model_loop(Q, par)}
+        if kick_loop is not None:
+            kick_loop(Q, axes2, gm, inside)
+            tasks["varint ferrers_kick"] = lambda Q=Q: kick_loop(Q, axes2, gm, inside)
         if peers is not None:
             bar, whole = peers
             tasks["AGAMA Ferrers eval acc+der (array)"] = (

@@ -43,7 +43,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from .ferrers import ferrers_grad_hess, ferrers_potential, inside_table
+from .ferrers import ferrers_kick, ferrers_potential, inside_table
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["RotatingBar", "BAR_ORBITS", "bar_orbit", "SPA02"]
@@ -79,13 +79,12 @@ def _with_bar(grad, grad_hess, axes2, gm, offset):
     @njit(error_model="numpy")
     def grad_bar(y, par, g):
         grad(y, par, g)
-        ferrers_grad_hess(y[:3], a2, gm, g[offset:offset + 3], g[:0].reshape((0, 0)), False,
-                          inside)
+        ferrers_kick(y[:3], a2, gm, g[offset:offset + 3], g[:0].reshape((0, 0)), False, inside)
 
     @njit(error_model="numpy")
     def grad_hess_bar(y, par, g, D):
         grad_hess(y, par, g, D)
-        ferrers_grad_hess(y[:3], a2, gm, g[offset:offset + 3], D, True, inside)
+        ferrers_kick(y[:3], a2, gm, g[offset:offset + 3], D, True, inside)
 
     return grad_bar, grad_hess_bar
 
