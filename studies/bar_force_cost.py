@@ -187,6 +187,7 @@ def main(argv=None):
     save_json(args.out, name, {"rows": rows, "load": start, "load_end": os.getloadavg(),
                                "label": args.label})
     print(f"load {start[0]:.2f} → {os.getloadavg()[0]:.2f}")
+    return rows
 
 
 if __name__ == "__main__":
