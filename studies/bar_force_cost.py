@@ -29,6 +29,13 @@ not pay, shown for scale). Seconds per evaluation: the minimum over
 one call's time over the set's size. The load of the shared machine is
 stored with them.
 
+The defaults on one orbit (issue 29's "the pilots cost 4–7× the run"):
+``lyapunov_spectrum(model, x0, 100, deviations=w0, t_out=[100])`` with no
+step given, per named orbit, ``--repeats`` times after a warm call; kept
+(``defaults`` in the JSON): the minimum of the call's own ``timing``
+(``pilot``, ``run``: :class:`varint.Provenance`), the step chosen and the
+pilots' rungs tried and steps (``tau_choice``) against the run's steps.
+
 Stored as ``bar_force_cost_<label>.json``/``.csv`` under ``--out``
 (``studies/results/bar20`` by default); ``--label`` names the code
 measured (``before``: main 4f2bb83 on ``PYTHONPATH``, ``after``: this
@@ -171,6 +178,29 @@ def measure(quick, repeats):
     return rows
 
 
+def defaults(repeats):
+    """Per named orbit: the default step's pilots against the run
+    (module docstring)."""
+    w0 = np.full((6, 1), 1 / np.sqrt(6))
+    out = {}
+    for name in BAR_ORBITS:
+        model, x0 = bar_orbit(name)
+        timing: dict = {}
+        for _ in range(repeats + 1):
+            prov = varint.lyapunov_spectrum(model, x0, 100.0, deviations=w0,
+                                            t_out=[100.0]).provenance
+            for key in ("pilot", "run"):
+                timing[key] = min(timing.get(key, np.inf), prov.timing[key])
+        choice = prov.tau_choice
+        out[name] = {"seconds": timing, "pilot_over_run": timing["pilot"] / timing["run"],
+                     "tau": choice["tau"], "tried": choice["tried"],
+                     "pilot_steps": choice["counts"]["steps"], "run_steps": prov.counts["steps"]}
+        print(f"defaults {name}: τ = {choice['tau']:.4g}, pilots {timing['pilot'] * 1e3:.3g} ms "
+              f"({choice['counts']['steps']} steps, {len(choice['tried'])} rungs) vs run "
+              f"{timing['run'] * 1e3:.3g} ms ({prov.counts['steps']} steps)", flush=True)
+    return out
+
+
 def main(argv=None):
     def extra(parser):
         parser.add_argument("--label", default="after", help="names the code measured")
@@ -181,11 +211,12 @@ def main(argv=None):
         args.out = args.out / "bar20"
         args.out.mkdir(parents=True, exist_ok=True)
     start = os.getloadavg()
-    rows = measure(args.quick, 1 if args.quick else args.repeats)
+    repeats = 1 if args.quick else args.repeats
+    rows = measure(args.quick, repeats)
     name = f"bar_force_cost_{args.label}"
     save_csv(args.out, name, rows, COLUMNS)
-    save_json(args.out, name, {"rows": rows, "load": start, "load_end": os.getloadavg(),
-                               "label": args.label})
+    save_json(args.out, name, {"rows": rows, "defaults": defaults(repeats), "load": start,
+                               "load_end": os.getloadavg(), "label": args.label})
     print(f"load {start[0]:.2f} → {os.getloadavg()[0]:.2f}")
     return rows
 
