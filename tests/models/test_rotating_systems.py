@@ -10,7 +10,8 @@ from varint.methods.parts import parts_steps
 from varint.models.bar import RotatingBar, bar_orbit
 from varint.models.bottle import MagneticBottle, bottle_orbit
 from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, cr3bp_orbit)
-from varint.models.ferrers import carlson_rd, carlson_rf, ferrers_grad_hess, inside_table
+from varint.models.ferrers import (carlson_rd, carlson_rf, ferrers_grad_hess, ferrers_kick,
+                                   inside_table)
 
 
 # -- the restricted three-body problem --------------------------------------------------
@@ -104,6 +105,26 @@ def test_ferrers_potential_obeys_poisson_and_is_differentiated_exactly(q):
     fd_D = [(_bar(q + e * u)[1] - _bar(q - e * u)[1]) / (2 * e) for u in np.eye(3)]
     assert np.abs(g - fd_g).max() < tol * np.abs(g).max()
     assert np.abs(D - np.array(fd_D)).max() < 10 * tol * np.abs(D).max()
+
+
+def test_ferrers_kick_is_grad_hess_without_the_potential():
+    """The kick's kernel (no Φ) adds the very g and D of ferrers_grad_hess,
+    bit for bit, inside the bar (λ = 0) and outside, with and without the
+    Hessian; the gradient alone is the one of the Hessian's call."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1, 1, (200, 3)) * np.array([9.0, 3.0, 1.2])
+    inside = inside_table(_AXES2)
+    assert ((points ** 2 / _AXES2).sum(1) < 1).sum() > 20
+    assert ((points ** 2 / _AXES2).sum(1) > 1).sum() > 20
+    for q in points:
+        g0, D0 = rng.normal(size=3), rng.normal(size=(3, 3))
+        g, D, gk, Dk = g0.copy(), D0.copy(), g0.copy(), D0.copy()
+        ferrers_grad_hess(q, _AXES2, 0.1, g, D, True, inside)
+        ferrers_kick(q, _AXES2, 0.1, gk, Dk, True, inside)
+        assert np.array_equal(g, gk) and np.array_equal(D, Dk)
+        gk = g0.copy()
+        ferrers_kick(q, _AXES2, 0.1, gk, D0[:0, :0], False, inside)
+        assert np.array_equal(g, gk)
 
 
 def test_ferrers_far_field_and_continuity():

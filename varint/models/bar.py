@@ -43,7 +43,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from .ferrers import ferrers_grad_hess, ferrers_potential, inside_table
+from .ferrers import ferrers_kick, ferrers_potential, inside_table
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["RotatingBar", "BAR_ORBITS", "bar_orbit", "SPA02"]
@@ -79,13 +79,12 @@ def _with_bar(grad, grad_hess, axes2, gm, offset):
     @njit(error_model="numpy")
     def grad_bar(y, par, g):
         grad(y, par, g)
-        ferrers_grad_hess(y[:3], a2, gm, g[offset:offset + 3], g[:0].reshape((0, 0)), False,
-                          inside)
+        ferrers_kick(y[:3], a2, gm, g[offset:offset + 3], g[:0].reshape((0, 0)), False, inside)
 
     @njit(error_model="numpy")
     def grad_hess_bar(y, par, g, D):
         grad_hess(y, par, g, D)
-        ferrers_grad_hess(y[:3], a2, gm, g[offset:offset + 3], D, True, inside)
+        ferrers_kick(y[:3], a2, gm, g[offset:offset + 3], D, True, inside)
 
     return grad_bar, grad_hess_bar
 
@@ -130,6 +129,9 @@ class RotatingBar(IntegrableHamiltonian):
         self.values = {k: float(v) for k, v in values.items()}
         self.axes = (a, b, c)
         self._axes2 = np.array([a * a, b * b, c * c])
+        # The W at λ = 0, once: every energy check of a pilot or a run
+        # evaluates the bar's potential (~7 µs a table).
+        self._inside = inside_table(self._axes2)
         v = self.values
         H, q, p, found = _expression(v["disc_mass"], v["disc_a"], v["disc_b"], v["bulge_mass"],
                                      v["bulge_radius"], v["omega"])
@@ -143,8 +145,7 @@ class RotatingBar(IntegrableHamiltonian):
         q = np.asarray(q, dtype=float)
         Q = np.ascontiguousarray(q.reshape(-1, 3))
         out = np.empty(len(Q))
-        ferrers_potential(Q, self._axes2, self.values["bar_mass"], inside_table(self._axes2),
-                          out)
+        ferrers_potential(Q, self._axes2, self.values["bar_mass"], self._inside, out)
         return out.reshape(q.shape[:-1])
 
     def _potential_values(self, q, t=0.0):

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["carlson_rf", "carlson_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
-           "ferrers_grad_hess", "inside_table", "FERRERS_K"]
+           "ferrers_grad_hess", "ferrers_kick", "inside_table", "FERRERS_K"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
 FERRERS_K = 35.0 / 32.0
@@ -101,20 +101,23 @@ def carlson_rd(x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def ferrers_lambda(X, axes2):
-    """λ: 0 inside the ellipsoid (Σ X_i/a_i² ≤ 1), else the root of
-    Σ X_i/(a_i² + λ) = 1, by Newton's method from below (f is convex and
-    decreasing, so its iterates rise monotonically to the root)."""
-    if X[0] / axes2[0] + X[1] / axes2[1] + X[2] / axes2[2] <= 1.0:
+def _lambda(X0, X1, X2, axes2):
+    """:func:`ferrers_lambda` of X = (X0, X1, X2) as scalars (no array to
+    allocate per call)."""
+    if X0 / axes2[0] + X1 / axes2[1] + X2 / axes2[2] <= 1.0:
         return 0.0
-    lam = max(0.0, X[0] + X[1] + X[2] - axes2[0])
+    lam = max(0.0, X0 + X1 + X2 - axes2[0])
     for _ in range(200):
-        f = -1.0
-        df = 0.0
-        for i in range(3):
-            inv = 1.0 / (axes2[i] + lam)
-            f += X[i] * inv
-            df -= X[i] * inv * inv
+        # The terms in the order of the loop over i this unrolls (bits kept).
+        inv = 1.0 / (axes2[0] + lam)
+        f = -1.0 + X0 * inv
+        df = 0.0 - X0 * inv * inv
+        inv = 1.0 / (axes2[1] + lam)
+        f += X1 * inv
+        df -= X1 * inv * inv
+        inv = 1.0 / (axes2[2] + lam)
+        f += X2 * inv
+        df -= X2 * inv * inv
         step = f / df
         lam -= step
         if abs(step) <= 4e-16 * lam:
@@ -123,13 +126,19 @@ def ferrers_lambda(X, axes2):
 
 
 @njit(cache=True, error_model="numpy")
+def ferrers_lambda(X, axes2):
+    """λ: 0 inside the ellipsoid (Σ X_i/a_i² ≤ 1), else the root of
+    Σ X_i/(a_i² + λ) = 1, by Newton's method from below (f is convex and
+    decreasing, so its iterates rise monotonically to the root)."""
+    return _lambda(X[0], X[1], X[2], axes2)
+
+
+@njit(cache=True, error_model="numpy")
 def ferrers_w(lam, axes2, W1, W2, W3):
     """W (returned) and W_i, W_ij, W_ijk (written to W1 (3,), W2 (3, 3),
     W3 (3, 3, 3), symmetric) at λ for semi-axes² ``axes2`` (module
     docstring)."""
-    al = np.empty(3)
-    for i in range(3):
-        al[i] = axes2[i] + lam
+    al = (axes2[0] + lam, axes2[1] + lam, axes2[2] + lam)
     delta = math.sqrt(al[0] * al[1] * al[2])
     W0 = 2.0 * carlson_rf(al[0], al[1], al[2])
     W1[0] = 2.0 / 3.0 * carlson_rd(al[1], al[2], al[0])
@@ -164,25 +173,6 @@ def ferrers_w(lam, axes2, W1, W2, W3):
     return W0
 
 
-@njit(cache=True, error_model="numpy")
-def _bracket(X, W0, W1, W2, W3, Fi, Fij):
-    """F(X) = W − 3ΣX_iW_i + 3ΣX_iX_jW_ij − ΣX_iX_jX_kW_ijk (returned), its
-    first (Fi) and second (Fij) derivatives in X at fixed W."""
-    F = W0
-    for i in range(3):
-        F -= 3.0 * X[i] * W1[i]
-        Fi[i] = -3.0 * W1[i]
-        for j in range(3):
-            F += 3.0 * X[i] * X[j] * W2[i, j]
-            Fi[i] += 6.0 * X[j] * W2[i, j]
-            Fij[i, j] = 6.0 * W2[i, j]
-            for k in range(3):
-                F -= X[i] * X[j] * X[k] * W3[i, j, k]
-                Fi[i] -= 3.0 * X[j] * X[k] * W3[i, j, k]
-                Fij[i, j] -= 6.0 * X[k] * W3[i, j, k]
-    return F
-
-
 def inside_table(axes2):
     """W, W_i, W_ij, W_ijk at λ = 0, packed (40,): the constants of the
     potential everywhere inside the bar (:func:`ferrers_grad_hess`)."""
@@ -192,39 +182,69 @@ def inside_table(axes2):
 
 
 @njit(cache=True, error_model="numpy")
+def _bracket_apply(q, X, W, K, g, D, hessian, potential):
+    """−K F(X) (returned if ``potential``, else 0) with the bracket F(X) =
+    W − 3ΣX_iW_i + 3ΣX_iX_jW_ij − ΣX_iX_jX_kW_ijk, the W packed as
+    :func:`inside_table` packs them (``W``, (40,)); the gradient −2K x_i F_i
+    added to ``g`` and, if ``hessian``, the Hessian
+    −K (4 x_i x_j F_ij + 2 δ_ij F_i) to ``D`` (F_i, F_ij: F's derivatives in
+    X at fixed W). F_i and F_ij are scalars of the loops over i and j, so
+    nothing is allocated; F itself, a third of the work, only if asked."""
+    F = W[0]
+    for i in range(3):
+        if potential:
+            F -= 3.0 * X[i] * W[1 + i]
+        Fi = -3.0 * W[1 + i]
+        for j in range(3):
+            if potential:
+                F += 3.0 * X[i] * X[j] * W[4 + 3 * i + j]
+            Fi += 6.0 * X[j] * W[4 + 3 * i + j]
+            Fij = 6.0 * W[4 + 3 * i + j]
+            for k in range(3):
+                if potential:
+                    F -= X[i] * X[j] * X[k] * W[13 + 9 * i + 3 * j + k]
+                Fi -= 3.0 * X[j] * X[k] * W[13 + 9 * i + 3 * j + k]
+                Fij -= 6.0 * X[k] * W[13 + 9 * i + 3 * j + k]
+            if hessian:
+                D[i, j] -= 4.0 * K * q[i] * q[j] * Fij
+        # Φ = −K F(x²): ∂_iΦ = −2K x_i F_i, ∂_ijΦ = −K (4 x_i x_j F_ij + 2 δ_ij F_i).
+        g[i] -= 2.0 * K * q[i] * Fi
+        if hessian:
+            D[i, i] -= 2.0 * K * Fi
+    return -K * F if potential else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
+    """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
+    ``potential``."""
+    X = (q[0] * q[0], q[1] * q[1], q[2] * q[2])
+    lam = _lambda(X[0], X[1], X[2], axes2)
+    K = 35.0 / 32.0 * gm
+    if lam == 0.0:
+        return _bracket_apply(q, X, inside, K, g, D, hessian, potential)
+    W = np.empty(40)
+    W[0] = ferrers_w(lam, axes2, W[1:4], W[4:13].reshape((3, 3)),
+                     W[13:40].reshape((3, 3, 3)))
+    return _bracket_apply(q, X, W, K, g, D, hessian, potential)
+
+
+@njit(cache=True, error_model="numpy")
 def ferrers_grad_hess(q, axes2, gm, g, D, hessian, inside):
     """Φ of a Ferrers (n = 2) bar of mass G·M = ``gm`` (returned) at the
     position ``q`` (3,), its gradient added to ``g`` (3,) and, if
     ``hessian``, its Hessian added to ``D`` (at least 3 × 3, top-left).
     ``inside`` is :func:`inside_table`: inside the bar λ = 0 and the W are
-    these constants, so no elliptic integral is evaluated there."""
-    X = np.empty(3)
-    for i in range(3):
-        X[i] = q[i] * q[i]
-    lam = ferrers_lambda(X, axes2)
-    if lam == 0.0:
-        W0 = inside[0]
-        W1 = inside[1:4]
-        W2 = inside[4:13].reshape((3, 3))
-        W3 = inside[13:40].reshape((3, 3, 3))
-    else:
-        W1 = np.empty(3)
-        W2 = np.empty((3, 3))
-        W3 = np.empty((3, 3, 3))
-        W0 = ferrers_w(lam, axes2, W1, W2, W3)
-    Fi = np.empty(3)
-    Fij = np.empty((3, 3))
-    F = _bracket(X, W0, W1, W2, W3, Fi, Fij)
-    K = 35.0 / 32.0 * gm
-    for i in range(3):
-        # Φ = −K F(x²): ∂_iΦ = −2K x_i F_i, ∂_ijΦ = −K (4 x_i x_j F_ij + 2 δ_ij F_i).
-        g[i] -= 2.0 * K * q[i] * Fi[i]
-    if hessian:
-        for i in range(3):
-            for j in range(3):
-                D[i, j] -= 4.0 * K * q[i] * q[j] * Fij[i, j]
-            D[i, i] -= 2.0 * K * Fi[i]
-    return -K * F
+    these constants, so no elliptic integral is evaluated there, and
+    nothing is allocated."""
+    return _derivatives(q, axes2, gm, g, D, hessian, inside, True)
+
+
+@njit(cache=True, error_model="numpy")
+def ferrers_kick(q, axes2, gm, g, D, hessian, inside):
+    """:func:`ferrers_grad_hess` without Φ (the same g and D, bit for bit):
+    what a kick of a tangent map needs, a third fewer operations."""
+    _derivatives(q, axes2, gm, g, D, hessian, inside, False)
 
 
 @njit(cache=True, error_model="numpy")
