@@ -363,6 +363,10 @@ def _agama_bar():
         return None
     from varint.models.bar import SPA02
 
+    # One thread, as every contender of the race: with its default OpenMP
+    # threads on a loaded 2-core machine AGAMA's single orbit ran 2-6x
+    # slower (studies/results/bar20/race_*_agama_default_threads).
+    agama.setNumThreads(1)
     a, b, c = SPA02["axes"]
     return agama.Potential(
         {"type": "MiyamotoNagai", "mass": SPA02["disc_mass"], "scaleRadius": SPA02["disc_a"],
