@@ -288,20 +288,35 @@ def dividing_step(t_end, tau):
 
 def _pilot_by_checks(prop, advance, state, checks, tau, reference):
     """Per orbit, the largest error at the ``checks`` steps, advancing to
-    each in turn (propagators that take no snapshots)."""
-    worst = np.zeros(state.n_orbits)
+    each in turn (propagators that take no snapshots). The states at the
+    checks are kept and their errors measured in one call after the pilot:
+    the errors are row by row, so the numbers are those of a call per
+    check, without its fixed cost (≈ 80 µs, as much as the advance of a
+    short orbit's check)."""
+    m = state.n_orbits
+    xs, ts, pts, oks, blowns = [], [], [], [], []
+    for s in checks:
+        advance(prop, state, int(s - state.step))
+        ok = state.status == STATUS_OK
+        xs.append(state.x.copy())
+        ts.append(np.broadcast_to(state.step * tau, m))
+        # A copy: the run updates its time momentum in place.
+        p_t = state.extra.get(TIME_MOMENTUM)
+        pts.append(None if p_t is None else np.array(p_t, dtype=float))
+        oks.append(ok)
+        blowns.append((state.status > STATUS_OK) & (state.status != Status.ESCAPED))
+        if not ok.any():
+            break
+    # Without a time momentum the reference takes its default, 0.0.
+    p_t = 0.0 if all(p is None for p in pts) else np.concatenate(
+        [np.broadcast_to(0.0 if p is None else p, m) for p in pts])
+    worst = np.zeros(m)
     with np.errstate(all="ignore"):
-        for s in checks:
-            advance(prop, state, int(s - state.step))
-            ok = state.status == STATUS_OK
-            errs = reference.errors(state.x, state.step * tau,
-                                    state.extra.get(TIME_MOMENTUM, 0.0))
-            e = np.max(np.stack(list(errs.values())), axis=0)
+        errs = reference.errors(np.concatenate(xs), np.concatenate(ts), p_t)
+        e_all = np.max(np.stack(list(errs.values())), axis=0).reshape(len(xs), m)
+        for e, ok, blown in zip(e_all, oks, blowns, strict=True):
             worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
-            blown = (state.status > STATUS_OK) & (state.status != Status.ESCAPED)
             worst[blown] = np.inf
-            if not ok.any():
-                break
     return worst
 
 
