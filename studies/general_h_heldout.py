@@ -69,9 +69,9 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import varint
-from studies.claims import cost_at, pareto
+from studies.claims import cost_at
 from studies.common import Claims, parse_args, save_csv, save_json
-from studies.hamiltonians import load, precision_case
+from studies.hamiltonians import contender_fronts, load, precision_case
 from varint.models import from_hamiltonian
 
 REPEATS = 3
@@ -163,11 +163,7 @@ def ratios_at(rows, levels=LEVELS):
     ``levels``, both read off their fronts: label → {level: (ratio, how
     varint's cost was read, how heyoka's was)}; None where a front does
     not reach the level."""
-    fronts = {}
-    for r in rows:
-        fronts.setdefault(r["contender"], []).append((r["seconds"], r["error"]))
-    fronts = {k: pareto(v) for k, v in fronts.items()}
-    heyoka = fronts.get("heyoka", [])
+    fronts, heyoka = contender_fronts(rows)
     out = {}
     for label, front in fronts.items():
         if label in ("heyoka", "DOP853"):

@@ -549,15 +549,21 @@ def precision_case(quick, repeats, systems=None, peers=_peers):
     return rows, summary
 
 
-def _precision_summary(rows, floor=1e-8):
-    """Per contender its cost–error front; for each of varint's fronts, the
-    ratio of heyoka's cost to its own at its errors ≥ ``floor`` (the
-    smallest over those points: "within 2×" asks it to stay ≥ 0.5)."""
+def contender_fronts(rows):
+    """Per contender of ``rows`` (the precision machinery's rows) its
+    cost–error front, and heyoka's (empty where it did not run)."""
     fronts = {}
     for r in rows:
         fronts.setdefault(r["contender"], []).append((r["seconds"], r["error"]))
     fronts = {k: pareto(v) for k, v in fronts.items()}
-    heyoka = fronts.get("heyoka", [])
+    return fronts, fronts.get("heyoka", [])
+
+
+def _precision_summary(rows, floor=1e-8):
+    """Per contender its cost–error front; for each of varint's fronts, the
+    ratio of heyoka's cost to its own at its errors ≥ ``floor`` (the
+    smallest over those points: "within 2×" asks it to stay ≥ 0.5)."""
+    fronts, heyoka = contender_fronts(rows)
     out = {}
     for label, front in fronts.items():
         if label in ("heyoka", "DOP853"):
