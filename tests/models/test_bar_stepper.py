@@ -4,9 +4,13 @@ compiled kernel (:class:`varint.codegen.expressions.ExtraForce`)."""
 
 import numpy as np
 import pytest
+import sympy as sp
+from numba import njit
 
+from varint.codegen.expressions import ExtraForce
 from varint.methods.parts import generated_rotating, parts_steps, runs_parts
 from varint.methods.tm import tangent_map_steps
+from varint.models import from_hamiltonian
 from varint.models.bar import bar_orbit
 
 
@@ -70,3 +74,42 @@ def test_corrector_scheme_is_refused(regular):
     for steps in (parts_steps, tangent_map_steps):
         with pytest.raises(ValueError, match="corrector"):
             steps(model, x0, None, 0.2, 1, scheme="SBAB2C")
+
+
+# -- the hook, on a model that has a closed form of its extra term ---------------------------
+@njit(cache=True, error_model="numpy")
+def _spring(q, g, D, hessian, k, centre):
+    """The extra force of ½k|q − centre|² (an ExtraForce kernel)."""
+    for i in range(q.shape[0]):
+        g[i] += k * (q[i] - centre[i])
+        if hessian:
+            D[i, i] += k
+
+
+def _rotating(with_spring):
+    x, y, z, px, py, pz = sp.symbols("x y z p_x p_y p_z")
+    V = -1 / sp.sqrt(1 + x ** 2 + 2 * y ** 2 + 3 * z ** 2)
+    if with_spring:
+        V += sp.Rational(3, 10) * ((x - 1) ** 2 + (y + sp.Rational(1, 2)) ** 2 + z ** 2) / 2
+    H = (px ** 2 + py ** 2 + pz ** 2) / 2 - sp.Rational(1, 20) * (x * py - y * px) + V
+    return from_hamiltonian(H, (x, y, z), (px, py, pz))
+
+
+def test_extra_force_hook_adds_its_term_to_the_closed_part():
+    """A model declares part of its potential as a compiled kernel (a spring,
+    whose closed form is known) and its closed part by ``closed_symbolic``:
+    its generated stepper is the one generated for the whole potential in
+    closed form, to round-off (the terms are summed in another order)."""
+    whole = _rotating(True)
+    split = _rotating(False)
+    split.extra_force = ExtraForce(_spring, (0.3, (1.0, -0.5, 0.0)))
+    split.closed_symbolic = split.symbolic
+    assert generated_rotating(whole) and generated_rotating(split)
+    x0 = np.array([0.4, 0.1, 0.2, 0.0, 0.6, 0.1])
+    xa, Wa = tangent_map_steps(whole, x0, np.eye(6), 0.1, 200, scheme="SRKN14a")
+    xb, Wb = tangent_map_steps(split, x0, np.eye(6), 0.1, 200, scheme="SRKN14a")
+    assert np.max(np.abs(xb - xa)) <= 1e-12 * np.max(np.abs(xa))
+    assert np.max(np.abs(Wb - Wa)) <= 1e-12 * np.max(np.abs(Wa))
+    # Without the kernel the stepper is another map: the test can fail.
+    xc, _ = tangent_map_steps(_rotating(False), x0, None, 0.1, 200, scheme="SRKN14a")
+    assert np.max(np.abs(xc - xa)) > 1e-3

@@ -275,7 +275,12 @@ def _facts_by_description(model):
     if cls.__module__ == "varint.models.symbolic" or not cls.__module__.startswith(
             "varint.models."):
         return _facts_now(model)
-    name = _description_id(cls, canonical_json(model.describe()))
+    description = canonical_json(model.describe())
+    extra = getattr(model, "extra_force", None)
+    if extra is not None:
+        # Its key names the extra force; a description need not.
+        description += f"|extra {extra.identity()}"
+    name = _description_id(cls, description)
     if name in _FACTS:
         return _FACTS[name]
     file = f"varint_model_{name}.json"
