@@ -13,6 +13,11 @@ Case
 * ``t = 100, τ = 0.4`` and ``τ = 0.1`` (250 and 1000 steps): the cost per
   step is their difference over 750 steps.
 
+Each child also reports X1 and the energy error at t = 100 of both named
+orbits at τ = 0.4, 0.2, 0.1 (``agreement``: the two trees' values and
+their relative difference: bitwise equal, or round-off where the stepper
+differs).
+
 Method
 ------
 Each tree runs in child processes (``python -c``, the tree first on
@@ -70,7 +75,16 @@ for _ in range({repeats}):
         t0 = time.perf_counter()
         run(t, tau)
         best[label] = min(best.get(label, 1e9), time.perf_counter() - t0)
-print("RESULT " + json.dumps({{"best": best, "generated": not runs_parts(model, "SRKN14a")}}))
+values = {{}}
+for name in ("regular", "chaotic"):
+    m, x = bar_orbit(name)
+    for tau in (0.4, 0.2, 0.1):
+        r = varint.lyapunov_spectrum(m, x, 100.0, tau=tau, scheme="SRKN14a", deviations=w0,
+                                     t_out=[100.0])
+        values[f"{{name}} τ = {{tau}}"] = [repr(float(r.exponents[-1, 0])),
+                                          float(r.accuracy.energy_error)]
+print("RESULT " + json.dumps({{"best": best, "generated": not runs_parts(model, "SRKN14a"),
+                              "values": values}}))
 """
 
 
@@ -105,11 +119,12 @@ def main(argv=None):
     trees = {"base": Path(args.base).resolve(), "this": here}
     start = load()
     best = {name: {} for name in trees}
-    generated = {}
+    generated, values = {}, {}
     for _ in range(args.rounds):
         for name, tree in trees.items():
             r = child(tree, args.cache_root, name, args.repeats)
             generated[name] = r["generated"]
+            values[name] = r["values"]
             for label, seconds in r["best"].items():
                 best[name][label] = min(best[name].get(label, 1e9), seconds)
     rows = []
@@ -126,10 +141,21 @@ def main(argv=None):
     ratio = {label: rows[0][label] / rows[1][label] for label, _, _ in CONFIGS}
     ratio["per_step"] = rows[0]["per_step"] / rows[1]["per_step"]
     print("base / this: " + ", ".join(f"{k} {v:.2f}×" for k, v in ratio.items()))
+    # X1 and the energy error of each tree's runs at t = 100: the same
+    # numbers, or (another stepper) the same to round-off.
+    agreement = {}
+    for case, (x1_base, e_base) in values["base"].items():
+        x1_this, e_this = values["this"][case]
+        agreement[case] = {"x1_base": x1_base, "x1_this": x1_this,
+                           "x1_relative": abs(float(x1_this) / float(x1_base) - 1.0),
+                           "energy_error_base": e_base, "energy_error_this": e_this}
+        print(f"{case}: X1 {x1_base} / {x1_this} (relative "
+              f"{agreement[case]['x1_relative']:.1e}), energy error {e_base:.2e} / {e_this:.2e}")
     save_csv(args.out, "bar_call_cost", rows, list(rows[0]))
     save_json(args.out, "bar_call_cost", {"rows": rows, "base_over_this": ratio,
                                           "base": str(trees["base"]), "rounds": args.rounds,
-                                          "repeats": args.repeats, "load": start,
+                                          "repeats": args.repeats, "agreement": agreement,
+                                          "load": start,
                                           "load_end": load()})
 
 
