@@ -337,8 +337,8 @@ def test_a_built_in_models_symbolic_facts_are_read_from_the_cache(monkeypatch, t
     monkeypatch.setattr(X, "_FACTS", {})
     model = FPUT(6, 0.25, 1.0)
     fits, key = X.symbolic_fits(model, 1), X.model_key(model)
-    V, _, n, planar = X._FORMS[key]
-    assert fits and n == 6 and planar is None and "Symbol('q5')" in sympy.srepr(V)
+    V, _, n, planar, extra = X._FORMS[key]
+    assert fits and n == 6 and planar is None and extra is None and "Symbol('q5')" in sympy.srepr(V)
     files = list((tmp_path / "kernels").glob("varint_model_*.json"))
     assert len(files) == 1
 

@@ -13,6 +13,15 @@ For the latter M⁻¹ is A's diagonal of ∂²A/∂p² (a, a, a_i): A's rotation
 term is linear in p, so the corrector C = {V,{V,A}} = ∇Vᵀ diag(a) ∇V is the
 same as for ½pᵀM⁻¹p.
 
+A model whose potential is a closed form plus a term that has none (the
+Ferrers bar of :class:`~varint.models.bar.RotatingBar`: λ is a root, the
+W_ijk elliptic integrals) declares that term as an :class:`ExtraForce`
+(``model.extra_force``) and its closed part's form by
+``model.closed_symbolic()``: the stepper is generated for the closed part
+and every kick adds the term's gradient and Hessian by calling its compiled
+kernel (:attr:`Expressions.extra`). Its corrector would need the term's
+third derivatives, so such a model runs no corrector scheme on it.
+
 The symbolic work costs far more than anything else in building a stepper,
 so it is cached: the expressions per potential and process, and for a
 built-in model even whether it fits and the key of its potential, on disk
@@ -27,6 +36,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import re
+import weakref
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -36,8 +46,8 @@ import numpy as np
 from .. import cachedir, codecache
 from ..files import canonical_json
 
-__all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_form",
-           "planar_key", "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
+__all__ = ["Expressions", "ExtraForce", "expressions", "symbolic_fits", "model_key",
+           "ensure_form", "planar_key", "SYMBOLIC_MAX_N", "SYMBOLIC_MAX_VALUES"]
 
 #: Largest N and largest 2N(1 + k) (orbit and vectors held in local
 #: variables) for which straight-line code is generated; beyond, the generic
@@ -46,6 +56,36 @@ __all__ = ["Expressions", "expressions", "symbolic_fits", "model_key", "ensure_f
 #: compile, the 3-dof model's full spectrum (42 values) a few seconds.
 SYMBOLIC_MAX_N = 16
 SYMBOLIC_MAX_VALUES = 48
+
+
+@dataclass(frozen=True)
+class ExtraForce:
+    """A compiled term of the potential that a generated stepper's kicks add
+    to the closed part's ∇V and D²V (module docstring).
+
+    Attributes
+    ----------
+    function : numba dispatcher
+        ``function(q, g, D, hessian, *constants)``, compiled with
+        ``cache=True`` at the top level of its module: adds the term's
+        gradient at the positions ``q`` (N,) to ``g`` (N,) and, if
+        ``hessian``, its Hessian to ``D`` (N, N), in place (both hold the
+        closed part's values when it is called).
+    constants : tuple
+        Its further arguments: floats, or tuples of floats (passed as
+        arrays). They are written into the stepper's source as literals.
+    """
+
+    function: object
+    constants: tuple
+
+    def identity(self):
+        """What the stepper's code depends on: the function's module, name
+        and the hash of its module's file (numba's cache of a stepper does
+        not follow a changed callee), and the constants' exact values."""
+        py = getattr(self.function, "py_func", self.function)
+        digest = hashlib.sha256(Path(py.__code__.co_filename).read_bytes()).hexdigest()[:16]
+        return f"{py.__module__}:{py.__qualname__}:{digest} {self.constants!r}"
 
 
 @dataclass(frozen=True)
@@ -61,11 +101,14 @@ class Expressions:
     q: tuple       # the symbols
     #: A rotating frame's drift (:func:`planar_key`), or None for free motion.
     planar: tuple | None = None
+    #: A compiled term added to ∇V and D²V in every kick (:class:`ExtraForce`);
+    #: then ``H`` holds every entry i ≤ j, zeros included.
+    extra: ExtraForce | None = None
 
 
 #: The symbolic forms met in this process, by :func:`_symbolic_key`: (V in
 #: q0 … q{N−1}, inverse masses, N, the rotating frame's :func:`planar_key`
-#: or None). Only ever filled from a model's own SymPy form, never from a
+#: or None, the :class:`ExtraForce` or None). Only ever filled from a model's own SymPy form, never from a
 #: file.
 _FORMS: dict = {}
 
@@ -76,15 +119,16 @@ def expressions(key):
     cached by it: the symbolic work costs far more than the rest)."""
     import sympy as sp  # type: ignore[import-untyped]  # (see _symbolic_key)
 
-    V, minv, n, planar = _FORMS[key]
+    V, minv, n, planar, extra = _FORMS[key]
     q = sp.symbols(f"q0:{n}")
     g = tuple(sp.diff(V, qi) for qi in q)
     H = {}
     for i in range(n):
         for j in range(i, n):
             e = sp.diff(g[i], q[j])
-            if e != 0:
-                H[i, j] = e
+            # The extra term may fill any entry (its kernel adds to all).
+            if e != 0 or extra is not None:
+                H[i, j] = sp.Float(0.0) if e == 0 else e
 
     def h(i, j):
         return H.get((min(i, j), max(i, j)), sp.Integer(0))
@@ -100,7 +144,7 @@ def expressions(key):
             if e != 0:
                 HC[i, j] = e
     return Expressions(n=n, minv=tuple(float(m) for m in minv), g=g, H=H, gc=gc, HC=HC, q=q,
-                       planar=planar)
+                       planar=planar, extra=extra)
 
 
 def potential_form(key):
@@ -125,7 +169,7 @@ def planar_key(planar, n):
 
 
 @lru_cache(maxsize=256)
-def _symbolic_key(s, planar=None):
+def _symbolic_key(s, planar=None, extra=None):
     """A name (32 hex digits) for a model's (frozen, hashable) symbolic form:
     the hash of its exact SymPy text (``srepr``) in the symbols q0 …
     q{N−1}, worked out once per process, not once per chunk of a chaos map
@@ -145,8 +189,10 @@ def _symbolic_key(s, planar=None):
     text = "|".join([sp.srepr(V), *(sp.srepr(m) for m in minv), str(n)])
     if planar is not None:
         text += f"|planar {planar!r}"
+    if extra is not None:
+        text += f"|extra {extra.identity()}"
     key = hashlib.sha256(text.encode()).hexdigest()[:32]
-    _FORMS[key] = (V, minv, n, planar)
+    _FORMS[key] = (V, minv, n, planar, extra)
     return key
 
 
@@ -204,12 +250,37 @@ def _facts(model):
     from an expression (``from_potential``) holds it already, and the code
     behind a user's own class is not known.
     """
+    # A model whose form is fixed when it is built (``frozen_form``: an
+    # H(q, p) model) has the same facts all its life: asked once, not at
+    # every call (its description and the hash of it cost ~0.1 ms, asked
+    # four times a run).
+    if getattr(model, "frozen_form", False):
+        try:
+            return _INSTANCE_FACTS[model]
+        except KeyError:
+            facts = _INSTANCE_FACTS[model] = _facts_by_description(model)
+            return facts
+    return _facts_by_description(model)
+
+
+#: :func:`_facts` of the models with a ``frozen_form``, per instance.
+_INSTANCE_FACTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _facts_by_description(model):
+    """:func:`_facts`, asked of the model's form or of the stored facts
+    named after its description."""
     cls = type(model)
     # The models of varint.models.symbolic (from_potential) hold their form.
     if cls.__module__ == "varint.models.symbolic" or not cls.__module__.startswith(
             "varint.models."):
         return _facts_now(model)
-    name = _description_id(cls, canonical_json(model.describe()))
+    description = canonical_json(model.describe())
+    extra = getattr(model, "extra_force", None)
+    if extra is not None:
+        # Its key names the extra force; a description need not.
+        description += f"|extra {extra.identity()}"
+    name = _description_id(cls, description)
     if name in _FACTS:
         return _FACTS[name]
     file = f"varint_model_{name}.json"
@@ -238,9 +309,11 @@ _FACTS: dict[str, tuple] = {}
 
 
 def _facts_now(model):
-    """:func:`_facts` from the model's SymPy form."""
+    """:func:`_facts` from the model's SymPy form (with an
+    :class:`ExtraForce`, its closed part's)."""
+    extra = getattr(model, "extra_force", None)
     try:
-        s = model.symbolic()
+        s = model.symbolic() if extra is None else model.closed_symbolic()
     except (NotImplementedError, ValueError):
         return False, None
     # An H(q, p) model (varint.models.hamiltonian) qualifies only as a
@@ -250,17 +323,19 @@ def _facts_now(model):
         planar = planar_key(model.planar, model.n_dof)
     elif not hasattr(s, "inverse_mass"):
         return False, None
-    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass), planar)
+    return _facts_of(s, model.n_dof, tuple(float(m) for m in model.inverse_mass), planar,
+                     extra)
 
 
 @lru_cache(maxsize=256)
-def _facts_of(s, n_dof, inverse_mass, planar=None):
+def _facts_of(s, n_dof, inverse_mass, planar=None, extra=None):
     """:func:`_facts` of the symbolic form ``s`` for a model of ``n_dof``
     coordinates and these masses (once per form and process); a rotating
-    frame's (``planar``) masses are its A's."""
+    frame's (``planar``) masses are its A's; ``extra``: the model's
+    :class:`ExtraForce`."""
     fits = len(s.q) == n_dof and (planar is not None or np.allclose(
         [float(m) for m in s.inverse_mass], inverse_mass, rtol=1e-15, atol=0))
-    return bool(fits), _symbolic_key(s, planar) if fits else None
+    return bool(fits), _symbolic_key(s, planar, extra) if fits else None
 
 
 @lru_cache(maxsize=256)

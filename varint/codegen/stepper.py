@@ -249,6 +249,11 @@ def symbolic_stepper(model, kinds, corrected, k, accumulator=None, compensated=F
         # An update without a rule is called: the module finds it by name.
         extra = {} if accumulator is None or accumulator.rule is not None else {
             "accumulate": accumulator.update}
+        # A model's extra force (varint.codegen.expressions.ExtraForce) is
+        # called by name too; the key names its code and constants.
+        force = getattr(model, "extra_force", None)
+        if force is not None:
+            extra["extra_force"] = force.function
 
         def make_source():
             # The source is only ever emitted from the model's own form,

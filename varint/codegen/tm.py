@@ -195,6 +195,7 @@ class TMBody:
         rotating frame, each drift's coefficients (:meth:`planar_drift`).
         Compact, the stage count and the drifts' coefficients as arrays
         over the stages, worked out by the same expressions."""
+        self.extra_scratch(src)
         if self.compact:
             src("nst = h.shape[0]")
             if self.E.planar is not None:
@@ -211,6 +212,37 @@ class TMBody:
                 src(f"hc{st} = hc[{st}]")
             if self.E.planar is not None and self.kinds[st] == DRIFT:
                 self.planar_coefficients(src, st)
+
+    def extra_scratch(self, src):
+        """With an :class:`~varint.codegen.expressions.ExtraForce`, the
+        arrays its kernel is called with (positions, gradient, Hessian) and
+        its constants, once per call of the stepper (:meth:`extra_call`)."""
+        extra = self.E.extra
+        if extra is None:
+            return
+        n = self.n
+        src(f"xq = np.empty({n})", f"xg = np.empty({n})", f"xD = np.empty(({n}, {n}))")
+        for i, c in enumerate(extra.constants):
+            value = (f"np.array([{', '.join(repr(float(v)) for v in c)}])"
+                     if isinstance(c, tuple) else repr(float(c)))
+            src(f"xc{i} = {value}")
+
+    def extra_call(self, src, hessian):
+        """Add the extra term's gradient (and, if ``hessian``, its Hessian)
+        to the closed part's ``g{i}`` (``H{i}_{j}``) just evaluated: through
+        the kernel's arrays, which it adds to in its own order (the upper
+        triangle of its Hessian is read back)."""
+        n = self.n
+        src(*(f"xq[{i}] = {self.q[i]}" for i in range(n)),
+            *(f"xg[{i}] = g{i}" for i in range(n)))
+        if hessian:
+            src(*(f"xD[{i}, {j}] = H{min(i, j)}_{max(i, j)}" for i in range(n)
+                  for j in range(n)))
+        args = ", ".join(f"xc{i}" for i in range(len(self.E.extra.constants)))
+        src(f"extra_force(xq, xg, xD, {hessian}, {args})")
+        src(*(f"g{i} = xg[{i}]" for i in range(n)))
+        if hessian:
+            src(*(f"H{i}_{j} = xD[{i}, {j}]" for i, j in self.E.H))
 
     def _groups(self):
         """The rotating frame's coordinates by their oscillator (a, b): a
@@ -370,6 +402,13 @@ class TMBody:
         # At an enormous |q| the derivatives overflow before the state does:
         # that is the orbit running away, not a singular potential.
         rq = " + ".join(f"{v} * {v}" for v in self.q)
+        if E.extra is not None and ("gc" in what or "HC" in what):
+            raise ValueError("a corrector needs the third derivatives of the model's extra "
+                             "force, which its kernel does not give: use a scheme without "
+                             "corrector")
+        # With an extra force the checks wait for its kernel, which adds to
+        # ∇V and D²V in one call.
+        checks = []
         for part, groups in (("o", orbit), ("w", tangent)):
             if not groups:
                 continue
@@ -380,15 +419,26 @@ class TMBody:
                 src(f"{t} = {self.printer.doprint(e)}")
             for t, e in zip(targets, reduced, strict=True):
                 src(f"{t} = {self.printer.doprint(e)}")
-            settle = self.unsettled(first_kick)
-            for _, names, _, status, counter in groups:
-                if counter and target.counts:
-                    src(f"{counter} += 1")
-                if names:
-                    src(f"fin = {' + '.join(names)}")
-                    target.fail(src, "fin - fin != 0.0",
-                                f"{status} if {rq} < HUGE else {_NONFINITE}",
-                                **({"settle": settle} if settle else {}))
+            checks.append(groups)
+            if E.extra is None:
+                self.checks(src, target, checks.pop(), rq, first_kick)
+        if E.extra is not None:
+            self.extra_call(src, "H" in what)
+            for groups in checks:
+                self.checks(src, target, groups, rq, first_kick)
+
+    def checks(self, src, target, groups, rq, first_kick):
+        """Count the evaluations of ``groups`` and catch a non-finite value
+        of each (:meth:`derivatives`)."""
+        settle = self.unsettled(first_kick)
+        for _, names, _, status, counter in groups:
+            if counter and target.counts:
+                src(f"{counter} += 1")
+            if names:
+                src(f"fin = {' + '.join(names)}")
+                target.fail(src, "fin - fin != 0.0",
+                            f"{status} if {rq} < HUGE else {_NONFINITE}",
+                            **({"settle": settle} if settle else {}))
 
     def unsettled(self, first_kick=None):
         """The statements that put the state's locals mid-step where a

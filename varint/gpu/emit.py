@@ -222,6 +222,10 @@ def cuda_source(model, kinds, corrected, k, accumulator=None):
         raise ValueError(f"backend='cuda' runs indicators without an accumulator or with an "
                          f"update rule; this one's accumulator ({accumulator.name!r}) is "
                          "compiled for the CPU only")
+    if getattr(model, "extra_force", None) is not None:
+        raise ValueError(f"backend='cuda' cannot run {model.name}: its potential has a compiled "
+                         "CPU term (an extra force) that a GPU thread cannot call; use "
+                         "backend='cpu'")
     plan = Plan(kinds=tuple(int(v) for v in kinds), corrected=tuple(bool(c) for c in corrected),
                 k=int(k), accumulator=_accumulator_id(accumulator))
     key = model_key(model)

@@ -50,11 +50,14 @@ def runs_parts(model, scheme=None):
     s = _scheme(model, scheme)
     if isinstance(s, CompositionScheme):
         return True
-    if generated_rotating(model):
+    if generated_rotating(model) and (s.corrector is None
+                                      or getattr(model, "extra_force", None) is None):
         # A rotating frame's A + V with a generated stepper (the drift A's
         # exact flow, varint.codegen.tm): the CR3BP's map step took 30x a
         # generated potential's through the part flows, 4.6x on its own
-        # generated stepper (studies/map_steps.py).
+        # generated stepper (studies/map_steps.py). A corrector of a model
+        # with an extra force (the bar) would need its third derivatives:
+        # the part stepper refuses it with its reason.
         return False
     if not getattr(model, "band_kernels", True):
         return True

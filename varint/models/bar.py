@@ -17,9 +17,12 @@ a total mass of 2·10¹⁰ M_⊙ and G = 1).
 
 H is a rotating frame's kinetic term plus a potential, so ``method="tm"``
 runs the exact flow of the rotating frame and the kick of the potential
-with their tangent maps (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`),
-through the part flows: without a closed form of the bar there is no
-generated stepper (the restricted three-body problem has one).
+with their tangent maps (:class:`~varint.models.hamiltonian.IntegrableHamiltonian`).
+Its two-part schemes without corrector run on a stepper generated for the
+closed part (the rotating frame, disc and bulge), whose kicks call the
+bar's compiled kernel (:attr:`RotatingBar.extra_force`,
+:class:`~varint.codegen.expressions.ExtraForce`); compositions over more
+parts run through the part flows.
 The bar's potential has no closed form (λ is the root of an equation and
 the W_ijk are elliptic integrals), so there is no SymPy expression of H:
 ``method="taylor"`` refuses this model, the other methods run it.
@@ -43,7 +46,8 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from .ferrers import ferrers_kick, ferrers_potential, inside_table
+from ..codegen.expressions import ExtraForce
+from .ferrers import ferrers_force, ferrers_kick, ferrers_potential, inside_table
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["RotatingBar", "BAR_ORBITS", "bar_orbit", "SPA02"]
@@ -107,6 +111,13 @@ class RotatingBar(IntegrableHamiltonian):
     omega : float
         The pattern speed Ω_b.
     escape_radius : float, optional
+
+    Attributes
+    ----------
+    extra_force : ExtraForce
+        The bar's gradient and Hessian (:func:`~varint.models.ferrers.ferrers_force`),
+        which a generated stepper's kicks add to the closed part's
+        (:meth:`closed_symbolic`).
     """
 
     def __init__(self, disc_mass=0.82, disc_a=3.0, disc_b=1.0, bulge_mass=0.08,
@@ -139,6 +150,15 @@ class RotatingBar(IntegrableHamiltonian):
         key = (tuple(self._axes2), v["bar_mass"])
         self.grad_v, self.grad_hess_v = _with_bar(self.grad_v, self.grad_hess_v, *key, 0)
         self.grad_h, self.grad_hess_h = _with_bar(self.grad_h, self.grad_hess_h, *key, 0)
+        self.extra_force = ExtraForce(ferrers_force, (tuple(self._axes2.tolist()), v["bar_mass"],
+                                                      tuple(self._inside.tolist())))
+
+    def closed_symbolic(self):
+        """The closed part of H (the rotating frame, the disc and the
+        bulge) as :meth:`HamiltonianModel.symbolic` gives a model's form:
+        what a generated stepper is made of, the bar added by
+        :attr:`extra_force`."""
+        return super().symbolic()
 
     def bar_potential(self, q):
         """Φ_B at positions (..., 3)."""

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["carlson_rf", "carlson_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
-           "ferrers_grad_hess", "ferrers_kick", "inside_table", "FERRERS_K"]
+           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "inside_table", "FERRERS_K"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
 FERRERS_K = 35.0 / 32.0
@@ -244,6 +244,14 @@ def ferrers_grad_hess(q, axes2, gm, g, D, hessian, inside):
 def ferrers_kick(q, axes2, gm, g, D, hessian, inside):
     """:func:`ferrers_grad_hess` without Φ (the same g and D, bit for bit):
     what a kick of a tangent map needs, a third fewer operations."""
+    _derivatives(q, axes2, gm, g, D, hessian, inside, False)
+
+
+@njit(cache=True, error_model="numpy")
+def ferrers_force(q, g, D, hessian, axes2, gm, inside):
+    """:func:`ferrers_kick` in the argument order of a generated stepper's
+    extra force (:class:`varint.codegen.expressions.ExtraForce`): the
+    positions, the gradient and Hessian to add to, then the constants."""
     _derivatives(q, axes2, gm, g, D, hessian, inside, False)
 
 

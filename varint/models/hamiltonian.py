@@ -471,6 +471,10 @@ class HamiltonianModel(Model):
 
     band_kernels = False
     structure = "general"
+    #: H, its structure and its kernels are fixed when the model is built:
+    #: what is derived from its form may be kept per instance
+    #: (:func:`varint.codegen.expressions.symbolic_fits`).
+    frozen_form = True
 
     def __init__(self, H, q, p, time=None, name=None, escape_radius=None, _found=None):
         q = _coordinates(q)
@@ -647,9 +651,12 @@ class HamiltonianModel(Model):
         # problem, asked ~10 times by one chaos map: made once.
         memo = self.__dict__.setdefault("_memo", {})
         if "srepr" not in memo:
-            memo["srepr"] = sp.srepr(s.H)
-        d.update(hamiltonian=memo["srepr"], q=[str(v) for v in s.q], p=[str(v) for v in s.p],
-                 structure=self.structure, escape_radius=self.escape_radius)
+            # The symbols' names too (SymPy's printer, ~20 µs each).
+            memo["srepr"] = sp.srepr(s.H), tuple(str(v) for v in s.q), tuple(str(v)
+                                                                            for v in s.p)
+        H, q, p = memo["srepr"]
+        d.update(hamiltonian=H, q=list(q), p=list(p), structure=self.structure,
+                 escape_radius=self.escape_radius)
         if s.time is not None:
             d["time"] = str(s.time)
         return d
