@@ -20,6 +20,11 @@ Stored run (``studies/results/lh21/lh_pool.json``, lh21, 3 repeats, load
 7 725 408 lane steps for 7 243 284 orbit steps, 6.2 % of them idle (the
 last 8 orbits in a pool of 16); the shrinking pool runs the orbits' own
 steps only. The map's values from this run equal the defaults' map's.
+The same study run alternately in a worktree of 3556484 (fixed pool) and
+this tree (``lh_pool_base_{1,2}.json``, ``lh_pool_this_{1,2}.json``, 4
+repeats each, load 18.2 → 18.5): the map's kernel 713.2, 673.6 ms CPU
+before, 631.5, 640.2 ms after; min against min 1.07×, as the idle share
+predicts (read at this load as a ratio, not as seconds).
 
 Usage: ``python studies/lh_pool.py [--maps core] [--repeats 3]``; result
 ``lh_pool.json``.
