@@ -147,3 +147,26 @@ def test_lanes_work_counts_physical_time_over_the_step(monkeypatch):
     taken = [time_transform.takes_lanes(MIN_LANES, w) for w in works]
     assert taken == sorted(taken) and taken[0] is False and taken[-1] is True
     assert not time_transform.takes_lanes(MIN_LANES - 1, LANES_WORK * 100)
+
+
+@pytest.mark.parametrize("vector", [True, False])
+def test_lanes_that_move_as_the_pool_shrinks_keep_their_bits(cored, vector):
+    """Twice the lanes and more, of lengths that differ up to 16 times (each
+    its own h), so that once every orbit has started the orbits end in an
+    order unlike their lanes' and the pool moves its last lane's orbit into
+    each idle lane; the last orbit stops at once (C below V) after the pool
+    is full. Every orbit's bits are the one-orbit kernel's."""
+    m = 2 * LANE_WIDTH + 3
+    X = _cored_orbits(m)
+    rng = np.random.default_rng(11)
+    W0 = rng.standard_normal(X.shape) if vector else None
+    h = 0.02 * 2.0 ** rng.uniform(0.0, 4.0, m)
+    C = cored.constants(X)
+    C[-1] = -10.0
+    assert "if live < nb:" in cored.source()   # the pool shrinks
+    out = _both(cored, X, W0, 17.0, h, every=3.0, C=C)
+    assert out.status[-1] == -1 and (out.status[:-1] == 0).all()
+    steps = out.counts[:-1, 0]
+    # Lengths unlike their order: many orbits end before others started earlier.
+    assert steps.max() > 8 * steps.min()
+    assert np.sum(np.diff(steps[LANE_WIDTH:]) < 0) > 3
