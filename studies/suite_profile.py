@@ -55,14 +55,18 @@ def compiled_key(data):
     closure what it closes over (:func:`closes_over`) and the argument
     types. Two events with one key compiled the same function for the same
     types twice: in two processes, or in one through two dispatchers (a
-    closure or generated module made again)."""
+    closure or generated module made again). A kernel compiled with
+    ``parallel=True`` (numba's parfor lowering) has ``[parallel]`` before
+    its argument types."""
     dispatcher = data.get("dispatcher")
     func = getattr(dispatcher, "py_func", None)
     code = getattr(func, "__code__", None)
     if code is None:    # a lifted loop or another dispatcher without a function
         return type(dispatcher).__name__
+    parallel = "[parallel]" if getattr(dispatcher, "targetoptions", {}).get("parallel") else ""
     return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
-            f"{closes_over(dispatcher)}({', '.join(str(a) for a in data.get('args', ()))})")
+            f"{closes_over(dispatcher)}{parallel}"
+            f"({', '.join(str(a) for a in data.get('args', ()))})")
 
 
 def closes_over(dispatcher):

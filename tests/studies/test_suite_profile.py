@@ -8,7 +8,7 @@ from numba import njit
 import json
 
 from studies.suite_profile import compare, compiled_key, duplicates
-from varint.kernels.interval import batch_loop
+from varint.kernels.interval import batch_loop, serial_batch
 from varint.kernels.map_stepper import map_body
 from varint.models.maps import (
     _coupled_iterate,
@@ -25,11 +25,11 @@ def key(dispatcher):
     return compiled_key({"dispatcher": dispatcher, "args": ARGS})
 
 
-def standard_batch(parallel=False):
+def standard_batch():
     """The batch loop of the standard map, made anew (past the factories'
     caches: a new body, a new orbit loop, a new dispatcher)."""
     body = map_body.__wrapped__(2, 1, _standard_iterate, _standard_jacobian)
-    return batch_loop.__wrapped__(body, parallel)
+    return serial_batch.__wrapped__(body)
 
 
 def test_one_closure_made_twice_has_one_key():
@@ -39,18 +39,20 @@ def test_one_closure_made_twice_has_one_key():
     assert first is not second and first.py_func.__closure__[0].cell_contents \
         is not second.py_func.__closure__[0].cell_contents
     assert key(first) == key(second)
-    assert "batch_loop.<locals>.batch@interval.py" in key(first)
+    assert "serial_batch.<locals>.batch@interval.py" in key(first)
 
 
 def test_closures_of_different_bodies_or_options_have_different_keys():
-    """The batch loop of another map, of other sizes, or run in parallel is
-    another kernel, although the function and the name of what it closes
-    over (``orbit_loop.<locals>.orbit``) are the same."""
+    """The batch loop of another map, of other sizes, or compiled with
+    ``parallel=True`` is another kernel, although the function and the
+    name of what it closes over (``orbit_loop.<locals>.orbit``) are the
+    same."""
     base = key(standard_batch())
     coupled = key(batch_loop(map_body(4, 1, _coupled_iterate, _coupled_jacobian), False))
     sizes = key(batch_loop(map_body(2, 2, _standard_iterate, _standard_jacobian), False))
-    parallel = key(standard_batch(parallel=True))
-    assert len({base, coupled, sizes, parallel}) == 4
+    serial = standard_batch()
+    parallel = key(njit(parallel=True)(serial.py_func))
+    assert len({base, coupled, sizes, parallel}) == 4 and "[parallel](" in parallel
     other_args = compiled_key({"dispatcher": standard_batch(), "args": ("int64",)})
     assert other_args != base
 
