@@ -4,8 +4,9 @@ on Python threads (:mod:`varint.threads`), on two trees side by side.
 
 Per tree (``--tree``: a checkout; the first is the reference), in a fresh
 process with fresh numba and varint caches (cold, as the suite and CI
-start), numba's compile CPU seconds (:func:`varint.compiling.compile_seconds`)
-of four steps in turn, each run serial then parallel (the second is what a
+start), numba's compile CPU seconds
+(process CPU time, numba's ``numba:compile`` events, outermost only) of
+four steps in turn, each run serial then parallel (the second is what a
 parallel run costs on top of a serial one in the same process):
 
 1. ``lanes``: a FLI map of 64 Hénon–Heiles orbits (blocks of SIMD lanes,
@@ -23,7 +24,7 @@ Timings are wall time on a shared machine: the load at start and end is
 stored.
 
 Usage: ``python studies/suite_threads.py --tree DIR [--tree DIR] [--side N]
-[--t-end T] [--repeats R] [--out DIR]``
+[--t-end T] [--repeats R] [--name SUFFIX] [--out DIR]``
 """
 
 from __future__ import annotations
@@ -45,9 +46,29 @@ CHILD = r"""
 import json, sys, time
 import numpy as np
 import numba
+from numba.core import event
 import varint
-from varint import compiling
 from varint.models.maps import StandardMap
+
+
+# Process CPU seconds of numba's outermost compiles (wall time would count
+# the other processes of a loaded machine).
+class Compiles(event.Listener):
+    depth, total = 0, 0.0
+
+    def on_start(self, ev):
+        if self.depth == 0:
+            self.started = time.process_time()
+        self.depth += 1
+
+    def on_end(self, ev):
+        self.depth -= 1
+        if self.depth == 0:
+            self.total += time.process_time() - self.started
+
+
+compiles = Compiles()
+event.register("numba:compile", compiles)
 
 side, t_end, repeats = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3])
 hh = varint.models.HenonHeiles()
@@ -66,14 +87,14 @@ out = {"compile_s": {}, "same_bits": {}}
 for name, step in steps.items():
     values = []
     for parallel in (False, True):
-        before = compiling.compile_seconds()
+        before = compiles.total
         values.append(np.asarray(step(parallel), dtype=float))
         out["compile_s"][f"{name} {'parallel' if parallel else 'serial'}"] = round(
-            compiling.compile_seconds() - before, 2)
+            compiles.total - before, 2)
     out["same_bits"][name] = bool(np.array_equal(*values, equal_nan=True))
-before = compiling.compile_seconds()
+before = compiles.total
 varint.surface_of_section(hh, four, 50.0, tau=0.05)
-out["compile_s"]["sections"] = round(compiling.compile_seconds() - before, 2)
+out["compile_s"]["sections"] = round(compiles.total - before, 2)
 
 grid = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.65, side),
                            np.linspace(-0.45, 0.45, side))
@@ -116,6 +137,7 @@ def main(argv=None):
         parser.add_argument("--side", type=int, default=30, help="map grid side (orbits: side²)")
         parser.add_argument("--t-end", type=float, default=200.0)
         parser.add_argument("--repeats", type=int, default=3)
+        parser.add_argument("--name", default="", help="suffix of the stored file's name")
 
     args = parse_args(__doc__.splitlines()[0], argv, extra=extra)
     trees = {}
@@ -128,8 +150,8 @@ def main(argv=None):
         print(f"  FLI map {r['orbits_per_s']['1']:.0f} orbits/s on 1 thread, "
               f"{r['orbits_per_s']['2']:.0f} on 2 ({r['ratio_2_to_1']:.2f}x); bits equal: "
               f"{r['map_same_bits']}, serial = parallel: {r['same_bits']}")
-    save_json(args.out, "suite_threads", {"trees": trees, "side": args.side,
-                                          "t_end": args.t_end, "repeats": args.repeats})
+    save_json(args.out, f"suite_threads{args.name}",
+              {"trees": trees, "side": args.side, "t_end": args.t_end, "repeats": args.repeats})
     return trees
 
 

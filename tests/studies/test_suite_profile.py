@@ -110,8 +110,11 @@ def test_compare_sums_each_files_cpu_and_its_childrens(tmp_path):
     before, after = tmp_path / "before", tmp_path / "after"
     before.mkdir()
     after.mkdir()
+    # t1 compiled two kernels, one of them with parallel=True.
+    t1 = {**_row(10.0, 5.0, 8.0, 2), "compiled": [["m:f@m.py(int64)", 3.0],
+                                                   ["m:g@m.py[parallel](int64)", 5.0]]}
     (before / "gw0.rows.json").write_text(json.dumps({
-        "tests/a.py::t1": _row(10.0, 5.0, 8.0, 2), "tests/a.py::t2": _row(2.0),
+        "tests/a.py::t1": t1, "tests/a.py::t2": _row(2.0),
         "tests/b.py::t": {k: v for k, v in _row(7.0).items() if k != "child_cpu_s"}}))
     (after / "main.rows.json").write_text(json.dumps({
         "tests/a.py::t1": _row(4.0, 1.0, 3.0, 1), "tests/a.py::t2": _row(2.0),
@@ -120,8 +123,10 @@ def test_compare_sums_each_files_cpu_and_its_childrens(tmp_path):
     table = compare([("pair", str(before), str(after))])
     entry = table["comparisons"]["pair"]
     assert entry["files"]["tests/a.py"]["before"] == {
-        "cpu_s": 12.0, "child_cpu_s": 5.0, "compile_s": 8.0, "compiles": 2, "tests": 2}
+        "cpu_s": 12.0, "child_cpu_s": 5.0, "compile_s": 8.0, "compiles": 2, "tests": 2,
+        "parallel_compiles": 1, "parallel_s": 5.0}
     assert entry["files"]["tests/a.py"]["after"]["cpu_s"] == 6.0
+    assert entry["files"]["tests/a.py"]["after"]["parallel_compiles"] == 0
     assert "after" not in entry["files"]["tests/b.py"]
     assert entry["before_cpu_s"] == 12.0 + 5.0 + 7.0 and entry["after_cpu_s"] == 6.0 + 1.0 + 1.0
     assert entry["cut_cpu_s"] == table["cut_cpu_s"] == 24.0 - 8.0
