@@ -88,7 +88,7 @@ def test_a_closure_outside_varint_is_told_apart_by_names_and_values():
 
 
 def test_duplicates_counts_only_what_was_compiled_again():
-    a, b = key(standard_batch()), key(standard_batch(parallel=True))
+    a, b = key(standard_batch()), key(njit(parallel=True)(standard_batch().py_func))
     rows = {"gw0": {"tests/x.py::t1": {"compiled": [[a, 2.0], [b, 5.0]]}},
             "gw1": {"tests/y.py::t2": {"compiled": [[a, 3.0]]}}}
     table = duplicates(rows)
