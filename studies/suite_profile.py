@@ -55,14 +55,18 @@ def compiled_key(data):
     closure what it closes over (:func:`closes_over`) and the argument
     types. Two events with one key compiled the same function for the same
     types twice: in two processes, or in one through two dispatchers (a
-    closure or generated module made again)."""
+    closure or generated module made again). A kernel compiled with
+    ``parallel=True`` (numba's parfor lowering) has ``[parallel]`` before
+    its argument types."""
     dispatcher = data.get("dispatcher")
     func = getattr(dispatcher, "py_func", None)
     code = getattr(func, "__code__", None)
     if code is None:    # a lifted loop or another dispatcher without a function
         return type(dispatcher).__name__
+    parallel = "[parallel]" if getattr(dispatcher, "targetoptions", {}).get("parallel") else ""
     return (f"{func.__module__}:{func.__qualname__}@{os.path.basename(code.co_filename)}"
-            f"{closes_over(dispatcher)}({', '.join(str(a) for a in data.get('args', ()))})")
+            f"{closes_over(dispatcher)}{parallel}"
+            f"({', '.join(str(a) for a in data.get('args', ()))})")
 
 
 def closes_over(dispatcher):
@@ -389,10 +393,26 @@ def _rows_of(folder):
     return rows, json.loads(load.read_text()) if load.exists() else None
 
 
+def parallel_compiles(rows):
+    """Per test file: how many of its outermost compiles were of kernels
+    compiled with ``parallel=True`` (keys with ``[parallel]``,
+    :func:`compiled_key`) and their CPU seconds (rows without the mark
+    count none)."""
+    out = defaultdict(lambda: {"parallel_compiles": 0, "parallel_s": 0.0})
+    for nodeid, row in rows.items():
+        for key, seconds in row.get("compiled", ()):
+            if "[parallel](" in key:
+                f = out[nodeid.split("::")[0]]
+                f["parallel_compiles"] += 1
+                f["parallel_s"] = round(f["parallel_s"] + seconds, 2)
+    return dict(out)
+
+
 def compare(pairs):
     """Per comparison (label, rows before, rows after): per test file, the
     CPU seconds (the test processes' and their children's), compile seconds
-    and compiles before and after, their sums, and each run's load. Only
+    and compiles before and after (those of ``parallel=True`` kernels
+    apart, :func:`parallel_compiles`), their sums, and each run's load. Only
     what each pair ran is compared: a pair runs the same files twice, on
     the old tree and the new, each on fresh caches."""
     out = {}
@@ -401,10 +421,12 @@ def compare(pairs):
         for when, folder in (("before", before), ("after", after)):
             rows, load = _rows_of(folder)
             entry["load"][when] = load
+            parallel = parallel_compiles(rows)
             for name, f in by_file(rows).items():
                 entry["files"].setdefault(name, {})[when] = {
-                    key: f[key] for key in ("cpu_s", "child_cpu_s", "compile_s", "compiles",
-                                            "tests")}
+                    **{key: f[key] for key in ("cpu_s", "child_cpu_s", "compile_s", "compiles",
+                                               "tests")},
+                    **parallel.get(name, {"parallel_compiles": 0, "parallel_s": 0.0})}
         for when in ("before", "after"):
             entry[f"{when}_cpu_s"] = round(sum(f[when]["cpu_s"] + f[when]["child_cpu_s"]
                                                for f in entry["files"].values()

@@ -42,9 +42,11 @@ def test_the_key_changes_with_what_is_compiled_in():
     def key(apply=kg._apply, field=kg._field, k=2, parallel=False, flow=False):
         return closure_key(P.parts_batch(apply, field, k, parallel, flow=flow))
 
-    keys = [key(), key(k=1), key(parallel=True), key(flow=True),
-            key(apply=fput._apply, field=fput._field)]
+    keys = [key(), key(k=1), key(flow=True), key(apply=fput._apply, field=fput._field)]
     assert len(set(keys)) == len(keys)
+    # In parallel the same kernel runs on threads: nothing else is compiled.
+    assert P.parts_batch(kg._apply, kg._field, 2, True).kernel is P.parts_batch(
+        kg._apply, kg._field, 2, False)
 
 
 @njit

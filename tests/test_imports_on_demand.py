@@ -81,14 +81,14 @@ def test_type_checkers_see_every_lazy_name_from_its_module():
 
 def test_a_process_on_cached_kernels_imports_no_sympy_and_compiles_nothing():
     """Once a process has compiled them, a fresh process runs R1's spectrum
-    and a FLI map of 256 orbits on the parallel kernel over blocks of SIMD
-    lanes without importing SymPy or Dask's distributed (a map on this
-    machine asks no Dask worker) and without compiling anything: the
-    generated steppers (the parallel one included) come from the cache.
-    In a cold cache R1's short run takes the compact stepper, whose module
-    has no lanes: only the modules with lanes count the parallel kernel's
-    cache hits (the test passed only after another had cached R1's
-    written-out stepper)."""
+    and a FLI map of 256 orbits run in parallel over blocks of SIMD lanes
+    without importing SymPy or Dask's distributed (a map on this machine
+    asks no Dask worker) and without compiling anything: the generated
+    steppers (the lanes' kernel that the threads run included) come from
+    the cache. In a cold cache R1's short run takes the compact stepper,
+    whose module has no lanes: only the modules with lanes count the lanes
+    kernel's cache hits (the test passed only after another had cached
+    R1's written-out stepper)."""
     code = ("import sys, json, numpy as np, varint; from varint import compiling; "
             "m, x = varint.paper_orbit('R1'); "
             "varint.lyapunov_spectrum(m, x, t_end=10.0, tau=0.05, progress=False); "
@@ -96,16 +96,16 @@ def test_a_process_on_cached_kernels_imports_no_sympy_and_compiles_nothing():
             "grid = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.65, 16), "
             "np.linspace(-0.45, 0.45, 16)); "
             "varint.chaos_map(hh, grid, 'fli', t_end=10.0, progress=False, parallel=True); "
-            "hits = sum(sum(mod.blocks_parallel.stats.cache_hits.values()) "
+            "hits = sum(sum(mod.blocks_serial.stats.cache_hits.values()) "
             "for name, mod in list(sys.modules.items()) "
-            "if name.startswith('varint_stepper_') and hasattr(mod, 'blocks_parallel')); "
+            "if name.startswith('varint_stepper_') and hasattr(mod, 'blocks_serial')); "
             "heavy = [m for m in ('sympy', 'distributed') if m in sys.modules]; "
             "print(json.dumps([heavy, compiling.compile_seconds(), hits]))")
     fresh(code)                             # compiles what the cache lacks
-    heavy, compiled, parallel_hits = fresh(code)
+    heavy, compiled, lanes_hits = fresh(code)
     assert heavy == []
     assert compiled == 0.0
-    assert parallel_hits >= 1
+    assert lanes_hits >= 1
 
 
 def test_version_and_metadata_on_demand():

@@ -144,22 +144,21 @@ def test_lanes_option_is_checked():
         _map(model, _grid(model)[:4], lanes="yes")
 
 
-def test_serial_and_parallel_batches_step_one_block():
-    """The lanes' block is made once for both batches (it does not depend
-    on ``parallel``): a map run serial and parallel compiles it once."""
+def test_serial_and_parallel_batches_run_one_kernel():
+    """The parallel batch is the serial kernel on threads (it does not
+    depend on ``parallel``): a map run serial and parallel compiles it
+    once."""
     from varint.kernels.interval import no_accumulator
     from varint.kernels.planetary_batch import lane_batch
 
     model = Planetary([1.0, 0.000954, 0.000285])
     parts = model.parts
 
-    def block(parallel):
-        batch = lane_batch(model.n_planets, 1, parts.apply, parts.field, no_accumulator,
-                           False, parallel)
-        cells = dict(zip(batch.py_func.__code__.co_freevars, batch.py_func.__closure__,
-                         strict=True))
-        return batch, cells["block"].cell_contents
+    def batch(parallel):
+        return lane_batch(model.n_planets, 1, parts.apply, parts.field, no_accumulator,
+                          False, parallel)
 
-    (serial, a), (parallel, b) = block(False), block(True)
-    assert serial is not parallel
-    assert a is b
+    serial, parallel = batch(False), batch(True)
+    assert serial is not parallel and hasattr(serial, "py_func")
+    cells = dict(zip(parallel.__code__.co_freevars, parallel.__closure__, strict=True))
+    assert cells["batch"].cell_contents is serial

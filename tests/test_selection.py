@@ -146,3 +146,28 @@ def test_compensation_is_considered_near_the_plain_floor(r1):
                                  candidates=cands)
     assert [r["compensated"] for r in loose.table] == [False]
     assert "compensated" not in loose.options()
+
+
+def test_a_candidate_is_timed_without_compiling_the_written_out_stepper(r1, monkeypatch):
+    """Past COMPACT_WORK orbit-steps a TM propagator takes its written-out
+    stepper and compiles it (seconds), inside a timed call where the
+    timing's doubling passes that work (within its 0.05 s on R1 on a quiet
+    machine): the timing keeps the compact stepper of its warm-up step.
+    Here COMPACT_WORK is one step, so every timed call would pass it, and
+    no written-out stepper counts as compiled."""
+    from varint.methods.tm import TangentMapPropagator
+    from varint.selection import _time_unit_cost
+
+    forms = []
+    stepper = TangentMapPropagator._stepper
+
+    def spy(self, k, compact=False):
+        forms.append(bool(compact))
+        return stepper(self, k, compact)
+
+    monkeypatch.setattr(TangentMapPropagator, "COMPACT_WORK", 1)
+    monkeypatch.setattr(TangentMapPropagator, "_ready", lambda self, k: False)
+    monkeypatch.setattr(TangentMapPropagator, "_stepper", spy)
+    model, x0 = r1
+    assert _time_unit_cost(model, x0, "tm", "SABA2", 0.1, 0) > 0
+    assert len(forms) > 2 and all(forms)

@@ -28,10 +28,11 @@ from functools import cache
 
 import numpy as np
 import numba
-from numba import njit, prange
+from numba import njit
 from numpy.typing import ArrayLike
 
 from .kernels import tm as K
+from .kernels.closures import cache_on_disk
 from .kernels.interval import Call
 from .models.base import Model
 from .protocol import COUNTERS, STATUS_OK, Renorm, Status
@@ -41,6 +42,7 @@ from .accuracy import assess, warn
 from .results import Provenance, SectionResult, package_versions
 from .runspec import specify
 from .schemes import SplittingScheme, get_scheme, stage_arrays
+from .threads import in_threads
 # The grid of initial conditions is data of the grids layer (models build it
 # too, below this module); imported here, where it has always been named.
 from .grids import SectionGrid
@@ -80,10 +82,28 @@ def _scaled_step(orbit, state, frac, setup, scaled):
 @cache
 def _section_kernel(n, bw, kernels):
     """The batch section finder for N = ``n`` and bandwidth ``bw`` (−1:
-    sizes read at run time) of the model ``kernels``."""
+    sizes read at run time) of the model ``kernels``: the serial kernel
+    (:func:`_serial_sections`) on threads over slices of the orbits
+    (:func:`varint.threads.in_threads`; every argument but the last two
+    has a leading axis of orbits), each orbit's bits the serial ones."""
+    sections = _serial_sections(n, bw, kernels)
+
+    def threaded(X, done, status, counts, n_found, points, setup, find):
+        def work(lo, hi):
+            sections(X[lo:hi], done[lo:hi], status[lo:hi], counts[lo:hi], n_found[lo:hi],
+                     points[lo:hi], setup, find)
+
+        in_threads(work, X.shape[0])
+
+    return threaded
+
+
+def _serial_sections(n, bw, kernels):
+    """The section finder of :func:`_section_kernel` over its orbits one
+    after the other, compiled with ``nogil=True`` and cached on disk."""
     orbit = K.orbit_kernel(n, bw, kernels)
 
-    @njit(parallel=True)
+    @njit(nogil=True)
     def sections(X, done, status, counts, n_found, points, setup, find):
         """Advance orbit m from step done[m] towards n_steps in blocks of
         steps, writing each crossing into a free row of points[m] as
@@ -94,7 +114,7 @@ def _section_kernel(n, bw, kernels):
         block = 256
         n_steps, plane, value, direction = find.n_steps, find.plane, find.value, find.direction
         max_points = find.max_points
-        for m in prange(X.shape[0]):
+        for m in range(X.shape[0]):
             points[m, :, d] = np.nan
             if status[m] != _OK:
                 continue
@@ -163,7 +183,7 @@ def _section_kernel(n, bw, kernels):
                     break
         return 0
 
-    return sections
+    return cache_on_disk(sections)
 
 
 def surface_of_section(model: Model, x0: ArrayLike, t_end: float, tau: float = 0.01,

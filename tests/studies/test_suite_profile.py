@@ -8,7 +8,7 @@ from numba import njit
 import json
 
 from studies.suite_profile import compare, compiled_key, duplicates
-from varint.kernels.interval import batch_loop
+from varint.kernels.interval import batch_loop, serial_batch
 from varint.kernels.map_stepper import map_body
 from varint.models.maps import (
     _coupled_iterate,
@@ -25,11 +25,11 @@ def key(dispatcher):
     return compiled_key({"dispatcher": dispatcher, "args": ARGS})
 
 
-def standard_batch(parallel=False):
+def standard_batch():
     """The batch loop of the standard map, made anew (past the factories'
     caches: a new body, a new orbit loop, a new dispatcher)."""
     body = map_body.__wrapped__(2, 1, _standard_iterate, _standard_jacobian)
-    return batch_loop.__wrapped__(body, parallel)
+    return serial_batch.__wrapped__(body)
 
 
 def test_one_closure_made_twice_has_one_key():
@@ -39,18 +39,20 @@ def test_one_closure_made_twice_has_one_key():
     assert first is not second and first.py_func.__closure__[0].cell_contents \
         is not second.py_func.__closure__[0].cell_contents
     assert key(first) == key(second)
-    assert "batch_loop.<locals>.batch@interval.py" in key(first)
+    assert "serial_batch.<locals>.batch@interval.py" in key(first)
 
 
 def test_closures_of_different_bodies_or_options_have_different_keys():
-    """The batch loop of another map, of other sizes, or run in parallel is
-    another kernel, although the function and the name of what it closes
-    over (``orbit_loop.<locals>.orbit``) are the same."""
+    """The batch loop of another map, of other sizes, or compiled with
+    ``parallel=True`` is another kernel, although the function and the
+    name of what it closes over (``orbit_loop.<locals>.orbit``) are the
+    same."""
     base = key(standard_batch())
     coupled = key(batch_loop(map_body(4, 1, _coupled_iterate, _coupled_jacobian), False))
     sizes = key(batch_loop(map_body(2, 2, _standard_iterate, _standard_jacobian), False))
-    parallel = key(standard_batch(parallel=True))
-    assert len({base, coupled, sizes, parallel}) == 4
+    serial = standard_batch()
+    parallel = key(njit(parallel=True)(serial.py_func))
+    assert len({base, coupled, sizes, parallel}) == 4 and "[parallel](" in parallel
     other_args = compiled_key({"dispatcher": standard_batch(), "args": ("int64",)})
     assert other_args != base
 
@@ -86,7 +88,7 @@ def test_a_closure_outside_varint_is_told_apart_by_names_and_values():
 
 
 def test_duplicates_counts_only_what_was_compiled_again():
-    a, b = key(standard_batch()), key(standard_batch(parallel=True))
+    a, b = key(standard_batch()), key(njit(parallel=True)(standard_batch().py_func))
     rows = {"gw0": {"tests/x.py::t1": {"compiled": [[a, 2.0], [b, 5.0]]}},
             "gw1": {"tests/y.py::t2": {"compiled": [[a, 3.0]]}}}
     table = duplicates(rows)
@@ -108,8 +110,11 @@ def test_compare_sums_each_files_cpu_and_its_childrens(tmp_path):
     before, after = tmp_path / "before", tmp_path / "after"
     before.mkdir()
     after.mkdir()
+    # t1 compiled two kernels, one of them with parallel=True.
+    t1 = {**_row(10.0, 5.0, 8.0, 2), "compiled": [["m:f@m.py(int64)", 3.0],
+                                                   ["m:g@m.py[parallel](int64)", 5.0]]}
     (before / "gw0.rows.json").write_text(json.dumps({
-        "tests/a.py::t1": _row(10.0, 5.0, 8.0, 2), "tests/a.py::t2": _row(2.0),
+        "tests/a.py::t1": t1, "tests/a.py::t2": _row(2.0),
         "tests/b.py::t": {k: v for k, v in _row(7.0).items() if k != "child_cpu_s"}}))
     (after / "main.rows.json").write_text(json.dumps({
         "tests/a.py::t1": _row(4.0, 1.0, 3.0, 1), "tests/a.py::t2": _row(2.0),
@@ -118,8 +123,10 @@ def test_compare_sums_each_files_cpu_and_its_childrens(tmp_path):
     table = compare([("pair", str(before), str(after))])
     entry = table["comparisons"]["pair"]
     assert entry["files"]["tests/a.py"]["before"] == {
-        "cpu_s": 12.0, "child_cpu_s": 5.0, "compile_s": 8.0, "compiles": 2, "tests": 2}
+        "cpu_s": 12.0, "child_cpu_s": 5.0, "compile_s": 8.0, "compiles": 2, "tests": 2,
+        "parallel_compiles": 1, "parallel_s": 5.0}
     assert entry["files"]["tests/a.py"]["after"]["cpu_s"] == 6.0
+    assert entry["files"]["tests/a.py"]["after"]["parallel_compiles"] == 0
     assert "after" not in entry["files"]["tests/b.py"]
     assert entry["before_cpu_s"] == 12.0 + 5.0 + 7.0 and entry["after_cpu_s"] == 6.0 + 1.0 + 1.0
     assert entry["cut_cpu_s"] == table["cut_cpu_s"] == 24.0 - 8.0

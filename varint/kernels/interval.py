@@ -62,16 +62,17 @@ from functools import cache
 from typing import Any
 
 import numpy as np
-from numba import njit, prange, types
+from numba import njit, types
 from numba.core.extending import intrinsic, overload
 
 from ..protocol import Renorm, Status
-from ..threads import parallel_by_default
+from ..threads import orbits_in_threads, parallel_by_default
 from .checks import CHECK_EVERY, renormalize, tangent_overflow
 from .closures import cache_on_disk
 from .inlining import defer
 
 __all__ = ["StepBody", "Call", "ORBIT_FIELDS", "orbit_record", "orbit_loop", "batch_loop",
+           "serial_batch", "ThreadedBatch",
            "no_accumulator", "no_check", "no_flow", "no_after", "no_end", "own_vectors",
            "borrow", "keep", "row", "use_parallel", "next_interval", "EARLY",
            "SPARSE_NORM_LOG", "SPARSE_COND_LOG", "SPARSE_MAX_STEPS", "SPARSE_QR_MAX_STEPS"]
@@ -396,12 +397,23 @@ def batch_loop(body, parallel, accumulate=no_accumulator, flow=False):
     ``flow`` as there), in parallel over orbits if ``parallel``;
     ``status[m]`` receives its status and ``done[m]`` the intervals it
     completed (0 for orbits skipped). ``states`` is a batch record: every
-    field has a leading axis of orbits."""
+    field has a leading axis of orbits.
+
+    Parallel is the serial kernel on Python threads over slices of the
+    orbits (:class:`ThreadedBatch`): one kernel compiled for both."""
+    kernel = serial_batch(body, accumulate, flow)
+    return ThreadedBatch(kernel) if parallel else kernel
+
+
+@cache
+def serial_batch(body, accumulate=no_accumulator, flow=False):
+    """:func:`batch_loop`'s kernel, one orbit after the other, compiled
+    with ``nogil=True`` so that threads can run it side by side."""
     orbit = orbit_loop(body, accumulate, flow)
 
-    @njit(parallel=parallel, error_model=body.error_model)
+    @njit(error_model=body.error_model, nogil=True)
     def batch(states, setup, call, status, done):
-        for m in prange(status.shape[0]):
+        for m in range(status.shape[0]):
             if status[m] != _OK:
                 done[m] = 0
                 continue
@@ -410,6 +422,20 @@ def batch_loop(body, parallel, accumulate=no_accumulator, flow=False):
             done[m] = steps
 
     return cache_on_disk(batch)
+
+
+class ThreadedBatch:
+    """A serial batch kernel called as ``batch(states, setup, call, status,
+    done)`` on threads over slices of the orbits
+    (:func:`varint.threads.orbits_in_threads`): the bits of the serial
+    call."""
+
+    def __init__(self, kernel):
+        #: The serial kernel (a numba dispatcher).
+        self.kernel = kernel
+
+    def __call__(self, states, setup, call, status, done):
+        orbits_in_threads(self.kernel, (states, setup, call), status, done)
 
 
 def use_parallel(parallel, n_orbits):

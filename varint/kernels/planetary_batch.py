@@ -24,10 +24,11 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..protocol import Renorm, Status
 from .checks import CHECK_EVERY, orbit_status, renormalize, tangent_overflow
+from ..threads import in_threads
 from .closures import cache_on_disk
 from .planetary_lanes import _FIELDS, lane_word
 
@@ -54,10 +55,32 @@ def lane_batch(n, k, apply, field, accumulate, flow, parallel, width=LANES):
     ``counters`` (M, parts) as the part stepper's records; ``status[m]``
     and ``done[m]`` as :func:`varint.kernels.interval.batch_loop` sets
     them. ``accumulate`` and ``flow`` as there; ``field`` the model's phase-
-    space velocity. Jacobi coordinates only (the lanes')."""
+    space velocity. Jacobi coordinates only (the lanes'). In parallel, the
+    serial kernel on threads, one group at a time
+    (:func:`varint.threads.in_threads`): one kernel compiled for both."""
+    batch = serial_lane_batch(n, k, apply, field, accumulate, flow, width)
+    if not parallel:
+        return batch
+
+    def threaded(x, Wst, acc_m, acc_e, aux, counters, parts, h, par, n_work, call, status,
+                 done, order, groups):
+        def work(lo, hi):
+            batch(x, Wst, acc_m, acc_e, aux, counters, parts, h, par, n_work, call, status,
+                  done, order, groups[lo:hi + 1])
+
+        in_threads(work, groups.shape[0] - 1, slice_size=1)
+
+    return threaded
+
+
+@cache
+def serial_lane_batch(n, k, apply, field, accumulate, flow, width=LANES):
+    """:func:`lane_batch`'s kernel, its groups one after the other,
+    compiled with ``nogil=True`` (threads run it side by side on other
+    groups: each orbit is in one group)."""
     block = lane_block(n, k, apply, field, accumulate, flow, width)
 
-    @njit(parallel=parallel, error_model="numpy")
+    @njit(error_model="numpy", nogil=True)
     def batch(x, Wst, acc_m, acc_e, aux, counters, parts, h, par, n_work, call, status, done,
               order, groups):
         # The flows of each part in one interval, counted per orbit as the
@@ -65,7 +88,7 @@ def lane_batch(n, k, apply, field, accumulate, flow, parallel, width=LANES):
         per_part = np.zeros(counters.shape[1], dtype=np.int64)
         for st in range(parts.shape[0]):
             per_part[parts[st]] += 1
-        for g in prange(groups.shape[0] - 1):
+        for g in range(groups.shape[0] - 1):
             block(x, Wst, acc_m, acc_e, aux, counters, parts, h, par, n_work, call, status,
                   done, order, groups[g], groups[g + 1], per_part)
 

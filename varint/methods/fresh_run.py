@@ -48,11 +48,12 @@ class FreshRun:
 
     Parameters
     ----------
-    kernel : numba dispatcher
-        The generated stepper's ``batch_serial`` or ``batch_parallel``;
-        called through its compiled version after the first run
+    kernel : numba dispatcher or function
+        The generated stepper's ``batch_serial``, called through its
+        compiled version after the first run
         (:class:`~varint.kernels.resolved.Resolved`: every run passes the
-        same arrays, made here).
+        same arrays, made here), or its ``batch_parallel`` (a function that
+        runs ``batch_serial`` on threads, :mod:`varint.threads`).
     setup, call
         The stepper's :class:`~varint.codegen.interval.StepperSetup` and the
         run's :class:`~varint.kernels.interval.Call` (all ``outs[-1]`` steps
@@ -131,7 +132,7 @@ class FreshRun:
         orbit = CompensatedOrbit(*orbit, self._kahan) if compensated else StepperOrbit(*orbit)
         self._args = (orbit, setup, call, Outputs(outs, sx, sW, s_acc_m, s_acc_e, s_aux),
                       self.status, done)
-        self._kernel = Resolved(kernel)
+        self._kernel = Resolved.of(kernel)
         # The reset's buffers (:func:`_reset`), all made here, C-contiguous
         # (the start states a view of the floats' first M·2N).
         self._buffers = (self._floats, self._floats_start, self._ints, self._ints_start,

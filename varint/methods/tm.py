@@ -18,7 +18,6 @@ stepper (:mod:`varint.kernels.tm`).
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import math
 import numbers
@@ -62,7 +61,7 @@ class TangentMapPropagator:
     scheme : str or SplittingScheme, default "SBAB2C"
         The paper's S_B2^c by default.
     parallel : bool, optional
-        Run the orbits of a batch on all cores (numba ``prange``). By
+        Run the orbits of a batch on all cores (:mod:`varint.threads`). By
         default, when there is more than one orbit and more than one thread.
     renormalize_every : None, int or float, optional
         How often the vectors are renormalised. ``None`` (default): as often
@@ -533,15 +532,11 @@ class TangentMapPropagator:
         # Lanes run the stages written out (COMPACT_WORK); an orbit that
         # fails is rerun by ``module``'s one-orbit stepper, the same bits.
         written_out = self._stepper(k)
+        # In parallel, threads take the blocks one at a time
+        # (:func:`varint.codegen.interval.blocks_in_threads`).
         kernel = written_out.blocks_parallel if parallel else written_out.blocks_serial
-        # Blocks are handed out one at a time: a thread that is descheduled
-        # holds up one block, not a share of them. Set here, around the call
-        # (numba's chunk size is per calling thread), not in the kernel: a
-        # kernel that sets it cannot be cached on disk. (Only in parallel:
-        # setting it starts numba's threads.)
-        with numba.parallel_chunksize(1) if parallel else contextlib.nullcontext():
-            kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
-                   self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
+        kernel(LaneBlock(X, W, am, ae, lane_aux, st, fs, nxt, itv), self._setup(),
+               self._call(state, n), Outputs(snaps.steps, sx, sW, sm, se, saux))
         failed = active[lanes.aos(st) != 0]
         # The call's start, for the orbits that fail (rare): the kernel
         # stepped copies (the lanes), so the state's rows are still the start
