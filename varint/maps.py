@@ -10,8 +10,10 @@ runs: the map's arguments are checked once into a
 :class:`~varint.runspec.RunSpec` (:func:`varint.runspec.specify`), its τ
 and check times fixed once, and every chunk is a
 :class:`~varint.run.Run` of that specification over its orbits. A chunk is
-one batch run of the compiled integrator, parallel over its orbits (numba
-``prange``), so nothing per orbit passes through Python. The chunks run one
+one batch run of the compiled integrator, parallel over its orbits (the
+serial kernel on threads over slices of them,
+:func:`varint.threads.orbits_in_threads`), so nothing per orbit passes
+through Python. The chunks run one
 after the other here, or with a ``dask.distributed.Client`` on the cluster,
 one task each, coming back as they finish (:mod:`varint.fanout`, shared
 with ensembles).

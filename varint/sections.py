@@ -70,9 +70,7 @@ def _scaled_step(orbit, state, frac, setup, scaled):
     """One step of length frac·τ of the orbit record ``state`` (in place) by
     ``orbit``: drifts and kicks scale with the step, the corrector with its
     cube (see :func:`varint.schemes.stage_arrays`); ``scaled`` is the
-    TMSetup whose ``h`` and ``hc`` receive them. Not inlined: numba (0.68)
-    loses writes to the arrays of a record an inlined function receives
-    inside a ``prange`` loop."""
+    TMSetup whose ``h`` and ``hc`` receive them."""
     for i in range(setup.h.shape[0]):
         scaled.h[i] = setup.h[i] * frac
         scaled.hc[i] = setup.hc[i] * frac ** 3

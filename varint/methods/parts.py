@@ -95,7 +95,8 @@ class PartsPropagator:
     scheme : str, SplittingScheme or CompositionScheme, optional
         By default the model's (``model.parts.default_scheme``).
     parallel : bool, optional
-        Run the orbits of a batch on all cores (numba ``prange``); by
+        Run the orbits of a batch on all cores (threads over slices of
+        them, :func:`varint.threads.orbits_in_threads`); by
         default when there is more than one orbit and more than one thread.
 
     Raises
