@@ -397,7 +397,13 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
                                    extra={key: v[-1:] for key, v in snaps.extra.items()}
                                    ).rows(Renorm.parse(renorm)) if value is not None else None
     else:
-        x, taken, p_t = _pilot_by_checks(prop, advance, state, checks)
+        if getattr(prop, "takes_checks", bool)():
+            # One compiled call copies the orbits at every check (the part
+            # stepper: the same kernel as the run's).
+            x, p_t = prop.advance_checks(state, checks)
+            taken = np.isfinite(x).all(axis=2)
+        else:
+            x, taken, p_t = _pilot_by_checks(prop, advance, state, checks)
         worst = _worst(reference, x, taken, checks[:len(x)] * tau, p_t, state.status)
         rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
 
