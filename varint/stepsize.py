@@ -294,8 +294,9 @@ def _pilot_by_checks(prop, advance, state, checks):
     orbit was still running there, and ``p_t`` (C, M) its momentum
     conjugate to time (None without one). Filled in place, one row per
     check: what the errors need of each check, without a list of arrays
-    and a concatenation per check (this loop's own work cost more than
-    the part stepper's ``advance`` of a short orbit's check)."""
+    and a concatenation per check (the per-check lists and array
+    operations took about as long as the part stepper's ``advance``
+    between two checks of a short orbit, profiled on the bar orbit)."""
     m = state.n_orbits
     x = np.empty((len(checks), m, state.x.shape[1]))
     taken = np.zeros((len(checks), m), dtype=bool)
@@ -368,7 +369,13 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
     first call and returns the same array after (a ladder's rule reads a
     run's energy errors only where it judges that run as a rung's coarse
     run: :func:`varint.step_agreement.descend`); the same numbers either
-    way."""
+    way.
+
+    The states at the checks come from one compiled call where the
+    propagator copies them there (the generated TM stepper's snapshots;
+    the part stepper's ``advance_checks``, where ``takes_checks()``), else
+    from an ``advance`` to each check in turn: the same bits (rule 3 of
+    the propagator protocol, ``tests/test_parts_checks.py``)."""
     W0, renorm, accumulator, compensated = setup
     n = max(1, int(round(t_pilot / tau)))
     # A copy: numba compiles a kernel again for a read-only array.
