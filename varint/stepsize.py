@@ -286,37 +286,55 @@ def dividing_step(t_end, tau):
     return t_end / math.ceil(t_end / tau * (1 - 1e-12))
 
 
-def _pilot_by_checks(prop, advance, state, checks, tau, reference):
-    """Per orbit, the largest error at the ``checks`` steps, advancing to
-    each in turn (propagators that take no snapshots). The states at the
-    checks are kept and their errors measured in one call after the pilot:
-    the errors are row by row, so the numbers are those of a call per
-    check, without its fixed cost (≈ 80 µs, as much as the advance of a
-    short orbit's check)."""
+def _pilot_by_checks(prop, advance, state, checks):
+    """The orbits' states at the ``checks`` steps, advancing to each in
+    turn (propagators that take no snapshots): ``(x, taken, p_t)`` with
+    ``x`` (C, M, 2N) the states at the C checks reached (C < len(checks)
+    when every orbit stopped before the end), ``taken`` (C, M) whether the
+    orbit was still running there, and ``p_t`` (C, M) its momentum
+    conjugate to time (None without one). Filled in place, one row per
+    check: what the errors need of each check, without a list of arrays
+    and a concatenation per check (the per-check lists and array
+    operations took about as long as the part stepper's ``advance``
+    between two checks of a short orbit, profiled on the bar orbit)."""
     m = state.n_orbits
-    xs, ts, pts, oks, blowns = [], [], [], [], []
+    x = np.empty((len(checks), m, state.x.shape[1]))
+    taken = np.zeros((len(checks), m), dtype=bool)
+    p_t = None
+    reached = 0
     for s in checks:
         advance(prop, state, int(s - state.step))
         ok = state.status == STATUS_OK
-        xs.append(state.x.copy())
-        ts.append(np.broadcast_to(state.step * tau, m))
-        # A copy: the run updates its time momentum in place.
-        p_t = state.extra.get(TIME_MOMENTUM)
-        pts.append(None if p_t is None else np.array(p_t, dtype=float))
-        oks.append(ok)
-        blowns.append((state.status > STATUS_OK) & (state.status != Status.ESCAPED))
+        x[reached] = state.x
+        taken[reached] = ok
+        momentum = state.extra.get(TIME_MOMENTUM)
+        if momentum is not None:
+            if p_t is None:
+                # Zero before the run made it (the reference's default).
+                p_t = np.zeros((len(checks), m))
+            p_t[reached] = momentum
+        reached += 1
         if not ok.any():
             break
-    # Without a time momentum the reference takes its default, 0.0.
-    p_t = 0.0 if all(p is None for p in pts) else np.concatenate(
-        [np.broadcast_to(0.0 if p is None else p, m) for p in pts])
-    worst = np.zeros(m)
+    return x[:reached], taken[:reached], None if p_t is None else p_t[:reached]
+
+
+def _worst(reference, x, taken, t, p_t, status):
+    """Per orbit, the largest relative error of the conserved quantities
+    over the checks where it was ``taken`` (states ``x`` (C, M, 2N) at
+    times ``t`` (C,), time momenta ``p_t`` (C, M) or None); inf for an
+    orbit whose final ``status`` is a failure other than an escape (an
+    escaped orbit counts up to its escape) or whose error is not finite.
+    The errors are row by row, so measuring every check in one
+    ``Reference.errors`` call gives the numbers of a call per check
+    without its fixed cost."""
+    c, m = taken.shape
     with np.errstate(all="ignore"):
-        errs = reference.errors(np.concatenate(xs), np.concatenate(ts), p_t)
-        e_all = np.max(np.stack(list(errs.values())), axis=0).reshape(len(xs), m)
-        for e, ok, blown in zip(e_all, oks, blowns, strict=True):
-            worst[ok] = np.maximum(worst[ok], np.where(np.isfinite(e[ok]), e[ok], np.inf))
-            worst[blown] = np.inf
+        errs = reference.errors(x.reshape(c * m, -1), np.repeat(t, m),
+                                0.0 if p_t is None else p_t.reshape(-1))
+        e = np.max(np.stack(list(errs.values())), axis=0).reshape(c, m)
+        worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
+    worst[(status > STATUS_OK) & (status != Status.ESCAPED)] = np.inf
     return worst
 
 
@@ -351,7 +369,13 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
     first call and returns the same array after (a ladder's rule reads a
     run's energy errors only where it judges that run as a rung's coarse
     run: :func:`varint.step_agreement.descend`); the same numbers either
-    way."""
+    way.
+
+    The states at the checks come from one compiled call where the
+    propagator copies them there (the generated TM stepper's snapshots;
+    the part stepper's ``advance_checks``, where ``takes_checks()``), else
+    from an ``advance`` to each check in turn: the same bits (rule 3 of
+    the propagator protocol, ``tests/test_parts_checks.py``)."""
     W0, renorm, accumulator, compensated = setup
     n = max(1, int(round(t_pilot / tau)))
     # A copy: numba compiles a kernel again for a read-only array.
@@ -369,15 +393,9 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
         snaps = advance(prop, state, n, checks)
 
         def measure():
-            t = np.repeat(checks * tau, len(X))
-            errs = reference.errors(snaps.x.reshape(-1, X.shape[1]), t)
-            e = np.max(np.stack(list(errs.values())), axis=0).reshape(len(checks), len(X))
-            # A check after an orbit stopped has no copy (NaN): an escaped
-            # orbit counts up to its escape, one that failed otherwise is inf.
-            taken = np.isfinite(snaps.x).all(axis=2)
-            worst = np.max(np.where(taken, np.where(np.isfinite(e), e, np.inf), 0.0), axis=0)
-            worst[(state.status > STATUS_OK) & (state.status != Status.ESCAPED)] = np.inf
-            return worst
+            # A check after an orbit stopped has no copy (NaN).
+            return _worst(reference, snaps.x, np.isfinite(snaps.x).all(axis=2), checks * tau,
+                          None, state.status)
 
         # The copy at the last check (the pilot's end), as a run reads it.
         rows = dataclasses.replace(snaps, steps=snaps.steps[-1:], x=snaps.x[-1:],
@@ -386,8 +404,14 @@ def pilot_errors(model, X, tau, t_pilot, scheme, reference, counts, setup, value
                                    extra={key: v[-1:] for key, v in snaps.extra.items()}
                                    ).rows(Renorm.parse(renorm)) if value is not None else None
     else:
-        # The errors are measured between the checks as the run advances.
-        worst = _pilot_by_checks(prop, advance, state, checks, tau, reference)
+        if getattr(prop, "takes_checks", bool)():
+            # One compiled call copies the orbits at every check (the part
+            # stepper: the same kernel as the run's).
+            x, p_t = prop.advance_checks(state, checks)
+            taken = np.isfinite(x).all(axis=2)
+        else:
+            x, taken, p_t = _pilot_by_checks(prop, advance, state, checks)
+        worst = _worst(reference, x, taken, checks[:len(x)] * tau, p_t, state.status)
         rows = state.renormalized(renorm) if getattr(prop, "sparse", 0) else Rows.of(state)
 
         def measure():

@@ -38,7 +38,7 @@ from .checks import orbit_status_wide
 from .interval import StepBody, batch_loop, no_accumulator, orbit_record
 
 __all__ = ["parts_body", "parts_batch", "PartsOrbit", "TimedPartsOrbit", "PartsSetup",
-           "SPECIALISE_K"]
+           "CheckedPartsOrbit", "TimedCheckedPartsOrbit", "CheckedPartsSetup", "SPECIALISE_K"]
 
 #: Largest number of deviation vectors compiled as a constant.
 SPECIALISE_K = 8
@@ -50,9 +50,19 @@ PartsOrbit = orbit_record("PartsOrbit")
 #: (1,) the momentum conjugate to time, as :data:`varint.kernels.tm.TMOrbit`'s.
 TimedPartsOrbit = orbit_record("TimedPartsOrbit", ("pt",))
 
+#: The records of a stepper that copies the orbit at given steps (the
+#: checks of :mod:`varint.stepsize`'s pilot, in one call): ``sx`` (C, 2N)
+#: the orbit at each check step, ``spt`` (C,) its time momentum (timed
+#: H), ``at`` (1,) the index of the next check (:func:`parts_body`).
+CheckedPartsOrbit = orbit_record("CheckedPartsOrbit", ("sx", "at"))
+TimedCheckedPartsOrbit = orbit_record("TimedCheckedPartsOrbit", ("pt", "sx", "spt", "at"))
+
 #: What a call reads: the word of flows (part index ``parts`` and length
 #: ``h`` of each), the model's parameters and the scratch it needs.
 PartsSetup = namedtuple("PartsSetup", ("parts", "h", "par", "n_work"))
+#: :data:`PartsSetup` and the increasing steps ``checks`` (C,) at which a
+#: :data:`CheckedPartsOrbit` is copied.
+CheckedPartsSetup = namedtuple("CheckedPartsSetup", ("parts", "h", "par", "n_work", "checks"))
 
 # Work space: sizes, the orbit (the end point), the vectors as rows, scratch.
 # ``par``: the parameters the flows read (a private copy for a
@@ -61,10 +71,19 @@ _Work = namedtuple("_Work", ("n", "k", "d", "xe", "V", "work", "par"))
 
 
 @cache
-def parts_body(apply, field, K_C, TIME=False):
+def parts_body(apply, field, K_C, TIME=False, CHECKS=False):
     """The step body of the model whose flows are ``apply`` (and vector
     field ``field``); ``K_C`` ≥ 0 fixes the number of vectors at compile
     time, −1 reads it from ``W``.
+
+    With ``CHECKS`` (records :data:`CheckedPartsOrbit`, setup
+    :data:`CheckedPartsSetup`) the orbit (and its time momentum) is copied
+    to ``sx[i]`` (``spt[i]``) at the end of the run's step ``checks[i]``
+    once the step's checks passed, ``i`` from ``at[0]``: a pilot's 50
+    checks in one call instead of 50 (each a Python call of ~40 µs, as
+    much as a short orbit's steps between two checks). An orbit that
+    stopped before a check has no copy there. The copies change no bit of
+    the steps.
 
     Each deviation vector is held as one contiguous row of ``V`` (k, 2N)
     while the steps run (the site loops of the flows then vectorise) and
@@ -125,6 +144,17 @@ def parts_body(apply, field, K_C, TIME=False):
         return ws.V.T   # the (2N, k) view the checks and accumulators read
 
     @njit(inline="always")
+    def copy_at_checks(state, setup, ws, s, call):
+        i = state.at[0]
+        if i < setup.checks.shape[0] and setup.checks[i] == call.step0 + s + 1:
+            for j in range(ws.d):
+                state.sx[i, j] = ws.xe[j]
+            if TIME:
+                state.spt[i] = state.pt[0]
+            state.at[0] = i + 1
+        return 0
+
+    @njit(inline="always")
     def end(state, ws):
         # Element by element: a slice assignment makes numba compile its
         # shape-mismatch error message (4-7 s a process, kern18), for
@@ -134,10 +164,12 @@ def parts_body(apply, field, K_C, TIME=False):
             for i in range(V.shape[1]):
                 W[i, c] = V[c, i]
 
-    return StepBody(begin=begin, step=step, check=check, flow=flow, vectors=vectors, end=end)
+    return StepBody(begin=begin, step=step, check=check, flow=flow, vectors=vectors, end=end,
+                    **({"after": copy_at_checks} if CHECKS else {}))
 
 
-def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False, time=False):
+def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False, time=False,
+                checks=False):
     """The batch stepper of a model's flows ``apply`` (and vector field
     ``field``) for ``k`` deviation vectors, compiled once per model class,
     k (up to :data:`SPECIALISE_K`), accumulator and options:
@@ -151,6 +183,9 @@ def parts_batch(apply, field, k, parallel, accumulate=no_accumulator, flow=False
     per orbit); ``counters[m, part]`` receives the flows of each part orbit
     m ran. ``accumulate`` updates ``aux[m]`` after every step; with
     ``flow`` it is given ``field(x, par, out)``, the phase-space velocity.
+    With ``checks``, records :data:`CheckedPartsOrbit` (or
+    :data:`TimedCheckedPartsOrbit`) and a :data:`CheckedPartsSetup`: the
+    orbits are also copied at the setup's check steps (:func:`parts_body`).
     """
-    body = parts_body(apply, field, k if k <= SPECIALISE_K else -1, bool(time))
+    body = parts_body(apply, field, k if k <= SPECIALISE_K else -1, bool(time), bool(checks))
     return batch_loop(body, bool(parallel), accumulate, bool(flow))

@@ -135,6 +135,38 @@ class PartsPropagator:
 
     def advance(self, state, n):
         """Advance every active orbit of ``state`` by ``n`` steps."""
+        m, d = state.x.shape
+        self._advance(state, int(n), _NO_CHECKS, np.empty((m, 0, d)), np.empty((m, 0)))
+
+    def takes_checks(self):
+        """Whether :meth:`advance_checks` runs this propagator's steps: the
+        part stepper's (a subclass that runs another stepper, such as
+        :class:`~varint.methods.general.GeneralPropagator` with Tao's
+        method, builds no part tables)."""
+        return hasattr(self, "_n_work")
+
+    def advance_checks(self, state, checks):
+        """Advance every active orbit of ``state`` to the step ``checks[-1]``
+        in one call, copying it at the steps ``checks`` (int64, increasing,
+        after ``state.step``): a pilot's checks (:mod:`varint.stepsize`),
+        bitwise the states of an :meth:`advance` to each check in turn.
+
+        Returns
+        -------
+        x : ndarray, shape (C, M, 2N)
+            The orbits at the checks; NaN where an orbit had stopped.
+        p_t : ndarray, shape (C, M), or None
+            Their momenta conjugate to time (a time-dependent H), else None.
+        """
+        m, d = state.x.shape
+        sx, spt = np.full((m, len(checks), d), np.nan), np.full((m, len(checks)), np.nan)
+        self._advance(state, int(checks[-1] - state.step), checks, sx, spt)
+        return sx.transpose(1, 0, 2), spt.T if self.model.parts.timed else None
+
+    def _advance(self, state, n, checks, sx, spt):
+        """:meth:`advance` by ``n`` steps, copying the orbits at ``checks``
+        to ``sx`` (M, C, 2N) and their time momenta to ``spt`` (M, C): one
+        compiled stepper for runs (no checks) and pilots."""
         m = state.n_orbits
         parts = self.model.parts
         acc = self.accumulator
@@ -143,19 +175,26 @@ class PartsPropagator:
         else:
             update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
         kernel = K.parts_batch(parts.apply, parts.field, state.k,
-                               use_parallel(self.parallel, m), update, flow, parts.timed)
+                               use_parallel(self.parallel, m), update, flow, parts.timed, True)
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
+        at = np.zeros((m, 1), dtype=np.int64)
         was_active = state.status == STATUS_OK
-        record = (K.TimedPartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters,
-                                    state.time_momentum()[:, None]) if parts.timed else
-                  K.PartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters))
+        record = (K.TimedCheckedPartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux,
+                                           counters, state.time_momentum()[:, None], sx, spt, at)
+                  if parts.timed else
+                  K.CheckedPartsOrbit(state.x, state.W, state.acc_m, state.acc_e, aux, counters,
+                                      sx, at))
         kernel(record,
-               K.PartsSetup(self._parts, self._h, self._par, self._n_work),
-               Call(int(n), state.step, self.tau, int(self.renorm), self._escape_r2),
+               K.CheckedPartsSetup(self._parts, self._h, self._par, self._n_work, checks),
+               Call(n, state.step, self.tau, int(self.renorm), self._escape_r2),
                state.status, done)
         state.after_kernel(n, was_active, done, counters,
                            tuple(f"flow_{name}" for name in parts.names))
+
+
+#: The check steps of a run's call (none).
+_NO_CHECKS = np.zeros(0, dtype=np.int64)
 
 
 def _tables(model, scheme, tau):
