@@ -371,9 +371,9 @@ def gauss_stepper(S=-1, DIM=-1):
 
     The step's loops run over s and 2N (4 and 4 for GL8 on two degrees of
     freedom); with both constant, LLVM unrolls them and keeps the stages in
-    registers: GL8 on the held-out angular coupling at τ = 0.2, 3.4 → 1.9
-    µs per step (load ≈ 19, minimum of 15), bit for bit the same
-    arithmetic (same operations in the same order). Compiled once per
+    registers: GL8 on the held-out angular coupling at τ = 0.2, 3.16 → 1.94
+    µs per step (``studies/gauss_step_cost.py``, CPU time), bit for bit the
+    same arithmetic (same operations in the same order). Compiled once per
     (S, DIM); the helpers the loops call are inlined for the same reason.
 
     Parameters
