@@ -42,7 +42,9 @@ scheme the model defaults to (and that both are what its form asks), then
    first, interleaved, minimum of the repeats) of varint's defaults (τ
    chosen by varint), its schemes at a ladder of steps (Gauss–Legendre
    GL4/GL6/GL8 and Tao's TAO4 for the general ones; the explicit
-   splittings for the separable one), heyoka's Taylor method from the same
+   splittings, s15odr8 among them, for the separable one; steps from
+   τ = 0.8 for GL8 and 0.4 or 0.5 for the other high orders, so that no
+   front is capped by its largest step), heyoka's Taylor method from the same
    expression at tolerances 1e-4 … 1e-12 and DOP853. The ratio is
    heyoka's cost over varint's at errors 1e-6 and 1e-8, both read off their
    cost–error fronts (log–log interpolated; "at most" when a front's
@@ -81,10 +83,22 @@ LEVELS = (1e-6, 1e-8)
 HEYOKA_TOLS = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
 #: The finite-difference check: horizon, step, half-width and bound.
 FD_T, FD_TAU, FD_EPS, FD_BOUND = 5.0, 0.05, 1e-5, 1e-6
-#: Steps of the general methods (Tao's at half of them: its step costs about
-#: half a GL4 step).
-GENERAL_TAUS = (0.2, 0.1, 0.05, 0.025)
-SEPARABLE_TAUS = (0.4, 0.2, 0.1, 0.05)
+#: Steps of each varint scheme. A ladder capped at τ = 0.2 made GL8's
+#: cheapest point 100× more accurate than 1e-8 (3.5e-11 to 3e-10 at
+#: τ = 0.2): the high orders start at τ = 0.8 (GL8) and 0.4, with steps in
+#: between (100/τ an integer) where their fronts cross 1e-8 and 1e-6, as
+#: heyoka's tolerances span 1e-4 … 1e-12. Tao's at half of GL4's (its step
+#: costs about half a GL4 step).
+GENERAL_TAUS = {"GL4": (0.2, 0.1, 0.05, 0.025),
+                "GL6": (0.4, 0.25, 0.2, 0.1, 0.05),
+                "GL8": (0.8, 0.5, 0.4, 0.3125, 0.25, 0.2, 0.1),
+                "TAO4": (0.1, 0.05, 0.025, 0.0125)}
+#: Steps of the explicit splittings of a separable H; s15odr8 (order 8 for
+#: any T(p) + V(q)) at longer ones.
+SEPARABLE_TAUS = {"s11odr6": (0.4, 0.25, 0.2, 0.125, 0.1, 0.05),
+                  "SRKN14a": (0.4, 0.2, 0.1, 0.05),
+                  "ABA864": (0.4, 0.2, 0.1, 0.05),
+                  "s15odr8": (0.5, 0.4, 0.25, 0.2, 0.125, 0.1)}
 
 
 def heldout():
@@ -121,14 +135,9 @@ def contenders(model, structure):
     varint for the default energy tolerance, the pilot included in its
     cost) and its schemes at a ladder of steps."""
     out = [("varint defaults", "tm", {"energy_tol": None}, (None,), model)]
-    if structure == "general":
-        for scheme in ("GL4", "GL6", "GL8"):
-            out.append((scheme, "tm", {"scheme": scheme}, GENERAL_TAUS, model))
-        out.append(("TAO4", "tm", {"scheme": "TAO4"}, tuple(t / 2 for t in GENERAL_TAUS),
-                    model))
-    else:
-        for scheme in ("s11odr6", "SRKN14a", "ABA864"):
-            out.append((scheme, "tm", {"scheme": scheme}, SEPARABLE_TAUS, model))
+    ladder = GENERAL_TAUS if structure == "general" else SEPARABLE_TAUS
+    for scheme, taus in ladder.items():
+        out.append((scheme, "tm", {"scheme": scheme}, taus, model))
     return out
 
 

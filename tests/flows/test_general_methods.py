@@ -101,8 +101,10 @@ def test_every_indicator_and_bitwise_resume(tmp_path):
     # behind the part stepper's flows is compiled for a run-time k only
     # (none at all where the kernels came from the disk cache).
     apply = model.parts.apply.py_func
-    step = dict(zip(apply.__code__.co_freevars, apply.__closure__, strict=True))["step"].cell_contents
-    assert {sig[3] for sig in step.signatures} <= {numba.types.int64}
+    cells = dict(zip(apply.__code__.co_freevars, apply.__closure__, strict=True))
+    for name in ("step4", "step6", "step8"):
+        step = cells[name].cell_contents
+        assert {sig[3] for sig in step.signatures} <= {numba.types.int64}, name
 
 
 def test_refusals():

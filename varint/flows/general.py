@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from ..schemes import CompositionScheme, get_scheme
-from .gauss import GAUSS, gauss_step, gauss_work, no_dtime
+from .gauss import GAUSS, gauss_stepper, gauss_work, no_dtime
 
 __all__ = ["INTEGRATORS", "GENERAL_SCHEMES", "TAO_SCHEMES", "TAO_OMEGA", "TaoScheme", "WholeStep",
            "general_apply", "general_work"]
@@ -136,6 +136,33 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
     timed = dtime is not None
     dt = dtime if timed else no_dtime
 
+    # Each integrator's step with its stages and the state's size built in
+    # (its loops unroll: gauss_stepper).
+    step4, step6, step8 = (_step(gauss_stepper(GAUSS[name].stages, dim), n_par, dim, timed, dt,
+                                 grad, grad_hess) for name in INTEGRATORS)
+
+    @njit(error_model="numpy")
+    def apply(part, h, x, V, k, par, work):
+        # k as a run-time integer: the part stepper passes its compile-time
+        # k (a literal, 1 to SPECIALISE_K), and numba compiles a function
+        # once per literal it is called with; the step's loops over the
+        # vectors are the same arithmetic for any k (its cost is the stage
+        # solves), so one compiled step serves every k.
+        kr = np.int64(k)
+        if part == 0:
+            step4(h, x, V, kr, par, work, A4, b4, c4, d4, E4)
+        elif part == 1:
+            step6(h, x, V, kr, par, work, A6, b6, c6, d6, E6)
+        else:
+            step8(h, x, V, kr, par, work, A8, b8, c8, d8, E8)
+
+    return apply
+
+
+def _step(gauss_step, n_par, dim, timed, dt, grad, grad_hess):
+    """One step of :func:`general_apply` by ``gauss_step``: the stage
+    parameters and the state of the iteration laid out in ``work``."""
+
     @njit(error_model="numpy")
     def step(h, x, V, k, par, work, A, b, c, d, E):
         s = c.shape[0]
@@ -159,19 +186,5 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
         if status != 0:
             x[:] = np.nan
 
-    @njit(error_model="numpy")
-    def apply(part, h, x, V, k, par, work):
-        # k as a run-time integer: the part stepper passes its compile-time
-        # k (a literal, 1 to SPECIALISE_K), and numba compiles a function
-        # once per literal it is called with; the step's loops over the
-        # vectors are the same arithmetic for any k (its cost is the stage
-        # solves), so one compiled step serves every k.
-        kr = np.int64(k)
-        if part == 0:
-            step(h, x, V, kr, par, work, A4, b4, c4, d4, E4)
-        elif part == 1:
-            step(h, x, V, kr, par, work, A6, b6, c6, d6, E6)
-        else:
-            step(h, x, V, kr, par, work, A8, b8, c8, d8, E8)
+    return step
 
-    return apply

@@ -639,6 +639,14 @@ class HamiltonianModel(Model):
                                for c in coeffs]
         return self._memo[key]
 
+    def _memoised(self, key, make):
+        """``make()``, made once per model: what depends only on H (H never
+        changes). Dropped on pickling (:meth:`__getstate__`), made again."""
+        memo = self.__dict__.setdefault("_memo", {})
+        if key not in memo:
+            memo[key] = make()
+        return memo[key]
+
     def symbolic(self) -> SymbolicHamiltonian:
         """The Hamiltonian, coordinates, momenta and structure as given."""
         return self._symbolic
@@ -648,15 +656,11 @@ class HamiltonianModel(Model):
         s = self._symbolic
         d.pop("inverse_mass", None)
         # H never changes, and its srepr costs ~5 ms for the three-body
-        # problem, asked ~10 times by one chaos map: made once.
-        memo = self.__dict__.setdefault("_memo", {})
-        if "srepr" not in memo:
-            # The symbols' names too (SymPy's printer, ~20 µs each).
-            memo["srepr"] = sp.srepr(s.H), tuple(str(v) for v in s.q), tuple(str(v)
-                                                                            for v in s.p)
-        H, q, p = memo["srepr"]
-        d.update(hamiltonian=H, q=list(q), p=list(p), structure=self.structure,
-                 escape_radius=self.escape_radius)
+        # problem, asked ~10 times by one chaos map: made once; so are the
+        # symbols' names (SymPy's printer: 0.1 ms a call, every run asks).
+        names = self._memoised("names", lambda: ([str(v) for v in s.q], [str(v) for v in s.p]))
+        d.update(hamiltonian=self._memoised("srepr", lambda: sp.srepr(s.H)), q=list(names[0]),
+                 p=list(names[1]), structure=self.structure, escape_radius=self.escape_radius)
         if s.time is not None:
             d["time"] = str(s.time)
         return d
@@ -689,7 +693,11 @@ class _SplitHamiltonian(HamiltonianModel):
 
     @property
     def parts(self):
-        """The two parts (the solvable A, then V) and their fused flows."""
+        """The two parts (the solvable A, then V) and their fused flows
+        (made once: a run asks ~7 times)."""
+        return self._memoised("parts", self._parts)
+
+    def _parts(self):
         n = self.n_dof
         return Parts(names=self.part_names, apply=self._apply(), field=S.hamiltonian_field(
             self.grad_h), splits={2: self.part_names}, par=self._part_params(),
@@ -793,7 +801,10 @@ class TermwiseHamiltonian(HamiltonianModel):
 
     @property
     def parts(self):
-        """The parts and their fused explicit flows."""
+        """The parts and their fused explicit flows (made once)."""
+        return self._memoised("parts", self._parts)
+
+    def _parts(self):
         d = self.dim
         return Parts(names=self.part_names, apply=self._apply_terms,
                      field=S.hamiltonian_field(self.grad_h),
@@ -820,7 +831,11 @@ class GeneralHamiltonian(HamiltonianModel):
         """The whole-step integrators as the part stepper's flows
         (:mod:`varint.flows.general`); for a time-dependent H they run in
         the extended phase space, the time in the last parameter and its
-        conjugate momentum carried by the stepper (``Parts.timed``)."""
+        conjugate momentum carried by the stepper (``Parts.timed``). Made
+        once per model (a run asks ~7 times, 10 µs each)."""
+        return self._memoised("parts", self._parts)
+
+    def _parts(self):
         par = np.ascontiguousarray(self.parameters_at(None), dtype=np.float64)
         timed = bool(self.time_dependent)
         return Parts(names=GEN.INTEGRATORS, apply=GEN.general_apply(
