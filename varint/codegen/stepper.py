@@ -96,11 +96,12 @@ def generated_source(E, plan, accumulator=None):
 def generator_sources():
     """The files whose code and constants a generated stepper's source is
     made of: this layer, the kernels it calls (the fused multiply–add, the
-    logarithm, the sparse schedule, the checks' constants), the protocol's
-    codes, the scheme table's stage codes and the expression printer
+    logarithm, the sparse schedule, the checks' constants), the threads
+    its parallel batches run on, the protocol's codes, the scheme table's
+    stage codes and the expression printer
     (``varint.models.symbolic``'s ``KernelPrinter``, which the layer's
     printer extends)."""
-    from .. import protocol, schemes
+    from .. import protocol, schemes, threads
     from ..kernels import checks, fma, interval, logarithm
 
     layer = sorted(Path(__file__).parent.glob("*.py"))
@@ -109,7 +110,7 @@ def generator_sources():
     spec = importlib.util.find_spec("varint.models.symbolic")
     assert spec is not None and spec.origin is not None
     return layer + [Path(m.__file__) for m in (checks, fma, interval, logarithm, protocol,
-                                               schemes)] + [Path(spec.origin)]
+                                               schemes, threads)] + [Path(spec.origin)]
 
 
 def _sympy_release():
