@@ -52,6 +52,12 @@ _ARRAY_MAX = 4096
 _calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
 _lock = threading.Lock()
 
+#: Deepest nesting of containers and attributes a key walks (a model's
+#: records of its symbolic form, e.g. the bar's structure holding the
+#: plane's parameters, sit 6 levels down); deeper, or a cycle: the call is
+#: not remembered.
+_DEPTH = 8
+
 #: The plain values a key holds by type and value (a bool is not an int
 #: there: ``seed=True`` is refused where ``seed=1`` is not).
 _PLAIN = frozenset((int, float, str, bool, type(None), np.float64, np.int64, np.bool_))
@@ -69,7 +75,15 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     kind = type(value)
     if kind in _PLAIN:
         return kind, value
-    if depth > 4:
+    attributes = getattr(value, "__dict__", None)
+    if kind is not tuple and kind is not list and kind is not dict and kind is not np.ndarray \
+            and (attributes is None or callable(value)):
+        # Code (functions, compiled kernels) and values without attributes
+        # (frozen scheme and indicator records of slots, SymPy expressions):
+        # by identity, at any depth (nothing in them to walk).
+        held.append(value)
+        return kind, id(value)
+    if depth > _DEPTH:
         raise _Unkeyed
     if kind is tuple or kind is list:
         return kind, tuple([_frozen(v, held, depth + 1) for v in value])
@@ -83,11 +97,6 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
         held.append(value)
         return kind, id(value), value.dtype.str, value.shape, value.tobytes()
     held.append(value)
-    attributes = getattr(value, "__dict__", None)
-    if attributes is None or callable(value):
-        # Code (functions, compiled kernels) and values without attributes
-        # (frozen scheme and indicator records of slots, SymPy expressions).
-        return kind, id(value)
     return kind, id(value), _frozen(attributes, held, depth + 1)
 
 
