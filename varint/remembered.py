@@ -70,24 +70,26 @@ class _Unkeyed(Exception):
 def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     """``value`` as part of a key: plain values by type and value, tuples,
     lists and dicts by their items, arrays by dtype, shape and bytes,
-    functions and other objects by identity (kept in ``held``), objects
-    with attributes (not callables) by their attributes too."""
+    functions, frozen dataclasses and other objects by identity (kept in
+    ``held``), objects with attributes (not callables) by their state too: their attributes,
+    or what their ``__getstate__`` gives where they define one (the state
+    they pickle: a model's caches of what it derives from the rest, e.g.
+    the memo of a :class:`~varint.models.hamiltonian.HamiltonianModel`,
+    left out, so that filling them changes no key)."""
     kind = type(value)
     if kind in _PLAIN:
         return kind, value
-    attributes = getattr(value, "__dict__", None)
-    if kind is not tuple and kind is not list and kind is not dict and kind is not np.ndarray \
-            and (attributes is None or callable(value)):
-        # Code (functions, compiled kernels) and values without attributes
-        # (frozen scheme and indicator records of slots, SymPy expressions):
-        # by identity, at any depth (nothing in them to walk).
-        held.append(value)
-        return kind, id(value)
-    if depth > _DEPTH:
-        raise _Unkeyed
     if kind is tuple or kind is list:
+        if depth > _DEPTH:
+            raise _Unkeyed
+        if all([type(v) in _PLAIN for v in value]):
+            # (Plain items, e.g. a model's constants: their types and
+            # values in two C loops.)
+            return kind, tuple(map(type, value)), tuple(value)
         return kind, tuple([_frozen(v, held, depth + 1) for v in value])
     if kind is dict:
+        if depth > _DEPTH:
+            raise _Unkeyed
         # (Plain values inline: a model's attributes are mostly these.)
         return kind, tuple([(k, (type(v), v) if type(v) in _PLAIN else
                              _frozen(v, held, depth + 1)) for k, v in value.items()])
@@ -97,7 +99,25 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
         held.append(value)
         return kind, id(value), value.dtype.str, value.shape, value.tobytes()
     held.append(value)
+    attributes = getattr(value, "__dict__", None)
+    if attributes is None or callable(value) or _frozen_record(kind):
+        # Code (functions, compiled kernels), values without attributes
+        # (frozen scheme and indicator records of slots, SymPy expressions)
+        # and frozen dataclasses (a model's symbolic form, structure and
+        # extra force: records that are never rebound, of values that never
+        # change): by identity, at any depth.
+        return kind, id(value)
+    if depth > _DEPTH:
+        raise _Unkeyed
+    if kind.__getstate__ is not object.__getstate__:
+        attributes = value.__getstate__()
     return kind, id(value), _frozen(attributes, held, depth + 1)
+
+
+def _frozen_record(kind: type) -> bool:
+    """Whether ``kind`` is a frozen dataclass."""
+    params = getattr(kind, "__dataclass_params__", None)
+    return params is not None and params.frozen
 
 
 def model_token(model: Any, held: list) -> Any:
