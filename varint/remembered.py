@@ -9,7 +9,7 @@ A call is remembered by a key of everything it was given but ``x0`` and
 ``deviations`` (of which only the shapes): every argument by type and
 value, an object that is not a plain value (the model, a scheme, an
 indicator) by identity, and the model's state (:func:`model_token`: every
-attribute's value, its arrays' bytes included). So a later call hits only
+attribute's value, its arrays' bytes included, as the model pickles it). So a later call hits only
 with equal arguments and a model in the same state; anything else, a model
 changed in place included, misses and is run from scratch. The remembered
 calls hold every object their key names by identity, so no identity is
@@ -52,10 +52,9 @@ _ARRAY_MAX = 4096
 _calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
 _lock = threading.Lock()
 
-#: Deepest nesting of containers and attributes a key walks (a model's
-#: records of its symbolic form, e.g. the bar's structure holding the
-#: plane's parameters, sit 6 levels down); deeper, or a cycle: the call is
-#: not remembered.
+#: Deepest nesting of containers and attributes a key walks (the bar's
+#: planar parameters, a dict of dicts of tuples among its attributes, sit
+#: 4 levels down); deeper, or a cycle: the call is not remembered.
 _DEPTH = 8
 
 #: The plain values a key holds by type and value (a bool is not an int
@@ -71,11 +70,12 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     """``value`` as part of a key: plain values by type and value, tuples,
     lists and dicts by their items, arrays by dtype, shape and bytes,
     functions, frozen dataclasses and other objects by identity (kept in
-    ``held``), objects with attributes (not callables) by their state too: their attributes,
-    or what their ``__getstate__`` gives where they define one (the state
-    they pickle: a model's caches of what it derives from the rest, e.g.
-    the memo of a :class:`~varint.models.hamiltonian.HamiltonianModel`,
-    left out, so that filling them changes no key)."""
+    ``held``), objects with attributes (not callables) by their state too:
+    their attributes, or what their ``__getstate__`` gives where they
+    define one (the state they pickle: a model's caches of what it derives
+    from the rest, e.g. the memo of a
+    :class:`~varint.models.hamiltonian.HamiltonianModel`, left out, so that
+    filling them changes no key)."""
     kind = type(value)
     if kind in _PLAIN:
         return kind, value
@@ -122,7 +122,8 @@ def _frozen_record(kind: type) -> bool:
 
 def model_token(model: Any, held: list) -> Any:
     """The state of ``model`` as part of a key: its identity and every
-    attribute's value (:func:`_frozen`)."""
+    attribute's value, or its ``__getstate__``'s where it defines one
+    (:func:`_frozen`)."""
     return _frozen(model, held)
 
 
