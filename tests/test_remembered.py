@@ -3,14 +3,18 @@ again (:mod:`varint.remembered`) and gives, bit for bit, the result built
 from scratch; a changed argument or a model changed in place is not
 mistaken for the earlier call; bad input is refused as before."""
 
+import dataclasses
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import varint
 from varint import remembered
+from varint.models import from_hamiltonian
+from varint.models.bar import bar_orbit
 from varint.run import Run
 
 from .test_prepared import _one_shot, _same, _states
@@ -119,3 +123,67 @@ def test_a_first_run_imports_no_rerun():
             "varint.megno(model, x0 + 1e-3, 1.0, tau=0.05)\n"
             "assert 'varint.rerun' in sys.modules\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _same_accuracy(a, b):
+    """Two verdicts equal in every field, bit for bit."""
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, dict):
+            assert x.keys() == y.keys(), f.name
+            for key in x:
+                np.testing.assert_array_equal(x[key], y[key], strict=True)
+        else:
+            np.testing.assert_array_equal(x, y, strict=True)
+
+
+def _symbolic_models():
+    """The rotating bar (a symbolic integrable part with a compiled extra
+    force) and two ``from_hamiltonian`` models (separable, general): models
+    whose symbolic records (SymPy symbols in tuples, the bar's plane
+    parameters) sit deeper than plain attributes."""
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2")
+    well = (q1 ** 2 + q2 ** 2) / 2 + q1 ** 4 / 4 + q1 ** 2 * q2 ** 2 / 2
+    hh = (q1 ** 2 + q2 ** 2) / 2 + q1 ** 2 * q2 - q2 ** 3 / 3
+    bar, x_bar = bar_orbit("chaotic")
+    return {"bar": (bar, x_bar, {"deviations": np.full((6, 1), 1 / np.sqrt(6))}),
+            "bar seeded": (bar, x_bar, {}),
+            "separable": (from_hamiltonian(sp.sqrt(1 + p1 ** 2 + p2 ** 2) + well, (q1, q2),
+                                           (p1, p2)), np.array([0.3, 0.2, 0.4, 0.3]), {}),
+            "general": (from_hamiltonian((p1 ** 2 + p2 ** 2) / 2 + hh
+                                         + sp.Rational(1, 10) * (q1 * p2 - q2 * p1) ** 2,
+                                         (q1, q2), (p1, p2)),
+                        np.array([0.1, 0.05, 0.2, 0.25]), {})}
+
+
+@pytest.mark.parametrize("name", ["bar", "bar seeded", "separable", "general"])
+def test_symbolic_models_are_remembered_and_bitwise(name, general):
+    # Their keys once failed on depth (SymPy symbols 5 levels down), so
+    # every call was built from scratch (issue 28: ~0.8 ms per t = 1 call).
+    remembered.forget()
+    model, x0, kw = _symbolic_models()[name]
+    states = _states(x0, 4)
+    for x in states:
+        got = varint.lyapunov_spectrum(model, x, 1.0, tau=0.1, **kw)
+        ref = _one_shot(model, x, "lyapunov", 1.0, 0.1, **kw)
+        _same(got, ref)
+        _same_accuracy(got.accuracy, ref.accuracy)
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, kw) is not None
+    if name.startswith("bar"):
+        # The references (4) and the first call; the others took the short
+        # path: the caches the first call filled (the model's memo, which
+        # its __getstate__ leaves out) change no key. (The part stepper of
+        # the other two has no short path: each call is run from scratch,
+        # as remembered.recall says.)
+        assert len(general) == 4 + 1
+
+
+def test_a_key_leaves_out_what_a_model_does_not_pickle():
+    # A HamiltonianModel's memo (made from H, dropped by its __getstate__)
+    # changes no key; its state (here escape_radius) does.
+    model, x0, _ = _symbolic_models()["general"]
+    key = remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0]
+    model._memoised("test", lambda: [1.0, np.zeros(3)])
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
+    model.escape_radius = 10.0
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key

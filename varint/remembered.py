@@ -9,7 +9,7 @@ A call is remembered by a key of everything it was given but ``x0`` and
 ``deviations`` (of which only the shapes): every argument by type and
 value, an object that is not a plain value (the model, a scheme, an
 indicator) by identity, and the model's state (:func:`model_token`: every
-attribute's value, its arrays' bytes included). So a later call hits only
+attribute's value, its arrays' bytes included, as the model pickles it). So a later call hits only
 with equal arguments and a model in the same state; anything else, a model
 changed in place included, misses and is run from scratch. The remembered
 calls hold every object their key names by identity, so no identity is
@@ -52,6 +52,11 @@ _ARRAY_MAX = 4096
 _calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
 _lock = threading.Lock()
 
+#: Deepest nesting of containers and attributes a key walks (the bar's
+#: planar parameters, a dict of dicts of tuples among its attributes, sit
+#: 4 levels down); deeper, or a cycle: the call is not remembered.
+_DEPTH = 8
+
 #: The plain values a key holds by type and value (a bool is not an int
 #: there: ``seed=True`` is refused where ``seed=1`` is not).
 _PLAIN = frozenset((int, float, str, bool, type(None), np.float64, np.int64, np.bool_))
@@ -64,16 +69,27 @@ class _Unkeyed(Exception):
 def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     """``value`` as part of a key: plain values by type and value, tuples,
     lists and dicts by their items, arrays by dtype, shape and bytes,
-    functions and other objects by identity (kept in ``held``), objects
-    with attributes (not callables) by their attributes too."""
+    functions, frozen dataclasses and other objects by identity (kept in
+    ``held``), objects with attributes (not callables) by their state too:
+    their attributes, or what their ``__getstate__`` gives where they
+    define one (the state they pickle: a model's caches of what it derives
+    from the rest, e.g. the memo of a
+    :class:`~varint.models.hamiltonian.HamiltonianModel`, left out, so that
+    filling them changes no key)."""
     kind = type(value)
     if kind in _PLAIN:
         return kind, value
-    if depth > 4:
-        raise _Unkeyed
     if kind is tuple or kind is list:
+        if depth > _DEPTH:
+            raise _Unkeyed
+        if all([type(v) in _PLAIN for v in value]):
+            # (Plain items, e.g. a model's constants: their types and
+            # values in two C loops.)
+            return kind, tuple(map(type, value)), tuple(value)
         return kind, tuple([_frozen(v, held, depth + 1) for v in value])
     if kind is dict:
+        if depth > _DEPTH:
+            raise _Unkeyed
         # (Plain values inline: a model's attributes are mostly these.)
         return kind, tuple([(k, (type(v), v) if type(v) in _PLAIN else
                              _frozen(v, held, depth + 1)) for k, v in value.items()])
@@ -84,16 +100,30 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
         return kind, id(value), value.dtype.str, value.shape, value.tobytes()
     held.append(value)
     attributes = getattr(value, "__dict__", None)
-    if attributes is None or callable(value):
-        # Code (functions, compiled kernels) and values without attributes
-        # (frozen scheme and indicator records of slots, SymPy expressions).
+    if attributes is None or callable(value) or _frozen_record(kind):
+        # Code (functions, compiled kernels), values without attributes
+        # (frozen scheme and indicator records of slots, SymPy expressions)
+        # and frozen dataclasses (a model's symbolic form, structure and
+        # extra force: records that are never rebound, of values that never
+        # change): by identity, at any depth.
         return kind, id(value)
+    if depth > _DEPTH:
+        raise _Unkeyed
+    if kind.__getstate__ is not object.__getstate__:
+        attributes = value.__getstate__()
     return kind, id(value), _frozen(attributes, held, depth + 1)
+
+
+def _frozen_record(kind: type) -> bool:
+    """Whether ``kind`` is a frozen dataclass."""
+    params = getattr(kind, "__dataclass_params__", None)
+    return params is not None and params.frozen
 
 
 def model_token(model: Any, held: list) -> Any:
     """The state of ``model`` as part of a key: its identity and every
-    attribute's value (:func:`_frozen`)."""
+    attribute's value, or its ``__getstate__``'s where it defines one
+    (:func:`_frozen`)."""
     return _frozen(model, held)
 
 
