@@ -25,7 +25,11 @@ PROFILES = Path(__file__).resolve().parent.parent / "studies" / "results"
 #:   (34 s); a generated stepper over SIMD lanes (18 s) and a map's batch
 #:   kernel (3 s); a Poincaré-section kernel (15 s); a TDH batch kernel
 #:   (14 s); "result_classes" also runs every result class's runs of
-#:   test_tables, test_xarray and test_stored_files on one set of kernels.
+#:   test_tables, test_xarray and test_stored_files on one set of kernels;
+#: * from stop 55's duplicates (studies/results/suite_profile_stop55.json):
+#:   a time-dependent general H's checked part-stepper kernel, with its
+#:   Gauss–Legendre steps (38 s); two rotating frames' part-stepper kernels
+#:   (16 s); a generated stepper of R1's compensation ladder (7 s).
 SHARED_UNITS = {
     **{f"tests/studies/{name}.py": "paper_quick"
        for name in ("test_table1", "test_paper_figures", "test_report", "test_roundoff_floor")},
@@ -40,6 +44,11 @@ SHARED_UNITS = {
     "tests/test_xarray.py": "result_classes",
     "tests/studies/test_accuracy.py": "tdh_batch",
     "tests/studies/test_work_precision.py": "tdh_batch",
+    "tests/test_selection.py": "compensated_stepper",
+    "tests/flows/test_general_methods.py": "general_parts",
+    "tests/test_parts_checks.py": "general_parts",
+    "tests/flows/test_split.py": "rotating_parts",
+    "tests/test_rotating_generated.py": "rotating_parts",
 }
 
 

@@ -86,7 +86,10 @@ def test_cored_budget_stops_every_orbit_in_the_lanes_as_in_one(cored):
     assert (out.status == -2).all() and (out.counts[:, 0] == 7).all()
 
 
-@pytest.mark.parametrize("vector", [True, False])
+# Without a vector (the lanes of its own kernel, 18 CPU s cold) under -m slow:
+# the lanes without a vector are checked on the cored potential above, the
+# rotating frame's lanes here with one.
+@pytest.mark.parametrize("vector", [True, pytest.param(False, marks=pytest.mark.slow)])
 def test_cr3bp_lanes_are_the_one_orbit_bits(cr3bp, vector):
     """Twelve Sun–Jupiter orbits (tests/test_time_transform.py's): with δ =
     0.5 orbit 9 meets U ≤ 0 in a rotating frame."""

@@ -104,7 +104,10 @@ def test_an_escaped_orbit_has_copies_up_to_its_escape():
     assert one.fail_step[0] == each.fail_step[0]
 
 
-@pytest.mark.parametrize("system", [_kg, _bar, _timed_general])
+# The time-dependent H's pilot (a kernel of its own, one vector with QR: 19
+# CPU s cold) under -m slow: its copies at the checks, the time momentum
+# too, are checked by default above, and the pilot's law on the other two.
+@pytest.mark.parametrize("system", [_kg, _bar, pytest.param(_timed_general, marks=pytest.mark.slow)])
 def test_the_pilot_chooses_what_advancing_check_by_check_chooses(system, monkeypatch):
     model, X = system()
     sch = stepsize.default_scheme(model, None)

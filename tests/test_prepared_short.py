@@ -38,9 +38,13 @@ def general(monkeypatch):
 @pytest.mark.parametrize("indicator, options", [
     ("integrate", {"scheme": "s15odr8", "deviations": np.eye(4)[:, :1]}),
     ("integrate", {"t_out": [0.5, 1.0]}),
-    ("lyapunov", {"t_out": [0.3, 1.0]}), ("megno", {}), ("gali", {"k": 3}),
+    ("lyapunov", {"t_out": [0.3, 1.0]}), ("megno", {}),
+    # GALI_3 and the compensated spectrum compile kernels of their own (19
+    # and 28 CPU s cold): under -m slow; GALI's short path is checked by
+    # default with two vectors, compensation's with one.
+    pytest.param("gali", {"k": 3}, marks=pytest.mark.slow),
     ("gali", {"k": 2, "renormalize_every": 4}), ("sali", {"t_out": 5}), ("fli", {}),
-    ("lyapunov", {"compensated": True}),
+    pytest.param("lyapunov", {"compensated": True}, marks=pytest.mark.slow),
     # Compensated with one vector: the kernel of test_compensated's run against the reference.
     ("integrate", {"scheme": "SRKN14a", "compensated": True, "deviations": np.eye(4)[:, :1]})])
 def test_short_calls_are_the_one_shot_calls(indicator, options, general):

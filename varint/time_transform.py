@@ -451,7 +451,11 @@ class LogHamiltonian:
                 and (lanes or takes_lanes(M, lanes_work(
                     self.start_u(X, C) if V is None else C - V, t_end, hs)))):
             kernel = over_lanes   # the same bits for every orbit (varint.codegen.lh_lanes)
-        kernel(X, W, pt, np.ascontiguousarray(C, dtype=float), hs,
+        # C as a writable copy: a C given by the caller is broadcast (a
+        # read-only view), and numba compiles its kernels again for a
+        # read-only array (another signature: 20-50 CPU s cold for the
+        # lanes and outputs kernels, stop 55's suite profile).
+        kernel(X, W, pt, np.array(C, dtype=float), hs,
                t_end, every, max_steps, self.kinds, self.coef, self.par, fli,
                status, counts, x_end, t, x_worst, t_worst)
         fli[status != 0] = np.nan   # nothing computed is passed off as a value
