@@ -187,3 +187,21 @@ def test_a_key_leaves_out_what_a_model_does_not_pickle():
     assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
     model.escape_radius = 10.0
     assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key
+
+
+@dataclasses.dataclass(frozen=True)
+class _Settings:
+    """A user's frozen record holding an array (changed in place below)."""
+
+    scale: np.ndarray
+
+
+def test_a_users_frozen_record_changed_in_place_changes_the_key():
+    # varint's own frozen records are keyed by identity; a user's may hold
+    # an array changed in place, so it is keyed by its state.
+    model, x0 = varint.paper_orbit("R1")
+    model.settings = _Settings(np.ones(2))
+    key = remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0]
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
+    model.settings.scale[0] = 2.0
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key

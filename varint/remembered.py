@@ -69,7 +69,7 @@ class _Unkeyed(Exception):
 def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     """``value`` as part of a key: plain values by type and value, tuples,
     lists and dicts by their items, arrays by dtype, shape and bytes,
-    functions, frozen dataclasses and other objects by identity (kept in
+    functions, varint's frozen dataclasses and other objects by identity (kept in
     ``held``), objects with attributes (not callables) by their state too:
     their attributes, or what their ``__getstate__`` gives where they
     define one (the state they pickle: a model's caches of what it derives
@@ -103,7 +103,7 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     if attributes is None or callable(value) or _frozen_record(kind):
         # Code (functions, compiled kernels), values without attributes
         # (frozen scheme and indicator records of slots, SymPy expressions)
-        # and frozen dataclasses (a model's symbolic form, structure and
+        # and varint's frozen dataclasses (a model's symbolic form, structure and
         # extra force: records that are never rebound, of values that never
         # change): by identity, at any depth.
         return kind, id(value)
@@ -115,9 +115,12 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
 
 
 def _frozen_record(kind: type) -> bool:
-    """Whether ``kind`` is a frozen dataclass."""
+    """Whether ``kind`` is one of varint's frozen dataclasses (records
+    built once and never changed in place). A user's frozen dataclass may
+    hold an array that is changed in place: it is keyed by its state."""
     params = getattr(kind, "__dataclass_params__", None)
-    return params is not None and params.frozen
+    return (params is not None and params.frozen
+            and kind.__module__.split(".")[0] == "varint")
 
 
 def model_token(model: Any, held: list) -> Any:
