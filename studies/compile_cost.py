@@ -15,7 +15,9 @@ the number of dispatcher compiles with the largest by exclusive seconds.
 Cases: ``stepper`` (the generated one-orbit stepper, SALI of Hénon–Heiles
 R1), ``lattice`` (the part stepper of a disordered Klein–Gordon lattice
 from :func:`varint.kernels.interval.batch_loop`, a Lyapunov spectrum) and
-``tdh`` (Hénon–Heiles with the TDH scheme ``tdhes``); ``skeleton`` compiles
+``tdh`` (Hénon–Heiles with the TDH scheme ``tdhes``), ``general`` (a
+general H(q, p) of :func:`varint.models.from_hamiltonian`, its default
+scheme GL8 on the part stepper, two vectors); ``skeleton`` compiles
 four skeleton kernels in one process, as a test suite does (the lattice's
 spectrum for k = 4 and k = 1, Hénon–Heiles by ``tdhes`` and ``tdhcc``): what
 a helper compiled once and called, rather than inlined into each, saves.
@@ -54,6 +56,12 @@ CASES = {
     "tdh": ("m = varint.models.HenonHeiles(); "
             "r = varint.integrate(m, np.array([0.0, 0.558, 0.23337397, 0.0]), 5.0, tau=0.1, "
             "method='tdhes', deviations=np.eye(4)); value = r.deviations"),
+    "general": ("import sympy as sp; q = sp.symbols('q1 q2'); p = sp.symbols('p1 p2'); "
+                "H = (p[0]**2 + p[1]**2) / 2 + sp.Rational(1, 10) * q[0] * p[0] * p[1] "
+                "+ (q[0]**2 + q[1]**2) / 2 + q[0]**2 * q[1]; "
+                "m = varint.models.from_hamiltonian(H, q, p); "
+                "r = varint.lyapunov_spectrum(m, np.array([0.1, 0.05, 0.2, 0.1]), 10.0, tau=0.1, "
+                "n_exponents=2, progress=False); value = r.exponents"),
     "skeleton": ("m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
                  "a = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
                  "b = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, n_exponents=1, progress=False); "
