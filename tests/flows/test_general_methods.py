@@ -33,7 +33,9 @@ def test_part_stepper_runs_the_same_step(name):
     """One step through the part stepper is the Gauss–Legendre step of
     varint.flows.gauss from the explicit guess, bit for bit, orbit and
     tangent map (on two generic vectors: every entry of the tangent map
-    enters both)."""
+    enters both). The part stepper compiles the scheme's step alone
+    (Parts.apply_only): the step another scheme's index selects does
+    nothing there, so a wrong index would leave the state unchanged."""
     model = coupled_general()
     W0 = np.random.default_rng(0).standard_normal((4, K))
     x, W = parts_steps(model, X0, W0, 0.1, 1, name)

@@ -114,11 +114,13 @@ def general_work(n_dof, n_par, timed=False):
 
 
 @cache
-def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
+def general_apply(grad, grad_hess, n_dof, n_par, dtime=None, used=None):
     """``apply(part, h, x, V, k, par, work)`` of a general model with
     kernels ``grad(x, par, g)`` and ``grad_hess(x, par, g, D)``: part i is
     one step of ``INTEGRATORS[i]`` (module docstring). Compiled once per
-    kernels and size.
+    kernels, size and ``used``: a frozenset of the part indices a scheme
+    runs (the others do nothing), or None for all three (each step costs
+    ~15 CPU s to compile and a scheme runs one).
 
     With ``dtime(x, par)`` = ∂_tH (a time-dependent H, whose time is the
     last entry of ``par``) the step starts at the time ``par[-1]``, its
@@ -137,9 +139,11 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
     dt = dtime if timed else no_dtime
 
     # Each integrator's step with its stages and the state's size built in
-    # (its loops unroll: gauss_stepper).
+    # (its loops unroll: gauss_stepper); a part not used, a step that does
+    # nothing, so that numba does not compile its stages.
     step4, step6, step8 = (_step(gauss_stepper(GAUSS[name].stages, dim), n_par, dim, timed, dt,
-                                 grad, grad_hess) for name in INTEGRATORS)
+                                 grad, grad_hess) if used is None or i in used else _unused
+                           for i, name in enumerate(INTEGRATORS))
 
     @njit(error_model="numpy")
     def apply(part, h, x, V, k, par, work):
@@ -157,6 +161,12 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None):
             step8(h, x, V, kr, par, work, A8, b8, c8, d8, E8)
 
     return apply
+
+
+@njit(error_model="numpy")
+def _unused(h, x, V, k, par, work, A, b, c, d, E):
+    """The step of a part that the scheme of the compiled ``apply`` does
+    not run (:func:`general_apply`'s ``used``): never called."""
 
 
 def _step(gauss_step, n_par, dim, timed, dt, grad, grad_hess):

@@ -174,7 +174,7 @@ class PartsPropagator:
             update, aux, flow = no_accumulator, np.empty((m, 0, 0)), False
         else:
             update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
-        kernel = K.parts_batch(parts.apply, parts.field, state.k,
+        kernel = K.parts_batch(parts.applying(np.unique(self._parts)), parts.field, state.k,
                                use_parallel(self.parallel, m), update, flow, parts.timed, True)
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
@@ -236,7 +236,8 @@ def parts_steps(model, x, W=None, tau=0.05, n_steps=1, scheme=None):
     status = np.zeros(1, dtype=np.int64)
     done = np.zeros(1, dtype=np.int64)
     timed = model.parts.timed
-    kernel = K.parts_batch(model.parts.apply, model.parts.field, k, False, time=timed)
+    kernel = K.parts_batch(model.parts.applying(np.unique(kinds)), model.parts.field, k, False,
+                           time=timed)
     fields = (x, W, np.ones((1, k)), np.zeros((1, k), dtype=np.int64), np.empty((1, 0, 0)),
               np.zeros((1, len(model.parts.names)), dtype=np.int64))
     # A time-dependent H starts at t = 0 with p_t = 0.

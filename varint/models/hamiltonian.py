@@ -49,6 +49,7 @@ reference, which builds Hamilton's equations from it.
 
 from __future__ import annotations
 
+import functools
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -838,13 +839,16 @@ class GeneralHamiltonian(HamiltonianModel):
     def _parts(self):
         par = np.ascontiguousarray(self.parameters_at(None), dtype=np.float64)
         timed = bool(self.time_dependent)
-        return Parts(names=GEN.INTEGRATORS, apply=GEN.general_apply(
-            self.grad_h, self.grad_hess_h, self.n_dof, par.shape[0],
-            self.dtime_h if timed else None),
-            field=S.hamiltonian_field(self.grad_h), splits={len(GEN.INTEGRATORS): GEN.INTEGRATORS},
-            par=par, n_work=GEN.general_work(self.n_dof, par.shape[0], timed),
-            default_scheme=self.default_scheme,
-            schemes={**GEN.GENERAL_SCHEMES, **GEN.TAO_SCHEMES}, timed=timed)
+        kernels = (self.grad_h, self.grad_hess_h, self.n_dof, par.shape[0],
+                   self.dtime_h if timed else None)
+        # A run compiles only its scheme's Gauss–Legendre step (apply_only).
+        return Parts(names=GEN.INTEGRATORS, apply=GEN.general_apply(*kernels),
+                     apply_only=functools.partial(GEN.general_apply, *kernels),
+                     field=S.hamiltonian_field(self.grad_h),
+                     splits={len(GEN.INTEGRATORS): GEN.INTEGRATORS},
+                     par=par, n_work=GEN.general_work(self.n_dof, par.shape[0], timed),
+                     default_scheme=self.default_scheme,
+                     schemes={**GEN.GENERAL_SCHEMES, **GEN.TAO_SCHEMES}, timed=timed)
 
 
 _CLASSES = {"separable": SeparableHamiltonian, "integrable": IntegrableHamiltonian,

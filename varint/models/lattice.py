@@ -379,6 +379,12 @@ class Parts:
         their time h: ``apply`` reads the flow's start time from the last
         entry of ``par`` and advances the momentum conjugate to time, held
         in the last float of ``work`` (:func:`varint.kernels.parts.parts_body`).
+    apply_only : callable or None
+        ``apply_only(used) -> apply`` for a frozenset of part indices: the
+        same flows compiled for those parts only, the others doing nothing
+        (a general H's three Gauss–Legendre steps cost ~15 CPU s each to
+        compile, and a scheme runs one); None: :attr:`apply` serves every
+        scheme.
     """
 
     names: tuple
@@ -391,9 +397,17 @@ class Parts:
     extend: Callable | None = None
     schemes: dict | None = None
     timed: bool = False
+    apply_only: Callable | None = None
 
     def index(self, name):
         return self.names.index(name)
+
+    def applying(self, used):
+        """The ``apply`` of a scheme whose stages run the parts ``used``
+        (part indices): :attr:`apply_only`'s, or :attr:`apply`."""
+        if self.apply_only is None:
+            return self.apply
+        return self.apply_only(frozenset(int(i) for i in used))
 
     def slots(self, n_parts):
         """Slot of a ``n_parts``-part scheme → part index.
