@@ -16,7 +16,7 @@ calls a function LLVM cannot vectorise (the rotating frame's sine and
 cosine) runs in a loop of its own over the lanes, its results passed on in
 rows, so that the rest of the step vectorises. So does a potential's
 logarithm (``lane_log``, :mod:`varint.kernels.lh_log`), which vectorises in
-that loop of its own (lh22: the cored race map's kernel 1.10× over the C
+that loop of its own (lh22: the cored race map's kernel 1.06× over the C
 library's ``log`` there, ``studies/lh_log_lanes.py``), and slowed the step
 down inlined into the kicks' loops (:data:`_OWN_LOOP_CALLS`).
 
@@ -61,9 +61,9 @@ _VECTOR_CALLS = ("math.sqrt",)
 #: The model's logarithm (:mod:`varint.kernels.lh_log`): it vectorises,
 #: and its group still runs in a loop of its own. Inlined into the kicks'
 #: loop, the whole step in one loop, the cored race map's lanes kernel
-#: took 823 ms CPU against 526 ms in loops of their own (and 571 ms with
-#: the C library's ``log``), one run interleaved, load 6.5
-#: (lh22; ``studies/lh_log_lanes.py``).
+#: took 814.9 ms CPU against 520.0 ms in loops of their own (and 549.7 ms
+#: with the C library's ``log``), interleaved, load 0.8 → 1.9 (lh22;
+#: ``studies/lh_log_lanes.py``, ``studies/results/lh22/lh_log_lanes.json``).
 _OWN_LOOP_CALLS = ("lane_log",)
 
 
