@@ -91,11 +91,15 @@ class Flow:
 def generator_sources():
     """The files an LH module's source is made of besides the model: this
     emitter, the specification module whose constants it writes in, the
-    protocol's status codes, the source builder and the printers
-    (:mod:`varint.codegen.printer` and ``varint.models.symbolic``)."""
+    protocol's status codes, the source builder, the printers
+    (:mod:`varint.codegen.printer` and ``varint.models.symbolic``) and the
+    logarithm the module inlines (:mod:`varint.kernels.lh_log`, with the
+    bit casts and fused multiply–add it calls)."""
     package = Path(__file__).resolve().parent.parent
+    kernels = package / "kernels"
     return [Path(__file__), Path(__file__).with_name("lh_lanes.py"),
-            Path(__file__).with_name("printer.py"), package / "kernels" / "lh_log.py",
+            Path(__file__).with_name("printer.py"), kernels / "lh_log.py",
+            kernels / "logarithm.py", kernels / "fma.py",
             Path(__file__).with_name("source.py"), package / "protocol.py",
             package / "kernels" / "time_transform.py", package / "models" / "symbolic.py"]
 
