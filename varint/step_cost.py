@@ -69,6 +69,7 @@ KINDS = ("add", "mul", "fma", "div", "invert", "sqrt", "log", "exp", "sin", "cos
 
 #: Calls by name (the last part of a dotted name) and the kind they count as.
 CALLS = {"sqrt": "sqrt", "fma": "fma", "log": "log", "vlog": "log", "vlog_called": "log",
+         "lane_log": "log",
          "exp": "exp", "sin": "sin", "cos": "cos", "sinh": "exp", "cosh": "exp", "pow": "pow",
          "max": "compare", "min": "compare", "abs": "compare"}
 

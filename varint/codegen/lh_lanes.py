@@ -12,9 +12,13 @@ one LH step: the step of :func:`varint.codegen.lh.lh_source` with the same
 statements in the same order (no fused multiply–adds, no reassociation: the
 same bits in a vector lane as in the one-orbit kernel), its failures marked
 in a row (``bad``) by selects instead of returns. A group of statements that
-calls a function LLVM cannot vectorise (libm's ``log`` in a potential, the
-rotating frame's sine and cosine) runs in a loop of its own over the lanes,
-its results passed on in rows, so that the rest of the step vectorises.
+calls a function LLVM cannot vectorise (the rotating frame's sine and
+cosine) runs in a loop of its own over the lanes, its results passed on in
+rows, so that the rest of the step vectorises. So does a potential's
+logarithm (``lane_log``, :mod:`varint.kernels.lh_log`), which vectorises in
+that loop of its own (lh22: the cored race map's kernel 1.06× over the C
+library's ``log`` there, ``studies/lh_log_lanes.py``), and slowed the step
+down inlined into the kicks' loops (:data:`_OWN_LOOP_CALLS`).
 
 Events. Then one scalar pass over the lanes: a lane whose step ended before
 its next output time and did not fail counts the step and goes on. The
@@ -53,14 +57,22 @@ LANE_WIDTH = 16
 
 #: A call that LLVM vectorises (an exactly rounded instruction); any other
 #: call of ``math`` in a group sends the group to a loop of its own.
-_VECTOR_CALLS = ("sqrt",)
+_VECTOR_CALLS = ("math.sqrt",)
+#: The model's logarithm (:mod:`varint.kernels.lh_log`): it vectorises,
+#: and its group still runs in a loop of its own. Inlined into the kicks'
+#: loop, the whole step in one loop, the cored race map's lanes kernel
+#: took 814.9 ms CPU against 520.0 ms in loops of their own (and 549.7 ms
+#: with the C library's ``log``), interleaved, load 0.8 → 1.9 (lh22;
+#: ``studies/lh_log_lanes.py``, ``studies/results/lh22/lh_log_lanes.json``).
+_OWN_LOOP_CALLS = ("lane_log",)
 
 
 def _calls(lines):
     """Whether ``lines`` call a ``math`` function other than
-    :data:`_VECTOR_CALLS`."""
-    return any(name not in _VECTOR_CALLS
-               for line in lines for name in re.findall(r"math\.(\w+)\(", line))
+    :data:`_VECTOR_CALLS`, or one of :data:`_OWN_LOOP_CALLS`."""
+    return any(name not in _VECTOR_CALLS for line in lines
+               for name in re.findall(r"\b(math\.\w+|{})\(".format("|".join(_OWN_LOOP_CALLS)),
+                                      line))
 
 
 def _printed(em, group):
