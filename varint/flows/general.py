@@ -119,8 +119,9 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None, used=None):
     kernels ``grad(x, par, g)`` and ``grad_hess(x, par, g, D)``: part i is
     one step of ``INTEGRATORS[i]`` (module docstring). Compiled once per
     kernels, size and ``used``: a frozenset of the part indices a scheme
-    runs (the others do nothing), or None for all three (each step costs
-    ~15 CPU s to compile and a scheme runs one).
+    runs (the others do nothing), or None for all three (a scheme runs
+    one: compiling the other two took half of a GL8 run's 30 s compile,
+    ``studies/compile_cost.py --cases general``).
 
     With ``dtime(x, par)`` = ∂_tH (a time-dependent H, whose time is the
     last entry of ``par``) the step starts at the time ``par[-1]``, its

@@ -382,9 +382,10 @@ class Parts:
     apply_only : callable or None
         ``apply_only(used) -> apply`` for a frozenset of part indices: the
         same flows compiled for those parts only, the others doing nothing
-        (a general H's three Gauss–Legendre steps cost ~15 CPU s each to
-        compile, and a scheme runs one); None: :attr:`apply` serves every
-        scheme.
+        (a general H's scheme runs one of its three Gauss–Legendre steps:
+        compiling the other two took half of a GL8 run's 30 s compile,
+        ``studies/compile_cost.py --cases general``); None: :attr:`apply`
+        serves every scheme.
     """
 
     names: tuple
