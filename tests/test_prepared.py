@@ -155,22 +155,24 @@ def test_each_call_checks_its_states():
 def test_each_call_checks_the_kernels_at_its_states():
     # The kernels' check keeps its buffers between calls: a state where a
     # derivative is not finite is refused with the one-shot call's message,
-    # and the next good state is not judged by what the bad one left.
+    # and the next good state is not judged by what the bad one left. One
+    # exponent: the one-shot call's stepper is then tests/test_accuracy.py's
+    # on this model (the full spectrum compiled two of its own, ~23 s cold).
     import sympy as sp
 
     x, y = sp.symbols("x y")
     model = varint.models.from_potential(1 / x + y**2 / 2, [x, y], name="1/x")
     good, bad = np.array([1.0, 0.1, 0.1, 0.0]), np.array([0.0, 0.1, 0.1, 0.0])
-    run = varint.prepare(model, "lyapunov", 0.2, tau=0.05)
-    _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05))
+    run = varint.prepare(model, "lyapunov", 0.2, tau=0.05, n_exponents=1)
+    _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05, n_exponents=1))
     with pytest.raises(ValueError) as one_shot:
-        varint.lyapunov_spectrum(model, bad, 0.2, tau=0.05)
+        varint.lyapunov_spectrum(model, bad, 0.2, tau=0.05, n_exponents=1)
     for _ in range(2):
         with pytest.raises(ValueError) as prepared:
             run(bad)
         assert str(prepared.value) == str(one_shot.value)
     assert "the gradient ∇V is [-inf, 0.1]" in str(one_shot.value)
-    _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05))
+    _same(run(good), varint.lyapunov_spectrum(model, good, 0.2, tau=0.05, n_exponents=1))
     with pytest.raises(ValueError, match="not finite at the initial state of orbit 1, q = "
                                          r"\[0.0, 0.1\]"):
         run(np.array([good, bad]))

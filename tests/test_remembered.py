@@ -10,11 +10,15 @@ import sys
 import numpy as np
 import pytest
 import sympy as sp
+from numba import types
 
 import varint
 from varint import remembered
+from varint.methods import fresh_run
+from varint.methods.tm import TangentMapPropagator
 from varint.models import from_hamiltonian
 from varint.models.bar import bar_orbit
+from varint.protocol import Renorm
 from varint.run import Run
 
 from .test_prepared import _one_shot, _same, _states
@@ -47,6 +51,31 @@ def test_repeated_calls_are_the_calls_built_from_scratch(general):
     # Each reference built its run; of the calls, only the first of each
     # argument set (the t_out list is keyed by its values).
     assert len(general) == 2 * len(states) + 2
+
+
+def test_read_only_or_strided_start_arrays_reset_a_fresh_run_as_writable_ones():
+    """A repeated call's fresh run (varint.methods.fresh_run) resets its
+    buffers from read-only or non-contiguous states and vectors as from
+    writable C-contiguous ones: the same bits, and one compiled version of
+    the reset (numba types a read-only array apart: a second compile, ~3 s
+    cold). R1 with s15odr8 and one vector: the stepper of the test above."""
+    model, x0 = varint.paper_orbit("R1")
+    prop = TangentMapPropagator(model, 0.05, Renorm.NONE, scheme="s15odr8", parallel=False)
+    run = prop.fresh_run(1, 1, np.array([5, 10]), np.empty((1, 0, 0)))
+    x, w = np.array(x0, ndmin=2), np.eye(4)[None, :, 1:2].copy()
+    run(x, w)
+    ref = run.x.copy(), run.W.copy()
+    read_only = [a.copy() for a in (x, w)]
+    for a in read_only:
+        a.flags.writeable = False
+    strided = (np.repeat(x, 2, axis=1)[:, ::2], np.eye(4)[None, :, 1:2])
+    assert not strided[0].flags.c_contiguous and not strided[1].flags.c_contiguous
+    for args in (read_only, strided):
+        run(*args)
+        np.testing.assert_array_equal(run.x, ref[0], strict=True)
+        np.testing.assert_array_equal(run.W, ref[1], strict=True)
+    arrays = [t for sig in fresh_run._reset.signatures for t in sig if isinstance(t, types.Array)]
+    assert arrays and all(t.mutable and t.layout == "C" for t in arrays)
 
 
 @pytest.mark.parametrize("change", ["params", "escape_radius", "inverse_mass"])
@@ -146,8 +175,10 @@ def _symbolic_models():
     well = (q1 ** 2 + q2 ** 2) / 2 + q1 ** 4 / 4 + q1 ** 2 * q2 ** 2 / 2
     hh = (q1 ** 2 + q2 ** 2) / 2 + q1 ** 2 * q2 - q2 ** 3 / 3
     bar, x_bar = bar_orbit("chaotic")
+    # One vector given, one seeded: both run the bar's one-vector kernel
+    # (a second kernel, for all six vectors, costs ~70 s to compile cold).
     return {"bar": (bar, x_bar, {"deviations": np.full((6, 1), 1 / np.sqrt(6))}),
-            "bar seeded": (bar, x_bar, {}),
+            "bar seeded": (bar, x_bar, {"n_exponents": 1}),
             "separable": (from_hamiltonian(sp.sqrt(1 + p1 ** 2 + p2 ** 2) + well, (q1, q2),
                                            (p1, p2)), np.array([0.3, 0.2, 0.4, 0.3]), {}),
             "general": (from_hamiltonian((p1 ** 2 + p2 ** 2) / 2 + hh

@@ -155,11 +155,17 @@ class FreshRun:
         """Run the orbits from states ``x0`` (M, 2N) with vectors ``W0``
         (M, 2N, k), both float64; the results are in the kept arrays
         (:attr:`x`, :attr:`W`, :attr:`status`, ... and :attr:`snapshots`)."""
-        # The reset's compiled version takes C-contiguous x0 and W0 only
-        # (Resolved); other layouts go through numba's dispatch.
-        reset = (self._reset if x0.flags.c_contiguous and W0.flags.c_contiguous
-                 else _reset)
-        reset(*self._buffers, x0, W0)
+        # The reset's compiled version (Resolved) takes writable
+        # C-contiguous x0 and W0, its one signature: other layouts are
+        # copied, and so are read-only arrays (a caller's vectors made
+        # read-only), which numba would type apart and compile the reset
+        # again for (~3 s cold). A copy of these few numbers, the same
+        # values, costs less than numba's dispatch.
+        if not (x0.flags.c_contiguous and x0.flags.writeable):
+            x0 = np.array(x0, order="C")
+        if not (W0.flags.c_contiguous and W0.flags.writeable):
+            W0 = np.array(W0, order="C")
+        self._reset(*self._buffers, x0, W0)
         if self._kahan is not None:
             self._kahan.fill(0.0)
         self._kernel(*self._args)
