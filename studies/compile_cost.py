@@ -8,7 +8,8 @@ API (:mod:`numba.core.event`) listening to every kind it emits
 compiled while typing its caller, a pass inside a compile) is subtracted
 from its parent, so the kinds and passes add up to the total. Per case the
 median over repeats is stored: the compile seconds, the process CPU
-seconds, the seconds per compiler pass (``numba:run_pass`` by pass name),
+seconds, the wall seconds of the case's code (its first call, the model
+made and the kernels compiled or loaded; the imports excluded), the seconds per compiler pass (``numba:run_pass`` by pass name),
 the time under the LLVM lock (LLVM's optimisation and code generation) and
 the number of dispatcher compiles with the largest by exclusive seconds.
 
@@ -22,12 +23,16 @@ four skeleton kernels in one process, as a test suite does (the lattice's
 spectrum for k = 4 and k = 1, Hénon–Heiles by ``tdhes`` and ``tdhcc``): what
 a helper compiled once and called, rather than inlined into each, saves.
 
+``--second`` runs, after each case's first process, a second new process
+on the cache folders the first left (stored as ``<case>, second process``):
+what the disk caches save a new process.
+
 ``--profile`` instead runs each case once under :mod:`cProfile` and stores
 the functions with the largest own time (cProfile slows the compile; use it
 for shares, not seconds).
 
 Usage: ``python studies/compile_cost.py [--cases stepper lattice tdh skeleton]
-[--repeats N] [--profile] [--quick] [--out DIR]``
+[--repeats N] [--second] [--profile] [--quick] [--out DIR]``
 """
 
 from __future__ import annotations
@@ -105,7 +110,9 @@ for kind in ("numba:compile", "numba:run_pass", "numba:compiler_lock", "numba:ll
 profiler = cProfile.Profile() if PROFILE else None
 if profiler:
     profiler.enable()
+case_start = time.perf_counter()
 exec(CASE)
+case_seconds = time.perf_counter() - case_start
 if profiler:
     profiler.disable()
     stats = pstats.Stats(profiler).sort_stats("tottime")
@@ -114,22 +121,28 @@ if profiler:
 else:
     top = []
 print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_time(),
+                  "case": case_seconds,
                   "kinds": kinds, "passes": passes, "compiles": compiles, "top": top,
                   "value": np.ascontiguousarray(value).tobytes().hex()}))
 """
 
 
-def child(case, profile):
-    """One new interpreter with empty caches: its measurements as a dict."""
+def child(case, profile, second=False):
+    """One new interpreter with empty caches: its measurements as a dict;
+    with ``second``, a list of two: a second new interpreter on the cache
+    folders the first left (what the disk caches save)."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, VARINT_CACHE_DIR=os.path.join(cache, "varint"),
                    NUMBA_CACHE_DIR=os.path.join(cache, "numba"))
         code = f"CASE = {CASES[case]!r}\nPROFILE = {profile!r}\n" + CHILD
-        done = subprocess.run([sys.executable, "-c", code], env=env,
-                              capture_output=True, text=True)
-    if done.returncode:
-        raise RuntimeError(f"case {case!r} failed:\n{done.stderr[-3000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+        runs = []
+        for _ in range(2 if second else 1):
+            done = subprocess.run([sys.executable, "-c", code], env=env,
+                                  capture_output=True, text=True)
+            if done.returncode:
+                raise RuntimeError(f"case {case!r} failed:\n{done.stderr[-3000:]}")
+            runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    return runs if second else runs[0]
 
 
 def median_of(runs, key):
@@ -149,6 +162,7 @@ def summarise(runs):
     return {
         "median compile s": round(statistics.median(r["compile"] for r in runs), 3),
         "median process CPU s": round(statistics.median(r["cpu"] for r in runs), 3),
+        "median case wall s": round(statistics.median(r["case"] for r in runs), 3),
         "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 10),
         "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 12),
         "dispatcher compiles": len(first["compiles"]),
@@ -163,6 +177,8 @@ def main(argv=None):
         parser.add_argument("--repeats", type=int, default=3)
         parser.add_argument("--profile", action="store_true",
                             help="one cProfile run per case instead of timed repeats")
+        parser.add_argument("--second", action="store_true",
+                            help="after each first process, a second one on its cache folders")
 
     args = parse_args(__doc__, argv, extra=extra)
     load = os.getloadavg()
@@ -177,12 +193,18 @@ def main(argv=None):
         # Repeats interleave the cases, so a change of load hits all alike.
         for _ in range(args.repeats):
             for case in args.cases:
-                raw.setdefault(case, []).append(child(case, False))
+                if args.second:
+                    first, again = child(case, False, second=True)
+                    raw.setdefault(case, []).append(first)
+                    raw.setdefault(f"{case}, second process", []).append(again)
+                else:
+                    raw.setdefault(case, []).append(child(case, False))
         rows = {case: summarise(runs) for case, runs in raw.items()}
     for case, row in rows.items():
         print(case, json.dumps(row, indent=1))
     name = "compile_cost_profile" if args.profile else "compile_cost"
     save_json(args.out, name, {"summary": rows, "repeats": args.repeats, "loadavg at start": load,
+                               "loadavg at end": os.getloadavg(),
                                "finished": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())})
 
 
