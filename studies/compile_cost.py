@@ -25,14 +25,16 @@ a helper compiled once and called, rather than inlined into each, saves.
 
 ``--second`` runs, after each case's first process, a second new process
 on the cache folders the first left (stored as ``<case>, second process``):
-what the disk caches save a new process.
+what the disk caches save a new process. ``--baseline DIR`` runs every
+child also on the varint of the source tree DIR (``git worktree add DIR
+<commit>``), interleaved, stored as ``<case> (baseline)``.
 
 ``--profile`` instead runs each case once under :mod:`cProfile` and stores
 the functions with the largest own time (cProfile slows the compile; use it
 for shares, not seconds).
 
 Usage: ``python studies/compile_cost.py [--cases stepper lattice tdh skeleton]
-[--repeats N] [--second] [--profile] [--quick] [--out DIR]``
+[--repeats N] [--second] [--baseline DIR] [--profile] [--quick] [--out DIR]``
 """
 
 from __future__ import annotations
@@ -127,17 +129,20 @@ print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_ti
 """
 
 
-def child(case, profile, second=False):
+def child(case, profile, second=False, tree=None):
     """One new interpreter with empty caches: its measurements as a dict;
     with ``second``, a list of two: a second new interpreter on the cache
-    folders the first left (what the disk caches save)."""
+    folders the first left (what the disk caches save). ``tree``: another
+    source tree's varint (run in that folder, first on the path)."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, VARINT_CACHE_DIR=os.path.join(cache, "varint"),
                    NUMBA_CACHE_DIR=os.path.join(cache, "numba"))
+        if tree is not None:
+            env["PYTHONPATH"] = str(tree)
         code = f"CASE = {CASES[case]!r}\nPROFILE = {profile!r}\n" + CHILD
         runs = []
         for _ in range(2 if second else 1):
-            done = subprocess.run([sys.executable, "-c", code], env=env,
+            done = subprocess.run([sys.executable, "-c", code], env=env, cwd=tree,
                                   capture_output=True, text=True)
             if done.returncode:
                 raise RuntimeError(f"case {case!r} failed:\n{done.stderr[-3000:]}")
@@ -177,6 +182,8 @@ def main(argv=None):
         parser.add_argument("--repeats", type=int, default=3)
         parser.add_argument("--profile", action="store_true",
                             help="one cProfile run per case instead of timed repeats")
+        parser.add_argument("--baseline", default=None,
+                            help="another source tree, run interleaved with this one")
         parser.add_argument("--second", action="store_true",
                             help="after each first process, a second one on its cache folders")
 
@@ -191,19 +198,22 @@ def main(argv=None):
                               run["top"]}
     else:
         # Repeats interleave the cases, so a change of load hits all alike.
+        trees = {"": None} if args.baseline is None else {"": None, " (baseline)": args.baseline}
         for _ in range(args.repeats):
             for case in args.cases:
-                if args.second:
-                    first, again = child(case, False, second=True)
-                    raw.setdefault(case, []).append(first)
-                    raw.setdefault(f"{case}, second process", []).append(again)
-                else:
-                    raw.setdefault(case, []).append(child(case, False))
+                for label, tree in trees.items():
+                    if args.second:
+                        first, again = child(case, False, second=True, tree=tree)
+                        raw.setdefault(case + label, []).append(first)
+                        raw.setdefault(f"{case}, second process{label}", []).append(again)
+                    else:
+                        raw.setdefault(case + label, []).append(child(case, False, tree=tree))
         rows = {case: summarise(runs) for case, runs in raw.items()}
     for case, row in rows.items():
         print(case, json.dumps(row, indent=1))
     name = "compile_cost_profile" if args.profile else "compile_cost"
-    save_json(args.out, name, {"summary": rows, "repeats": args.repeats, "loadavg at start": load,
+    save_json(args.out, name, {"summary": rows, "repeats": args.repeats, "baseline": args.baseline,
+                               "loadavg at start": load,
                                "loadavg at end": os.getloadavg(),
                                "finished": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())})
 
