@@ -10,8 +10,9 @@ from its parent, so the kinds and passes add up to the total. Per case the
 median over repeats is stored: the compile seconds, the process CPU
 seconds, the wall seconds of the case's code (its first call, the model
 made and the kernels compiled or loaded; the imports excluded), the seconds per compiler pass (``numba:run_pass`` by pass name),
-the time under the LLVM lock (LLVM's optimisation and code generation) and
-the number of dispatcher compiles with the largest by exclusive seconds.
+the time under the LLVM lock (LLVM's optimisation and code generation; in
+total, and by the dispatcher being compiled: numba links a callee's module
+into its caller's and optimises the whole again) and the number of dispatcher compiles with the largest by exclusive seconds.
 
 Cases: ``stepper`` (the generated one-orbit stepper, SALI of Hénon–Heiles
 R1), ``lattice`` (the part stepper of a disordered Klein–Gordon lattice
@@ -87,7 +88,11 @@ from numba.core import event
 import varint
 from varint import compiling
 
-stack, kinds, passes, compiles = [], {}, {}, {}
+stack, kinds, passes, compiles, llvm = [], {}, {}, {}, {}
+
+
+def dispatcher_name(data):
+    return getattr(data["dispatcher"], "__qualname__", None) or str(data["dispatcher"])
 
 class Listener(event.Listener):
     def on_start(self, e):
@@ -103,8 +108,14 @@ class Listener(event.Listener):
         if kind == "numba:run_pass":
             passes[data["name"]] = passes.get(data["name"], 0.0) + own
         elif kind == "numba:compile":
-            name = getattr(data["dispatcher"], "__qualname__", None) or str(data["dispatcher"])
+            name = dispatcher_name(data)
             compiles[name] = compiles.get(name, 0.0) + own
+        elif kind == "numba:llvm_lock":
+            # LLVM's work for the innermost function being compiled: its
+            # own module and, at its end, the callees linked into it again.
+            name = next((dispatcher_name(d) for k, d, _, _ in reversed(stack)
+                         if k == "numba:compile"), "(none)")
+            llvm[name] = llvm.get(name, 0.0) + own
 
 for kind in ("numba:compile", "numba:run_pass", "numba:compiler_lock", "numba:llvm_lock"):
     event.register(kind, Listener())
@@ -124,7 +135,8 @@ else:
     top = []
 print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_time(),
                   "case": case_seconds,
-                  "kinds": kinds, "passes": passes, "compiles": compiles, "top": top,
+                  "kinds": kinds, "passes": passes, "compiles": compiles, "llvm": llvm,
+                  "top": top,
                   "value": np.ascontiguousarray(value).tobytes().hex()}))
 """
 
@@ -170,6 +182,8 @@ def summarise(runs):
         "median case wall s": round(statistics.median(r["case"] for r in runs), 3),
         "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 10),
         "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 12),
+        "LLVM lock by dispatcher compiled, median s (largest)": largest(median_of(runs, "llvm"),
+                                                                        12),
         "dispatcher compiles": len(first["compiles"]),
         "dispatchers, exclusive median s (largest)": largest(median_of(runs, "compiles"), 12),
         "same bits in every repeat": len({r["value"] for r in runs}) == 1,
