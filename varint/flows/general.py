@@ -148,7 +148,7 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None, used=None):
                                  n_par, dim, timed) if used is None or i in used else _unused
                            for i, name in enumerate(INTEGRATORS))
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", inline="always")
     def apply(part, h, x, V, k, par, work):
         # k as a run-time integer: the part stepper passes its compile-time
         # k (a literal, 1 to SPECIALISE_K), and numba compiles a function
@@ -176,7 +176,7 @@ def _step(gauss_step, n_par, dim, timed):
     """One step of :func:`general_apply` by ``gauss_step``: the stage
     parameters and the state of the iteration laid out in ``work``."""
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", inline="always")
     def step(h, x, V, k, par, work, A, b, c, d, E):
         s = c.shape[0]
         pars = work[:(s + 1) * n_par].reshape((s + 1, n_par))
