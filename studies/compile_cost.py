@@ -8,8 +8,8 @@ API (:mod:`numba.core.event`) listening to every kind it emits
 compiled while typing its caller, a pass inside a compile) is subtracted
 from its parent, so the kinds and passes add up to the total. Per case the
 median over repeats is stored: the compile seconds, the process CPU
-seconds, the wall seconds of the case's code (its first call, the model
-made and the kernels compiled or loaded; the imports excluded), the seconds per compiler pass (``numba:run_pass`` by pass name),
+seconds, the wall and CPU seconds of the case's code (its first call, the
+model made and the kernels compiled or loaded; the imports excluded), the seconds per compiler pass (``numba:run_pass`` by pass name),
 the time under the LLVM lock (LLVM's optimisation and code generation; in
 total, and by the dispatcher being compiled: numba links a callee's module
 into its caller's and optimises the whole again) and the number of dispatcher compiles with the largest by exclusive seconds.
@@ -123,9 +123,9 @@ for kind in ("numba:compile", "numba:run_pass", "numba:compiler_lock", "numba:ll
 profiler = cProfile.Profile() if PROFILE else None
 if profiler:
     profiler.enable()
-case_start = time.perf_counter()
+case_start, case_cpu = time.perf_counter(), time.process_time()
 exec(CASE)
-case_seconds = time.perf_counter() - case_start
+case_seconds, case_cpu = time.perf_counter() - case_start, time.process_time() - case_cpu
 if profiler:
     profiler.disable()
     stats = pstats.Stats(profiler).sort_stats("tottime")
@@ -134,7 +134,7 @@ if profiler:
 else:
     top = []
 print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_time(),
-                  "case": case_seconds,
+                  "case": case_seconds, "case cpu": case_cpu,
                   "kinds": kinds, "passes": passes, "compiles": compiles, "llvm": llvm,
                   "top": top,
                   "value": np.ascontiguousarray(value).tobytes().hex()}))
@@ -180,6 +180,7 @@ def summarise(runs):
         "median compile s": round(statistics.median(r["compile"] for r in runs), 3),
         "median process CPU s": round(statistics.median(r["cpu"] for r in runs), 3),
         "median case wall s": round(statistics.median(r["case"] for r in runs), 3),
+        "median case CPU s": round(statistics.median(r["case cpu"] for r in runs), 3),
         "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 10),
         "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 12),
         "LLVM lock by dispatcher compiled, median s (largest)": largest(median_of(runs, "llvm"),
