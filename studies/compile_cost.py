@@ -9,7 +9,8 @@ compiled while typing its caller, a pass inside a compile) is subtracted
 from its parent, so the kinds and passes add up to the total. Per case the
 median over repeats is stored: the compile seconds, the process CPU
 seconds, the wall and CPU seconds of the case's code (its first call, the
-model made and the kernels compiled or loaded; the imports excluded), the seconds per compiler pass (``numba:run_pass`` by pass name),
+model made and the kernels compiled or loaded; the imports excluded), the
+CPU seconds of its run alone (``general``: the call, the model made before), the seconds per compiler pass (``numba:run_pass`` by pass name),
 the time under the LLVM lock (LLVM's optimisation and code generation; in
 total, and by the dispatcher being compiled: numba links a callee's module
 into its caller's and optimises the whole again) and the number of dispatcher compiles with the largest by exclusive seconds.
@@ -68,8 +69,10 @@ CASES = {
                 "H = (p[0]**2 + p[1]**2) / 2 + sp.Rational(1, 10) * q[0] * p[0] * p[1] "
                 "+ (q[0]**2 + q[1]**2) / 2 + q[0]**2 * q[1]; "
                 "m = varint.models.from_hamiltonian(H, q, p); "
+                "run_start = time.process_time(); "
                 "r = varint.lyapunov_spectrum(m, np.array([0.1, 0.05, 0.2, 0.1]), 10.0, tau=0.1, "
-                "n_exponents=2, progress=False); value = r.exponents"),
+                "n_exponents=2, progress=False); value = r.exponents; "
+                "run_cpu = time.process_time() - run_start"),
     "skeleton": ("m = varint.models.DisorderedKG(16, seed=1); x = m.initial_block(width=4, seed=1); "
                  "a = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, progress=False); "
                  "b = varint.lyapunov_spectrum(m, x, t_end=2.0, tau=0.1, n_exponents=1, progress=False); "
@@ -135,6 +138,7 @@ else:
     top = []
 print(json.dumps({"compile": compiling.compile_seconds(), "cpu": time.process_time(),
                   "case": case_seconds, "case cpu": case_cpu,
+                  "run cpu": globals().get("run_cpu", case_cpu),
                   "kinds": kinds, "passes": passes, "compiles": compiles, "llvm": llvm,
                   "top": top,
                   "value": np.ascontiguousarray(value).tobytes().hex()}))
@@ -181,6 +185,7 @@ def summarise(runs):
         "median process CPU s": round(statistics.median(r["cpu"] for r in runs), 3),
         "median case wall s": round(statistics.median(r["case"] for r in runs), 3),
         "median case CPU s": round(statistics.median(r["case cpu"] for r in runs), 3),
+        "median run CPU s": round(statistics.median(r["run cpu"] for r in runs), 3),
         "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 10),
         "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 12),
         "LLVM lock by dispatcher compiled, median s (largest)": largest(median_of(runs, "llvm"),
