@@ -2,7 +2,7 @@
 (``studies/general_h_heldout.py``): per step (the compiled flow of
 :func:`varint.flows.general.general_apply` in a compiled loop, orbit and one
 tangent vector), Newton/fixed-point iterations per step (the stage solve of
-:func:`varint.flows.gauss.gauss_step`, from the explicit guess as the runs
+:func:`varint.flows.gauss.gauss_stepper`'s step, from the explicit guess as the runs
 start it), and per call (``varint.lyapunov_spectrum`` over one step τ, its
 fixed cost, and over t = 100, the held-out race's horizon).
 
@@ -35,7 +35,7 @@ import varint
 from studies.common import interleaved, parse_args, save_json
 from studies.general_h_heldout import build, heldout
 from studies.hamiltonians import load
-from varint.flows.gauss import GAUSS, gauss_step, gauss_work, no_dtime, stage_parameters
+from varint.flows.gauss import GAUSS, gauss_stepper, gauss_work, stage_parameters
 from varint.flows.general import INTEGRATORS, general_apply, general_work
 
 #: (system, scheme, τ): the points that set the held-out ratios and the
@@ -54,15 +54,20 @@ def _flow_loop(apply, part, n, h, x, V, par, work):
         apply(part, h, x, V, 1, par, work)
 
 
-@njit
-def _iterations(n, h, x, V, pars, A, b, c, d, E, work, grad, grad_hess, prev, pt):
-    total = 0
-    for _ in range(n):
-        prev[0] = np.nan                 # the explicit guess, as the runs start it
-        _, it = gauss_step(h, x, V, 1, pars, A, b, c, d, E, work, grad, grad_hess, prev, False,
-                           no_dtime, pt)
-        total += it
-    return total
+def _iterations(model):
+    """The compiled loop counting the iterations of ``model``'s step."""
+    gauss_step = gauss_stepper(model.grad_h, model.grad_hess_h)
+
+    @njit
+    def iterations(n, h, x, V, pars, A, b, c, d, E, work, prev, pt):
+        total = 0
+        for _ in range(n):
+            prev[0] = np.nan                 # the explicit guess, as the runs start it
+            _, it = gauss_step(h, x, V, 1, pars, A, b, c, d, E, work, prev, False, pt)
+            total += it
+        return total
+
+    return iterations
 
 
 def _start(model, x0):
@@ -100,8 +105,7 @@ def case(model, x0, scheme, tau, repeats):
         task()                            # compiled first
     best, _ = interleaved(tasks, repeats, clock=time.process_time)
     x, V = _start(model, x0)
-    its = _iterations(n, tau, x, V, pars, A, b, c, d, E, gwork, model.grad_h, model.grad_hess_h,
-                      prev, pt)
+    its = _iterations(model)(n, tau, x, V, pars, A, b, c, d, E, gwork, prev, pt)
     return {"system": model.name, "scheme": scheme, "tau": tau, "steps": n,
             "us_per_step": best["steps"] / n * 1e6,
             "ms_call_one_step": best["call one step"] * 1e3,

@@ -8,7 +8,7 @@ import numpy as np
 import sympy as sp
 from numba import njit
 
-from varint.flows.gauss import (GAUSS, gauss_step, gauss_work, no_dtime,
+from varint.flows.gauss import (GAUSS, gauss_stepper, gauss_work, no_dtime,
                                 stage_parameters)
 from varint.flows.tao import tao_step, tao_work
 from varint.models.hamiltonian import from_hamiltonian
@@ -16,16 +16,18 @@ from varint.schemes import get_scheme, part_stages
 
 
 @functools.cache
-def _gauss_loop(timed):
-    """The compiled loop of :func:`gauss_steps` for a time-dependent model
-    (``timed``) or not. It calls ``gauss_step`` with the argument types of
-    the part stepper's flow (:func:`varint.flows.general.general_apply`:
-    ``timed`` a compile-time constant, the method's tables read-only), so
-    that a test comparing the two compiles the step once, not once per
-    caller (10 CPU s cold on the coupled general model)."""
+def _gauss_loop(grad, grad_hess, dtime, timed):
+    """The compiled loop of :func:`gauss_steps` for a model with kernels
+    ``grad``, ``grad_hess`` and ``dtime``, time-dependent (``timed``) or
+    not. It calls the step with the argument types of the part stepper's
+    flow (:func:`varint.flows.general.general_apply`: ``timed`` a
+    compile-time constant, the method's tables read-only), so that a test
+    comparing the two compiles the step's helpers once, not once per caller
+    (10 CPU s cold on the coupled general model)."""
+    gauss_step = gauss_stepper(grad, grad_hess, dtime)
 
     @njit
-    def loop(h, n, x, V, pars, A, b, c, d, E, work, grad, grad_hess, prev, dtime, pt):
+    def loop(h, n, x, V, pars, A, b, c, d, E, work, prev, pt):
         s = c.shape[0]
         for i in range(n):
             if timed:
@@ -34,8 +36,8 @@ def _gauss_loop(timed):
                 for j in range(s):
                     pars[j, -1] = t + c[j] * h
                 pars[s, -1] = t
-            status, _ = gauss_step(h, x, V, V.shape[0], pars, A, b, c, d, E, work, grad,
-                                   grad_hess, prev, timed, dtime, pt)
+            status, _ = gauss_step(h, x, V, V.shape[0], pars, A, b, c, d, E, work, prev, timed,
+                                   pt)
             if status != 0:
                 return status
         return 0
@@ -68,10 +70,10 @@ def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None, pt=None)
         prev = np.full(g.stages * model.dim, np.nan)
     timed = bool(model.time_dependent)
     pt = np.zeros(1) if pt is None else pt
-    status = _gauss_loop(timed)(float(h), int(n), x, V,
-                                stage_parameters(model.parameters_at(0.0), g.stages),
-                                A, b, c, d, E, work, model.grad_h, model.grad_hess_h, prev,
-                                model.dtime_h if timed else no_dtime, pt)
+    loop = _gauss_loop(model.grad_h, model.grad_hess_h, model.dtime_h if timed else no_dtime,
+                       timed)
+    status = loop(float(h), int(n), x, V, stage_parameters(model.parameters_at(0.0), g.stages),
+                  A, b, c, d, E, work, prev, pt)
     assert status == 0, f"Gauss–Legendre failed with status {status}"
     return x, np.ascontiguousarray(V.T)
 

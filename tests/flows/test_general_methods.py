@@ -3,7 +3,13 @@ Gauss–Legendre steps on the part stepper (every indicator, checkpoints),
 the reference methods integrate Hamilton's equations of the same
 expression, and what cannot run is refused with one clear line."""
 
+import dataclasses
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -14,12 +20,16 @@ from scipy.integrate import solve_ivp
 import varint
 from tests.flows.steppers import coupled_general, gauss_steps, taylor_reference
 from tests.helpers import fitted_slope
+from varint.flows import general as GEN
 from varint.flows.general import GENERAL_SCHEMES, TAO_SCHEMES
 from varint.flows.tao import tao_step, tao_work
+from varint.kernels.closures import closure_key
+from varint.kernels.parts import parts_batch
 from varint.methods.parts import parts_steps
 from varint.models import from_hamiltonian
 from varint.schemes import part_stages
 
+ROOT = Path(__file__).resolve().parents[2]
 X0 = np.array([0.1, 0.05, 0.2, 0.25])
 # Two vectors in every run of this model without an accumulator: SALI needs
 # exactly two, and the part stepper is compiled per number of vectors (not
@@ -107,6 +117,63 @@ def test_every_indicator_and_bitwise_resume(tmp_path):
     for name in ("step4", "step6", "step8"):
         step = cells[name].cell_contents
         assert {sig[3] for sig in step.signatures} <= {numba.types.int64}, name
+
+
+SECOND_PROCESS = """
+import json, sys
+import numpy as np
+import varint
+from varint import compiling
+from tests.flows.steppers import coupled_general
+r = varint.lyapunov_spectrum(coupled_general(), np.array(json.loads(sys.argv[1])), 2.0,
+                             tau=0.25, n_exponents=2, progress=False)
+print(json.dumps([compiling.compile_seconds(), r.exponents.tobytes().hex()]))
+"""
+
+
+def test_a_second_process_runs_a_general_model_without_compiling():
+    """The part stepper of a general H, compiled (or loaded) here, is read
+    by a new process from the disk cache: it compiles nothing and gives the
+    same bits (it closes over the model's kernels and the Gauss–Legendre
+    tables, both named by what they are: varint.kernels.closures)."""
+    here = varint.lyapunov_spectrum(coupled_general(), X0, 2.0, tau=0.25, n_exponents=K,
+                                    progress=False)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", SECOND_PROCESS, json.dumps(X0.tolist())],
+                          env=env, check=True, capture_output=True, text=True, cwd=ROOT)
+    compiled, there = json.loads(done.stdout.strip().splitlines()[-1])
+    assert compiled == 0.0
+    assert there == here.exponents.tobytes().hex()
+
+
+def test_the_part_steppers_key_names_the_model_and_the_tables(monkeypatch):
+    """The disk cache's key of a general H's part stepper is the same for
+    the same model and tables made anew, and another for another model or
+    for Gauss–Legendre tables one ulp apart: no kernel serves code it was
+    not compiled from."""
+    def key(model):
+        parts = model.parts
+        apply = GEN.general_apply.__wrapped__(model.grad_h, model.grad_hess_h, model.n_dof,
+                                              parts.par.shape[0], None, frozenset({2}))
+        return closure_key(parts_batch(apply, parts.field, K, False))
+
+    model = coupled_general()
+    same = key(model)
+    assert key(model) == same
+    assert key(from_hamiltonian(*_other_general())) != same
+    gl8 = GEN.GAUSS["GL8"]
+    a = [list(row) for row in gl8.a]
+    a[0][0] = float(np.nextafter(a[0][0], 1.0))
+    monkeypatch.setitem(GEN.GAUSS, "GL8", dataclasses.replace(gl8, a=tuple(map(tuple, a))))
+    assert key(model) != same
+
+
+def _other_general():
+    """coupled_general with another coupling constant."""
+    x, y, px, py = sp.symbols("x y p_x p_y")
+    H = ((px ** 2 + py ** 2) / 2 + (x ** 2 + y ** 2) / 2 + x ** 2 * y - y ** 3 / 3
+         + (x * py) ** 2 / 8 + x * y * px / 5)
+    return H, [x, y], [px, py]
 
 
 def test_refusals():

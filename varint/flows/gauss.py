@@ -47,7 +47,7 @@ from numba import njit
 
 from ..protocol import Status
 
-__all__ = ["GaussLegendre", "GAUSS", "gauss_step", "gauss_stepper", "gauss_work", "stage_parameters", "no_dtime",
+__all__ = ["GaussLegendre", "GAUSS", "gauss_stepper", "gauss_work", "stage_parameters", "no_dtime",
            "MAX_ITERATIONS", "FIXED_POINT_VECTORS"]
 
 #: Fixed-point iterations before a step is declared failed.
@@ -88,6 +88,8 @@ class GaussLegendre:
     a: tuple
     order: int
     reference: str = "Butcher, Math. Comp. 18, 50 (1964)"
+    #: (A, b, c, d, E) as read-only float64 arrays over immutable bytes: the
+    #: tableau, dᵀ = bᵀA⁻¹ and the extrapolation of :func:`_extrapolation`.
     arrays: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -103,7 +105,8 @@ class GaussLegendre:
         c = np.array(self.c, dtype=np.float64)
         # x' = x + Σ d_i Z_i, dᵀ = bᵀA⁻¹: the step needs no f at the new stages.
         d = np.linalg.solve(A.T, b)
-        object.__setattr__(self, "arrays", (A, b, c, d, _extrapolation(c)))
+        object.__setattr__(self, "arrays", tuple(_immutable(a) for a in (A, b, c, d,
+                                                                          _extrapolation(c))))
 
     @property
     def stages(self):
@@ -112,6 +115,13 @@ class GaussLegendre:
     def describe(self):
         return {"name": self.name, "stages": self.stages, "order": self.order,
                 "reference": self.reference}
+
+
+def _immutable(a):
+    """``a`` read-only over an immutable ``bytes`` copy: a kernel that
+    closes over it can be named by its content
+    (:mod:`varint.kernels.closures`), and cached on disk."""
+    return np.frombuffer(np.ascontiguousarray(a).tobytes()).reshape(a.shape)
 
 
 def _extrapolation(c):
@@ -170,7 +180,7 @@ GAUSS = {g.name: g for g in (
 
 
 def gauss_work(n_dof, stages, k):
-    """Floats of scratch :func:`gauss_step` needs for N = ``n_dof``, s =
+    """Floats of scratch the step of :func:`gauss_stepper` needs for N = ``n_dof``, s =
     ``stages`` and ``k`` vectors."""
     d = 2 * n_dof
     sd = stages * d
@@ -179,12 +189,12 @@ def gauss_work(n_dof, stages, k):
 
 @njit(cache=True)
 def no_dtime(x, par):
-    """The ``dtime`` of :func:`gauss_step` for an autonomous H (not called)."""
+    """The ``dtime`` of :func:`gauss_stepper` for an autonomous H (not called)."""
     return 0.0
 
 
 def stage_parameters(par, stages):
-    """``pars`` of :func:`gauss_step` for an autonomous H: ``par`` for every
+    """``pars`` of :func:`gauss_stepper`'s step for an autonomous H: ``par`` for every
     stage and the start."""
     par = np.asarray(par, dtype=np.float64)
     return np.ascontiguousarray(np.tile(par, (stages + 1, 1)))
@@ -249,55 +259,11 @@ def _lu_solve(M, piv, m, rhs):
         rhs[i] = acc / M[i, i]
 
 
-@njit(error_model="numpy")
-def _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess):
-    """M = 1 − h (A ⊗ 1) blockdiag(Df(Y_j)) at the stages Y_j = x + Z_j, and
-    F_j = f(Y_j) (f = J∇H, Df = J D²H; stage j's parameters ``pars[j]``)."""
-    n = dim // 2
-    sd = s * dim
-    for r in range(sd):
-        for col in range(sd):
-            M[r, col] = 0.0
-        M[r, r] = 1.0
-    for j in range(s):
-        for m in range(dim):
-            y[m] = x[m] + Z[j * dim + m]
-        grad_hess(y, pars[j], g, D)
-        for m in range(n):
-            F[j * dim + m] = g[n + m]
-            F[j * dim + n + m] = -g[m]
-        # Df = J D²H: rows q̇ = (H_pq, H_pp), ṗ = −(H_qq, H_qp).
-        for i in range(s):
-            f = -h * A[i, j]
-            for r in range(n):
-                for col in range(dim):
-                    M[i * dim + r, j * dim + col] += f * D[n + r, col]
-                    M[i * dim + n + r, j * dim + col] -= f * D[r, col]
-
-
 @njit(error_model="numpy", inline="always")
 def _converged(delta, last, size):
     # At round-off: the corrections reached a few ulps of Z, or stopped
     # shrinking once they were small (rounding noise).
     return delta <= 4.0 * _EPS * size or (delta >= last and delta <= 1e-10 * size)
-
-
-@njit(error_model="numpy")
-def _tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s, dim, grad_hess):
-    """The stage tangents U from one LU factorisation of the linearised
-    stage equations at the converged stages; V ← V + Σ d_i (U_i − V).
-    False if the system is singular."""
-    sd = s * dim
-    _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess)
-    if not _lu(M, piv, sd):
-        return False
-    for v in range(k):
-        for i in range(s):
-            for m in range(dim):
-                U[v, i * dim + m] = V[v, m]
-        _lu_solve(M, piv, sd, U[v])
-        _update(V, v, U, d, s, dim)
-    return True
 
 
 @njit(error_model="numpy", inline="always")
@@ -364,20 +330,86 @@ def _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s, dim, grad
 
 
 @cache
-def gauss_stepper(S=-1, DIM=-1):
-    """:func:`gauss_step` compiled for ``S`` stages and a state of ``DIM``
-    = 2N floats as compile-time constants (−1: read from ``c`` and ``x`` at
-    run time, as :func:`gauss_step` does).
+def _linear_solves(grad_hess):
+    """``(linearisation, tangent_by_lu)`` of the model kernel ``grad_hess(x,
+    par, g, D)`` = ∇H, D²H, which they call as a constant (see
+    :func:`gauss_stepper` for why it is not an argument)."""
+
+    @njit(error_model="numpy")
+    def linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F):
+        """M = 1 − h (A ⊗ 1) blockdiag(Df(Y_j)) at the stages Y_j = x + Z_j, and
+        F_j = f(Y_j) (f = J∇H, Df = J D²H; stage j's parameters ``pars[j]``)."""
+        n = dim // 2
+        sd = s * dim
+        for r in range(sd):
+            for col in range(sd):
+                M[r, col] = 0.0
+            M[r, r] = 1.0
+        for j in range(s):
+            for m in range(dim):
+                y[m] = x[m] + Z[j * dim + m]
+            grad_hess(y, pars[j], g, D)
+            for m in range(n):
+                F[j * dim + m] = g[n + m]
+                F[j * dim + n + m] = -g[m]
+            # Df = J D²H: rows q̇ = (H_pq, H_pp), ṗ = −(H_qq, H_qp).
+            for i in range(s):
+                f = -h * A[i, j]
+                for r in range(n):
+                    for col in range(dim):
+                        M[i * dim + r, j * dim + col] += f * D[n + r, col]
+                        M[i * dim + n + r, j * dim + col] -= f * D[r, col]
+
+    @njit(error_model="numpy")
+    def tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s, dim):
+        """The stage tangents U from one LU factorisation of the linearised
+        stage equations at the converged stages; V ← V + Σ d_i (U_i − V).
+        False if the system is singular."""
+        sd = s * dim
+        linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F)
+        if not _lu(M, piv, sd):
+            return False
+        for v in range(k):
+            for i in range(s):
+                for m in range(dim):
+                    U[v, i * dim + m] = V[v, m]
+            _lu_solve(M, piv, sd, U[v])
+            _update(V, v, U, d, s, dim)
+        return True
+
+    return linearisation, tangent_by_lu
+
+
+@cache
+def gauss_stepper(grad, grad_hess, dtime=no_dtime, S=-1, DIM=-1):
+    """The Gauss–Legendre step ``gauss_step(h, x, V, k, pars, A, b, c, d, E,
+    work, prev, timed, pt)`` of the model with kernels ``grad(x, par, g)`` =
+    ∇H, ``grad_hess(x, par, g, D)`` = ∇H, D²H and ``dtime(x, par)`` = ∂_tH
+    (:func:`no_dtime` for an autonomous H), for ``S`` stages and a state of
+    ``DIM`` = 2N floats as compile-time constants (−1: read from ``c`` and
+    ``x`` at run time).
+
+    The kernels are constants of the step, not arguments: a function whose
+    constant (a closure's cell) is a dispatcher passed on as an argument to
+    a function LLVM does not inline keeps that dispatcher's address, a
+    pointer of this process, in its code (numba's ``has_dynamic_globals``),
+    and numba cannot cache it on disk — so a part stepper that passed its
+    model's kernels on was compiled again in every process (16–20 s for
+    GL8; :mod:`varint.kernels.closures`). Called, a constant dispatcher
+    leaves no address.
 
     The step's loops run over s and 2N (4 and 4 for GL8 on two degrees of
     freedom); with both constant, LLVM unrolls them and keeps the stages in
     registers: GL8 on the held-out angular coupling at τ = 0.2, 3.16 → 1.94
     µs per step (``studies/gauss_step_cost.py``, CPU time), bit for bit the
     same arithmetic (same operations in the same order). Compiled once per
-    (S, DIM); the helpers the loops call are inlined for the same reason.
+    kernels and (S, DIM); the helpers the loops call are inlined for the
+    same reason.
 
     Parameters
     ----------
+    grad, grad_hess, dtime : numba dispatchers
+        The model's kernels.
     S : int
         Stages (2, 3 or 4), or −1.
     DIM : int
@@ -386,24 +418,23 @@ def gauss_stepper(S=-1, DIM=-1):
     Returns
     -------
     numba dispatcher
-        With the signature and results of :func:`gauss_step`.
+        ``gauss_step``: see its docstring.
     """
+    linearisation, tangent_by_lu = _linear_solves(grad_hess)
 
     @njit(error_model="numpy")
-    def gauss_step(h, x, V, k, pars, A, b, c, d, E, work, grad, grad_hess, prev, timed, dtime,
-                   pt):
+    def gauss_step(h, x, V, k, pars, A, b, c, d, E, work, prev, timed, pt):
         """One Gauss–Legendre step of length h, in place on the orbit ``x``
         (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
         docstring); ``A``, ``b``, ``c``, ``d``, ``E`` from
         :attr:`GaussLegendre.arrays`, ``work`` at least :func:`gauss_work`
-        floats, ``grad(x, par, g)`` = ∇H and ``grad_hess(x, par, g, D)`` = ∇H,
-        D²H the model's kernels.
+        floats; the model's kernels those of :func:`gauss_stepper`.
 
         ``pars`` (s + 1, P) holds the kernels' parameters at each stage and, in
         its last row, at the step's start: for a time-dependent H the caller
         sets their last entries to the times t₀ + c_i h and t₀. Then (``timed``)
         the momentum conjugate to time ``pt[0]`` is advanced by the same
-        method, p_t ← p_t − h Σ b_i ∂_tH(Y_i, t_i) (``dtime(x, par)`` = ∂_tH), so
+        method, p_t ← p_t − h Σ b_i ∂_tH(Y_i, t_i) (``dtime``), so
         K = H + p_t is conserved as H is for an autonomous one.
 
         ``prev`` (s·2N,) holds the stages Z of the previous step of the same
@@ -466,7 +497,7 @@ def gauss_stepper(S=-1, DIM=-1):
             iterations += 1
             if newton:
                 # Z ← Z − M⁻¹ (Z − h (A ⊗ 1) F), M and F at the current stages.
-                _linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F, grad_hess)
+                linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F)
                 if not _lu(M, piv, sd):
                     return _FAILED, iterations
                 for i in range(s):
@@ -518,8 +549,8 @@ def gauss_stepper(S=-1, DIM=-1):
             H = work[off_m:off_m + s * dim * dim].reshape((s, dim, dim))
             done = iterate and _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s,
                                                      dim, grad_hess)
-            if not done and not _tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s,
-                                               dim, grad_hess):
+            if not done and not tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s,
+                                              dim):
                 return _FAILED, iterations
         if timed:
             acc = 0.0
@@ -539,6 +570,3 @@ def gauss_stepper(S=-1, DIM=-1):
 
     return gauss_step
 
-
-#: The step with s and 2N read at run time (any scheme and size).
-gauss_step = gauss_stepper()

@@ -6,7 +6,7 @@ The part stepper (:mod:`varint.kernels.parts`) applies a word of flows per
 step, each the model's ``apply(part, h, x, V, k, par, work)``. For a
 :class:`~varint.models.hamiltonian.GeneralHamiltonian` the "parts" are the
 whole-step integrators :data:`INTEGRATORS` — one implicit Gauss–Legendre
-step of H (:func:`varint.flows.gauss.gauss_step`, orbit and exact tangent
+step of H (:func:`varint.flows.gauss.gauss_stepper`, orbit and exact tangent
 map) — and a scheme of :data:`GENERAL_SCHEMES` is the word of one flow of
 one of them for the whole step τ. The stepping loop, the checks, the
 renormalisation and the accumulators are the part stepper's, unchanged.
@@ -127,14 +127,16 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None, used=None):
     last entry of ``par``) the step starts at the time ``par[-1]``, its
     stages at t₀ + c_i h, and the momentum conjugate to time, in the last
     float of ``work``, is advanced by the same Gauss–Legendre quadrature
-    (:func:`varint.flows.gauss.gauss_step`): the method is then the
+    (:func:`varint.flows.gauss.gauss_stepper`): the method is then the
     Gauss–Legendre method of the autonomous K = H(q, p, t) + p_t in the
     extended phase space (t, q; p_t, p), which integrates ṫ = 1 exactly,
     with the same order and symplecticity, and the tangent map of (q, p)
     (δt = 0: the deviation vectors stay in phase space)
     (:attr:`varint.models.lattice.Parts.timed`)."""
+    # The tables over immutable bytes (GaussLegendre.arrays): the kernels
+    # that close over them are named by their content and cached on disk.
     (A4, b4, c4, d4, E4), (A6, b6, c6, d6, E6), (A8, b8, c8, d8, E8) = (
-        tuple(np.array(a) for a in GAUSS[name].arrays) for name in INTEGRATORS)
+        GAUSS[name].arrays for name in INTEGRATORS)
     dim = 2 * n_dof
     timed = dtime is not None
     dt = dtime if timed else no_dtime
@@ -142,11 +144,11 @@ def general_apply(grad, grad_hess, n_dof, n_par, dtime=None, used=None):
     # Each integrator's step with its stages and the state's size built in
     # (its loops unroll: gauss_stepper); a part not used, a step that does
     # nothing, so that numba does not compile its stages.
-    step4, step6, step8 = (_step(gauss_stepper(GAUSS[name].stages, dim), n_par, dim, timed, dt,
-                                 grad, grad_hess) if used is None or i in used else _unused
+    step4, step6, step8 = (_step(gauss_stepper(grad, grad_hess, dt, GAUSS[name].stages, dim),
+                                 n_par, dim, timed) if used is None or i in used else _unused
                            for i, name in enumerate(INTEGRATORS))
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", inline="always")
     def apply(part, h, x, V, k, par, work):
         # k as a run-time integer: the part stepper passes its compile-time
         # k (a literal, 1 to SPECIALISE_K), and numba compiles a function
@@ -170,11 +172,11 @@ def _unused(h, x, V, k, par, work, A, b, c, d, E):
     not run (:func:`general_apply`'s ``used``): never called."""
 
 
-def _step(gauss_step, n_par, dim, timed, dt, grad, grad_hess):
+def _step(gauss_step, n_par, dim, timed):
     """One step of :func:`general_apply` by ``gauss_step``: the stage
     parameters and the state of the iteration laid out in ``work``."""
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", inline="always")
     def step(h, x, V, k, par, work, A, b, c, d, E):
         s = c.shape[0]
         pars = work[:(s + 1) * n_par].reshape((s + 1, n_par))
@@ -192,8 +194,7 @@ def _step(gauss_step, n_par, dim, timed, dt, grad, grad_hess):
         off += s * dim
         end = work.shape[0] - 1 if timed else work.shape[0]
         pt = work[end:end + 1] if timed else work[off:off + 1]
-        status, _ = gauss_step(h, x, V, k, pars, A, b, c, d, E, work[off + 1:end], grad,
-                               grad_hess, prev, timed, dt, pt)
+        status, _ = gauss_step(h, x, V, k, pars, A, b, c, d, E, work[off + 1:end], prev, timed, pt)
         if status != 0:
             x[:] = np.nan
 

@@ -29,7 +29,13 @@ that names what the kernel is compiled from, the same in every process:
 
 A kernel that closes over anything else — a function of the user's own
 (whose helpers the key could not follow) or of code without a file — is
-left compiled in memory, as before. numba's files of these kernels are
+left compiled in memory, as before; so is one whose machine code holds an
+address of this process (numba's ``has_dynamic_globals``). numba puts one
+there for a dispatcher that a function takes from a cell or global and
+passes on as an argument to a function LLVM does not inline (called, it
+leaves none): a general H's Gauss–Legendre step therefore closes over the
+model's kernels rather than taking them as arguments
+(:func:`varint.flows.gauss.gauss_stepper`). numba's files of these kernels are
 pickles that numba loads, so they are kept as a generated module's are
 (:class:`varint.codecache.SignedCache`): in ``<cache dir>/closures/``,
 signed with the cache directory's secret and unpickled only after their
