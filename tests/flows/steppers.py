@@ -10,7 +10,7 @@ from numba import njit
 
 from varint.flows.gauss import (GAUSS, gauss_stepper, gauss_work, no_dtime,
                                 stage_parameters)
-from varint.flows.tao import tao_step, tao_work
+from varint.flows.tao import tao_stepper, tao_work
 from varint.models.hamiltonian import from_hamiltonian
 from varint.schemes import get_scheme, part_stages
 
@@ -78,13 +78,21 @@ def gauss_steps(model, x, W=None, h=0.01, n=1, scheme="GL6", prev=None, pt=None)
     return x, np.ascontiguousarray(V.T)
 
 
-@njit
-def _tao_loop(n, parts, h, omega, x, x2, V, G, par, work, grad_hess):
-    for _ in range(n):
-        status = tao_step(parts, h, omega, x, x2, V, V.shape[0], G, par, work, grad_hess)
-        if status != 0:
-            return status
-    return 0
+@functools.cache
+def _tao_loop(grad_hess):
+    """The compiled loop of :func:`tao_steps` for a model with kernel
+    ``grad_hess``."""
+    tao_step = tao_stepper(grad_hess)
+
+    @njit
+    def loop(n, parts, h, omega, x, x2, V, G, par, work):
+        for _ in range(n):
+            status = tao_step(parts, h, omega, x, x2, V, V.shape[0], G, par, work)
+            if status != 0:
+                return status
+        return 0
+
+    return loop
 
 
 def tao_steps(model, x, W=None, h=0.01, n=1, scheme="ABC2", omega=20.0, copy=None, G=None):
@@ -98,8 +106,8 @@ def tao_steps(model, x, W=None, h=0.01, n=1, scheme="ABC2", omega=20.0, copy=Non
     V = np.ascontiguousarray(W.T)
     parts, hs = part_stages(get_scheme(scheme), float(h), {0: 0, 1: 1, 2: 2})
     work = np.empty(tao_work(model.n_dof, V.shape[0]))
-    status = _tao_loop(int(n), parts, hs, float(omega), x, x2, V, G, model.parameters_at(None),
-                       work, model.grad_hess_h)
+    status = _tao_loop(model.grad_hess_h)(int(n), parts, hs, float(omega), x, x2, V, G,
+                                          model.parameters_at(None), work)
     assert status == 0, f"Tao's method failed with status {status}"
     return x, np.ascontiguousarray(V.T), x2, G
 

@@ -22,7 +22,7 @@ from tests.flows.steppers import coupled_general, gauss_steps, taylor_reference
 from tests.helpers import fitted_slope
 from varint.flows import general as GEN
 from varint.flows.general import GENERAL_SCHEMES, TAO_SCHEMES
-from varint.flows.tao import tao_step, tao_work
+from varint.flows.tao import tao_stepper, tao_work
 from varint.kernels.closures import closure_key
 from varint.kernels.parts import parts_batch
 from varint.methods.parts import parts_steps
@@ -125,10 +125,23 @@ import numpy as np
 import varint
 from varint import compiling
 from tests.flows.steppers import coupled_general
-r = varint.lyapunov_spectrum(coupled_general(), np.array(json.loads(sys.argv[1])), 2.0,
-                             tau=0.25, n_exponents=2, progress=False)
+x0, t_end, options = json.loads(sys.argv[1])
+if "deviations" in options:
+    options["deviations"] = np.array(options["deviations"])
+r = varint.lyapunov_spectrum(coupled_general(), np.array(x0), t_end, progress=False, **options)
 print(json.dumps([compiling.compile_seconds(), r.exponents.tobytes().hex()]))
 """
+
+
+def _second_process(t_end, **options):
+    """(compile seconds, the exponents' bytes in hex) of
+    ``lyapunov_spectrum(coupled_general(), X0, t_end, **options)`` in a new
+    process on this one's caches (options as JSON: arrays as lists)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", SECOND_PROCESS,
+                           json.dumps([X0.tolist(), t_end, options])],
+                          env=env, check=True, capture_output=True, text=True, cwd=ROOT)
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def test_a_second_process_runs_a_general_model_without_compiling():
@@ -138,10 +151,7 @@ def test_a_second_process_runs_a_general_model_without_compiling():
     tables, both named by what they are: varint.kernels.closures)."""
     here = varint.lyapunov_spectrum(coupled_general(), X0, 2.0, tau=0.25, n_exponents=K,
                                     progress=False)
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    done = subprocess.run([sys.executable, "-c", SECOND_PROCESS, json.dumps(X0.tolist())],
-                          env=env, check=True, capture_output=True, text=True, cwd=ROOT)
-    compiled, there = json.loads(done.stdout.strip().splitlines()[-1])
+    compiled, there = _second_process(2.0, tau=0.25, n_exponents=K)
     assert compiled == 0.0
     assert there == here.exponents.tobytes().hex()
 
@@ -262,9 +272,9 @@ def test_tao_runs_its_step_and_resumes_bit_for_bit():
     work = np.empty(tao_work(model.n_dof, 1))
     par = model.parameters_at(None)
     log_growth = 0.0
+    tao_step = tao_stepper(model.grad_hess_h)
     for _ in range(n):
-        assert tao_step(parts, h, scheme.omega, x, x2, V, 1, G, par, work,
-                        model.grad_hess_h) == 0
+        assert tao_step(parts, h, scheme.omega, x, x2, V, 1, G, par, work) == 0
         norm = np.linalg.norm(V[0])
         log_growth += math.log(norm)
         V[0] /= norm
@@ -278,6 +288,13 @@ def test_tao_runs_its_step_and_resumes_bit_for_bit():
     assert one.exponents[-1, 0] * n * tau == pytest.approx(log_growth, rel=1e-12)
     assert np.array_equal(one.state, many.state)
     assert np.array_equal(one.exponents[-1], many.exponents[-1])
+    # Its stepper closes over the model's kernel, so a new process loads it
+    # from the disk cache (varint.flows.tao.tao_stepper says why).
+    compiled, there = _second_process(n * tau, tau=tau, scheme="TAO4",
+                                      deviations=w0.tolist(), t_out=[n * tau],
+                                      energy_tol=math.inf)
+    assert compiled == 0.0
+    assert there == one.exponents.tobytes().hex()
     timed, _ = _timed_general()
     with pytest.raises(ValueError, match="Tao's method takes no time-dependent H"):
         varint.lyapunov_spectrum(timed, np.array([0.5, 0.1]), 1.0, tau=0.1, scheme="TAO4",

@@ -9,7 +9,7 @@ import pytest
 from tests.flows.steppers import (coupled_general, finite_difference, symplectic_form,
                                   taylor_reference, tao_steps)
 from tests.helpers import fitted_slope
-from varint.flows.tao import tao_flow_a, tao_flow_b, tao_flow_c
+from varint.flows.tao import tao_flow_c, tao_flows
 
 
 @pytest.mark.parametrize("scheme, order, steps", [("ABC2", 2, (20, 40, 80)),
@@ -42,8 +42,7 @@ def _extended(flow, h, z, model):
     if flow == "c":
         tao_flow_c(h, 3.0, x, x2, E, 2 * d)
     else:
-        (tao_flow_a if flow == "a" else tao_flow_b)(h, x, x2, E, 2 * d, par, *scratch,
-                                                    model.grad_hess_h)
+        tao_flows(model.grad_hess_h)[flow == "b"](h, x, x2, E, 2 * d, par, *scratch)
     return np.concatenate([x, x2]), E.T
 
 

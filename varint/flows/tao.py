@@ -46,70 +46,79 @@ from __future__ import annotations
 
 import math
 
+from functools import cache
+
 from numba import njit
 
 from ..protocol import Status
 from .gauss import _lu, _lu_solve
 
-__all__ = ["tao_step", "tao_work", "tao_flow_a", "tao_flow_b", "tao_flow_c"]
+__all__ = ["tao_stepper", "tao_work", "tao_flows", "tao_flow_c"]
 
 _OK = int(Status.OK)
 _FAILED = int(Status.INTEGRATOR_FAILED)
 
 
 def tao_work(n_dof, k):
-    """Floats of scratch :func:`tao_step` needs for N = ``n_dof`` and ``k``
-    vectors."""
+    """Floats of scratch the step of :func:`tao_stepper` needs for N =
+    ``n_dof`` and ``k`` vectors."""
     d = 2 * n_dof
     return 2 * d + d * d + (3 * d * d + d if k else 0)
 
 
-@njit(error_model="numpy")
-def tao_flow_a(h, x, x2, E, m, par, z, g, D, grad_hess):
-    """The flow of H_A = H(q, y) for time h on the copies ``x`` = (q, p)
-    and ``x2`` = (x, y) and on the ``m`` extended tangent vectors, the rows
-    of ``E`` (m, 4N) laid out (δq, δp, δx, δy)."""
-    n = x.shape[0] // 2
-    for i in range(n):
-        z[i] = x[i]
-        z[n + i] = x2[n + i]
-    grad_hess(z, par, g, D)
-    for i in range(n):
-        x[n + i] -= h * g[i]
-        x2[i] += h * g[n + i]
-    for r in range(m):
-        # (δq, δy) are constant along the flow: δz = (δq, δy).
-        for i in range(n):
-            dp = 0.0
-            dx = 0.0
-            for j in range(n):
-                dp += D[i, j] * E[r, j] + D[i, n + j] * E[r, 3 * n + j]
-                dx += D[n + i, j] * E[r, j] + D[n + i, n + j] * E[r, 3 * n + j]
-            E[r, n + i] -= h * dp
-            E[r, 2 * n + i] += h * dx
+@cache
+def tao_flows(grad_hess):
+    """The flows of H_A and H_B, ``(tao_flow_a, tao_flow_b)``, of the model
+    kernel ``grad_hess(x, par, g, D)`` = ∇H, D²H, which they call as a
+    constant (:func:`tao_stepper` says why it is not an argument)."""
 
-
-@njit(error_model="numpy")
-def tao_flow_b(h, x, x2, E, m, par, z, g, D, grad_hess):
-    """The flow of H_B = H(x, p) for time h (see :func:`tao_flow_a`)."""
-    n = x.shape[0] // 2
-    for i in range(n):
-        z[i] = x2[i]
-        z[n + i] = x[n + i]
-    grad_hess(z, par, g, D)
-    for i in range(n):
-        x[i] += h * g[n + i]
-        x2[n + i] -= h * g[i]
-    for r in range(m):
-        # (δx, δp) are constant along the flow: δz = (δx, δp).
+    @njit(error_model="numpy")
+    def tao_flow_a(h, x, x2, E, m, par, z, g, D):
+        """The flow of H_A = H(q, y) for time h on the copies ``x`` = (q, p)
+        and ``x2`` = (x, y) and on the ``m`` extended tangent vectors, the rows
+        of ``E`` (m, 4N) laid out (δq, δp, δx, δy)."""
+        n = x.shape[0] // 2
         for i in range(n):
-            dq = 0.0
-            dy = 0.0
-            for j in range(n):
-                dq += D[n + i, j] * E[r, 2 * n + j] + D[n + i, n + j] * E[r, n + j]
-                dy += D[i, j] * E[r, 2 * n + j] + D[i, n + j] * E[r, n + j]
-            E[r, i] += h * dq
-            E[r, 3 * n + i] -= h * dy
+            z[i] = x[i]
+            z[n + i] = x2[n + i]
+        grad_hess(z, par, g, D)
+        for i in range(n):
+            x[n + i] -= h * g[i]
+            x2[i] += h * g[n + i]
+        for r in range(m):
+            # (δq, δy) are constant along the flow: δz = (δq, δy).
+            for i in range(n):
+                dp = 0.0
+                dx = 0.0
+                for j in range(n):
+                    dp += D[i, j] * E[r, j] + D[i, n + j] * E[r, 3 * n + j]
+                    dx += D[n + i, j] * E[r, j] + D[n + i, n + j] * E[r, 3 * n + j]
+                E[r, n + i] -= h * dp
+                E[r, 2 * n + i] += h * dx
+
+    @njit(error_model="numpy")
+    def tao_flow_b(h, x, x2, E, m, par, z, g, D):
+        """The flow of H_B = H(x, p) for time h (see :func:`tao_flow_a`)."""
+        n = x.shape[0] // 2
+        for i in range(n):
+            z[i] = x2[i]
+            z[n + i] = x[n + i]
+        grad_hess(z, par, g, D)
+        for i in range(n):
+            x[i] += h * g[n + i]
+            x2[n + i] -= h * g[i]
+        for r in range(m):
+            # (δx, δp) are constant along the flow: δz = (δx, δp).
+            for i in range(n):
+                dq = 0.0
+                dy = 0.0
+                for j in range(n):
+                    dq += D[n + i, j] * E[r, 2 * n + j] + D[n + i, n + j] * E[r, n + j]
+                    dy += D[i, j] * E[r, 2 * n + j] + D[i, n + j] * E[r, n + j]
+                E[r, i] += h * dq
+                E[r, 3 * n + i] -= h * dy
+
+    return tao_flow_a, tao_flow_b
 
 
 @njit(cache=True, error_model="numpy")
@@ -144,88 +153,105 @@ def tao_flow_c(h, omega, x, x2, E, m):
             E[r, d + n + i] = 0.5 * (sp - w2)
 
 
-@njit(error_model="numpy")
-def tao_step(parts, h, omega, x, x2, V, k, G, par, work, grad_hess):
-    """One step of a composition of Tao's flows, in place.
+@cache
+def tao_stepper(grad_hess):
+    """The step ``tao_step(parts, h, omega, x, x2, V, k, G, par, work)`` of
+    Tao's method for the model kernel ``grad_hess(x, par, g, D)`` = ∇H, D²H.
 
-    Parameters
-    ----------
-    parts : int64 array (n_flows,)
-        The flow of each stage: 0 = H_A, 1 = H_B, 2 = ω H_C (the slots of a
-        three-part composition, :func:`varint.schemes.part_stages`).
-    h : float64 array (n_flows,)
-        Their lengths.
-    omega : float
-        The binding ω.
-    x, x2 : float64 arrays (2N,)
-        The copies (q, p) (the orbit) and (x, y).
-    V : float64 array (k, 2N)
-        Deviation vectors of the first copy, as rows.
-    G : float64 array (2N, 2N)
-        The second copy's tangent in terms of the first's (module
-        docstring); updated when k > 0.
-    par, grad_hess
-        The model's parameters and kernel ∇H, D²H.
-    work : float64 array
-        At least :func:`tao_work` floats.
-
-    Returns
-    -------
-    int
-        ``Status.OK``, or ``Status.INTEGRATOR_FAILED`` if the first copy's
-        tangent map M became singular (G cannot be carried on).
+    The kernel is a constant of the step, not an argument: a dispatcher
+    passed on as an argument to a function LLVM does not inline leaves its
+    address, a pointer of this process, in the compiled code (numba's
+    ``has_dynamic_globals``), so the step could not be cached on disk and
+    was compiled again in every process (as
+    :func:`varint.flows.gauss.gauss_stepper`, which says more).
     """
-    d = x.shape[0]
-    z = work[:d]
-    g = work[d:2 * d]
-    off = 2 * d
-    D = work[off:off + d * d].reshape((d, d))
-    off += d * d
-    m = 0
-    if k > 0:
-        m = d
-        E = work[off:off + d * 2 * d].reshape((d, 2 * d))
-        off += d * 2 * d
+    tao_flow_a, tao_flow_b = tao_flows(grad_hess)
+
+    @njit(error_model="numpy")
+    def tao_step(parts, h, omega, x, x2, V, k, G, par, work):
+        """One step of a composition of Tao's flows, in place.
+
+        Parameters
+        ----------
+        parts : int64 array (n_flows,)
+            The flow of each stage: 0 = H_A, 1 = H_B, 2 = ω H_C (the slots of a
+            three-part composition, :func:`varint.schemes.part_stages`).
+        h : float64 array (n_flows,)
+            Their lengths.
+        omega : float
+            The binding ω.
+        x, x2 : float64 arrays (2N,)
+            The copies (q, p) (the orbit) and (x, y).
+        V : float64 array (k, 2N)
+            Deviation vectors of the first copy, as rows.
+        G : float64 array (2N, 2N)
+            The second copy's tangent in terms of the first's (module
+            docstring); updated when k > 0.
+        par
+            The model's parameters (the kernel ∇H, D²H is that of
+            :func:`tao_stepper`).
+        work : float64 array
+            At least :func:`tao_work` floats.
+
+        Returns
+        -------
+        int
+            ``Status.OK``, or ``Status.INTEGRATOR_FAILED`` if the first copy's
+            tangent map M became singular (G cannot be carried on).
+        """
+        d = x.shape[0]
+        z = work[:d]
+        g = work[d:2 * d]
+        off = 2 * d
+        D = work[off:off + d * d].reshape((d, d))
+        off += d * d
+        m = 0
+        if k > 0:
+            m = d
+            E = work[off:off + d * 2 * d].reshape((d, 2 * d))
+            off += d * 2 * d
+            for j in range(d):
+                for i in range(d):
+                    E[j, i] = 0.0
+                    E[j, d + i] = G[i, j]
+                E[j, j] = 1.0
+        else:
+            E = work[off:off].reshape((0, 2 * d))
+        for st in range(parts.shape[0]):
+            p = parts[st]
+            if p == 0:
+                tao_flow_a(h[st], x, x2, E, m, par, z, g, D)
+            elif p == 1:
+                tao_flow_b(h[st], x, x2, E, m, par, z, g, D)
+            else:
+                tao_flow_c(h[st], omega, x, x2, E, m)
+        if k == 0:
+            return _OK
+        # M[:, j] = E[j, :d] (first copy), B[:, j] = E[j, d:] (second copy).
+        Mt = work[off:off + d * d].reshape((d, d))     # Mᵀ, factorised in place
+        off += d * d
+        piv = work[off:off + d]
+        off += d
+        for v in range(k):
+            for i in range(d):
+                acc = 0.0
+                for j in range(d):
+                    acc += E[j, i] * V[v, j]
+                z[i] = acc
+            for i in range(d):
+                V[v, i] = z[i]
         for j in range(d):
             for i in range(d):
-                E[j, i] = 0.0
-                E[j, d + i] = G[i, j]
-            E[j, j] = 1.0
-    else:
-        E = work[off:off].reshape((0, 2 * d))
-    for st in range(parts.shape[0]):
-        p = parts[st]
-        if p == 0:
-            tao_flow_a(h[st], x, x2, E, m, par, z, g, D, grad_hess)
-        elif p == 1:
-            tao_flow_b(h[st], x, x2, E, m, par, z, g, D, grad_hess)
-        else:
-            tao_flow_c(h[st], omega, x, x2, E, m)
-    if k == 0:
-        return _OK
-    # M[:, j] = E[j, :d] (first copy), B[:, j] = E[j, d:] (second copy).
-    Mt = work[off:off + d * d].reshape((d, d))     # Mᵀ, factorised in place
-    off += d * d
-    piv = work[off:off + d]
-    off += d
-    for v in range(k):
+                Mt[j, i] = E[j, i]
+        if not _lu(Mt, piv, d):
+            return _FAILED
+        # G' = B M⁻¹  ⇔  Mᵀ G'ᵀ = Bᵀ: solve row by row of G'.
         for i in range(d):
-            acc = 0.0
             for j in range(d):
-                acc += E[j, i] * V[v, j]
-            z[i] = acc
-        for i in range(d):
-            V[v, i] = z[i]
-    for j in range(d):
-        for i in range(d):
-            Mt[j, i] = E[j, i]
-    if not _lu(Mt, piv, d):
-        return _FAILED
-    # G' = B M⁻¹  ⇔  Mᵀ G'ᵀ = Bᵀ: solve row by row of G'.
-    for i in range(d):
-        for j in range(d):
-            g[j] = E[j, d + i]
-        _lu_solve(Mt, piv, d, g)
-        for j in range(d):
-            G[i, j] = g[j]
-    return _OK
+                g[j] = E[j, d + i]
+            _lu_solve(Mt, piv, d, g)
+            for j in range(d):
+                G[i, j] = g[j]
+        return _OK
+
+    return tao_step

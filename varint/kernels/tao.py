@@ -20,7 +20,7 @@ from functools import cache
 import numpy as np
 from numba import njit
 
-from ..flows.tao import tao_step
+from ..flows.tao import tao_stepper
 from .checks import orbit_status
 from .interval import StepBody, batch_loop, no_accumulator, orbit_record
 
@@ -45,6 +45,7 @@ def tao_body(grad_hess, field):
     ``grad_hess(x, par, g, D)`` = ∇H, D²H (and vector field ``field`` for
     the accumulators that need it). The vectors are held as rows of ``V``
     (k, 2N) while the steps run, as the part stepper does."""
+    tao_step = tao_stepper(grad_hess)
 
     @njit(inline="always")
     def begin(state, setup, call):
@@ -55,7 +56,7 @@ def tao_body(grad_hess, field):
     @njit(inline="always")
     def step(state, setup, ws, carry, s, call):
         status = tao_step(setup.parts, setup.h, setup.omega, state.x, state.x2, ws.V, ws.k,
-                          state.G, setup.par, ws.work, grad_hess)
+                          state.G, setup.par, ws.work)
         state.counters[0] += 1
         return status, carry
 
