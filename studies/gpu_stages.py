@@ -8,7 +8,11 @@ the kernel, writing back, failed orbits). The wrappers are put on the
 names the map's code looks up at call time (module globals and class
 attributes) and removed on leaving. Nested stages are not subtracted:
 ``records`` includes ``energy errors``; ``read snapshots`` includes
-``records``.
+``records``; ``assembly`` includes ``map order``. A stage whose function
+a source tree lacks (``chunk reads`` and ``map order`` before gpu23's
+change, which read the records and put the chunks' arrays in order
+inline) is left out: run this script in both trees (``--against`` runs
+the other tree's own copy; copy this one there to time the same stages).
 
 Run on its own (numba's CUDA simulator without a GPU, the kernel's launch
 replaced by one that takes no step and the energy kernel's by one that
@@ -55,7 +59,10 @@ WRAPPED = (
     ("read snapshots", "varint.driver", "_read_snapshots"),
     ("records", "varint.run", "Run.record"),
     ("energy errors", "varint.accuracy", "Reference.errors"),
+    ("records joined", "varint.records", "Records.stacked"),
+    ("chunk reads", "varint.maps", "_read_at"),
     ("assembly", "varint.maps", "_assemble"),
+    ("map order", "varint.maps", "_in_map_order"),
 )
 
 
@@ -80,13 +87,16 @@ def staged():
 
     from varint.gpu.resident import STAGES
 
-    seconds = {stage: 0.0 for stage, _, _ in WRAPPED}
+    seconds = {}
     undo = []
     for stage, module, path in WRAPPED:
         owner = importlib.import_module(module)
         *outer, name = path.split(".")
         for part in outer:
             owner = getattr(owner, part)
+        if name not in owner.__dict__:   # not in this source tree
+            continue
+        seconds[stage] = 0.0
         original = owner.__dict__[name]
         setattr(owner, name, _timed(original, seconds, stage))
         undo.append((owner, name, original))
