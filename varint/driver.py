@@ -185,8 +185,9 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         False: the records are returned as the
         :class:`~varint.records.Records` themselves, their blocks not
         joined (a chaos map reads one output per orbit from them: joining
-        copied every output of every orbit, 0.57 s of a 1e6-orbit GPU map's
-        host work on the CUDA simulator).
+        copied every output of every orbit: 0.55 CPU s of a 1e6-orbit GPU
+        map's host work on the CUDA simulator,
+        ``studies/results/gpu23/stages_1e6_warm1.md``).
 
     Returns
     -------

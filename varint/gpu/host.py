@@ -4,11 +4,11 @@ A GPU call of every orbit of a run copies its snapshots (the state at each
 output step: 112 bytes per orbit and output for a Hénon–Heiles FLI map)
 from the device into host arrays, every number of them
 (:mod:`varint.gpu.advance`). Fresh NumPy arrays of that size are fresh
-pages from the system at every call, and the first write of each page
-faults: on the CUDA simulator, for a 1e6-orbit map, writing the last
-output's state into fresh arrays took 1.2 s for the accumulator's 32 MB
-per call alone, against a copy into pages already mapped
-(``studies/results/gpu23/``).
+pages from the system at every call, filled with NaN first (a pass over
+them) and written again by the copy: on the CUDA simulator the snapshot
+arrays of a 1e6-orbit map took 0.65 CPU s, 0.006 s from these buffers
+(``studies/results/gpu23/stages_1e6_warm1.md``, a process's second map;
+its first map allocates them, and pays the first write of every page).
 
 :func:`empty` hands out views of byte buffers kept by this module, and
 hands a buffer out again only once nothing refers to it any more: no
