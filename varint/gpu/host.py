@@ -9,6 +9,11 @@ them) and written again by the copy: on the CUDA simulator the snapshot
 arrays of a 1e6-orbit map took 0.65 CPU s, 0.006 s from these buffers
 (``studies/results/gpu23/stages_1e6_warm1.md``, a process's second map;
 its first map allocates them, and pays the first write of every page).
+Against fresh arrays without the fill (``studies/gpu_host_pool.py``, a
+process's later 1e6-orbit maps): the copies into them (unpack) 1.59 ->
+0.45 s (wall), but the records (their energy errors 0.08 -> 0.33), whose
+NumPy temporaries are then slower to come by, 0.19 -> 0.43 CPU s; the map
+4.30 -> 3.99 CPU s (``studies/results/gpu23/host_pool_1000000.json``).
 
 :func:`empty` hands out views of byte buffers kept by this module, and
 hands a buffer out again only once nothing refers to it any more: no
