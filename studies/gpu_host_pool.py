@@ -7,7 +7,7 @@ orbits on numba's CUDA simulator (the kernel's launch replaced by one that
 takes no step, as in ``studies/gpu_stages.py``), each map's stages in CPU
 seconds. ``fresh``: ``varint.gpu.host.empty`` replaced by ``numpy.empty``
 (fresh pages at every call; still no NaN fill). Stores
-``studies/results/gpu23/host_pool_<orbits>.json``::
+``studies/results/gpu23/host_pool_<orbits><tag>.json``::
 
     python studies/gpu_host_pool.py --orbits 100000 --rounds 2
 """
@@ -57,6 +57,7 @@ def main(argv=None):
     p.add_argument("--orbits", type=int, default=100000)
     p.add_argument("--rounds", type=int, default=2)
     p.add_argument("--maps", type=int, default=4)
+    p.add_argument("--tag", default="", help="appended to the result's name")
     args = p.parse_args(argv)
     from studies.common import save_json
 
@@ -77,7 +78,7 @@ def main(argv=None):
           f"of maps 2..{args.maps} of {args.rounds} processes each (CPU s; unpack wall):")
     for key in keys:
         print(f"  {key:<16} pool {best['pool'][key]:.4f}  fresh {best['fresh'][key]:.4f}")
-    save_json(HERE / "results" / "gpu23", f"host_pool_{args.orbits}",
+    save_json(HERE / "results" / "gpu23", f"host_pool_{args.orbits}{args.tag}",
               {"orbits": args.orbits, "rounds": args.rounds, "maps": args.maps, "load": load,
                "load_end": os.getloadavg(), "best_after_first_map": best, "runs": runs})
 

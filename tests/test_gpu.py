@@ -584,3 +584,24 @@ def test_map_arrays_back_in_map_order(which):
         for c, chunk in done.items():
             want[chunks[c]] = getattr(chunk, name)
         assert arr.dtype == want.dtype and np.array_equal(arr, want, equal_nan=True), name
+
+
+@pytest.mark.parametrize("reps", [1, 3])
+def test_relative_errors_are_the_tiled_expressions_bits(reps):
+    """varint.accuracy._relative (broadcast, then in place: the GPU map's
+    energy errors without temporaries) gives the bits of
+    ``np.abs(v - np.tile(v0, reps)) / np.tile(scale, reps)``, also for a
+    reference of one number in a call of one output (the general path)."""
+    from varint.accuracy import _relative
+
+    rng = np.random.default_rng(2)
+    m = 50
+    v0 = rng.standard_normal(m) * 10.0 ** rng.integers(-5, 5, m)
+    scale = np.abs(v0) + rng.random(m)
+    v = np.tile(v0, reps) * (1 + 1e-9 * rng.standard_normal(reps * m))
+    v[7] = np.nan
+    want = np.abs(v - np.tile(v0, reps)) / np.tile(scale, reps)
+    got = _relative(v, v0, scale, reps)
+    assert got.shape == want.shape and np.array_equal(got, want, equal_nan=True)
+    if reps == 1:
+        assert np.array_equal(_relative(v, 0.5, 2.0, 1), np.abs(v - 0.5) / 2.0, equal_nan=True)
