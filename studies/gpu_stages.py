@@ -2,13 +2,18 @@
 
 ``staged()`` is a context manager around one call of ``varint.chaos_map``:
 inside it, the host functions of the map's path are wrapped with timers
-(seconds summed over their calls), and the GPU calls' own stages come from
+(CPU seconds of the process summed over their calls, :data:`CLOCK`), and
+the GPU calls' own stages (wall clock) come from
 :data:`varint.gpu.resident.STAGES` (packing, copies each way, compaction,
 the kernel, writing back, failed orbits). The wrappers are put on the
 names the map's code looks up at call time (module globals and class
 attributes) and removed on leaving. Nested stages are not subtracted:
 ``records`` includes ``energy errors``; ``read snapshots`` includes
-``records``.
+``records``; ``assembly`` includes ``map order``. A stage whose function
+a source tree lacks (``chunk reads`` and ``map order`` before gpu23's
+change, which read the records and put the chunks' arrays in order
+inline) is left out: run this script in both trees (``--against`` runs
+the other tree's own copy; copy this one there to time the same stages).
 
 Run on its own (numba's CUDA simulator without a GPU, the kernel's launch
 replaced by one that takes no step and the energy kernel's by one that
@@ -55,17 +60,27 @@ WRAPPED = (
     ("read snapshots", "varint.driver", "_read_snapshots"),
     ("records", "varint.run", "Run.record"),
     ("energy errors", "varint.accuracy", "Reference.errors"),
+    ("records joined", "varint.records", "Records.stacked"),
+    ("chunk reads", "varint.maps", "_read_at"),
     ("assembly", "varint.maps", "_assemble"),
+    ("map order", "varint.maps", "_in_map_order"),
 )
+
+
+#: The clock of the wrapped host stages: the process's CPU seconds, which
+#: a loaded machine does not inflate as it does the wall clock (the
+#: stages' NumPy work runs in this thread; the ``gpu:`` stages are the
+#: library's own wall-clock figures).
+CLOCK = time.process_time
 
 
 def _timed(fn, seconds, stage):
     def wrapper(*args, **kwargs):
-        t = time.perf_counter()
+        t = CLOCK()
         try:
             return fn(*args, **kwargs)
         finally:
-            seconds[stage] += time.perf_counter() - t
+            seconds[stage] += CLOCK() - t
 
     wrapper.__wrapped__ = fn
     return wrapper
@@ -80,28 +95,35 @@ def staged():
 
     from varint.gpu.resident import STAGES
 
-    seconds = {stage: 0.0 for stage, _, _ in WRAPPED}
+    seconds = {}
     undo = []
     for stage, module, path in WRAPPED:
         owner = importlib.import_module(module)
         *outer, name = path.split(".")
         for part in outer:
             owner = getattr(owner, part)
+        if name not in owner.__dict__:   # not in this source tree
+            continue
+        seconds[stage] = 0.0
         original = owner.__dict__[name]
         setattr(owner, name, _timed(original, seconds, stage))
         undo.append((owner, name, original))
     before = dict(STAGES)
     out: dict = {}
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), time.process_time()
     try:
         yield out
     finally:
         total = time.perf_counter() - t
+        cpu = time.process_time() - cpu
         for owner, name, original in reversed(undo):
             setattr(owner, name, original)
         out.update(seconds)
         for key, value in STAGES.items():
             out[f"gpu: {key}"] = value - before[key]
+        # The process's CPU seconds (all its threads) beside the wall
+        # clock's: on a loaded machine the wall clock counts waiting too.
+        out["cpu total"] = cpu
         out["total"] = total
 
 
@@ -110,11 +132,14 @@ def describe(stages):
     total = stages["total"]
     lines = []
     for key, value in stages.items():
-        if isinstance(value, float) and key != "total":
+        if key in ("total", "cpu total"):
+            continue
+        if isinstance(value, float):
             lines.append(f"  {key:<22} {value:9.4f} s  {value / total:6.1%}")
-        elif key != "total":
+        else:
             lines.append(f"  {key:<22} {value:9d}")
-    return "\n".join(lines + [f"  {'total':<22} {total:9.4f} s"])
+    return "\n".join(lines + [f"  {'cpu total':<22} {stages['cpu total']:9.4f} s",
+                              f"  {'total':<22} {total:9.4f} s"])
 
 
 def _no_steps(self, n_threads, X, W, am, ae, st, fs, nxt, itv, n_steps, step0, tau, h, hc,
@@ -204,7 +229,7 @@ def compare_table(best, other="main", label="main a875246"):
     return "\n".join(lines)
 
 
-def _fresh_run(tree, orbits, t_end):
+def _fresh_run(tree, orbits, t_end, warm=0):
     """This script of source tree ``tree`` run once in a new process on the
     simulator: its stages (the JSON of its last line)."""
     import os
@@ -215,28 +240,40 @@ def _fresh_run(tree, orbits, t_end):
         # The other tree's kernels in a cache of their own.
         env["VARINT_CACHE_DIR"] = env.get("VARINT_CACHE_DIR", "/tmp/varint-cache") + "-against"
     out = subprocess.run([sys.executable, str(tree / "studies" / "gpu_stages.py"), "--orbits",
-                          str(orbits), "--t-end", repr(t_end)], cwd=tree, env=env,
+                          str(orbits), "--t-end", repr(t_end), "--warm", str(warm)], cwd=tree, env=env,
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])["now"]
 
 
-def against(tree, orbits, t_end, repeats):
-    """``{"before": stages, "now": stages}``: the fastest (by total) of
-    ``repeats`` fresh runs of ``tree``'s script and of this tree's,
-    alternating."""
+def against(tree, orbits, t_end, repeats, warm=0):
+    """``({"before": stages, "now": stages}, fastest, runs)``: the fastest
+    (by CPU seconds) of ``repeats`` fresh runs of ``tree``'s script and of
+    this tree's, alternating; each stage's fastest over the runs; every
+    run's stages."""
     best: dict = {}
+    fastest: dict = {}
+    runs: dict = {"before": [], "now": []}
     for _ in range(repeats):
         for name, where in (("before", tree), ("now", HERE.parent)):
-            stages = _fresh_run(where, orbits, t_end)
-            if name not in best or stages["total"] < best[name]["total"]:
+            stages = _fresh_run(where, orbits, t_end, warm)
+            runs[name].append(stages)
+            key = "cpu total" if "cpu total" in stages else "total"
+            if name not in best or stages[key] < best[name][key]:
                 best[name] = stages
-    return best
+            fastest.setdefault(name, {})
+            for stage, value in stages.items():
+                fastest[name][stage] = min(fastest[name].get(stage, value), value)
+    return best, fastest, runs
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--orbits", type=int, default=20000)
     p.add_argument("--t-end", type=float, default=1000.0)
+    p.add_argument("--warm", type=int, default=0,
+                   help="full-size maps run (untimed) before the timed one in the same "
+                        "process: a process that runs several maps (its buffers and "
+                        "freed memory reused)")
     p.add_argument("--threshold", type=float, default=None,
                    help="early stopping's threshold (default: chaos_map's)")
     p.add_argument("--compare", type=int, default=0, metavar="REPEATS",
@@ -265,26 +302,38 @@ def main(argv=None):
 
     if args.against is not None:
         load = os.getloadavg()
-        best = against(args.against, args.orbits, args.t_end, args.repeats)
+        best, fastest, runs = against(args.against, args.orbits, args.t_end, args.repeats,
+                                      args.warm)
         text = (f"# A GPU map's host work by stage, on numba's CUDA simulator: "
                 f"{args.label} against this tree\n\n"
                 f"Hénon–Heiles FLI map (chaos_map defaults), {args.orbits} orbits, "
                 f"t = {args.t_end:g}, one chunk; the kernel's launch replaced by one that "
                 f"takes no step, the energy kernel's by one that computes nothing. Each run "
-                f"a fresh process, the two trees alternating, the fastest of "
+                f"a fresh process, the two trees alternating, the fastest (by the process's "
+                f"CPU seconds) of "
                 f"{args.repeats} each. {os.cpu_count()} CPU cores, load {load[0]:.1f} at "
                 f"the start, {os.getloadavg()[0]:.1f} at the end; Python "
                 f"{platform.python_version()}.\n`NUMBA_ENABLE_CUDASIM=1 python "
                 f"studies/gpu_stages.py --orbits {args.orbits} --against TREE --repeats "
-                f"{args.repeats}` (TREE: {args.label})\n\nNested: records include energy "
-                "errors, propagator calls the gpu: stages.\n\n"
-                + compare_table(best, "before", args.label) + "\n")
+                f"{args.repeats} --warm {args.warm}` (TREE: {args.label}; with --warm W, W "
+                f"maps of as many orbits ran before the timed one in its process)\n\nNested: records include energy "
+                "errors, propagator calls the gpu: stages, assembly map order. Host stages "
+                "in CPU seconds, gpu: stages in wall-clock seconds; `gpu: "
+                "kernel`, `gpu: energy` and the copies stand in for the device's work "
+                "(NumPy on the simulator). The fastest run of each:\n\n"
+                + compare_table(best, "before", args.label)
+                + "\n\nEach stage's fastest of its runs:\n\n"
+                + compare_table(fastest, "before", args.label) + "\n")
         print(text)
         if args.out is not None:
-            args.out.with_suffix(".json").write_text(json.dumps(
-                {"orbits": args.orbits, "t_end": args.t_end, "load": load,
-                 "against": args.label, "repeats": args.repeats, "by_contender": best},
-                indent=1))
+            from studies.common import save_json
+
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            save_json(args.out.parent, args.out.name, {
+                "orbits": args.orbits, "t_end": args.t_end, "load": load,
+                "load_end": os.getloadavg(), "against": args.label, "warm": args.warm,
+                "repeats": args.repeats, "by_contender": best,
+                "fastest_by_stage": fastest, "runs": runs})
             args.out.with_suffix(".md").write_text(text)
         return
     if not device.simulated():
@@ -305,6 +354,8 @@ def main(argv=None):
         with call_of(c), warnings.catch_warnings():
             warnings.simplefilter("ignore")
             varint.chaos_map(hh, X[:256], "fli", **{**kw, "t_end": 2.0})
+            for _ in range(args.warm):
+                varint.chaos_map(hh, X, "fli", **kw)
     load = os.getloadavg()
     best: dict = {}
     fastest: dict = {}   # each stage's fastest run (a load's noise is per stage)

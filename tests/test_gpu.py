@@ -485,3 +485,123 @@ def test_gpu_cluster_refuses_bad_devices():
     else:
         with pytest.raises(ValueError, match="devices must be distinct GPUs"):
             cluster.local_gpu_cluster([0, 0])
+
+
+@pytest.mark.parametrize("early", [False, True], ids=["at_the_end", "early_stopping"])
+def test_map_reads_unjoined_blocks_as_the_joined_records(early):
+    """A map chunk reads its records block by block (varint.maps._read_at,
+    no join of every output: the GPU map's host work): each orbit's value
+    and energy error at its output, and the largest errors up to it, are
+    those read from the joined arrays by indexing and ``np.nanmax`` (NaN
+    ignored; NaN where an orbit has none), bit for bit."""
+    from varint.maps import _read_at
+    from varint.records import Records
+
+    rng = np.random.default_rng(11)
+    m, sizes = 40, (3, 1, 4)
+    n = sum(sizes)
+    joined = {key: rng.standard_normal((n, m)) for key in ("value", "energy_error",
+                                                             "max_error")}
+    for arr in joined.values():
+        arr[rng.random((n, m)) < 0.2] = np.nan
+    joined["max_error"][:, 5] = np.nan   # an orbit without any finite error
+    records, first = Records(), 0
+    for size in sizes:
+        records.extend({key: arr[first:first + size].copy() for key, arr in joined.items()},
+                       size)
+        first += size
+    at = rng.integers(0, n, m) if early else np.full(m, n - 1)
+    if early:
+        at[:3] = (0, 3, n - 1)   # the first output, a block's first, the last
+    value, energy, largest_energy, largest = _read_at(records, at)
+    rows = np.arange(m)
+    assert np.array_equal(value, joined["value"][at, rows], equal_nan=True)
+    assert np.array_equal(energy, joined["energy_error"][at, rows], equal_nan=True)
+    upto = np.arange(n)[:, None] <= at[None, :]
+    with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):
+        for got, key in ((largest_energy, "energy_error"), (largest, "max_error")):
+            want = np.nanmax(np.where(upto, joined[key], np.nan), axis=0)
+            assert np.array_equal(got, want, equal_nan=True), key
+    assert np.isnan(largest[5])
+
+
+def test_map_reads_no_outputs_as_nan():
+    from varint.maps import _read_at
+    from varint.records import Records
+
+    for arr in _read_at(Records(), np.full(6, -1)):
+        assert arr.shape == (6,) and np.isnan(arr).all()
+
+
+def test_host_buffers_are_reused_only_when_nothing_refers_to_them():
+    """varint.gpu.host.empty hands a buffer out again once every array,
+    view or slice of it is gone, never while one is held (a caller's
+    snapshot is not overwritten), and gives arrays of the shape and dtype
+    asked for."""
+    from varint.gpu import host
+
+    a = host.empty((3, 1000, 4), float)
+    assert a.shape == (3, 1000, 4) and a.dtype == np.float64 and a.flags.c_contiguous
+    a[...] = 1.0
+    kept = a[1:, ::2]   # a view keeps the buffer
+    address = a.__array_interface__["data"][0]
+    del a
+    b = host.empty((3, 1000, 4), float)
+    assert b.__array_interface__["data"][0] != address
+    b[...] = 2.0
+    assert (kept == 1.0).all()
+    del kept
+    c = host.empty((2, 1000, 4), np.int64)   # fits in the freed buffer
+    assert c.__array_interface__["data"][0] == address and c.dtype == np.int64
+    assert host.empty((0, 5)).shape == (0, 5)
+
+
+@pytest.mark.parametrize("which", ["all", "some"])
+def test_map_arrays_back_in_map_order(which):
+    """varint.maps._in_map_order: the chunks' arrays (a shuffle split in
+    chunks) put back where the chunks' indices say, as a scatter through
+    them does, bit for bit; orbits of chunks not done are NaN (status 0)."""
+    from types import SimpleNamespace
+
+    from varint.maps import _CHUNK_ARRAYS, _in_map_order
+
+    rng = np.random.default_rng(4)
+    m, dim = 23, 4
+    order = rng.permutation(m)
+    chunks = [order[i:i + 5] for i in range(0, m, 5)]
+    done = {}
+    for c in (3, 0, 4, 1, 2) if which == "all" else (4, 1):
+        n = len(chunks[c])
+        done[c] = SimpleNamespace(**{
+            name: (rng.integers(-1, 3, n) if kind == "i" else
+                   rng.standard_normal((n, dim) if name == "state" else n))
+            for name, kind in _CHUNK_ARRAYS.items()})
+    got = _in_map_order(m, dim, chunks, done)
+    for (name, kind), arr in zip(_CHUNK_ARRAYS.items(), got, strict=True):
+        want = np.full((m, dim) if name == "state" else m, np.nan)
+        if kind == "i":
+            want = np.zeros(m, dtype=np.int64)
+        for c, chunk in done.items():
+            want[chunks[c]] = getattr(chunk, name)
+        assert arr.dtype == want.dtype and np.array_equal(arr, want, equal_nan=True), name
+
+
+@pytest.mark.parametrize("reps", [1, 3])
+def test_relative_errors_are_the_tiled_expressions_bits(reps):
+    """varint.accuracy._relative (broadcast, then in place: the GPU map's
+    energy errors without temporaries) gives the bits of
+    ``np.abs(v - np.tile(v0, reps)) / np.tile(scale, reps)``, also for a
+    reference of one number in a call of one output (the general path)."""
+    from varint.accuracy import _relative
+
+    rng = np.random.default_rng(2)
+    m = 50
+    v0 = rng.standard_normal(m) * 10.0 ** rng.integers(-5, 5, m)
+    scale = np.abs(v0) + rng.random(m)
+    v = np.tile(v0, reps) * (1 + 1e-9 * rng.standard_normal(reps * m))
+    v[7] = np.nan
+    want = np.abs(v - np.tile(v0, reps)) / np.tile(scale, reps)
+    got = _relative(v, v0, scale, reps)
+    assert got.shape == want.shape and np.array_equal(got, want, equal_nan=True)
+    if reps == 1:
+        assert np.array_equal(_relative(v, 0.5, 2.0, 1), np.abs(v - 0.5) / 2.0, equal_nan=True)

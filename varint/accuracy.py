@@ -180,11 +180,30 @@ class Reference:
             out = {}
             for name, v in now.items():
                 key = "energy_error" if name == "energy" else _PREFIX + name
-                v0, scale = self.values[name], self.scales[name]
-                if reps != 1:   # (np.tile is ~5 µs even for one row)
-                    v0, scale = np.tile(v0, reps), np.tile(scale, reps)
-                out[key] = np.abs(v - v0) / scale
+                out[key] = _relative(v, self.values[name], self.scales[name], reps)
         return out
+
+
+def _relative(v, v0, scale, reps):
+    """``|v − v0| / scale`` of rows ``v`` (R,), output-major, against the
+    reference ``v0`` and ``scale`` of the M orbits repeated ``reps`` times
+    (R = reps·M): the same operations on the same numbers as
+    ``np.abs(v − np.tile(v0, reps)) / np.tile(scale, reps)``, in one new
+    array where the shapes allow (broadcast over the outputs, then in
+    place), instead of five (a GPU map of 1e6 orbits with reused snapshot
+    buffers, ``studies/results/gpu23/host_pool_1000000.json``: the energy
+    errors 0.33 CPU s against 0.08 with fresh arrays)."""
+    v, v0, scale = np.asarray(v), np.asarray(v0), np.asarray(scale)
+    m = len(v) // reps if v.ndim == 1 and reps > 0 else -1
+    if v.ndim == 1 and len(v) == reps * m and v0.shape == scale.shape == (m,):
+        err = np.subtract(v.reshape(reps, m), v0)
+        if err.dtype == np.float64:
+            np.abs(err, out=err)
+            np.divide(err, scale, out=err)
+            return err.reshape(-1)
+    if reps != 1:   # (np.tile is ~5 µs even for one row)
+        v0, scale = np.tile(v0, reps), np.tile(scale, reps)
+    return np.abs(v - v0) / scale
 
 
 def reference_and_errors(model, x0, x, t=0.0):

@@ -135,7 +135,8 @@ def progress_bar(progress, done, total, desc, unit="step"):
 
 
 def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="varint",
-          errors="raise", checkpoint=None, decide=None, renorm=0, cancelled=None):
+          errors="raise", checkpoint=None, decide=None, renorm=0, cancelled=None,
+          stack=True):
     """Advance ``state`` to each step of ``out_steps`` and record there.
 
     A propagator that takes snapshots (``prop.takes_snapshots(state)``: it copies
@@ -180,11 +181,19 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         ``cancelled() -> bool``, asked between chunks: True stops the run
         as Ctrl-C does (a chunk of a chaos map on a Dask worker whose task
         was cancelled, where no signal reaches the thread that runs it).
+    stack : bool
+        False: the records are returned as the
+        :class:`~varint.records.Records` themselves, their blocks not
+        joined (a chaos map reads one output per orbit from them: joining
+        copied every output of every orbit: 0.55 CPU s of a 1e6-orbit GPU
+        map's host work on the CUDA simulator,
+        ``studies/results/gpu23/stages_1e6_warm1.md``).
 
     Returns
     -------
     records : dict of str -> ndarray, shape (n_done, M, ...)
-        Stacked records of the output steps reached.
+        Stacked records of the output steps reached (``stack=False``: the
+        :class:`~varint.records.Records`).
     stop : None, "interrupted" or "failed"
     wall : float
         Seconds spent.
@@ -240,7 +249,7 @@ def drive(prop, state, out_steps, record, *, records=None, progress=None, desc="
         warnings.warn(f"interrupted at t = {state.step * prop.tau:g}: returning the "
                       f"{len(records)} outputs recorded so far{where}", RuntimeWarning,
                       stacklevel=user_stacklevel())
-    return records.stacked(), stop, time.perf_counter() - start
+    return (records.stacked() if stack else records), stop, time.perf_counter() - start
 
 
 class Pace:

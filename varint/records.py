@@ -61,6 +61,15 @@ class Records:
             for j in range(n):
                 yield {key: arr[j] for key, arr in block.items()}
 
+    def blocks(self):
+        """``(first, block)`` per block, in order: ``block`` holds outputs
+        ``first`` … ``first + n − 1`` (arrays with a leading output axis of
+        length n), not copied."""
+        first = 0
+        for n, block in self._blocks:
+            yield first, block
+            first += n
+
     def stacked(self):
         """Dict of arrays of shape (outputs, ...), empty when nothing has
         been recorded. The blocks are joined once and kept joined, so a

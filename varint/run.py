@@ -489,7 +489,7 @@ class Run:
         keep = int(np.searchsorted(self.steps[:n], first))
         return records if keep == n else {k: v[:keep] for k, v in records.items()}
 
-    def drive(self, record=None, decide=None, cancelled=None):
+    def drive(self, record=None, decide=None, cancelled=None, stack=True):
         """Advance to every output time, recording there.
 
         Parameters
@@ -504,6 +504,9 @@ class Run:
         cancelled : callable, optional
             ``cancelled() -> bool``: stop as after Ctrl-C (see
             :func:`varint.driver.drive`).
+        stack : bool
+            False: the records as :class:`~varint.records.Records`, not
+            joined (see :func:`varint.driver.drive`).
 
         Returns
         -------
@@ -519,7 +522,7 @@ class Run:
                              desc=self.indicator.name, errors=self.errors,
                              checkpoint=self.checkpoint, decide=decide,
                              renorm=self.indicator.renorm,
-                             cancelled=cancelled)
+                             cancelled=cancelled, stack=stack)
         except NumbaError as exc:
             # A model kernel that does not fit the protocol fails to compile
             # into the stepper; say so instead of showing numba's internals.

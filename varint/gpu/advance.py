@@ -28,6 +28,7 @@ import numpy as np
 
 from ..protocol import COUNTERS
 from ..schemes import DRIFT
+from . import host
 from .emit import cuda_stepper
 from .resident import STAGES, Resident, _Clock, resident_for
 
@@ -194,7 +195,8 @@ def advance_cuda(prop, module, state, n, snaps, active):
             snaps.extra[prop.accumulator.key][-1, sel] = aux[sel]
     if s and res.energy is not None:
         # Orbits not advanced have no energy here (NaN, as their snapshots).
-        energies = snap["energy"][:s].copy_to_host()
+        energies = host.empty((s, a))
+        snap["energy"][:s].copy_to_host(ary=energies)
         if rows is None:
             snaps.energy = energies
         else:

@@ -342,23 +342,30 @@ class TangentMapPropagator:
                 raise ValueError("this model has no generated stepper: no snapshots")
             self._advance_generic(state, n)
             return None
-        snaps = self._snapshots(state, outputs)
         # Many orbits run as SIMD lanes (bitwise the one-orbit stepper) or
         # on the GPU (the same arithmetic; see the ``backend`` option);
         # compensated ones one at a time.
         if self.compensated:
+            snaps = self._snapshots(state, outputs)
             self._advance_generated(self._orbit_stepper(state.k, n * len(active)), state, n,
                                     snaps)
             return snaps
         if len(active) and device.use_gpu(self.backend, len(active)):
             # The CUDA emitter (SymPy's printers) is imported for a GPU run
             # only: a CPU process that loads cached steppers never needs it.
+            from ..gpu import host
             from ..gpu.advance import advance_cuda
             from ..gpu.emit import emittable
 
             if self.backend == "cuda" or emittable(self.accumulator):
+                # A GPU call of every orbit writes every number of every
+                # snapshot (varint.gpu.advance): no blank to fill first, and
+                # buffers whose pages are mapped already.
+                every = len(active) == state.n_orbits
+                snaps = self._snapshots(state, outputs, host.empty if every else None)
                 advance_cuda(self, module, state, n, snaps, active)
                 return snaps
+        snaps = self._snapshots(state, outputs)
         if len(active) >= self.MIN_LANES:
             self._advance_lanes(module, state, n, snaps, active)
         else:
@@ -443,26 +450,33 @@ class TangentMapPropagator:
                 self.accumulator is not None and self.accumulator.needs_flow)
         return self._counts[k]
 
-    def _snapshots(self, state, outputs):
-        """Empty snapshot arrays (NaN) for the output steps of this call."""
+    def _snapshots(self, state, outputs, empty=None):
+        """Empty snapshot arrays (NaN) for the output steps of this call;
+        ``empty(shape, dtype)``, where given, makes them, not filled: for a
+        call that writes every number of every snapshot (a GPU call of
+        every orbit, :func:`varint.gpu.host.empty`: at 1e6 orbits the fill
+        was a pass over ~100 MB per call)."""
         m, d, k = state.W.shape
         outs = np.zeros(0, dtype=np.int64) if outputs is None else np.asarray(outputs, np.int64)
         s = len(outs)
+        blank = empty is None
+        empty = np.empty if blank else empty
         # Fresh arrays at every call (the records copy them, but a
         # propagator holds no state of a run), filled in place: cheaper
         # than np.full for the few numbers of a short call.
-        x, W = np.empty((s, m, d)), np.empty((s, m, d, k))
-        x.fill(np.nan)
-        W.fill(np.nan)
-        acc_m = np.empty((s, m, k))
-        acc_m.fill(1.0)
+        x, W = empty((s, m, d), float), empty((s, m, d, k), float)
+        acc_m = empty((s, m, k), float)
+        acc_e = np.zeros((s, m, k), dtype=np.int64) if blank else empty((s, m, k), np.int64)
         extra = {}
         if self.accumulator is not None:
-            aux = np.empty((s,) + self._accumulator(state).shape)
-            aux.fill(np.nan)
-            extra[self.accumulator.key] = aux
-        return Snapshots(steps=outs, x=x, W=W, acc_m=acc_m,
-                         acc_e=np.zeros((s, m, k), dtype=np.int64), extra=extra,
+            extra[self.accumulator.key] = empty((s,) + self._accumulator(state).shape, float)
+        if blank:
+            x.fill(np.nan)
+            W.fill(np.nan)
+            acc_m.fill(1.0)
+            for aux in extra.values():
+                aux.fill(np.nan)
+        return Snapshots(steps=outs, x=x, W=W, acc_m=acc_m, acc_e=acc_e, extra=extra,
                          renormalized=self.sparse == 0)
 
     def _setup(self):
