@@ -58,7 +58,7 @@ if __package__ in (None, ""):
 import varint
 from studies.common import RESULTS, interleaved, parse_args, save_csv, save_json
 from varint.models.bar import BAR_ORBITS, SPA02, RotatingBar, bar_orbit
-from varint.models.ferrers import ferrers_grad_hess, inside_table
+from varint.models.ferrers import ferrers_grad_hess
 
 COLUMNS = ["points", "contender", "count", "ns_per_eval"]
 
@@ -146,7 +146,8 @@ def measure(quick, repeats):
     """Rows of ns per evaluation, per position set and contender."""
     model = RotatingBar()
     axes2, gm = model._axes2, SPA02["bar_mass"]
-    inside = inside_table(axes2)
+    # The model's own table: its layout differs between codes measured.
+    inside = model._inside
     par = np.empty(0)
     model_loop = _model_loop(model.grad_hess_v)
     kick_loop = _kick_loop()

@@ -78,7 +78,7 @@ def _with_bar(grad, grad_hess, axes2, gm, offset):
     closed-form part plus the bar's potential; the positions are y[offset:
     offset + 3] and the bar's derivatives are added to g and D there."""
     a2 = np.array(axes2)
-    inside = inside_table(a2)
+    inside = inside_table(a2, gm)
 
     @njit(error_model="numpy")
     def grad_bar(y, par, g):
@@ -140,9 +140,9 @@ class RotatingBar(IntegrableHamiltonian):
         self.values = {k: float(v) for k, v in values.items()}
         self.axes = (a, b, c)
         self._axes2 = np.array([a * a, b * b, c * c])
-        # The W at λ = 0, once: every energy check of a pilot or a run
-        # evaluates the bar's potential (~7 µs a table).
-        self._inside = inside_table(self._axes2)
+        # The polynomials' coefficients at λ = 0, once: every energy check
+        # of a pilot or a run evaluates the bar's potential (~7 µs a table).
+        self._inside = inside_table(self._axes2, bar_mass)
         v = self.values
         H, q, p, found = _expression(v["disc_mass"], v["disc_a"], v["disc_b"], v["bulge_mass"],
                                      v["bulge_radius"], v["omega"])
