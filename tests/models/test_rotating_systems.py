@@ -232,3 +232,18 @@ def test_tabled_polynomials_are_the_index_sums():
             assert np.abs(g - g0).max() <= 1e-13 * np.abs(g0).max()
             assert np.abs(D - D0).max() <= 1e-13 * np.abs(D0).max()
             assert np.array_equal(D, D.T)
+
+
+def test_bar_energy_is_its_closed_part_plus_the_bar():
+    """The Jacobi energy E_J and the potential of the bar model are the
+    closed part's lambdified NumPy H and V (disc, bulge, rotating frame)
+    plus Φ_B (ferrers_potential), bitwise, for one state and for many."""
+    model, x0 = bar_orbit("chaotic")
+    X = np.random.default_rng(2).uniform(-1, 1, (40, 6)) * np.array([8, 3, 1, 0.3, 0.3, 0.1])
+    for x in (x0, X):
+        cols = [x[..., i] for i in range(6)]
+        phi = model.bar_potential(x[..., :3])
+        closed_h = model._numpy_H(*cols) + np.zeros(x.shape[:-1])
+        closed_v = model._numpy_V(*cols[:3]) + np.zeros(x.shape[:-1])
+        assert np.array_equal(model.hamiltonian(x), closed_h + phi)
+        assert np.array_equal(model.potential(x[..., :3]), closed_v + phi)

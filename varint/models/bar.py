@@ -47,7 +47,8 @@ import numpy as np
 from numba import njit
 
 from ..codegen.expressions import ExtraForce
-from .ferrers import ferrers_force, ferrers_kick, ferrers_potential, inside_table
+from .ferrers import (ferrers_add_potential, ferrers_force, ferrers_kick, ferrers_potential,
+                      inside_table)
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["RotatingBar", "BAR_ORBITS", "bar_orbit", "SPA02"]
@@ -168,13 +169,11 @@ class RotatingBar(IntegrableHamiltonian):
         ferrers_potential(Q, self._axes2, self.values["bar_mass"], self._inside, out)
         return out.reshape(q.shape[:-1])
 
-    def _potential_values(self, q, t=0.0):
-        return super()._potential_values(q, t) + self.bar_potential(q)
-
-    def hamiltonian(self, x, t=0.0):
-        """The Jacobi energy E_J of states (..., 6)."""
-        x = np.asarray(x, dtype=float)
-        return super().hamiltonian(x, t) + self.bar_potential(x[..., :3])
+    def _energy_term(self, rows, out):
+        """Φ_B added to the closed part's energies (or potentials) ``out``
+        of ``rows`` (:attr:`HamiltonianModel._energy_term`): H is the
+        Jacobi energy E_J, V the whole potential."""
+        ferrers_add_potential(rows, self._axes2, self.values["bar_mass"], self._inside, out)
 
     def symbolic(self):
         """Not available: the bar's potential has no closed form."""

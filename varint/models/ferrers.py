@@ -48,7 +48,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["carlson_rf", "carlson_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
-           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "inside_table", "FERRERS_K"]
+           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "ferrers_add_potential",
+           "inside_table", "FERRERS_K", "TABLE_SIZE"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
 FERRERS_K = 35.0 / 32.0
@@ -326,6 +327,17 @@ def ferrers_force(q, g, D, hessian, axes2, gm, inside):
     extra force (:class:`varint.codegen.expressions.ExtraForce`): the
     positions, the gradient and Hessian to add to, then the constants."""
     _derivatives(q, axes2, gm, g, D, hessian, inside, False)
+
+
+@njit(cache=True, error_model="numpy")
+def ferrers_add_potential(X, axes2, gm, inside, out):
+    """Φ at the positions X[m, :3] of every row of ``X`` (M, ≥ 3) added to
+    ``out[m]``: a rotating bar's energy is its closed part's plus this
+    (:meth:`varint.models.bar.RotatingBar._energy_term`)."""
+    g = np.empty(3)
+    D = np.empty((3, 3))
+    for m in range(X.shape[0]):
+        out[m] += ferrers_grad_hess(X[m, :3], axes2, gm, g, D, False, inside)
 
 
 @njit(cache=True, error_model="numpy")
