@@ -163,6 +163,9 @@ def _baseline_kick(code_dir, axes2, gm):
     path = Path(code_dir) / "varint" / "models" / "ferrers.py"
     spec = importlib.util.spec_from_file_location("baseline_ferrers", path)
     module = importlib.util.module_from_spec(spec)
+    # Registered: numba's cache of its kernels names their module, and
+    # imports it when it loads them.
+    sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     params = inspect.signature(module.inside_table).parameters
     inside = module.inside_table(axes2, gm) if len(params) == 2 else module.inside_table(axes2)

@@ -283,10 +283,13 @@ def _apply(q, X0, X1, X2, C, g, D, hessian, potential):
             + X2 * (C[3] + X2 * (C[9] + X2 * C[19])))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
     """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
-    ``potential``."""
+    ``potential``. Inlined into its three callers by numba (a call passing
+    four arrays cost about as much as the polynomials inside the bar:
+    ``studies/results/bar23/bar_force_cost_bar23.json``); its callees stay
+    calls (inlining them too doubled the kernels' compile time)."""
     X0, X1, X2 = q[0] * q[0], q[1] * q[1], q[2] * q[2]
     lam = _lambda(X0, X1, X2, axes2)
     if lam == 0.0:
