@@ -287,9 +287,9 @@ def _apply(q, X0, X1, X2, C, g, D, hessian, potential):
 def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
     """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
     ``potential``. Inlined into its three callers by numba (a call passing
-    four arrays cost about as much as the polynomials inside the bar:
-    ``studies/results/bar23/bar_force_cost_bar23.json``); its callees stay
-    calls (inlining them too doubled the kernels' compile time)."""
+    four arrays costs about as much as the polynomials inside the bar); its
+    callees stay calls (inlining them too nearly doubled the kernels'
+    compile time)."""
     X0, X1, X2 = q[0] * q[0], q[1] * q[1], q[2] * q[2]
     lam = _lambda(X0, X1, X2, axes2)
     if lam == 0.0:
