@@ -41,13 +41,22 @@ Stored as ``bar_force_cost_<label>.json``/``.csv`` under ``--out``
 measured (``before``: main 4f2bb83 on ``PYTHONPATH``, ``after``: this
 branch).
 
-Usage: ``python studies/bar_force_cost.py [--quick] [--label L] [--repeats N]``.
+``--baseline DIR`` also times the ``ferrers_kick`` of the code in DIR (its
+``varint/models/ferrers.py`` loaded beside this one, ``baseline
+ferrers_kick``), interleaved with this code's in the same process: the
+ratio of the two is the load's least noisy measure of a change to it.
+
+Usage: ``python studies/bar_force_cost.py [--quick] [--label L] [--repeats N]
+[--baseline DIR]``.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import inspect
 import os
 import sys
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -58,7 +67,7 @@ if __package__ in (None, ""):
 import varint
 from studies.common import RESULTS, interleaved, parse_args, save_csv, save_json
 from varint.models.bar import BAR_ORBITS, SPA02, RotatingBar, bar_orbit
-from varint.models.ferrers import ferrers_grad_hess, inside_table
+from varint.models.ferrers import ferrers_grad_hess
 
 COLUMNS = ["points", "contender", "count", "ns_per_eval"]
 
@@ -73,12 +82,14 @@ def _ferrers_loop(Q, axes2, gm, inside):
     return g.sum() + D.sum()
 
 
-def _kick_loop():
+def _kick_loop(module=None):
     """:func:`_ferrers_loop` of ``ferrers_kick`` (no Φ: what the model's
-    kick calls), or None in code that has none (main 4f2bb83)."""
-    try:
-        from varint.models.ferrers import ferrers_kick
-    except ImportError:
+    kick calls) of ``module`` (default varint's), or None in code that has
+    none (main 4f2bb83)."""
+    if module is None:
+        from varint.models import ferrers as module
+    ferrers_kick = getattr(module, "ferrers_kick", None)
+    if ferrers_kick is None:
         return None
 
     @njit(error_model="numpy")
@@ -142,11 +153,33 @@ def _agama():
     return agama.Potential(bar), whole
 
 
-def measure(quick, repeats):
-    """Rows of ns per evaluation, per position set and contender."""
+def _baseline_kick(code_dir, axes2, gm):
+    """(the kick loop, its inside table) of the Ferrers module of the code
+    in ``code_dir`` (a self-contained module: math, NumPy, numba), loaded
+    beside this code's under another name, so both are timed in one run,
+    interleaved; None without ``code_dir``."""
+    if code_dir is None:
+        return None
+    path = Path(code_dir) / "varint" / "models" / "ferrers.py"
+    spec = importlib.util.spec_from_file_location("baseline_ferrers", path)
+    module = importlib.util.module_from_spec(spec)
+    # Registered: numba's cache of its kernels names their module, and
+    # imports it when it loads them.
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    params = inspect.signature(module.inside_table).parameters
+    inside = module.inside_table(axes2, gm) if len(params) == 2 else module.inside_table(axes2)
+    return _kick_loop(module), inside
+
+
+def measure(quick, repeats, baseline=None):
+    """Rows of ns per evaluation, per position set and contender
+    (``baseline``: a code directory whose ``ferrers_kick`` is timed too)."""
     model = RotatingBar()
     axes2, gm = model._axes2, SPA02["bar_mass"]
-    inside = inside_table(axes2)
+    old = _baseline_kick(baseline, axes2, gm)
+    # The model's own table: its layout differs between codes measured.
+    inside = model._inside
     par = np.empty(0)
     model_loop = _model_loop(model.grad_hess_v)
     kick_loop = _kick_loop()
@@ -160,6 +193,11 @@ def measure(quick, repeats):
         if kick_loop is not None:
             kick_loop(Q, axes2, gm, inside)
             tasks["varint ferrers_kick"] = lambda Q=Q: kick_loop(Q, axes2, gm, inside)
+        if old is not None:
+            old_loop, old_inside = old
+            old_loop(Q, axes2, gm, old_inside)
+            tasks["baseline ferrers_kick"] = (
+                lambda Q=Q, f=old_loop, t=old_inside: f(Q, axes2, gm, t))
         if peers is not None:
             bar, whole = peers
             tasks["AGAMA Ferrers eval acc+der (array)"] = (
@@ -205,6 +243,8 @@ def main(argv=None):
     def extra(parser):
         parser.add_argument("--label", default="after", help="names the code measured")
         parser.add_argument("--repeats", type=int, default=7)
+        parser.add_argument("--baseline", type=Path, default=None,
+                            help="a code directory whose ferrers_kick is timed beside this one")
 
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     if args.out in (RESULTS, RESULTS / "quick"):
@@ -212,7 +252,7 @@ def main(argv=None):
         args.out.mkdir(parents=True, exist_ok=True)
     start = os.getloadavg()
     repeats = 1 if args.quick else args.repeats
-    rows = measure(args.quick, repeats)
+    rows = measure(args.quick, repeats, args.baseline)
     name = f"bar_force_cost_{args.label}"
     save_csv(args.out, name, rows, COLUMNS)
     save_json(args.out, name, {"rows": rows, "defaults": defaults(repeats), "load": start,

@@ -129,3 +129,47 @@ def test_describe_names_the_hamiltonian():
     d = cr3bp().describe()
     assert d["structure"] == "integrable" and d["q"] == ["x", "y"] and d["p"] == ["p_x", "p_y"]
     assert sp.sympify(d["hamiltonian"]) == cr3bp().symbolic().H
+
+
+def _numpy_h(model, X, t=None):
+    """The lambdified NumPy H of the model's own expression (what its
+    energies were before they were compiled), on the columns of X."""
+    args = [X[..., i] for i in range(model.dim)] + ([t] if t is not None else [])
+    return model._numpy_H(*args) + np.zeros(X.shape[:-1])
+
+
+@pytest.mark.parametrize("build", [cr3bp, relativistic, larmor, bottle, coupled_general])
+def test_compiled_energies_are_the_numpy_h_bitwise(build):
+    """H, V and the energy scale of the compiled copies (potential_rows)
+    are the lambdified NumPy H's and V's bit for bit, on states of several
+    shapes, a single state a NumPy scalar."""
+    model = build()
+    rng = np.random.default_rng(8)
+    X = rng.uniform(-0.6, 0.6, (7, 3, model.dim))
+    assert np.array_equal(model.hamiltonian(X).view(np.int64), _numpy_h(model, X).view(np.int64))
+    one = model.hamiltonian(X[0, 0])
+    assert type(one) is np.float64 and one == _numpy_h(model, X[0, 0])
+    q = X[..., :model.n_dof]
+    if model._numpy_V is not None:
+        expected = model._numpy_V(*(q[..., i] for i in range(model.n_dof))) + np.zeros(q.shape[:-1])
+    else:       # a general H: H at rest
+        expected = _numpy_h(model, np.concatenate([q, np.zeros_like(q)], axis=-1))
+    assert np.array_equal(model.potential(q), expected)
+
+
+def test_compiled_time_dependent_energy_is_h_of_each_time():
+    """A time-dependent H (polynomial: compiled, the time a column) and one
+    with a cosine (NumPy's, not compiled: its bits could differ) give
+    H(x, t) of each row's own time, equal to the exact H and to the
+    lambdified one bitwise."""
+    q, p, s = sp.symbols("q p s")
+    X = np.array([[0.3, 0.4], [0.1, -0.2], [-0.7, 0.25]])
+    T = np.array([0.5, 1.0, 2.5])
+    for H in (p ** 2 / 2 + q ** 2 * p + q ** 4 / 4 + q * s, p ** 2 / 2 + q * p * sp.cos(s)):
+        model = from_hamiltonian(H, [q], [p], time=s)
+        got = model.hamiltonian(X, T)
+        exact = [float(H.subs({q: a, p: b, s: c})) for (a, b), c in zip(X, T, strict=True)]
+        assert got == pytest.approx(exact, rel=1e-15, abs=1e-16)
+        assert np.array_equal(got, _numpy_h(model, X, T))
+        assert model.hamiltonian(X, 1.5) == pytest.approx(
+            [float(H.subs({q: a, p: b, s: 1.5})) for a, b in X], rel=1e-15, abs=1e-16)

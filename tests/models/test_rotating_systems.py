@@ -11,6 +11,7 @@ from varint.models.bar import RotatingBar, bar_orbit
 from varint.models.bottle import MagneticBottle, bottle_orbit
 from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, cr3bp_orbit)
 from varint.models.ferrers import (carlson_rd, carlson_rf, ferrers_grad_hess, ferrers_kick,
+                                   ferrers_lambda, ferrers_w,
                                    inside_table)
 
 
@@ -81,12 +82,12 @@ _AXES2 = np.array([36.0, 2.25, 0.36])
 
 def _bar(q, axes2=_AXES2, gm=0.1):
     g, D = np.zeros(3), np.zeros((3, 3))
-    phi = ferrers_grad_hess(np.asarray(q, float), axes2, gm, g, D, True, inside_table(axes2))
+    phi = ferrers_grad_hess(np.asarray(q, float), axes2, gm, g, D, True, inside_table(axes2, gm))
     return phi, g, D
 
 
 @pytest.mark.parametrize("q", [[1.0, 0.5, 0.2], [5.0, 1.4, 0.3], [7.0, 2.0, 1.0],
-                               [0.3, 4.0, -2.0], [-20.0, 15.0, 9.0]])
+                               [0.3, 4.0, -2.0], [-20.0, 15.0, 9.0], [-3.0, 0.8, -0.25]])
 def test_ferrers_potential_obeys_poisson_and_is_differentiated_exactly(q):
     """∇²Φ = 4πGρ with ρ = ρ_c(1 − m²)² inside and 0 outside (to 1e-16), and
     the gradient and Hessian equal central differences of Φ and ∇Φ."""
@@ -113,7 +114,7 @@ def test_ferrers_kick_is_grad_hess_without_the_potential():
     Hessian; the gradient alone is the one of the Hessian's call."""
     rng = np.random.default_rng(3)
     points = rng.uniform(-1, 1, (200, 3)) * np.array([9.0, 3.0, 1.2])
-    inside = inside_table(_AXES2)
+    inside = inside_table(_AXES2, 0.1)
     assert ((points ** 2 / _AXES2).sum(1) < 1).sum() > 20
     assert ((points ** 2 / _AXES2).sum(1) > 1).sum() > 20
     for q in points:
@@ -196,3 +197,53 @@ def test_registered_for_the_command_line():
     assert MODELS["rotating-bar"].build(omega=0.05).planar["omega"] == pytest.approx(0.05)
     bottle = MODELS["magnetic-bottle"].build(b0=2.0)
     assert bottle.n_dof == 3
+
+
+def _index_loops(q, axes2, gm):
+    """Φ, ∇Φ and D²Φ by the sums over i, j, k of the W tables as the module
+    docstring writes them (Pfenniger 1984, eq. 3): the formula the tabled
+    polynomials replaced, in NumPy."""
+    X = q * q
+    W1, W2, W3 = np.empty(3), np.empty((3, 3)), np.empty((3, 3, 3))
+    W0 = ferrers_w(ferrers_lambda(X, axes2), axes2, W1, W2, W3)
+    K = 35 / 32 * gm
+    F = W0 - 3 * X @ W1 + 3 * X @ W2 @ X - np.einsum("ijk,i,j,k", W3, X, X, X)
+    Fi = -3 * W1 + 6 * W2 @ X - 3 * np.einsum("ijk,j,k->i", W3, X, X)
+    Fij = 6 * W2 - 6 * np.einsum("ijk,k->ij", W3, X)
+    return -K * F, -2 * K * q * Fi, -K * (4 * np.outer(q, q) * Fij + 2 * np.diag(Fi))
+
+
+def test_tabled_polynomials_are_the_index_sums():
+    """The polynomials of the coefficient table (inside from the bar's
+    table, outside from λ's) give Φ, ∇Φ and D²Φ of the sums over the W
+    tables to 1e-13 of each one's largest entry, at 400 points inside and
+    outside the bar and for a second bar's axes and mass."""
+    rng = np.random.default_rng(11)
+    for axes2, gm in ((_AXES2, 0.1), (np.array([16.0, 4.0, 0.25]), 0.7)):
+        table = inside_table(axes2, gm)
+        points = rng.uniform(-1, 1, (400, 3)) * 1.3 * np.sqrt(axes2)
+        inside = (points ** 2 / axes2).sum(1) < 1
+        assert 60 < inside.sum() < 340
+        for q in points:
+            g, D = np.zeros(3), np.zeros((3, 3))
+            phi = ferrers_grad_hess(q, axes2, gm, g, D, True, table)
+            phi0, g0, D0 = _index_loops(q, axes2, gm)
+            assert abs(phi - phi0) <= 1e-13 * abs(phi0)
+            assert np.abs(g - g0).max() <= 1e-13 * np.abs(g0).max()
+            assert np.abs(D - D0).max() <= 1e-13 * np.abs(D0).max()
+            assert np.array_equal(D, D.T)
+
+
+def test_bar_energy_is_its_closed_part_plus_the_bar():
+    """The Jacobi energy E_J and the potential of the bar model are the
+    closed part's lambdified NumPy H and V (disc, bulge, rotating frame)
+    plus Φ_B (ferrers_potential), bitwise, for one state and for many."""
+    model, x0 = bar_orbit("chaotic")
+    X = np.random.default_rng(2).uniform(-1, 1, (40, 6)) * np.array([8, 3, 1, 0.3, 0.3, 0.1])
+    for x in (x0, X):
+        cols = [x[..., i] for i in range(6)]
+        phi = model.bar_potential(x[..., :3])
+        closed_h = model._numpy_H(*cols) + np.zeros(x.shape[:-1])
+        closed_v = model._numpy_V(*cols[:3]) + np.zeros(x.shape[:-1])
+        assert np.array_equal(model.hamiltonian(x), closed_h + phi)
+        assert np.array_equal(model.potential(x[..., :3]), closed_v + phi)

@@ -47,7 +47,8 @@ import numpy as np
 from numba import njit
 
 from ..codegen.expressions import ExtraForce
-from .ferrers import ferrers_force, ferrers_kick, ferrers_potential, inside_table
+from .ferrers import (ferrers_add_potential, ferrers_force, ferrers_kick, ferrers_potential,
+                      inside_table)
 from .hamiltonian import IntegrableHamiltonian, recognise
 
 __all__ = ["RotatingBar", "BAR_ORBITS", "bar_orbit", "SPA02"]
@@ -78,7 +79,7 @@ def _with_bar(grad, grad_hess, axes2, gm, offset):
     closed-form part plus the bar's potential; the positions are y[offset:
     offset + 3] and the bar's derivatives are added to g and D there."""
     a2 = np.array(axes2)
-    inside = inside_table(a2)
+    inside = inside_table(a2, gm)
 
     @njit(error_model="numpy")
     def grad_bar(y, par, g):
@@ -140,9 +141,9 @@ class RotatingBar(IntegrableHamiltonian):
         self.values = {k: float(v) for k, v in values.items()}
         self.axes = (a, b, c)
         self._axes2 = np.array([a * a, b * b, c * c])
-        # The W at λ = 0, once: every energy check of a pilot or a run
-        # evaluates the bar's potential (~7 µs a table).
-        self._inside = inside_table(self._axes2)
+        # The polynomials' coefficients at λ = 0, once: every energy check
+        # of a pilot or a run evaluates the bar's potential (~7 µs a table).
+        self._inside = inside_table(self._axes2, bar_mass)
         v = self.values
         H, q, p, found = _expression(v["disc_mass"], v["disc_a"], v["disc_b"], v["bulge_mass"],
                                      v["bulge_radius"], v["omega"])
@@ -168,13 +169,11 @@ class RotatingBar(IntegrableHamiltonian):
         ferrers_potential(Q, self._axes2, self.values["bar_mass"], self._inside, out)
         return out.reshape(q.shape[:-1])
 
-    def _potential_values(self, q, t=0.0):
-        return super()._potential_values(q, t) + self.bar_potential(q)
-
-    def hamiltonian(self, x, t=0.0):
-        """The Jacobi energy E_J of states (..., 6)."""
-        x = np.asarray(x, dtype=float)
-        return super().hamiltonian(x, t) + self.bar_potential(x[..., :3])
+    def _energy_term(self, rows, out):
+        """Φ_B added to the closed part's energies (or potentials) ``out``
+        of ``rows`` (:attr:`HamiltonianModel._energy_term`): H is the
+        Jacobi energy E_J, V the whole potential."""
+        ferrers_add_potential(rows, self._axes2, self.values["bar_mass"], self._inside, out)
 
     def symbolic(self):
         """Not available: the bar's potential has no closed form."""

@@ -25,6 +25,12 @@ the partial fractions lose digits, (λ/(b² − c²))² ε in W_ijk: Φ and its
 derivatives are good to ~1e-12 at 25 scale lengths (tested against
 quadrature of the defining integrals), to round-off inside the bar.
 
+At fixed W the bracket and its derivatives in X are polynomials of degree
+3, 2 and 1: their coefficients, summed once per distinct monomial of the
+symmetric W and scaled by Φ's factors, are tabled once per bar for the
+inside (λ = 0) and per point outside (:func:`_coefficients`), and
+evaluated nested by the first index (Horner's rule in several variables).
+
 References
 ----------
 N. M. Ferrers, Q. J. Pure Appl. Math. 14, 1 (1877); D. Pfenniger,
@@ -42,7 +48,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["carlson_rf", "carlson_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
-           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "inside_table", "FERRERS_K"]
+           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "ferrers_add_potential",
+           "inside_table", "FERRERS_K", "TABLE_SIZE"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
 FERRERS_K = 35.0 / 32.0
@@ -173,60 +180,127 @@ def ferrers_w(lam, axes2, W1, W2, W3):
     return W0
 
 
-def inside_table(axes2):
-    """W, W_i, W_ij, W_ijk at λ = 0, packed (40,): the constants of the
-    potential everywhere inside the bar (:func:`ferrers_grad_hess`)."""
+#: The length of a table of coefficients (:func:`_coefficients`).
+TABLE_SIZE = 74
+
+
+def inside_table(axes2, gm):
+    """The coefficients of :func:`_coefficients` at λ = 0 for a bar of mass
+    G·M = ``gm``, (74,): constants everywhere inside the bar
+    (:func:`ferrers_grad_hess`), made once per bar."""
     W1, W2, W3 = np.empty(3), np.empty((3, 3)), np.empty((3, 3, 3))
     W0 = ferrers_w(0.0, np.asarray(axes2, dtype=np.float64), W1, W2, W3)
-    return np.concatenate([[W0], W1, W2.ravel(), W3.ravel()])
+    C = np.empty(TABLE_SIZE)
+    _coefficients(W0, W1, W2, W3, FERRERS_K * float(gm), C)
+    return C
 
 
 @njit(cache=True, error_model="numpy")
-def _bracket_apply(q, X, W, K, g, D, hessian, potential):
-    """−K F(X) (returned if ``potential``, else 0) with the bracket F(X) =
-    W − 3ΣX_iW_i + 3ΣX_iX_jW_ij − ΣX_iX_jX_kW_ijk, the W packed as
-    :func:`inside_table` packs them (``W``, (40,)); the gradient −2K x_i F_i
-    added to ``g`` and, if ``hessian``, the Hessian
-    −K (4 x_i x_j F_ij + 2 δ_ij F_i) to ``D`` (F_i, F_ij: F's derivatives in
-    X at fixed W). F_i and F_ij are scalars of the loops over i and j, so
-    nothing is allocated; F itself, a third of the work, only if asked."""
-    F = W[0]
+def _coefficients(W0, W1, W2, W3, K, C):
+    """The bracket F(X) = W − 3ΣX_iW_i + 3ΣX_iX_jW_ij − ΣX_iX_jX_kW_ijk
+    and its derivatives in X at fixed W as polynomials in X = (x², y², z²),
+    with the factors of Φ = −K F(x²) folded in (∂_iΦ = x_i P_i,
+    ∂_ijΦ = x_i x_j Q_ij + δ_ij P_i), written to ``C`` (74,):
+
+    * C[0:20]  Φ = −K F, cubic: the constant, X_i, X_jX_k (j ≤ k) and
+      X_iX_jX_k (i ≤ j ≤ k), each in lexicographic order;
+    * C[20:50] P_i = −2K F_i, quadratic, 10 per i (the constant, X_j,
+      X_jX_k with j ≤ k), F_i = −3W_i + 6Σ_j X_jW_ij − 3Σ_jk X_jX_kW_ijk;
+    * C[50:74] Q_ij = −4K F_ij, linear, 4 per pair i ≤ j (00, 01, 02, 11,
+      12, 22), F_ij = 6W_ij − 6Σ_k X_kW_ijk.
+
+    A symmetric W's terms are summed once per distinct monomial, with its
+    count of index orders (1, 2; 1, 3, 6): 20 + 30 + 24 multiply-adds per
+    evaluation where the index loops take 3 × 27."""
+    C[0] = -K * W0
     for i in range(3):
-        if potential:
-            F -= 3.0 * X[i] * W[1 + i]
-        Fi = -3.0 * W[1 + i]
+        C[1 + i] = 3.0 * K * W1[i]
+    o = 4
+    for j in range(3):
+        for k in range(j, 3):
+            C[o] = -3.0 * K * W2[j, k] * (1.0 if j == k else 2.0)
+            o += 1
+    for i in range(3):
+        for j in range(i, 3):
+            for k in range(j, 3):
+                orders = 1.0 if i == k else (6.0 if i != j and j != k else 3.0)
+                C[o] = K * W3[i, j, k] * orders
+                o += 1
+    for i in range(3):
+        o = 20 + 10 * i
+        C[o] = 6.0 * K * W1[i]
         for j in range(3):
-            if potential:
-                F += 3.0 * X[i] * X[j] * W[4 + 3 * i + j]
-            Fi += 6.0 * X[j] * W[4 + 3 * i + j]
-            Fij = 6.0 * W[4 + 3 * i + j]
+            C[o + 1 + j] = -12.0 * K * W2[i, j]
+        o += 4
+        for j in range(3):
+            for k in range(j, 3):
+                C[o] = 6.0 * K * W3[i, j, k] * (1.0 if j == k else 2.0)
+                o += 1
+    o = 50
+    for i in range(3):
+        for j in range(i, 3):
+            C[o] = -24.0 * K * W2[i, j]
             for k in range(3):
-                if potential:
-                    F -= X[i] * X[j] * X[k] * W[13 + 9 * i + 3 * j + k]
-                Fi -= 3.0 * X[j] * X[k] * W[13 + 9 * i + 3 * j + k]
-                Fij -= 6.0 * X[k] * W[13 + 9 * i + 3 * j + k]
-            if hessian:
-                D[i, j] -= 4.0 * K * q[i] * q[j] * Fij
-        # Φ = −K F(x²): ∂_iΦ = −2K x_i F_i, ∂_ijΦ = −K (4 x_i x_j F_ij + 2 δ_ij F_i).
-        g[i] -= 2.0 * K * q[i] * Fi
-        if hessian:
-            D[i, i] -= 2.0 * K * Fi
-    return -K * F if potential else 0.0
+                C[o + 1 + k] = 24.0 * K * W3[i, j, k]
+            o += 4
 
 
 @njit(cache=True, error_model="numpy")
+def _quadratic(C, o, X0, X1, X2):
+    """The quadratic C[o] + ΣC[o+1+j]X_j + Σ_{j≤k}C[o+4+·]X_jX_k, nested
+    by the first index (9 multiply-adds)."""
+    return (C[o] + X0 * (C[o + 1] + X0 * C[o + 4] + X1 * C[o + 5] + X2 * C[o + 6])
+            + X1 * (C[o + 2] + X1 * C[o + 7] + X2 * C[o + 8]) + X2 * (C[o + 3] + X2 * C[o + 9]))
+
+
+@njit(cache=True, error_model="numpy")
+def _apply(q, X0, X1, X2, C, g, D, hessian, potential):
+    """Φ (returned if ``potential``, else 0) from the table ``C``
+    (:func:`_coefficients`), its gradient x_i P_i added to ``g`` and, if
+    ``hessian``, its Hessian x_i x_j Q_ij + δ_ij P_i to ``D``. (Loops over
+    i and j rather than each entry written out: the same operations, and
+    a third of the code for numba to type and lower per compile.)"""
+    P = (_quadratic(C, 20, X0, X1, X2), _quadratic(C, 30, X0, X1, X2),
+         _quadratic(C, 40, X0, X1, X2))
+    for i in range(3):
+        g[i] += q[i] * P[i]
+    if hessian:
+        o = 50
+        for i in range(3):
+            for j in range(i, 3):
+                v = q[i] * q[j] * (C[o] + X0 * C[o + 1] + X1 * C[o + 2] + X2 * C[o + 3])
+                if i == j:
+                    D[i, i] += v + P[i]
+                else:
+                    D[i, j] += v
+                    D[j, i] += v
+                o += 4
+    if not potential:
+        return 0.0
+    return (C[0] + X0 * (C[1] + X0 * (C[4] + X0 * C[10] + X1 * C[11] + X2 * C[12])
+                         + X1 * (C[5] + X1 * C[13] + X2 * C[14]) + X2 * (C[6] + X2 * C[15]))
+            + X1 * (C[2] + X1 * (C[7] + X1 * C[16] + X2 * C[17]) + X2 * (C[8] + X2 * C[18]))
+            + X2 * (C[3] + X2 * (C[9] + X2 * C[19])))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
     """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
-    ``potential``."""
-    X = (q[0] * q[0], q[1] * q[1], q[2] * q[2])
-    lam = _lambda(X[0], X[1], X[2], axes2)
-    K = 35.0 / 32.0 * gm
+    ``potential``. Inlined into its three callers by numba (a call passing
+    four arrays costs about as much as the polynomials inside the bar); its
+    callees stay calls (inlining them too nearly doubled the kernels'
+    compile time)."""
+    X0, X1, X2 = q[0] * q[0], q[1] * q[1], q[2] * q[2]
+    lam = _lambda(X0, X1, X2, axes2)
     if lam == 0.0:
-        return _bracket_apply(q, X, inside, K, g, D, hessian, potential)
-    W = np.empty(40)
-    W[0] = ferrers_w(lam, axes2, W[1:4], W[4:13].reshape((3, 3)),
-                     W[13:40].reshape((3, 3, 3)))
-    return _bracket_apply(q, X, W, K, g, D, hessian, potential)
+        return _apply(q, X0, X1, X2, inside, g, D, hessian, potential)
+    # Outside the W depend on λ: their table, then its polynomials, here.
+    W = np.empty(40 + TABLE_SIZE)
+    W0 = ferrers_w(lam, axes2, W[1:4], W[4:13].reshape((3, 3)), W[13:40].reshape((3, 3, 3)))
+    C = W[40:]
+    _coefficients(W0, W[1:4], W[4:13].reshape((3, 3)), W[13:40].reshape((3, 3, 3)),
+                  FERRERS_K * gm, C)
+    return _apply(q, X0, X1, X2, C, g, D, hessian, potential)
 
 
 @njit(cache=True, error_model="numpy")
@@ -234,9 +308,10 @@ def ferrers_grad_hess(q, axes2, gm, g, D, hessian, inside):
     """Φ of a Ferrers (n = 2) bar of mass G·M = ``gm`` (returned) at the
     position ``q`` (3,), its gradient added to ``g`` (3,) and, if
     ``hessian``, its Hessian added to ``D`` (at least 3 × 3, top-left).
-    ``inside`` is :func:`inside_table`: inside the bar λ = 0 and the W are
-    these constants, so no elliptic integral is evaluated there, and
-    nothing is allocated."""
+    ``inside`` is :func:`inside_table` of these axes and ``gm``: inside the
+    bar λ = 0 and Φ, its gradient and Hessian are polynomials in x² with
+    these constant coefficients, so no elliptic integral is evaluated
+    there, and nothing is allocated."""
     return _derivatives(q, axes2, gm, g, D, hessian, inside, True)
 
 
@@ -253,6 +328,17 @@ def ferrers_force(q, g, D, hessian, axes2, gm, inside):
     extra force (:class:`varint.codegen.expressions.ExtraForce`): the
     positions, the gradient and Hessian to add to, then the constants."""
     _derivatives(q, axes2, gm, g, D, hessian, inside, False)
+
+
+@njit(cache=True, error_model="numpy")
+def ferrers_add_potential(X, axes2, gm, inside, out):
+    """Φ at the positions X[m, :3] of every row of ``X`` (M, ≥ 3) added to
+    ``out[m]``: a rotating bar's energy is its closed part's plus this
+    (:meth:`varint.models.bar.RotatingBar._energy_term`)."""
+    g = np.empty(3)
+    D = np.empty((3, 3))
+    for m in range(X.shape[0]):
+        out[m] += ferrers_grad_hess(X[m, :3], axes2, gm, g, D, False, inside)
 
 
 @njit(cache=True, error_model="numpy")
