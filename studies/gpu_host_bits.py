@@ -15,6 +15,7 @@ recomputed on the CPU); each on the CPU and on the (simulated) GPU.
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import sys
@@ -42,7 +43,8 @@ def digests(result):
             for name, a in arrays.items()}
 
 
-def main():
+def main(argv=None):
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
     import numpy as np
 
     import varint
