@@ -108,6 +108,23 @@ def test_a_process_on_cached_kernels_imports_no_sympy_and_compiles_nothing():
     assert lanes_hits >= 1
 
 
+def test_a_default_fli_map_that_keeps_constant_steps_imports_no_sympy():
+    """A FLI map with every default weighs the logarithmic Hamiltonian
+    (``maps._log_candidate``). On Hénon–Heiles U = C − V spans less than
+    ``U_SPREAD_MIN`` even counted as for a kinetic A, so the map keeps its
+    constant step without reading the model's form through SymPy (which it
+    loaded before: ~0.35 s of a first map)."""
+    code = ("import sys, json, numpy as np, varint; "
+            "hh = varint.models.HenonHeiles(); "
+            "grid = varint.section_grid(hh, 0.125, np.linspace(-0.45, 0.65, 8), "
+            "np.linspace(-0.45, 0.45, 8)); "
+            "r = varint.chaos_map(hh, grid, 'fli', t_end=10.0, progress=False); "
+            "print(json.dumps(['sympy' in sys.modules, r.provenance.method]))")
+    loaded, method = fresh(code)
+    assert method == "tm"
+    assert loaded is False
+
+
 def test_version_and_metadata_on_demand():
     """``import varint`` reads no file for its version and imports no
     importlib.metadata (~15 ms); ``__version__`` is worked out when asked."""

@@ -71,6 +71,7 @@ from .results import ChaosMapResult, Provenance, package_versions
 from .run import Run
 from .runspec import RunSpec, check_seed, described, specify
 from .grids import SectionGrid
+from .lh_offset import offset_constant
 from .state import initial_deviations
 from .store import Invalid, Store
 
@@ -591,6 +592,13 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
             or client is not None or checkpoint is not None or escape_radius is not None
             or getattr(model, "kind", "flow") == "map"):
         return False
+    pilot = spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)]
+    # The spread counted as for a kinetic A (a lower denominator) bounds the
+    # one counted without: below the threshold the model is no candidate
+    # whatever its form, and SymPy, which reading the form takes, stays
+    # unloaded (~0.35 s of a first Hénon–Heiles map, studies/startup.py).
+    if _u_spread(model, pilot, kinetic=True) < U_SPREAD_MIN:
+        return False
     # Only now: the LH's module imports SymPy, which a map that keeps its
     # constant step never needs.
     from .time_transform import refuse
@@ -599,8 +607,7 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
         parts, _ = refuse(model)
     except ValueError:
         return False
-    return _u_spread(model, spec.x0[step_agreement.pilot_sample(spec.x0, spec.seed)],
-                     kinetic=parts[4].kind == "free") >= U_SPREAD_MIN
+    return _u_spread(model, pilot, kinetic=parts[4].kind == "free") >= U_SPREAD_MIN
 
 
 def _u_spread(model, X, kinetic=False):
@@ -611,8 +618,6 @@ def _u_spread(model, X, kinetic=False):
     turns (A = 0): the lowest U counted is δ. (Without it the cored race
     of ``studies/map_steps.py``, whose orbits all start fast at the bottom
     of the core and turn at r ≈ 1, measured 1.4 and was never priced.)"""
-    from .time_transform import offset_constant
-
     n = X.shape[1] // 2
     with np.errstate(all="ignore"):
         E = np.asarray(model.conserved(X)["energy"], dtype=float)

@@ -46,6 +46,7 @@ from . import codecache
 from .codegen.lh import Flow, lh_name, lh_source
 from .flows.split import planar_params
 from .kernels.time_transform import BUDGET, U_NOT_POSITIVE
+from .lh_offset import offset_constant
 from .protocol import Status
 from .schemes import DRIFT, get_scheme, stage_arrays
 
@@ -226,18 +227,6 @@ def _symbolic_parts(model):
     raise ValueError(f"time_transform='log' needs an autonomous H = ½pᵀM⁻¹p + V(q) from "
                      f"from_potential or an integrable H = A + V(q) (a rotating frame), "
                      f"got {model!r}")
-
-
-def offset_constant(E, offset):
-    """C = E + δ of orbits of energies ``E`` (module docstring): δ =
-    ``offset``, or max(−E, 1) where None, so that U = C − V > 0 along the
-    orbit.
-
-    >>> offset_constant(np.array([-0.5, 2.0]), None)
-    array([0.5, 3. ])
-    """
-    E = np.asarray(E, dtype=float)
-    return E + (np.maximum(-E, 1.0) if offset is None else offset)
 
 
 class LogHamiltonian:
