@@ -149,8 +149,11 @@ def ferrers_lambda(X, axes2):
     max(0, Σ X_i − a²) below the root. 1/S is increasing and concave (the
     reciprocal of a sum of reciprocals of positive affine functions of λ),
     so the iterates rise monotonically to the root, and nearly linear (exact
-    for one nonzero X_i): 2–7 iterations. (Newton's method on S − 1, convex,
-    crawls from λ = 0 near the bar's ends.)"""
+    for one nonzero X_i): 2–7 iterations, stopped once a step is below
+    1e-9 (c² + λ). (The Newton's method on S − 1 this replaces stopped at
+    a step of 4e-16 λ, below the rounding of S for small λ: just outside
+    the surface it ran to its cap of 200 iterations, 55 on average over
+    the chaotic named orbit's positions outside the bar.)"""
     return _lambda(X[0], X[1], X[2], axes2)
 
 
