@@ -26,8 +26,8 @@ at once (its C++ loop; ``agama`` 1.0.159 built from source, one thread)
 and on one position per call (the per-call cost its orbit integrator does
 not pay, shown for scale). Seconds per evaluation: the minimum over
 ``--repeats`` interleaved turns (:func:`studies.common.interleaved`) of
-one call's time over the set's size. The load of the shared machine is
-stored with them.
+one call's time over the set's size, wall time or (``--clock cpu``) the
+process's CPU time. The load of the shared machine is stored with them.
 
 The defaults on one orbit (issue 29's "the pilots cost 4–7× the run"):
 ``lyapunov_spectrum(model, x0, 100, deviations=w0, t_out=[100])`` with no
@@ -47,7 +47,7 @@ ferrers_kick``), interleaved with this code's in the same process: the
 ratio of the two is the load's least noisy measure of a change to it.
 
 Usage: ``python studies/bar_force_cost.py [--quick] [--label L] [--repeats N]
-[--baseline DIR]``.
+[--baseline DIR] [--clock wall|cpu]``.
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ import importlib.util
 import inspect
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -172,9 +173,10 @@ def _baseline_kick(code_dir, axes2, gm):
     return _kick_loop(module), inside
 
 
-def measure(quick, repeats, baseline=None):
+def measure(quick, repeats, baseline=None, clock=time.perf_counter):
     """Rows of ns per evaluation, per position set and contender
-    (``baseline``: a code directory whose ``ferrers_kick`` is timed too)."""
+    (``baseline``: a code directory whose ``ferrers_kick`` is timed too;
+    ``clock``: wall time or the process's CPU time)."""
     model = RotatingBar()
     axes2, gm = model._axes2, SPA02["bar_mass"]
     old = _baseline_kick(baseline, axes2, gm)
@@ -206,7 +208,7 @@ def measure(quick, repeats, baseline=None):
                 lambda Q=Q, whole=whole: whole.eval(Q, acc=True, der=True))
             tasks["AGAMA Ferrers eval acc+der (one point a call)"] = (
                 lambda few=Q[:50], bar=bar: [bar.eval(q, acc=True, der=True) for q in few])
-        best, _ = interleaved(tasks, repeats)
+        best, _ = interleaved(tasks, repeats, clock=clock)
         for label, seconds in best.items():
             count = 50 if "one point" in label else len(Q)
             rows.append({"points": name, "contender": label, "count": count,
@@ -245,6 +247,9 @@ def main(argv=None):
         parser.add_argument("--repeats", type=int, default=7)
         parser.add_argument("--baseline", type=Path, default=None,
                             help="a code directory whose ferrers_kick is timed beside this one")
+        parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                            help="wall time, or the process's CPU time (every contender runs "
+                                 "one thread: on a loaded machine)")
 
     args = parse_args(__doc__.splitlines()[0], argv, extra)
     if args.out in (RESULTS, RESULTS / "quick"):
@@ -252,11 +257,13 @@ def main(argv=None):
         args.out.mkdir(parents=True, exist_ok=True)
     start = os.getloadavg()
     repeats = 1 if args.quick else args.repeats
-    rows = measure(args.quick, repeats, args.baseline)
+    clock = time.process_time if args.clock == "cpu" else time.perf_counter
+    rows = measure(args.quick, repeats, args.baseline, clock)
     name = f"bar_force_cost_{args.label}"
     save_csv(args.out, name, rows, COLUMNS)
     save_json(args.out, name, {"rows": rows, "defaults": defaults(repeats), "load": start,
-                               "load_end": os.getloadavg(), "label": args.label})
+                               "load_end": os.getloadavg(), "label": args.label,
+                               "clock": args.clock})
     print(f"load {start[0]:.2f} → {os.getloadavg()[0]:.2f}")
     return rows
 

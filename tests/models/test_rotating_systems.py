@@ -1,6 +1,9 @@
 """The restricted three-body problem, the Ferrers bar and the magnetic
 bottle: published values, laws from theory, and conserved quantities."""
 
+import itertools
+
+import mpmath
 import numpy as np
 import pytest
 from scipy.special import elliprd, elliprf
@@ -10,9 +13,8 @@ from varint.methods.parts import parts_steps
 from varint.models.bar import RotatingBar, bar_orbit
 from varint.models.bottle import MagneticBottle, bottle_orbit
 from varint.models.cr3bp import (ARENSTORF_PERIOD, CR3BP, EARTH_MOON_MU, cr3bp_orbit)
-from varint.models.ferrers import (carlson_rd, carlson_rf, ferrers_grad_hess, ferrers_kick,
-                                   ferrers_lambda, ferrers_w,
-                                   inside_table)
+from varint.models.ferrers import (W_ORDER, carlson_rf_rd, ferrers_grad_hess, ferrers_kick,
+                                   ferrers_lambda, ferrers_w, inside_table)
 
 
 # -- the restricted three-body problem --------------------------------------------------
@@ -71,10 +73,16 @@ def test_arenstorf_orbit_closes_after_its_published_period():
 
 # -- the Ferrers bar -----------------------------------------------------------------------
 def test_carlson_integrals_against_scipy():
+    """One duplication sequence gives R_F(x, y, z), R_D(y, z, x) and
+    R_D(z, x, y) to 8e-16 of SciPy's (as each integral's own duplication
+    did), over twelve decades of arguments."""
     rng = np.random.default_rng(5)
-    for x, y, z in rng.uniform(1e-3, 100.0, (50, 3)):
-        assert carlson_rf(x, y, z) == pytest.approx(elliprf(x, y, z), rel=4e-16)
-        assert carlson_rd(x, y, z) == pytest.approx(elliprd(x, y, z), rel=4e-16)
+    args = np.concatenate([rng.uniform(1e-3, 100.0, (300, 3)), 10 ** rng.uniform(-6, 6, (300, 3))])
+    for x, y, z in args:
+        rf, rd_x, rd_y = carlson_rf_rd(x, y, z)
+        assert rf == pytest.approx(elliprf(x, y, z), rel=8e-16)
+        assert rd_x == pytest.approx(elliprd(y, z, x), rel=8e-16)
+        assert rd_y == pytest.approx(elliprd(z, x, y), rel=8e-16)
 
 
 _AXES2 = np.array([36.0, 2.25, 0.36])
@@ -199,25 +207,46 @@ def test_registered_for_the_command_line():
     assert bottle.n_dof == 3
 
 
-def _index_loops(q, axes2, gm):
+def _w_tables(W):
+    """The symmetric W_i, W_ij, W_ijk tables of the 20 distinct index
+    symbols ``W`` (:data:`W_ORDER`), and W."""
+    tables = (np.empty(3), np.empty((3, 3)), np.empty((3, 3, 3)))
+    for name, value in zip(W_ORDER[1:], W[1:], strict=True):
+        for index in set(itertools.permutations(int(c) for c in name)):
+            tables[len(name) - 1][index] = value
+    return (W[0],) + tables
+
+
+def _index_sums(X, q, W, K):
     """Φ, ∇Φ and D²Φ by the sums over i, j, k of the W tables as the module
-    docstring writes them (Pfenniger 1984, eq. 3): the formula the tabled
-    polynomials replaced, in NumPy."""
+    docstring writes them (Pfenniger 1984, eq. 3), in the arithmetic of X,
+    q, W and K (floats or mpmath numbers)."""
+    W0, W1, W2, W3 = W
+    r = range(3)
+    F = (W0 - 3 * sum(X[i] * W1[i] for i in r) + 3 * sum(X[i] * X[j] * W2[i][j] for i in r for j in r)
+         - sum(X[i] * X[j] * X[k] * W3[i][j][k] for i in r for j in r for k in r))
+    Fi = [-3 * W1[i] + 6 * sum(X[j] * W2[i][j] for j in r)
+          - 3 * sum(X[j] * X[k] * W3[i][j][k] for j in r for k in r) for i in r]
+    Fij = [[6 * W2[i][j] - 6 * sum(X[k] * W3[i][j][k] for k in r) for j in r] for i in r]
+    return (-K * F, [-2 * K * q[i] * Fi[i] for i in r],
+            [[-K * (4 * q[i] * q[j] * Fij[i][j] + (2 * Fi[i] if i == j else 0)) for j in r]
+             for i in r])
+
+
+def _index_loops(q, axes2, gm):
+    """:func:`_index_sums` of the compiled λ and W, in NumPy: the formula the
+    polynomials replace."""
     X = q * q
-    W1, W2, W3 = np.empty(3), np.empty((3, 3)), np.empty((3, 3, 3))
-    W0 = ferrers_w(ferrers_lambda(X, axes2), axes2, W1, W2, W3)
-    K = 35 / 32 * gm
-    F = W0 - 3 * X @ W1 + 3 * X @ W2 @ X - np.einsum("ijk,i,j,k", W3, X, X, X)
-    Fi = -3 * W1 + 6 * W2 @ X - 3 * np.einsum("ijk,j,k->i", W3, X, X)
-    Fij = 6 * W2 - 6 * np.einsum("ijk,k->ij", W3, X)
-    return -K * F, -2 * K * q * Fi, -K * (4 * np.outer(q, q) * Fij + 2 * np.diag(Fi))
+    W0, W1, W2, W3 = _w_tables(ferrers_w(ferrers_lambda(X, axes2), axes2))
+    phi, g, D = _index_sums(X, q, (W0, W1, W2, W3), 35 / 32 * gm)
+    return phi, np.array(g), np.array(D)
 
 
-def test_tabled_polynomials_are_the_index_sums():
-    """The polynomials of the coefficient table (inside from the bar's
-    table, outside from λ's) give Φ, ∇Φ and D²Φ of the sums over the W
-    tables to 1e-13 of each one's largest entry, at 400 points inside and
-    outside the bar and for a second bar's axes and mass."""
+def test_polynomials_are_the_index_sums():
+    """The polynomials in X (inside from the bar's table, outside from λ's
+    W) give Φ, ∇Φ and D²Φ of the sums over the W tables to 1e-13 of each
+    one's largest entry, at 400 points inside and outside the bar and for
+    a second bar's axes and mass."""
     rng = np.random.default_rng(11)
     for axes2, gm in ((_AXES2, 0.1), (np.array([16.0, 4.0, 0.25]), 0.7)):
         table = inside_table(axes2, gm)
@@ -232,6 +261,96 @@ def test_tabled_polynomials_are_the_index_sums():
             assert np.abs(g - g0).max() <= 1e-13 * np.abs(g0).max()
             assert np.abs(D - D0).max() <= 1e-13 * np.abs(D0).max()
             assert np.array_equal(D, D.T)
+
+
+def _exact(q, axes2, gm):
+    with mpmath.workdps(40):
+        return _exact_here(q, axes2, gm)
+
+
+def _exact_here(q, axes2, gm):
+    """λ, the W and Φ, ∇Φ, D²Φ at 40 digits (mpmath): λ by a bracketing
+    root finder on Σ X_i/(a_i² + λ) = 1, W and W_i from mpmath's Carlson
+    integrals, the others from the module docstring's identities (exact
+    relations: at 40 digits their cancellation far out leaves ~30)."""
+    q = [mpmath.mpf(float(v)) for v in q]
+    A = [mpmath.mpf(float(v)) for v in axes2]
+    X = [v * v for v in q]
+    lam = mpmath.mpf(0)
+    if sum(X[i] / A[i] for i in range(3)) > 1:
+        lam = mpmath.findroot(lambda u: sum(X[i] / (A[i] + u) for i in range(3)) - 1,
+                              (mpmath.mpf(0), sum(X)), solver="anderson")
+    al = [a + lam for a in A]
+    delta = mpmath.sqrt(al[0] * al[1] * al[2])
+    W1 = [2 * mpmath.elliprd(al[(i + 1) % 3], al[(i + 2) % 3], al[i]) / 3 for i in range(3)]
+    W2 = [[(W1[i] - W1[j]) / (A[j] - A[i]) if i != j else None for j in range(3)]
+          for i in range(3)]
+    for i in range(3):
+        W2[i][i] = (2 / (delta * al[i]) - sum(W2[i][j] for j in range(3) if j != i)) / 3
+    W3 = [[[None] * 3 for _ in range(3)] for _ in range(3)]
+    for i, j in itertools.permutations(range(3), 2):
+        for k in set(itertools.permutations((i, i, j))):
+            W3[k[0]][k[1]][k[2]] = (W2[i][i] - W2[i][j]) / (A[j] - A[i])
+    for i, j, k in itertools.permutations(range(3)):
+        W3[i][j][k] = (W2[0][1] - W2[0][2]) / (A[2] - A[1])
+    for i in range(3):
+        W3[i][i][i] = (2 / (delta * al[i] ** 2)
+                       - sum(W3[i][i][j] for j in range(3) if j != i)) / 5
+    W = (2 * mpmath.elliprf(*al), W1, W2, W3)
+    return lam, W, _index_sums(X, q, W, mpmath.mpf(35) / 32 * mpmath.mpf(gm))
+
+
+def _points(rng, axes2, count, scale):
+    return rng.uniform(-1, 1, (count, 3)) * scale * np.sqrt(axes2)
+
+
+@pytest.mark.parametrize("axes2, gm", [(_AXES2, 0.1), (np.array([16.0, 4.0, 0.25]), 0.7)])
+def test_lambda_and_w_against_40_digits(axes2, gm):
+    """λ (Newton's method on 1/S) to 4e-16 of a² + λ, W and W_i to 2e-15 of
+    their values, W_ij to 2e-13 and W_ijk to 2e-11 of the largest of each
+    (measured 8e-14 and 9e-12; main's code 6e-14 and 4e-12: the partial
+    fractions (W_i − W_j)/(a_j² − a_i²) cancel as λ grows past b² − c²) at
+    150 points outside the bar to twice its axes and 30 just outside its
+    surface (λ ~ 1e-6, where Newton's method on S − 1 ran to its cap of
+    200 iterations), against 40-digit values."""
+    rng = np.random.default_rng(17)
+    points = _points(rng, axes2, 600, 2.0)
+    points = points[(points ** 2 / axes2).sum(1) > 1][:150]
+    surface = _points(rng, axes2, 30, 1.0)
+    surface *= (1 + 1e-6) / np.sqrt((surface ** 2 / axes2).sum(1))[:, None]
+    for q in np.concatenate([points, surface]):
+        lam_exact, W_exact, _ = _exact(q, axes2, gm)
+        lam = ferrers_lambda(q * q, axes2)
+        assert lam > 0 and abs(lam - float(lam_exact)) <= 4e-16 * (axes2[0] + lam)
+        # At the 40-digit λ: the W's own error, apart from λ's.
+        got = _w_tables(ferrers_w(float(lam_exact), axes2))
+        exact = [np.array(np.vectorize(float)(np.array(w, dtype=object)), dtype=float)
+                 for w in W_exact]
+        assert abs(got[0] - exact[0]) <= 2e-15 * exact[0]
+        assert np.all(np.abs(got[1] - exact[1]) <= 2e-15 * exact[1])
+        for k, bound in ((2, 2e-13), (3, 2e-11)):
+            assert np.abs(got[k] - exact[k]).max() <= bound * np.abs(exact[k]).max()
+
+
+@pytest.mark.parametrize("axes2, gm", [(_AXES2, 0.1), (np.array([16.0, 4.0, 0.25]), 0.7)])
+def test_potential_derivatives_against_40_digits(axes2, gm):
+    """Φ, ∇Φ and D²Φ at 300 points inside and outside the bar to 1.5 times
+    its axes against the 40-digit formula: within 1e-13 of each one's
+    largest entry; to 4 times the axes within 5e-12 (measured 1.2e-12 for
+    D²Φ there, as main's code: the bracket's terms, ~λ^{3/2} W_ijk each,
+    cancel to ~(1 − m²)³/λ^{3/2} and carry the W_ijk's rounding)."""
+    rng = np.random.default_rng(23)
+    table = inside_table(axes2, gm)
+    for scale, count, bound in ((1.5, 300, 1e-13), (4.0, 60, 5e-12)):
+        for q in _points(rng, axes2, count, scale):
+            g, D = np.zeros(3), np.zeros((3, 3))
+            phi = ferrers_grad_hess(q, axes2, gm, g, D, True, table)
+            _, _, (phi0, g0, D0) = _exact(q, axes2, gm)
+            g0 = np.array([float(v) for v in g0])
+            D0 = np.array([[float(v) for v in row] for row in D0])
+            assert abs(phi - float(phi0)) <= bound * abs(float(phi0))
+            assert np.abs(g - g0).max() <= bound * np.abs(g0).max()
+            assert np.abs(D - D0).max() <= bound * np.abs(D0).max()
 
 
 def test_bar_energy_is_its_closed_part_plus_the_bar():

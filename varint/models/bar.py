@@ -141,8 +141,8 @@ class RotatingBar(IntegrableHamiltonian):
         self.values = {k: float(v) for k, v in values.items()}
         self.axes = (a, b, c)
         self._axes2 = np.array([a * a, b * b, c * c])
-        # The polynomials' coefficients at λ = 0, once: every energy check
-        # of a pilot or a run evaluates the bar's potential (~7 µs a table).
+        # The bar's constants inside (K·W at λ = 0), once: every energy
+        # check of a pilot or a run evaluates the bar's potential.
         self._inside = inside_table(self._axes2, bar_mass)
         v = self.values
         H, q, p, found = _expression(v["disc_mass"], v["disc_a"], v["disc_b"], v["bulge_mass"],

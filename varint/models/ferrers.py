@@ -11,25 +11,29 @@ is, with X_i = x_i² and α_i = a_i² + λ,
     W_{ij…}(λ) = ∫_λ^∞ du / (Δ(u) α_i(u) α_j(u) …),   Δ = (α_1 α_2 α_3)^{1/2},
 
 K = π G abc ρ_c / 3 = 35 G M / 32, λ = 0 inside the bar and the positive
-root of Σ X_i/α_i = 1 outside. Because the bracket (1 − m²)³ of the
+root of Σ X_i/α_i = 1 outside (Newton's method on its reciprocal,
+:func:`ferrers_lambda`). Because the bracket (1 − m²)³ of the
 integrand vanishes to third order at u = λ, the first three derivatives of
 Φ are those of the polynomial in X with the W held fixed.
 
 The W come from Carlson's symmetric integrals (W = 2R_F(α_1, α_2, α_3),
-W_i = (2/3) R_D(α_j, α_k, α_i), with Σ_i W_i = 2/Δ; Carlson 1995, eq. 2.43),
-the others from the partial-fraction
+W_i = (2/3) R_D(α_j, α_k, α_i), with Σ_i W_i = 2/Δ; Carlson 1995, eq. 2.43;
+the three from one sequence of duplications, :func:`carlson_rf_rd`), the
+others from the partial-fraction
 identities W_ij = (W_i − W_j)/(α_j − α_i), W_ijk = (W_ij − W_ik)/(α_k − α_j)
 and the diagonal ones (2m + 1) W_{i^{m+1}} + Σ_{j≠i} W_{i^m j} =
 2/(Δ α_i^m) (integration by parts of d/du [1/(Δ α_i^m)]). Far from the bar
-the partial fractions lose digits, (λ/(b² − c²))² ε in W_ijk: Φ and its
-derivatives are good to ~1e-12 at 25 scale lengths (tested against
-quadrature of the defining integrals), to round-off inside the bar.
+the partial fractions lose digits, (λ/(b² − c²))² ε in W_ijk, and the
+bracket's terms cancel: against 40-digit values, D²Φ of the default bar
+(a, b, c = 6, 1.5, 0.6) is good to ~1e-12 of its largest entry at four
+times the axes, 4e-10 at r = 25 and 1e-7 at r = 100; to round-off inside
+the bar.
 
 At fixed W the bracket and its derivatives in X are polynomials of degree
-3, 2 and 1: their coefficients, summed once per distinct monomial of the
-symmetric W and scaled by Φ's factors, are tabled once per bar for the
-inside (λ = 0) and per point outside (:func:`_coefficients`), and
-evaluated nested by the first index (Horner's rule in several variables).
+3, 2 and 1 in the 20 distinct W, evaluated through u_ij = Σ_k X_k W_ijk
+(:func:`_evaluate`): from a table of K·W made once per bar inside
+(λ = 0, :func:`inside_table`), from the W at λ made per point, as scalars,
+outside (:func:`ferrers_w`).
 
 References
 ----------
@@ -47,54 +51,33 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["carlson_rf", "carlson_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
+__all__ = ["carlson_rf_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
            "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "ferrers_add_potential",
-           "inside_table", "FERRERS_K", "TABLE_SIZE"]
+           "inside_table", "FERRERS_K", "W_ORDER"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
 FERRERS_K = 35.0 / 32.0
 
 
 @njit(cache=True, error_model="numpy")
-def carlson_rf(x, y, z):
-    """Carlson's R_F(x, y, z) = ½ ∫_0^∞ dt / √((t+x)(t+y)(t+z)), x, y, z ≥ 0
-    (at most one zero), by duplication until the arguments agree to 0.25 %
-    (relative error of the fifth-order series ~1e-16; Press et al. 2007,
-    Sect. 6.12)."""
-    for _ in range(100):
-        sx, sy, sz = math.sqrt(x), math.sqrt(y), math.sqrt(z)
-        lam = sx * (sy + sz) + sy * sz
-        x = 0.25 * (x + lam)
-        y = 0.25 * (y + lam)
-        z = 0.25 * (z + lam)
-        ave = (x + y + z) / 3.0
-        dx, dy, dz = (ave - x) / ave, (ave - y) / ave, (ave - z) / ave
-        if max(abs(dx), abs(dy), abs(dz)) < 0.0025:
-            break
+def _rf_series(x, y, z):
+    """R_F(x, y, z) from arguments that agree to 0.25 %: Carlson's
+    fifth-order series about their mean (relative error ~1e-16; Press et
+    al. 2007, Sect. 6.12)."""
+    ave = (x + y + z) / 3.0
+    dx, dy, dz = (ave - x) / ave, (ave - y) / ave, (ave - z) / ave
     e2 = dx * dy - dz * dz
     e3 = dx * dy * dz
     return (1.0 + (e2 / 24.0 - 0.1 - 3.0 * e3 / 44.0) * e2 + e3 / 14.0) / math.sqrt(ave)
 
 
 @njit(cache=True, error_model="numpy")
-def carlson_rd(x, y, z):
-    """Carlson's R_D(x, y, z) = (3/2) ∫_0^∞ dt / (√((t+x)(t+y)) (t+z)^{3/2}),
-    by duplication until the arguments agree to 0.15 % (relative error
-    ~1e-16)."""
-    total = 0.0
-    fac = 1.0
-    for _ in range(100):
-        sx, sy, sz = math.sqrt(x), math.sqrt(y), math.sqrt(z)
-        lam = sx * (sy + sz) + sy * sz
-        total += fac / (sz * (z + lam))
-        fac *= 0.25
-        x = 0.25 * (x + lam)
-        y = 0.25 * (y + lam)
-        z = 0.25 * (z + lam)
-        ave = 0.2 * (x + y + 3.0 * z)
-        dx, dy, dz = (ave - x) / ave, (ave - y) / ave, (ave - z) / ave
-        if max(abs(dx), abs(dy), abs(dz)) < 0.0015:
-            break
+def _rd_series(x, y, z):
+    """R_D(x, y, z) from arguments that agree to 0.15 %: Carlson's series
+    about their weighted mean (x + y + 3z)/5 (relative error ~1e-16; Press
+    et al. 2007, Sect. 6.12)."""
+    ave = 0.2 * (x + y + 3.0 * z)
+    dx, dy, dz = (ave - x) / ave, (ave - y) / ave, (ave - z) / ave
     ea = dx * dy
     eb = dz * dz
     ec = ea - eb
@@ -102,9 +85,39 @@ def carlson_rd(x, y, z):
     ee = ed + ec + ec
     c1, c2, c3, c4 = 3.0 / 14.0, 1.0 / 6.0, 9.0 / 22.0, 3.0 / 26.0
     c5, c6 = 0.25 * c3, 1.5 * c4
-    return 3.0 * total + fac * (1.0 + ed * (-c1 + c5 * ed - c6 * dz * ee)
-                                + dz * (c2 * ee + dz * (-c3 * ec + dz * c4 * ea))) \
-        / (ave * math.sqrt(ave))
+    return (1.0 + ed * (-c1 + c5 * ed - c6 * dz * ee)
+            + dz * (c2 * ee + dz * (-c3 * ec + dz * c4 * ea))) / (ave * math.sqrt(ave))
+
+
+@njit(cache=True, error_model="numpy")
+def carlson_rf_rd(x, y, z):
+    """Carlson's R_F(x, y, z) = ½ ∫_0^∞ dt / √((t+x)(t+y)(t+z)) and the two
+    R_D(y, z, x), R_D(z, x, y), R_D(x, y, z) = (3/2) ∫_0^∞ dt /
+    (√((t+x)(t+y)) (t+z)^{3/2}), for x, y, z > 0, returned in that order.
+
+    The duplication theorem maps the three arguments alike whichever
+    integral is wanted (x ← (x + μ)/4 with μ = √x√y + √y√z + √z√x; Carlson
+    1995, Sect. 2), so one sequence of duplications serves all
+    three: R_D gathers the terms 3·4^{-m}/(√z_m (z_m + μ_m)) of its own
+    third argument on the way (two sums here), and each integral ends with
+    its series (:func:`_rf_series`, :func:`_rd_series`) once the arguments
+    agree to 0.15 % of the smallest (R_D's tolerance, tighter than R_F's)."""
+    sum_x = 0.0
+    sum_y = 0.0
+    fac = 1.0
+    for _ in range(100):
+        sx, sy, sz = math.sqrt(x), math.sqrt(y), math.sqrt(z)
+        mu = sx * (sy + sz) + sy * sz
+        sum_x += fac / (sx * (x + mu))
+        sum_y += fac / (sy * (y + mu))
+        fac *= 0.25
+        x = 0.25 * (x + mu)
+        y = 0.25 * (y + mu)
+        z = 0.25 * (z + mu)
+        if max(x, y, z) - min(x, y, z) <= 0.0015 * min(x, y, z):
+            break
+    return (_rf_series(x, y, z), 3.0 * sum_x + fac * _rd_series(y, z, x),
+            3.0 * sum_y + fac * _rd_series(z, x, y))
 
 
 @njit(cache=True, error_model="numpy")
@@ -114,20 +127,17 @@ def _lambda(X0, X1, X2, axes2):
     if X0 / axes2[0] + X1 / axes2[1] + X2 / axes2[2] <= 1.0:
         return 0.0
     lam = max(0.0, X0 + X1 + X2 - axes2[0])
-    for _ in range(200):
-        # The terms in the order of the loop over i this unrolls (bits kept).
-        inv = 1.0 / (axes2[0] + lam)
-        f = -1.0 + X0 * inv
-        df = 0.0 - X0 * inv * inv
-        inv = 1.0 / (axes2[1] + lam)
-        f += X1 * inv
-        df -= X1 * inv * inv
-        inv = 1.0 / (axes2[2] + lam)
-        f += X2 * inv
-        df -= X2 * inv * inv
-        step = f / df
-        lam -= step
-        if abs(step) <= 4e-16 * lam:
+    for _ in range(100):
+        i0 = 1.0 / (axes2[0] + lam)
+        i1 = 1.0 / (axes2[1] + lam)
+        i2 = 1.0 / (axes2[2] + lam)
+        s = X0 * i0 + X1 * i1 + X2 * i2
+        # Newton's step on 1/S − 1 is S times the one on S − 1.
+        step = s * (s - 1.0) / (X0 * i0 * i0 + X1 * i1 * i1 + X2 * i2 * i2)
+        lam += step
+        # Quadratic convergence, its constant ~1/(c² + λ): after a step of
+        # 1e-9 (c² + λ) the error is below round-off.
+        if step <= 1e-9 * (axes2[2] + lam):
             break
     return lam
 
@@ -135,172 +145,139 @@ def _lambda(X0, X1, X2, axes2):
 @njit(cache=True, error_model="numpy")
 def ferrers_lambda(X, axes2):
     """λ: 0 inside the ellipsoid (Σ X_i/a_i² ≤ 1), else the root of
-    Σ X_i/(a_i² + λ) = 1, by Newton's method from below (f is convex and
-    decreasing, so its iterates rise monotonically to the root)."""
+    S(λ) = Σ X_i/(a_i² + λ) = 1, by Newton's method on 1/S − 1 from
+    max(0, Σ X_i − a²) below the root. 1/S is increasing and concave (the
+    reciprocal of a sum of reciprocals of positive affine functions of λ),
+    so the iterates rise monotonically to the root, and nearly linear (exact
+    for one nonzero X_i): 2–7 iterations, stopped once a step is below
+    1e-9 (c² + λ). (The Newton's method on S − 1 this replaces stopped at
+    a step of 4e-16 λ, below the rounding of S for small λ: just outside
+    the surface it ran to its cap of 200 iterations, 55 on average over
+    the chaotic named orbit's positions outside the bar.)"""
     return _lambda(X[0], X[1], X[2], axes2)
 
 
 @njit(cache=True, error_model="numpy")
-def ferrers_w(lam, axes2, W1, W2, W3):
-    """W (returned) and W_i, W_ij, W_ijk (written to W1 (3,), W2 (3, 3),
-    W3 (3, 3, 3), symmetric) at λ for semi-axes² ``axes2`` (module
-    docstring)."""
-    al = (axes2[0] + lam, axes2[1] + lam, axes2[2] + lam)
-    delta = math.sqrt(al[0] * al[1] * al[2])
-    W0 = 2.0 * carlson_rf(al[0], al[1], al[2])
-    W1[0] = 2.0 / 3.0 * carlson_rd(al[1], al[2], al[0])
-    W1[1] = 2.0 / 3.0 * carlson_rd(al[2], al[0], al[1])
+def ferrers_w(lam, axes2):
+    """The index symbols at λ for semi-axes² ``axes2``, their 20 distinct
+    values as a tuple (:data:`W_ORDER`): W, W_i, W_ij (i ≤ j) and W_ijk
+    (i ≤ j ≤ k), each in lexicographic order (module docstring).
+
+    Scalars rather than arrays: outside the bar they are made at every
+    evaluation, and three arrays' allocation and views cost as much as
+    the arithmetic that fills them."""
+    a0, a1, a2 = axes2[0], axes2[1], axes2[2]
+    al0, al1, al2 = a0 + lam, a1 + lam, a2 + lam
+    delta = math.sqrt(al0 * al1 * al2)
+    rf, rd0, rd1 = carlson_rf_rd(al0, al1, al2)
+    w = 2.0 * rf
+    w0 = 2.0 / 3.0 * rd0
+    w1 = 2.0 / 3.0 * rd1
     # Σ_i R_D(α_j, α_k, α_i) = 3/Δ: the third, the largest (its α_3 is the
     # smallest), from the other two without cancellation.
-    W1[2] = 2.0 / delta - W1[0] - W1[1]
-    for i in range(3):
-        for j in range(3):
-            if i != j:
-                W2[i, j] = (W1[i] - W1[j]) / (axes2[j] - axes2[i])
-    for i in range(3):
-        acc = 0.0
-        for j in range(3):
-            if j != i:
-                acc += W2[i, j]
-        W2[i, i] = (2.0 / (delta * al[i]) - acc) / 3.0
-    for i in range(3):
-        for j in range(3):
-            if j != i:
-                # W_iij, in every order of its indices.
-                v = (W2[i, i] - W2[i, j]) / (axes2[j] - axes2[i])
-                W3[i, i, j] = W3[i, j, i] = W3[j, i, i] = v
-    v = (W2[0, 1] - W2[0, 2]) / (axes2[2] - axes2[1])
-    W3[0, 1, 2] = W3[0, 2, 1] = W3[1, 0, 2] = W3[1, 2, 0] = W3[2, 0, 1] = W3[2, 1, 0] = v
-    for i in range(3):
-        acc = 0.0
-        for j in range(3):
-            if j != i:
-                acc += W3[i, i, j]
-        W3[i, i, i] = (2.0 / (delta * al[i] * al[i]) - acc) / 5.0
-    return W0
+    w2 = 2.0 / delta - w0 - w1
+    w01 = (w0 - w1) / (a1 - a0)
+    w02 = (w0 - w2) / (a2 - a0)
+    w12 = (w1 - w2) / (a2 - a1)
+    w00 = (2.0 / (delta * al0) - (w01 + w02)) / 3.0
+    w11 = (2.0 / (delta * al1) - (w01 + w12)) / 3.0
+    w22 = (2.0 / (delta * al2) - (w02 + w12)) / 3.0
+    w001 = (w00 - w01) / (a1 - a0)
+    w002 = (w00 - w02) / (a2 - a0)
+    w011 = (w11 - w01) / (a0 - a1)
+    w112 = (w11 - w12) / (a2 - a1)
+    w022 = (w22 - w02) / (a0 - a2)
+    w122 = (w22 - w12) / (a1 - a2)
+    w012 = (w01 - w02) / (a2 - a1)
+    w000 = (2.0 / (delta * al0 * al0) - (w001 + w002)) / 5.0
+    w111 = (2.0 / (delta * al1 * al1) - (w011 + w112)) / 5.0
+    w222 = (2.0 / (delta * al2 * al2) - (w022 + w122)) / 5.0
+    return (w, w0, w1, w2, w00, w01, w02, w11, w12, w22,
+            w000, w001, w002, w011, w012, w022, w111, w112, w122, w222)
 
 
-#: The length of a table of coefficients (:func:`_coefficients`).
-TABLE_SIZE = 74
+#: The index symbols of :func:`ferrers_w` in the order it returns them.
+W_ORDER = ("", "0", "1", "2", "00", "01", "02", "11", "12", "22", "000", "001", "002", "011",
+           "012", "022", "111", "112", "122", "222")
 
 
 def inside_table(axes2, gm):
-    """The coefficients of :func:`_coefficients` at λ = 0 for a bar of mass
-    G·M = ``gm``, (74,): constants everywhere inside the bar
-    (:func:`ferrers_grad_hess`), made once per bar."""
-    W1, W2, W3 = np.empty(3), np.empty((3, 3)), np.empty((3, 3, 3))
-    W0 = ferrers_w(0.0, np.asarray(axes2, dtype=np.float64), W1, W2, W3)
-    C = np.empty(TABLE_SIZE)
-    _coefficients(W0, W1, W2, W3, FERRERS_K * float(gm), C)
-    return C
+    """The bar's constants inside, made once per bar, (23,): K·W of
+    :func:`ferrers_w` at λ = 0 (20; K = (35/32) G·M for the mass G·M =
+    ``gm``), constant everywhere inside the bar (:func:`ferrers_grad_hess`),
+    then 1/a_i² (3), so that m² < 1 is told by multiplications."""
+    a2 = np.asarray(axes2, dtype=np.float64)
+    return np.concatenate([FERRERS_K * float(gm) * np.array(ferrers_w(0.0, a2)), 1.0 / a2])
 
 
-@njit(cache=True, error_model="numpy")
-def _coefficients(W0, W1, W2, W3, K, C):
-    """The bracket F(X) = W − 3ΣX_iW_i + 3ΣX_iX_jW_ij − ΣX_iX_jX_kW_ijk
-    and its derivatives in X at fixed W as polynomials in X = (x², y², z²),
-    with the factors of Φ = −K F(x²) folded in (∂_iΦ = x_i P_i,
-    ∂_ijΦ = x_i x_j Q_ij + δ_ij P_i), written to ``C`` (74,):
+@njit(cache=True, error_model="numpy", inline="always")
+def _evaluate(q, X0, X1, X2, W, K, g, D, hessian, potential):
+    """Φ (returned if ``potential``, else 0) at q, X = q², from the index
+    symbols W[:20] (:func:`ferrers_w`, scaled by any factor K' with K K'
+    the bar's K), its gradient added to ``g`` and, if ``hessian``, its
+    Hessian to ``D``.
 
-    * C[0:20]  Φ = −K F, cubic: the constant, X_i, X_jX_k (j ≤ k) and
-      X_iX_jX_k (i ≤ j ≤ k), each in lexicographic order;
-    * C[20:50] P_i = −2K F_i, quadratic, 10 per i (the constant, X_j,
-      X_jX_k with j ≤ k), F_i = −3W_i + 6Σ_j X_jW_ij − 3Σ_jk X_jX_kW_ijk;
-    * C[50:74] Q_ij = −4K F_ij, linear, 4 per pair i ≤ j (00, 01, 02, 11,
-      12, 22), F_ij = 6W_ij − 6Σ_k X_kW_ijk.
-
-    A symmetric W's terms are summed once per distinct monomial, with its
-    count of index orders (1, 2; 1, 3, 6): 20 + 30 + 24 multiply-adds per
-    evaluation where the index loops take 3 × 27."""
-    C[0] = -K * W0
-    for i in range(3):
-        C[1 + i] = 3.0 * K * W1[i]
-    o = 4
-    for j in range(3):
-        for k in range(j, 3):
-            C[o] = -3.0 * K * W2[j, k] * (1.0 if j == k else 2.0)
-            o += 1
-    for i in range(3):
-        for j in range(i, 3):
-            for k in range(j, 3):
-                orders = 1.0 if i == k else (6.0 if i != j and j != k else 3.0)
-                C[o] = K * W3[i, j, k] * orders
-                o += 1
-    for i in range(3):
-        o = 20 + 10 * i
-        C[o] = 6.0 * K * W1[i]
-        for j in range(3):
-            C[o + 1 + j] = -12.0 * K * W2[i, j]
-        o += 4
-        for j in range(3):
-            for k in range(j, 3):
-                C[o] = 6.0 * K * W3[i, j, k] * (1.0 if j == k else 2.0)
-                o += 1
-    o = 50
-    for i in range(3):
-        for j in range(i, 3):
-            C[o] = -24.0 * K * W2[i, j]
-            for k in range(3):
-                C[o + 1 + k] = 24.0 * K * W3[i, j, k]
-            o += 4
-
-
-@njit(cache=True, error_model="numpy")
-def _quadratic(C, o, X0, X1, X2):
-    """The quadratic C[o] + ΣC[o+1+j]X_j + Σ_{j≤k}C[o+4+·]X_jX_k, nested
-    by the first index (9 multiply-adds)."""
-    return (C[o] + X0 * (C[o + 1] + X0 * C[o + 4] + X1 * C[o + 5] + X2 * C[o + 6])
-            + X1 * (C[o + 2] + X1 * C[o + 7] + X2 * C[o + 8]) + X2 * (C[o + 3] + X2 * C[o + 9]))
-
-
-@njit(cache=True, error_model="numpy")
-def _apply(q, X0, X1, X2, C, g, D, hessian, potential):
-    """Φ (returned if ``potential``, else 0) from the table ``C``
-    (:func:`_coefficients`), its gradient x_i P_i added to ``g`` and, if
-    ``hessian``, its Hessian x_i x_j Q_ij + δ_ij P_i to ``D``. (Loops over
-    i and j rather than each entry written out: the same operations, and
-    a third of the code for numba to type and lower per compile.)"""
-    P = (_quadratic(C, 20, X0, X1, X2), _quadratic(C, 30, X0, X1, X2),
-         _quadratic(C, 40, X0, X1, X2))
-    for i in range(3):
-        g[i] += q[i] * P[i]
+    With u_ij = Σ_k X_k W_ijk (18 multiply-adds) the bracket's
+    derivatives in X at fixed W (module docstring) are F_ij = 6(W_ij −
+    u_ij), F_i = −3W_i + 3Σ_j X_j (2W_ij − u_ij) and the bracket F = W −
+    Σ_i X_i (3W_i − Σ_j X_j (3W_ij − u_ij)); Φ = −K F, ∂_iΦ = x_i P_i and
+    ∂_ijΦ = x_i x_j Q_ij + δ_ij P_i with P_i = −2K F_i, Q_ij = −4K F_ij."""
+    u00 = X0 * W[10] + X1 * W[11] + X2 * W[12]
+    u01 = X0 * W[11] + X1 * W[13] + X2 * W[14]
+    u02 = X0 * W[12] + X1 * W[14] + X2 * W[15]
+    u11 = X0 * W[13] + X1 * W[16] + X2 * W[17]
+    u12 = X0 * W[14] + X1 * W[17] + X2 * W[18]
+    u22 = X0 * W[15] + X1 * W[18] + X2 * W[19]
+    v00, v01, v02 = 2.0 * W[4] - u00, 2.0 * W[5] - u01, 2.0 * W[6] - u02
+    v11, v12, v22 = 2.0 * W[7] - u11, 2.0 * W[8] - u12, 2.0 * W[9] - u22
+    k6 = 6.0 * K
+    P0 = k6 * (W[1] - (X0 * v00 + X1 * v01 + X2 * v02))
+    P1 = k6 * (W[2] - (X0 * v01 + X1 * v11 + X2 * v12))
+    P2 = k6 * (W[3] - (X0 * v02 + X1 * v12 + X2 * v22))
+    g[0] += q[0] * P0
+    g[1] += q[1] * P1
+    g[2] += q[2] * P2
     if hessian:
-        o = 50
-        for i in range(3):
-            for j in range(i, 3):
-                v = q[i] * q[j] * (C[o] + X0 * C[o + 1] + X1 * C[o + 2] + X2 * C[o + 3])
-                if i == j:
-                    D[i, i] += v + P[i]
-                else:
-                    D[i, j] += v
-                    D[j, i] += v
-                o += 4
+        k24 = -24.0 * K
+        D[0, 0] += X0 * (k24 * (W[4] - u00)) + P0
+        D[1, 1] += X1 * (k24 * (W[7] - u11)) + P1
+        D[2, 2] += X2 * (k24 * (W[9] - u22)) + P2
+        v = q[0] * q[1] * (k24 * (W[5] - u01))
+        D[0, 1] += v
+        D[1, 0] += v
+        v = q[0] * q[2] * (k24 * (W[6] - u02))
+        D[0, 2] += v
+        D[2, 0] += v
+        v = q[1] * q[2] * (k24 * (W[8] - u12))
+        D[1, 2] += v
+        D[2, 1] += v
     if not potential:
         return 0.0
-    return (C[0] + X0 * (C[1] + X0 * (C[4] + X0 * C[10] + X1 * C[11] + X2 * C[12])
-                         + X1 * (C[5] + X1 * C[13] + X2 * C[14]) + X2 * (C[6] + X2 * C[15]))
-            + X1 * (C[2] + X1 * (C[7] + X1 * C[16] + X2 * C[17]) + X2 * (C[8] + X2 * C[18]))
-            + X2 * (C[3] + X2 * (C[9] + X2 * C[19])))
+    t0 = X0 * (3.0 * W[4] - u00) + X1 * (3.0 * W[5] - u01) + X2 * (3.0 * W[6] - u02)
+    t1 = X0 * (3.0 * W[5] - u01) + X1 * (3.0 * W[7] - u11) + X2 * (3.0 * W[8] - u12)
+    t2 = X0 * (3.0 * W[6] - u02) + X1 * (3.0 * W[8] - u12) + X2 * (3.0 * W[9] - u22)
+    return -K * (W[0] - (X0 * (3.0 * W[1] - t0) + X1 * (3.0 * W[2] - t1)
+                         + X2 * (3.0 * W[3] - t2)))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
     """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
-    ``potential``. Inlined into its three callers by numba (a call passing
-    four arrays costs about as much as the polynomials inside the bar); its
-    callees stay calls (inlining them too nearly doubled the kernels'
-    compile time)."""
+    ``potential``. Inlined into its three callers by numba, with
+    :func:`_evaluate` (a call passing four arrays costs about as much as
+    the polynomials inside the bar: 34 → 28 ns a kick inside, the first
+    call's compile unchanged at 9.1 s CPU); λ and the W stay calls
+    (inlining them too nearly doubled the kernels' compile time). On the
+    surface the test m² > 1 by 1/a_i² and :func:`_lambda`'s by a_i² may
+    disagree at round-off, where the inside table and the W at λ ≈ 0
+    agree."""
     X0, X1, X2 = q[0] * q[0], q[1] * q[1], q[2] * q[2]
-    lam = _lambda(X0, X1, X2, axes2)
-    if lam == 0.0:
-        return _apply(q, X0, X1, X2, inside, g, D, hessian, potential)
-    # Outside the W depend on λ: their table, then its polynomials, here.
-    W = np.empty(40 + TABLE_SIZE)
-    W0 = ferrers_w(lam, axes2, W[1:4], W[4:13].reshape((3, 3)), W[13:40].reshape((3, 3, 3)))
-    C = W[40:]
-    _coefficients(W0, W[1:4], W[4:13].reshape((3, 3)), W[13:40].reshape((3, 3, 3)),
-                  FERRERS_K * gm, C)
-    return _apply(q, X0, X1, X2, C, g, D, hessian, potential)
+    if X0 * inside[20] + X1 * inside[21] + X2 * inside[22] > 1.0:
+        lam = _lambda(X0, X1, X2, axes2)
+        if lam > 0.0:
+            return _evaluate(q, X0, X1, X2, ferrers_w(lam, axes2), FERRERS_K * gm, g, D,
+                             hessian, potential)
+    return _evaluate(q, X0, X1, X2, inside, 1.0, g, D, hessian, potential)
 
 
 @njit(cache=True, error_model="numpy")
@@ -309,9 +286,9 @@ def ferrers_grad_hess(q, axes2, gm, g, D, hessian, inside):
     position ``q`` (3,), its gradient added to ``g`` (3,) and, if
     ``hessian``, its Hessian added to ``D`` (at least 3 × 3, top-left).
     ``inside`` is :func:`inside_table` of these axes and ``gm``: inside the
-    bar λ = 0 and Φ, its gradient and Hessian are polynomials in x² with
-    these constant coefficients, so no elliptic integral is evaluated
-    there, and nothing is allocated."""
+    bar λ = 0 and Φ, its gradient and Hessian are polynomials in x² of
+    these constants, so no elliptic integral is evaluated there. Nothing
+    is allocated, inside or outside."""
     return _derivatives(q, axes2, gm, g, D, hessian, inside, True)
 
 
