@@ -51,7 +51,7 @@ def digest(r):
         if f.name == "provenance":
             d = {g.name: getattr(v, g.name) for g in dataclasses.fields(v)
                  if g.name not in CLOCK}
-            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source")}
+            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source", "modified")}
             d["machine"] = {k: c for k, c in d["machine"].items() if k != "load"}
             h.update(json.dumps(d, sort_keys=True, default=repr).encode())
             continue
