@@ -32,8 +32,8 @@ directory first on ``sys.path``):
 and the SHA-256 of the defaults', the given τ's and the t = 1 call's
 results: every array, the accuracy verdict and the provenance but its
 clock (wall and CPU time, timing, creation time, the machine's load) and
-the code's commit and source digest (``sha256_*``): the two codes must
-agree bitwise.
+the code's commit, source digest and "modified" flag (``sha256_*``): the
+two codes must agree bitwise.
 
 Usage::
 
