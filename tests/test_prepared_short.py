@@ -350,3 +350,15 @@ def test_taos_method_has_no_short_path():
     tao = GeneralPropagator(model, 0.1, "qr", scheme="TAO4")
     gauss = GeneralPropagator(model, 0.1, "qr")
     assert not tao.runs_fresh(1, 4) and gauss.runs_fresh(1, 4)
+
+
+def test_a_lattices_short_calls_are_the_one_shot_calls(general):
+    # The lattices run by the part stepper take its short path too.
+    model = varint.models.DisorderedKG(8, seed=1)
+    x0 = model.initial_block(width=2, seed=1)
+    run = varint.prepare(model, "lyapunov", 1.0, tau=0.1, n_exponents=2, t_out=[0.5, 1.0])
+    run(x0)
+    for x in _states(x0, 2):
+        _same(run(x), _one_shot(model, x, "lyapunov", 1.0, 0.1, n_exponents=2,
+                                t_out=[0.5, 1.0]))
+    assert run._again.short is not None and len(general) == 0
