@@ -3,7 +3,8 @@ same calls in a worker per code (a new interpreter with empty varint and
 numba caches, the code's directory first on ``sys.path``), the SHA-256 of
 each result's arrays, accuracy verdict and provenance but its clock (wall
 and CPU time, timing, creation time, the machine's load) and the code's
-commit and source digest, as ``studies/short_run_cost.py`` hashes them.
+commit, source digest and "modified" flag, as ``studies/short_run_cost.py``
+hashes them.
 
 Cases (:data:`WORKER`): the held-out general models of
 :mod:`studies.general_h_heldout` ("angular coupling", "position-dependent
@@ -51,7 +52,7 @@ def digest(r):
         if f.name == "provenance":
             d = {g.name: getattr(v, g.name) for g in dataclasses.fields(v)
                  if g.name not in CLOCK}
-            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source")}
+            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source", "modified")}
             d["machine"] = {k: c for k, c in d["machine"].items() if k != "load"}
             h.update(json.dumps(d, sort_keys=True, default=repr).encode())
             continue

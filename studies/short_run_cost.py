@@ -32,8 +32,8 @@ directory first on ``sys.path``):
 and the SHA-256 of the defaults', the given τ's and the t = 1 call's
 results: every array, the accuracy verdict and the provenance but its
 clock (wall and CPU time, timing, creation time, the machine's load) and
-the code's commit and source digest (``sha256_*``): the two codes must
-agree bitwise.
+the code's commit, source digest and "modified" flag (``sha256_*``): the
+two codes must agree bitwise.
 
 Usage::
 
@@ -115,7 +115,7 @@ def digest(r):
         if f.name == "provenance":
             d = {g.name: getattr(v, g.name) for g in dataclasses.fields(v)
                  if g.name not in CLOCK}
-            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source")}
+            d["code"] = {k: c for k, c in d["code"].items() if k not in ("commit", "source", "modified")}
             d["machine"] = {k: c for k, c in d["machine"].items() if k != "load"}
             h.update(json.dumps(d, sort_keys=True, default=repr).encode())
             continue

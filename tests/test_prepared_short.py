@@ -11,9 +11,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import varint
 from varint import accuracy
+from varint.methods.general import GeneralPropagator
+from varint.models import from_hamiltonian
 from varint.rerun import ShortCall
 from varint.protocol import Status
 from varint.run import Run
@@ -297,3 +300,65 @@ def test_a_short_call_measures_v_compiled_only_where_it_is_the_models_own(genera
         assert short is not None and (short.potential_kernel is not None) == compiled
         _same(run(x), _one_shot(m, x, "integrate", 0.2, 0.05))
     assert not general
+
+
+def _general_h():
+    """A general H(q, p) (Gauss–Legendre on the part stepper by default):
+    the held-out "angular coupling" of test_remembered's symbolic models."""
+    q1, q2, p1, p2 = sp.symbols("q1 q2 p1 p2")
+    hh = (q1 ** 2 + q2 ** 2) / 2 + q1 ** 2 * q2 - q2 ** 3 / 3
+    H = (p1 ** 2 + p2 ** 2) / 2 + hh + sp.Rational(1, 10) * (q1 * p2 - q2 * p1) ** 2
+    return from_hamiltonian(H, (q1, q2), (p1, p2)), np.array([0.1, 0.05, 0.2, 0.25])
+
+
+@pytest.mark.parametrize("t_end, t_out", [(0.1, None), (1.0, [0.3, 1.0]), (8.0, 9)])
+def test_the_part_steppers_short_calls_are_the_one_shot_calls(t_end, t_out, general):
+    # One step, two outputs, nine outputs over 80 steps (the driver's
+    # chunks against one stepper call per output): the short path of the
+    # part stepper (varint.methods.fresh_parts_run) gives the one-shot
+    # call's result, bit for bit, for one orbit and for two.
+    model, x0 = _general_h()
+    for states in (_states(x0, 3), _states(x0, 4).reshape(2, 2, 4)):
+        run = varint.prepare(model, "lyapunov", t_end, tau=0.1, t_out=t_out)
+        run(states[0])
+        for x in states[1:]:
+            _same(run(x), _one_shot(model, x, "lyapunov", t_end, 0.1, t_out=t_out))
+        assert run._again.short is not None
+    assert len(general) == 0
+
+
+def test_a_failing_orbit_of_the_part_stepper_takes_the_general_path(general):
+    model, x0 = _general_h()
+    run = varint.prepare(model, "lyapunov", 1.0, tau=0.1, escape_radius=1.0, errors="flag")
+    run(x0)
+    far = np.array([0.9, 0.3, 0.5, 0.4])
+    with pytest.warns(RuntimeWarning, match="1 of 1 orbits failed"):
+        a = run(far)
+    with pytest.warns(RuntimeWarning, match="1 of 1 orbits failed"):
+        b = varint.lyapunov_spectrum(model, far, 1.0, tau=0.1, escape_radius=1.0,
+                                     errors="flag")
+    _same(a, b)
+    assert len(general) == 1
+    _same(run(x0 + 1e-3), _one_shot(model, x0 + 1e-3, "lyapunov", 1.0, 0.1,
+                                     escape_radius=1.0, errors="flag"))
+    assert len(general) == 1
+
+
+def test_taos_method_has_no_short_path():
+    # Its second copy of phase space lives in the run state.
+    model, _ = _general_h()
+    tao = GeneralPropagator(model, 0.1, "qr", scheme="TAO4")
+    gauss = GeneralPropagator(model, 0.1, "qr")
+    assert not tao.runs_fresh(1, 4) and gauss.runs_fresh(1, 4)
+
+
+def test_a_lattices_short_calls_are_the_one_shot_calls(general):
+    # The lattices run by the part stepper take its short path too.
+    model = varint.models.DisorderedKG(8, seed=1)
+    x0 = model.initial_block(width=2, seed=1)
+    run = varint.prepare(model, "lyapunov", 1.0, tau=0.1, n_exponents=2, t_out=[0.5, 1.0])
+    run(x0)
+    for x in _states(x0, 2):
+        _same(run(x), _one_shot(model, x, "lyapunov", 1.0, 0.1, n_exponents=2,
+                                t_out=[0.5, 1.0]))
+    assert run._again.short is not None and len(general) == 0

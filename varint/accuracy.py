@@ -216,8 +216,7 @@ def reference_and_errors(model, x0, x, t=0.0):
     finite at ``x0``.
     """
     if not plain_energy(model):
-        reference = Reference(model, x0)
-        return reference, reference.errors(x, t)
+        return _rows_reference_and_errors(model, x0, x, t)
     m, n = len(x0), model.n_dof
     both = np.concatenate((x0, x))
     with np.errstate(all="ignore"):
@@ -237,6 +236,40 @@ def reference_and_errors(model, x0, x, t=0.0):
         if reps != 1:
             v0, scale = np.tile(v0, reps), np.tile(scale, reps)
         errors = {"energy_error": np.abs(energy[m:] - v0) / scale}
+    return reference, errors
+
+
+def _rows_reference_and_errors(model, x0, x, t):
+    """:func:`reference_and_errors` of a model whose energy is not T + V:
+    from its ``energy_rows`` where it has them (H, and V where its scale
+    is |H − V| + |V|, over the rows of both at once; a
+    :class:`~varint.models.hamiltonian.HamiltonianModel`), by
+    :class:`Reference`'s and :meth:`Reference.errors`' operations on them
+    (H of a time-independent model: ``t`` changes nothing), else by
+    :class:`Reference` itself."""
+    rows = getattr(model, "energy_rows", None)
+    found = None if rows is None else rows(np.concatenate((x0, x)))
+    if found is None:
+        reference = Reference(model, x0)
+        return reference, reference.errors(x, t)
+    energy, potential = found
+    m = len(x0)
+    with np.errstate(all="ignore"):
+        # Reference.__init__'s operations (model.energy_scale's), row by row.
+        h0 = energy[:m]
+        if not np.isfinite(h0).all():
+            Reference(model, x0)    # raises, naming the orbit
+        if potential is None:
+            scale = np.abs(h0)
+        else:
+            v0 = potential[:m]
+            scale = np.abs(h0 - v0) + np.abs(v0)
+        scale = np.where(scale > 0, scale, 1.0)
+        reference = object.__new__(Reference)
+        reference.model = model
+        reference.values = {"energy": h0}
+        reference.scales = {"energy": scale}
+        errors = {"energy_error": _relative(energy[m:], h0, scale, len(x) // m)}
     return reference, errors
 
 

@@ -27,7 +27,6 @@ from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
 from .models.potential_rows import NumPyPowers
-from .protocol import COUNTERS
 from .results import Provenance, _Result
 from .state import renormalized_copy
 
@@ -44,8 +43,10 @@ class ShortCall:
     """A call of a :class:`Rerun` (a prepared run's, or a remembered
     one-shot call's) whose whole run is one compiled call: its
     orbits stepped from their start to the last output by the propagator's
-    :meth:`~varint.methods.tm.TangentMapPropagator.fresh_run` (one thread's
-    buffers kept between calls), every output copied inside it, then
+    :meth:`~varint.methods.tm.TangentMapPropagator.fresh_run` (or the part
+    stepper's, :meth:`~varint.methods.parts.PartsPropagator.fresh_run`, one
+    call per output; one thread's buffers kept between calls), every output
+    copied inside it, then
     recorded, assessed and returned with the minimum of Python; everything
     that does not depend on the states (the vectors, the accumulator's
     start, the schedule's, the provenance's fixed part) made once, from the
@@ -185,8 +186,10 @@ class ShortCall:
     KEEP_BYTES = 1 << 20
 
     def _run(self) -> FreshRun:
-        """This thread's :class:`~varint.methods.fresh_run.FreshRun` (a new
-        one for snapshots over :attr:`KEEP_BYTES`)."""
+        """This thread's :class:`~varint.methods.fresh_run.FreshRun` (or the
+        part stepper's :class:`~varint.methods.fresh_parts_run.FreshPartsRun`,
+        which has its interface; a new one for snapshots over
+        :attr:`KEEP_BYTES`)."""
         run = getattr(self._local, "run", None)
         if run is None:
             run = self.prop.fresh_run(self.m, self.k, self.outs, self.aux0)
@@ -239,7 +242,7 @@ class ShortCall:
         # (No orbit failed: each made every step.)
         counters = (run.counters.tolist()[0] if m == 1
                     else np.add.reduce(run.counters, axis=0).tolist())
-        counts = dict(zip(_COUNT_KEYS, [m * self.steps, *counters], strict=True))
+        counts = dict(zip(run.count_keys, [m * self.steps, *counters], strict=True))
         provenance = Provenance.with_pickled(
             self.fixed, kind=ind.name, x0=(x0[0] if single else x0).tolist(),
             method=first.method, tau=tau, t_end=first.t_end, counts=counts, wall_time=wall,
@@ -377,11 +380,6 @@ class Rerun:
         if short is not None:
             short.timed(result)
         return result
-
-
-#: The keys of a result's ``provenance.counts``, in the general path's
-#: order (:meth:`varint.run.Run.provenance`).
-_COUNT_KEYS = ("steps", *COUNTERS)
 
 
 def _float_vector(a: Any, size: int) -> bool:

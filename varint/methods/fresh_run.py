@@ -74,6 +74,8 @@ class FreshRun:
 
     Attributes
     ----------
+    count_keys : tuple of str
+        The provenance's counts: "steps", then the stepper's counters.
     x, W : ndarray
         The state (M, 2N) and vectors (M, 2N, k) after the last run, kept:
         copy what outlives the next run.
@@ -85,6 +87,10 @@ class FreshRun:
         The last run's status (M,), counters (M, 4) and the vectors'
         stretching (M, k), likewise kept.
     """
+
+    #: The keys of a result's ``provenance.counts``, in the general path's
+    #: order (:meth:`varint.run.Run.provenance`).
+    count_keys = ("steps", *COUNTERS)
 
     def __init__(self, kernel, setup, call, outs, shape, aux0, accumulator, renormalized,
                  compensated):

@@ -25,6 +25,7 @@ from ..kernels import parts as K
 from ..kernels.interval import Call, no_accumulator, use_parallel
 from ..protocol import REASONS, STATUS_OK, Renorm, Status
 from ..schemes import CORRECTOR, CompositionScheme, part_stages, scheme_word
+from .fresh_parts_run import FreshPartsRun
 from .options import method_options
 
 __all__ = ["PartsPropagator", "parts_steps", "runs_parts", "generated_rotating"]
@@ -109,6 +110,9 @@ class PartsPropagator:
 
     method = "tm"
     OPTIONS = ("scheme", "parallel")
+    #: The vectors are renormalised at every step, never held raw between
+    #: renormalisations (:class:`varint.rerun.ShortCall` reads it).
+    sparse = 0
 
     def __init__(self, model, tau, renorm, accumulator=None, **options):
         opts = method_options(self.method, options, self.OPTIONS)
@@ -145,6 +149,41 @@ class PartsPropagator:
         method, builds no part tables)."""
         return hasattr(self, "_n_work")
 
+    def runs_fresh(self, m, k):
+        """Whether :meth:`fresh_run` can run ``m`` orbits with ``k`` vectors:
+        wherever the part stepper runs them (not Tao's method of a
+        :class:`~varint.methods.general.GeneralPropagator`, which carries a
+        second copy of phase space in the run state), for an H without time
+        (:class:`varint.rerun.ShortCall` runs no time-dependent model)."""
+        return self.takes_checks() and not self.model.parts.timed
+
+    def fresh_run(self, m, k, outs, aux0):
+        """A :class:`~varint.methods.fresh_parts_run.FreshPartsRun`: orbits
+        started at step 0 advanced to each output step ``outs`` (int64,
+        increasing) by the stepper :meth:`advance` runs, copied there, with
+        one thread's buffers kept between runs (a prepared run's short
+        call, :class:`varint.rerun.ShortCall`); ``aux0`` (M, k, c) is the
+        accumulator's start. Only where :meth:`runs_fresh`."""
+        parts = self.model.parts
+        kernel = self._kernel(m, k)
+        setup = K.CheckedPartsSetup(self._parts, self._h, self._par, self._n_work, _NO_CHECKS)
+        return FreshPartsRun(kernel, setup, self.tau, int(self.renorm), self._escape_r2,
+                             np.asarray(outs, dtype=np.int64), (m, self.model.dim, k), aux0,
+                             None if self.accumulator is None else self.accumulator.key,
+                             ("steps", *self._count_names(parts)))
+
+    def _kernel(self, m, k):
+        """The part stepper of ``m`` orbits with ``k`` vectors (checks
+        compiled in, none asked by a run)."""
+        parts, acc = self.model.parts, self.accumulator
+        update, flow = (no_accumulator, False) if acc is None else (acc.update, acc.needs_flow)
+        return K.parts_batch(parts.applying(np.unique(self._parts)), parts.field, k,
+                             use_parallel(self.parallel, m), update, flow, parts.timed, True)
+
+    @staticmethod
+    def _count_names(parts):
+        return tuple(f"flow_{name}" for name in parts.names)
+
     def advance_checks(self, state, checks):
         """Advance every active orbit of ``state`` to the step ``checks[-1]``
         in one call, copying it at the steps ``checks`` (int64, increasing,
@@ -170,12 +209,8 @@ class PartsPropagator:
         m = state.n_orbits
         parts = self.model.parts
         acc = self.accumulator
-        if acc is None:
-            update, aux, flow = no_accumulator, np.empty((m, 0, 0)), False
-        else:
-            update, aux, flow = acc.update, state.extra[acc.key], acc.needs_flow
-        kernel = K.parts_batch(parts.applying(np.unique(self._parts)), parts.field, state.k,
-                               use_parallel(self.parallel, m), update, flow, parts.timed, True)
+        kernel = self._kernel(m, state.k)
+        aux = np.empty((m, 0, 0)) if acc is None else state.extra[acc.key]
         counters = np.zeros((m, len(parts.names)), dtype=np.int64)
         done = np.zeros(m, dtype=np.int64)
         at = np.zeros((m, 1), dtype=np.int64)
@@ -189,8 +224,7 @@ class PartsPropagator:
                K.CheckedPartsSetup(self._parts, self._h, self._par, self._n_work, checks),
                Call(n, state.step, self.tau, int(self.renorm), self._escape_r2),
                state.status, done)
-        state.after_kernel(n, was_active, done, counters,
-                           tuple(f"flow_{name}" for name in parts.names))
+        state.after_kernel(n, was_active, done, counters, self._count_names(parts))
 
 
 #: The check steps of a run's call (none).
