@@ -177,3 +177,34 @@ def test_a_compiled_written_out_stepper_is_taken_for_any_work():
     written = p._stepper(1)
     fresh = TangentMapPropagator(model, 0.05, Renorm.QR, scheme="ABA864")
     assert fresh._ready(1) and fresh._orbit_stepper(1, 10) is written
+
+
+def test_a_fresh_run_counts_its_work_as_one_orbit_calls_do(monkeypatch):
+    """A prepared run's or a repeated call's runs (FreshRun) take the
+    stepper a one-orbit call of their work would: compact while the
+    model's work with k vectors stays below COMPACT_WORK, written out from
+    the run that reaches it on (then without asking again), with the same
+    bits throughout; written out from the first run where that stepper is
+    compiled."""
+    monkeypatch.setattr(TangentMapPropagator, "COMPACT_WORK", 50)
+    model = HenonHeiles()            # its own count of work
+    p = TangentMapPropagator(model, 0.05, Renorm.NONE, scheme="ABA864", parallel=False)
+    p._readiness[0] = False
+    run = p.fresh_run(1, 0, np.array([10, 20]), np.empty((1, 0, 0)))
+    steppers, states = [], []
+    for _ in range(4):               # 20 orbit-steps each: 20, 40, 60, 80
+        run(X0[None].copy(), np.empty((1, 4, 0)))
+        steppers.append(run._stepper)
+        states.append(np.concatenate([run.x.ravel(), run.snapshots.x.ravel()]))
+    compact, written = p._stepper(0, compact=True), p._stepper(0)
+    assert compact is not written
+    assert steppers == [compact.batch_serial] * 2 + [written.batch_serial] * 2
+    assert run._choose is None
+    assert all(np.array_equal(s, states[0]) for s in states[1:])
+    ready = TangentMapPropagator(model, 0.05, Renorm.NONE, scheme="ABA864", parallel=False)
+    ready._readiness[0] = True
+    again = ready.fresh_run(1, 0, np.array([10, 20]), np.empty((1, 0, 0)))
+    again(X0[None].copy(), np.empty((1, 4, 0)))
+    assert again._stepper is written.batch_serial and again._choose is None
+    assert np.array_equal(np.concatenate([again.x.ravel(), again.snapshots.x.ravel()]),
+                          states[0])

@@ -1,6 +1,7 @@
 """Gauss–Legendre steps for any H(q, p): the tableaux, measured orders
 against the Taylor reference, the tangent map against finite differences
-of the same step, and its symplecticity."""
+of the same step, and its symplecticity; the part stepper's step is this
+step."""
 
 import numpy as np
 import pytest
@@ -9,6 +10,8 @@ from tests.flows.steppers import (coupled_general, finite_difference, gauss_step
                                   symplectic_form, taylor_reference)
 from tests.helpers import fitted_slope
 from varint.flows.gauss import GAUSS, GaussLegendre
+from varint.flows.general import GENERAL_SCHEMES
+from varint.methods.parts import parts_steps
 
 
 @pytest.mark.parametrize("name", sorted(GAUSS))
@@ -50,6 +53,28 @@ def test_measured_order_orbit_and_tangent(name, steps):
     order = GAUSS[name].order
     assert fitted_slope(taus, errors) == pytest.approx(order, abs=0.3)
     assert fitted_slope(taus, tangent_errors) == pytest.approx(order, abs=0.3)
+
+
+@pytest.mark.parametrize("name", sorted(GENERAL_SCHEMES))
+def test_part_stepper_runs_the_same_step(name):
+    """One step through the part stepper (varint.methods.parts, what
+    method="tm" runs on a general H) is the Gauss–Legendre step of
+    varint.flows.gauss from the explicit guess, bit for bit, orbit and
+    tangent map (on two generic vectors: every entry of the tangent map
+    enters both). The part stepper compiles the scheme's step alone
+    (Parts.apply_only): the step another scheme's index selects does
+    nothing there, so a wrong index would leave the state unchanged. Here
+    beside the other tests of gauss_steps, whose compiled loop on this
+    model it shares: in tests/flows/test_general_methods.py, run by the
+    other xdist worker, it compiled that loop a second time (12.6 CPU s
+    cold, studies/results/stop57/suite_profile_stop57.json)."""
+    model = coupled_general()
+    x0 = np.array([0.1, 0.05, 0.2, 0.25])
+    W0 = np.random.default_rng(0).standard_normal((4, 2))
+    x, W = parts_steps(model, x0, W0, 0.1, 1, name)
+    x_ref, W_ref = gauss_steps(model, x0, W0, 0.1, 1, name)
+    assert np.array_equal(x, x_ref)
+    assert np.array_equal(W, W_ref)
 
 
 def test_tangent_is_the_derivative_of_the_step():

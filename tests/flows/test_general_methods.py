@@ -18,14 +18,13 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import varint
-from tests.flows.steppers import coupled_general, gauss_steps, taylor_reference
+from tests.flows.steppers import coupled_general, taylor_reference
 from tests.helpers import fitted_slope
 from varint.flows import general as GEN
 from varint.flows.general import GENERAL_SCHEMES, TAO_SCHEMES
 from varint.flows.tao import tao_stepper, tao_work
 from varint.kernels.closures import closure_key
 from varint.kernels.parts import parts_batch
-from varint.methods.parts import parts_steps
 from varint.models import from_hamiltonian
 from varint.schemes import part_stages
 
@@ -36,22 +35,6 @@ X0 = np.array([0.1, 0.05, 0.2, 0.25])
 # per renormalisation), so the Lyapunov runs, GALI_2 and SALI share one
 # kernel (SALI's own, beside one for k = 2N, was ~20 CPU s cold).
 K = 2
-
-
-@pytest.mark.parametrize("name", sorted(GENERAL_SCHEMES))
-def test_part_stepper_runs_the_same_step(name):
-    """One step through the part stepper is the Gauss–Legendre step of
-    varint.flows.gauss from the explicit guess, bit for bit, orbit and
-    tangent map (on two generic vectors: every entry of the tangent map
-    enters both). The part stepper compiles the scheme's step alone
-    (Parts.apply_only): the step another scheme's index selects does
-    nothing there, so a wrong index would leave the state unchanged."""
-    model = coupled_general()
-    W0 = np.random.default_rng(0).standard_normal((4, K))
-    x, W = parts_steps(model, X0, W0, 0.1, 1, name)
-    x_ref, W_ref = gauss_steps(model, X0, W0, 0.1, 1, name)
-    assert np.array_equal(x, x_ref)
-    assert np.array_equal(W, W_ref)
 
 
 def _order_through_a_run(name, steps):

@@ -48,12 +48,18 @@ class FreshRun:
 
     Parameters
     ----------
-    kernel : numba dispatcher or function
-        The generated stepper's ``batch_serial``, called through its
-        compiled version after the first run
-        (:class:`~varint.kernels.resolved.Resolved`: every run passes the
-        same arrays, made here), or its ``batch_parallel`` (a function that
-        runs ``batch_serial`` on threads, :mod:`varint.threads`).
+    kernel : callable
+        ``kernel() -> (stepper, final)``, asked before each run until it
+        says ``final``, then never again: the stepper function that run
+        takes (a generated stepper's ``batch_serial``, called through its
+        compiled version after its first run,
+        :class:`~varint.kernels.resolved.Resolved`: every run passes the
+        same arrays, made here; or its ``batch_parallel``, a function that
+        runs ``batch_serial`` on threads, :mod:`varint.threads`), and
+        whether every later run takes it too (the compact stepper's runs
+        until the work repays the written-out one's compile,
+        :meth:`varint.methods.tm.TangentMapPropagator.fresh_run`: the same
+        bits).
     setup, call
         The stepper's :class:`~varint.codegen.interval.StepperSetup` and the
         run's :class:`~varint.kernels.interval.Call` (all ``outs[-1]`` steps
@@ -138,7 +144,8 @@ class FreshRun:
         orbit = CompensatedOrbit(*orbit, self._kahan) if compensated else StepperOrbit(*orbit)
         self._args = (orbit, setup, call, Outputs(outs, sx, sW, s_acc_m, s_acc_e, s_aux),
                       self.status, done)
-        self._kernel = Resolved.of(kernel)
+        self._choose = kernel
+        self._stepper = self._kernel = None
         # The reset's buffers (:func:`_reset`), all made here, C-contiguous
         # (the start states a view of the floats' first M·2N).
         self._buffers = (self._floats, self._floats_start, self._ints, self._ints_start,
@@ -174,7 +181,17 @@ class FreshRun:
         self._reset(*self._buffers, x0, W0)
         if self._kahan is not None:
             self._kahan.fill(0.0)
+        if self._choose is not None:
+            self._take(*self._choose())
         self._kernel(*self._args)
+
+    def _take(self, stepper, final):
+        """Run ``stepper`` from this run on (resolved anew where it is
+        another function), and no longer ask which after a ``final`` one."""
+        if stepper is not self._stepper:
+            self._stepper, self._kernel = stepper, Resolved.of(stepper)
+        if final:
+            self._choose = None
 
     def rows(self, renorm):
         """The last run's snapshots as :class:`~varint.state.Rows`, as

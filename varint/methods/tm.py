@@ -239,8 +239,8 @@ class TangentMapPropagator:
     #: propagator, and a stepper written out that an earlier run (or
     #: process: its file in the cache) has compiled is taken whatever the
     #: work: short runs are slow only until the compile is worth paying.
-    #: A prepared run's or a repeated call's calls run written out
-    #: (:meth:`fresh_run`).
+    #: A prepared run's or a repeated call's calls count as one-orbit
+    #: calls do (:meth:`fresh_run`).
     COMPACT_WORK = 10 ** 6
 
     def _stepper(self, k, compact=False):
@@ -400,12 +400,24 @@ class TangentMapPropagator:
         aux0 : ndarray, shape (M, k, c)
             The accumulator's start ((M, 0, 0) without one).
         """
-        # Written out, whatever the work: a fresh run serves a prepared
-        # run's or a repeated call's calls (:mod:`varint.rerun`), which come
-        # many times, so the compile the compact stepper would spare is
-        # repaid (:attr:`COMPACT_WORK`; the same bits either way).
-        module = self._stepper(k)
-        kernel = module.batch_parallel if use_parallel(self.parallel, m) else module.batch_serial
+        # Each call takes the stepper a one-orbit call of its work would
+        # (:meth:`_orbit_stepper`): compact until this stepper's work in
+        # this process reaches COMPACT_WORK, unless the written-out one is
+        # compiled; then written out for good (the same bits either way).
+        # A prepared run, or a repeated call, whose first call ran compact
+        # thus compiles the stages written out only once its calls have
+        # run enough steps to repay the compile, not at its second call
+        # (suite24: the compensation levels' quick test compiled four
+        # s35odr10 steppers of 71 stages written out, ~58 of its 77 CPU s
+        # cold, for a few calls each).
+        parallel = use_parallel(self.parallel, m)
+        work = m * int(outs[-1])
+
+        def kernel():
+            module = self._orbit_stepper(k, work)
+            return (module.batch_parallel if parallel else module.batch_serial,
+                    module is self._generated[k].get(False))
+
         call = Call(int(outs[-1]), 0, self.tau, int(self.renorm), self._escape_r2)
         return FreshRun(kernel, self._setup(), call, outs, (m, self.model.dim, k), aux0,
                         None if self.accumulator is None else self.accumulator.key,
