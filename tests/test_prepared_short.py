@@ -352,9 +352,14 @@ def test_taos_method_has_no_short_path():
     assert not tao.runs_fresh(1, 4) and gauss.runs_fresh(1, 4)
 
 
-def test_a_lattices_short_calls_are_the_one_shot_calls(general):
-    # The lattices run by the part stepper take its short path too.
-    model = varint.models.DisorderedKG(8, seed=1)
+@pytest.mark.parametrize("make", [
+    lambda: varint.models.DisorderedKG(8, seed=1), lambda: varint.models.FPUT(8, beta=1.0),
+    lambda: varint.models.DDNLS(8, seed=1)], ids=["KG", "FPUT", "DDNLS"])
+def test_a_lattices_short_calls_are_the_one_shot_calls(general, make):
+    # The lattices run by the part stepper take its short path too (each
+    # lattice its own default scheme: two parts for KG and FPUT, three for
+    # DDNLS).
+    model = make()
     x0 = model.initial_block(width=2, seed=1)
     run = varint.prepare(model, "lyapunov", 1.0, tau=0.1, n_exponents=2, t_out=[0.5, 1.0])
     run(x0)
