@@ -26,7 +26,7 @@ from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
-from .models.potential_rows import NumPyPowers
+from .models.potential_rows import NumPyPowers, Rows
 from .protocol import COUNTERS
 from .results import Provenance, _Result
 from .state import renormalized_copy
@@ -126,7 +126,8 @@ class ShortCall:
         rows_v = (model.potential_rows if self.plain
                   and type(model).potential is Model.potential else None)
         self.potential_kernel = (None if rows_v is None else rows_v.resolved()
-                                 if isinstance(rows_v, NumPyPowers) else Resolved(rows_v))
+                                 if isinstance(rows_v, (Rows, NumPyPowers))
+                                 else Resolved(rows_v))
         # Each thread's runs (FreshRun: buffers and the stepper's compiled
         # version made at its first call).
         self._local = threading.local()

@@ -7,10 +7,12 @@ import pickle
 import numpy as np
 import pytest
 import sympy as sp
+from numba.core import event
 
 from tests.flows.steppers import (bottle, coupled_general, cr3bp, larmor, relativistic,
                                   tao_example)
 from varint.models import from_hamiltonian
+from varint.models.bar import bar_orbit
 from varint.models.hamiltonian import (GeneralHamiltonian, IntegrableHamiltonian,
                                        SeparableHamiltonian, TermwiseHamiltonian)
 from varint.models.symbolic import SymbolicModel
@@ -173,3 +175,46 @@ def test_compiled_time_dependent_energy_is_h_of_each_time():
         assert np.array_equal(got, _numpy_h(model, X, T))
         assert model.hamiltonian(X, 1.5) == pytest.approx(
             [float(H.subs({q: a, p: b, s: 1.5})) for a, b in X], rel=1e-15, abs=1e-16)
+
+
+class _Compiles(event.Listener):
+    """The functions numba compiles while installed."""
+
+    def __init__(self):
+        self.names = []
+
+    def on_start(self, ev):
+        self.names.append(ev.data["dispatcher"].py_func.__qualname__)
+
+    def on_end(self, ev):
+        pass
+
+
+def test_a_new_models_first_energies_compile_nothing():
+    """Every model's energies run on one shared interpreter
+    (varint.kernels.row_program): once it is loaded, a model with a new
+    expression computes H and V without compiling a kernel of its own (it
+    compiled one per expression before)."""
+    cr3bp().hamiltonian(np.zeros(4))     # the interpreter loaded (or compiled)
+    X = np.array([[0.3, 0.1, -0.2, 0.4], [0.5, -0.3, 0.2, 0.1]])
+    listener = _Compiles()
+    with event.install_listener("numba:compile", listener):
+        model = from_hamiltonian((px - y) ** 2 / 2 + (py + x) ** 2 / 2 + x ** 4 / 7 + x * y ** 2,
+                                 [x, y], [px, py])
+        energies = model.hamiltonian(X)
+        potentials = model.potential(X[:, :2])
+    assert listener.names == []
+    assert np.array_equal(energies, _numpy_h(model, X))
+    assert np.array_equal(potentials, model._numpy_V(X[:, 0], X[:, 1]))
+
+
+def test_the_bars_energies_are_the_numpy_h_and_its_bar_bitwise():
+    """The rotating bar's H (its closed part interpreted, the Ferrers bar
+    added) is the lambdified H's closed part plus the same bar term."""
+    model, x0 = bar_orbit("regular")
+    rng = np.random.default_rng(4)
+    X = x0 + rng.uniform(-0.3, 0.3, (9, model.dim))
+    expected = _numpy_h(model, X)
+    model._energy_term(np.ascontiguousarray(X), expected)
+    assert np.array_equal(model.hamiltonian(X).view(np.int64), expected.view(np.int64))
+    assert model.hamiltonian(X[0]) == expected[0]
