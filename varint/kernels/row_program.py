@@ -15,16 +15,25 @@ product and a sum nor reorders them, whether the loop over a block's rows
 is vectorised or not (each row's lane is the row's own operation).
 
 The programs are made by :mod:`varint.models.potential_rows`; this module
-only runs them, compiled once (numba's disk cache) whatever the model.
+only runs them, compiled once (numba's disk cache) whatever the model. Its
+compilation (~0.7 CPU s on a loaded machine, against ~0.15 s for one
+expression's own kernel; ``studies/results/energy24/``) is paid only where
+calls repeat: the models evaluate their energies with NumPy until this
+kernel is :func:`ready` or a caller says its calls repeat (a prepared or
+remembered run's short call, :class:`varint.rerun.ShortCall`).
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numba import njit
 
+from .. import codecache
+
 __all__ = ["BLOCK", "LOAD", "CONSTANT", "POWER_ROW", "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE",
-           "NEGATE", "SQRT", "POW", "STORE", "run_program"]
+           "NEGATE", "SQRT", "POW", "STORE", "run_program", "ready"]
 
 #: Rows per block: a register holds one block's values; a program's
 #: registers stay in the first cache levels for a few hundred of them.
@@ -103,3 +112,16 @@ def run_program(states, powers, code, constants, n_registers, out):
             elif op == STORE:
                 for i in range(m):
                     out[d, start + i] = registers[a, i]
+
+
+@functools.cache
+def _on_disk() -> bool:
+    # (Read once per process: a later process's compile is not waited for.)
+    return codecache.in_disk_cache(run_program)
+
+
+def ready() -> bool:
+    """Whether :func:`run_program` runs without being compiled: compiled or
+    loaded in this process, or in numba's disk cache (loading it then
+    costs milliseconds)."""
+    return bool(run_program.signatures) or _on_disk()

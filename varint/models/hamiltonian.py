@@ -60,6 +60,7 @@ from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
 from ..flows import general as GEN
 from ..flows import split as S
+from ..kernels import row_program
 from .base import Model
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
 from .potential_rows import rows_from
@@ -515,26 +516,29 @@ class HamiltonianModel(Model):
     #: bar's potential), or None.
     _energy_term = None
 
-    def _values(self, function, x, t, width):
+    def _values(self, function, x, t, width, repeated=False):
         """``function`` (the lambdified H of (q, p[, t]), width 2N, or V of
         q, width N) plus zeros at the states ``x`` (..., width), then
-        :attr:`_energy_term`: compiled over the rows from the same
-        expression where its bits are NumPy's
-        (:func:`~varint.models.potential_rows.rows_from`; the time, where H
-        has one, as one more column), else NumPy's. The lambdified H costs
-        ~50 µs a call on a run's one or two states, four calls an accuracy
-        verdict (~40 % of a short call on the rotating bar), the compiled
-        copy a few µs."""
+        :attr:`_energy_term`. Bitwise the same either way: by the program
+        of the same expression on the shared interpreter where its bits are
+        NumPy's (:func:`~varint.models.potential_rows.rows_from`; the time,
+        where H has one, as one more column) and the calls repeat
+        (``repeated``: a short call, whose few states NumPy's ufuncs
+        evaluate at ~0.7 µs an operation) or the interpreter is ready
+        without compiling (:func:`varint.kernels.row_program.ready`), else
+        NumPy's: a process's first runs compile nothing for their
+        energies."""
         x = np.asarray(x, dtype=float)
         shape = x.shape[:-1]
         timed = self.time_dependent and width == self.dim
         rows = np.ascontiguousarray(x.reshape(-1, width))
-        compiled = rows_from(function, width + timed, True)
-        if compiled is not None:
+        program = (rows_from(function, width + timed, True) if repeated or row_program.ready()
+                   else None)
+        if program is not None:
             if timed:
                 times = np.broadcast_to(np.asarray(t, dtype=float), shape).reshape(-1, 1)
                 rows = np.ascontiguousarray(np.concatenate([rows, times], axis=1))
-            out = compiled(rows)
+            out = program(rows)
         else:
             args = [x[..., i] for i in range(width)] + ([t] if timed else [])
             out = (function(*args) + np.zeros(shape)).reshape(-1)
@@ -543,12 +547,12 @@ class HamiltonianModel(Model):
         # One state's value as a NumPy scalar, as NumPy's H gives it.
         return out.reshape(shape)[()]
 
-    def _potential_values(self, q, t=0.0):
+    def _potential_values(self, q, t=0.0, repeated=False):
         if self._numpy_V is not None:
-            return self._values(self._numpy_V, q, t, self.n_dof)
+            return self._values(self._numpy_V, q, t, self.n_dof, repeated)
         q = np.asarray(q, dtype=float)
         return self._values(self._numpy_H, np.concatenate([q, np.zeros_like(q)], axis=-1), t,
-                            self.dim)
+                            self.dim, repeated)
 
     def hamiltonian(self, x, t=0.0):
         """H(x) (H(x, t) if time-dependent) for states ``x`` of shape
@@ -579,13 +583,30 @@ class HamiltonianModel(Model):
         the scale energy errors are relative to (see
         :meth:`varint.models.base.Model.energy_scale`)."""
         x = np.asarray(x, dtype=float)
-        h = self.hamiltonian(x)
+        return self._scale(self.hamiltonian(x), x)
+
+    def _scale(self, h, x, repeated=False):
+        """:meth:`energy_scale` of the states ``x`` whose H is ``h``
+        (``repeated``: :meth:`_values`)."""
         if self._numpy_V is None:
             scale = np.abs(h)
         else:
-            v = self.potential(x[..., :self.n_dof])
+            v = self._potential_values(x[..., :self.n_dof], repeated=repeated)
             scale = np.abs(h - v) + np.abs(v)
         return np.where(scale > 0, scale, 1.0)
+
+    def start_and_later_energies(self, x0, x):
+        """(H, :meth:`energy_scale`) of the start states ``x0`` (M, 2N) and
+        H of the states ``x`` (R, 2N), for a time-independent H: H once over
+        the rows of both and V once (:meth:`_values` computes each row on
+        its own, so the same bits as :meth:`hamiltonian` and
+        :meth:`energy_scale` of each; a short call's accuracy verdict,
+        :func:`varint.accuracy.reference_and_errors`, evaluated them in four
+        calls). Its calls repeat: the energies' program is compiled for
+        them where it is not ready (:meth:`_values`)."""
+        m = len(x0)
+        h = self._values(self._numpy_H, np.concatenate((x0, x)), 0.0, self.dim, repeated=True)
+        return h[:m], self._scale(h[:m], x0, repeated=True), h[m:]
 
     def conserved(self, x, t=0.0, p_t=0.0):
         """The energy H (K = H + p_t for a time-dependent H); subclasses add
