@@ -71,6 +71,7 @@ def summarise(runs):
     return {
         "median compile s": round(statistics.median(r["compile"] for r in runs), 2),
         "median process CPU s": round(statistics.median(r["cpu"] for r in runs), 2),
+        "median dispatchers compiled": statistics.median(len(r["compiles"]) for r in runs),
         "event kinds, exclusive median s": largest(median_of(runs, "kinds"), 6),
         "passes, exclusive median s (largest)": largest(median_of(runs, "passes"), 6),
         "dispatchers, exclusive median s (largest)": largest(median_of(runs, "compiles"), 8),

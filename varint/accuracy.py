@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import floating_errors
 from .protocol import STATUS_OK, Status
 
 __all__ = ["Accuracy", "AccuracyWarning", "DEFAULT_ENERGY_TOL", "energy_tolerance",
@@ -210,13 +211,30 @@ def reference_and_errors(model, x0, x, t=0.0):
     """``(Reference(model, x0), reference.errors(x, t))`` for a
     time-independent V, bitwise, T and V evaluated once over the rows of
     both (a prepared run's short call, :mod:`varint.prepared`: the reference
-    at its states and the errors at its outputs, measured after its run).
+    at its states and the errors at its outputs, measured after its run);
+    for a :class:`~varint.models.hamiltonian.HamiltonianModel`'s energy
+    (:func:`hamiltonian_energy`), H once over both and V once.
 
     Raises the :class:`Reference`'s ``ValueError`` where a quantity is not
     finite at ``x0``.
     """
+    if hamiltonian_energy(model):
+        # Reference's and its errors' operations, H over both at once.
+        quiet = floating_errors.ignoring()     # (as their np.errstate)
+        try:
+            h0, scale, h = model.start_and_later_energies(x0, x)
+            errors = {"energy_error": _relative(h, h0, scale, len(x) // len(x0))}
+        finally:
+            floating_errors.restore(quiet)
+        if not np.isfinite(h0).all():
+            Reference(model, x0)    # raises, naming the orbit
+        reference = object.__new__(Reference)
+        reference.model = model
+        reference.values, reference.scales = {"energy": h0}, {"energy": scale}
+        return reference, errors
     if not plain_energy(model):
-        return _rows_reference_and_errors(model, x0, x, t)
+        reference = Reference(model, x0)
+        return reference, reference.errors(x, t)
     m, n = len(x0), model.n_dof
     both = np.concatenate((x0, x))
     with np.errstate(all="ignore"):
@@ -239,40 +257,6 @@ def reference_and_errors(model, x0, x, t=0.0):
     return reference, errors
 
 
-def _rows_reference_and_errors(model, x0, x, t):
-    """:func:`reference_and_errors` of a model whose energy is not T + V:
-    from its ``energy_rows`` where it has them (H, and V where its scale
-    is |H − V| + |V|, over the rows of both at once; a
-    :class:`~varint.models.hamiltonian.HamiltonianModel`), by
-    :class:`Reference`'s and :meth:`Reference.errors`' operations on them
-    (H of a time-independent model: ``t`` changes nothing), else by
-    :class:`Reference` itself."""
-    rows = getattr(model, "energy_rows", None)
-    found = None if rows is None else rows(np.concatenate((x0, x)))
-    if found is None:
-        reference = Reference(model, x0)
-        return reference, reference.errors(x, t)
-    energy, potential = found
-    m = len(x0)
-    with np.errstate(all="ignore"):
-        # Reference.__init__'s operations (model.energy_scale's), row by row.
-        h0 = energy[:m]
-        if not np.isfinite(h0).all():
-            Reference(model, x0)    # raises, naming the orbit
-        if potential is None:
-            scale = np.abs(h0)
-        else:
-            v0 = potential[:m]
-            scale = np.abs(h0 - v0) + np.abs(v0)
-        scale = np.where(scale > 0, scale, 1.0)
-        reference = object.__new__(Reference)
-        reference.model = model
-        reference.values = {"energy": h0}
-        reference.scales = {"energy": scale}
-        errors = {"energy_error": _relative(energy[m:], h0, scale, len(x) // m)}
-    return reference, errors
-
-
 #: Per model class: whether its energy, energy scale and conserved
 #: quantities are the base model's (:func:`plain_energy`).
 _PLAIN: dict = {}
@@ -291,6 +275,27 @@ def plain_energy(model):
                     == "varint.models.base" for name in ("energy", "energy_scale", "conserved"))
         _PLAIN[cls] = plain
     return plain and not getattr(model, "time_dependent", False)
+
+
+def hamiltonian_energy(model):
+    """Whether ``model``'s energy, energy scale and conserved quantities
+    are :class:`varint.models.hamiltonian.HamiltonianModel`'s own (the
+    energy H alone, scale |H − V| + |V|) for a time-independent H: then
+    :func:`reference_and_errors` evaluates H once over the start states
+    and the later ones
+    (:meth:`~varint.models.hamiltonian.HamiltonianModel.start_and_later_energies`)."""
+    cls = type(model)
+    found = _HAMILTONIAN.get(cls)
+    if found is None:
+        found = all(getattr(getattr(cls, name, None), "__module__", None)
+                    == "varint.models.hamiltonian"
+                    for name in ("energy", "energy_scale", "conserved", "hamiltonian",
+                                 "potential", "start_and_later_energies"))
+        _HAMILTONIAN[cls] = found
+    return found and not getattr(model, "time_dependent", False)
+
+
+_HAMILTONIAN: dict = {}
 
 
 def _conserved(model, x, t=0.0, p_t=0.0):

@@ -69,7 +69,7 @@ from . import cachedir, collector
 from .cachedir import CacheDirWarning, warn_once
 from .files import atomic_write
 
-__all__ = ["load_module", "module_on_disk", "read_json", "write_json", "read_signed", "write_signed",
+__all__ = ["load_module", "module_on_disk", "in_disk_cache", "read_json", "write_json", "read_signed", "write_signed",
            "tolerate_full_disks", "SignedCache", "numba_hooks_present", "HEADER",
            "CacheDirWarning", "unique_symbol_names", "named_by_file"]
 
@@ -222,6 +222,21 @@ def module_on_disk(name, folder):
     verifies it before anything of it runs)."""
     directory = cachedir.subdir(folder)
     return directory is not None and (directory / f"{name}.py").is_file()
+
+
+def in_disk_cache(dispatcher):
+    """Whether numba's disk cache holds compiled code of ``dispatcher`` (a
+    kernel compiled with ``cache=True``) for its present source: its index
+    read (a small pickle, checked against the source file's stamp),
+    nothing compiled or loaded. False where it has no disk cache or the
+    index cannot be read (numba then compiles it at its first call)."""
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if cache_file is None:
+        return False
+    try:
+        return bool(cache_file._load_index())
+    except Exception:   # (another numba's layout, an unreadable file: as absent)
+        return False
 
 
 def _load(name, folder, make_source, extra_globals):

@@ -49,7 +49,7 @@ RECORD_BYTES = 1 << 22
 _ARRAY_MAX = 4096
 
 #: key -> [the first run, its run's seconds, its Rerun once made, held].
-_calls: collections.OrderedDict[tuple, list] = collections.OrderedDict()
+_calls: collections.OrderedDict[_Key, list] = collections.OrderedDict()
 _lock = threading.Lock()
 
 #: Deepest nesting of containers and attributes a key walks (the bar's
@@ -60,6 +60,33 @@ _DEPTH = 8
 #: The plain values a key holds by type and value (a bool is not an int
 #: there: ``seed=True`` is refused where ``seed=1`` is not).
 _PLAIN = frozenset((int, float, str, bool, type(None), np.float64, np.int64, np.bool_))
+
+
+#: Per type, whether a key holds its values by identity whatever their
+#: state (callables: functions, compiled kernels, bound methods; varint's
+#: frozen records; :func:`_frozen`), as its first value seen showed: both
+#: are properties of the type (``callable`` reads the type's call slot).
+#: A model's attributes are mostly such values, each otherwise asked again.
+_BY_IDENTITY: dict[type, bool] = {}
+
+
+class _Key:
+    """A call's key with its hash computed once (a model's key is a deep
+    tuple: its hash walks every level, and a call hashes it to check it,
+    to look it up and to keep it)."""
+
+    __slots__ = ("items", "hash")
+
+    def __init__(self, items: tuple) -> None:
+        self.items = items
+        self.hash = hash(items)
+
+    def __hash__(self) -> int:
+        return self.hash
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, _Key) and self.hash == other.hash
+                and self.items == other.items)
 
 
 class _Unkeyed(Exception):
@@ -79,6 +106,9 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
     kind = type(value)
     if kind in _PLAIN:
         return kind, value
+    if _BY_IDENTITY.get(kind):
+        held.append(value)
+        return kind, id(value)
     if kind is tuple or kind is list:
         if depth > _DEPTH:
             raise _Unkeyed
@@ -100,7 +130,8 @@ def _frozen(value: Any, held: list, depth: int = 0) -> Any:
         return kind, id(value), value.dtype.str, value.shape, value.tobytes()
     held.append(value)
     attributes = getattr(value, "__dict__", None)
-    if attributes is None or callable(value) or _frozen_record(kind):
+    by_identity = _BY_IDENTITY.setdefault(kind, callable(value) or _frozen_record(kind))
+    if attributes is None or by_identity:
         # Code (functions, compiled kernels), values without attributes
         # (frozen scheme and indicator records of slots, SymPy expressions)
         # and varint's frozen dataclasses (a model's symbolic form, structure and
@@ -131,7 +162,7 @@ def model_token(model: Any, held: list) -> Any:
 
 
 def call_key(model: Any, x0: Any, indicator: Any, t_end: Any, tau: Any,
-             options: dict) -> tuple[tuple, list] | None:
+             options: dict) -> tuple[_Key, list] | None:
     """(key, held objects) of a call of :func:`varint.run`, or None for a
     call not remembered: τ chosen by a pilot (the pilot runs per orbit), a
     checkpoint, a drawn seed, or an argument a key cannot hold."""
@@ -148,13 +179,12 @@ def call_key(model: Any, x0: Any, indicator: Any, t_end: Any, tau: Any,
                # the vectors' presence and number how they are made.
                getattr(x0, "shape", None),
                None if deviations is None else np.shape(deviations))
-        hash(key)
+        return _Key(key), held
     except (_Unkeyed, TypeError):     # (TypeError: an unhashable dict key)
         return None
-    return key, held
 
 
-def recall(key: tuple) -> Rerun | None:
+def recall(key: _Key) -> Rerun | None:
     """The remembered call of ``key`` (its :class:`~varint.rerun.Rerun`,
     made at its first repeat), or None; a call without a short path is
     forgotten there."""
@@ -177,7 +207,7 @@ def recall(key: tuple) -> Rerun | None:
     return entry[2] or None
 
 
-def remember(key: tuple, held: list, first: FirstRun, run_seconds: float) -> None:
+def remember(key: _Key, held: list, first: FirstRun, run_seconds: float) -> None:
     """Keep the executed run ``first`` (``run_seconds`` the time of its run)
     for the calls of ``key`` (holding ``held``, the objects it names by
     identity), if it is small: its records held no more than

@@ -7,10 +7,14 @@ import pickle
 import numpy as np
 import pytest
 import sympy as sp
+from numba.core import event
 
 from tests.flows.steppers import (bottle, coupled_general, cr3bp, larmor, relativistic,
                                   tao_example)
+from varint import codecache
+from varint.kernels import row_program
 from varint.models import from_hamiltonian
+from varint.models.bar import bar_orbit
 from varint.models.hamiltonian import (GeneralHamiltonian, IntegrableHamiltonian,
                                        SeparableHamiltonian, TermwiseHamiltonian)
 from varint.models.symbolic import SymbolicModel
@@ -147,6 +151,15 @@ def test_compiled_energies_are_the_numpy_h_bitwise(build):
     rng = np.random.default_rng(8)
     X = rng.uniform(-0.6, 0.6, (7, 3, model.dim))
     assert np.array_equal(model.hamiltonian(X).view(np.int64), _numpy_h(model, X).view(np.int64))
+    # The program on the shared interpreter (what a short call's repeated
+    # calls take) as well as NumPy's (a first call's, until it is ready).
+    for repeated in (False, True):
+        got = model._values(model._numpy_H, X, 0.0, model.dim, repeated)
+        assert np.array_equal(got.view(np.int64), _numpy_h(model, X).view(np.int64))
+    x0, later = X[0], X[1:].reshape(-1, model.dim)
+    h0, scale, h = model.start_and_later_energies(x0, later)
+    assert np.array_equal(h0, model.hamiltonian(x0)) and np.array_equal(h, model.hamiltonian(later))
+    assert np.array_equal(scale, model.energy_scale(x0))
     one = model.hamiltonian(X[0, 0])
     assert type(one) is np.float64 and one == _numpy_h(model, X[0, 0])
     q = X[..., :model.n_dof]
@@ -168,8 +181,74 @@ def test_compiled_time_dependent_energy_is_h_of_each_time():
     for H in (p ** 2 / 2 + q ** 2 * p + q ** 4 / 4 + q * s, p ** 2 / 2 + q * p * sp.cos(s)):
         model = from_hamiltonian(H, [q], [p], time=s)
         got = model.hamiltonian(X, T)
+        assert np.array_equal(model._values(model._numpy_H, X, T, model.dim, True), got)
         exact = [float(H.subs({q: a, p: b, s: c})) for (a, b), c in zip(X, T, strict=True)]
         assert got == pytest.approx(exact, rel=1e-15, abs=1e-16)
         assert np.array_equal(got, _numpy_h(model, X, T))
         assert model.hamiltonian(X, 1.5) == pytest.approx(
             [float(H.subs({q: a, p: b, s: 1.5})) for a, b in X], rel=1e-15, abs=1e-16)
+
+
+class _Compiles(event.Listener):
+    """The functions numba compiles while installed."""
+
+    def __init__(self):
+        self.names = []
+
+    def on_start(self, ev):
+        self.names.append(ev.data["dispatcher"].py_func.__qualname__)
+
+    def on_end(self, ev):
+        pass
+
+
+def _first_energies(build, X):
+    """The functions numba compiles while ``build()`` makes a model and
+    its first H, V and energy scale at the states ``X``; and those values."""
+    listener = _Compiles()
+    with event.install_listener("numba:compile", listener):
+        model = build()
+        values = (model.hamiltonian(X), model.potential(X[:, :model.n_dof]),
+                  model.energy_scale(X))
+    return listener.names, model, values
+
+
+def test_a_new_models_first_energies_compile_nothing():
+    """A model's first energies compile nothing: NumPy's until calls
+    repeat, then one interpreter shared by every model
+    (varint.kernels.row_program), never a kernel per expression (one was
+    compiled for each before)."""
+    X = np.array([[0.3, 0.1, -0.2, 0.4], [0.5, -0.3, 0.2, 0.1]])
+    names, model, (h, v, _) = _first_energies(lambda: from_hamiltonian(
+        (px - y) ** 2 / 2 + (py + x) ** 2 / 2 + x ** 4 / 7 + x * y ** 2 / 3, [x, y], [px, py]), X)
+    assert names == []
+    assert np.array_equal(h, _numpy_h(model, X))
+    assert np.array_equal(v, model._numpy_V(X[:, 0], X[:, 1]))
+    # Repeated calls (a short call's verdict) take the interpreter,
+    # compiled at most once; then a new model's first energies take it too,
+    # compiling nothing.
+    model.start_and_later_energies(X[:1], X[1:])
+    assert row_program.ready()
+    names, model, (h, v, scale) = _first_energies(lambda: from_hamiltonian(
+        (px - y) ** 2 / 2 + (py + x) ** 2 / 2 + x ** 4 / 9 + x * y ** 2 / 5, [x, y], [px, py]), X)
+    assert names == []
+    assert np.array_equal(h, _numpy_h(model, X))
+    assert np.array_equal(v, model._numpy_V(X[:, 0], X[:, 1]))
+    assert codecache.in_disk_cache(row_program.run_program)
+
+
+def test_the_bars_energies_are_the_numpy_h_and_its_bar_bitwise():
+    """The rotating bar's H (its closed part interpreted, the Ferrers bar
+    added) is the lambdified H's closed part plus the same bar term."""
+    model, x0 = bar_orbit("regular")
+    rng = np.random.default_rng(4)
+    X = x0 + rng.uniform(-0.3, 0.3, (9, model.dim))
+    expected = _numpy_h(model, X)
+    model._energy_term(np.ascontiguousarray(X), expected)
+    for repeated in (False, True):
+        got = model._values(model._numpy_H, X, 0.0, model.dim, repeated)
+        assert np.array_equal(got.view(np.int64), expected.view(np.int64))
+    assert model.hamiltonian(X[0]) == expected[0]
+    h0, scale, h = model.start_and_later_energies(X[:2], X[2:])
+    assert np.array_equal(np.concatenate([h0, h]), expected)
+    assert np.array_equal(scale, model.energy_scale(X[:2]))

@@ -1,6 +1,8 @@
-"""V compiled over rows, emitted from the NumPy V's expression
-(:mod:`varint.models.potential_rows`): bitwise the NumPy V where it is
-made, not made where NumPy could round otherwise."""
+"""V over rows, a program of the shared interpreter made from the NumPy V's
+expression (:mod:`varint.models.potential_rows`): bitwise the NumPy V where
+it is made, not made where NumPy could round otherwise."""
+
+import math
 
 import numpy as np
 import pytest
@@ -10,7 +12,7 @@ import varint
 from varint.models import from_potential
 from varint.models import potential_rows as rows_module
 from varint.models.henon_heiles import _V, HenonHeiles
-from varint.models.potential_rows import NUMPY_POWER_IS_LIBM, rows_source
+from varint.models.potential_rows import NUMPY_POWER_IS_LIBM, rows_program
 
 x, y, z = sp.symbols("x y z")
 
@@ -79,23 +81,30 @@ def test_no_compiled_v_where_numpy_could_round_otherwise():
     assert from_potential(x**2 * (1 + sp.cos(t)), [x], time=t).potential_rows is None
 
 
-def test_the_compiled_copy_writes_squares_as_products_and_other_powers_as_pow(monkeypatch):
+def _text(expression, names, **options):
+    """What the program of ``expression`` computes, as text; None where no
+    program is made."""
+    program = rows_program(expression, names, **options)
+    return None if program is None else program.expression
+
+
+def test_the_program_writes_squares_as_products_and_other_powers_as_pow(monkeypatch):
     names = ("q_0", "q_1")
-    source = rows_source("q_0**2*q_1 - 1/3*q_1**3 + (q_0 - q_1)**(-1.0)", names)
+    source = _text("q_0**2*q_1 - 1/3*q_1**3 + (q_0 - q_1)**(-1.0)", names)
     # NumPy's square and reciprocal; libm's pow with a float exponent
     # (numba's q_1 ** 3 would be products).
     if NUMPY_POWER_IS_LIBM:
-        assert "q_0 * q_0 * q_1 - 1 / 3 * q_1 ** 3.0 + 1.0 / (q_0 - q_1)" in source
+        assert source == "q_0 * q_0 * q_1 - 1 / 3 * q_1 ** 3.0 + 1.0 / (q_0 - q_1)"
     # As on a CPU with AVX-512: a cube is SVML's there, left to NumPy; a
     # square is not.
     monkeypatch.setattr(rows_module, "NUMPY_POWER_IS_LIBM", False)
-    assert "q_0 * q_0 * q_1 - 1 / 3 * _pw0" in rows_source("q_0**2*q_1 - 1/3*q_1**3", names)
-    assert "(q_0 - q_1) * (q_0 - q_1)" in rows_source("(q_0 - q_1)**2 + sqrt(q_1)", names)
+    assert _text("q_0**2*q_1 - 1/3*q_1**3", names) == "q_0 * q_0 * q_1 - 1 / 3 * _pw0"
+    assert _text("(q_0 - q_1)**2 + sqrt(q_1)", names) == "(q_0 - q_1) * (q_0 - q_1) + _sqrt(q_1)"
     # Names that are not coordinates, other functions, comparisons, huge
     # integers: refused.
     for text in ("q_0 + pi", "exp(q_0)", "q_0 < q_1", "q_0 * 2**60", "q_0**q_1", "2**q_0",
                  "q_0**0.0"):
-        assert rows_source(text, names) is None, text
+        assert rows_program(text, names) is None, text
 
 
 def test_a_generated_models_short_call_takes_its_compiled_v_bitwise():
@@ -156,9 +165,9 @@ def test_the_powers_are_numpys_whatever_it_computes(monkeypatch):
         return np.nextafter(np.power(b, e), np.inf)
 
     monkeypatch.setattr(rows_module, "_power", power)
-    source = rows_source("0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0 + (x - y) ** 4",
-                         ("x", "y"), numpy_powers=True)
-    assert "EXPONENTS = (3.0, 4.0,)" in source and "_pw0 / 3.0 + _pw1" in source
+    program = rows_program("0.5 * (x * x + y * y) + x * x * y - y ** 3 / 3.0 + (x - y) ** 4",
+                           ("x", "y"), numpy_powers=True)
+    assert program.exponents == (3.0, 4.0) and program.expression.endswith("_pw0 / 3.0 + _pw1")
 
     def expected(q):
         x, y = q[:, 0], q[:, 1]
@@ -177,16 +186,16 @@ def test_the_powers_are_numpys_whatever_it_computes(monkeypatch):
     assert np.any(got[finite] != libm[finite])
 
 
-def test_numpy_powers_are_refused_inside_a_powers_base_and_for_reserved_names():
+def test_numpy_powers_are_refused_inside_a_powers_base_and_for_names_of_powers():
     names = ("q_0", "q_1")
-    assert rows_source("(1 + q_0**3)**1.5", names, numpy_powers=True) is None
-    # (With libm's pow compiled, the same expression is made.)
-    assert rows_source("(1 + q_0**3)**1.5", names, numpy_powers=False) is not None
+    assert rows_program("(1 + q_0**3)**1.5", names, numpy_powers=True) is None
+    # (With libm's pow interpreted, the same expression is made.)
+    assert rows_program("(1 + q_0**3)**1.5", names, numpy_powers=False) is not None
     # A square of a NumPy power is a product of it; a sqrt of one its sqrt.
-    assert "_pw0 * _pw0 + _sqrt(_pw1)" in rows_source("(q_0**3)**2 + sqrt(q_1**5)", names,
-                                                     numpy_powers=True)
-    for reserved in ("out", "i", "states", "powers", "_pw0", "np"):
-        assert rows_source(f"q_0 * {reserved}", ("q_0", reserved)) is None, reserved
+    assert _text("(q_0**3)**2 + sqrt(q_1**5)", names,
+                 numpy_powers=True) == "_pw0 * _pw0 + _sqrt(_pw1)"
+    # An argument named as the powers.
+    assert rows_program("q_0 * _pw0", ("q_0", "_pw0")) is None
 
 
 class _HenonHeilesAVX512(HenonHeiles):
@@ -208,3 +217,44 @@ def test_a_short_call_with_powers_left_to_numpy_is_the_one_shot_call_bitwise():
         for key in ("state", "states", "energy_error", "t"):
             np.testing.assert_array_equal(getattr(got, key), getattr(want, key))
         assert got.accuracy.energy_error == want.accuracy.energy_error
+
+
+def test_powers_interpreted_are_libms_pow():
+    # Where NumPy's power is libm's, the program calls libm's pow (Python's
+    # math.pow calls it too), whatever this CPU's NumPy does.
+    rows = rows_program("q_0 ** 3 - q_1 ** (3/2) + (q_0 * q_1) ** -2.5", ("q_0", "q_1"),
+                        numpy_powers=False)
+    assert isinstance(rows, rows_module.Rows)
+    states = _states(2, seed=11)[::7].copy()
+    with np.errstate(all="raise"):
+        got = rows(states)
+    expected = []
+    for a, b in states[:, :2].tolist():
+        terms = []
+        for base, e in ((a, 3.0), (b, 1.5), (a * b, -2.5)):
+            try:
+                terms.append(math.pow(base, e))
+            except (ValueError, OverflowError, ZeroDivisionError):
+                with np.errstate(all="ignore"):
+                    terms.append(float(np.power(base, e)))   # (the special cases)
+        expected.append(terms[0] - terms[1] + terms[2])
+    expected = np.array(expected)
+    nan = np.isnan(expected)
+    np.testing.assert_array_equal(np.isnan(got), nan)
+    np.testing.assert_array_equal(got[~nan].view(np.int64), expected[~nan].view(np.int64))
+
+
+def test_arithmetic_on_constants_is_pythons_as_in_the_numpy_v():
+    # Constants alone are folded by Python's rules before the program
+    # runs (an exact integer product, a correctly rounded quotient, NumPy's
+    # sqrt, −0.0), then meet the coordinates' doubles in the NumPy V's order.
+    text = "1/3*q_0 + 2*3*q_1 - -0.0*q_0 + sqrt(2)/2*q_1 - q_0/7 + -(5/3)"
+    states = _states(2, seed=13)
+    with np.errstate(all="ignore"):
+        expected = eval(text, {"sqrt": np.sqrt, "q_0": states[:, 0], "q_1": states[:, 1]})
+        got = rows_program(text, ("q_0", "q_1"))(states)
+    nan = np.isnan(expected)
+    np.testing.assert_array_equal(np.isnan(got), nan)
+    np.testing.assert_array_equal(got[~nan].view(np.int64), expected[~nan].view(np.int64))
+    assert rows_program("q_0 * (1/0)", ("q_0",)) is None       # (the NumPy V raises)
+    assert rows_program("q_0 * (99999999 * 99999999)", ("q_0",)) is None   # beyond 2^53

@@ -60,6 +60,7 @@ from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
 from ..flows import general as GEN
 from ..flows import split as S
+from ..kernels import row_program
 from .base import Model
 from .exact_zero import is_zero, without
 from .lattice import Parts, no_band_kernel, no_gradient_kernel, no_third_kernel
@@ -520,26 +521,29 @@ class HamiltonianModel(Model):
     #: bar's potential), or None.
     _energy_term = None
 
-    def _values(self, function, x, t, width):
+    def _values(self, function, x, t, width, repeated=False):
         """``function`` (the lambdified H of (q, p[, t]), width 2N, or V of
         q, width N) plus zeros at the states ``x`` (..., width), then
-        :attr:`_energy_term`: compiled over the rows from the same
-        expression where its bits are NumPy's
-        (:func:`~varint.models.potential_rows.rows_from`; the time, where H
-        has one, as one more column), else NumPy's. The lambdified H costs
-        ~50 µs a call on a run's one or two states, four calls an accuracy
-        verdict (~40 % of a short call on the rotating bar), the compiled
-        copy a few µs."""
+        :attr:`_energy_term`. Bitwise the same either way: by the program
+        of the same expression on the shared interpreter where its bits are
+        NumPy's (:func:`~varint.models.potential_rows.rows_from`; the time,
+        where H has one, as one more column) and the calls repeat
+        (``repeated``: a short call, whose few states NumPy's ufuncs
+        evaluate at ~0.7 µs an operation) or the interpreter is ready
+        without compiling (:func:`varint.kernels.row_program.ready`), else
+        NumPy's: a process's first runs compile nothing for their
+        energies."""
         x = np.asarray(x, dtype=float)
         shape = x.shape[:-1]
         timed = self.time_dependent and width == self.dim
         rows = np.ascontiguousarray(x.reshape(-1, width))
-        compiled = rows_from(function, width + timed, True)
-        if compiled is not None:
+        program = (rows_from(function, width + timed, True) if repeated or row_program.ready()
+                   else None)
+        if program is not None:
             if timed:
                 times = np.broadcast_to(np.asarray(t, dtype=float), shape).reshape(-1, 1)
                 rows = np.ascontiguousarray(np.concatenate([rows, times], axis=1))
-            out = compiled(rows)
+            out = program(rows)
         else:
             args = [x[..., i] for i in range(width)] + ([t] if timed else [])
             out = (function(*args) + np.zeros(shape)).reshape(-1)
@@ -548,12 +552,12 @@ class HamiltonianModel(Model):
         # One state's value as a NumPy scalar, as NumPy's H gives it.
         return out.reshape(shape)[()]
 
-    def _potential_values(self, q, t=0.0):
+    def _potential_values(self, q, t=0.0, repeated=False):
         if self._numpy_V is not None:
-            return self._values(self._numpy_V, q, t, self.n_dof)
+            return self._values(self._numpy_V, q, t, self.n_dof, repeated)
         q = np.asarray(q, dtype=float)
         return self._values(self._numpy_H, np.concatenate([q, np.zeros_like(q)], axis=-1), t,
-                            self.dim)
+                            self.dim, repeated)
 
     def hamiltonian(self, x, t=0.0):
         """H(x) (H(x, t) if time-dependent) for states ``x`` of shape
@@ -584,46 +588,35 @@ class HamiltonianModel(Model):
         the scale energy errors are relative to (see
         :meth:`varint.models.base.Model.energy_scale`)."""
         x = np.asarray(x, dtype=float)
-        h = self.hamiltonian(x)
+        return self._scale(self.hamiltonian(x), x)
+
+    def _scale(self, h, x, repeated=False):
+        """:meth:`energy_scale` of the states ``x`` whose H is ``h``
+        (``repeated``: :meth:`_values`)."""
         if self._numpy_V is None:
             scale = np.abs(h)
         else:
-            v = self.potential(x[..., :self.n_dof])
+            v = self._potential_values(x[..., :self.n_dof], repeated=repeated)
             scale = np.abs(h - v) + np.abs(v)
         return np.where(scale > 0, scale, 1.0)
+
+    def start_and_later_energies(self, x0, x):
+        """(H, :meth:`energy_scale`) of the start states ``x0`` (M, 2N) and
+        H of the states ``x`` (R, 2N), for a time-independent H: H once over
+        the rows of both and V once (:meth:`_values` computes each row on
+        its own, so the same bits as :meth:`hamiltonian` and
+        :meth:`energy_scale` of each; a short call's accuracy verdict,
+        :func:`varint.accuracy.reference_and_errors`, evaluated them in four
+        calls). Its calls repeat: the energies' program is compiled for
+        them where it is not ready (:meth:`_values`)."""
+        m = len(x0)
+        h = self._values(self._numpy_H, np.concatenate((x0, x)), 0.0, self.dim, repeated=True)
+        return h[:m], self._scale(h[:m], x0, repeated=True), h[m:]
 
     def conserved(self, x, t=0.0, p_t=0.0):
         """The energy H (K = H + p_t for a time-dependent H); subclasses add
         their own first integrals (e.g. the Jacobi constant)."""
         return {"energy": self.energy(x, t, p_t)}
-
-    def energy_rows(self, x):
-        """H and, for the split forms, V at the states ``x`` (R, 2N), each
-        evaluated once over all rows, row by row, so that every row's
-        numbers are those :meth:`conserved` and :meth:`energy_scale` give
-        for that row alone: what :func:`varint.accuracy.reference_and_errors`
-        measures a short call's start states and outputs with (H four
-        times and V twice before, ~30 µs of a one-step call on a general
-        H). None where those methods are not this class's (a subclass with
-        more first integrals, the CR3BP's Jacobi constant) or H depends on
-        time.
-
-        Returns
-        -------
-        (ndarray (R,), ndarray (R,) or None) or None
-            H, and V (None without a V: the scale is then |H|, else
-            |H − V| + |V|, 1 where 0, as :meth:`energy_scale`).
-        """
-        cls = type(self)
-        own = _OWN_ENERGY.get(cls)
-        if own is None:
-            own = _OWN_ENERGY[cls] = all(getattr(cls, name) is getattr(HamiltonianModel, name)
-                                         for name in _ENERGY_METHODS)
-        if self.time_dependent or not own:
-            return None
-        x = np.asarray(x, dtype=float)
-        h = self.hamiltonian(x)
-        return h, None if self._numpy_V is None else self.potential(x[..., :self.n_dof])
 
     def gradient_h(self, x, t=None):
         """∇H at the state ``x`` (2N,)."""
@@ -743,12 +736,6 @@ class HamiltonianModel(Model):
                          else _numpy_function(qs, s.V.xreplace(std)))
 
 
-#: The methods whose numbers :meth:`HamiltonianModel.energy_rows`
-#: reproduces: a subclass that overrides one measures otherwise.
-_ENERGY_METHODS = ("conserved", "energy", "energy_scale", "hamiltonian", "potential",
-                   "_potential_values", "_values")
-#: Per class: whether it keeps all of :data:`_ENERGY_METHODS` (made once).
-_OWN_ENERGY: dict = {}
 
 
 class _SplitHamiltonian(HamiltonianModel):

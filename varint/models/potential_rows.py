@@ -1,72 +1,75 @@
-"""A model's V compiled over rows of states, emitted from the very
+"""A model's V (or H) over rows of states, computed from the very
 expression its NumPy V evaluates (issue 28: a prepared run's short call
-measures V of its few start and output states, where NumPy's ufuncs cost
-~0.7 µs an operation on such tiny arrays; :class:`varint.rerun.ShortCall`).
+measures V of its few start and output states, and a general H's accuracy
+verdict H of its few states, where NumPy's ufuncs cost ~0.7 µs an
+operation on such tiny arrays; :class:`varint.rerun.ShortCall`,
+:meth:`varint.models.hamiltonian.HamiltonianModel.hamiltonian`).
 
 The NumPy V is a function ``def f(q_0, …, q_{N−1}): return <expression>``
 evaluated on the columns of the states (SymPy's ``lambdify`` writes such a
 function for :func:`~varint.models.from_potential`; Hénon–Heiles' is
-written so). :func:`rows_from` reads that function's source and compiles
-the same expression, on one row's numbers at a time, into a numba loop over
-the rows. The same operations in the same order, each one IEEE operation
-rounded once in both (numba compiles without fast-math: LLVM neither fuses
-a product and a sum into an FMA nor reorders them), give the same bits,
-except where NumPy does not compute what numba would for the same text;
-there the compiled copy is written otherwise, or not made:
+written so). :func:`rows_from` reads that function's source and turns the
+same expression into a program of one compiled interpreter shared by every
+model (:func:`varint.kernels.row_program.run_program`: nothing is compiled
+per expression), which applies to each row the same operations in the same
+order, each one IEEE operation rounded once in both (numba compiles without
+fast-math: LLVM neither fuses a product and a sum into an FMA nor reorders
+them). That gives the same bits, except where NumPy does not compute what
+the interpreter would for the same text; there the program is written
+otherwise, or not made:
 
 * ``b ** 2``, ``b ** -1``, ``b ** 0.5`` (an array to the integer or the
   float 2, −1, or to 0.5): ``ndarray.__pow__``'s fast paths, NumPy's
   ``square`` (one product), ``reciprocal`` (one division) and ``sqrt``; the
-  compiled copy writes ``(b) * (b)``, ``1.0 / (b)`` and ``sqrt(b)``;
+  program writes ``(b) * (b)``, ``1.0 / (b)`` and ``sqrt(b)``;
 * ``b ** e`` for another constant ``e``: NumPy's float ``power``. That is
   libm's ``pow`` only on a CPU without AVX-512 (:data:`NUMPY_POWER_IS_LIBM`);
   with AVX-512 NumPy calls Intel SVML's ``pow``, whose last bit need not be
-  libm's. So where NumPy's power is libm's the compiled copy writes
-  ``(b) ** e`` with ``e`` written as a float (numba then calls libm's
-  ``pow``; ``b ** 3`` with an integer would be numba's binary powering,
-  products); elsewhere NumPy computes these powers itself
-  (:class:`NumPyPowers`: the rest compiled, in two parts around one call
-  of NumPy's ``power``). SymPy writes every integer power this way
+  libm's. So where NumPy's power is libm's the program writes
+  ``(b) ** e`` with ``e`` a double (the interpreter then calls libm's
+  ``pow``); elsewhere NumPy computes these powers itself
+  (:class:`NumPyPowers`: the rest interpreted, in two programs around one
+  call of NumPy's ``power``). SymPy writes every integer power this way
   (``y**3``, not ``y*y*y``), so a cube or a fourth power is such a power;
-  NumPy's fast paths for 0 and 1 are not reproduced (no compiled V);
+  NumPy's fast paths for 0 and 1 are not reproduced (no program);
 * a function: only ``sqrt`` (correctly rounded in both). NumPy's float64
   ``exp``, ``log``, ``sin``, … are its own SIMD code or SVML's on some
-  CPUs, not libm's that numba calls: no compiled V;
+  CPUs, not libm's: no program;
+* arithmetic on constants alone (``1/3``, ``sqrt(2)/2``) is Python's (and
+  NumPy's ``sqrt``), as the NumPy V computes it, before the program runs;
 * anything else (a name that is not an argument, an attribute, a
-  comparison, a constant base, an integer beyond 2⁵³, …): no compiled V.
+  comparison, a constant base, an integer beyond 2⁵³, …): no program.
 
 So a V of sums, products and quotients of its coordinates, their squares,
-reciprocals and square roots (``x**2*y**2 + (1/2)*x**2``) is compiled on
-every CPU; one with a cube (Hénon–Heiles' ``y**3``) wholly only where
-NumPy's power is libm's, and else but for its powers (a power within the
-base of another is not split so: no compiled V).
-The compiled module goes to ``<cache dir>/models/`` like the kernels of
-:func:`~varint.models.from_potential` (:func:`varint.codecache.load_module`,
-signed, named by its source), and numba caches its compilation beside it.
+reciprocals and square roots (``x**2*y**2 + (1/2)*x**2``) has a whole
+program on every CPU; one with a cube (Hénon–Heiles' ``y**3``) wholly only
+where NumPy's power is libm's, and else but for its powers (a power within
+the base of another is not split so: no program).
 """
 
 from __future__ import annotations
 
 import ast
 import functools
-import hashlib
 import inspect
 import operator
 import textwrap
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from .. import codecache, floating_errors
+from .. import floating_errors
+from ..kernels import row_program
 from ..kernels.resolved import Resolved
+from ..kernels.row_program import run_program
 
 try:
     from numpy._core._multiarray_umath import __cpu_features__ as _NUMPY_CPU
 except ImportError:  # another NumPy's layout: assume its SIMD loops
     _NUMPY_CPU = {}
 
-__all__ = ["NUMPY_POWER_IS_LIBM", "NumPyPowers", "rows_from", "rows_source"]
+__all__ = ["NUMPY_POWER_IS_LIBM", "NumPyPowers", "Program", "Rows", "rows_from", "rows_program"]
 
 #: Whether NumPy's float64 ``power`` is libm's ``pow`` on this CPU, as a
 #: compiled ``b ** 3.0`` is: on a CPU with AVX-512 NumPy's loop calls Intel
@@ -75,17 +78,12 @@ __all__ = ["NUMPY_POWER_IS_LIBM", "NumPyPowers", "rows_from", "rows_source"]
 NUMPY_POWER_IS_LIBM = _NUMPY_CPU.get("AVX512F") is False
 
 #: Exponents ``ndarray.__pow__`` computes by another ufunc than ``power``
-#: (its fast paths) that the compiled copy does not write (SymPy never
+#: (its fast paths) that the program does not write (SymPy never
 #: prints them).
 _FAST_EXPONENTS = (0.0, 1.0)
 
 #: The prefix of the names of the powers NumPy computes (:class:`_Rows`).
 _POWER = "_pw"
-
-#: Names the compiled copy's source gives meanings of its own; a NumPy V
-#: with an argument so named gets no compiled V.
-_RESERVED = frozenset({"np", "njit", "_sqrt", "states", "powers", "out", "i", "EXPONENTS",
-                       "bases", "potential_rows"})
 
 #: NumPy's ``power``, the ufunc ``ndarray.__pow__`` calls for the powers
 #: :class:`NumPyPowers` leaves to NumPy (a name of its own, so that a test
@@ -93,7 +91,7 @@ _RESERVED = frozenset({"np", "njit", "_sqrt", "states", "powers", "out", "i", "E
 _power = np.power
 
 #: Largest integer constant taken: every one up to it converts exactly to
-#: a double, in NumPy (a Python int beside a float64 array) and in numba.
+#: a double, in NumPy (a Python int beside a float64 array) and in the program.
 _EXACT_INT = 2 ** 53
 
 
@@ -129,19 +127,18 @@ _ARITHMETIC = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.
 
 
 class _Rows(ast.NodeTransformer):
-    """The NumPy V's expression as the compiled copy writes it, or
+    """The NumPy V's expression as the program computes it, or
     :class:`_Unsafe` (module docstring's rules). ``numpy_powers``: each
     power that NumPy computes by its ``power`` is written as the name
     ``_pw<i>`` instead, its (base, exponent) kept in :attr:`powers`."""
 
     def __init__(self, names: tuple[str, ...], numpy_powers: bool = False) -> None:
-        if _RESERVED.intersection(names) or any(a.startswith(_POWER) for a in names):
-            # (The compiled copy's own names: an argument so named would
-            # be read as one of them.)
-            raise _Unsafe("an argument named as the compiled copy's names")
+        if any(a.startswith(_POWER) for a in names):
+            # (An argument so named would be read as a power.)
+            raise _Unsafe("an argument named as the powers")
         self.names = set(names)
         self.numpy_powers = numpy_powers
-        #: (the base as the compiled copy writes it, the exponent) of each
+        #: (the base as the program computes it, the exponent) of each
         #: ``_pw<i>``, in order.
         self.powers: list[tuple[ast.expr, float]] = []
 
@@ -224,60 +221,160 @@ def _expression(function: Callable[..., Any], n: int) -> tuple[str, tuple[str, .
     return ast.unparse(node.body[0].value), names
 
 
-def rows_source(expression: str, names: tuple[str, ...], plus_zero: bool = False,
-                numpy_powers: bool | None = None) -> str | None:
-    """The source of a module whose ``potential_rows(states)`` is V at each
-    row of ``states`` (R, ≥ N) from the NumPy V's ``expression`` in the
-    coordinates ``names`` (columns 0 … N−1), or None where its bits could
-    differ from NumPy's (module docstring). ``plus_zero``: the NumPy V adds
-    zeros to the expression's value (a constant V broadcast), which turns
-    −0 into +0; the compiled copy adds 0.0 likewise.
+class Program(NamedTuple):
+    """A program of :func:`~varint.kernels.row_program.run_program`."""
 
-    ``numpy_powers`` (default: where NumPy's power is not libm's,
-    :data:`NUMPY_POWER_IS_LIBM`): the powers NumPy computes by its
-    ``power`` are left to it. Where the expression has such powers, the
-    module's ``bases(states)`` is then their bases (P, R),
-    ``EXPONENTS`` their exponents, and ``potential_rows(states, powers)``
-    V from the states and the powers (P, R) (:class:`NumPyPowers`)."""
-    if numpy_powers is None:
-        numpy_powers = not NUMPY_POWER_IS_LIBM
-    try:
-        rows = _Rows(names, numpy_powers)
-        tree = rows.visit(ast.parse(expression, mode="eval"))
-    except (_Unsafe, SyntaxError):
-        return None
-    body = ast.unparse(tree)
-    if plus_zero:
-        body = f"({body}) + 0.0"
-    unpack = [f"        {name} = states[i, {j}]" for j, name in enumerate(names)]
-    head = ['"""Generated by varint.models.potential_rows; do not edit."""',
-            "import numpy as np", "from numba import njit", "", "_sqrt = np.sqrt", "", ""]
-    if not rows.powers:
-        return "\n".join([
-            *head, "@njit(cache=True, error_model='numpy')", "def potential_rows(states):",
-            "    out = np.empty(states.shape[0])", "    for i in range(states.shape[0]):",
-            *unpack, f"        out[i] = {body}", "    return out", ""])
-    p = len(rows.powers)
-    exponents = ", ".join(repr(e) for _, e in rows.powers)
-    return "\n".join([
-        *head, f"EXPONENTS = ({exponents},)", "", "",
-        "@njit(cache=True, error_model='numpy')", "def bases(states):",
-        f"    out = np.empty(({p}, states.shape[0]))", "    for i in range(states.shape[0]):",
-        *unpack, *(f"        out[{j}, i] = {ast.unparse(b)}" for j, (b, _) in enumerate(rows.powers)),
-        "    return out", "", "",
-        "@njit(cache=True, error_model='numpy')", "def potential_rows(states, powers):",
-        "    out = np.empty(states.shape[0])", "    for i in range(states.shape[0]):",
-        *unpack, *(f"        {_POWER}{j} = powers[{j}, i]" for j in range(p)),
-        f"        out[i] = {body}", "    return out", ""])
+    #: Its instructions (K, 4) int64.
+    code: np.ndarray
+    #: The constants they read.
+    constants: np.ndarray
+    #: The number of registers they use.
+    registers: int
+
+
+#: The powers of a program that reads none.
+_NO_POWERS = np.empty((0, 0))
+
+#: Python's arithmetic, as the NumPy V evaluates its constants' (:func:`_python_value`).
+_PYTHON = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+           ast.Div: operator.truediv}
+
+#: The instructions of the arithmetic of two registers.
+_BINARY = {ast.Add: row_program.ADD, ast.Sub: row_program.SUBTRACT,
+           ast.Mult: row_program.MULTIPLY, ast.Div: row_program.DIVIDE}
+
+
+def _python_value(node: ast.expr) -> Any:
+    """The value of ``node`` where it holds no coordinate (``1 / 3``,
+    ``-2``, ``_sqrt(2)``), as the NumPy V computes it: Python's arithmetic
+    on Python's numbers (``1 / 3`` a correctly rounded double, ``2 * 3`` an
+    exact integer), NumPy's ``sqrt``; else None."""
+    if isinstance(node, ast.Constant):
+        return node.value
+    if isinstance(node, ast.UnaryOp):
+        value = _python_value(node.operand)
+        return None if value is None else (-value if isinstance(node.op, ast.USub) else +value)
+    if isinstance(node, ast.BinOp) and type(node.op) in _PYTHON:
+        left, right = _python_value(node.left), _python_value(node.right)
+        if left is None or right is None:
+            return None
+        return _PYTHON[type(node.op)](left, right)
+    if isinstance(node, ast.Call):
+        value = _python_value(node.args[0])
+        return None if value is None else np.sqrt(value)
+    return None     # a coordinate, a power NumPy computes, a power of a coordinate
+
+
+class _Assembler:
+    """The program of expressions :class:`_Rows` wrote, one register per
+    value (a coordinate's loaded once), in the order Python evaluates
+    them: each operand before its operation, the left before the right."""
+
+    def __init__(self, names: tuple[str, ...]) -> None:
+        self.columns = {name: j for j, name in enumerate(names)}
+        self.code: list[tuple[int, int, int, int]] = []
+        self.constants: list[float] = []
+        self.registers = 0
+        self.loaded: dict[str, int] = {}
+
+    def _emit(self, op: int, a: int = 0, b: int = 0) -> int:
+        self.code.append((op, self.registers, a, b))
+        self.registers += 1
+        return self.registers - 1
+
+    def _constant(self, value: float) -> int:
+        self.constants.append(value)
+        return len(self.constants) - 1
+
+    def value(self, node: ast.expr) -> int:
+        """The register of ``node``'s value."""
+        try:
+            folded = _python_value(node)
+        except (ZeroDivisionError, OverflowError) as exc:
+            raise _Unsafe(str(exc)) from None     # (the NumPy V raises it too)
+        if folded is not None:
+            if isinstance(folded, int) and abs(folded) > _EXACT_INT:
+                raise _Unsafe(repr(folded))
+            # (A Python int or float beside a float64 array: its double.)
+            return self._emit(row_program.CONSTANT, self._constant(float(folded)))
+        if isinstance(node, ast.Name):
+            if node.id.startswith(_POWER):
+                return self._emit(row_program.POWER_ROW, int(node.id[len(_POWER):]))
+            if node.id not in self.loaded:
+                self.loaded[node.id] = self._emit(row_program.LOAD, self.columns[node.id])
+            return self.loaded[node.id]
+        if isinstance(node, ast.UnaryOp):
+            operand = self.value(node.operand)
+            # (+x: the same double.)
+            return (self._emit(row_program.NEGATE, operand) if isinstance(node.op, ast.USub)
+                    else operand)
+        if isinstance(node, ast.Call):
+            return self._emit(row_program.SQRT, self.value(node.args[0]))
+        assert isinstance(node, ast.BinOp)
+        left = self.value(node.left)
+        if isinstance(node.op, ast.Pow):
+            exponent = _constant(node.right)
+            assert exponent is not None
+            return self._emit(row_program.POW, left, self._constant(exponent))
+        return self._emit(_BINARY[type(node.op)], left, self.value(node.right))
+
+    def store(self, node: ast.expr) -> None:
+        """Write ``node``'s value as the next output."""
+        outputs = sum(1 for c in self.code if c[0] == row_program.STORE)
+        self.code.append((row_program.STORE, outputs, self.value(node), 0))
+
+    def program(self) -> Program:
+        return Program(np.array(self.code, dtype=np.int64).reshape(-1, 4),
+                       np.array(self.constants, dtype=np.float64), max(self.registers, 1))
+
+
+def _assembled(names: tuple[str, ...], nodes: list[ast.expr]) -> Program:
+    """The program whose outputs are ``nodes``' values."""
+    assembler = _Assembler(names)
+    for node in nodes:
+        assembler.store(node)
+    return assembler.program()
+
+
+class Rows:
+    """V over rows by the shared interpreter
+    (:func:`~varint.kernels.row_program.run_program`) from the program of
+    its expression.
+
+    Parameters
+    ----------
+    expression : str
+        The expression as :class:`_Rows` wrote it (what the program computes).
+    program : Program
+    kernel : numba dispatcher or :class:`~varint.kernels.resolved.Resolved`
+        :func:`~varint.kernels.row_program.run_program`, by default.
+    """
+
+    __slots__ = ("expression", "program", "kernel")
+
+    def __init__(self, expression: str, program: Program, kernel: Any = run_program) -> None:
+        self.expression, self.program, self.kernel = expression, program, kernel
+
+    def __call__(self, states: np.ndarray) -> np.ndarray:
+        """V (R,) at each row of ``states`` (R, ≥ N), C-contiguous float64."""
+        out = np.empty(states.shape[0])
+        self.kernel(states, _NO_POWERS, *self.program, out.reshape(1, -1))
+        return out
+
+    def resolved(self) -> Rows:
+        """This V with the interpreter called through the compiled version
+        its first call selects (:class:`~varint.kernels.resolved.Resolved`):
+        for a caller whose states are made the same way at every call."""
+        return Rows(self.expression, self.program, Resolved(run_program))
 
 
 class NumPyPowers:
-    """V over rows compiled but for its powers, which NumPy's ``power``
-    computes, as the NumPy V's own ``b ** e`` does (on a CPU where that is
-    not libm's ``pow``, :data:`NUMPY_POWER_IS_LIBM`): the bases compiled,
-    their powers in one call of ``power`` (floating-point errors ignored,
-    as the compiled parts ignore them), V compiled from the states and the
-    powers.
+    """V over rows by the shared interpreter but for its powers, which
+    NumPy's ``power`` computes, as the NumPy V's own ``b ** e`` does (on a
+    CPU where that is not libm's ``pow``, :data:`NUMPY_POWER_IS_LIBM`): the
+    bases by one program, their powers in one call of ``power``
+    (floating-point errors ignored, as the interpreter ignores them), V by
+    another program from the states and the powers.
 
     The bits are the NumPy V's: the bases and the rest are the same IEEE
     operations in the same order (module docstring), and each power is
@@ -291,17 +388,22 @@ class NumPyPowers:
 
     Parameters
     ----------
-    bases, combine : numba dispatchers (or :class:`~varint.kernels.resolved.Resolved`)
-        The generated module's ``bases`` and ``potential_rows``.
+    expression : str
+        V as :class:`_Rows` wrote it, the powers named ``_pw<i>``.
+    bases, combine : Program
+        The programs of the bases (one output each) and of V.
     exponents : tuple of float
-        Its ``EXPONENTS``, one per row of the bases.
+        The powers' exponents, one per base.
+    kernel : numba dispatcher or :class:`~varint.kernels.resolved.Resolved`
+        :func:`~varint.kernels.row_program.run_program`, by default.
     """
 
-    __slots__ = ("bases", "combine", "exponents", "_exponent")
+    __slots__ = ("expression", "bases", "combine", "exponents", "kernel", "_exponent")
 
-    def __init__(self, bases: Any, combine: Any, exponents: tuple[float, ...]) -> None:
-        self.bases, self.combine = bases, combine
-        self.exponents = exponents
+    def __init__(self, expression: str, bases: Program, combine: Program,
+                 exponents: tuple[float, ...], kernel: Any = run_program) -> None:
+        self.expression, self.bases, self.combine = expression, bases, combine
+        self.exponents, self.kernel = exponents, kernel
         # The exponent of every row of the bases: one NumPy scalar where
         # they are all one (NumPy's quickest call, ~1.4 µs against ~3.8 µs
         # for a column broadcast, on a few rows), else a column (P, 1).
@@ -310,46 +412,75 @@ class NumPyPowers:
 
     def __call__(self, states: np.ndarray) -> np.ndarray:
         """V (R,) at each row of ``states`` (R, ≥ N), C-contiguous float64."""
-        bases = self.bases(states)
+        rows = states.shape[0]
+        bases = np.empty((len(self.exponents), rows))
+        self.kernel(states, _NO_POWERS, *self.bases, bases)
         quiet = floating_errors.ignoring()
         try:
             powers = _power(bases, self._exponent)
         finally:
             floating_errors.restore(quiet)
-        return self.combine(states, powers)
+        out = np.empty(rows)
+        self.kernel(states, powers, *self.combine, out.reshape(1, -1))
+        return out
 
     def resolved(self) -> NumPyPowers:
-        """This V with its compiled parts called through the compiled
-        versions their first call selects (:class:`~varint.kernels.resolved.Resolved`):
-        for a caller whose states are made the same way at every call."""
-        return NumPyPowers(Resolved(self.bases), Resolved(self.combine), self.exponents)
+        """This V with the interpreter called through the compiled version
+        its first call selects (:class:`~varint.kernels.resolved.Resolved`;
+        both calls pass arrays of the same types): for a caller whose states
+        are made the same way at every call."""
+        return NumPyPowers(self.expression, self.bases, self.combine, self.exponents,
+                           Resolved(run_program))
+
+
+def rows_program(expression: str, names: tuple[str, ...], plus_zero: bool = False,
+                 numpy_powers: bool | None = None) -> Rows | NumPyPowers | None:
+    """V at each row of states (R, ≥ N) from the NumPy V's ``expression``
+    in the coordinates ``names`` (columns 0 … N−1), run by the shared
+    interpreter, or None where its bits could differ from NumPy's (module
+    docstring). ``plus_zero``: the NumPy V adds zeros to the expression's
+    value (a constant V broadcast), which turns −0 into +0; the program
+    adds 0.0 likewise.
+
+    ``numpy_powers`` (default: where NumPy's power is not libm's,
+    :data:`NUMPY_POWER_IS_LIBM`): the powers NumPy computes by its
+    ``power`` are left to it (:class:`NumPyPowers`, where the expression
+    has such powers)."""
+    if numpy_powers is None:
+        numpy_powers = not NUMPY_POWER_IS_LIBM
+    try:
+        rows = _Rows(names, numpy_powers)
+        body = rows.visit(ast.parse(expression, mode="eval")).body
+        if plus_zero:
+            body = ast.BinOp(body, ast.Add(), ast.Constant(0.0))
+        text = ast.unparse(body)
+        program = _assembled(names, [body])
+        if not rows.powers:
+            return Rows(text, program)
+        bases = _assembled(names, [b for b, _ in rows.powers])
+    except (_Unsafe, SyntaxError):
+        return None
+    return NumPyPowers(text, bases, program, tuple(e for _, e in rows.powers))
 
 
 @functools.lru_cache(maxsize=256)
 def rows_from(function: Callable[..., Any], n: int, plus_zero: bool = False,
-              numpy_powers: bool | None = None) -> Any:
-    """V compiled over rows from the NumPy V's ``function`` of the ``n``
-    coordinates (``def f(q_0, …): return <expression>``), a numba
-    dispatcher taking states (R, ≥ n) C-contiguous float64 and returning
-    V (R,), bitwise ``function`` of their columns (``+ 0.0`` where
-    ``plus_zero``), or a :class:`NumPyPowers` (called the same way) where
-    NumPy computes its powers (``numpy_powers``, :func:`rows_source`);
-    None where it could round otherwise (module
-    docstring) or ``function`` is not of that form. Made once per
-    ``function``: the models ask for it on every prepared run and keep
-    nothing of it, since a remembered call's key reads every attribute of
-    its model (:mod:`varint.remembered`), and one set at a first call would
-    make the next call with the same arguments miss."""
+              numpy_powers: bool | None = None) -> Rows | NumPyPowers | None:
+    """V over rows from the NumPy V's ``function`` of the ``n``
+    coordinates (``def f(q_0, …): return <expression>``), a callable taking
+    states (R, ≥ n) C-contiguous float64 and returning V (R,), bitwise
+    ``function`` of their columns (``+ 0.0`` where ``plus_zero``): a
+    :class:`Rows`, or a :class:`NumPyPowers` where NumPy computes its
+    powers (``numpy_powers``, :func:`rows_program`); None where it could
+    round otherwise (module docstring) or ``function`` is not of that
+    form. Made once per ``function`` (reading its source is the cost): the
+    models ask for it on every call and keep nothing of it, since a
+    remembered call's key reads every attribute of its model
+    (:mod:`varint.remembered`), and one set at a first call would make the
+    next call with the same arguments miss. Nothing is compiled per
+    ``function``: every program runs on the one interpreter."""
     try:
         expression, names = _expression(function, n)
     except (_Unsafe, OSError, TypeError, SyntaxError):
         return None     # (no source to read, or not one expression)
-    source = rows_source(expression, names, plus_zero, numpy_powers)
-    if source is None:
-        return None
-    digest = hashlib.sha256(source.encode()).hexdigest()[:20]
-    module = codecache.load_module(f"varint_vrows_{digest}", "models", lambda: source)
-    exponents = getattr(module, "EXPONENTS", None)
-    if exponents is None:
-        return module.potential_rows
-    return NumPyPowers(module.bases, module.potential_rows, exponents)
+    return rows_program(expression, names, plus_zero, numpy_powers)
