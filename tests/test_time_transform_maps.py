@@ -64,6 +64,9 @@ def test_map_states_and_energy_errors_are_those_of_the_orbits(plummer):
     assert np.array_equal(r.accuracy.t_worst, every * (1 + along.argmax(axis=0)))
     assert (r.accuracy.energy_error > 0).all() and r.accuracy.accurate.all()
     assert r.accuracy.verdict.startswith("accurate")
+    # Compilation and run kept apart, as every map's (no pilot: h given).
+    assert set(r.provenance.timing) == {"compile", "run"}
+    assert r.provenance.timing["run"] > 0
 
 
 def test_map_verdict_warns_when_the_step_is_too_long():

@@ -97,6 +97,10 @@ def test_near_singular_defaults_take_the_log_hamiltonian(caplog):
     with caplog.at_level(logging.INFO, logger="varint.maps"):
         r = varint.chaos_map(model, X, "fli", t_end=40.0, progress=False)
     assert r.provenance.method == "tm+log"
+    # The defaults' pilot (both steps priced) and the LH map's run timed
+    # apart from compilation (empty before).
+    assert set(r.provenance.timing) == {"compile", "pilot", "run"}
+    assert min(r.provenance.timing["pilot"], r.provenance.timing["run"]) > 0
     choice = r.provenance.tau_choice
     # Priced against the constant steps with the pilot run their next rung
     # still had to make (maps._pilot_share; 8 orbits to t = 40, all of them

@@ -519,7 +519,7 @@ def chaos_map(model: Model, initial_conditions: ArrayLike | SectionGrid,
                             tau=h_choice["h"], method=method, threshold=threshold, seed=seed,
                             t_check=None, chunk_size=chunk_size, client=None, checkpoint=None,
                             progress=progress, escape_radius=None, energy_tol=energy_tol,
-                            time_transform="log", h_choice=h_choice)
+                            time_transform="log", h_choice=h_choice, clock=clock)
     if stepped is None:
         spec, divisions = _with_step(spec, k, clock, per_orbit)
     else:
@@ -960,7 +960,7 @@ LOG_MAP_OPTIONS = {"scheme": "ABA864", "offset": None, "every": 10.0, "backend":
 
 def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, threshold, seed,
              t_check, chunk_size, client, checkpoint, progress, escape_radius, energy_tol,
-             time_transform, h_choice=None, **options):
+             time_transform, h_choice=None, clock=None, **options):
     """The FLI map of :func:`chaos_map` with ``time_transform="log"``: the
     orbits in chunks (the map's fixed shuffle, :func:`_chunk_size`), each
     chunk one call of :meth:`LogHamiltonian.outputs
@@ -973,7 +973,11 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
     :class:`~varint.protocol.Status` the step reported, and its ``t_stop``
     the time its last completed step reached. The result carries the final
     states, their energy errors and the accuracy verdict of every map
-    (:func:`_log_verdict`, warning as :func:`chaos_map` does)."""
+    (:func:`_log_verdict`, warning as :func:`chaos_map` does), and in
+    ``provenance.timing`` the seconds of compilation, pilot and run kept
+    apart, as every map's: ``clock`` is the defaults' (:func:`chaos_map`,
+    whose pilot priced this map against constant steps), else one of its
+    own."""
     from .time_transform import TIME_TRANSFORMS, describe, refuse
     from .time_transform_step import RETRY_CEILING, agreeing_offset, choose_h, retried
 
@@ -1021,21 +1025,26 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
                          f"{int(np.argmin(np.isfinite(X).all(axis=1)))}")
     m = len(X)
     chunk_size = _chunk_size(chunk_size, m, None)
+    if clock is None:
+        clock = compiling.Clock(f"the fli map of {model.name} by tm+log", progress)
     lh = _log_hamiltonian(model, opts["scheme"], opts["offset"])
     if h_choice is not None and "offset" in h_choice:
         # The defaults' pilot (_cheaper_steps) chose δ with h.
         lh = lh.with_offset(h_choice["offset"])
     if h is None:
         # δ (unless given) and h from the pilot: counts, never timings.
-        lh, h, h_choice = agreeing_offset(lh, X, t_end, quantile=MAP_QUANTILE,
-                                          ceiling=RETRY_CEILING * energy_tol, seed=seed,
-                                          every=every, retry=energy_tol)
+        with clock.part("pilot"):
+            lh, h, h_choice = agreeing_offset(lh, X, t_end, quantile=MAP_QUANTILE,
+                                              ceiling=RETRY_CEILING * energy_tol, seed=seed,
+                                              every=every, retry=energy_tol)
         if h is None:
             # Not silence: the map runs, at the step of the energy pilot,
             # and says that its FLI was not checked.
             failed = h_choice
             tolerance = pilot_tolerance(INDICATORS["fli"])
-            h, h_choice = choose_h(lh, X, t_end, tolerance, quantile=MAP_QUANTILE, seed=seed)
+            with clock.part("pilot"):
+                h, h_choice = choose_h(lh, X, t_end, tolerance, quantile=MAP_QUANTILE,
+                                       seed=seed)
             h_choice.update(indicator=failed, summary=(
                 f"{failed['summary']} (h = {failed['tried'][0][0]:.3g} down to "
                 f"{failed['tried'][-1][0]:.3g}): step chosen by the energy error to "
@@ -1067,7 +1076,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         done[c], level[chunks[c]] = outcome.out
         return len(chunks[c])
 
-    with bar(progress, m, 0, "chaos_map", "orbit") as shown:
+    with clock.part("run"), bar(progress, m, 0, "chaos_map", "orbit") as shown:
         interrupted = fan_out(None, range(len(chunks)), lambda c: _LogChunk(run(c)),
                               lambda c: (c,), keep, shown)
     values, lh_status = np.full(m, np.nan), np.zeros(m, dtype=np.int64)
@@ -1125,6 +1134,7 @@ def _log_map(model, initial_conditions, indicator, *, t_end, tau, method, thresh
         wall_time=time.perf_counter() - start,
         tau_choice={} if h_choice is None else dict(h_choice), code=identity.code_identity(),
         machine=identity.machine(), cpu_time=time.process_time() - cpu)
+    prov.timing = {k: round(v, 6) for k, v in clock.timing.items()}
     empty = np.empty(0)
     result = ChaosMapResult(
         t=np.array([t_end]), energy_error=energy,
