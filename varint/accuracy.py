@@ -260,6 +260,8 @@ def reference_and_errors(model, x0, x, t=0.0):
 #: Per model class: whether its energy, energy scale and conserved
 #: quantities are the base model's (:func:`plain_energy`).
 _PLAIN: dict = {}
+#: Likewise whether they are a HamiltonianModel's (:func:`hamiltonian_energy`).
+_HAMILTONIAN: dict = {}
 
 
 def plain_energy(model):
@@ -268,13 +270,8 @@ def plain_energy(model):
     |T| + |V|, the energy alone) for a time-independent V: then
     :class:`Reference` evaluates T and V once for both (a prepared run's
     call measures its states' reference at each call)."""
-    cls = type(model)
-    plain = _PLAIN.get(cls)
-    if plain is None:
-        plain = all(getattr(getattr(cls, name, None), "__module__", None)
-                    == "varint.models.base" for name in ("energy", "energy_scale", "conserved"))
-        _PLAIN[cls] = plain
-    return plain and not getattr(model, "time_dependent", False)
+    return _own_methods(model, "varint.models.base", ("energy", "energy_scale", "conserved"),
+                        _PLAIN)
 
 
 def hamiltonian_energy(model):
@@ -284,18 +281,21 @@ def hamiltonian_energy(model):
     :func:`reference_and_errors` evaluates H once over the start states
     and the later ones
     (:meth:`~varint.models.hamiltonian.HamiltonianModel.start_and_later_energies`)."""
+    return _own_methods(model, "varint.models.hamiltonian",
+                        ("energy", "energy_scale", "conserved", "hamiltonian", "potential",
+                         "start_and_later_energies"), _HAMILTONIAN)
+
+
+def _own_methods(model, module, names, memo):
+    """Whether the methods ``names`` of ``model``'s class are all defined
+    in ``module`` (none overridden elsewhere; asked once per class, kept in
+    ``memo``) and ``model`` is time-independent."""
     cls = type(model)
-    found = _HAMILTONIAN.get(cls)
-    if found is None:
-        found = all(getattr(getattr(cls, name, None), "__module__", None)
-                    == "varint.models.hamiltonian"
-                    for name in ("energy", "energy_scale", "conserved", "hamiltonian",
-                                 "potential", "start_and_later_energies"))
-        _HAMILTONIAN[cls] = found
-    return found and not getattr(model, "time_dependent", False)
-
-
-_HAMILTONIAN: dict = {}
+    own = memo.get(cls)
+    if own is None:
+        own = memo[cls] = all(getattr(getattr(cls, name, None), "__module__", None) == module
+                              for name in names)
+    return own and not getattr(model, "time_dependent", False)
 
 
 def _conserved(model, x, t=0.0, p_t=0.0):

@@ -597,7 +597,8 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
     # one counted without: below the threshold the model is no candidate
     # whatever its form, and SymPy, which reading the form takes, stays
     # unloaded (~0.35 s of a first Hénon–Heiles map, studies/startup.py).
-    if _u_spread(model, pilot, kinetic=True) < U_SPREAD_MIN:
+    bound = _u_spread(model, pilot, kinetic=True)
+    if bound < U_SPREAD_MIN:
         return False
     # Only now: the LH's module imports SymPy, which a map that keeps its
     # constant step never needs.
@@ -607,7 +608,8 @@ def _log_candidate(spec, ind, tau, method, options, threshold, t_check, client, 
         parts, _ = refuse(model)
     except ValueError:
         return False
-    return _u_spread(model, pilot, kinetic=parts[4].kind == "free") >= U_SPREAD_MIN
+    spread = bound if parts[4].kind == "free" else _u_spread(model, pilot)
+    return spread >= U_SPREAD_MIN
 
 
 def _u_spread(model, X, kinetic=False):

@@ -25,8 +25,8 @@ import numpy as np
 from ..kernels import parts as K
 from ..kernels.interval import Call
 from ..kernels.resolved import Resolved
-from ..state import Rows, Snapshots
-from .fresh_run import _reset
+from ..state import Snapshots
+from .fresh_run import _reset, fresh_rows, kept_rows, start
 
 __all__ = ["FreshPartsRun"]
 
@@ -112,23 +112,14 @@ class FreshPartsRun:
                                    extra=extra, renormalized=True)
         # The snapshots' rows as read-only views of the kept buffers (made
         # once; a fresh Rows of them at each run, :meth:`rows`).
-        r = self.snapshots.rows(None)
-        for v in (r.x, r.W, r.acc_m, r.acc_e, r.step, *r.extra.values()):
-            v.flags.writeable = False
-        self._rows = r
+        self._rows = kept_rows(self.snapshots)
 
     def __call__(self, x0, W0):
         """Run the orbits from states ``x0`` (M, 2N) with vectors ``W0``
         (M, 2N, k), both float64, to the last output, or to the output
         where an orbit failed (:attr:`status` nonzero: the general path
         then runs the call)."""
-        # Writable C-contiguous copies where they are not: the compiled
-        # reset's one signature (FreshRun.__call__).
-        if not (x0.flags.c_contiguous and x0.flags.writeable):
-            x0 = np.array(x0, order="C")
-        if not (W0.flags.c_contiguous and W0.flags.writeable):
-            W0 = np.array(W0, order="C")
-        self._reset(*self._buffers, x0, W0)
+        start(self._reset, self._buffers, x0, W0)
         kernel, status = self._kernel, self.status
         for args, copies in zip(self._calls, self._copies, strict=True):
             kernel(*args)
@@ -141,5 +132,4 @@ class FreshPartsRun:
         """The last run's snapshots as :class:`~varint.state.Rows` (read-only
         views of the kept buffers; their vectors renormalised at every
         step, so ``renorm`` changes nothing)."""
-        r = self._rows
-        return Rows(x=r.x, W=r.W, acc_m=r.acc_m, acc_e=r.acc_e, step=r.step, extra=dict(r.extra))
+        return fresh_rows(self._rows)

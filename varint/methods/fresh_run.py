@@ -24,7 +24,7 @@ from ..kernels.resolved import Resolved
 from ..protocol import COUNTERS
 from ..state import Rows, Snapshots
 
-__all__ = ["FreshRun"]
+__all__ = ["FreshRun", "fresh_rows", "kept_rows", "start"]
 
 
 @njit(cache=True)
@@ -40,6 +40,37 @@ def _reset(floats, floats_start, ints, ints_start, x0_kept, x, W, aux, aux0, x0,
     x[:] = x0
     W[:] = W0
     aux[:] = aux0
+
+
+def start(reset, buffers, x0, W0):
+    """A fresh run's start: ``reset`` (:func:`_reset`'s compiled version)
+    of its kept ``buffers`` from the states ``x0`` (M, 2N) and vectors
+    ``W0`` (M, 2N, k). The compiled reset takes writable C-contiguous x0
+    and W0, its one signature: other layouts are copied, and so are
+    read-only arrays (a caller's vectors made read-only), which numba would
+    type apart and compile the reset again for (~3 s cold). A copy of these
+    few numbers, the same values, costs less than numba's dispatch."""
+    if not (x0.flags.c_contiguous and x0.flags.writeable):
+        x0 = np.array(x0, order="C")
+    if not (W0.flags.c_contiguous and W0.flags.writeable):
+        W0 = np.array(W0, order="C")
+    reset(*buffers, x0, W0)
+
+
+def kept_rows(snapshots):
+    """``snapshots.rows(None)`` with its arrays read-only: views of a fresh
+    run's kept buffers, made once; each run hands out :func:`fresh_rows` of
+    them."""
+    r = snapshots.rows(None)
+    for v in (r.x, r.W, r.acc_m, r.acc_e, r.step, *r.extra.values()):
+        v.flags.writeable = False
+    return r
+
+
+def fresh_rows(r):
+    """A new :class:`~varint.state.Rows` of the same read-only views as
+    ``r`` (:func:`kept_rows`), its own ``extra`` dict."""
+    return Rows(x=r.x, W=r.W, acc_m=r.acc_m, acc_e=r.acc_e, step=r.step, extra=dict(r.extra))
 
 
 class FreshRun:
@@ -157,28 +188,13 @@ class FreshRun:
         # The snapshots' rows (Snapshots.rows) where no renormalised copy is
         # needed, as read-only views of the kept buffers: made once, a
         # fresh Rows of them at each run (:meth:`rows`).
-        self._rows = None
-        if renormalized or not k:
-            r = self.snapshots.rows(None)
-            for v in (r.x, r.W, r.acc_m, r.acc_e, r.step, *r.extra.values()):
-                v.flags.writeable = False
-            self._rows = r
+        self._rows = kept_rows(self.snapshots) if renormalized or not k else None
 
     def __call__(self, x0, W0):
         """Run the orbits from states ``x0`` (M, 2N) with vectors ``W0``
         (M, 2N, k), both float64; the results are in the kept arrays
         (:attr:`x`, :attr:`W`, :attr:`status`, ... and :attr:`snapshots`)."""
-        # The reset's compiled version (Resolved) takes writable
-        # C-contiguous x0 and W0, its one signature: other layouts are
-        # copied, and so are read-only arrays (a caller's vectors made
-        # read-only), which numba would type apart and compile the reset
-        # again for (~3 s cold). A copy of these few numbers, the same
-        # values, costs less than numba's dispatch.
-        if not (x0.flags.c_contiguous and x0.flags.writeable):
-            x0 = np.array(x0, order="C")
-        if not (W0.flags.c_contiguous and W0.flags.writeable):
-            W0 = np.array(W0, order="C")
-        self._reset(*self._buffers, x0, W0)
+        start(self._reset, self._buffers, x0, W0)
         if self._kahan is not None:
             self._kahan.fill(0.0)
         if self._choose is not None:
@@ -197,7 +213,6 @@ class FreshRun:
         """The last run's snapshots as :class:`~varint.state.Rows`, as
         :meth:`varint.state.Snapshots.rows` gives them (read-only views of
         the kept buffers where no renormalised copy is made)."""
-        r = self._rows
-        if r is None:
+        if self._rows is None:
             return self.snapshots.rows(renorm)
-        return Rows(x=r.x, W=r.W, acc_m=r.acc_m, acc_e=r.acc_e, step=r.step, extra=dict(r.extra))
+        return fresh_rows(self._rows)
