@@ -20,7 +20,10 @@ gradient and Hessian added to accumulators, so nothing is optimised away);
 ``ferrers_grad_hess`` is the bar alone with its potential, ``ferrers_kick``
 the same without the potential (where the code has it), ``model`` the bar
 model's ``grad_hess_v`` (Miyamoto–Nagai disc + Plummer bulge + bar, what
-the tangent map's kick evaluates). AGAMA: ``eval`` of the Ferrers
+the part flows' kick evaluates), ``model extra_force`` the kernel a
+generated stepper's kick calls (bar25: disc, bulge and bar,
+:func:`varint.models.bar.galaxy_force`; before, the bar alone, the disc
+and bulge written into the stepper from SymPy). AGAMA: ``eval`` of the Ferrers
 potential alone, and of the whole model, on the (M, 3) array of positions
 at once (its C++ loop; ``agama`` 1.0.159 built from source, one thread)
 and on one position per call (the per-call cost its orbit integrator does
@@ -117,6 +120,25 @@ def _model_loop(grad_hess):
     return loop
 
 
+def _extra_loop(force):
+    """A compiled loop over positions of a model's extra force (the
+    generated stepper's kick adds it to its closed part), with its
+    constants as the stepper passes them (tuples as arrays; written out as
+    the stepper writes them: numba inlines no call with ``*args``)."""
+    constants = tuple(np.array(c) if isinstance(c, tuple) else float(c)
+                      for c in force.constants)
+    names = ", ".join(f"c{i}" for i in range(len(constants)))
+    namespace = {"np": np, "function": force.function}
+    exec(f"def loop(Q, {names}):\n"
+         "    g = np.zeros(3)\n"
+         "    D = np.zeros((3, 3))\n"
+         "    for m in range(Q.shape[0]):\n"
+         f"        function(Q[m], g, D, True, {names})\n"
+         "    return g.sum() + D.sum()\n", namespace)
+    loop = njit(error_model="numpy")(namespace["loop"])
+    return lambda Q: loop(Q, *constants)
+
+
 def positions(quick):
     """name → (M, 3) positions (module docstring)."""
     rng = np.random.default_rng(20)
@@ -184,14 +206,17 @@ def measure(quick, repeats, baseline=None, clock=time.perf_counter):
     inside = model._inside
     par = np.empty(0)
     model_loop = _model_loop(model.grad_hess_v)
+    extra_loop = _extra_loop(model.extra_force)
     kick_loop = _kick_loop()
     peers = _agama()
     rows = []
     for name, Q in positions(quick).items():
         _ferrers_loop(Q, axes2, gm, inside)
         model_loop(Q, par)
+        extra_loop(Q)
         tasks = {"varint ferrers_grad_hess": lambda Q=Q: _ferrers_loop(Q, axes2, gm, inside),
-                 "varint model grad_hess_v": lambda Q=Q: model_loop(Q, par)}
+                 "varint model grad_hess_v": lambda Q=Q: model_loop(Q, par),
+                 "varint model extra_force": lambda Q=Q: extra_loop(Q)}
         if kick_loop is not None:
             kick_loop(Q, axes2, gm, inside)
             tasks["varint ferrers_kick"] = lambda Q=Q: kick_loop(Q, axes2, gm, inside)

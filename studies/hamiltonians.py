@@ -32,7 +32,8 @@ Parts (``--part``, several separated by commas; all by default):
 ``bar``
     The largest Lyapunov exponent of the rotating bar's named orbits
     (:data:`varint.models.bar.BAR_ORBITS`): varint's ``lyapunov_spectrum``
-    (defaults; SRKN14a at τ = 0.8 … 0.05, ABA864 at τ = 0.4, 0.2, 0.1)
+    (defaults; SRKN14a at τ = 0.8 … 0.05, ABA864 at thirteen steps τ = 0.5 …
+    0.1, each a whole number of steps to t_end)
     against galpy's ``Orbit.lyapunov`` and AGAMA's ``orbit`` in the frame
     rotating with ``Omega`` (where they install), at equal accuracy of X1
     against a tight reference (varint, ABA864 at τ = 0.005). AGAMA is
@@ -111,6 +112,10 @@ MAP_PX = (-0.3, 0.3)
 MAP_TOLS = (1e-6, 1e-8, 1e-10, 1e-12)
 REF_TOL = 1e-15
 REF_EVERY = 1.0
+#: varint's steps to t = 100 in the bar race (scaled to a shorter t_end):
+#: SRKN14a at τ = 0.8 … 0.05 and ABA864 at τ = 0.5 … 0.1 (:func:`bar_case`).
+BAR_SRKN_STEPS = (125, 250, 500, 1000, 2000)
+BAR_ABA_STEPS = (200, 230, 250, 265, 300, 350, 400, 460, 530, 610, 700, 800, 1000)
 #: AGAMA's relative accuracies of its DOP853 orbit (and GL4 variational) steps.
 AGAMA_ACCURACIES = (1e-6, 1e-9, 1e-12)
 #: galpy's relative tolerances of Orbit.lyapunov (``--galpy-rtols``).
@@ -292,17 +297,20 @@ def bar_case(quick, repeats, galpy_rtols=GALPY_RTOLS, clock=time.perf_counter):
         x1_ref = float(reference.exponents[-1, 0])
         tasks = {"varint defaults": lambda model=model, x0=x0: varint.lyapunov_spectrum(
             model, x0, t_end, deviations=w0, t_out=[t_end])}
-        # The default scheme (order 6, 14 kicks a step), ABA864 (order 4,
-        # 7 kicks) and Forest–Ruth's FR4 (order 4, 3 kicks), whose cheaper
-        # steps may win at AGAMA's loosest accuracy (≈1e-6 in X1 at
-        # t = 100; of the two-part schemes without corrector, these at
-        # these steps were the cheapest there in bar23's trials,
-        # studies/results/bar23/hamiltonians_bar.json); all on the bar's
-        # generated stepper.
-        for scheme, taus in (("SRKN14a", (0.8, 0.6, 0.4, 0.2, 0.1, 0.05)),
-                             ("ABA864", (0.5, 0.45, 0.4, 0.2, 0.1)), ("FR4", (0.2, 0.15))):
-            for tau in taus:
-                tasks[f"varint {scheme} τ = {tau}"] = (
+        # The default scheme (order 6, 14 kicks a step) and ABA864 (order
+        # (8, 6, 4), 7 kicks), the cheapest at every accuracy of bar25's
+        # sweep of the two-part schemes without corrector (ABA1064,
+        # ABAH864, FR4, S9ODR6, S11ODR6, S15ODR8 need more kicks for the
+        # same error; studies/results/bar25/bar_scheme_sweep.json), all on
+        # the bar's generated stepper. Whole numbers of steps to t_end: a
+        # τ that does not divide it ends the run a fraction of a step away
+        # (τ = 0.45: t = 99.9), an error of ~1e-4 in X1 that is not the
+        # scheme's. ABA864's ladder of ~15 % steps (and the race's earlier τ = 0.4)
+        # brackets AGAMA's errors.
+        for scheme, counts in (("SRKN14a", BAR_SRKN_STEPS), ("ABA864", BAR_ABA_STEPS)):
+            for count in counts:
+                tau = t_end / max(1, round(count * t_end / 100.0))
+                tasks[f"varint {scheme} τ = {tau:.4g}"] = (
                     lambda model=model, x0=x0, tau=tau, scheme=scheme: varint.lyapunov_spectrum(
                         model, x0, t_end, tau=tau, scheme=scheme, deviations=w0,
                         t_out=[t_end]))

@@ -1,6 +1,8 @@
-"""The rotating bar on its generated stepper: the closed part (rotating
-frame, disc, bulge) written out, the Ferrers bar added in every kick by its
-compiled kernel (:class:`varint.codegen.expressions.ExtraForce`)."""
+"""The rotating bar on its generated stepper: the closed part (the rotating
+frame's drift) written out, the whole potential (disc, bulge, Ferrers bar)
+added in every kick by its compiled kernel
+(:class:`varint.codegen.expressions.ExtraForce`,
+:func:`varint.models.bar.galaxy_force`)."""
 
 import numpy as np
 import pytest

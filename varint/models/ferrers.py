@@ -52,7 +52,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["carlson_rf_rd", "ferrers_lambda", "ferrers_w", "ferrers_potential",
-           "ferrers_grad_hess", "ferrers_kick", "ferrers_force", "ferrers_add_potential",
+           "ferrers_derivatives", "ferrers_grad_hess", "ferrers_kick", "ferrers_add_potential",
            "inside_table", "FERRERS_K", "W_ORDER"]
 
 #: K = π G abc ρ_c / 3 in units of G M (n = 2).
@@ -261,9 +261,10 @@ def _evaluate(q, X0, X1, X2, W, K, g, D, hessian, potential):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _derivatives(q, axes2, gm, g, D, hessian, inside, potential):
+def ferrers_derivatives(q, axes2, gm, g, D, hessian, inside, potential):
     """:func:`ferrers_grad_hess`, Φ computed (and returned) only if
-    ``potential``. Inlined into its three callers by numba, with
+    ``potential``. Inlined into its callers by numba (here and the bar
+    model's :func:`~varint.models.bar.galaxy_force`), with
     :func:`_evaluate` (a call passing four arrays costs about as much as
     the polynomials inside the bar: 34 → 28 ns a kick inside, the first
     call's compile unchanged at 9.1 s CPU); λ and the W stay calls
@@ -289,22 +290,14 @@ def ferrers_grad_hess(q, axes2, gm, g, D, hessian, inside):
     bar λ = 0 and Φ, its gradient and Hessian are polynomials in x² of
     these constants, so no elliptic integral is evaluated there. Nothing
     is allocated, inside or outside."""
-    return _derivatives(q, axes2, gm, g, D, hessian, inside, True)
+    return ferrers_derivatives(q, axes2, gm, g, D, hessian, inside, True)
 
 
 @njit(cache=True, error_model="numpy")
 def ferrers_kick(q, axes2, gm, g, D, hessian, inside):
     """:func:`ferrers_grad_hess` without Φ (the same g and D, bit for bit):
     what a kick of a tangent map needs, a third fewer operations."""
-    _derivatives(q, axes2, gm, g, D, hessian, inside, False)
-
-
-@njit(cache=True, error_model="numpy")
-def ferrers_force(q, g, D, hessian, axes2, gm, inside):
-    """:func:`ferrers_kick` in the argument order of a generated stepper's
-    extra force (:class:`varint.codegen.expressions.ExtraForce`): the
-    positions, the gradient and Hessian to add to, then the constants."""
-    _derivatives(q, axes2, gm, g, D, hessian, inside, False)
+    ferrers_derivatives(q, axes2, gm, g, D, hessian, inside, False)
 
 
 @njit(cache=True, error_model="numpy")
