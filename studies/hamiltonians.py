@@ -55,8 +55,10 @@ Parts (``--part``, several separated by commas; all by default):
     vector (``lyapunov_spectrum`` with one exponent from the same unit
     vector): the error at t_end is the larger of the orbit's (max norm)
     and of the vector's accumulated log-stretching, against heyoka's Taylor
-    method in extended precision (long double, tol ε); the cost is the wall
-    time (one thread, interleaved, minimum of the repeats). Systems and
+    method in extended precision (long double, tol ε); the cost is the
+    process's CPU time (``--precision-clock cpu``, the default: one thread,
+    so other jobs of a loaded machine stay out of it) or the wall time
+    (``wall``), interleaved, minimum of the repeats. Systems and
     contenders: the restricted three-body problem (Sun–Jupiter, a regular
     orbit, t = 100): the rotating-frame split (SRKN14a, ABA864, s11odr6),
     the termwise split (s11ABC6), Gauss–Legendre and Tao's method on the
@@ -75,7 +77,7 @@ Parts (``--part``, several separated by commas; all by default):
     cost–error front at varint's errors, log–log interpolated).
 
 Usage: ``python studies/hamiltonians.py [--quick] [--out DIR] [--part maps,bar,...]
-[--repeats N] [--galpy-rtols 1e-6,1e-9]``. State the machine load (``uptime``, recorded in the JSON)
+[--repeats N] [--galpy-rtols 1e-6,1e-9] [--precision-clock cpu|wall] [--systems general]``. State the machine load (``uptime``, recorded in the JSON)
 with every figure.
 """
 
@@ -531,18 +533,25 @@ def _one(model, x0, t_end, method, options, knob):
     return r.state, float(r.exponents[-1, 0]) * t_end
 
 
-def precision_case(quick, repeats, systems=None, peers=_peers):
+def precision_case(quick, repeats, systems=None, peers=_peers, clock=time.perf_counter,
+                   only=()):
     """The work–precision rows and per-system summaries (module docstring)
     of ``systems`` (name → (model, x0, t_end, contenders), as
-    :func:`_systems`, whose are the default) against ``peers(model)``
-    (:func:`_peers` by default); ``studies/general_h_heldout.py`` races its
-    held-out Hamiltonians through it."""
+    :func:`_systems`, whose are the default; ``only``: the names that
+    contain one of these strings, or all) against ``peers(model)``
+    (:func:`_peers` by default), timed by ``clock`` (wall time, or
+    ``time.process_time``: every contender runs on one thread, so its CPU
+    time leaves the other jobs of a loaded machine out);
+    ``studies/general_h_heldout.py`` races its held-out Hamiltonians
+    through it."""
     rows, summary = [], {}
     numba.set_num_threads(1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for name, (model, x0, t_end, contenders) in (
                 _systems(quick) if systems is None else systems).items():
+            if only and not any(o in name for o in only):
+                continue
             ref = varint.lyapunov_spectrum(model, x0, t_end, tau=1.0, method="taylor",
                                            precision="extended",
                                            deviations=np.eye(model.dim)[:, :1], t_out=[t_end],
@@ -557,7 +566,7 @@ def precision_case(quick, repeats, systems=None, peers=_peers):
                     tasks[(label, knob)] = (
                         lambda m=m, method=method, options=options, knob=knob, x0=x0,
                         t_end=t_end: _one(m, x0, t_end, method, options, knob))
-            best, outs = interleaved(tasks, 1 if quick else repeats)
+            best, outs = interleaved(tasks, 1 if quick else repeats, clock=clock)
             for (label, knob), seconds in best.items():
                 state, log_growth = outs[(label, knob)]
                 error = max(float(np.abs(state - x_ref).max()), abs(log_growth - log_ref))
@@ -695,7 +704,8 @@ def claims(out, result):
                   "≥ 1e-8 (issue 29)", paper="heyoka/varint ≥ 0.5",
                   ours=", ".join(f"{k}: {v:.3g}" for k, v in sorted(worst.items()))
                   + f" (smallest heyoka/varint cost ratio over each method's errors ≥ 1e-8); "
-                    f"load {result['precision']['load'][0]:.1f}",
+                    f"load {result['precision']['load'][0]:.1f}, "
+                    f"{result['precision'].get('clock', 'wall')} time",
                   holds=worst[best_label] >= 0.5,
                   note=("" if worst[best_label] >= 0.5 else
                         "heyoka's high-order Taylor steps are far longer than an implicit "
@@ -714,6 +724,13 @@ def main(argv=None):
         parser.add_argument("--repeats", type=int, default=REPEATS)
         parser.add_argument("--galpy-rtols", default=",".join(map(str, GALPY_RTOLS)),
                             help="galpy's rtols in the bar part, comma-separated (minutes each)")
+        parser.add_argument("--precision-clock", choices=("wall", "cpu"), default="cpu",
+                            help="the precision part's clock: the process's CPU time (every "
+                                 "contender one thread; the default on a loaded machine) or "
+                                 "wall time")
+        parser.add_argument("--systems", default="",
+                            help="the precision part's systems whose names contain one of "
+                                 "these strings, comma-separated (default: all)")
         parser.add_argument("--bar-clock", choices=("wall", "cpu"), default="wall",
                             help="the bar part's clock: wall time, or the process's CPU time "
                                  "(every contender one thread; on a loaded machine)")
@@ -748,11 +765,14 @@ def main(argv=None):
                          "clock": args.bar_clock}
     if "precision" in parts:
         start = load()
-        rows, summary = precision_case(args.quick, args.repeats)
+        clock = time.process_time if args.precision_clock == "cpu" else time.perf_counter
+        only = tuple(v.strip() for v in args.systems.split(",") if v.strip())
+        rows, summary = precision_case(args.quick, args.repeats, clock=clock, only=only)
         save_csv(args.out, "hamiltonians_precision", rows,
                  ["system", "contender", "knob", "seconds", "error", "t_end"])
         result["precision"] = {"rows": rows, "summary": summary, "load": start,
-                               "load_end": load(), "warmed": "every knob"}
+                               "load_end": load(), "warmed": "every knob",
+                               "clock": args.precision_clock}
     for part in parts:
         save_json(args.out, f"hamiltonians_{part}", {"quick": args.quick, part: result[part]})
     # The claims of every part run so far into this directory (parts may be

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cache
+from typing import Any, cast
 
 import numpy as np
 from numba import njit
@@ -59,6 +60,10 @@ FIXED_POINT_VECTORS = 2
 _FAILED = int(Status.INTEGRATOR_FAILED)
 _OK = int(Status.OK)
 _EPS = np.finfo(np.float64).eps
+#: The decorator of the step and its helpers, called only from compiled code:
+#: no wrappers for calls from Python, whose lowering and optimisation each
+#: compile paid (numba's typing stubs do not name these options).
+_helper = cast(Any, njit)(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 @dataclass(frozen=True)
@@ -210,7 +215,7 @@ def _field(y, par, g, out, grad):
         out[n + i] = -g[i]
 
 
-@njit(error_model="numpy")
+@_helper
 def _lu(M, piv, m):
     """In-place LU factorisation with partial pivoting of M[:m, :m];
     returns False if M is singular."""
@@ -239,7 +244,7 @@ def _lu(M, piv, m):
     return True
 
 
-@njit(error_model="numpy")
+@_helper
 def _lu_solve(M, piv, m, rhs):
     """Solve in place for the right-hand side ``rhs`` (m,) given the
     factors of :func:`_lu`."""
@@ -259,14 +264,14 @@ def _lu_solve(M, piv, m, rhs):
         rhs[i] = acc / M[i, i]
 
 
-@njit(error_model="numpy", inline="always")
+@_helper
 def _converged(delta, last, size):
     # At round-off: the corrections reached a few ulps of Z, or stopped
     # shrinking once they were small (rounding noise).
     return delta <= 4.0 * _EPS * size or (delta >= last and delta <= 1e-10 * size)
 
 
-@njit(error_model="numpy", inline="always")
+@_helper
 def _update(V, v, U, d, s, dim):
     for m in range(dim):
         acc = 0.0
@@ -275,67 +280,16 @@ def _update(V, v, U, d, s, dim):
         V[v, m] += acc
 
 
-@njit(error_model="numpy", inline="always")
-def _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s, dim, grad_hess):
-    """The stage tangents by fixed-point iteration of U_i = δx + h Σ_j a_ij
-    Df(Y_j) U_j to round-off (cheaper than the LU for a few vectors: s d²
-    per vector and iteration against (s d)³/3); V ← V + Σ d_i (U_i − V),
-    for all vectors or (returning False, when an iteration does not
-    converge; the caller then factorises) for none. ``H`` (s, 2N, 2N) is
-    scratch for D²H at the stages."""
-    n = dim // 2
-    for j in range(s):
-        for m in range(dim):
-            y[m] = x[m] + Z[j * dim + m]
-        grad_hess(y, pars[j], g, H[j])
-    for v in range(k):
-        for i in range(s):
-            for m in range(dim):
-                U[v, i * dim + m] = V[v, m]
-        last = np.inf
-        converged = False
-        for _ in range(MAX_ITERATIONS):
-            # R_j = Df(Y_j) U_j = J D²H(Y_j) U_j.
-            for j in range(s):
-                for r in range(dim):
-                    acc = 0.0
-                    for c in range(dim):
-                        acc += H[j, r, c] * U[v, j * dim + c]
-                    if r < n:
-                        R[j * dim + n + r] = -acc
-                    else:
-                        R[j * dim + r - n] = acc
-            delta = 0.0
-            size = 0.0
-            for i in range(s):
-                for m in range(dim):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += A[i, j] * R[j * dim + m]
-                    u = V[v, m] + h * acc
-                    delta = max(delta, abs(u - U[v, i * dim + m]))
-                    size = max(size, abs(u))
-                    U[v, i * dim + m] = u
-            if delta != delta:
-                return False
-            if _converged(delta, last, size):
-                converged = True
-                break
-            last = delta
-        if not converged:
-            return False
-    for v in range(k):
-        _update(V, v, U, d, s, dim)
-    return True
-
-
 @cache
 def _linear_solves(grad_hess):
-    """``(linearisation, tangent_by_lu)`` of the model kernel ``grad_hess(x,
-    par, g, D)`` = ∇H, D²H, which they call as a constant (see
-    :func:`gauss_stepper` for why it is not an argument)."""
+    """``(linearisation, tangent_by_lu, tangent_by_iteration)`` of the model
+    kernel ``grad_hess(x, par, g, D)`` = ∇H, D²H, which they call as a
+    constant (see :func:`gauss_stepper` for why it is not an argument).
+    Called, not inlined by numba: numba's inlining types and lowers a
+    function again at each call site, while LLVM inlines the compiled
+    helper where it pays (the step's cost and bits are the same)."""
 
-    @njit(error_model="numpy")
+    @_helper
     def linearisation(h, x, Z, A, M, s, dim, pars, y, g, D, F):
         """M = 1 − h (A ⊗ 1) blockdiag(Df(Y_j)) at the stages Y_j = x + Z_j, and
         F_j = f(Y_j) (f = J∇H, Df = J D²H; stage j's parameters ``pars[j]``)."""
@@ -360,7 +314,7 @@ def _linear_solves(grad_hess):
                         M[i * dim + r, j * dim + col] += f * D[n + r, col]
                         M[i * dim + n + r, j * dim + col] -= f * D[r, col]
 
-    @njit(error_model="numpy")
+    @_helper
     def tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s, dim):
         """The stage tangents U from one LU factorisation of the linearised
         stage equations at the converged stages; V ← V + Σ d_i (U_i − V).
@@ -377,7 +331,60 @@ def _linear_solves(grad_hess):
             _update(V, v, U, d, s, dim)
         return True
 
-    return linearisation, tangent_by_lu
+    @_helper
+    def tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s, dim):
+        """The stage tangents by fixed-point iteration of U_i = δx + h Σ_j a_ij
+        Df(Y_j) U_j to round-off (cheaper than the LU for a few vectors: s d²
+        per vector and iteration against (s d)³/3); V ← V + Σ d_i (U_i − V),
+        for all vectors or (returning False, when an iteration does not
+        converge; the caller then factorises) for none. ``H`` (s, 2N, 2N) is
+        scratch for D²H at the stages."""
+        n = dim // 2
+        for j in range(s):
+            for m in range(dim):
+                y[m] = x[m] + Z[j * dim + m]
+            grad_hess(y, pars[j], g, H[j])
+        for v in range(k):
+            for i in range(s):
+                for m in range(dim):
+                    U[v, i * dim + m] = V[v, m]
+            last = np.inf
+            converged = False
+            for _ in range(MAX_ITERATIONS):
+                # R_j = Df(Y_j) U_j = J D²H(Y_j) U_j.
+                for j in range(s):
+                    for r in range(dim):
+                        acc = 0.0
+                        for c in range(dim):
+                            acc += H[j, r, c] * U[v, j * dim + c]
+                        if r < n:
+                            R[j * dim + n + r] = -acc
+                        else:
+                            R[j * dim + r - n] = acc
+                delta = 0.0
+                size = 0.0
+                for i in range(s):
+                    for m in range(dim):
+                        acc = 0.0
+                        for j in range(s):
+                            acc += A[i, j] * R[j * dim + m]
+                        u = V[v, m] + h * acc
+                        delta = max(delta, abs(u - U[v, i * dim + m]))
+                        size = max(size, abs(u))
+                        U[v, i * dim + m] = u
+                if delta != delta:
+                    return False
+                if _converged(delta, last, size):
+                    converged = True
+                    break
+                last = delta
+            if not converged:
+                return False
+        for v in range(k):
+            _update(V, v, U, d, s, dim)
+        return True
+
+    return linearisation, tangent_by_lu, tangent_by_iteration
 
 
 @cache
@@ -403,8 +410,10 @@ def gauss_stepper(grad, grad_hess, dtime=no_dtime, S=-1, DIM=-1):
     registers: GL8 on the held-out angular coupling at τ = 0.2, 3.16 → 1.94
     µs per step (``studies/gauss_step_cost.py``, CPU time), bit for bit the
     same arithmetic (same operations in the same order). Compiled once per
-    kernels and (S, DIM); the helpers the loops call are inlined for the
-    same reason.
+    kernels and (S, DIM); LLVM inlines the helpers the step calls (numba
+    does not: its inlining typed and lowered each again per call site, a
+    sixth of a new model's compile, ``studies/compile_cost.py --cases
+    general``).
 
     Parameters
     ----------
@@ -420,9 +429,9 @@ def gauss_stepper(grad, grad_hess, dtime=no_dtime, S=-1, DIM=-1):
     numba dispatcher
         ``gauss_step``: see its docstring.
     """
-    linearisation, tangent_by_lu = _linear_solves(grad_hess)
+    linearisation, tangent_by_lu, tangent_by_iteration = _linear_solves(grad_hess)
 
-    @njit(error_model="numpy")
+    @_helper
     def gauss_step(h, x, V, k, pars, A, b, c, d, E, work, prev, timed, pt):
         """One Gauss–Legendre step of length h, in place on the orbit ``x``
         (2N,) and its tangent map on the ``k`` rows of ``V`` (k, 2N) (module
@@ -547,8 +556,8 @@ def gauss_stepper(grad, grad_hess, dtime=no_dtime, S=-1, DIM=-1):
             iterate = not newton and k <= FIXED_POINT_VECTORS
             # D²H at the stages for the iteration, in M's room (s·4N² ≤ (s·2N)²).
             H = work[off_m:off_m + s * dim * dim].reshape((s, dim, dim))
-            done = iterate and _tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s,
-                                                     dim, grad_hess)
+            done = iterate and tangent_by_iteration(h, x, V, k, pars, A, d, Z, U, H, R, y, g, s,
+                                                    dim)
             if not done and not tangent_by_lu(h, x, V, k, pars, A, d, Z, U, M, piv, y, g, D, F, s,
                                               dim):
                 return _FAILED, iterations
