@@ -29,7 +29,6 @@ from .methods.fresh_run import FreshRun
 from .models.base import Model
 from .models.potential_rows import NumPyPowers, Rows
 from .results import Provenance, _Result
-from .state import renormalized_copy
 
 # The first run is a :class:`varint.run.Run`, annotated ``Any``: naming it
 # here, even for the type checker only, would tie this module and the run
@@ -248,8 +247,7 @@ class ShortCall:
         fields = ind.finish(fields, options)
         x, status = run.x.copy(), run.status[0] if single else run.status.copy()
         if self.has_deviations:
-            W = (renormalized_copy(run.W, run.acc_m, run.acc_e, ind.renorm)[0] if self.sparse
-                 else run.W.copy())
+            W = run.renormalized(ind.renorm)[0] if self.sparse else run.W.copy()
             fields["deviations"] = W[0] if single else W
         # (No orbit failed: each made every step.)
         counters = (run.counters.tolist()[0] if m == 1
