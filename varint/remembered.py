@@ -129,9 +129,7 @@ def _frozen(value: Any, held: list, depth: int = 0, checks: list | None = None) 
             raise _Unkeyed
         if checks is not None:
             checks.append((_same_dict, (value, tuple(value), tuple(value.values()))))
-        # (Plain values inline: a model's attributes are mostly these.)
-        return kind, tuple([(k, (type(v), v) if type(v) in _PLAIN else
-                             _frozen(v, held, depth + 1, checks)) for k, v in value.items()])
+        return kind, _frozen_items(value, held, depth, checks)
     if kind is np.ndarray:
         if value.size > _ARRAY_MAX or value.dtype.hasobject:
             raise _Unkeyed
@@ -154,16 +152,31 @@ def _frozen(value: Any, held: list, depth: int = 0, checks: list | None = None) 
         return kind, id(value)
     if depth > _DEPTH:
         raise _Unkeyed
-    items = None
-    if kind.__getstate__ is not object.__getstate__:
-        attributes = value.__getstate__()
-        # (Its keys and objects, where it is a dict; anything else a new
-        # walk checks: None never matches a dict.)
-        items = ((tuple(attributes), tuple(attributes.values())) if type(attributes) is dict
-                 else (None, None))
+    if kind.__getstate__ is object.__getstate__:
+        if checks is not None:
+            checks.append((_same_state, (value, attributes, None)))
+        return kind, id(value), _frozen(attributes, held, depth + 1, checks)
+    attributes = value.__getstate__()
+    if type(attributes) is not dict:
+        if checks is not None:
+            checks.append((_same_state, (value, attributes, (None, None))))   # (never holds)
+        return kind, id(value), _frozen(attributes, held, depth + 1, checks)
+    if depth + 1 > _DEPTH:
+        raise _Unkeyed
     if checks is not None:
-        checks.append((_same_state, (value, attributes, items)))
-    return kind, id(value), _frozen(attributes, held, depth + 1, checks)
+        # A new dict at each call: its keys and objects compared by this
+        # check, not by a check of the dict.
+        checks.append((_same_state, (value, attributes,
+                                     (tuple(attributes), tuple(attributes.values())))))
+    return kind, id(value), (dict, _frozen_items(attributes, held, depth + 1, checks))
+
+
+def _frozen_items(value: dict, held: list, depth: int, checks: list | None) -> tuple:
+    """The items of the dict ``value`` (at ``depth``) as part of a key
+    (:func:`_frozen`)."""
+    # (Plain values inline: a model's attributes are mostly these.)
+    return tuple([(k, (type(v), v) if type(v) in _PLAIN else
+                   _frozen(v, held, depth + 1, checks)) for k, v in value.items()])
 
 
 def _same_items(items: list, then: tuple) -> bool:
