@@ -22,7 +22,7 @@ import numpy as np
 from . import _validate as check
 from . import accuracy, floating_errors, identity
 from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES
-from .kernels.energy_errors import (SEQUENTIAL_TERMS, energy_errors, relative_errors,
+from .kernels.energy_errors import (SEQUENTIAL_TERMS, energy_errors, hamiltonian_errors,
                                     state_energy_errors)
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
@@ -106,10 +106,13 @@ class ShortCall:
         self.plain = accuracy.plain_energy(first.model)
         self.errors_kernel = Resolved(energy_errors)
         #: Where the energy is a HamiltonianModel's own (H, not T + V), the
-        #: errors and the verdict's largest ones in one compiled call from
-        #: its H and scale (:func:`~varint.kernels.energy_errors.relative_errors`).
+        #: scale, the errors and the verdict's largest ones in one compiled
+        #: call from its H and V
+        #: (:func:`~varint.kernels.energy_errors.hamiltonian_errors`; V
+        #: zeros where its scale is |H|).
         self.hamiltonian = accuracy.hamiltonian_energy(first.model)
-        self.relative_kernel = Resolved(relative_errors)
+        self.hamiltonian_kernel = Resolved(hamiltonian_errors)
+        self.no_potential = np.zeros(m)
         #: What the verdict cannot check (the model's and propagator's,
         #: :func:`varint.accuracy.notes`), each verdict given a copy.
         self.notes = accuracy.notes(first.model, prop)
@@ -341,22 +344,23 @@ class ShortCall:
         return None
 
     def _hamiltonian_errors(self, states: np.ndarray) -> tuple[np.ndarray, bool] | None:
-        """(packed, finite) of :func:`~varint.kernels.energy_errors.relative_errors`
+        """(packed, finite) of :func:`~varint.kernels.energy_errors.hamiltonian_errors`
         for a model whose energy is a HamiltonianModel's own
-        (:func:`varint.accuracy.hamiltonian_energy`): H₀, its scale and
-        the later H as :func:`varint.accuracy.reference_and_errors` takes
-        them, under its floating-point handling; None where they are not
-        float vectors (the general path)."""
+        (:func:`varint.accuracy.hamiltonian_energy`): its H and V
+        (:meth:`~varint.models.hamiltonian.HamiltonianModel.row_energies`)
+        under :func:`varint.accuracy.reference_and_errors`' floating-point
+        handling; None where they are not float vectors (the general path)."""
         m = self.m
         quiet = floating_errors.ignoring()
         try:
-            h0, scale, h = self.first.model.start_and_later_energies(states[:m], states[m:])
+            h, v = self.first.model.row_energies(states, m)
         finally:
             floating_errors.restore(quiet)
-        if not (_float_vector(h0, m) and _float_vector(scale, m)
-                and _float_vector(h, len(states) - m)):
+        if v is None:
+            v = self.no_potential
+        if not (_float_vector(h, len(states)) and _float_vector(v, m)):
             return None
-        return self.relative_kernel(h0, scale, h, m, self.t)
+        return self.hamiltonian_kernel(h, v, m, self.t)
 
 
 def _equal_vectors(given: Any, W0: np.ndarray) -> bool:

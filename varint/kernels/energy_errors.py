@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-__all__ = ["energy_errors", "state_energy_errors", "relative_errors", "SEQUENTIAL_TERMS"]
+__all__ = ["energy_errors", "state_energy_errors", "hamiltonian_errors", "SEQUENTIAL_TERMS"]
 
 #: Below this many terms ``np.add.reduce`` adds them one after the other
 #: (NumPy's ``pairwise_sum``; from 8 on, eight running sums), which
@@ -56,7 +56,8 @@ def _errors(kinetic, potential, m, t):
 
 @njit(cache=True, error_model="numpy")
 def _relative(h0, scale, h, m, t):
-    # The body of relative_errors (see there).
+    # The errors |h − h0| / scale of the outputs h (output-major), the
+    # scale 1 where it is not positive, and each orbit's largest.
     s = h.size // m
     found = np.empty(m * (s + 2))
     finite = True
@@ -135,24 +136,28 @@ def state_energy_errors(states, potential, inverse_mass, m, t):
     return _errors(kinetic, potential, m, t)
 
 
-@njit(_RESULT(_VEC, _VEC, _VEC, types.int64, _VEC), cache=True, error_model="numpy")
-def relative_errors(h0, scale, h, m, t):
-    """:func:`energy_errors` from the energies already evaluated: H₀ and
-    its scale at the ``m`` initial states, H at the outputs (a
-    :class:`~varint.models.hamiltonian.HamiltonianModel`'s,
-    :meth:`~varint.models.hamiltonian.HamiltonianModel.start_and_later_energies`:
-    its H need not be T + V). The errors are
-    :func:`varint.accuracy._relative`'s operations, |H − H₀| / scale (the
-    scale 1 where it is not positive, as the model's ``energy_scale``
-    makes it already), and the largest with its time
-    :func:`varint.accuracy.assess`'s, bit for bit.
+@njit(_RESULT(_VEC, _VEC, types.int64, _VEC), cache=True, error_model="numpy")
+def hamiltonian_errors(h, v, m, t):
+    """:func:`energy_errors` of a model whose energy is H itself (a
+    :class:`~varint.models.hamiltonian.HamiltonianModel`'s, not T + V):
+    from H at the ``m`` initial states and the outputs and V at the
+    initial states (:meth:`~varint.models.hamiltonian.HamiltonianModel.row_energies`;
+    zeros where the model's scale is |H| alone: |H₀ − 0| + |0| is |H₀|
+    bit for bit). The scale |H₀ − V₀| + |V₀| (1 where it is not positive)
+    and the errors |H − H₀| / scale are
+    :meth:`~varint.models.hamiltonian.HamiltonianModel.energy_scale`'s and
+    :func:`varint.accuracy._relative`'s operations, and the largest with
+    its time :func:`varint.accuracy.assess`'s, bit for bit.
 
     Parameters
     ----------
-    h0, scale : ndarray, shape (m,)
-    h : ndarray, shape (s·m,)
-        Output j of orbit i at j·m + i (output-major).
+    h : ndarray, shape (m + s·m,)
+        H at the initial states, then at the outputs (output-major).
+    v : ndarray, shape (m,)
     m, t
         As for :func:`energy_errors`, which gives the results.
     """
-    return _relative(h0, scale, h, m, t)
+    scale = np.empty(m)
+    for i in range(m):
+        scale[i] = abs(h[i] - v[i]) + abs(v[i])
+    return _relative(h[:m], scale, h[m:], m, t)
