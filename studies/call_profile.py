@@ -68,7 +68,12 @@ its cube, :class:`varint.models.potential_rows.NumPyPowers`; the
 verdict's notes made once per prepared run): ``call18/`` holds
 ``call_profile_avx512_before`` (main a37e246, which has no compiled V
 there) and ``call_profile_avx512_after``, run one after the other in one
-load window, the figures against main in ``call_overhead.json``.
+load window, the figures against main in ``call_overhead.json``. Its
+eleventh (fix25: a model's key token kept while its walk's checks hold,
+``varint.remembered.model_token``; a HamiltonianModel's verdict compiled;
+the compact stepper's shape asked once) is stored under ``fix25/``:
+``call_profile_fix25_before`` (main a1228da's own script and code) and
+``call_profile_fix25``, run one after the other in one load window.
 
 Usage: ``python studies/call_profile.py [--quick] [--out DIR] [--calls N] [--label L]
 [--path oneshot prepared prepared_general] [--avx512]``
@@ -103,6 +108,7 @@ PATHS = ("oneshot", "prepared", "prepared_general")
 STAGES = (
     (0, "integrate (whole call)", "varint.api", "run"),
     (1, "key of a remembered call", "varint.remembered", "call_key"),
+    (2, "model's token (its checks)", "varint.remembered", "model_token"),
     (1, "remembered call (varint.remembered)", "varint.rerun:Rerun", "__call__"),
     (2, "x0 and its kernels finite, one pass", "varint._validate:KernelCheck", "states"),
     (2, "given vectors checked", "varint.rerun:ShortCall", "vectors"),

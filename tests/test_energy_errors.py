@@ -12,7 +12,8 @@ import pytest
 
 import varint
 from varint import accuracy
-from varint.kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy_errors
+from varint.kernels.energy_errors import (SEQUENTIAL_TERMS, energy_errors, hamiltonian_errors,
+                                         state_energy_errors)
 from varint.models import FPUT, HenonHeiles, Model, ThreeDof
 from varint.run import Run
 
@@ -160,3 +161,51 @@ def test_a_prepared_short_call_compiles_t_only_below_eight_terms(model, compiled
         assert got.accuracy.t_worst == alone.accuracy.t_worst
         assert got.accuracy.accurate == alone.accuracy.accurate
     assert not general      # every call after the first was a short one
+
+
+def _hamiltonian_models():
+    from varint.models.bar import bar_orbit
+
+    from .flows.steppers import coupled_general, cr3bp, relativistic
+
+    bar, bx0 = bar_orbit("regular")
+    x0 = np.array([0.3, 0.2, 0.1, 0.5])
+    return {"general": (coupled_general(), x0), "cr3bp": (cr3bp(), x0),
+            "relativistic": (relativistic(), x0), "bar": (bar, bx0)}
+
+
+@pytest.mark.parametrize("name", ["general", "cr3bp", "relativistic", "bar"])
+@pytest.mark.parametrize("m, s", [(1, 1), (1, 5), (3, 4)])
+def test_a_hamiltonian_models_errors_and_verdict_are_the_general_paths(name, m, s):
+    # H over the rows and V at the start (row_energies), then the scale,
+    # errors and largest ones compiled: the general path's bits (the
+    # reference's scale |H − V| + |V|, or |H| for a general H, whose V the
+    # kernel takes as zeros).
+    model, base = _hamiltonian_models()[name]
+    assert accuracy.hamiltonian_energy(model)
+    rng = np.random.default_rng(7)
+    x0 = base + 1e-2 * rng.standard_normal((m, model.dim))
+    x = np.tile(x0, (s, 1)) + 1e-4 * rng.standard_normal((s * m, model.dim))
+    t = 0.1 * np.arange(1, s + 1)
+    _, found = accuracy.reference_and_errors(model, x0, x)
+    errors = found["energy_error"].reshape(s, m).swapaxes(0, 1)
+    tol = float(np.median(errors))
+    verdict = accuracy.assess(t, {"energy_error": errors}, np.zeros(m, dtype=np.int64), tol,
+                              0.1, single=False)
+    h, v = model.row_energies(np.concatenate((x0, x)), m)
+    assert (v is None) == (name == "general")
+    got, largest, t_worst, accurate, finite = _unpacked(
+        *hamiltonian_errors(h, np.zeros(m) if v is None else v, m, t), m, s, tol)
+    assert finite
+    np.testing.assert_array_equal(got, errors, strict=False)
+    assert got.tobytes() == np.ascontiguousarray(errors).tobytes()
+    assert largest.tobytes() == verdict.energy_error.tobytes()
+    assert t_worst.tobytes() == verdict.t_worst.tobytes()
+    np.testing.assert_array_equal(accurate, verdict.accurate, strict=True)
+
+
+def test_a_zero_hamiltonian_scale_is_one():
+    # |H₀ − V₀| + |V₀| = 0: the scale is 1, as energy_scale's np.where.
+    h, v = np.array([0.0, 0.5, 0.25]), np.array([0.0])
+    found, finite = hamiltonian_errors(h, v, 1, np.array([1.0, 2.0]))
+    assert finite and found.tolist() == [0.5, 1.0, 0.5, 0.25]

@@ -235,3 +235,51 @@ def test_a_users_frozen_record_changed_in_place_changes_the_key():
     assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
     model.settings.scale[0] = 2.0
     assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key
+
+
+def test_a_models_key_is_walked_again_only_when_its_state_changed():
+    # The token of an unchanged model is the last walk's (its checks hold);
+    # a change anywhere in its state, a nested dict or an array included,
+    # makes a new walk and another key (the bar's state is 4 levels deep).
+    remembered.forget()
+    model, x0 = bar_orbit("regular")
+    key = remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0]
+    again = remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0]
+    assert again == key and again.items[0] is key.items[0]
+    original = model.planar["others"][2]
+    model.planar["others"][2] = (1.0, 1e-3)
+    changed = remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0]
+    assert changed != key
+    model.planar["others"][2] = original
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
+    inside = model._inside[0]
+    model._inside[0] = 2.0 * inside
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key
+    model._inside[0] = inside
+    model.values["omega"] = 0.054 + 0.0     # an equal float, another object
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] == key
+    model.values["omega"] = 1     # an int: another key
+    assert remembered.call_key(model, x0, "lyapunov", 1.0, 0.1, {})[0] != key
+
+
+def test_sparse_rows_of_a_fresh_run_are_the_snapshots_rows():
+    # A fresh run's snapshots copied between renormalisations: their rows
+    # renormalised by the kernel's compiled version over kept views are
+    # Snapshots.rows', bit for bit, and so are the renormalised vectors.
+    from varint.state import renormalized_copy
+
+    model, x0 = bar_orbit("regular")
+    prop = TangentMapPropagator(model, 0.2, Renorm.QR, scheme="SRKN14a", parallel=False)
+    if not prop.sparse:
+        pytest.skip("the bar's stepper renormalises at every step here")
+    run = prop.fresh_run(1, 2, np.array([2, 5]), np.empty((1, 0, 0)))
+    w = np.linalg.qr(np.random.default_rng(2).standard_normal((6, 2)))[0][None]
+    for _ in range(2):
+        run(np.array(x0, ndmin=2), w)
+        got, want = run.rows(Renorm.QR), run.snapshots.rows(Renorm.QR)
+        for name in ("x", "W", "acc_m", "acc_e", "step"):
+            assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
+        W, acc_m, acc_e = run.renormalized(Renorm.QR)
+        for a, b in zip((W, acc_m, acc_e), renormalized_copy(run.W, run.acc_m, run.acc_e,
+                                                            Renorm.QR), strict=True):
+            assert a.tobytes() == b.tobytes()

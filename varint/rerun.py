@@ -22,13 +22,13 @@ import numpy as np
 from . import _validate as check
 from . import accuracy, floating_errors, identity
 from .driver import CHUNK_SECONDS, SNAPSHOT_BYTES
-from .kernels.energy_errors import SEQUENTIAL_TERMS, energy_errors, state_energy_errors
+from .kernels.energy_errors import (SEQUENTIAL_TERMS, energy_errors, hamiltonian_errors,
+                                    state_energy_errors)
 from .kernels.resolved import Resolved
 from .methods.fresh_run import FreshRun
 from .models.base import Model
 from .models.potential_rows import NumPyPowers, Rows
 from .results import Provenance, _Result
-from .state import renormalized_copy
 
 # The first run is a :class:`varint.run.Run`, annotated ``Any``: naming it
 # here, even for the type checker only, would tie this module and the run
@@ -105,6 +105,14 @@ class ShortCall:
         #: T + V; otherwise by :func:`varint.accuracy.reference_and_errors`.
         self.plain = accuracy.plain_energy(first.model)
         self.errors_kernel = Resolved(energy_errors)
+        #: Where the energy is a HamiltonianModel's own (H, not T + V), the
+        #: scale, the errors and the verdict's largest ones in one compiled
+        #: call from its H and V
+        #: (:func:`~varint.kernels.energy_errors.hamiltonian_errors`; V
+        #: zeros where its scale is |H|).
+        self.hamiltonian = accuracy.hamiltonian_energy(first.model)
+        self.hamiltonian_kernel = Resolved(hamiltonian_errors)
+        self.no_potential = np.zeros(m)
         #: What the verdict cannot check (the model's and propagator's,
         #: :func:`varint.accuracy.notes`), each verdict given a copy.
         self.notes = accuracy.notes(first.model, prop)
@@ -242,8 +250,7 @@ class ShortCall:
         fields = ind.finish(fields, options)
         x, status = run.x.copy(), run.status[0] if single else run.status.copy()
         if self.has_deviations:
-            W = (renormalized_copy(run.W, run.acc_m, run.acc_e, ind.renorm)[0] if self.sparse
-                 else run.W.copy())
+            W = run.renormalized(ind.renorm)[0] if self.sparse else run.W.copy()
             fields["deviations"] = W[0] if single else W
         # (No orbit failed: each made every step.)
         counters = (run.counters.tolist()[0] if m == 1
@@ -273,51 +280,25 @@ class ShortCall:
         H not finite at ``x0``: it refuses the state)."""
         first, m = self.first, self.m
         model, tol = first.model, first.energy_tol
-        if self.plain:
-            n, rows = model.n_dof, len(states)
-            state_kernel, potential_kernel = self.state_kernel, self.potential_kernel
-            # V compiled (it warns about nothing), else the model's own
-            # (Reference's operations, once over the states and the
-            # outputs); T's operations compiled with the errors, else the
-            # model's own T: NumPy's parts under ignoring() (np.errstate's
-            # handling, for less: varint.floating_errors).
-            potential = None if potential_kernel is None else potential_kernel(states)
-            kinetic = None
-            if potential is None or state_kernel is None:
-                quiet = floating_errors.ignoring()
-                try:
-                    if potential is None:
-                        potential = model.potential(states[:, :n])
-                    if state_kernel is None:
-                        kinetic = model.kinetic(states[:, n:])
-                finally:
-                    floating_errors.restore(quiet)
-            if potential_kernel is None and not _float_vector(potential, rows):
-                # (The compiled V's is such a vector: np.empty(rows) filled.)
-                computed = None
-            elif state_kernel is not None:
-                computed = state_kernel(states, potential, model.inverse_mass, m, self.t)
-            elif _float_vector(kinetic, rows):
-                computed = self.errors_kernel(kinetic, potential, m, self.t)
+        computed = (self._plain_errors(states) if self.plain else
+                    self._hamiltonian_errors(states) if self.hamiltonian else None)
+        if computed is not None:
+            packed, finite = computed
+            if not finite:
+                return None
+            if single:
+                # (m = 1; NumPy scalars, as the general path's verdict
+                # holds.)
+                largest, t_worst, errors = packed[0], packed[1], packed[2:]
             else:
-                computed = None
-            if computed is not None:
-                packed, finite = computed
-                if not finite:
-                    return None
-                if single:
-                    # (m = 1; NumPy scalars, as the general path's verdict
-                    # holds.)
-                    largest, t_worst, errors = packed[0], packed[1], packed[2:]
-                else:
-                    largest, t_worst = packed[:m], packed[m:2 * m]
-                    errors = packed[2 * m:].reshape(m, len(self.t))
-                accurate = largest <= tol       # (assess's comparison)
-                verdict = accuracy.Accuracy(
-                    energy_error=largest, conserved={"energy": largest}, t_worst=t_worst,
-                    energy_tol=tol, accurate=accurate, tau=self.tau)
-                return errors, verdict, not accurate if single else bool(
-                    np.count_nonzero(accurate) < m)
+                largest, t_worst = packed[:m], packed[m:2 * m]
+                errors = packed[2 * m:].reshape(m, len(self.t))
+            accurate = largest <= tol       # (assess's comparison)
+            verdict = accuracy.Accuracy(
+                energy_error=largest, conserved={"energy": largest}, t_worst=t_worst,
+                energy_tol=tol, accurate=accurate, tau=self.tau)
+            return errors, verdict, not accurate if single else bool(
+                np.count_nonzero(accurate) < m)
         # Other conserved quantities (or T and V of another kind): the
         # general path's functions.
         _, found = accuracy.reference_and_errors(model, states[:m], states[m:])
@@ -329,6 +310,57 @@ class ShortCall:
                                   single)
         energy_error = blocks["energy_error"]
         return energy_error[0] if single else energy_error, verdict, True
+
+    def _plain_errors(self, states: np.ndarray) -> tuple[np.ndarray, bool] | None:
+        """(packed, finite) of :func:`~varint.kernels.energy_errors.energy_errors`
+        for a model whose energy is T + V (:func:`varint.accuracy.plain_energy`),
+        or None where T or V is not a float vector (the general path)."""
+        model, m = self.first.model, self.m
+        n, rows = model.n_dof, len(states)
+        state_kernel, potential_kernel = self.state_kernel, self.potential_kernel
+        # V compiled (it warns about nothing), else the model's own
+        # (Reference's operations, once over the states and the outputs);
+        # T's operations compiled with the errors, else the model's own T:
+        # NumPy's parts under ignoring() (np.errstate's handling, for less:
+        # varint.floating_errors).
+        potential = None if potential_kernel is None else potential_kernel(states)
+        kinetic = None
+        if potential is None or state_kernel is None:
+            quiet = floating_errors.ignoring()
+            try:
+                if potential is None:
+                    potential = model.potential(states[:, :n])
+                if state_kernel is None:
+                    kinetic = model.kinetic(states[:, n:])
+            finally:
+                floating_errors.restore(quiet)
+        if potential_kernel is None and not _float_vector(potential, rows):
+            # (The compiled V's is such a vector: np.empty(rows) filled.)
+            return None
+        if state_kernel is not None:
+            return state_kernel(states, potential, model.inverse_mass, m, self.t)
+        if _float_vector(kinetic, rows):
+            return self.errors_kernel(kinetic, potential, m, self.t)
+        return None
+
+    def _hamiltonian_errors(self, states: np.ndarray) -> tuple[np.ndarray, bool] | None:
+        """(packed, finite) of :func:`~varint.kernels.energy_errors.hamiltonian_errors`
+        for a model whose energy is a HamiltonianModel's own
+        (:func:`varint.accuracy.hamiltonian_energy`): its H and V
+        (:meth:`~varint.models.hamiltonian.HamiltonianModel.row_energies`)
+        under :func:`varint.accuracy.reference_and_errors`' floating-point
+        handling; None where they are not float vectors (the general path)."""
+        m = self.m
+        quiet = floating_errors.ignoring()
+        try:
+            h, v = self.first.model.row_energies(states, m)
+        finally:
+            floating_errors.restore(quiet)
+        if v is None:
+            v = self.no_potential
+        if not (_float_vector(h, len(states)) and _float_vector(v, m)):
+            return None
+        return self.hamiltonian_kernel(h, v, m, self.t)
 
 
 def _equal_vectors(given: Any, W0: np.ndarray) -> bool:

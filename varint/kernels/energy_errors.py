@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-__all__ = ["energy_errors", "state_energy_errors", "SEQUENTIAL_TERMS"]
+__all__ = ["energy_errors", "state_energy_errors", "hamiltonian_errors", "SEQUENTIAL_TERMS"]
 
 #: Below this many terms ``np.add.reduce`` adds them one after the other
 #: (NumPy's ``pairwise_sum``; from 8 on, eight running sums), which
@@ -43,20 +43,32 @@ _RESULT = types.Tuple((_VEC, types.boolean))
 
 @njit(cache=True, error_model="numpy")
 def _errors(kinetic, potential, m, t):
-    # The body of energy_errors (see there), shared with state_energy_errors.
-    s = (kinetic.size - m) // m
+    # The body of energy_errors (see there), shared with state_energy_errors:
+    # H₀ and the scale of each orbit, then the errors of its outputs.
+    h = np.empty(kinetic.size)
+    scale = np.empty(m)
+    for r in range(kinetic.size):
+        h[r] = kinetic[r] + potential[r]
+    for i in range(m):
+        scale[i] = abs(kinetic[i]) + abs(potential[i])
+    return _relative(h[:m], scale, h[m:], m, t)
+
+
+@njit(cache=True, error_model="numpy")
+def _relative(h0, scale, h, m, t):
+    # The errors |h − h0| / scale of the outputs h (output-major), the
+    # scale 1 where it is not positive, and each orbit's largest.
+    s = h.size // m
     found = np.empty(m * (s + 2))
     finite = True
     for i in range(m):
-        h0 = kinetic[i] + potential[i]
-        scale = abs(kinetic[i]) + abs(potential[i])
-        if not scale > 0.0:        # (NaN too, as np.where(scale > 0, scale, 1.0))
-            scale = 1.0
-        finite = finite and np.isfinite(h0)
+        h0_i, scale_i = h0[i], scale[i]
+        if not scale_i > 0.0:      # (NaN too, as np.where(scale > 0, scale, 1.0))
+            scale_i = 1.0
+        finite = finite and np.isfinite(h0_i)
         worst, at = -np.inf, 0
         for j in range(s):
-            row = m + j * m + i
-            e = abs((kinetic[row] + potential[row]) - h0) / scale
+            e = abs(h[j * m + i] - h0_i) / scale_i
             found[2 * m + i * s + j] = e
             finite = finite and np.isfinite(e)
             if e > worst:           # the first largest, as argmax
@@ -122,3 +134,30 @@ def state_energy_errors(states, potential, inverse_mass, m, t):
             total += (inverse_mass[j] * p) * p
         kinetic[r] = 0.5 * total
     return _errors(kinetic, potential, m, t)
+
+
+@njit(_RESULT(_VEC, _VEC, types.int64, _VEC), cache=True, error_model="numpy")
+def hamiltonian_errors(h, v, m, t):
+    """:func:`energy_errors` of a model whose energy is H itself (a
+    :class:`~varint.models.hamiltonian.HamiltonianModel`'s, not T + V):
+    from H at the ``m`` initial states and the outputs and V at the
+    initial states (:meth:`~varint.models.hamiltonian.HamiltonianModel.row_energies`;
+    zeros where the model's scale is |H| alone: |H₀ − 0| + |0| is |H₀|
+    bit for bit). The scale |H₀ − V₀| + |V₀| (1 where it is not positive)
+    and the errors |H − H₀| / scale are
+    :meth:`~varint.models.hamiltonian.HamiltonianModel.energy_scale`'s and
+    :func:`varint.accuracy._relative`'s operations, and the largest with
+    its time :func:`varint.accuracy.assess`'s, bit for bit.
+
+    Parameters
+    ----------
+    h : ndarray, shape (m + s·m,)
+        H at the initial states, then at the outputs (output-major).
+    v : ndarray, shape (m,)
+    m, t
+        As for :func:`energy_errors`, which gives the results.
+    """
+    scale = np.empty(m)
+    for i in range(m):
+        scale[i] = abs(h[i] - v[i]) + abs(v[i])
+    return _relative(h[:m], scale, h[m:], m, t)

@@ -21,6 +21,7 @@ driver's chunks gives the same bits (rule 3 of the propagator protocol).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..kernels import parts as K
 from ..kernels.interval import Call
@@ -29,6 +30,18 @@ from ..state import Snapshots
 from .fresh_run import _reset, fresh_rows, kept_rows, start
 
 __all__ = ["FreshPartsRun"]
+
+
+@njit(cache=True)
+def _snapshot(x_out, x, W_out, W, acc_m_out, acc_m, acc_e_out, acc_e, aux_out, aux):
+    """The state, vectors, stretching and accumulator copied into an
+    output's snapshot, in one compiled call (five NumPy ``copyto`` calls
+    cost ~3 µs on these few numbers): the same values."""
+    x_out[:] = x
+    W_out[:] = W
+    acc_m_out[:] = acc_m
+    acc_e_out[:] = acc_e
+    aux_out[:] = aux
 
 
 class FreshPartsRun:
@@ -101,8 +114,11 @@ class FreshPartsRun:
         starts = np.concatenate([[0], outs[:-1]])
         self._calls = [(orbit, setup, Call(int(b - a), int(a), tau, renorm, escape_r2),
                         self.status, done) for a, b in zip(starts, outs, strict=True)]
-        self._copies = [((sx[j], self.x), (sW[j], self.W), (s_acc_m[j], self.acc_m),
-                         (s_acc_e[j], self.acc_e), (s_aux[j], self._aux)) for j in range(s)]
+        # Each output's snapshot and what it copies (_snapshot's arguments:
+        # C-contiguous views of kept buffers, the same types at every call).
+        self._copies = [(sx[j], self.x, sW[j], self.W, s_acc_m[j], self.acc_m,
+                         s_acc_e[j], self.acc_e, s_aux[j], self._aux) for j in range(s)]
+        self._snapshot = Resolved(_snapshot)
         self._kernel = Resolved(kernel)
         self._buffers = (self._floats, self._floats_start, self._ints, self._ints_start,
                          self._x0, self.x, self.W, self._aux, self._aux0)
@@ -120,13 +136,12 @@ class FreshPartsRun:
         where an orbit failed (:attr:`status` nonzero: the general path
         then runs the call)."""
         start(self._reset, self._buffers, x0, W0)
-        kernel, status = self._kernel, self.status
+        kernel, status, snapshot = self._kernel, self.status, self._snapshot
         for args, copies in zip(self._calls, self._copies, strict=True):
             kernel(*args)
             if np.count_nonzero(status):
                 return
-            for dst, src in copies:
-                np.copyto(dst, src)
+            snapshot(*copies)
 
     def rows(self, renorm):
         """The last run's snapshots as :class:`~varint.state.Rows` (read-only

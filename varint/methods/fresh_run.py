@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from ..codegen.interval import CompensatedOrbit, Outputs, StepperOrbit
+from ..kernels.checks import renormalized_rows
 from ..kernels.resolved import Resolved
 from ..protocol import COUNTERS
 from ..state import Rows, Snapshots
@@ -189,6 +190,15 @@ class FreshRun:
         # needed, as read-only views of the kept buffers: made once, a
         # fresh Rows of them at each run (:meth:`rows`).
         self._rows = kept_rows(self.snapshots) if renormalized or not k else None
+        # Otherwise (sparse renormalisation): read-only views for the rows
+        # but their vectors, and the vectors' views, which each run's rows
+        # renormalise into new arrays (:meth:`rows`), as
+        # varint.state.renormalized_copy does, by its kernel's compiled
+        # version (the views, like the state's vectors, C-contiguous and
+        # writeable at every call: its one set of types).
+        self._sparse = (None if self._rows is not None else
+                        (kept_rows(self.snapshots), self.snapshots.rows(None)))
+        self._renormalized = Resolved(renormalized_rows)
 
     def __call__(self, x0, W0):
         """Run the orbits from states ``x0`` (M, 2N) with vectors ``W0``
@@ -213,6 +223,18 @@ class FreshRun:
         """The last run's snapshots as :class:`~varint.state.Rows`, as
         :meth:`varint.state.Snapshots.rows` gives them (read-only views of
         the kept buffers where no renormalised copy is made)."""
-        if self._rows is None:
+        if self._rows is not None:
+            return fresh_rows(self._rows)
+        if not renorm:
             return self.snapshots.rows(renorm)
-        return fresh_rows(self._rows)
+        shown, views = self._sparse
+        W, acc_m, acc_e = self._renormalized(views.W, int(renorm), views.acc_m, views.acc_e)
+        return Rows(x=shown.x, W=W, acc_m=acc_m, acc_e=acc_e, step=shown.step,
+                    extra=dict(shown.extra))
+
+    def renormalized(self, renorm):
+        """Renormalised copies of the last run's vectors and their
+        stretching, (W, acc_m, acc_e), as
+        :func:`varint.state.renormalized_copy` makes them (by its kernel's
+        compiled version, as :meth:`rows`)."""
+        return self._renormalized(self.W, int(renorm), self.acc_m, self.acc_e)

@@ -182,6 +182,9 @@ class TangentMapPropagator:
         self._counts = {}
         #: Per k: whether the written-out stepper costs no compile (:meth:`_ready`).
         self._readiness = {}
+        #: Whether the stages fit the compact loop (:func:`compact_shape`),
+        #: asked once: a short run asks at every call (issue 28).
+        self._compact_fits = None
 
     def _every(self, every):
         if every is None:
@@ -251,7 +254,9 @@ class TangentMapPropagator:
         forms = self._generated.setdefault(k, {})
         if forms is None:
             return None
-        compact = bool(compact) and compact_shape(self._kinds, self._corrected) is not None
+        if compact and self._compact_fits is None:
+            self._compact_fits = compact_shape(self._kinds, self._corrected) is not None
+        compact = bool(compact) and self._compact_fits
         if compact not in forms:
             forms[compact] = _generated_stepper(self.model, self._kinds, self._hc, k,
                                                 self.accumulator, self.compensated, compact)

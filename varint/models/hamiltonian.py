@@ -613,6 +613,18 @@ class HamiltonianModel(Model):
         h = self._values(self._numpy_H, np.concatenate((x0, x)), 0.0, self.dim, repeated=True)
         return h[:m], self._scale(h[:m], x0, repeated=True), h[m:]
 
+    def row_energies(self, states, m):
+        """(H at every row of ``states`` (R, 2N), V at its first ``m`` rows,
+        or None where the scale is |H| alone, a general H): the energies
+        :meth:`start_and_later_energies` and :meth:`energy_scale` compute
+        with them (their bits), for a time-independent H, evaluated as
+        repeated calls' are (:meth:`_values`); a short call's verdict
+        (:class:`varint.rerun.ShortCall`) computes the scale and the errors
+        in one compiled call from these."""
+        h = self._values(self._numpy_H, states, 0.0, self.dim, repeated=True)
+        return h, (None if self._numpy_V is None else
+                   self._potential_values(states[:m, :self.n_dof], repeated=True))
+
     def conserved(self, x, t=0.0, p_t=0.0):
         """The energy H (K = H + p_t for a time-dependent H); subclasses add
         their own first integrals (e.g. the Jacobi constant)."""
