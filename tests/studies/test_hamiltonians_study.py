@@ -54,3 +54,28 @@ def test_published_and_maps_quick(tmp_path):
         assert s["speedup"] > 0
     claims = json.loads((tmp_path / "hamiltonians.claims.json").read_text())
     assert any("map with defaults" in c["claim"] for c in claims)
+
+
+def _stored_bar_race(path, t_end):
+    rows = [{"orbit": "regular", "contender": c, "seconds": s, "x1": 0.04, "x1_reference": 0.05,
+             "error": 0.01, "t_end": t_end}
+            for c, s in (("galpy lyapunov rtol 1e-06", 600.0), ("AGAMA der=True", 0.001),
+                         ("varint ABA864 τ = 0.4", 0.0003))]
+    path.write_text(json.dumps({"bar": {"rows": rows, "load": [3.0, 2.0, 1.0], "clock": "cpu"},
+                                "_provenance": {"created": "2026-11-30T05:00:00+00:00",
+                                                "code": {"commit": "abc"}}}))
+    return path
+
+
+def test_stored_galpy_rows_name_their_run_and_are_refused_at_another_horizon(tmp_path):
+    """--galpy-stored takes only galpy's rows, each marked with the run it
+    comes from; a stored run to another t_end cannot stand in."""
+    path = _stored_bar_race(tmp_path / "hamiltonians_bar.json", 100.0)
+    rows = hamiltonians.stored_galpy_rows(path, "regular", 100.0)
+    assert [r["contender"] for r in rows] == ["galpy lyapunov rtol 1e-06"]
+    assert rows[0]["stored"] == {"file": str(path), "created": "2026-11-30T05:00:00+00:00",
+                                 "commit": "abc", "load": [3.0, 2.0, 1.0], "clock": "cpu"}
+    with pytest.raises(SystemExit, match="t = 100.0, this race to t = 20.0"):
+        hamiltonians.stored_galpy_rows(path, "regular", 20.0)
+    with pytest.raises(SystemExit, match="no galpy row of the 'chaotic' orbit"):
+        hamiltonians.stored_galpy_rows(path, "chaotic", 100.0)
