@@ -19,7 +19,9 @@ import sympy as sp
 import varint
 from varint import maps, step_cost
 from varint.maps import MAP_QUANTILE
+from varint.compiling import Clock
 from varint.methods.tm import TangentMapPropagator
+from varint.runspec import specify
 from varint.models import from_potential
 from varint.models.cr3bp import CR3BP, SUN_JUPITER_MU
 from varint.state import initial_deviations
@@ -150,6 +152,28 @@ def test_henon_heiles_defaults_build_no_log_hamiltonian():
     assert a.provenance.method == "tm" and np.array_equal(a.values, b.values)
 
 
+def test_three_body_map_of_the_study_runs_the_constant_step_measured_cheaper():
+    """The Sun–Jupiter FLI map of studies/hamiltonians.py (1172 orbits,
+    t = 1000): its LH at h = 0.274 costs 0.89 CPU s, SRKN14a's lanes at
+    τ = 0.125, the constant ladder's agreeing step, 0.65 s
+    (studies/results/map25/, AMD EPYC, load 4): the tables fitted on this
+    machine (studies/switch_check.py, part fit) price the LH's force
+    evaluation over lanes at 3.5–4.5 times the lanes', so the defaults run
+    constant steps at that τ (the Intel Xeon's tables, 2.2 times, ran the
+    LH). Only the pilot runs here: the prices, not a timing, choose."""
+    model = CR3BP(SUN_JUPITER_MU)
+    grid = model.section_grid(3.05, np.linspace(0.3, 0.85, 40), np.linspace(-0.3, 0.3, 30))
+    spec = specify(model, grid.states, "fli", 1000.0, None, method="tm",
+                                  t_out=None, seed=0, escape_radius=None, energy_tol=None,
+                                  what="x", kernels_what="x", t_out_name="t_check")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        h_choice, stepped = maps._cheaper_steps(spec, 1, Clock("the map", False))
+    assert h_choice is None and stepped is not None and stepped.tau == 0.125
+    prices = stepped.tau_choice["prices"]
+    assert 3.5 <= prices["log_gradient_cost"] / prices["constant_gradient_cost"] <= 4.5
+
+
 @pytest.mark.parametrize("cost, method", [(1e6, "tm"), (1e-6, "tm+log")])
 def test_switch_follows_the_prices(cost, method):
     """The three-body map's defaults with the LH's cost per force
@@ -264,13 +288,44 @@ def test_constant_pilot_that_wins_stops_the_lh_descent():
     assert np.array_equal(r.values, fixed.values, equal_nan=True)
 
 
+#: The tables of varint.step_cost fitted on an Intel Xeon (before map25's
+#: refit on an AMD EPYC), nanoseconds per operation of each class: tests
+#: of the switch's logic that need a map whose two prices lie close take
+#: them, whatever the machine the module's tables were fitted on.
+XEON_TABLES = {"LH_WEIGHTS": {"arithmetic": 0.0, "division": 0.57, "call": 4.1, "check": 1.3},
+               "LH_LANES_WEIGHTS": {"arithmetic": 0.0, "division": 0.18, "call": 1.3,
+                                    "check": 0.41},
+               "VECTOR_LANE_WEIGHTS": {"arithmetic": 0.0080, "division": 0.49, "call": 0.0,
+                                       "check": 0.68},
+               "SCALAR_LANE_WEIGHTS": {"arithmetic": 0.0, "division": 0.0, "call": 0.0,
+                                       "check": 4.0}}
+
+
+@pytest.fixture
+def xeon_tables():
+    """varint.step_cost priced by :data:`XEON_TABLES` (its per-process
+    caches cleared before and after)."""
+    by_kind = {name: {kind: table[cls] for cls, kinds in step_cost.CLASSES.items()
+                      for kind in kinds} for name, table in XEON_TABLES.items()}
+    caches = (step_cost._log_cost, step_cost._constant_cost)
+    with pytest.MonkeyPatch.context() as mp:
+        for name, table in by_kind.items():
+            mp.setattr(step_cost, name, table)
+        for cache in caches:
+            cache.cache_clear()
+        yield
+    for cache in caches:
+        cache.cache_clear()
+
+
+@pytest.mark.usefixtures("xeon_tables")
 def test_switch_skips_a_pilot_run_that_cannot_pay_for_itself():
     """The defaults' switch prices the pilot each choice still has to run
     (maps._pilot_share): once the LH's pilot is spent, a constant rung is
     judged only while its τ/2 pilot run and its map together cost less
     than the LH's map. A small map of the softened point mass (26
     orbits, p_y in [0.55, 0.95]: the LH priced 1.21x the constant step's
-    map by the tables of varint.step_cost, a rung's pilot run costs 0.6
+    map by the Xeon's tables of varint.step_cost, a rung's pilot run costs 0.6
     of its map; the kernels of the held-out test above and of
     tests/test_time_transform_step.py), runs counted by hook: no constant
     run after the LH's last is the fine run of a rung that cannot pay for
@@ -459,9 +514,10 @@ def test_descend_never_picks_a_failing_rung_nor_stops_before_a_cheaper_passing_o
     assert min(outcomes.values()) >= 20 and len(outcomes) == 3, outcomes
 
 
+@pytest.mark.usefixtures("xeon_tables")
 def test_constant_ladder_spares_the_fine_run_of_a_rung_failing_on_energy():
     """The small softened-point-mass map of the test above, where the LH
-    wins: its constant ladder, judged under the LH's prices, ends on the
+    wins by the Xeon's tables: its constant ladder, judged under the LH's prices, ends on the
     rung τ = 1/16, whose energy errors (0.086) exceed the ceiling
     (energy_tol 1e-3). Every constant pilot run made (counted by hook) is
     the coarse run of a rung judged, or the fine run of a rung judged by

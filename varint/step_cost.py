@@ -46,10 +46,14 @@ lanes failed its held-out check (``studies/switch_check.py``): the
 three-body lanes vectorise and cost 18 ns per force evaluation, the cored
 potential's, with ``(R² + r²)**(-2)`` in their Hessian, did not and cost
 32 (14 since the steppers print that power as a division,
-:mod:`varint.codegen.printer`, and their loop vectorises). The fitted tables give arithmetic no cost of its own (it overlaps the
-chains and the checks). Not seen: branch mispredictions, the cache (a
-step's state fits in L1), another machine's ratio of scalar to vector
-speed (the tables were fitted on one Intel Xeon).
+:mod:`varint.codegen.printer`, and their loop vectorises). The fitted tables give arithmetic
+little cost of its own (it overlaps the chains and the checks). Not seen:
+branch mispredictions, the cache (a step's state fits in L1), another
+machine's ratio of scalar to vector speed: the tables are fitted on one
+machine (an AMD EPYC with AVX-512, whose lanes run 2–3 times faster
+against the LH than an Intel Xeon's, on which they were fitted before:
+the choice changed on the three-body map, whose prices were within 1.3
+times of each other).
 """
 
 from __future__ import annotations
@@ -114,38 +118,44 @@ def _by_kind(per_class):
 #: run each stepper, fitted by non-negative least squares to the measured
 #: nanoseconds per force evaluation of the two maps of training models
 #: (``studies/switch_check.py`` part "fit", full grids, every row measured
-#: in one run, ``studies/results/switch_check.json``; Intel Xeon at
-#: 2.5 GHz, load 1–2 on 2 cores: the tables fitted at load 5–9 priced the
-#: LH's divisions 3.5 times dearer and so its step too cheap against the
-#: lanes, 5.9 times a lane's force evaluation on the cored potential
-#: against 8.5 measured), two significant figures. ``LH_WEIGHTS``: the LH stepper, one orbit in
-#: scalar code, whose chain (dτ = h/U needs V before each drift) makes it
-#: pay for divisions and calls, not for arithmetic. The constant step's
+#: in one run, ``studies/results/switch_check.json``; AMD EPYC (znver4,
+#: AVX-512), load 8–9 on 2 cores, CPU time; map25), two significant
+#: figures. The tables fitted before on an Intel Xeon at 2.5 GHz (load 1–2)
+#: priced a vectorised lane's force evaluation 2–3 times dearer than this
+#: machine runs it (the three-body problem's 13.6 ns against 4.9 measured
+#: on the full map of ``studies/hamiltonians.py``) and the LH over lanes
+#: at 2.2 times it against 4.0 measured, so that the defaults ran the LH
+#: on that map where the constant step agreeing at τ = 0.125 costs 0.73
+#: times as much (``studies/results/map25/``). ``LH_WEIGHTS``: the LH
+#: stepper, one orbit in scalar code, whose chain (dτ = h/U needs V before
+#: each drift) makes it pay for divisions and calls more than for
+#: arithmetic. The constant step's
 #: lanes: ``VECTOR_LANE_WEIGHTS`` where the loop over the lanes
 #: vectorises (:func:`vectorises`), ``SCALAR_LANE_WEIGHTS`` where it does
 #: not (a library call in the step: every lane then runs the whole step
 #: in scalar code; fitted on two models only, Toda's exponentials and the
 #: pendulums' sines and cosines, it prices their checks alone: leave one
-#: out 0.39 and 2.6).
+#: out 0.37 and 2.7).
 LH_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.57, "call": 4.1, "check": 1.3})
+    {"arithmetic": 0.29, "division": 0.62, "call": 3.0, "check": 0.13})
 #: Nanoseconds per operation of each class of the LH stepper as a map's
 #: long runs take it, over SIMD lanes (:mod:`varint.codegen.lh_lanes`,
 #: where :meth:`~varint.time_transform.LogHamiltonian.runs_in_lanes`):
 #: the same operations as :data:`LH_WEIGHTS` prices (every lane runs the
-#: one-orbit step's statements in the same order), :data:`LH_WEIGHTS`
-#: times the lanes' measured share of one orbit's time on the cored race
-#: map, 44.1 / 138.8 ns per force evaluation (``studies/lh_lanes.py``,
-#: ``studies/results/lhlanes17/lh_lanes.json``, t_end = 2000, one vector,
-#: load 10; AMD EPYC), two significant figures. The fit of its own
-#: (``studies/switch_check.py`` part "fit", column ``log_lanes``) did not
-#: finish at load 12–22 in lhprice18's session.
+#: one-orbit step's statements in the same order), fitted alike to the
+#: training maps over lanes (``studies/switch_check.py`` part "fit",
+#: column ``log_lanes``; its leave one out 0.43–2.2, the three-body
+#: problem 0.61), two significant figures. (Before: :data:`LH_WEIGHTS`
+#: times the lanes' share of one orbit's time on the cored race map,
+#: ``studies/results/lhlanes17/lh_lanes.json``.) Its library calls cost
+#: about as much as one orbit's (the lanes' ``lane_log`` is the branch-free
+#: ``vlog``); its arithmetic and divisions overlap across the lanes.
 LH_LANES_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.18, "call": 1.3, "check": 0.41})
+    {"arithmetic": 0.055, "division": 0.43, "call": 3.3, "check": 0.0})
 VECTOR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0080, "division": 0.49, "call": 0.0, "check": 0.68})
+    {"arithmetic": 0.011, "division": 0.18, "call": 0.0, "check": 0.35})
 SCALAR_LANE_WEIGHTS: Mapping[str, float] = _by_kind(
-    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 4.0})
+    {"arithmetic": 0.0, "division": 0.0, "call": 0.0, "check": 2.7})
 
 
 def vectorises(counts):
