@@ -306,7 +306,8 @@ def _points(rng, axes2, count, scale):
 
 @pytest.mark.parametrize("axes2, gm", [(_AXES2, 0.1), (np.array([16.0, 4.0, 0.25]), 0.7)])
 def test_lambda_and_w_against_40_digits(axes2, gm):
-    """λ (Newton's method on 1/S) to 4e-16 of a² + λ, W and W_i to 2e-15 of
+    """λ (Newton's method on 1/S, stopped early: test_ferrers_lambda) to
+    1e-8 of c² + λ, W and W_i to 2e-15 of
     their values, W_ij to 2e-13 and W_ijk to 2e-11 of the largest of each
     (measured 8e-14 and 9e-12; main's code 6e-14 and 4e-12: the partial
     fractions (W_i − W_j)/(a_j² − a_i²) cancel as λ grows past b² − c²) at
@@ -321,7 +322,7 @@ def test_lambda_and_w_against_40_digits(axes2, gm):
     for q in np.concatenate([points, surface]):
         lam_exact, W_exact, _ = _exact(q, axes2, gm)
         lam = ferrers_lambda(q * q, axes2)
-        assert lam > 0 and abs(lam - float(lam_exact)) <= 4e-16 * (axes2[0] + lam)
+        assert lam > 0 and abs(lam - float(lam_exact)) <= 1e-8 * (axes2[2] + lam)
         # At the 40-digit λ: the W's own error, apart from λ's.
         got = _w_tables(ferrers_w(float(lam_exact), axes2))
         exact = [np.array(np.vectorize(float)(np.array(w, dtype=object)), dtype=float)
