@@ -29,7 +29,10 @@ PROFILES = Path(__file__).resolve().parent.parent / "studies" / "results"
 #: * from stop 55's duplicates (studies/results/suite_profile_stop55.json):
 #:   a time-dependent general H's checked part-stepper kernel, with its
 #:   Gauss–Legendre steps (38 s); two rotating frames' part-stepper kernels
-#:   (16 s); a generated stepper of R1's compensation ladder (7 s).
+#:   (16 s); a generated stepper of R1's compensation ladder (7 s);
+#: * from stop 58's duplicates (studies/results/suite_profile.json): the
+#:   generated stepper of Hénon–Heiles' whole spectrum with ABA864 that
+#:   test_departure and test_results both compile (8 s).
 SHARED_UNITS = {
     **{f"tests/studies/{name}.py": "paper_quick"
        for name in ("test_table1", "test_paper_figures", "test_report", "test_roundoff_floor")},
@@ -49,6 +52,8 @@ SHARED_UNITS = {
     "tests/test_parts_checks.py": "general_parts",
     "tests/flows/test_split.py": "rotating_parts",
     "tests/test_rotating_generated.py": "rotating_parts",
+    "tests/test_departure.py": "hh_aba864_stepper",
+    "tests/test_results.py": "hh_aba864_stepper",
 }
 
 
