@@ -162,6 +162,7 @@ def main(argv=None):
                            "energy_error_base": e_base, "energy_error_this": e_this}
         print(f"{case}: X1 {x1_base} / {x1_this} (relative "
               f"{agreement[case]['x1_relative']:.1e}), energy error {e_base:.2e} / {e_this:.2e}")
+    Path(args.out).mkdir(parents=True, exist_ok=True)
     save_csv(args.out, "bar_call_cost", rows, list(rows[0]))
     save_json(args.out, "bar_call_cost", {"rows": rows, "base_over_this": ratio,
                                           "base": str(trees["base"]), "rounds": args.rounds,
