@@ -40,7 +40,8 @@ def _kg():
 
 def _bar():
     """The bar's rotating frame A + V on the part flows: without its extra
-    force (the bar's compiled kernel) it gets no generated stepper."""
+    force (`galaxy_force`: disc, bulge and bar in one compiled kernel) it gets
+    no generated stepper."""
     model, x0 = bar_orbit("chaotic")
     model.extra_force = None     # a fresh model: no other test sees it
     return model, x0[None]
