@@ -74,18 +74,30 @@ class ExtraForce:
     constants : tuple
         Its further arguments: floats, or tuples of floats (passed as
         arrays). They are written into the stepper's source as literals.
+    callees : tuple of modules
+        The modules of the compiled functions ``function`` calls (e.g. the
+        parts of a potential inlined into it), whose files name the stepper
+        as its own module's does.
     """
 
     function: object
     constants: tuple
+    callees: tuple = ()
 
     def identity(self):
         """What the stepper's code depends on: the function's module, name
-        and the hash of its module's file (numba's cache of a stepper does
-        not follow a changed callee), and the constants' exact values."""
+        and the hash of its module's file, the constants' exact values,
+        then the hash of each callee's file (numba's cache of a stepper
+        does not follow a changed callee)."""
         py = getattr(self.function, "py_func", self.function)
-        digest = hashlib.sha256(Path(py.__code__.co_filename).read_bytes()).hexdigest()[:16]
-        return f"{py.__module__}:{py.__qualname__}:{digest} {self.constants!r}"
+        digest = _file_digest(py.__code__.co_filename)
+        callees = "".join(f" {_file_digest(m.__file__)}" for m in self.callees)
+        return f"{py.__module__}:{py.__qualname__}:{digest} {self.constants!r}{callees}"
+
+
+def _file_digest(path):
+    """The first 16 hex digits of the SHA-256 of the file at ``path``."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)

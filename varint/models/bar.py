@@ -42,10 +42,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import numbers
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -118,18 +116,6 @@ def galaxy_force(q, g, D, hessian, table):
     ferrers_derivatives(q, table[6:9], table[5], g, D, hessian, table[9:], False)
 
 
-@dataclasses.dataclass(frozen=True)
-class _GalaxyForce(ExtraForce):
-    """:func:`galaxy_force` as an extra force whose identity also names the
-    code it calls: numba's cache of a stepper keeps its callees' compiled
-    code, so a changed disc, bulge or bar must name another stepper."""
-
-    def identity(self):
-        digests = [hashlib.sha256(Path(m.__file__).read_bytes()).hexdigest()[:16]
-                   for m in (galactic, ferrers)]
-        return f"{super().identity()} {' '.join(digests)}"
-
-
 class RotatingBar(IntegrableHamiltonian):
     """A Ferrers bar with a disc and a bulge in the bar's rotating frame
     (module docstring). Every argument defaults to the model of Skokos,
@@ -187,9 +173,12 @@ class RotatingBar(IntegrableHamiltonian):
         key = (tuple(self._axes2), v["bar_mass"])
         self.grad_v, self.grad_hess_v = _with_bar(self.grad_v, self.grad_hess_v, *key, 0)
         self.grad_h, self.grad_hess_h = _with_bar(self.grad_h, self.grad_hess_h, *key, 0)
-        self.extra_force = _GalaxyForce(galaxy_force, (tuple(
+        # (Its callees name the stepper too: a changed disc, bulge or bar
+        # must not run a stepper numba cached with the old code inlined.)
+        self.extra_force = ExtraForce(galaxy_force, (tuple(
             [v[k] for k in ("disc_mass", "disc_a", "disc_b", "bulge_mass", "bulge_radius",
-                            "bar_mass")] + self._axes2.tolist() + self._inside.tolist()),))
+                            "bar_mass")] + self._axes2.tolist() + self._inside.tolist()),),
+            callees=(galactic, ferrers))
 
     def closed_symbolic(self):
         """The closed part of a generated stepper as
